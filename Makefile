@@ -1,0 +1,151 @@
+# stillheart — build, test, benchmark, install.
+#   make              library, the `stillheart` command and tools
+#   make check        installs Debian deps if missing, runs the unit suite, then again under ASan+UBSan
+#   make bench        benchmarks beside their peers (OpenCV cv::remap, ...)
+#   make fuzz         every libFuzzer harness for FUZZ_SECONDS each
+#   make install      PREFIX=/usr/local DESTDIR=
+# Optional backends are built only when pkg-config (or the header) finds their library.
+
+CC       ?= cc
+CXX      ?= c++
+ifeq ($(origin CC),default)
+CC       := cc
+endif
+ifeq ($(origin CXX),default)
+CXX      := c++
+endif
+PKG_CONFIG ?= pkg-config
+PREFIX   ?= /usr/local
+DESTDIR  ?=
+BUILD    ?= build
+SAN      ?= 0
+FUZZ_SECONDS ?= 30
+
+OPT      ?= -O2
+# -ffp-contract=off: the same rounding on every architecture (aarch64 gcc would fuse a*b+c).
+COMMON   := $(OPT) -g -Wall -Wextra -Werror -ffp-contract=off -fno-strict-aliasing -Iinclude -MMD -MP
+CFLAGS_ALL   := -std=c11 -D_POSIX_C_SOURCE=200809L -D_DEFAULT_SOURCE $(COMMON) $(CFLAGS)
+CXXFLAGS_ALL := -std=c++17 $(COMMON) $(CXXFLAGS)
+LDLIBS_ALL   := -lm -lpthread
+
+ifeq ($(SAN),1)
+SANFLAGS := -fsanitize=address,undefined -fno-sanitize-recover=all -fno-omit-frame-pointer
+CFLAGS_ALL   += $(SANFLAGS)
+CXXFLAGS_ALL += $(SANFLAGS)
+LDFLAGS      += $(SANFLAGS)
+endif
+
+have = $(shell $(PKG_CONFIG) --exists $(1) 2>/dev/null && echo 1)
+
+# Required: qhull_r (Delaunay), Eigen (dense solves).
+REQ_PKGS := qhull_r eigen3
+CFLAGS_ALL   += $(shell $(PKG_CONFIG) --cflags qhull_r 2>/dev/null)
+CXXFLAGS_ALL += $(shell $(PKG_CONFIG) --cflags eigen3 2>/dev/null)
+LDLIBS_ALL   += $(shell $(PKG_CONFIG) --libs qhull_r 2>/dev/null) -lstdc++
+
+# Optional: libpng (PNG output).
+ifeq ($(call have,libpng),1)
+CFLAGS_ALL += -DSH_HAVE_PNG $(shell $(PKG_CONFIG) --cflags libpng)
+LDLIBS_ALL += $(shell $(PKG_CONFIG) --libs libpng)
+endif
+
+# OpenCV, for benchmarks and test oracles only (Debian's -core/-imgproc packages ship no .pc).
+OPENCV_INC := $(firstword $(wildcard /usr/include/opencv4))
+ifneq ($(OPENCV_INC),)
+OPENCV_CFLAGS := -I$(OPENCV_INC)
+OPENCV_LIBS   := -lopencv_imgproc -lopencv_core
+endif
+
+# ---- the library: every module folder under src/ except the programs ----
+LIB_DIRS := $(filter-out src/app,$(wildcard src/*))
+LIB_C    := $(foreach d,$(LIB_DIRS),$(wildcard $(d)/*.c))
+LIB_CXX  := $(foreach d,$(LIB_DIRS),$(wildcard $(d)/*.cpp))
+LIB_OBJ  := $(LIB_C:%.c=$(BUILD)/%.o) $(LIB_CXX:%.cpp=$(BUILD)/%.o)
+LIB      := $(BUILD)/libstillheart.a
+
+APP_OBJ  := $(patsubst %.c,$(BUILD)/%.o,$(wildcard src/app/*.c))
+APP      := $(BUILD)/stillheart
+
+TEST_SRC := $(wildcard tests/unit/test_*.c)
+TEST_BIN := $(TEST_SRC:tests/unit/%.c=$(BUILD)/tests/%)
+TEST_SUPPORT := $(patsubst %.c,$(BUILD)/%.o,$(filter-out $(TEST_SRC),$(wildcard tests/unit/*.c)))
+
+.PHONY: all deps tests check check-asan bench fuzz install clean
+all: $(LIB) $(APP)
+
+deps:
+	@sh scripts/install-deps.sh
+
+$(BUILD)/%.o: %.c
+	@mkdir -p $(dir $@)
+	$(CC) $(CFLAGS_ALL) -c $< -o $@
+
+$(BUILD)/%.o: %.cpp
+	@mkdir -p $(dir $@)
+	$(CXX) $(CXXFLAGS_ALL) -c $< -o $@
+
+$(LIB): $(LIB_OBJ)
+	@mkdir -p $(dir $@)
+	rm -f $@
+	$(AR) rcs $@ $^
+
+$(APP): $(APP_OBJ) $(LIB)
+	$(CC) $(LDFLAGS) $(APP_OBJ) $(LIB) $(LDLIBS_ALL) -o $@
+
+$(BUILD)/tests/%: $(BUILD)/tests/unit/%.o $(TEST_SUPPORT) $(LIB)
+	@mkdir -p $(dir $@)
+	$(CC) $(LDFLAGS) $< $(TEST_SUPPORT) $(LIB) $(shell $(PKG_CONFIG) --libs cmocka) $(LDLIBS_ALL) -o $@
+
+tests: $(TEST_BIN) $(APP)
+
+# The suite: plain build, then the same tests under ASan+UBSan; one summary line at the end.
+check: deps
+	$(MAKE) --no-print-directory tests
+	$(MAKE) --no-print-directory BUILD=build-asan SAN=1 OPT=-O1 tests
+	@sh tests/run-tests.sh build build-asan
+
+check-asan:
+	$(MAKE) --no-print-directory BUILD=build-asan SAN=1 OPT=-O1 tests
+	@sh tests/run-tests.sh build-asan
+
+# ---- benchmarks (tools/bench): ours beside the peer, in one process ----
+BENCH_SRC := $(wildcard tools/bench/*.cpp)
+BENCH_BIN := $(BENCH_SRC:tools/bench/%.cpp=$(BUILD)/bench/%)
+$(BUILD)/bench/%: tools/bench/%.cpp $(LIB)
+	@mkdir -p $(dir $@)
+	$(CXX) $(CXXFLAGS_ALL) $(OPENCV_CFLAGS) $< $(LIB) $(OPENCV_LIBS) $(LDLIBS_ALL) -o $@
+
+bench: deps
+	$(MAKE) --no-print-directory $(BENCH_BIN)
+	@for b in $(BENCH_BIN); do echo "== $$b"; $$b || exit 1; done
+
+# ---- fuzzing (clang + libFuzzer) ----
+FUZZ_SRC := $(wildcard tests/fuzz/fuzz_*.c)
+FUZZ_BIN := $(FUZZ_SRC:tests/fuzz/%.c=build-fuzz/%)
+FUZZ_FLAGS := -std=c11 -D_POSIX_C_SOURCE=200809L -D_DEFAULT_SOURCE -g -O1 -Iinclude \
+	-fsanitize=fuzzer,address,undefined -fno-sanitize-recover=all
+build-fuzz/%: tests/fuzz/%.c $(LIB_C) $(LIB_CXX)
+	@mkdir -p build-fuzz
+	$(MAKE) --no-print-directory BUILD=build-fuzz/lib CC=clang CXX=clang++ SAN=0 \
+		CFLAGS="-fsanitize=fuzzer-no-link,address,undefined" \
+		CXXFLAGS="-fsanitize=fuzzer-no-link,address,undefined" build-fuzz/lib/libstillheart.a
+	clang $(FUZZ_FLAGS) $(shell $(PKG_CONFIG) --cflags qhull_r) $< build-fuzz/lib/libstillheart.a \
+		$(filter-out -lstdc++,$(LDLIBS_ALL)) -lstdc++ -o $@
+
+fuzz: deps $(FUZZ_BIN)
+	@for f in $(FUZZ_BIN); do n=$$(basename $$f); echo "== $$n ($(FUZZ_SECONDS) s)"; \
+		mkdir -p build-fuzz/corpus/$$n; \
+		$$f -max_total_time=$(FUZZ_SECONDS) -print_final_stats=1 build-fuzz/corpus/$$n tests/fuzz/corpus/$$n \
+			2>build-fuzz/$$n.log || { tail -40 build-fuzz/$$n.log; exit 1; }; \
+		grep -E 'stat::number_of_executed_units' build-fuzz/$$n.log; done
+
+install: all
+	install -d $(DESTDIR)$(PREFIX)/bin $(DESTDIR)$(PREFIX)/include/stillheart $(DESTDIR)$(PREFIX)/lib
+	install -m 0755 $(APP) $(DESTDIR)$(PREFIX)/bin/stillheart
+	install -m 0644 include/stillheart/*.h $(DESTDIR)$(PREFIX)/include/stillheart/
+	install -m 0644 $(LIB) $(DESTDIR)$(PREFIX)/lib/
+
+clean:
+	rm -rf build build-asan build-fuzz
+
+-include $(shell find $(BUILD) -name '*.d' 2>/dev/null)

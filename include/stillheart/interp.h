@@ -1,0 +1,80 @@
+/* Scattered-data interpolants of the paper (section III-B, Table I), built once per reference.
+ *
+ * Every method is linear in the values it interpolates:
+ *     value(q) = sum_k  basis_k(q) * coef[index_k],   coef = L(values)  (a linear map)
+ * sh_interp_create does all the work that depends on the reference positions only (Delaunay
+ * triangulation, factoring the RBF system, the B-spline lattices); sh_interp_fit turns the
+ * current values into coefficients (cheap: a back-substitution or a B-spline pass), and
+ * sh_interp_basis gives the sparse basis row at any point, which the warp caches on its grid. */
+#ifndef STILLHEART_INTERP_H
+#define STILLHEART_INTERP_H
+
+#include "stillheart/core.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef enum {
+    SH_METHOD_AFFINE = 0, /* least-squares affine map, >= 3 non-collinear points */
+    SH_METHOD_PWLINEAR,   /* linear on the Delaunay triangles of the reference points (libqhull_r) */
+    SH_METHOD_BSPLINE,    /* multilevel B-splines, Lee, Wolberg & Shin 1997 */
+    SH_METHOD_RBF_LOCAL,  /* phi(r) = 1 - (r/s)^2 (3 - 2 r/s) for r < s, else 0 */
+    SH_METHOD_TPS,        /* phi(r) = r^2 log r */
+    SH_METHOD_GAUSSIAN,   /* phi(r) = exp(-r^2 / s^2) */
+    SH_METHOD_COUNT
+} sh_method;
+
+typedef struct {
+    sh_method method;
+    int affine_term;  /* RBFs: 1 = add r1 + r2 x + r3 y with its three side conditions */
+    double sigma;     /* RBFs: scale s in pixels (paper: 95 local, 100 Gaussian; unused by TPS) */
+    int levels;       /* B-spline: number of levels; 0 = as many as exact interpolation needs */
+    double smoothing; /* RBFs: 0 = interpolate; lambda > 0 approximates (lambda added to the
+                         kernel matrix's diagonal). Other methods refuse a non-zero value. */
+} sh_interp_params;
+
+/* Paper defaults for the method: affine term on, sigma 95 / 100, automatic levels, exact. */
+void sh_interp_params_default(sh_interp_params *params, sh_method method);
+
+/* Parses a method name as the command line spells it: affine, pwlinear, bspline, rbf-local,
+ * tps, gaussian, and the variants without the affine term: rbf-local-pure, tps-pure,
+ * gaussian-pure. Fills params with that method's defaults. */
+sh_status sh_interp_params_parse(const char *name, sh_interp_params *params);
+const char *sh_interp_method_name(sh_method method);
+
+typedef struct sh_interp sh_interp;
+
+/* ref_xy: n points as x0,y0,x1,y1,...; copied. Degenerate input (too few points, collinear,
+ * duplicates, NaN/inf) returns SH_EDEGENERATE or SH_EINVAL with a message naming the problem. */
+sh_status sh_interp_create(const sh_interp_params *params, const double *ref_xy, int n,
+                           sh_interp **out);
+void sh_interp_destroy(sh_interp *interp);
+
+int sh_interp_num_points(const sh_interp *interp);
+int sh_interp_num_coefs(const sh_interp *interp);
+/* Upper bound on the terms sh_interp_basis writes at any point. */
+int sh_interp_max_terms(const sh_interp *interp);
+
+/* values: n x dim (row-major, dim 1..3), in the order of the reference points.
+ * coef: num_coefs x dim, caller-allocated. No allocation; safe to call from several threads
+ * on the same interp with different buffers. */
+sh_status sh_interp_fit(const sh_interp *interp, const double *values, int dim, double *coef);
+
+/* Sparse basis row at (x, y): writes count (index, weight) pairs and returns count (>= 0).
+ * Piecewise linear returns 0 terms outside the convex hull of the reference points. */
+int sh_interp_basis(const sh_interp *interp, double x, double y, int *index, double *weight);
+
+/* value(x, y) = sum basis * coef, for dim components. */
+sh_status sh_interp_eval(const sh_interp *interp, const double *coef, int dim, double x, double y,
+                         double *out);
+
+/* Piecewise linear only: the Delaunay triangles as vertex-index triples (3 * count ints,
+ * counter-clockwise in image coordinates as drawn with y down: i.e. positive signed area
+ * (x1-x0)(y2-y0) - (x2-x0)(y1-y0) > 0). Other methods: count 0. */
+int sh_interp_triangles(const sh_interp *interp, const int **triangles);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

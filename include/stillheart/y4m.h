@@ -1,0 +1,57 @@
+/* YUV4MPEG2 (Y4M) streams: the reader and writer of every stillheart video.
+ *
+ * Supported colour spaces: Cmono (GRAY8), C420jpeg / C420 / C420mpeg2 / C420paldv (I420 with the
+ * siting recorded in the image), C444 (YUV444). Frame-rate (F), aspect (A), interlacing (I) tags
+ * are parsed; X tags (XCOLORRANGE=FULL, ...) and unknown tags are kept verbatim and written back
+ * by a writer created from the reader's header. */
+#ifndef STILLHEART_Y4M_H
+#define STILLHEART_Y4M_H
+
+#include <stdio.h>
+
+#include "stillheart/image.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define SH_Y4M_MAX_EXTRA 1024
+
+typedef struct {
+    int width, height;
+    sh_pixfmt format;          /* GRAY8, I420 or YUV444 */
+    sh_chroma_siting siting;   /* for I420 */
+    int fps_num, fps_den;      /* 0/0 when the stream gave none */
+    int aspect_num, aspect_den;/* 0:0 = unknown */
+    char interlace;            /* 'p', 't', 'b', 'm' or 0 when absent */
+    char extra[SH_Y4M_MAX_EXTRA]; /* X tags and unknown tags, space separated, verbatim */
+} sh_y4m_header;
+
+typedef struct sh_y4m_reader sh_y4m_reader;
+
+/* path "-" reads stdin. A bad header fails here with a message naming the file. */
+sh_status sh_y4m_reader_open(const char *path, sh_y4m_reader **out);
+const sh_y4m_header *sh_y4m_reader_header(const sh_y4m_reader *reader);
+/* Reads the next frame into img (created by the caller with the header's format and size).
+ * Returns SH_EEOF at a clean end; a damaged FRAME line or a truncated frame returns SH_EFORMAT
+ * naming the file and the 0-based frame index; frames before it were already delivered. */
+sh_status sh_y4m_reader_read(sh_y4m_reader *reader, sh_image *img);
+int sh_y4m_reader_frame_index(const sh_y4m_reader *reader); /* frames delivered so far */
+void sh_y4m_reader_close(sh_y4m_reader *reader);
+
+typedef struct sh_y4m_writer sh_y4m_writer;
+
+/* path "-" writes stdout. The header is written at once. */
+sh_status sh_y4m_writer_open(const char *path, const sh_y4m_header *header, sh_y4m_writer **out);
+sh_status sh_y4m_writer_write(sh_y4m_writer *writer, const sh_image *img);
+/* Flushes and closes; reports a failed flush (disk full) as SH_EIO. */
+sh_status sh_y4m_writer_close(sh_y4m_writer *writer);
+
+/* Parses a header line (without "YUV4MPEG2 " magic check done by the caller: the full line,
+ * starting with "YUV4MPEG2", without the newline). Exposed for fuzzing and tests. */
+sh_status sh_y4m_header_parse(const char *line, size_t len, sh_y4m_header *header);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

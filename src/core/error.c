@@ -1,0 +1,36 @@
+#include "stillheart/core.h"
+
+#include <stdarg.h>
+#include <stdio.h>
+
+static _Thread_local char last_message[512];
+
+sh_status sh_error_set(sh_status code, const char *fmt, ...)
+{
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(last_message, sizeof last_message, fmt, ap);
+    va_end(ap);
+    return code;
+}
+
+const char *sh_error_message(void)
+{
+    return last_message;
+}
+
+const char *sh_status_name(sh_status code)
+{
+    switch (code) {
+    case SH_OK: return "ok";
+    case SH_EINVAL: return "invalid argument";
+    case SH_ENOMEM: return "out of memory";
+    case SH_EIO: return "i/o error";
+    case SH_EFORMAT: return "malformed input";
+    case SH_EDEGENERATE: return "degenerate geometry";
+    case SH_EEOF: return "end of stream";
+    case SH_EUNSUPPORTED: return "unsupported";
+    case SH_ERANGE: return "out of range";
+    }
+    return "unknown status";
+}

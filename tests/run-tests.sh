@@ -1,0 +1,19 @@
+#!/bin/sh
+# Runs every cmocka test binary in the given build folders and closes with one summary line
+# ("N passed, N failed") that counts test cases, not binaries.
+passed=0; failed=0; crashed=""
+for dir in "$@"; do
+    for t in "$dir"/tests/test_*; do
+        [ -x "$t" ] || continue
+        echo "== $t"
+        out=$("$t" 2>&1); rc=$?
+        printf '%s\n' "$out"
+        p=$(printf '%s\n' "$out" | sed -n 's/^\[  PASSED  \] \([0-9]*\) test.*/\1/p' | tail -1)
+        f=$(printf '%s\n' "$out" | sed -n 's/^\[  FAILED  \] \([0-9]*\) test.*/\1/p' | tail -1)
+        passed=$((passed + ${p:-0})); failed=$((failed + ${f:-0}))
+        if [ "$rc" -ne 0 ] && [ -z "$f" ]; then failed=$((failed + 1)); crashed="$crashed $t"; fi
+    done
+done
+[ -n "$crashed" ] && echo "crashed or exited non-zero:$crashed"
+echo "$passed passed, $failed failed"
+[ "$failed" -eq 0 ] && [ "$passed" -gt 0 ]
