@@ -63,6 +63,11 @@ void sh_image_destroy(sh_image *img);
 /* Copies pixels between two images of the same format and size (strides may differ). */
 sh_status sh_image_copy(sh_image *dst, const sh_image *src);
 
+/* Converts any format to RGB24 (dst created by the caller at the same size). YUV uses BT.601
+ * coefficients, full range (0..255) when full_range, else limited (16..235 / 16..240); chroma
+ * is upsampled bilinearly honouring the siting. GRAY8 replicates the grey. */
+sh_status sh_image_to_rgb(const sh_image *src, sh_image *dst, int full_range);
+
 /* Sets every pixel to black (Y=16 for limited-range YUV is not assumed: Y=0, U=V=128). */
 void sh_image_clear(sh_image *img);
 
