@@ -139,6 +139,14 @@ fuzz: deps $(FUZZ_BIN)
 			2>build-fuzz/$$n.log || { tail -40 build-fuzz/$$n.log; exit 1; }; \
 		grep -E 'stat::number_of_executed_units' build-fuzz/$$n.log; done
 
+# Tools (tools/<name>/) bring their own rules in a fragment: tools/<name>/<name>.mk. A fragment
+# adds its programs to TOOLS (built by `make`), its tests to TOOL_TESTS (run by `make check`).
+TOOLS :=
+TOOL_TESTS :=
+-include $(wildcard tools/*/*.mk)
+all: $(TOOLS)
+tests: $(TOOL_TESTS)
+
 install: all
 	install -d $(DESTDIR)$(PREFIX)/bin $(DESTDIR)$(PREFIX)/include/stillheart $(DESTDIR)$(PREFIX)/lib
 	install -m 0755 $(APP) $(DESTDIR)$(PREFIX)/bin/stillheart
