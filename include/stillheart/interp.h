@@ -51,6 +51,7 @@ sh_status sh_interp_create(const sh_interp_params *params, const double *ref_xy,
                            sh_interp **out);
 void sh_interp_destroy(sh_interp *interp);
 
+sh_method sh_interp_method(const sh_interp *interp);
 int sh_interp_num_points(const sh_interp *interp);
 int sh_interp_num_coefs(const sh_interp *interp);
 /* Upper bound on the terms sh_interp_basis writes at any point. */
