@@ -1,0 +1,72 @@
+/* The 2D warp (paper Algorithm 1), split as DESIGN.md explains:
+ *
+ *  - sh_warp_model: everything that depends on the reference positions of one marker set
+ *    (the convex hull, the interpolant's basis cached on a grid, or the Delaunay triangles).
+ *    Built once per reference and marker set; sh_warp_model_update then gives the map for the
+ *    current positions (a small sparse matrix product on the grid).
+ *  - sh_warp: the executor (worker threads, stripes) that fills the output frame: for every
+ *    output pixel inside the hull, the map interpolated from the grid (or exact, for affine and
+ *    piecewise linear), then a bilinear sample of the current frame; black outside the hull
+ *    and where the map leaves the current frame.
+ *
+ * Coordinates: pixel (x, y) has its centre at (x, y), in the full-resolution (luma / RGB) plane.
+ *
+ * Grid error: between grid nodes the map is interpolated bilinearly. Its error is bounded by
+ * h^2/8 (|f_xx| + |f_yy|); each update estimates that bound for every cell from the second
+ * differences of the map on the grid. When the bound exceeds max_error the grid is refined
+ * (spacing halved, basis rebuilt: the only time an update allocates) until it holds. */
+#ifndef STILLHEART_WARP_H
+#define STILLHEART_WARP_H
+
+#include "stillheart/hull.h"
+#include "stillheart/image.h"
+#include "stillheart/interp.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef struct {
+    double max_error;  /* largest tolerated map error in pixels (default 0.05) */
+    int grid_spacing;  /* initial grid spacing in pixels, a power of two (default 8) */
+} sh_warp_options;
+
+void sh_warp_options_default(sh_warp_options *opts);
+
+typedef struct sh_warp_model sh_warp_model;
+
+/* interp must be built on the same ref_xy (n points) and outlive the model. width x height is
+ * the frame geometry (full-resolution plane). */
+sh_status sh_warp_model_create(const sh_interp *interp, const double *ref_xy, int n, int width,
+                               int height, const sh_warp_options *opts, sh_warp_model **out);
+void sh_warp_model_destroy(sh_warp_model *model);
+
+/* The current positions of the same n points, in the same order. */
+sh_status sh_warp_model_update(sh_warp_model *model, const double *cur_xy);
+
+const sh_hull *sh_warp_model_hull(const sh_warp_model *model);
+/* Grid spacing in use (0 for the exact methods: affine, piecewise linear). */
+int sh_warp_model_grid_spacing(const sh_warp_model *model);
+/* Estimated largest map error of the last update, pixels (0 for the exact methods). */
+double sh_warp_model_error_bound(const sh_warp_model *model);
+/* How often updates had to refine the grid. */
+int sh_warp_model_refinements(const sh_warp_model *model);
+
+/* The map exactly as the warp uses it: map[(y * width + x) * 2 + {0,1}] = current-frame x, y
+ * of output pixel (x, y); NaN outside the hull. map holds width * height * 2 floats. */
+sh_status sh_warp_model_map(const sh_warp_model *model, float *map);
+
+typedef struct sh_warp sh_warp;
+
+/* threads >= 1: the frame is cut into that many stripes (the caller's thread does one). */
+sh_status sh_warp_create(int threads, sh_warp **out);
+void sh_warp_destroy(sh_warp *warp);
+
+/* out and current: same format and size as the model's frame. Allocation-free. */
+sh_status sh_warp_apply(sh_warp *warp, const sh_warp_model *model, const sh_image *current,
+                        sh_image *out);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

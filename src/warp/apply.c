@@ -1,0 +1,178 @@
+/* The executor: cuts the output frame into horizontal stripes, one per thread, and fills each
+ * plane row from the model's spans. Threads are started once and wait on a condition variable
+ * between frames, so a frame costs no thread creation and no allocation. */
+#include <pthread.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "warp_internal.h"
+
+typedef struct {
+    const sh_warp_model *model;
+    const sh_image *current;
+    sh_image *out;
+} warp_job;
+
+struct sh_warp {
+    int threads;
+    pthread_t *workers;
+    pthread_mutex_t lock;
+    pthread_cond_t start, done;
+    unsigned generation;  /* bumped per frame: workers run when it changes */
+    int pending;          /* workers still busy with the current frame */
+    int quit;
+    warp_job job;
+};
+
+typedef struct {
+    const sh_plane *src;
+    int channels;
+    uint8_t black;
+    uint8_t *dst_row;
+} row_ctx;
+
+static void sample_sink(void *ctx, const warp_span *span)
+{
+    row_ctx *r = ctx;
+    warp_sample_span(r->src, r->channels, r->black, r->dst_row, span);
+}
+
+/* Full-resolution position of a plane's pixel (0, 0): chroma siting of 4:2:0 planes. */
+static void plane_offsets(const sh_image *img, int p, plane_geometry *g)
+{
+    g->scale = 1;
+    g->ox = g->oy = 0;
+    if (img->format != SH_PIX_I420 || p == 0) return;
+    g->scale = 2;
+    switch (img->siting) {
+    case SH_CHROMA_CENTER: g->ox = 0.5; g->oy = 0.5; break;
+    case SH_CHROMA_LEFT: g->ox = 0; g->oy = 0.5; break;
+    case SH_CHROMA_PALDV: g->ox = 0; g->oy = p == 1 ? 1 : 0; break; /* Cb below, Cr on the line */
+    }
+}
+
+static void run_stripe(const warp_job *job, int stripe, int stripes)
+{
+    const sh_image *cur = job->current;
+    sh_image *out = job->out;
+    int channels = sh_pixfmt_channels(cur->format);
+    for (int p = 0; p < cur->num_planes; p++) {
+        plane_geometry g;
+        plane_offsets(cur, p, &g);
+        g.width = out->plane[p].width;
+        g.height = out->plane[p].height;
+        uint8_t black = (p > 0 && cur->format != SH_PIX_RGB24) ? 128 : 0;
+        int y0 = (int)((long)g.height * stripe / stripes);
+        int y1 = (int)((long)g.height * (stripe + 1) / stripes);
+        row_ctx ctx = {.src = &cur->plane[p], .channels = channels, .black = black};
+        for (int y = y0; y < y1; y++) {
+            ctx.dst_row = out->plane[p].data + (size_t)y * out->plane[p].stride;
+            memset(ctx.dst_row, black, (size_t)g.width * channels);
+            warp_model_row_spans(job->model, &g, y, sample_sink, &ctx);
+        }
+    }
+}
+
+typedef struct {
+    sh_warp *warp;
+    int index;
+} worker_arg;
+
+static void *worker_main(void *arg)
+{
+    worker_arg *wa = arg;
+    sh_warp *w = wa->warp;
+    int index = wa->index;
+    free(wa);
+    unsigned seen = 0;
+    pthread_mutex_lock(&w->lock);
+    for (;;) {
+        while (!w->quit && w->generation == seen) pthread_cond_wait(&w->start, &w->lock);
+        if (w->quit) break;
+        seen = w->generation;
+        warp_job job = w->job;
+        pthread_mutex_unlock(&w->lock);
+        run_stripe(&job, index, w->threads);
+        pthread_mutex_lock(&w->lock);
+        if (--w->pending == 0) pthread_cond_signal(&w->done);
+    }
+    pthread_mutex_unlock(&w->lock);
+    return NULL;
+}
+
+sh_status sh_warp_create(int threads, sh_warp **out)
+{
+    if (!out || threads < 1 || threads > 256)
+        return sh_error_set(SH_EINVAL, "warp: threads must be 1..256, got %d", threads);
+    sh_warp *w = calloc(1, sizeof *w);
+    if (!w) return sh_error_set(SH_ENOMEM, "warp: out of memory");
+    w->threads = threads;
+    pthread_mutex_init(&w->lock, NULL);
+    pthread_cond_init(&w->start, NULL);
+    pthread_cond_init(&w->done, NULL);
+    if (threads > 1) {
+        w->workers = calloc((size_t)threads - 1, sizeof(pthread_t));
+        if (!w->workers) {
+            sh_warp_destroy(w);
+            return sh_error_set(SH_ENOMEM, "warp: out of memory");
+        }
+        for (int i = 1; i < threads; i++) {
+            worker_arg *wa = malloc(sizeof *wa);
+            if (!wa || (*wa = (worker_arg){w, i}, pthread_create(&w->workers[i - 1], NULL,
+                                                                 worker_main, wa)) != 0) {
+                free(wa);
+                w->threads = i; /* destroy joins only the ones started */
+                sh_warp_destroy(w);
+                return sh_error_set(SH_ENOMEM, "warp: cannot start thread %d", i);
+            }
+        }
+    }
+    *out = w;
+    return SH_OK;
+}
+
+void sh_warp_destroy(sh_warp *w)
+{
+    if (!w) return;
+    pthread_mutex_lock(&w->lock);
+    w->quit = 1;
+    pthread_cond_broadcast(&w->start);
+    pthread_mutex_unlock(&w->lock);
+    for (int i = 1; i < w->threads && w->workers; i++) pthread_join(w->workers[i - 1], NULL);
+    free(w->workers);
+    pthread_mutex_destroy(&w->lock);
+    pthread_cond_destroy(&w->start);
+    pthread_cond_destroy(&w->done);
+    free(w);
+}
+
+sh_status sh_warp_apply(sh_warp *w, const sh_warp_model *model, const sh_image *current,
+                        sh_image *out)
+{
+    if (!w || !model || !current || !out)
+        return sh_error_set(SH_EINVAL, "warp: missing argument");
+    if (current->format != out->format || current->width != out->width ||
+        current->height != out->height || current->width != model->width ||
+        current->height != model->height)
+        return sh_error_set(SH_EINVAL, "warp: frame %dx%d %s, output %dx%d %s, model %dx%d",
+                            current->width, current->height, sh_pixfmt_name(current->format),
+                            out->width, out->height, sh_pixfmt_name(out->format), model->width,
+                            model->height);
+    out->siting = current->siting;
+    warp_job job = {model, current, out};
+    if (w->threads == 1) {
+        run_stripe(&job, 0, 1);
+        return SH_OK;
+    }
+    pthread_mutex_lock(&w->lock);
+    w->job = job;
+    w->pending = w->threads - 1;
+    w->generation++;
+    pthread_cond_broadcast(&w->start);
+    pthread_mutex_unlock(&w->lock);
+    run_stripe(&job, 0, w->threads);
+    pthread_mutex_lock(&w->lock);
+    while (w->pending > 0) pthread_cond_wait(&w->done, &w->lock);
+    pthread_mutex_unlock(&w->lock);
+    return SH_OK;
+}
