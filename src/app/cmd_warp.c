@@ -1,0 +1,345 @@
+/* stillheart warp: offline 2D stabilization of a Y4M video from a points file. */
+#include <getopt.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "app.h"
+#include "stillheart/metrics.h"
+#include "stillheart/points.h"
+#include "stillheart/warp.h"
+#include "stillheart/y4m.h"
+
+#define CACHE_SLOTS 8
+
+static void usage(FILE *out)
+{
+    fprintf(out,
+        "usage: stillheart warp --points P.csv [OPTIONS] IN.y4m OUT.y4m\n\n"
+        "Warps every frame of IN back onto the reference frame (paper Algorithm 1) and writes\n"
+        "OUT in the same size and format. The map interpolates the markers of each frame that\n"
+        "also appear in the reference frame; pixels outside the convex hull of the reference\n"
+        "markers, or whose source lies outside the frame, are black. A frame with too few\n"
+        "markers for the method is written unchanged and counted. At the end the paper's\n"
+        "metric e (section V) is printed for the input and the output.\n\n"
+        "options:\n"
+        "  --points FILE      marker positions, CSV 'frame,id,x,y' (required)\n"
+        "  --method NAME      affine | pwlinear | bspline | rbf-local | tps | gaussian\n"
+        "                     (RBFs with the affine term; add -pure for the form without it,\n"
+        "                     e.g. tps-pure). Default: bspline, the paper's recommendation\n"
+        "  --sigma S          RBF scale in pixels (default 95 for rbf-local, 100 for gaussian)\n"
+        "  --levels L         B-spline levels (default: as many as exact interpolation needs;\n"
+        "                     fewer approximate)\n"
+        "  --smoothing LAMBDA RBF approximation instead of interpolation (default 0 = exact)\n"
+        "  --reference N      0-based index of the reference frame (default 0)\n"
+        "  --threads T        worker threads for the warp (default 1)\n"
+        "  --max-error PX     largest tolerated error of the interpolated map (default 0.05)\n"
+        "  --map-out FILE     write the last frame's map as .npy float32 H x W x 2\n"
+        "                     (x, y in the current frame; NaN outside the hull)\n"
+        "  --quiet            no progress line, no summary\n"
+        "  --help             this text\n"
+        "IN or OUT may be '-' for standard input / output (IN only with --reference 0).\n");
+}
+
+typedef struct {
+    int n;
+    int *ids;          /* sorted marker ids of this set */
+    double *ref_xy;
+    sh_interp *interp;
+    sh_warp_model *model;
+    unsigned long last_used;
+} model_slot;
+
+typedef struct {
+    sh_interp_params params;
+    sh_warp_options wopts;
+    int width, height, max_markers;
+    const sh_point *ref_rows;
+    int ref_count;
+    model_slot slot[CACHE_SLOTS];
+    unsigned long clock;
+    int builds;
+    double build_seconds;
+} model_cache;
+
+static void slot_clear(model_slot *s)
+{
+    sh_warp_model_destroy(s->model);
+    sh_interp_destroy(s->interp);
+    free(s->ids);
+    free(s->ref_xy);
+    memset(s, 0, sizeof *s);
+}
+
+/* The model for the set of ids (sorted), built on a miss and kept in a small LRU cache, so a
+ * marker that comes and goes costs one rebuild per distinct set, not one per frame. */
+static sh_status cache_get(model_cache *c, const int *ids, int n, sh_warp_model **out)
+{
+    model_slot *victim = &c->slot[0];
+    for (int i = 0; i < CACHE_SLOTS; i++) {
+        model_slot *s = &c->slot[i];
+        if (s->model && s->n == n && !memcmp(s->ids, ids, sizeof(int) * (size_t)n)) {
+            s->last_used = ++c->clock;
+            *out = s->model;
+            return SH_OK;
+        }
+        if (!s->model || s->last_used < victim->last_used) victim = s;
+    }
+    slot_clear(victim);
+    double t0 = app_now();
+    victim->ids = malloc(sizeof(int) * (size_t)n);
+    victim->ref_xy = malloc(sizeof(double) * 2 * (size_t)n);
+    if (!victim->ids || !victim->ref_xy) return sh_error_set(SH_ENOMEM, "warp: out of memory");
+    memcpy(victim->ids, ids, sizeof(int) * (size_t)n);
+    victim->n = n;
+    for (int k = 0, r = 0; k < n; k++) {
+        while (c->ref_rows[r].id != ids[k]) r++;
+        victim->ref_xy[2 * k] = c->ref_rows[r].x;
+        victim->ref_xy[2 * k + 1] = c->ref_rows[r].y;
+    }
+    sh_status st = sh_interp_create(&c->params, victim->ref_xy, n, &victim->interp);
+    if (st == SH_OK)
+        st = sh_warp_model_create(victim->interp, victim->ref_xy, n, c->width, c->height,
+                                  &c->wopts, &victim->model);
+    if (st != SH_OK) {
+        slot_clear(victim);
+        return st;
+    }
+    victim->last_used = ++c->clock;
+    c->builds++;
+    c->build_seconds += app_now() - t0;
+    *out = victim->model;
+    return SH_OK;
+}
+
+/* Markers of this frame that the reference frame also has (both lists sorted by id). */
+static int common_markers(const sh_point *ref, int nref, const sh_point *cur, int ncur, int *ids,
+                          double *cur_xy)
+{
+    int n = 0;
+    for (int i = 0, j = 0; i < nref && j < ncur;) {
+        if (ref[i].id < cur[j].id) i++;
+        else if (ref[i].id > cur[j].id) j++;
+        else {
+            ids[n] = cur[j].id;
+            cur_xy[2 * n] = cur[j].x;
+            cur_xy[2 * n + 1] = cur[j].y;
+            n++, i++, j++;
+        }
+    }
+    return n;
+}
+
+static int full_range(const sh_y4m_header *h)
+{
+    return strstr(h->extra, "XCOLORRANGE=FULL") != NULL;
+}
+
+static int fail(const char *what)
+{
+    fprintf(stderr, "stillheart warp: %s%s%s\n", what, *sh_error_message() ? ": " : "",
+            sh_error_message());
+    return 1;
+}
+
+/* Reads frame `index` of path into img (a second pass over the file, so any frame can be the
+ * reference without holding the video in memory). */
+static int read_frame_at(const char *path, int index, sh_image *img)
+{
+    sh_y4m_reader *r;
+    if (sh_y4m_reader_open(path, &r) != SH_OK) return 0;
+    sh_status st = SH_OK;
+    for (int i = 0; i <= index && st == SH_OK; i++) st = sh_y4m_reader_read(r, img);
+    sh_y4m_reader_close(r);
+    if (st == SH_EEOF) sh_error_set(SH_EINVAL, "%s has no frame %d", path, index);
+    return st == SH_OK;
+}
+
+int cmd_warp(int argc, char **argv)
+{
+    static const struct option options[] = {
+        {"points", required_argument, 0, 'p'}, {"method", required_argument, 0, 'm'},
+        {"sigma", required_argument, 0, 's'},  {"levels", required_argument, 0, 'l'},
+        {"smoothing", required_argument, 0, 'S'}, {"reference", required_argument, 0, 'r'},
+        {"threads", required_argument, 0, 't'}, {"max-error", required_argument, 0, 'e'},
+        {"map-out", required_argument, 0, 'M'}, {"quiet", no_argument, 0, 'q'},
+        {"help", no_argument, 0, 'h'},          {0, 0, 0, 0}};
+    const char *points_path = NULL, *method = "bspline", *map_out = NULL;
+    double sigma = 0, smoothing = 0, max_error = 0.05;
+    int levels = 0, reference = 0, threads = 1, quiet = 0, have_sigma = 0;
+    int opt;
+    optind = 1;
+    while ((opt = getopt_long(argc, argv, "", options, NULL)) != -1) {
+        switch (opt) {
+        case 'p': points_path = optarg; break;
+        case 'm': method = optarg; break;
+        case 's': if (!app_parse_double("--sigma", optarg, 1e-6, 1e9, &sigma)) return 2;
+                  have_sigma = 1; break;
+        case 'l': if (!app_parse_int("--levels", optarg, 1, 20, &levels)) return 2; break;
+        case 'S': if (!app_parse_double("--smoothing", optarg, 0, 1e12, &smoothing)) return 2; break;
+        case 'r': if (!app_parse_int("--reference", optarg, 0, 1 << 30, &reference)) return 2; break;
+        case 't': if (!app_parse_int("--threads", optarg, 1, 256, &threads)) return 2; break;
+        case 'e': if (!app_parse_double("--max-error", optarg, 1e-4, 100, &max_error)) return 2; break;
+        case 'M': map_out = optarg; break;
+        case 'q': quiet = 1; break;
+        case 'h': usage(stdout); return 0;
+        default: usage(stderr); return 2;
+        }
+    }
+    if (argc - optind != 2 || !points_path) {
+        fprintf(stderr, "stillheart warp: need --points and the input and output videos\n");
+        usage(stderr);
+        return 2;
+    }
+    const char *in_path = argv[optind], *out_path = argv[optind + 1];
+    if (reference > 0 && !strcmp(in_path, "-")) {
+        fprintf(stderr, "stillheart warp: --reference %d needs a file, not standard input\n",
+                reference);
+        return 2;
+    }
+
+    model_cache cache = {0};
+    if (sh_interp_params_parse(method, &cache.params) != SH_OK) return fail("--method");
+    if (have_sigma) cache.params.sigma = sigma;
+    cache.params.levels = levels;
+    cache.params.smoothing = smoothing;
+    sh_warp_options_default(&cache.wopts);
+    cache.wopts.max_error = max_error;
+
+    int rc = 1;
+    sh_points points = {0};
+    sh_y4m_reader *reader = NULL;
+    sh_y4m_writer *writer = NULL;
+    sh_warp *warp = NULL;
+    sh_metric *metric_in = NULL, *metric_out = NULL;
+    sh_image in = {0}, out = {0}, ref = {0};
+    int *ids = NULL;
+    double *cur_xy = NULL;
+    float *map = NULL;
+    sh_warp_model *model = NULL, *last_model = NULL;
+
+    if (sh_points_read(points_path, &points) != SH_OK) { fail("points"); goto done; }
+    if (sh_y4m_reader_open(in_path, &reader) != SH_OK) { fail("input"); goto done; }
+    const sh_y4m_header *hdr = sh_y4m_reader_header(reader);
+    cache.width = hdr->width;
+    cache.height = hdr->height;
+    cache.ref_rows = sh_points_frame(&points, reference, &cache.ref_count);
+    if (cache.ref_count < 3) {
+        fprintf(stderr, "stillheart warp: %s: the reference frame %d has %d markers, need 3\n",
+                points_path, reference, cache.ref_count);
+        goto done;
+    }
+    ids = malloc(sizeof(int) * (size_t)cache.ref_count);
+    cur_xy = malloc(sizeof(double) * 2 * (size_t)cache.ref_count);
+    if (!ids || !cur_xy) { fail("out of memory"); goto done; }
+    if (sh_image_create(&in, hdr->format, hdr->width, hdr->height) != SH_OK ||
+        sh_image_create(&out, hdr->format, hdr->width, hdr->height) != SH_OK ||
+        sh_image_create(&ref, hdr->format, hdr->width, hdr->height) != SH_OK) {
+        fail("frame buffers");
+        goto done;
+    }
+    if (sh_warp_create(threads, &warp) != SH_OK) { fail("threads"); goto done; }
+
+    /* The reference model (all reference markers) and both metrics' reference frames. */
+    if (!read_frame_at(in_path, reference, &ref) && strcmp(in_path, "-")) { fail("reference frame"); goto done; }
+    int nref = common_markers(cache.ref_rows, cache.ref_count, cache.ref_rows, cache.ref_count,
+                              ids, cur_xy);
+    if (cache_get(&cache, ids, nref, &model) != SH_OK) { fail("reference markers"); goto done; }
+    int fr = full_range(hdr);
+    if (strcmp(in_path, "-")) {
+        if (sh_warp_model_update(model, cur_xy) != SH_OK ||
+            sh_warp_apply(warp, model, &ref, &out) != SH_OK ||
+            sh_metric_create(&ref, sh_warp_model_hull(model), fr, &metric_in) != SH_OK ||
+            sh_metric_create(&out, sh_warp_model_hull(model), fr, &metric_out) != SH_OK) {
+            fail("reference frame");
+            goto done;
+        }
+    }
+    if (sh_y4m_writer_open(out_path, hdr, &writer) != SH_OK) { fail("output"); goto done; }
+
+    app_progress progress;
+    app_progress_start(&progress);
+    if (quiet) progress.enabled = 0;
+    int frames = 0, raw_frames = 0;
+    double warp_seconds = 0;
+    sh_status st;
+    while ((st = sh_y4m_reader_read(reader, &in)) == SH_OK) {
+        if (frames == reference && !metric_in) { /* standard input, reference 0 */
+            sh_image_copy(&ref, &in);
+            if (sh_warp_model_update(model, cur_xy) != SH_OK ||
+                sh_warp_apply(warp, model, &ref, &out) != SH_OK ||
+                sh_metric_create(&ref, sh_warp_model_hull(model), fr, &metric_in) != SH_OK ||
+                sh_metric_create(&out, sh_warp_model_hull(model), fr, &metric_out) != SH_OK) {
+                fail("reference frame");
+                goto done;
+            }
+        }
+        int ncur;
+        const sh_point *cur = sh_points_frame(&points, frames, &ncur);
+        int n = common_markers(cache.ref_rows, cache.ref_count, cur, ncur, ids, cur_xy);
+        double t0 = app_now();
+        const sh_image *shown = &out;
+        if (n < 3 || cache_get(&cache, ids, n, &model) != SH_OK ||
+            sh_warp_model_update(model, cur_xy) != SH_OK ||
+            sh_warp_apply(warp, model, &in, &out) != SH_OK) {
+            shown = &in; /* nothing trustworthy to warp with: pass the frame through, counted */
+            raw_frames++;
+            if (!quiet)
+                fprintf(stderr, "%sstillheart warp: frame %d left unstabilized (%d markers%s%s)\n",
+                        progress.enabled ? "\n" : "", frames, n,
+                        n >= 3 ? ": " : "", n >= 3 ? sh_error_message() : "");
+        } else {
+            last_model = model;
+        }
+        warp_seconds += app_now() - t0;
+        if (sh_y4m_writer_write(writer, shown) != SH_OK) { fail("output"); goto done; }
+        if (metric_in && (sh_metric_add(metric_in, &in) != SH_OK ||
+                          sh_metric_add(metric_out, shown) != SH_OK)) {
+            fail("metric");
+            goto done;
+        }
+        frames++;
+        app_progress_update(&progress, "warp", frames, 0);
+    }
+    app_progress_end(&progress);
+    if (st != SH_EEOF) fail("input"); /* frames before the damage were written */
+    if (sh_y4m_writer_close(writer) != SH_OK) { writer = NULL; fail("output"); goto done; }
+    writer = NULL;
+
+    if (map_out) {
+        if (!last_model) {
+            fprintf(stderr, "stillheart warp: --map-out: no frame was stabilized\n");
+            goto done;
+        }
+        map = malloc(sizeof(float) * 2 * (size_t)cache.width * cache.height);
+        if (!map || sh_warp_model_map(last_model, map) != SH_OK) { fail("map"); goto done; }
+        if (!app_write_npy(map_out, map, cache.height, cache.width, 2)) goto done;
+    }
+    if (!quiet) {
+        fprintf(stderr, "method %s: %d frames (%d unstabilized), %d marker sets built in %.1f ms, "
+                        "warp %.2f ms/frame\n",
+                method, frames, raw_frames, cache.builds, cache.build_seconds * 1e3,
+                frames ? warp_seconds * 1e3 / frames : 0.0);
+        if (last_model && sh_warp_model_grid_spacing(last_model))
+            fprintf(stderr, "grid spacing %d px, map error bound %.4f px\n",
+                    sh_warp_model_grid_spacing(last_model), sh_warp_model_error_bound(last_model));
+        if (metric_in)
+            printf("e input %.6f output %.6f (%d frames, %d hull pixels)\n", sh_metric_e(metric_in),
+                   sh_metric_e(metric_out), sh_metric_frames(metric_in), sh_metric_pixels(metric_in));
+    }
+    rc = st == SH_EEOF ? 0 : 1;
+done:
+    if (writer) sh_y4m_writer_close(writer);
+    for (int i = 0; i < CACHE_SLOTS; i++) slot_clear(&cache.slot[i]);
+    sh_y4m_reader_close(reader);
+    sh_points_destroy(&points);
+    sh_warp_destroy(warp);
+    sh_metric_destroy(metric_in);
+    sh_metric_destroy(metric_out);
+    sh_image_destroy(&in);
+    sh_image_destroy(&out);
+    sh_image_destroy(&ref);
+    free(ids);
+    free(cur_xy);
+    free(map);
+    return rc;
+}

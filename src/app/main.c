@@ -1,0 +1,44 @@
+/* stillheart: one command, several jobs (subcommands). */
+#include <stdio.h>
+#include <string.h>
+
+#include "app.h"
+
+static const struct {
+    const char *name;
+    int (*run)(int argc, char **argv);
+    const char *summary;
+} commands[] = {
+    {"warp", cmd_warp, "stabilize a Y4M video from a points file (paper Algorithm 1)"},
+};
+
+static void usage(FILE *out)
+{
+    fprintf(out, "usage: stillheart COMMAND [OPTIONS]\n\n"
+                 "stillheart stabilizes video of a beating heart onto a reference frame.\n\n"
+                 "commands:\n");
+    for (size_t i = 0; i < sizeof commands / sizeof commands[0]; i++)
+        fprintf(out, "  %-8s %s\n", commands[i].name, commands[i].summary);
+    fprintf(out, "\n'stillheart COMMAND --help' documents each command.\n");
+}
+
+int main(int argc, char **argv)
+{
+    if (argc < 2) {
+        usage(stderr);
+        return 2;
+    }
+    if (!strcmp(argv[1], "--help") || !strcmp(argv[1], "-h") || !strcmp(argv[1], "help")) {
+        usage(stdout);
+        return 0;
+    }
+    if (!strcmp(argv[1], "--version")) {
+        printf("stillheart %s\n", STILLHEART_VERSION);
+        return 0;
+    }
+    for (size_t i = 0; i < sizeof commands / sizeof commands[0]; i++)
+        if (!strcmp(argv[1], commands[i].name)) return commands[i].run(argc - 1, argv + 1);
+    fprintf(stderr, "stillheart: unknown command '%s'\n", argv[1]);
+    usage(stderr);
+    return 2;
+}
