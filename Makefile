@@ -111,9 +111,9 @@ check-asan:
 # ---- benchmarks (tools/bench): ours beside the peer, in one process ----
 BENCH_SRC := $(wildcard tools/bench/*.cpp)
 BENCH_BIN := $(BENCH_SRC:tools/bench/%.cpp=$(BUILD)/bench/%)
-$(BUILD)/bench/%: tools/bench/%.cpp $(LIB)
+$(BUILD)/bench/%: tools/bench/%.cpp $(BUILD)/tests/unit/synth.o $(LIB)
 	@mkdir -p $(dir $@)
-	$(CXX) $(CXXFLAGS_ALL) $(OPENCV_CFLAGS) $< $(LIB) $(OPENCV_LIBS) $(LDLIBS_ALL) -o $@
+	$(CXX) $(CXXFLAGS_ALL) $(OPENCV_CFLAGS) $< $(BUILD)/tests/unit/synth.o $(LIB) $(OPENCV_LIBS) $(LDLIBS_ALL) -o $@
 
 bench: deps
 	$(MAKE) --no-print-directory $(BENCH_BIN)
