@@ -104,6 +104,7 @@ sh_status sh_warp_create(int threads, sh_warp **out)
 {
     if (!out || threads < 1 || threads > 256)
         return sh_error_set(SH_EINVAL, "warp: threads must be 1..256, got %d", threads);
+    warp_sample_init();
     sh_warp *w = calloc(1, sizeof *w);
     if (!w) return sh_error_set(SH_ENOMEM, "warp: out of memory");
     w->threads = threads;

@@ -51,6 +51,9 @@ typedef void (*span_sink)(void *ctx, const warp_span *span);
 void warp_model_row_spans(const sh_warp_model *model, const plane_geometry *geom, int py,
                           span_sink sink, void *ctx);
 
+/* Prepares the pixel loops' tables; called once before the first span. */
+void warp_sample_init(void);
+
 /* Pixel loops: fill dst[x0..x1] (plane row) by bilinear sampling of src along the span;
  * black (value `black` in every channel) where the position leaves the source plane. */
 void warp_sample_span(const sh_plane *src, int channels, uint8_t black, uint8_t *dst_row,
