@@ -37,7 +37,7 @@ void sh_warp_model_destroy(sh_warp_model *m)
     free(m->tri_map);
     free(m->tri_ybounds);
     free((void *)m->ref_xy);
-    free(m->cur_xy);
+    free(m->disp);
     free(m);
 }
 
@@ -98,9 +98,9 @@ sh_status sh_warp_model_create(const sh_interp *interp, const double *ref_xy, in
     if ((st = sh_hull_compute(ref_xy, n, &m->hull)) != SH_OK) goto fail;
 
     double *ref = malloc(sizeof(double) * 2 * (size_t)n);
-    m->cur_xy = malloc(sizeof(double) * 2 * (size_t)n);
+    m->disp = malloc(sizeof(double) * 2 * (size_t)n);
     m->coef = malloc(sizeof(double) * 2 * (size_t)sh_interp_num_coefs(interp));
-    if (!ref || !m->cur_xy || !m->coef) {
+    if (!ref || !m->disp || !m->coef) {
         free(ref);
         st = sh_error_set(SH_ENOMEM, "warp: out of memory");
         goto fail;
@@ -166,8 +166,9 @@ static void grid_map(sh_warp_model *m)
             x += m->weight[k] * c[0];
             y += m->weight[k] * c[1];
         }
-        m->map[2 * node] = x;
-        m->map[2 * node + 1] = y;
+        int i = (int)(node % (size_t)m->nx), j = (int)(node / (size_t)m->nx);
+        m->map[2 * node] = m->gx0 + (double)i * m->h + x;
+        m->map[2 * node + 1] = m->gy0 + (double)j * m->h + y;
     }
 }
 
@@ -215,7 +216,6 @@ sh_status sh_warp_model_update(sh_warp_model *m, const double *cur_xy)
     for (int i = 0; i < 2 * m->n; i++)
         if (!isfinite(cur_xy[i]))
             return sh_error_set(SH_EINVAL, "warp: current position of point %d is not finite", i / 2);
-    memcpy(m->cur_xy, cur_xy, sizeof(double) * 2 * (size_t)m->n);
     sh_status st;
     switch (m->kind) {
     case MODEL_AFFINE: {
@@ -243,7 +243,12 @@ sh_status sh_warp_model_update(sh_warp_model *m, const double *cur_xy)
         }
         return SH_OK;
     case MODEL_GRID:
-        if ((st = sh_interp_fit(m->interp, cur_xy, 2, m->coef)) != SH_OK) return st;
+        /* Interpolate the displacement, not the position: the same map for every method that
+         * reproduces affine functions, and for the others (B-splines, RBFs without the affine
+         * term) a translation stays exact and the map tends to the identity, not to zero, away
+         * from the markers. */
+        for (int i = 0; i < 2 * m->n; i++) m->disp[i] = cur_xy[i] - m->ref_xy[i];
+        if ((st = sh_interp_fit(m->interp, m->disp, 2, m->coef)) != SH_OK) return st;
         grid_map(m);
         m->error_bound = grid_error_bound(m);
         while (m->error_bound > m->opts.max_error && m->h > 1) {

@@ -68,6 +68,31 @@ static inline void sample_run(const sh_plane *src, const int channels, uint8_t b
     }
 }
 
+/* Whether every position of the span (a segment: its ends bound it) has its 2x2 footprint, and
+ * the 8 bytes the vector loads read, inside the plane. */
+static inline int span_inside(const sh_plane *src, int count, int32_t fx, int32_t fy, int32_t dfx,
+                              int32_t dfy, int spare_x)
+{
+    int32_t ex = fx + (count - 1) * dfx, ey = fy + (count - 1) * dfy;
+    int32_t lo_x = fx < ex ? fx : ex, hi_x = fx < ex ? ex : fx;
+    int32_t lo_y = fy < ey ? fy : ey, hi_y = fy < ey ? ey : fy;
+    return lo_x >= 0 && lo_y >= 0 && (hi_x >> FRAC_BITS) < src->width - 1 - spare_x &&
+           (hi_y >> FRAC_BITS) < src->height - 1;
+}
+
+/* One channel, every footprint inside the plane (span_inside): no per-pixel checks. */
+static void sample_run_gray_inside(const sh_plane *src, uint8_t *dst, int count, int32_t fx,
+                                   int32_t fy, int32_t dfx, int32_t dfy)
+{
+    const size_t stride = (size_t)src->stride;
+    for (int k = 0; k < count; k++, fx += dfx, fy += dfy) {
+        const uint8_t *p = src->data + (size_t)(fy >> FRAC_BITS) * stride + (size_t)(fx >> FRAC_BITS);
+        int wx = (fx >> (FRAC_BITS - WEIGHT_BITS)) & (ONE - 1);
+        int wy = (fy >> (FRAC_BITS - WEIGHT_BITS)) & (ONE - 1);
+        dst[k] = blend(p, p + 1, p + stride, p + stride + 1, wx, wy);
+    }
+}
+
 /* RGB24, one pixel per step in 8 lanes of 16 bits: the two source rows' 8 bytes
  * (R0 G0 B0 R1 G1 B1 . .) are blended vertically and rounded to 8 bits, then lanes 0-2 with
  * lanes 3-5 horizontally. Two roundings instead of one: at most 1 level from the exact
@@ -83,18 +108,6 @@ static void init_weights(void)
         weight_lo[w] = _mm_set1_epi16((short)(ONE - w));
         weight_hi[w] = _mm_set1_epi16((short)w);
     }
-}
-
-/* Whether every position of the span (a segment: its ends bound it) has its 2x2 footprint, and
- * the 8 bytes the vector loads read, inside the plane. */
-static inline int span_inside(const sh_plane *src, int count, int32_t fx, int32_t fy, int32_t dfx,
-                              int32_t dfy, int spare_x)
-{
-    int32_t ex = fx + (count - 1) * dfx, ey = fy + (count - 1) * dfy;
-    int32_t lo_x = fx < ex ? fx : ex, hi_x = fx < ex ? ex : fx;
-    int32_t lo_y = fy < ey ? fy : ey, hi_y = fy < ey ? ey : fy;
-    return lo_x >= 0 && lo_y >= 0 && (hi_x >> FRAC_BITS) < src->width - 1 - spare_x &&
-           (hi_y >> FRAC_BITS) < src->height - 1;
 }
 
 static inline uint32_t bilinear_rgb(const uint8_t *p, size_t stride, int32_t fx, int32_t fy,
@@ -177,5 +190,6 @@ void warp_sample_span(const sh_plane *src, int channels, uint8_t black, uint8_t 
     int32_t dfx = (int32_t)lrint(s->dsx * (1 << FRAC_BITS));
     int32_t dfy = (int32_t)lrint(s->dsy * (1 << FRAC_BITS));
     if (channels == 3) sample_run_rgb(src, black, dst, count, fx, fy, dfx, dfy);
+    else if (span_inside(src, count, fx, fy, dfx, dfy, 0)) sample_run_gray_inside(src, dst, count, fx, fy, dfx, dfy);
     else sample_run(src, 1, black, dst, count, fx, fy, dfx, dfy);
 }

@@ -21,7 +21,7 @@ struct sh_warp_model {
     double *tri_map;         /* per triangle: an affine map as in affine[] */
     double *tri_ybounds;     /* per triangle: ymin, ymax of the reference triangle */
     const double *ref_xy;    /* copy, n x 2 */
-    double *cur_xy;          /* copy of the last update, n x 2 */
+    double *disp;            /* displacement of the last update, n x 2 */
 
     int h, gx0, gy0, nx, ny; /* grid: node (i, j) sits at (gx0 + i h, gy0 + j h) */
     int *row_start, *index;  /* CSR basis rows, one per node */

@@ -1,0 +1,427 @@
+/* The 2D warp: map accuracy against exact evaluation, pixel sampling against closed forms,
+ * and stabilization of a synthetic sequence whose motion is known exactly. */
+#include <math.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include <cmocka.h>
+
+#include "stillheart/metrics.h"
+#include "stillheart/warp.h"
+#include "synth.h"
+
+typedef struct {
+    sh_interp *interp;
+    sh_warp_model *model;
+} built;
+
+static built build(const char *method, const double *ref, int n, int w, int h,
+                   const sh_warp_options *opts)
+{
+    built b = {0};
+    sh_interp_params params;
+    assert_int_equal(sh_interp_params_parse(method, &params), SH_OK);
+    if (sh_interp_create(&params, ref, n, &b.interp) != SH_OK) fail_msg("%s: %s", method, sh_error_message());
+    if (sh_warp_model_create(b.interp, ref, n, w, h, opts, &b.model) != SH_OK)
+        fail_msg("%s: %s", method, sh_error_message());
+    return b;
+}
+
+static void unbuild(built *b)
+{
+    sh_warp_model_destroy(b->model);
+    sh_interp_destroy(b->interp);
+}
+
+/* Largest distance between the warp's map and the interpolant evaluated exactly, over every
+ * pixel of the hull. The warp interpolates the displacement: map(q) = q + D(q). */
+static double map_error(const built *b, const double *ref, const double *cur, int n, int w, int h)
+{
+    int ncoef = sh_interp_num_coefs(b->interp);
+    double *coef = malloc(sizeof(double) * 2 * ncoef), disp[2 * 128];
+    float *map = malloc(sizeof(float) * 2 * (size_t)w * h);
+    for (int i = 0; i < 2 * n; i++) disp[i] = cur[i] - ref[i];
+    assert_int_equal(sh_interp_fit(b->interp, disp, 2, coef), SH_OK);
+    assert_int_equal(sh_warp_model_map(b->model, map), SH_OK);
+    const sh_hull *hull = sh_warp_model_hull(b->model);
+    double worst = 0;
+    long inside = 0;
+    for (int y = 0; y < h; y++) {
+        for (int x = 0; x < w; x++) {
+            const float *m = map + 2 * ((size_t)y * w + x);
+            if (!sh_hull_contains(hull, x, y)) {
+                assert_true(isnan(m[0]) && isnan(m[1]));
+                continue;
+            }
+            double exact[2];
+            assert_int_equal(sh_interp_eval(b->interp, coef, 2, x, y, exact), SH_OK);
+            assert_false(isnan(m[0]));
+            worst = fmax(worst, hypot(m[0] - (x + exact[0]), m[1] - (y + exact[1])));
+            inside++;
+        }
+    }
+    assert_true(inside > w * h / 4);
+    free(coef);
+    free(map);
+    return worst;
+}
+
+static void moved_markers(const synth_motion *mo, double t, const double *ref, int n, double *cur)
+{
+    for (int i = 0; i < n; i++)
+        synth_forward(mo, t, ref[2 * i], ref[2 * i + 1], &cur[2 * i], &cur[2 * i + 1]);
+}
+
+/* The issue's bound: the grid-interpolated map is within 0.05 px of exact evaluation at every
+ * pixel, for every method that uses the grid, with a motion no affine map can follow. */
+static void test_grid_map_within_tolerance(void **state)
+{
+    (void)state;
+    const int w = 960, h = 540, n = 16;
+    synth_motion mo = {w, h, 14};
+    double ref[2 * n], cur[2 * n];
+    synth_markers(&mo, n, 3, ref);
+    moved_markers(&mo, 0.3, ref, n, cur);
+    const char *methods[] = {"bspline", "rbf-local", "tps", "gaussian", "tps-pure", "gaussian-pure"};
+    for (size_t k = 0; k < sizeof methods / sizeof methods[0]; k++) {
+        built b = build(methods[k], ref, n, w, h, NULL);
+        assert_int_equal(sh_warp_model_update(b.model, cur), SH_OK);
+        double err = map_error(&b, ref, cur, n, w, h);
+        double bound = sh_warp_model_error_bound(b.model);
+        printf("  %-14s grid %2d px  max error %.4f px  bound %.4f px\n", methods[k],
+               sh_warp_model_grid_spacing(b.model), err, bound);
+        assert_true(err <= 0.05);
+        assert_true(err <= bound + 1e-6); /* the estimate really bounds the error */
+        unbuild(&b);
+    }
+}
+
+/* A tighter tolerance forces refinement, and the refined grid honours it. */
+static void test_grid_refines_for_tight_tolerance(void **state)
+{
+    (void)state;
+    const int w = 480, h = 270, n = 12;
+    synth_motion mo = {w, h, 10};
+    double ref[2 * n], cur[2 * n];
+    synth_markers(&mo, n, 5, ref);
+    moved_markers(&mo, 0.6, ref, n, cur);
+    sh_warp_options opts;
+    sh_warp_options_default(&opts);
+    opts.max_error = 0.002;
+    built b = build("tps", ref, n, w, h, &opts);
+    assert_int_equal(sh_warp_model_update(b.model, cur), SH_OK);
+    assert_true(sh_warp_model_refinements(b.model) > 0);
+    assert_true(sh_warp_model_grid_spacing(b.model) < 8);
+    assert_true(map_error(&b, ref, cur, n, w, h) <= 0.002);
+    unbuild(&b);
+}
+
+/* Affine and piecewise linear maps are evaluated exactly (no grid). */
+static void test_exact_methods(void **state)
+{
+    (void)state;
+    const int w = 640, h = 360, n = 20;
+    synth_motion mo = {w, h, 12};
+    double ref[2 * n], cur[2 * n];
+    synth_markers(&mo, n, 9, ref);
+    moved_markers(&mo, 0.7, ref, n, cur);
+    const char *methods[] = {"affine", "pwlinear"};
+    for (int k = 0; k < 2; k++) {
+        built b = build(methods[k], ref, n, w, h, NULL);
+        assert_int_equal(sh_warp_model_update(b.model, cur), SH_OK);
+        assert_int_equal(sh_warp_model_grid_spacing(b.model), 0);
+        /* float storage of coordinates below 1024: 2^-13 px */
+        assert_true(map_error(&b, ref, cur, n, w, h) <= 2e-3);
+        unbuild(&b);
+    }
+}
+
+static void fill_pattern(sh_image *img)
+{
+    for (int p = 0; p < img->num_planes; p++)
+        for (int y = 0; y < img->plane[p].height; y++)
+            for (int x = 0; x < img->plane[p].width * sh_pixfmt_channels(img->format); x++)
+                img->plane[p].data[(size_t)y * img->plane[p].stride + x] =
+                    (uint8_t)((x * 37 + y * 91 + p * 53 + (x * y) % 7) & 255);
+}
+
+/* An integer translation of every marker: output(x, y) = input(x + dx, y + dy) exactly inside
+ * the hull (where the source exists), black elsewhere, in every frame format. */
+static void test_translation_every_format(void **state)
+{
+    (void)state;
+    const int w = 200, h = 120, dx = 6, dy = -4;
+    double ref[] = {20, 15, 180, 20, 170, 105, 30, 100, 100, 60, 60, 40};
+    int n = 6;
+    double cur[12];
+    for (int i = 0; i < n; i++) {
+        cur[2 * i] = ref[2 * i] + dx;
+        cur[2 * i + 1] = ref[2 * i + 1] + dy;
+    }
+    const sh_pixfmt formats[] = {SH_PIX_GRAY8, SH_PIX_RGB24, SH_PIX_I420, SH_PIX_YUV444};
+    const char *methods[] = {"affine", "pwlinear", "tps", "bspline", "gaussian"};
+    sh_warp *warp;
+    assert_int_equal(sh_warp_create(1, &warp), SH_OK);
+    for (int f = 0; f < 4; f++) {
+        sh_image in, out;
+        assert_int_equal(sh_image_create(&in, formats[f], w, h), SH_OK);
+        assert_int_equal(sh_image_create(&out, formats[f], w, h), SH_OK);
+        fill_pattern(&in);
+        for (size_t k = 0; k < sizeof methods / sizeof methods[0]; k++) {
+            built b = build(methods[k], ref, n, w, h, NULL);
+            assert_int_equal(sh_warp_model_update(b.model, cur), SH_OK);
+            assert_int_equal(sh_warp_apply(warp, b.model, &in, &out), SH_OK);
+            const sh_hull *hull = sh_warp_model_hull(b.model);
+            for (int p = 0; p < in.num_planes; p++) {
+                int s = (formats[f] == SH_PIX_I420 && p > 0) ? 2 : 1;
+                double off = s == 2 ? 0.5 : 0;
+                int ch = sh_pixfmt_channels(formats[f]);
+                uint8_t black = (p > 0) ? 128 : 0;
+                for (int y = 0; y < in.plane[p].height; y++)
+                    for (int x = 0; x < in.plane[p].width; x++) {
+                        int sx = x + dx / s, sy = y + dy / s;
+                        int inside = sh_hull_contains(hull, s * x + off, s * y + off);
+                        for (int c = 0; c < ch; c++) {
+                            uint8_t got = out.plane[p].data[(size_t)y * out.plane[p].stride + x * ch + c];
+                            if (!inside) {
+                                assert_int_equal(got, black);
+                            } else if (sx >= 0 && sy >= 0 && sx < in.plane[p].width &&
+                                       sy < in.plane[p].height) {
+                                uint8_t want = in.plane[p].data[(size_t)sy * in.plane[p].stride + sx * ch + c];
+                                if (got != want)
+                                    fail_msg("%s %s plane %d (%d,%d,%d): %d != %d", methods[k],
+                                             sh_pixfmt_name(formats[f]), p, x, y, c, got, want);
+                            }
+                        }
+                    }
+            }
+            unbuild(&b);
+        }
+        sh_image_destroy(&in);
+        sh_image_destroy(&out);
+    }
+    sh_warp_destroy(warp);
+}
+
+/* Bilinear sampling against the closed form, at fractional positions (a rotation and scaling),
+ * with black where the position leaves the frame (paper Algorithm 1). */
+static void test_bilinear_closed_form(void **state)
+{
+    (void)state;
+    const int w = 320, h = 200;
+    synth_motion mo = {w, h, 0};
+    sh_image in, out;
+    assert_int_equal(sh_image_create(&in, SH_PIX_RGB24, w, h), SH_OK);
+    assert_int_equal(sh_image_create(&out, SH_PIX_RGB24, w, h), SH_OK);
+    synth_render(&mo, 0, &in);
+    double ref[] = {5, 5, 314, 8, 310, 194, 9, 190};
+    double a = 0.21, sc = 1.07, cx = 160, cy = 100, tx = 13.37, ty = -7.61, cur[8];
+    for (int i = 0; i < 4; i++) {
+        double u = ref[2 * i] - cx, v = ref[2 * i + 1] - cy;
+        cur[2 * i] = cx + sc * (cos(a) * u - sin(a) * v) + tx;
+        cur[2 * i + 1] = cy + sc * (sin(a) * u + cos(a) * v) + ty;
+    }
+    built b = build("affine", ref, 4, w, h, NULL);
+    assert_int_equal(sh_warp_model_update(b.model, cur), SH_OK);
+    sh_warp *warp;
+    assert_int_equal(sh_warp_create(1, &warp), SH_OK);
+    assert_int_equal(sh_warp_apply(warp, b.model, &in, &out), SH_OK);
+    int black = 0, sampled = 0;
+    for (int y = 0; y < h; y++)
+        for (int x = 0; x < w; x++) {
+            if (!sh_hull_contains(sh_warp_model_hull(b.model), x, y)) continue;
+            double u = x - cx, v = y - cy;
+            double mx = cx + sc * (cos(a) * u - sin(a) * v) + tx;
+            double my = cy + sc * (sin(a) * u + cos(a) * v) + ty;
+            const uint8_t *o = out.plane[0].data + (size_t)y * out.plane[0].stride + 3 * x;
+            /* stay clear of the frame's edge by the fixed-point resolution */
+            if (mx < -1e-3 || my < -1e-3 || mx > w - 1 + 1e-3 || my > h - 1 + 1e-3) {
+                if (mx < -0.01 || my < -0.01 || mx > w - 0.99 || my > h - 0.99) {
+                    assert_true(o[0] == 0 && o[1] == 0 && o[2] == 0);
+                    black++;
+                }
+                continue;
+            }
+            int ix = (int)floor(mx), iy = (int)floor(my);
+            if (ix >= w - 1) ix = w - 2;
+            if (iy >= h - 1) iy = h - 2;
+            if (ix < 0) ix = 0;
+            if (iy < 0) iy = 0;
+            double fx = mx - ix, fy = my - iy;
+            for (int c = 0; c < 3; c++) {
+                const uint8_t *p = in.plane[0].data + (size_t)iy * in.plane[0].stride + 3 * ix + c;
+                const uint8_t *q = p + in.plane[0].stride;
+                double want = (1 - fy) * ((1 - fx) * p[0] + fx * p[3]) + fy * ((1 - fx) * q[0] + fx * q[3]);
+                /* two 8-bit roundings (1 level) and 1/128 px position steps (texture slope
+                 * below 25 levels/px: 0.2 level) */
+                if (fabs(o[c] - want) > 1.25)
+                    fail_msg("(%d,%d,%d): %d vs %.3f", x, y, c, o[c], want);
+            }
+            sampled++;
+        }
+    assert_true(black > 100);
+    assert_true(sampled > w * h / 2);
+    sh_warp_destroy(warp);
+    unbuild(&b);
+    sh_image_destroy(&in);
+    sh_image_destroy(&out);
+}
+
+/* Stripes on several threads give the very same bytes as one thread. */
+static void test_threads_same_bytes(void **state)
+{
+    (void)state;
+    const int w = 333, h = 211, n = 14;
+    synth_motion mo = {w, h, 9};
+    double ref[2 * n], cur[2 * n];
+    synth_markers(&mo, n, 11, ref);
+    moved_markers(&mo, 0.4, ref, n, cur);
+    const sh_pixfmt formats[] = {SH_PIX_RGB24, SH_PIX_I420};
+    for (int f = 0; f < 2; f++) {
+        sh_image in, one, many;
+        assert_int_equal(sh_image_create(&in, formats[f], w, h), SH_OK);
+        assert_int_equal(sh_image_create(&one, formats[f], w, h), SH_OK);
+        assert_int_equal(sh_image_create(&many, formats[f], w, h), SH_OK);
+        synth_render(&mo, 0.4, &in);
+        built b = build("tps", ref, n, w, h, NULL);
+        assert_int_equal(sh_warp_model_update(b.model, cur), SH_OK);
+        sh_warp *w1, *w3;
+        assert_int_equal(sh_warp_create(1, &w1), SH_OK);
+        assert_int_equal(sh_warp_create(3, &w3), SH_OK);
+        for (int rep = 0; rep < 3; rep++) {
+            assert_int_equal(sh_warp_apply(w1, b.model, &in, &one), SH_OK);
+            assert_int_equal(sh_warp_apply(w3, b.model, &in, &many), SH_OK);
+            for (int p = 0; p < in.num_planes; p++)
+                for (int y = 0; y < in.plane[p].height; y++)
+                    assert_memory_equal(one.plane[p].data + (size_t)y * one.plane[p].stride,
+                                        many.plane[p].data + (size_t)y * many.plane[p].stride,
+                                        (size_t)in.plane[p].width * sh_pixfmt_channels(formats[f]));
+        }
+        sh_warp_destroy(w1);
+        sh_warp_destroy(w3);
+        unbuild(&b);
+        sh_image_destroy(&in);
+        sh_image_destroy(&one);
+        sh_image_destroy(&many);
+    }
+}
+
+/* Paper Table II's shape on a sequence with known motion: every method lowers e, and every
+ * local method beats affine, in e and in geometric error against the true motion. */
+static void test_synthetic_sequence(void **state)
+{
+    (void)state;
+    const int w = 480, h = 300, n = 25, frames = 8;
+    synth_motion mo = {w, h, 10};
+    double ref[2 * n], cur[2 * n];
+    synth_markers(&mo, n, 21, ref);
+    sh_image seq[frames], out;
+    for (int t = 0; t < frames; t++) {
+        assert_int_equal(sh_image_create(&seq[t], SH_PIX_RGB24, w, h), SH_OK);
+        synth_render(&mo, (double)t / frames, &seq[t]);
+    }
+    assert_int_equal(sh_image_create(&out, SH_PIX_RGB24, w, h), SH_OK);
+    sh_warp *warp;
+    assert_int_equal(sh_warp_create(2, &warp), SH_OK);
+    const char *methods[] = {"affine", "pwlinear", "bspline", "rbf-local", "tps", "gaussian"};
+    double e_in = 0, e_out[6], geo[6];
+    float *map = malloc(sizeof(float) * 2 * w * h);
+    for (int k = 0; k < 6; k++) {
+        built b = build(methods[k], ref, n, w, h, NULL);
+        sh_metric *min = NULL, *mout = NULL;
+        double geo_sum = 0;
+        long geo_count = 0;
+        for (int t = 0; t < frames; t++) {
+            moved_markers(&mo, (double)t / frames, ref, n, cur);
+            assert_int_equal(sh_warp_model_update(b.model, cur), SH_OK);
+            assert_int_equal(sh_warp_apply(warp, b.model, &seq[t], &out), SH_OK);
+            if (t == 0) {
+                assert_int_equal(sh_metric_create(&seq[0], sh_warp_model_hull(b.model), 1, &min), SH_OK);
+                assert_int_equal(sh_metric_create(&out, sh_warp_model_hull(b.model), 1, &mout), SH_OK);
+            }
+            assert_int_equal(sh_metric_add(min, &seq[t]), SH_OK);
+            assert_int_equal(sh_metric_add(mout, &out), SH_OK);
+            assert_int_equal(sh_warp_model_map(b.model, map), SH_OK);
+            for (int y = 0; y < h; y += 3)
+                for (int x = 0; x < w; x += 3) {
+                    const float *m = map + 2 * ((size_t)y * w + x);
+                    if (isnan(m[0])) continue;
+                    double tx, ty;
+                    synth_forward(&mo, (double)t / frames, x, y, &tx, &ty);
+                    geo_sum += hypot(m[0] - tx, m[1] - ty);
+                    geo_count++;
+                }
+        }
+        e_in = sh_metric_e(min);
+        e_out[k] = sh_metric_e(mout);
+        geo[k] = geo_sum / geo_count;
+        printf("  %-9s e %.4f -> %.4f   geometric error %.3f px\n", methods[k], e_in, e_out[k], geo[k]);
+        assert_true(e_out[k] < 0.5 * e_in);
+        sh_metric_destroy(min);
+        sh_metric_destroy(mout);
+        unbuild(&b);
+    }
+    for (int k = 1; k < 6; k++) {
+        assert_true(e_out[k] < e_out[0]);
+        assert_true(geo[k] < geo[0]);
+    }
+    free(map);
+    sh_warp_destroy(warp);
+    for (int t = 0; t < frames; t++) sh_image_destroy(&seq[t]);
+    sh_image_destroy(&out);
+}
+
+static void test_bad_input(void **state)
+{
+    (void)state;
+    double ref[] = {10, 10, 50, 50, 90, 90, 130, 130}; /* collinear */
+    sh_interp_params params;
+    sh_interp *interp = NULL;
+    sh_warp_model *model = NULL;
+    assert_int_equal(sh_interp_params_parse("tps", &params), SH_OK);
+    if (sh_interp_create(&params, ref, 4, &interp) == SH_OK) {
+        assert_int_not_equal(sh_warp_model_create(interp, ref, 4, 200, 200, NULL, &model), SH_OK);
+        sh_interp_destroy(interp);
+    }
+    double good[] = {10, 10, 150, 20, 140, 150, 20, 140};
+    assert_int_equal(sh_interp_create(&params, good, 4, &interp), SH_OK);
+    sh_warp_options opts;
+    sh_warp_options_default(&opts);
+    opts.grid_spacing = 6; /* not a power of two */
+    assert_int_equal(sh_warp_model_create(interp, good, 4, 200, 200, &opts, &model), SH_EINVAL);
+    assert_int_equal(sh_warp_model_create(interp, good, 4, 200, 200, NULL, &model), SH_OK);
+    double cur[] = {10, 10, 150, NAN, 140, 150, 20, 140};
+    assert_int_equal(sh_warp_model_update(model, cur), SH_EINVAL);
+    sh_image small, out;
+    assert_int_equal(sh_image_create(&small, SH_PIX_GRAY8, 100, 100), SH_OK);
+    assert_int_equal(sh_image_create(&out, SH_PIX_GRAY8, 100, 100), SH_OK);
+    sh_warp *warp;
+    assert_int_equal(sh_warp_create(1, &warp), SH_OK);
+    assert_int_equal(sh_warp_apply(warp, model, &small, &out), SH_EINVAL);
+    assert_int_equal(sh_warp_create(0, &(sh_warp *){NULL}), SH_EINVAL);
+    sh_warp_destroy(warp);
+    sh_image_destroy(&small);
+    sh_image_destroy(&out);
+    sh_warp_model_destroy(model);
+    sh_interp_destroy(interp);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_grid_map_within_tolerance),
+        cmocka_unit_test(test_grid_refines_for_tight_tolerance),
+        cmocka_unit_test(test_exact_methods),
+        cmocka_unit_test(test_translation_every_format),
+        cmocka_unit_test(test_bilinear_closed_form),
+        cmocka_unit_test(test_threads_same_bytes),
+        cmocka_unit_test(test_synthetic_sequence),
+        cmocka_unit_test(test_bad_input),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
