@@ -66,7 +66,8 @@ sh_status sh_interp_fit(const sh_interp *interp, const double *values, int dim, 
  * Piecewise linear returns 0 terms outside the convex hull of the reference points. */
 int sh_interp_basis(const sh_interp *interp, double x, double y, int *index, double *weight);
 
-/* value(x, y) = sum basis * coef, for dim components. */
+/* value(x, y) = sum basis * coef, for dim components. Piecewise linear outside the convex hull:
+ * SH_ERANGE with out set to 0 (no silent zero map). */
 sh_status sh_interp_eval(const sh_interp *interp, const double *coef, int dim, double x, double y,
                          double *out);
 
@@ -74,6 +75,12 @@ sh_status sh_interp_eval(const sh_interp *interp, const double *coef, int dim, d
  * counter-clockwise in image coordinates as drawn with y down: i.e. positive signed area
  * (x1-x0)(y2-y0) - (x2-x0)(y1-y0) > 0). Other methods: count 0. */
 int sh_interp_triangles(const sh_interp *interp, const int **triangles);
+
+/* B-spline only, for tests and diagnostics (allocates): runs the textbook multilevel iteration on
+ * values (n x dim) and writes the largest absolute residual at the reference points after each
+ * level (max_residual_per_level: *levels entries; pass NULL first to learn *levels). */
+sh_status sh_interp_bspline_residuals(const sh_interp *interp, const double *values, int dim,
+                                      double *max_residual_per_level, int *levels);
 
 #ifdef __cplusplus
 }

@@ -12,6 +12,10 @@
 extern "C" {
 #endif
 
+/* Largest frame index accepted (about 46 hours at 60 fps): bounds the frame index a damaged
+ * file can make us allocate. */
+#define SH_POINTS_MAX_FRAME 10000000
+
 typedef struct {
     int frame;
     int id;

@@ -38,6 +38,9 @@ const sh_y4m_header *sh_y4m_reader_header(const sh_y4m_reader *reader);
 sh_status sh_y4m_reader_read(sh_y4m_reader *reader, sh_image *img);
 int sh_y4m_reader_frame_index(const sh_y4m_reader *reader); /* frames delivered so far */
 void sh_y4m_reader_close(sh_y4m_reader *reader);
+/* Reads from a stream the caller opened (a pipe, fmemopen); name is used in messages. The
+ * caller keeps the FILE and closes it after sh_y4m_reader_close. */
+sh_status sh_y4m_reader_open_file(FILE *file, const char *name, sh_y4m_reader **out);
 
 typedef struct sh_y4m_writer sh_y4m_writer;
 
@@ -46,6 +49,9 @@ sh_status sh_y4m_writer_open(const char *path, const sh_y4m_header *header, sh_y
 sh_status sh_y4m_writer_write(sh_y4m_writer *writer, const sh_image *img);
 /* Flushes and closes; reports a failed flush (disk full) as SH_EIO. */
 sh_status sh_y4m_writer_close(sh_y4m_writer *writer);
+/* Writes to a stream the caller opened; close flushes it but leaves it open. */
+sh_status sh_y4m_writer_open_file(FILE *file, const char *name, const sh_y4m_header *header,
+                                  sh_y4m_writer **out);
 
 /* Parses a header line (without "YUV4MPEG2 " magic check done by the caller: the full line,
  * starting with "YUV4MPEG2", without the newline). Exposed for fuzzing and tests. */
