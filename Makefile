@@ -41,7 +41,8 @@ have = $(shell $(PKG_CONFIG) --exists $(1) 2>/dev/null && echo 1)
 # Required: qhull_r (Delaunay), Eigen (dense solves).
 REQ_PKGS := qhull_r eigen3
 CFLAGS_ALL   += $(shell $(PKG_CONFIG) --cflags qhull_r 2>/dev/null)
-CXXFLAGS_ALL += $(shell $(PKG_CONFIG) --cflags eigen3 2>/dev/null)
+# Eigen as a system header: its templates warn under -Werror with our flags.
+CXXFLAGS_ALL += $(patsubst -I%,-isystem %,$(shell $(PKG_CONFIG) --cflags eigen3 2>/dev/null))
 LDLIBS_ALL   += $(shell $(PKG_CONFIG) --libs qhull_r 2>/dev/null) -lstdc++
 
 # Optional: libpng (PNG output).
