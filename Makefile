@@ -78,6 +78,9 @@ all: $(LIB) $(APP)
 deps:
 	@sh scripts/install-deps.sh
 
+# The per-pixel loops: -O3 lets gcc vectorize the position fill (measured in make bench).
+$(BUILD)/src/warp/%.o: CFLAGS_ALL += -O3
+
 $(BUILD)/%.o: %.c
 	@mkdir -p $(dir $@)
 	$(CC) $(CFLAGS_ALL) -c $< -o $@

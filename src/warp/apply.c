@@ -22,20 +22,9 @@ struct sh_warp {
     int pending;          /* workers still busy with the current frame */
     int quit;
     warp_job job;
+    int row_capacity;     /* pixels per thread in row_coords */
+    int32_t *row_coords;  /* per thread: fx[row_capacity], fy[row_capacity] */
 };
-
-typedef struct {
-    const sh_plane *src;
-    int channels;
-    uint8_t black;
-    uint8_t *dst_row;
-} row_ctx;
-
-static void sample_sink(void *ctx, const warp_span *span)
-{
-    row_ctx *r = ctx;
-    warp_sample_span(r->src, r->channels, r->black, r->dst_row, span);
-}
 
 /* Full-resolution position of a plane's pixel (0, 0): chroma siting of 4:2:0 planes. */
 static void plane_offsets(const sh_image *img, int p, plane_geometry *g)
@@ -51,7 +40,7 @@ static void plane_offsets(const sh_image *img, int p, plane_geometry *g)
     }
 }
 
-static void run_stripe(const warp_job *job, int stripe, int stripes)
+static void run_stripe(const warp_job *job, int stripe, int stripes, int32_t *fx, int32_t *fy)
 {
     const sh_image *cur = job->current;
     sh_image *out = job->out;
@@ -64,11 +53,18 @@ static void run_stripe(const warp_job *job, int stripe, int stripes)
         uint8_t black = (p > 0 && cur->format != SH_PIX_RGB24) ? 128 : 0;
         int y0 = (int)((long)g.height * stripe / stripes);
         int y1 = (int)((long)g.height * (stripe + 1) / stripes);
-        row_ctx ctx = {.src = &cur->plane[p], .channels = channels, .black = black};
         for (int y = y0; y < y1; y++) {
-            ctx.dst_row = out->plane[p].data + (size_t)y * out->plane[p].stride;
-            memset(ctx.dst_row, black, (size_t)g.width * channels);
-            warp_model_row_spans(job->model, &g, y, sample_sink, &ctx);
+            uint8_t *row = out->plane[p].data + (size_t)y * out->plane[p].stride;
+            int first, last;
+            if (!warp_model_row_extent(job->model, &g, y, &first, &last)) {
+                memset(row, black, (size_t)g.width * channels);
+                continue;
+            }
+            memset(row, black, (size_t)first * channels);
+            memset(row + (size_t)(last + 1) * channels, black, (size_t)(g.width - 1 - last) * channels);
+            warp_model_row_fill(job->model, &g, y, first, last, fx, fy);
+            warp_sample_row(&cur->plane[p], channels, black, row + (size_t)first * channels, fx, fy,
+                            last - first + 1);
         }
     }
 }
@@ -92,7 +88,8 @@ static void *worker_main(void *arg)
         seen = w->generation;
         warp_job job = w->job;
         pthread_mutex_unlock(&w->lock);
-        run_stripe(&job, index, w->threads);
+        run_stripe(&job, index, w->threads, w->row_coords + 2 * (size_t)index * w->row_capacity,
+                   w->row_coords + (2 * (size_t)index + 1) * w->row_capacity);
         pthread_mutex_lock(&w->lock);
         if (--w->pending == 0) pthread_cond_signal(&w->done);
     }
@@ -141,6 +138,7 @@ void sh_warp_destroy(sh_warp *w)
     pthread_mutex_unlock(&w->lock);
     for (int i = 1; i < w->threads && w->workers; i++) pthread_join(w->workers[i - 1], NULL);
     free(w->workers);
+    free(w->row_coords);
     pthread_mutex_destroy(&w->lock);
     pthread_cond_destroy(&w->start);
     pthread_cond_destroy(&w->done);
@@ -160,9 +158,17 @@ sh_status sh_warp_apply(sh_warp *w, const sh_warp_model *model, const sh_image *
                             out->width, out->height, sh_pixfmt_name(out->format), model->width,
                             model->height);
     out->siting = current->siting;
+    if (current->width > w->row_capacity) {
+        /* Sized once for the frame geometry: later frames of the same size allocate nothing. */
+        int32_t *coords = malloc(sizeof(int32_t) * 2 * (size_t)w->threads * current->width);
+        if (!coords) return sh_error_set(SH_ENOMEM, "warp: out of memory");
+        free(w->row_coords);
+        w->row_coords = coords;
+        w->row_capacity = current->width;
+    }
     warp_job job = {model, current, out};
     if (w->threads == 1) {
-        run_stripe(&job, 0, 1);
+        run_stripe(&job, 0, 1, w->row_coords, w->row_coords + w->row_capacity);
         return SH_OK;
     }
     pthread_mutex_lock(&w->lock);
@@ -171,7 +177,7 @@ sh_status sh_warp_apply(sh_warp *w, const sh_warp_model *model, const sh_image *
     w->generation++;
     pthread_cond_broadcast(&w->start);
     pthread_mutex_unlock(&w->lock);
-    run_stripe(&job, 0, w->threads);
+    run_stripe(&job, 0, w->threads, w->row_coords, w->row_coords + w->row_capacity);
     pthread_mutex_lock(&w->lock);
     while (w->pending > 0) pthread_cond_wait(&w->done, &w->lock);
     pthread_mutex_unlock(&w->lock);

@@ -1,20 +1,20 @@
-/* The per-pixel loop: bilinear sampling along a span in 16.16 fixed point.
+/* The per-pixel loop: bilinear sampling at 16.16 fixed-point positions.
  *
- * Positions step by a constant per pixel, so each pixel costs two integer adds for its source
- * position; the bilinear weights use 7-bit fractions (1/128 px), finer than OpenCV's 1/32, and
- * the products fit 32-bit integers (255 * 128 * 128 < 2^23). */
-#include <math.h>
-#include <string.h>
-
+ * The bilinear weights use 7-bit fractions (1/128 px, finer than OpenCV's 1/32); products fit
+ * 32-bit integers (255 * 128 * 128 < 2^23). */
 #include <pthread.h>
+#include <string.h>
 
 #include "warp_internal.h"
 
-#define FRAC_BITS 16
+#define FRAC_BITS WARP_FRAC_BITS
 #define WEIGHT_BITS 7
 #define ONE (1 << WEIGHT_BITS)
-/* Fixed-point positions must stay within int32 along a whole span. */
-#define SAFE_COORD 16000.0
+
+static inline int weight_of(int32_t f)
+{
+    return (f >> (FRAC_BITS - WEIGHT_BITS)) & (ONE - 1);
+}
 
 static inline uint8_t blend(const uint8_t *p00, const uint8_t *p01, const uint8_t *p10,
                             const uint8_t *p11, int wx, int wy)
@@ -25,11 +25,10 @@ static inline uint8_t blend(const uint8_t *p00, const uint8_t *p01, const uint8_
                      (2 * WEIGHT_BITS));
 }
 
-/* A sample whose 2x2 footprint crosses the last row or column: the position is inside the
- * plane (paper: "if inside I_c"), so the missing taps repeat the edge (their weight is 0 when
- * the position lies exactly on the edge, and the position never lies beyond it). */
-static void sample_edge(const sh_plane *src, int channels, int32_t fx, int32_t fy, uint8_t black,
-                        uint8_t *out)
+/* Any position, checked: black outside the plane (paper: "if inside I_c"); a position on the
+ * last row or column repeats the edge for the missing taps, whose weight is then 0. */
+static void sample_checked(const sh_plane *src, int channels, int32_t fx, int32_t fy,
+                           uint8_t black, uint8_t *out)
 {
     int32_t max_x = (int32_t)(src->width - 1) << FRAC_BITS;
     int32_t max_y = (int32_t)(src->height - 1) << FRAC_BITS;
@@ -39,8 +38,7 @@ static void sample_edge(const sh_plane *src, int channels, int32_t fx, int32_t f
     }
     int ix = fx >> FRAC_BITS, iy = fy >> FRAC_BITS;
     int ix1 = ix + 1 < src->width ? ix + 1 : ix, iy1 = iy + 1 < src->height ? iy + 1 : iy;
-    int wx = (fx >> (FRAC_BITS - WEIGHT_BITS)) & (ONE - 1);
-    int wy = (fy >> (FRAC_BITS - WEIGHT_BITS)) & (ONE - 1);
+    int wx = weight_of(fx), wy = weight_of(fy);
     const uint8_t *r0 = src->data + (size_t)iy * src->stride;
     const uint8_t *r1 = src->data + (size_t)iy1 * src->stride;
     for (int c = 0; c < channels; c++)
@@ -48,48 +46,19 @@ static void sample_edge(const sh_plane *src, int channels, int32_t fx, int32_t f
                        r1 + ix1 * channels + c, wx, wy);
 }
 
-static inline void sample_run(const sh_plane *src, const int channels, uint8_t black,
-                              uint8_t *dst, int count, int32_t fx, int32_t fy, int32_t dfx,
-                              int32_t dfy)
+static void sample_row_gray(const sh_plane *src, uint8_t black, uint8_t *dst, const int32_t *fx,
+                            const int32_t *fy, int count)
 {
     const unsigned last_x = (unsigned)src->width - 1, last_y = (unsigned)src->height - 1;
     const size_t stride = (size_t)src->stride;
-    for (int k = 0; k < count; k++, fx += dfx, fy += dfy, dst += channels) {
-        unsigned ix = (unsigned)(fx >> FRAC_BITS), iy = (unsigned)(fy >> FRAC_BITS);
-        if (ix >= last_x || iy >= last_y) {
-            sample_edge(src, channels, fx, fy, black, dst);
+    for (int k = 0; k < count; k++) {
+        unsigned ix = (unsigned)(fx[k] >> FRAC_BITS), iy = (unsigned)(fy[k] >> FRAC_BITS);
+        if (ix >= last_x || iy >= last_y) { /* negative positions wrap to huge: checked too */
+            sample_checked(src, 1, fx[k], fy[k], black, dst + k);
             continue;
         }
-        int wx = (fx >> (FRAC_BITS - WEIGHT_BITS)) & (ONE - 1);
-        int wy = (fy >> (FRAC_BITS - WEIGHT_BITS)) & (ONE - 1);
-        const uint8_t *p = src->data + iy * stride + ix * (unsigned)channels;
-        for (int c = 0; c < channels; c++)
-            dst[c] = blend(p + c, p + channels + c, p + stride + c, p + stride + channels + c, wx, wy);
-    }
-}
-
-/* Whether every position of the span (a segment: its ends bound it) has its 2x2 footprint, and
- * the 8 bytes the vector loads read, inside the plane. */
-static inline int span_inside(const sh_plane *src, int count, int32_t fx, int32_t fy, int32_t dfx,
-                              int32_t dfy, int spare_x)
-{
-    int32_t ex = fx + (count - 1) * dfx, ey = fy + (count - 1) * dfy;
-    int32_t lo_x = fx < ex ? fx : ex, hi_x = fx < ex ? ex : fx;
-    int32_t lo_y = fy < ey ? fy : ey, hi_y = fy < ey ? ey : fy;
-    return lo_x >= 0 && lo_y >= 0 && (hi_x >> FRAC_BITS) < src->width - 1 - spare_x &&
-           (hi_y >> FRAC_BITS) < src->height - 1;
-}
-
-/* One channel, every footprint inside the plane (span_inside): no per-pixel checks. */
-static void sample_run_gray_inside(const sh_plane *src, uint8_t *dst, int count, int32_t fx,
-                                   int32_t fy, int32_t dfx, int32_t dfy)
-{
-    const size_t stride = (size_t)src->stride;
-    for (int k = 0; k < count; k++, fx += dfx, fy += dfy) {
-        const uint8_t *p = src->data + (size_t)(fy >> FRAC_BITS) * stride + (size_t)(fx >> FRAC_BITS);
-        int wx = (fx >> (FRAC_BITS - WEIGHT_BITS)) & (ONE - 1);
-        int wy = (fy >> (FRAC_BITS - WEIGHT_BITS)) & (ONE - 1);
-        dst[k] = blend(p, p + 1, p + stride, p + stride + 1, wx, wy);
+        const uint8_t *p = src->data + iy * stride + ix;
+        dst[k] = blend(p, p + 1, p + stride, p + stride + 1, weight_of(fx[k]), weight_of(fy[k]));
     }
 }
 
@@ -110,11 +79,9 @@ static void init_weights(void)
     }
 }
 
-static inline uint32_t bilinear_rgb(const uint8_t *p, size_t stride, int32_t fx, int32_t fy,
-                                    __m128i zero, __m128i round)
+static inline uint32_t blend_rgb(const uint8_t *p, size_t stride, int wx, int wy, __m128i zero,
+                                 __m128i round)
 {
-    int wx = (fx >> (FRAC_BITS - WEIGHT_BITS)) & (ONE - 1);
-    int wy = (fy >> (FRAC_BITS - WEIGHT_BITS)) & (ONE - 1);
     __m128i top = _mm_unpacklo_epi8(_mm_loadl_epi64((const __m128i *)p), zero);
     __m128i bottom = _mm_unpacklo_epi8(_mm_loadl_epi64((const __m128i *)(p + stride)), zero);
     __m128i v = _mm_add_epi16(_mm_mullo_epi16(top, weight_lo[wy]),
@@ -126,44 +93,76 @@ static inline uint32_t bilinear_rgb(const uint8_t *p, size_t stride, int32_t fx,
     return (uint32_t)_mm_cvtsi128_si32(_mm_packus_epi16(h, h));
 }
 
-static void sample_run_rgb(const sh_plane *src, uint8_t black, uint8_t *dst, int count,
-                           int32_t fx, int32_t fy, int32_t dfx, int32_t dfy)
+static void sample_row_rgb(const sh_plane *src, uint8_t black, uint8_t *dst, const int32_t *fx,
+                           const int32_t *fy, int count)
 {
     const __m128i zero = _mm_setzero_si128(), round = _mm_set1_epi16(1 << (WEIGHT_BITS - 1));
     const size_t stride = (size_t)src->stride;
     /* The 8-byte loads read 2 bytes past the right tap: 2 spare pixels keep them in the row. */
-    if (src->width < 4 || !span_inside(src, count, fx, fy, dfx, dfy, 2)) {
-        for (int k = 0; k < count; k++, fx += dfx, fy += dfy, dst += 3) {
-            unsigned ix = (unsigned)(fx >> FRAC_BITS), iy = (unsigned)(fy >> FRAC_BITS);
-            if (src->width < 4 || ix >= (unsigned)src->width - 3 || iy >= (unsigned)src->height - 1) {
-                sample_run(src, 3, black, dst, 1, fx, fy, 0, 0);
+    const int fast_x = src->width > 3 ? src->width - 3 : 0, last_y = src->height - 1;
+    int k = 0;
+    if (src->stride <= 32767) {
+        /* Four pixels' addresses and weights at once: (iy << 16 | ix) madd (stride << 16 | 3)
+         * = iy * stride + ix * 3, valid once both are known to lie in 0..32767. */
+        const __m128i addr_mul = _mm_set1_epi32((int)((uint32_t)src->stride << 16 | 3u));
+        const __m128i lim_x = _mm_set1_epi32(fast_x), lim_y = _mm_set1_epi32(last_y);
+        const __m128i wmask = _mm_set1_epi32(ONE - 1);
+        /* The last pixel stays for the tail loop: it must not store a 4th byte. */
+        for (; k + 4 < count; k += 4) {
+            __m128i px = _mm_loadu_si128((const __m128i *)(fx + k));
+            __m128i py = _mm_loadu_si128((const __m128i *)(fy + k));
+            __m128i ix = _mm_srai_epi32(px, FRAC_BITS), iy = _mm_srai_epi32(py, FRAC_BITS);
+            /* inside: 0 <= ix < fast_x and 0 <= iy < last_y (signed compares) */
+            __m128i bad = _mm_or_si128(_mm_or_si128(_mm_cmplt_epi32(ix, zero), _mm_cmplt_epi32(iy, zero)),
+                                       _mm_or_si128(_mm_cmpgt_epi32(ix, _mm_sub_epi32(lim_x, _mm_set1_epi32(1))),
+                                                    _mm_cmpgt_epi32(iy, _mm_sub_epi32(lim_y, _mm_set1_epi32(1)))));
+            if (_mm_movemask_epi8(bad)) {
+                for (int q = k; q < k + 4; q++, dst += 3)
+                    sample_checked(src, 3, fx[q], fy[q], black, dst);
                 continue;
             }
-            uint32_t rgb = bilinear_rgb(src->data + iy * stride + ix * 3u, stride, fx, fy, zero, round);
-            memcpy(dst, &rgb, 3);
+            int32_t off[4], wx[4], wy[4];
+            _mm_storeu_si128((__m128i *)off, _mm_madd_epi16(_mm_or_si128(_mm_slli_epi32(iy, 16), ix), addr_mul));
+            _mm_storeu_si128((__m128i *)wx, _mm_and_si128(_mm_srai_epi32(px, FRAC_BITS - WEIGHT_BITS), wmask));
+            _mm_storeu_si128((__m128i *)wy, _mm_and_si128(_mm_srai_epi32(py, FRAC_BITS - WEIGHT_BITS), wmask));
+            for (int q = 0; q < 4; q++, dst += 3) {
+                uint32_t rgb = blend_rgb(src->data + off[q], stride, wx[q], wy[q], zero, round);
+                /* A 4-byte store is cheaper; its spare byte lands on the next pixel, which is
+                 * written next (the row's last pixel is left to the tail loop). */
+                memcpy(dst, &rgb, 4);
+            }
         }
-        return;
     }
-    /* The common case: no bounds to check. A 4-byte store is cheaper; its spare byte lands on
-     * the next pixel, which the loop writes next; the last pixel stores exactly 3. */
-    for (int k = 0; k < count - 1; k++, fx += dfx, fy += dfy, dst += 3) {
-        uint32_t rgb = bilinear_rgb(src->data + (size_t)(fy >> FRAC_BITS) * stride +
-                                        (size_t)(fx >> FRAC_BITS) * 3u,
-                                    stride, fx, fy, zero, round);
-        memcpy(dst, &rgb, 4);
+    for (; k < count; k++, dst += 3) {
+        int ix = fx[k] >> FRAC_BITS, iy = fy[k] >> FRAC_BITS;
+        if (ix < 0 || iy < 0 || ix >= fast_x || iy >= last_y) {
+            sample_checked(src, 3, fx[k], fy[k], black, dst);
+            continue;
+        }
+        uint32_t rgb = blend_rgb(src->data + (size_t)iy * stride + (size_t)ix * 3u, stride,
+                                 weight_of(fx[k]), weight_of(fy[k]), zero, round);
+        memcpy(dst, &rgb, 3);
     }
-    uint32_t rgb = bilinear_rgb(src->data + (size_t)(fy >> FRAC_BITS) * stride +
-                                    (size_t)(fx >> FRAC_BITS) * 3u,
-                                stride, fx, fy, zero, round);
-    memcpy(dst, &rgb, 3);
 }
 #else
 static void init_weights(void) {}
 
-static void sample_run_rgb(const sh_plane *src, uint8_t black, uint8_t *dst, int count,
-                           int32_t fx, int32_t fy, int32_t dfx, int32_t dfy)
+static void sample_row_rgb(const sh_plane *src, uint8_t black, uint8_t *dst, const int32_t *fx,
+                           const int32_t *fy, int count)
 {
-    sample_run(src, 3, black, dst, count, fx, fy, dfx, dfy);
+    const unsigned last_x = (unsigned)src->width - 1, last_y = (unsigned)src->height - 1;
+    const size_t stride = (size_t)src->stride;
+    for (int k = 0; k < count; k++, dst += 3) {
+        unsigned ix = (unsigned)(fx[k] >> FRAC_BITS), iy = (unsigned)(fy[k] >> FRAC_BITS);
+        if (ix >= last_x || iy >= last_y) {
+            sample_checked(src, 3, fx[k], fy[k], black, dst);
+            continue;
+        }
+        const uint8_t *p = src->data + iy * stride + ix * 3u;
+        int wx = weight_of(fx[k]), wy = weight_of(fy[k]);
+        for (int c = 0; c < 3; c++)
+            dst[c] = blend(p + c, p + 3 + c, p + stride + c, p + stride + 3 + c, wx, wy);
+    }
 }
 #endif
 
@@ -173,23 +172,9 @@ void warp_sample_init(void)
     pthread_once(&once, init_weights);
 }
 
-void warp_sample_span(const sh_plane *src, int channels, uint8_t black, uint8_t *dst_row,
-                      const warp_span *s)
+void warp_sample_row(const sh_plane *src, int channels, uint8_t black, uint8_t *dst,
+                     const int32_t *fx, const int32_t *fy, int count)
 {
-    int count = s->x1 - s->x0 + 1;
-    uint8_t *dst = dst_row + (size_t)s->x0 * channels;
-    double ex = s->sx + (count - 1) * s->dsx, ey = s->sy + (count - 1) * s->dsy;
-    if (!(fabs(s->sx) < SAFE_COORD && fabs(s->sy) < SAFE_COORD && fabs(ex) < SAFE_COORD &&
-          fabs(ey) < SAFE_COORD)) {
-        /* Far outside any frame (or NaN): nothing to sample. */
-        memset(dst, black, (size_t)count * channels);
-        return;
-    }
-    int32_t fx = (int32_t)lrint(s->sx * (1 << FRAC_BITS));
-    int32_t fy = (int32_t)lrint(s->sy * (1 << FRAC_BITS));
-    int32_t dfx = (int32_t)lrint(s->dsx * (1 << FRAC_BITS));
-    int32_t dfy = (int32_t)lrint(s->dsy * (1 << FRAC_BITS));
-    if (channels == 3) sample_run_rgb(src, black, dst, count, fx, fy, dfx, dfy);
-    else if (span_inside(src, count, fx, fy, dfx, dfy, 0)) sample_run_gray_inside(src, dst, count, fx, fy, dfx, dfy);
-    else sample_run(src, 1, black, dst, count, fx, fy, dfx, dfy);
+    if (channels == 3) sample_row_rgb(src, black, dst, fx, fy, count);
+    else sample_row_gray(src, black, dst, fx, fy, count);
 }

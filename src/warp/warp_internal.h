@@ -31,32 +31,32 @@ struct sh_warp_model {
     int refinements;
 };
 
-/* One stretch of a plane row over which the source position moves linearly:
- * pixel x in [x0, x1] samples the source plane at (sx + (x - x0) dsx, sy + (x - x0) dsy). */
-typedef struct {
-    int x0, x1;
-    double sx, sy, dsx, dsy;
-} warp_span;
-
 /* Where a plane's pixels sit in full-resolution coordinates: X = scale * x + ox. */
 typedef struct {
     double scale, ox, oy;
     int width, height;
 } plane_geometry;
 
-typedef void (*span_sink)(void *ctx, const warp_span *span);
+/* Source positions are 16.16 fixed point; anything beyond +-2^14 px (outside every frame) is
+ * clamped to that, so the int32 never overflows. */
+#define WARP_FRAC_BITS 16
+#define WARP_COORD_LIMIT (1 << 30)
 
-/* Calls sink for every span of plane row py inside the hull, in increasing x, splitting long
- * spans so that fixed-point stepping stays exact to 1e-3 px. */
-void warp_model_row_spans(const sh_warp_model *model, const plane_geometry *geom, int py,
-                          span_sink sink, void *ctx);
+/* Pixels [*first, *last] of plane row py lie inside the hull; returns 0 when none do. */
+int warp_model_row_extent(const sh_warp_model *model, const plane_geometry *geom, int py,
+                          int *first, int *last);
 
-/* Prepares the pixel loops' tables; called once before the first span. */
+/* Source positions (source plane coordinates, 16.16) of the row's pixels first..last, as
+ * given by warp_model_row_extent, into fx[0..last-first] and fy[...]. */
+void warp_model_row_fill(const sh_warp_model *model, const plane_geometry *geom, int py,
+                         int first, int last, int32_t *fx, int32_t *fy);
+
+/* Prepares the pixel loops' tables; called once before the first row. */
 void warp_sample_init(void);
 
-/* Pixel loops: fill dst[x0..x1] (plane row) by bilinear sampling of src along the span;
- * black (value `black` in every channel) where the position leaves the source plane. */
-void warp_sample_span(const sh_plane *src, int channels, uint8_t black, uint8_t *dst_row,
-                      const warp_span *span);
+/* Fills dst[0..count-1] (pixels, `channels` bytes each) by bilinear sampling of src at the
+ * positions fx, fy; black (`black` in every channel) where a position leaves the plane. */
+void warp_sample_row(const sh_plane *src, int channels, uint8_t black, uint8_t *dst,
+                     const int32_t *fx, const int32_t *fy, int count);
 
 #endif
