@@ -28,6 +28,8 @@ typedef enum {
 } sh_chroma_siting;
 
 #define SH_IMAGE_MAX_PLANES 3
+/* Largest width or height: the warp's 16.16 fixed-point positions cover +-16384 px. */
+#define SH_IMAGE_MAX_SIZE 16384
 
 typedef struct {
     uint8_t *data;

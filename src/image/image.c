@@ -44,7 +44,7 @@ static int plane_geometry(sh_pixfmt format, int width, int height, int p, int *w
 
 static int valid_geometry(sh_pixfmt format, int width, int height)
 {
-    return width > 0 && height > 0 && width <= 32767 && height <= 32767 &&
+    return width > 0 && height > 0 && width <= SH_IMAGE_MAX_SIZE && height <= SH_IMAGE_MAX_SIZE &&
            format >= SH_PIX_GRAY8 && format <= SH_PIX_YUV444;
 }
 
