@@ -27,8 +27,9 @@ static void free_grid(sh_warp_model *m)
     free(m->index);
     free(m->weight);
     free(m->map);
+    free(m->curvature);
     m->row_start = m->index = NULL;
-    m->weight = m->map = NULL;
+    m->weight = m->map = m->curvature = NULL;
 }
 
 void sh_warp_model_destroy(sh_warp_model *m)
@@ -58,7 +59,8 @@ static sh_status build_grid(sh_warp_model *m, int h)
     m->index = malloc(sizeof(int) * cap);
     m->weight = malloc(sizeof(double) * cap);
     m->map = malloc(sizeof(double) * 2 * nodes);
-    if (!m->row_start || !m->index || !m->weight || !m->map)
+    m->curvature = malloc(sizeof(double) * 4 * nodes);
+    if (!m->row_start || !m->index || !m->weight || !m->map || !m->curvature)
         return sh_error_set(SH_ENOMEM, "warp: grid of %zu nodes does not fit in memory", nodes);
     size_t used = 0;
     for (int j = 0; j < m->ny; j++) {
@@ -162,54 +164,75 @@ static void grid_map(sh_warp_model *m)
 {
     size_t nodes = (size_t)m->nx * (size_t)m->ny;
     for (size_t node = 0; node < nodes; node++) {
-        double x = 0, y = 0;
-        for (int k = m->row_start[node]; k < m->row_start[node + 1]; k++) {
-            const double *c = m->coef + 2 * (size_t)m->index[k];
-            x += m->weight[k] * c[0];
-            y += m->weight[k] * c[1];
+        const int *index = m->index + m->row_start[node];
+        const double *weight = m->weight + m->row_start[node];
+        int terms = m->row_start[node + 1] - m->row_start[node];
+        double x, y;
+#if defined(__SSE2__)
+        /* x and y side by side in one register; two chains to hide the adder's latency */
+        __m128d even = _mm_setzero_pd(), odd = _mm_setzero_pd();
+        int k = 0;
+        for (; k + 2 <= terms; k += 2) {
+            even = _mm_add_pd(even, _mm_mul_pd(_mm_set1_pd(weight[k]),
+                                               _mm_loadu_pd(m->coef + 2 * (size_t)index[k])));
+            odd = _mm_add_pd(odd, _mm_mul_pd(_mm_set1_pd(weight[k + 1]),
+                                             _mm_loadu_pd(m->coef + 2 * (size_t)index[k + 1])));
         }
+        if (k < terms)
+            even = _mm_add_pd(even, _mm_mul_pd(_mm_set1_pd(weight[k]),
+                                               _mm_loadu_pd(m->coef + 2 * (size_t)index[k])));
+        double sum[2];
+        _mm_storeu_pd(sum, _mm_add_pd(even, odd));
+        x = sum[0];
+        y = sum[1];
+#else
+        x = y = 0;
+        for (int k = 0; k < terms; k++) {
+            x += weight[k] * m->coef[2 * (size_t)index[k]];
+            y += weight[k] * m->coef[2 * (size_t)index[k] + 1];
+        }
+#endif
         int i = (int)(node % (size_t)m->nx), j = (int)(node / (size_t)m->nx);
         m->map[2 * node] = m->gx0 + (double)i * m->h + x;
         m->map[2 * node + 1] = m->gy0 + (double)j * m->h + y;
     }
 }
 
-/* |second difference| of component c at node (i, j) along the axis (di, dj); nodes on the
- * grid's edge take their inner neighbour's value. */
-static double second_difference(const sh_warp_model *m, int i, int j, int di, int dj, int c)
-{
-    int len = di ? m->nx : m->ny, pos = di ? i : j;
-    if (len < 3) return INFINITY;
-    if (pos == 0) { i += di; j += dj; }
-    if (pos == len - 1) { i -= di; j -= dj; }
-    const double *mid = m->map + 2 * ((size_t)j * m->nx + i) + c;
-    ptrdiff_t step = 2 * ((ptrdiff_t)dj * m->nx + di);
-    return fabs(mid[-step] - 2 * mid[0] + mid[step]);
-}
-
-/* max over cells of the bilinear interpolation error bound h^2/8 (|f_xx| + |f_yy|), with the
- * second derivatives taken from second differences at the cell's corners. */
-static double grid_error_bound(const sh_warp_model *m)
+/* Per node, |second difference| of x and y along both axes (nodes on the grid's edge take
+ * their inner neighbour's), then per cell the bilinear interpolation error bound
+ * h^2/8 (|f_xx| + |f_yy|) with each second derivative's largest value at the cell's corners. */
+static double grid_error_bound(sh_warp_model *m)
 {
     if (m->h == 1) return 0; /* every pixel is a node */
-    double worst = 0;
-    for (int j = 0; j + 1 < m->ny; j++) {
-        for (int i = 0; i + 1 < m->nx; i++) {
-            double e2 = 0;
-            for (int c = 0; c < 2; c++) {
-                double exx = 0, eyy = 0;
-                for (int corner = 0; corner < 4; corner++) {
-                    int ci = i + (corner & 1), cj = j + (corner >> 1);
-                    exx = fmax(exx, second_difference(m, ci, cj, 1, 0, c));
-                    eyy = fmax(eyy, second_difference(m, ci, cj, 0, 1, c));
-                }
-                double e = ERROR_SAFETY * (exx + eyy) / 8;
-                e2 += e * e;
-            }
-            worst = fmax(worst, sqrt(e2));
+    if (m->nx < 3 || m->ny < 3) return INFINITY;
+    const int nx = m->nx, ny = m->ny;
+    double *curv = m->curvature; /* per node: |dxx x|, |dxx y|, |dyy x|, |dyy y| */
+    for (int j = 0; j < ny; j++) {
+        int jc = j == 0 ? 1 : (j == ny - 1 ? ny - 2 : j);
+        for (int i = 0; i < nx; i++) {
+            int ic = i == 0 ? 1 : (i == nx - 1 ? nx - 2 : i);
+            const double *mx = m->map + 2 * ((size_t)j * nx + ic);
+            const double *my = m->map + 2 * ((size_t)jc * nx + i);
+            const size_t row = 2 * (size_t)nx;
+            double *c = curv + 4 * ((size_t)j * nx + i);
+            c[0] = fabs(mx[-2] - 2 * mx[0] + mx[2]);
+            c[1] = fabs(mx[-1] - 2 * mx[1] + mx[3]);
+            c[2] = fabs(my[-(ptrdiff_t)row] - 2 * my[0] + my[row]);
+            c[3] = fabs(my[1 - (ptrdiff_t)row] - 2 * my[1] + my[row + 1]);
         }
     }
-    return worst;
+    double worst = 0;
+    for (int j = 0; j + 1 < ny; j++) {
+        for (int i = 0; i + 1 < nx; i++) {
+            const double *a = curv + 4 * ((size_t)j * nx + i), *b = a + 4, *c = a + 4 * nx,
+                         *d = c + 4;
+            double e[4];
+            for (int k = 0; k < 4; k++) e[k] = fmax(fmax(a[k], b[k]), fmax(c[k], d[k]));
+            double ex = e[0] + e[2], ey = e[1] + e[3];
+            worst = fmax(worst, ex * ex + ey * ey);
+        }
+    }
+    return ERROR_SAFETY / 8 * sqrt(worst);
 }
 
 sh_status sh_warp_model_update(sh_warp_model *m, const double *cur_xy)

@@ -27,6 +27,7 @@ struct sh_warp_model {
     int *row_start, *index;  /* CSR basis rows, one per node */
     double *weight;
     double *map;             /* per node: current x, y */
+    double *curvature;       /* per node: second differences (grid_error_bound's scratch) */
     double error_bound;
     int refinements;
 };
