@@ -151,7 +151,9 @@ static void fill_pattern(sh_image *img)
 }
 
 /* An integer translation of every marker: output(x, y) = input(x + dx, y + dy) exactly inside
- * the hull (where the source exists), black elsewhere, in every frame format. */
+ * the hull (where the source exists), black elsewhere, in every frame format. For every method
+ * that reproduces affine maps (multilevel B-splines do not: their lattice values are weighted
+ * means, so even constant data leave ripples between the points). */
 static void test_translation_every_format(void **state)
 {
     (void)state;
@@ -164,7 +166,7 @@ static void test_translation_every_format(void **state)
         cur[2 * i + 1] = ref[2 * i + 1] + dy;
     }
     const sh_pixfmt formats[] = {SH_PIX_GRAY8, SH_PIX_RGB24, SH_PIX_I420, SH_PIX_YUV444};
-    const char *methods[] = {"affine", "pwlinear", "tps", "bspline", "gaussian"};
+    const char *methods[] = {"affine", "pwlinear", "tps", "rbf-local", "gaussian"};
     sh_warp *warp;
     assert_int_equal(sh_warp_create(1, &warp), SH_OK);
     for (int f = 0; f < 4; f++) {
