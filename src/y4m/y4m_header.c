@@ -1,0 +1,202 @@
+/* The YUV4MPEG2 header line: parsing (tolerant of tags we do not know, strict about the ones
+ * we need) and formatting (the writer's canonical tag order, extra tags appended verbatim). */
+#include "y4m_internal.h"
+
+#include <limits.h>
+#include <stdio.h>
+#include <string.h>
+
+#define MAGIC "YUV4MPEG2"
+#define MAX_DIM 32767
+
+/* Parses a decimal integer filling all of [s, s+len); no sign, no overflow past INT_MAX. */
+static int parse_uint(const char *s, size_t len, int *out)
+{
+    if (len == 0) return 0;
+    long v = 0;
+    for (size_t i = 0; i < len; i++) {
+        if (s[i] < '0' || s[i] > '9') return 0;
+        v = v * 10 + (s[i] - '0');
+        if (v > INT_MAX) return 0;
+    }
+    *out = (int)v;
+    return 1;
+}
+
+/* "n:d" with both parts decimal. */
+static int parse_ratio(const char *s, size_t len, int *num, int *den)
+{
+    const char *colon = memchr(s, ':', len);
+    if (!colon) return 0;
+    size_t nlen = (size_t)(colon - s);
+    return parse_uint(s, nlen, num) && parse_uint(colon + 1, len - nlen - 1, den);
+}
+
+/* The C tag's value (after the 'C'). Returns 0 for colour spaces we do not read. */
+static int parse_colour(const char *s, size_t len, sh_y4m_header *h)
+{
+    static const struct {
+        const char *name;
+        sh_pixfmt format;
+        sh_chroma_siting siting;
+    } table[] = {
+        {"420jpeg", SH_PIX_I420, SH_CHROMA_CENTER},
+        {"420", SH_PIX_I420, SH_CHROMA_CENTER},
+        {"420mpeg2", SH_PIX_I420, SH_CHROMA_LEFT},
+        {"420paldv", SH_PIX_I420, SH_CHROMA_PALDV},
+        {"444", SH_PIX_YUV444, SH_CHROMA_CENTER},
+        {"mono", SH_PIX_GRAY8, SH_CHROMA_CENTER},
+    };
+    for (size_t i = 0; i < sizeof table / sizeof table[0]; i++) {
+        if (strlen(table[i].name) == len && memcmp(table[i].name, s, len) == 0) {
+            h->format = table[i].format;
+            h->siting = table[i].siting;
+            return 1;
+        }
+    }
+    return 0;
+}
+
+/* Appends one tag to header->extra, space separated. */
+static int append_extra(sh_y4m_header *h, const char *tag, size_t len)
+{
+    size_t used = strlen(h->extra);
+    size_t need = used + (used ? 1 : 0) + len + 1;
+    if (need > sizeof h->extra) return 0;
+    if (used) h->extra[used++] = ' ';
+    memcpy(h->extra + used, tag, len);
+    h->extra[used + len] = '\0';
+    return 1;
+}
+
+sh_status y4m_header_parse_named(const char *line, size_t len, const char *name,
+                                 sh_y4m_header *header)
+{
+    if (!line || !header) return sh_error_set(SH_EINVAL, "y4m: missing argument");
+    if (!name) name = "y4m";
+    memset(header, 0, sizeof *header);
+    header->format = SH_PIX_I420; /* no C tag means 420jpeg */
+    header->siting = SH_CHROMA_CENTER;
+
+    size_t mlen = strlen(MAGIC);
+    if (len < mlen || memcmp(line, MAGIC, mlen) != 0 || (len > mlen && line[mlen] != ' '))
+        return sh_error_set(SH_EFORMAT, "%s: not a YUV4MPEG2 stream (bad magic)", name);
+    if (memchr(line, '\0', len))
+        return sh_error_set(SH_EFORMAT, "%s: NUL byte in the Y4M header", name);
+
+    int seen_w = 0, seen_h = 0, seen_f = 0, seen_a = 0, seen_i = 0, seen_c = 0;
+    size_t pos = mlen;
+    while (pos < len) {
+        if (line[pos] == ' ') { pos++; continue; } /* tolerate doubled spaces */
+        size_t start = pos;
+        while (pos < len && line[pos] != ' ') pos++;
+        const char *tag = line + start;
+        size_t tlen = pos - start;
+        const char *val = tag + 1;
+        size_t vlen = tlen - 1;
+        int tag_len = tlen > 64 ? 64 : (int)tlen; /* bounds the tag echoed in messages */
+        switch (tag[0]) {
+        case 'W':
+        case 'H': {
+            int *seen = tag[0] == 'W' ? &seen_w : &seen_h;
+            int v;
+            if (*seen) return sh_error_set(SH_EFORMAT, "%s: Y4M header repeats %c", name, tag[0]);
+            if (!parse_uint(val, vlen, &v) || v <= 0 || v > MAX_DIM)
+                return sh_error_set(SH_EFORMAT, "%s: bad Y4M size tag '%.*s' (1..%d)", name,
+                                    tag_len, tag, MAX_DIM);
+            *seen = 1;
+            if (tag[0] == 'W') header->width = v; else header->height = v;
+            break;
+        }
+        case 'F':
+            if (seen_f++) return sh_error_set(SH_EFORMAT, "%s: Y4M header repeats F", name);
+            if (!parse_ratio(val, vlen, &header->fps_num, &header->fps_den) ||
+                header->fps_num <= 0 || header->fps_den <= 0)
+                return sh_error_set(SH_EFORMAT, "%s: bad Y4M frame rate '%.*s'", name, tag_len,
+                                    tag);
+            break;
+        case 'A':
+            if (seen_a++) return sh_error_set(SH_EFORMAT, "%s: Y4M header repeats A", name);
+            if (!parse_ratio(val, vlen, &header->aspect_num, &header->aspect_den) ||
+                (header->aspect_num == 0) != (header->aspect_den == 0))
+                return sh_error_set(SH_EFORMAT, "%s: bad Y4M aspect '%.*s'", name, tag_len, tag);
+            break;
+        case 'I':
+            if (seen_i++) return sh_error_set(SH_EFORMAT, "%s: Y4M header repeats I", name);
+            /* 'p','t','b','m' are the spec's; anything else ("I?") is passed through untouched. */
+            if (vlen == 1 && strchr("ptbm", val[0])) {
+                header->interlace = val[0];
+            } else if (!append_extra(header, tag, tlen)) {
+                return sh_error_set(SH_EFORMAT, "%s: Y4M extra tags exceed %d bytes", name,
+                                    SH_Y4M_MAX_EXTRA - 1);
+            }
+            break;
+        case 'C':
+            if (seen_c++) return sh_error_set(SH_EFORMAT, "%s: Y4M header repeats C", name);
+            if (!parse_colour(val, vlen, header))
+                return sh_error_set(SH_EUNSUPPORTED,
+                                    "%s: unsupported Y4M colour space '%.*s' (mono, 420jpeg, "
+                                    "420mpeg2, 420paldv and 444 are read)",
+                                    name, tag_len, tag);
+            break;
+        default: /* X tags and tags from a later spec: kept, never an error */
+            if (!append_extra(header, tag, tlen))
+                return sh_error_set(SH_EFORMAT, "%s: Y4M extra tags exceed %d bytes", name,
+                                    SH_Y4M_MAX_EXTRA - 1);
+            break;
+        }
+    }
+    if (!seen_w || !seen_h)
+        return sh_error_set(SH_EFORMAT, "%s: Y4M header lacks the %s tag", name,
+                            !seen_w ? "W (width)" : "H (height)");
+    return SH_OK;
+}
+
+sh_status sh_y4m_header_parse(const char *line, size_t len, sh_y4m_header *header)
+{
+    return y4m_header_parse_named(line, len, "y4m header", header);
+}
+
+static const char *colour_tag(const sh_y4m_header *h)
+{
+    switch (h->format) {
+    case SH_PIX_GRAY8: return "mono";
+    case SH_PIX_YUV444: return "444";
+    case SH_PIX_I420:
+        switch (h->siting) {
+        case SH_CHROMA_CENTER: return "420jpeg";
+        case SH_CHROMA_LEFT: return "420mpeg2";
+        case SH_CHROMA_PALDV: return "420paldv";
+        }
+        return NULL;
+    case SH_PIX_RGB24: return NULL;
+    }
+    return NULL;
+}
+
+int y4m_header_format(const sh_y4m_header *h, char *out, size_t cap)
+{
+    const char *c = colour_tag(h);
+    if (!c || h->width <= 0 || h->height <= 0 || h->width > MAX_DIM || h->height > MAX_DIM)
+        return -1;
+    if (memchr(h->extra, '\n', strnlen(h->extra, sizeof h->extra)) ||
+        strnlen(h->extra, sizeof h->extra) == sizeof h->extra)
+        return -1;
+    int n = snprintf(out, cap, MAGIC " W%d H%d", h->width, h->height);
+    char tag[64];
+    if (h->fps_num > 0 && h->fps_den > 0) {
+        snprintf(tag, sizeof tag, " F%d:%d", h->fps_num, h->fps_den);
+        n += snprintf(out + n, n < (int)cap ? cap - (size_t)n : 0, "%s", tag);
+    }
+    if (h->interlace) {
+        if (!strchr("ptbm", h->interlace)) return -1;
+        n += snprintf(out + n, n < (int)cap ? cap - (size_t)n : 0, " I%c", h->interlace);
+    }
+    if (h->aspect_den > 0 || h->aspect_num > 0)
+        n += snprintf(out + n, n < (int)cap ? cap - (size_t)n : 0, " A%d:%d", h->aspect_num,
+                      h->aspect_den);
+    n += snprintf(out + n, n < (int)cap ? cap - (size_t)n : 0, " C%s", c);
+    if (h->extra[0]) n += snprintf(out + n, n < (int)cap ? cap - (size_t)n : 0, " %s", h->extra);
+    n += snprintf(out + n, n < (int)cap ? cap - (size_t)n : 0, "\n");
+    return n < (int)cap ? n : -1;
+}

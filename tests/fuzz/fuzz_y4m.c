@@ -1,0 +1,101 @@
+/* libFuzzer: arbitrary bytes as a Y4M stream. Reads every frame, and checks that whatever was
+ * read writes back and reads again to the same header and pixels (a round-trip oracle, so the
+ * fuzzer finds wrong answers as well as crashes). */
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "stillheart/y4m.h"
+
+/* Frames above this are not allocated: libFuzzer's malloc limit, not the reader, would fail. */
+#define MAX_FRAME_BYTES (4u << 20)
+
+static void check(int ok)
+{
+    if (!ok) abort();
+}
+
+static int same_pixels(const sh_image *a, const sh_image *b)
+{
+    for (int p = 0; p < a->num_planes; p++)
+        for (int y = 0; y < a->plane[p].height; y++)
+            if (memcmp(a->plane[p].data + (size_t)y * a->plane[p].stride,
+                       b->plane[p].data + (size_t)y * b->plane[p].stride,
+                       (size_t)a->plane[p].width * (size_t)sh_pixfmt_channels(a->format)))
+                return 0;
+    return 1;
+}
+
+int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
+{
+    if (size == 0) return 0; /* fmemopen refuses an empty buffer */
+    const char *nl = memchr(data, '\n', size);
+    sh_y4m_header parsed;
+    sh_y4m_header_parse((const char *)data, nl ? (size_t)(nl - (const char *)data) : size, &parsed);
+
+    FILE *in = fmemopen((void *)data, size, "rb");
+    if (!in) return 0;
+    sh_y4m_reader *r;
+    if (sh_y4m_reader_open_file(in, "fuzz.y4m", &r) != SH_OK) {
+        check(sh_error_message()[0] != '\0');
+        fclose(in);
+        return 0;
+    }
+    const sh_y4m_header *h = sh_y4m_reader_header(r);
+    size_t bytes = sh_image_packed_size(h->format, h->width, h->height);
+    check(bytes > 0);
+    sh_image img, back;
+    if (bytes > MAX_FRAME_BYTES || sh_image_create(&img, h->format, h->width, h->height) != SH_OK) {
+        sh_y4m_reader_close(r);
+        fclose(in);
+        return 0;
+    }
+    check(sh_image_create(&back, h->format, h->width, h->height) == SH_OK);
+
+    char *buf = NULL;
+    size_t len = 0;
+    FILE *mem = open_memstream(&buf, &len);
+    sh_y4m_writer *w;
+    check(mem && sh_y4m_writer_open_file(mem, "mem", h, &w) == SH_OK);
+    sh_status st;
+    int frames = 0;
+    while ((st = sh_y4m_reader_read(r, &img)) == SH_OK) {
+        check(sh_y4m_writer_write(w, &img) == SH_OK);
+        frames++;
+    }
+    check(st == SH_EEOF || st == SH_EFORMAT);
+    check(sh_y4m_reader_frame_index(r) == frames);
+    check(sh_y4m_writer_close(w) == SH_OK);
+    fclose(mem);
+
+    /* What was written reads back to the same header and frames. */
+    FILE *again = fmemopen(buf, len, "rb");
+    sh_y4m_reader *r2;
+    check(again && sh_y4m_reader_open_file(again, "again", &r2) == SH_OK);
+    const sh_y4m_header *h2 = sh_y4m_reader_header(r2);
+    check(h2->width == h->width && h2->height == h->height && h2->format == h->format &&
+          h2->fps_num == h->fps_num && h2->fps_den == h->fps_den &&
+          h2->aspect_num == h->aspect_num && h2->aspect_den == h->aspect_den &&
+          h2->interlace == h->interlace && strcmp(h2->extra, h->extra) == 0 &&
+          (h->format != SH_PIX_I420 || h2->siting == h->siting));
+    FILE *again_src = fmemopen((void *)data, size, "rb");
+    sh_y4m_reader *r3;
+    check(again_src && sh_y4m_reader_open_file(again_src, "src", &r3) == SH_OK);
+    for (int f = 0; f < frames; f++) {
+        check(sh_y4m_reader_read(r2, &back) == SH_OK);
+        check(sh_y4m_reader_read(r3, &img) == SH_OK);
+        check(same_pixels(&img, &back));
+    }
+    check(sh_y4m_reader_read(r2, &back) == SH_EEOF);
+    sh_y4m_reader_close(r3);
+    sh_y4m_reader_close(r2);
+    fclose(again_src);
+    fclose(again);
+    free(buf);
+    sh_image_destroy(&back);
+    sh_image_destroy(&img);
+    sh_y4m_reader_close(r);
+    fclose(in);
+    return 0;
+}

@@ -1,0 +1,225 @@
+/* The points CSV: layout tolerance, every refusal with its exact "FILE:LINE: reason", sorting,
+ * the frame index, and exact write/read round trips. */
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <cmocka.h>
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <fcntl.h>
+#include <unistd.h>
+
+#include "stillheart/points.h"
+
+static sh_status parse(const char *text, sh_points *p)
+{
+    return sh_points_parse(text, strlen(text), "pts.csv", p);
+}
+
+static void test_layout_tolerance(void **state)
+{
+    (void)state;
+    /* BOM, CRLF, blank lines (one with spaces), spaces and tabs around fields, rows out of
+     * order, no final newline. */
+    const char *text = "\xEF\xBB\xBF frame , id,x,y\r\n"
+                       "\r\n"
+                       "2,5, 10.5 ,\t-3\r\n"
+                       "   \n"
+                       "0,1,1e2,0.25\n"
+                       "2,0,+7,8.125\n"
+                       "0,0,-1.5,2";
+    sh_points p;
+    assert_int_equal(parse(text, &p), SH_OK);
+    assert_int_equal(p.count, 4);
+    assert_int_equal(p.has_3d, 0);
+    assert_int_equal(p.max_frame, 2);
+    const int want_frame[] = {0, 0, 2, 2}, want_id[] = {0, 1, 0, 5};
+    const double want_x[] = {-1.5, 100.0, 7.0, 10.5}, want_y[] = {2.0, 0.25, 8.125, -3.0};
+    for (int i = 0; i < 4; i++) {
+        assert_int_equal(p.rows[i].frame, want_frame[i]);
+        assert_int_equal(p.rows[i].id, want_id[i]);
+        assert_true(p.rows[i].x == want_x[i]);
+        assert_true(p.rows[i].y == want_y[i]);
+        assert_true(isnan(p.rows[i].X) && isnan(p.rows[i].Y) && isnan(p.rows[i].Z));
+    }
+    /* frame_start: frame 0 -> [0,2), frame 1 -> [2,2), frame 2 -> [2,4) */
+    assert_int_equal(p.frame_start[0], 0);
+    assert_int_equal(p.frame_start[1], 2);
+    assert_int_equal(p.frame_start[2], 2);
+    assert_int_equal(p.frame_start[3], 4);
+    int n;
+    const sh_point *rows = sh_points_frame(&p, 2, &n);
+    assert_int_equal(n, 2);
+    assert_int_equal(rows[1].id, 5);
+    sh_points_frame(&p, 1, &n);
+    assert_int_equal(n, 0);
+    sh_points_frame(&p, 3, &n);
+    assert_int_equal(n, 0);
+    sh_points_frame(&p, -1, &n);
+    assert_int_equal(n, 0);
+    sh_points_destroy(&p);
+}
+
+static void test_3d_and_header_only(void **state)
+{
+    (void)state;
+    sh_points p;
+    assert_int_equal(parse("frame,id,x,y,X,Y,Z\n1,3,1,2,-4.5,5,6e-3\n", &p), SH_OK);
+    assert_int_equal(p.has_3d, 1);
+    assert_int_equal(p.count, 1);
+    assert_true(p.rows[0].X == -4.5 && p.rows[0].Y == 5.0 && p.rows[0].Z == 6e-3);
+    assert_int_equal(p.frame_start[0], 0);
+    assert_int_equal(p.frame_start[1], 0);
+    assert_int_equal(p.frame_start[2], 1);
+    sh_points_destroy(&p);
+
+    assert_int_equal(parse("frame,id,x,y\n\n", &p), SH_OK);
+    assert_int_equal(p.count, 0);
+    assert_int_equal(p.max_frame, -1);
+    int n = 7;
+    sh_points_frame(&p, 0, &n);
+    assert_int_equal(n, 0);
+    sh_points_destroy(&p);
+}
+
+static void expect_error(const char *text, const char *message)
+{
+    sh_points p;
+    assert_int_equal(parse(text, &p), SH_EFORMAT);
+    assert_string_equal(sh_error_message(), message);
+    assert_null(p.rows);
+    sh_points_destroy(&p);
+}
+
+static void test_refusals_name_the_line(void **state)
+{
+    (void)state;
+    const char *hdr_msg = "bad header, expected 'frame,id,x,y' or 'frame,id,x,y,X,Y,Z'";
+    char want[200];
+    snprintf(want, sizeof want, "pts.csv:1: %s", hdr_msg);
+    expect_error("frame,id,x\n0,0,1\n", want);
+    expect_error("frame,id,y,x\n", want);
+    expect_error("Frame,id,x,y\n", want);
+    expect_error("frame,id,x,y,X,Y\n", want);
+    snprintf(want, sizeof want, "pts.csv:3: %s", hdr_msg);
+    expect_error("\r\n\r\n0,0,1,2\r\n", want);
+    expect_error("", "pts.csv:1: no header, expected 'frame,id,x,y'");
+    expect_error("\n \n", "pts.csv:2: no header, expected 'frame,id,x,y'");
+
+    expect_error("frame,id,x,y\r\n0,0,1,2\r\n\r\n0,1,1\r\n",
+                 "pts.csv:4: 3 columns, the header has 4");
+    expect_error("frame,id,x,y\n0,0,1,2,3\n", "pts.csv:2: 5 columns, the header has 4");
+    expect_error("frame,id,x,y,X,Y,Z\n0,0,1,2\n", "pts.csv:2: 4 columns, the header has 7");
+    expect_error("frame,id,x,y\n0,0,1,2,3,4,5,6,7,8\n",
+                 "pts.csv:2: more than 7 columns, the header has 4");
+    expect_error("frame,id,x,y\n0,0,1,2\n1,0,abc,2\n", "pts.csv:3: x 'abc' is not a number");
+    expect_error("frame,id,x,y\n0,0,1,\n", "pts.csv:2: y '' is not a number");
+    expect_error("frame,id,x,y\n0,0,1,2 3\n", "pts.csv:2: y '2 3' is not a number");
+    expect_error("frame,id,x,y\n0.5,0,1,2\n", "pts.csv:2: frame '0.5' is not an integer");
+    expect_error("frame,id,x,y\nx,0,1,2\n", "pts.csv:2: frame 'x' is not an integer");
+    expect_error("frame,id,x,y\n-1,0,1,2\n", "pts.csv:2: negative frame '-1'");
+    expect_error("frame,id,x,y\n0,-3,1,2\n", "pts.csv:2: negative id '-3'");
+    expect_error("frame,id,x,y\n0,99999999999,1,2\n",
+                 "pts.csv:2: id '99999999999' out of range (max 2147483647)");
+    expect_error("frame,id,x,y\n20000000,0,1,2\n",
+                 "pts.csv:2: frame '20000000' out of range (max 10000000)");
+    expect_error("frame,id,x,y\n0,0,nan,2\n", "pts.csv:2: x 'nan' is not finite");
+    expect_error("frame,id,x,y\n0,0,1,-inf\n", "pts.csv:2: y '-inf' is not finite");
+    expect_error("frame,id,x,y\n0,0,1,1e999\n", "pts.csv:2: y '1e999' is not finite");
+    expect_error("frame,id,x,y,X,Y,Z\n0,0,1,2,3,4,NaN\n", "pts.csv:2: Z 'NaN' is not finite");
+    expect_error("frame,id,x,y\r\n3,1,1,2\r\n0,0,1,2\r\n3,1,5,6\r\n",
+                 "pts.csv:4: duplicate marker: frame 3 id 1 (first at line 2)");
+    const char nul[] = "frame,id,x,y\n0,0,1\0,2\n";
+    sh_points p;
+    assert_int_equal(sh_points_parse(nul, sizeof nul - 1, "pts.csv", &p), SH_EFORMAT);
+    assert_non_null(strstr(sh_error_message(), "pts.csv:2: x"));
+}
+
+static void test_write_read_round_trip(void **state)
+{
+    (void)state;
+    const sh_point rows[] = {
+        {0, 0, 0.1, 1.0 / 3.0, -2.5, 1e-12, 12345.678901234567},
+        {0, 7, 32766.999999999, -0.0, 1e300, -7, 0},
+        {4, 2, 5, 6, 7, 8, 9},
+    };
+    for (int has_3d = 0; has_3d <= 1; has_3d++) {
+        char *buf = NULL;
+        size_t len = 0;
+        FILE *mem = open_memstream(&buf, &len);
+        assert_int_equal(sh_points_write(mem, rows, 3, has_3d), SH_OK);
+        fclose(mem);
+        const char *head = has_3d ? "frame,id,x,y,X,Y,Z\n0,0,0.1,0.333333333333333"
+                                  : "frame,id,x,y\n0,0,0.1,0.333333333333333";
+        assert_true(strncmp(buf, head, strlen(head)) == 0);
+        sh_points p;
+        assert_int_equal(sh_points_parse(buf, len, "mem", &p), SH_OK);
+        assert_int_equal(p.count, 3);
+        assert_int_equal(p.has_3d, has_3d);
+        for (int i = 0; i < 3; i++) {
+            assert_int_equal(p.rows[i].frame, rows[i].frame);
+            assert_int_equal(p.rows[i].id, rows[i].id);
+            assert_memory_equal(&p.rows[i].x, &rows[i].x, sizeof(double)); /* bit-exact */
+            assert_memory_equal(&p.rows[i].y, &rows[i].y, sizeof(double));
+            if (has_3d) {
+                assert_memory_equal(&p.rows[i].X, &rows[i].X, sizeof(double));
+                assert_memory_equal(&p.rows[i].Z, &rows[i].Z, sizeof(double));
+            }
+        }
+        sh_points_destroy(&p);
+        free(buf);
+    }
+    /* non-finite values would make an unreadable file: refused before anything is written */
+    sh_point bad = {0, 0, NAN, 1, 0, 0, 0};
+    FILE *devnull = fopen("/dev/null", "w");
+    assert_int_equal(sh_points_write(devnull, &bad, 1, 0), SH_EINVAL);
+    fclose(devnull);
+    if (access("/dev/full", W_OK) == 0) {
+        FILE *full = fopen("/dev/full", "w");
+        assert_int_equal(sh_points_write(full, rows, 3, 1), SH_EIO);
+        fclose(full);
+    }
+}
+
+static void test_read_file(void **state)
+{
+    (void)state;
+    char path[] = "/tmp/sh_test_points_XXXXXX";
+    int fd = mkstemp(path);
+    assert_true(fd >= 0);
+    const char text[] = "frame,id,x,y\n1,0,1,2\n1,x,1,2\n";
+    assert_int_equal(write(fd, text, sizeof text - 1), (ssize_t)(sizeof text - 1));
+    close(fd);
+    sh_points p;
+    assert_int_equal(sh_points_read(path, &p), SH_EFORMAT);
+    char want[200];
+    snprintf(want, sizeof want, "%s:3: id 'x' is not an integer", path);
+    assert_string_equal(sh_error_message(), want);
+    fd = open(path, O_WRONLY | O_TRUNC);
+    assert_int_equal(write(fd, text, 21), 21);
+    close(fd);
+    assert_int_equal(sh_points_read(path, &p), SH_OK);
+    assert_int_equal(p.count, 1);
+    assert_int_equal(p.max_frame, 1);
+    sh_points_destroy(&p);
+    unlink(path);
+
+    assert_int_equal(sh_points_read("/nonexistent-dir/p.csv", &p), SH_EIO);
+    assert_non_null(strstr(sh_error_message(), "/nonexistent-dir/p.csv"));
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_layout_tolerance),
+        cmocka_unit_test(test_3d_and_header_only),
+        cmocka_unit_test(test_refusals_name_the_line),
+        cmocka_unit_test(test_write_read_round_trip),
+        cmocka_unit_test(test_read_file),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
