@@ -28,7 +28,8 @@ typedef enum {
 typedef struct {
     sh_method method;
     int affine_term;  /* RBFs: 1 = add r1 + r2 x + r3 y with its three side conditions */
-    double sigma;     /* RBFs: scale s in pixels (paper: 95 local, 100 Gaussian; unused by TPS) */
+    double sigma;     /* RBFs: scale s in pixels (paper: 95 local, 100 Gaussian). TPS and the
+                         other methods have no scale and refuse a non-zero value. */
     int levels;       /* B-spline: number of levels; 0 = as many as exact interpolation needs */
     double smoothing; /* RBFs: 0 = interpolate; lambda > 0 approximates (lambda added to the
                          kernel matrix's diagonal). Other methods refuse a non-zero value. */
@@ -59,7 +60,9 @@ int sh_interp_max_terms(const sh_interp *interp);
 
 /* values: n x dim (row-major, dim 1..3), in the order of the reference points.
  * coef: num_coefs x dim, caller-allocated. No allocation; safe to call from several threads
- * on the same interp with different buffers. */
+ * on the same interp with different buffers (every method: the B-spline levels are multiplied
+ * out at create time and refined in place inside coef). Cost per call: O(n) for affine and
+ * piecewise linear, O(n^2 dim) for the RBFs, O(levels n^2 dim + lattice dim) for B-splines. */
 sh_status sh_interp_fit(const sh_interp *interp, const double *values, int dim, double *coef);
 
 /* Sparse basis row at (x, y): writes count (index, weight) pairs and returns count (>= 0).
