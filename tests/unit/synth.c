@@ -22,7 +22,8 @@ void synth_forward(const synth_motion *m, double t, double x, double y, double *
     double cx = m->width / 2.0, cy = m->height / 2.0, scale = m->width / 2.0;
     double u = (x - cx) / scale, v = (y - cy) / scale; /* about -1..1 */
     double a = m->amplitude, phase = 2 * M_PI * t;
-    double s1 = sin(phase), s2 = sin(2 * phase + 0.5);
+    /* both rhythms vanish at t = 0, which makes frame 0 the undeformed reference */
+    double s1 = sin(phase), s2 = sin(2 * phase + 0.5) - sin(0.5);
     /* affine part: translation, a little rotation and dilation */
     double dx = a * (0.6 * s1 + 0.02 * s2 * u - 0.03 * s1 * v);
     double dy = a * (-0.4 * s2 + 0.03 * s1 * u + 0.025 * s2 * v);
