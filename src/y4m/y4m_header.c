@@ -7,7 +7,8 @@
 #include <string.h>
 
 #define MAGIC "YUV4MPEG2"
-#define MAX_DIM 32767
+/* the largest frame stillheart can hold (image.h) */
+#define MAX_DIM SH_IMAGE_MAX_SIZE
 
 /* Parses a decimal integer filling all of [s, s+len); no sign, no overflow past INT_MAX. */
 static int parse_uint(const char *s, size_t len, int *out)
