@@ -1,0 +1,264 @@
+/* phantom.txt: the model's parameters, one `key value...` line each, doubles printed with 17
+ * significant digits so that reading them back gives the very same bits and the truth library
+ * reproduces the renderer's surface exactly. */
+#include <errno.h>
+#include <math.h>
+#include <stddef.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "phantom.h"
+
+#define MAGIC "stillheart-phantom 1"
+
+typedef struct {
+    const char *key;
+    size_t offset;
+    int count;
+    char type; /* 'd' double, 'i' int, 'u' uint64 */
+} field;
+
+#define D(name, n) {#name, offsetof(phantom_model, name), n, 'd'}
+#define I(name) {#name, offsetof(phantom_model, name), 1, 'i'}
+
+static const field fields[] = {
+    D(fps, 1), I(frames), I(width), I(height), {"seed", offsetof(phantom_model, seed), 1, 'u'},
+    D(size_u, 1), D(size_v, 1), D(dome_height, 1), D(dome_su, 1), D(dome_sv, 1), D(dome_u, 1),
+    D(dome_v, 1), D(heart_hz, 1), D(heart_phase, 1), D(delay, 1), D(contraction, 1), D(twist, 1),
+    D(twist_radius, 1), D(lift, 1), D(lift_u, 1), D(lift_v, 1), D(lift_sigma, 1), D(push, 1),
+    D(push_u, 1), D(push_v, 1), D(push_sigma, 1), D(push_phase, 1), D(resp_hz, 1),
+    D(resp_shift, 3), D(resp_tilt, 1), I(num_pads), D(pad_falloff, 1), D(pad_radius, 1),
+    D(tag_size, 1), I(num_markers), I(num_cameras), I(shaft), D(shaft_p0, 3), D(shaft_p1, 3),
+    D(shaft_dir, 3), D(shaft_length, 1), D(shaft_radius, 1), D(shaft_period, 1), I(num_blobs),
+    I(decoy), I(decoy_id), D(decoy_center, 3), D(decoy_yaw, 1), D(noise, 1), D(exposure, 1),
+};
+#define NFIELDS (sizeof fields / sizeof fields[0])
+
+static void put_doubles(FILE *f, const double *d, int n)
+{
+    for (int i = 0; i < n; i++) fprintf(f, " %.17g", d[i]);
+    fputc('\n', f);
+}
+
+sh_status phantom_model_write(const phantom_model *m, const char *path)
+{
+    FILE *f = fopen(path, "w");
+    if (!f) return sh_error_set(SH_EIO, "%s: cannot create: %s", path, strerror(errno));
+    fprintf(f, "%s\n# the analytic model of tools/phantom/phantom.h; see phantom_surface()\n", MAGIC);
+    fprintf(f, "family %s\n", m->family);
+    for (size_t k = 0; k < NFIELDS; k++) {
+        const field *fd = &fields[k];
+        const char *p = (const char *)m + fd->offset;
+        fprintf(f, "%s", fd->key);
+        if (fd->type == 'd') put_doubles(f, (const double *)(const void *)p, fd->count);
+        else if (fd->type == 'i') fprintf(f, " %d\n", *(const int *)(const void *)p);
+        else fprintf(f, " %llu\n", (unsigned long long)*(const uint64_t *)(const void *)p);
+    }
+    for (int i = 0; i < m->num_pads; i++) {
+        fprintf(f, "pad %d", i);
+        put_doubles(f, &m->pad[i].u0, 4);
+    }
+    for (int i = 0; i < m->num_markers; i++) {
+        fprintf(f, "marker %d %d", i, m->marker[i].id);
+        put_doubles(f, &m->marker[i].u, 2);
+    }
+    for (int i = 0; i < m->num_blobs; i++) {
+        fprintf(f, "blob %d", i);
+        put_doubles(f, &m->blob[i].u, 5);
+    }
+    for (int i = 0; i < m->num_cameras; i++) {
+        const phantom_camera *c = &m->cam[i];
+        double v[21] = {c->fx, c->fy, c->cx, c->cy};
+        memcpy(v + 4, c->dist, sizeof c->dist);
+        memcpy(v + 9, c->R, sizeof c->R);
+        memcpy(v + 18, c->t, sizeof c->t);
+        fprintf(f, "camera %d", i);
+        put_doubles(f, v, 21);
+    }
+    if (ferror(f) | fclose(f)) return sh_error_set(SH_EIO, "%s: write failed", path);
+    return SH_OK;
+}
+
+/* Reads exactly n numbers from s; anything else on the line is an error. */
+static int get_doubles(const char *s, double *out, int n)
+{
+    for (int i = 0; i < n; i++) {
+        char *end;
+        errno = 0;
+        out[i] = strtod(s, &end);
+        if (end == s || errno == ERANGE || !isfinite(out[i])) return 0;
+        s = end;
+    }
+    while (*s == ' ' || *s == '\t' || *s == '\r') s++;
+    return *s == '\0';
+}
+
+static sh_status validate(const phantom_model *m, const char *name, unsigned seen_pad,
+                          uint64_t seen_marker, unsigned seen_blob, unsigned seen_cam)
+{
+#define BAD(...) sh_error_set(SH_EFORMAT, __VA_ARGS__)
+    if (!(m->fps > 0 && m->fps <= 1000) || m->frames < 0 || m->frames > 10000000)
+        return BAD("%s: fps/frames out of range", name);
+    if (m->width < 16 || m->height < 16 || m->width > 8192 || m->height > 8192)
+        return BAD("%s: image size %dx%d out of range", name, m->width, m->height);
+    if (!(m->size_u > 0 && m->size_v > 0 && m->dome_su > 0 && m->dome_sv > 0 && m->twist_radius > 0 &&
+          m->lift_sigma > 0 && m->push_sigma > 0 && m->tag_size > 0))
+        return BAD("%s: sizes and widths must be positive", name);
+    if (m->num_pads < 0 || m->num_pads > PHANTOM_MAX_PADS || m->num_markers < 0 ||
+        m->num_markers > PHANTOM_MAX_MARKERS || m->num_blobs < 0 || m->num_blobs > PHANTOM_MAX_BLOBS ||
+        m->num_cameras < 1 || m->num_cameras > PHANTOM_MAX_CAMERAS)
+        return BAD("%s: a count is out of range", name);
+    if (m->num_pads > 0 && !(m->pad_falloff > 0 && m->pad_radius > 0))
+        return BAD("%s: pad_falloff and pad_radius must be positive", name);
+    if (m->shaft && !(m->shaft_period > 0 && m->shaft_radius > 0 && m->shaft_length > 0 &&
+                      fabs(m->shaft_dir[0]) + fabs(m->shaft_dir[1]) + fabs(m->shaft_dir[2]) > 0))
+        return BAD("%s: shaft needs a positive period, radius, length and a direction", name);
+    if (seen_pad != (1u << m->num_pads) - 1 || seen_blob != (1u << m->num_blobs) - 1 ||
+        seen_cam != (1u << m->num_cameras) - 1 ||
+        seen_marker != (m->num_markers == 64 ? ~0ull : (1ull << m->num_markers) - 1))
+        return BAD("%s: pad/marker/blob/camera lines do not match their counts", name);
+    for (int i = 0; i < m->num_cameras; i++)
+        if (!(m->cam[i].fx > 0 && m->cam[i].fy > 0)) return BAD("%s: camera %d focal <= 0", name, i);
+    if (m->family[0] == '\0') return BAD("%s: no family line", name);
+    return SH_OK;
+#undef BAD
+}
+
+sh_status phantom_model_parse(const char *text, size_t len, const char *name, phantom_model *m)
+{
+    memset(m, 0, sizeof *m);
+    unsigned seen_field[NFIELDS] = {0};
+    unsigned seen_pad = 0, seen_blob = 0, seen_cam = 0;
+    uint64_t seen_marker = 0;
+    char line[1024];
+    size_t pos = 0;
+    int lineno = 0;
+    while (pos < len) {
+        size_t e = pos;
+        while (e < len && text[e] != '\n') e++;
+        size_t n = e - pos;
+        lineno++;
+        if (n >= sizeof line) return sh_error_set(SH_EFORMAT, "%s:%d: line too long", name, lineno);
+        memcpy(line, text + pos, n);
+        line[n] = '\0';
+        pos = e + 1;
+        if (memchr(line, '\0', n)) return sh_error_set(SH_EFORMAT, "%s:%d: NUL byte", name, lineno);
+        if (lineno == 1) {
+            if (strncmp(line, MAGIC, strlen(MAGIC)) != 0)
+                return sh_error_set(SH_EFORMAT, "%s:1: not a phantom file (want '%s')", name, MAGIC);
+            continue;
+        }
+        if (line[0] == '#' || line[0] == '\0' || line[0] == '\r') continue;
+        char key[32];
+        int kl = 0;
+        while (line[kl] && line[kl] != ' ' && kl < 31) {
+            key[kl] = line[kl];
+            kl++;
+        }
+        key[kl] = '\0';
+        const char *rest = line + kl;
+        int ok = 0, idx = -1, used = 0;
+        if (strcmp(key, "family") == 0) {
+            ok = sscanf(rest, " %31s %n", m->family, &used) == 1 && rest[used] == '\0';
+        } else if (!strcmp(key, "pad") || !strcmp(key, "marker") || !strcmp(key, "blob") ||
+                   !strcmp(key, "camera")) {
+            if (sscanf(rest, " %d%n", &idx, &used) != 1 || idx < 0)
+                return sh_error_set(SH_EFORMAT, "%s:%d: bad %s index", name, lineno, key);
+            rest += used;
+            if (key[0] == 'p' && idx < PHANTOM_MAX_PADS && !(seen_pad >> idx & 1)) {
+                seen_pad |= 1u << idx;
+                ok = get_doubles(rest, &m->pad[idx].u0, 4);
+            } else if (key[0] == 'm' && idx < PHANTOM_MAX_MARKERS && !(seen_marker >> idx & 1)) {
+                seen_marker |= 1ull << idx;
+                double v[3];
+                ok = get_doubles(rest, v, 3) && v[0] >= 0 && v[0] < 1e6 && v[0] == floor(v[0]);
+                m->marker[idx].id = ok ? (int)v[0] : 0;
+                m->marker[idx].u = v[1];
+                m->marker[idx].v = v[2];
+            } else if (key[0] == 'b' && idx < PHANTOM_MAX_BLOBS && !(seen_blob >> idx & 1)) {
+                seen_blob |= 1u << idx;
+                ok = get_doubles(rest, &m->blob[idx].u, 5);
+            } else if (key[0] == 'c' && idx < PHANTOM_MAX_CAMERAS && !(seen_cam >> idx & 1)) {
+                seen_cam |= 1u << idx;
+                double v[21];
+                ok = get_doubles(rest, v, 21);
+                phantom_camera *c = &m->cam[idx];
+                c->fx = v[0];
+                c->fy = v[1];
+                c->cx = v[2];
+                c->cy = v[3];
+                memcpy(c->dist, v + 4, sizeof c->dist);
+                memcpy(c->R, v + 9, sizeof c->R);
+                memcpy(c->t, v + 18, sizeof c->t);
+            } else {
+                return sh_error_set(SH_EFORMAT, "%s:%d: %s %d out of range or repeated", name,
+                                    lineno, key, idx);
+            }
+        } else {
+            size_t k = 0;
+            while (k < NFIELDS && strcmp(fields[k].key, key) != 0) k++;
+            if (k == NFIELDS) return sh_error_set(SH_EFORMAT, "%s:%d: unknown key '%s'", name, lineno, key);
+            if (seen_field[k]++) return sh_error_set(SH_EFORMAT, "%s:%d: %s repeated", name, lineno, key);
+            char *p = (char *)m + fields[k].offset;
+            double v[3];
+            ok = get_doubles(rest, v, fields[k].count);
+            if (ok && fields[k].type == 'd') {
+                memcpy(p, v, sizeof(double) * (size_t)fields[k].count);
+            } else if (ok && fields[k].type == 'i') {
+                ok = v[0] == floor(v[0]) && fabs(v[0]) < 1e9;
+                *(int *)(void *)p = ok ? (int)v[0] : 0;
+            } else if (ok) {
+                /* the seed may exceed 2^53: read it as an integer, not through a double */
+                char *end;
+                errno = 0;
+                unsigned long long s = strtoull(rest, &end, 10);
+                while (*end == ' ' || *end == '\r') end++;
+                ok = errno == 0 && *end == '\0' && strchr(rest, '-') == NULL;
+                *(uint64_t *)(void *)p = s;
+            }
+        }
+        if (!ok) return sh_error_set(SH_EFORMAT, "%s:%d: bad values for '%s'", name, lineno, key);
+    }
+    if (lineno == 0) return sh_error_set(SH_EFORMAT, "%s: empty", name);
+    for (size_t k = 0; k < NFIELDS; k++)
+        if (!seen_field[k]) return sh_error_set(SH_EFORMAT, "%s: missing '%s'", name, fields[k].key);
+    return validate(m, name, seen_pad, seen_marker, seen_blob, seen_cam);
+}
+
+sh_status phantom_model_read(const char *path, phantom_model *m)
+{
+    FILE *f = fopen(path, "rb");
+    if (!f) return sh_error_set(SH_EIO, "%s: cannot open: %s", path, strerror(errno));
+    char *buf = NULL;
+    size_t len = 0, cap = 0;
+    for (;;) {
+        if (len == cap) {
+            cap = cap ? 2 * cap : 16384;
+            if (cap > (64u << 20)) {
+                free(buf);
+                fclose(f);
+                return sh_error_set(SH_EFORMAT, "%s: too large for a phantom file", path);
+            }
+            char *nb = realloc(buf, cap);
+            if (!nb) {
+                free(buf);
+                fclose(f);
+                return sh_error_set(SH_ENOMEM, "%s: out of memory", path);
+            }
+            buf = nb;
+        }
+        size_t r = fread(buf + len, 1, cap - len, f);
+        len += r;
+        if (r == 0) break;
+    }
+    int err = ferror(f);
+    fclose(f);
+    if (err) {
+        free(buf);
+        return sh_error_set(SH_EIO, "%s: read error", path);
+    }
+    sh_status st = phantom_model_parse(buf, len, path, m);
+    free(buf);
+    return st;
+}

@@ -1,0 +1,280 @@
+/* The paper's two sequences as models: the pressure-driven phantom (exvivo) and the porcine heart
+ * under an Octopus stabilizer with respiration (invivo), seen by a trinocular rig ~50 cm above.
+ * Everything random (marker jitter, blob timing, the shaft's path) comes from the seed alone. */
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "phantom.h"
+
+#define PI 3.14159265358979323846
+
+static uint64_t splitmix(uint64_t *s)
+{
+    uint64_t z = (*s += 0x9E3779B97F4A7C15ull);
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+    return z ^ (z >> 31);
+}
+
+static double uniform(uint64_t *s, double lo, double hi)
+{
+    return lo + (hi - lo) * (double)(splitmix(s) >> 11) * (1.0 / 9007199254740992.0);
+}
+
+void phantom_options_default(phantom_options *o)
+{
+    memset(o, 0, sizeof *o);
+    o->preset = "exvivo";
+    o->cameras = 3;
+    o->width = 1920;
+    o->height = 1080;
+    o->seed = 1;
+    o->noise = -1;
+}
+
+/* Number of codes per family we can draw (families with a square black border only). */
+static int family_codes(const char *name)
+{
+    static const struct { const char *name; int codes; } fam[] = {
+        {"tag36h11", 587}, {"tag25h9", 35}, {"tag16h5", 30}, {"tagStandard41h12", 2115}};
+    for (size_t i = 0; i < sizeof fam / sizeof fam[0]; i++)
+        if (strcmp(name, fam[i].name) == 0) return fam[i].codes;
+    return 0;
+}
+
+/* Looks at (0, 0, 8) from C, image x along world +X as far as the view allows, rolled a little
+ * so that no test can rely on axis-aligned images. */
+static void place_camera(phantom_camera *c, const double C[3], double roll)
+{
+    double z[3] = {0 - C[0], 0 - C[1], 8 - C[2]};
+    double l = sqrt(z[0] * z[0] + z[1] * z[1] + z[2] * z[2]);
+    for (int i = 0; i < 3; i++) z[i] /= l;
+    double x[3] = {1 - z[0] * z[0], -z[0] * z[1], -z[0] * z[2]};
+    l = sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2]);
+    for (int i = 0; i < 3; i++) x[i] /= l;
+    double y[3] = {z[1] * x[2] - z[2] * x[1], z[2] * x[0] - z[0] * x[2], z[0] * x[1] - z[1] * x[0]};
+    double cr = cos(roll), sr = sin(roll);
+    for (int i = 0; i < 3; i++) {
+        c->R[i] = cr * x[i] + sr * y[i];
+        c->R[3 + i] = -sr * x[i] + cr * y[i];
+        c->R[6 + i] = z[i];
+    }
+    for (int i = 0; i < 3; i++)
+        c->t[i] = -(c->R[3 * i] * C[0] + c->R[3 * i + 1] * C[1] + c->R[3 * i + 2] * C[2]);
+}
+
+/* Lens distortion must stay monotonic over the image, or pixels fold and the truth is ambiguous. */
+static int distortion_monotonic(const phantom_camera *c, int w, int h)
+{
+    double rmax = 0;
+    double corners[4][2] = {{0, 0}, {w, 0}, {0, h}, {w, h}};
+    for (int i = 0; i < 4; i++) {
+        double a = (corners[i][0] - c->cx) / c->fx, b = (corners[i][1] - c->cy) / c->fy;
+        rmax = fmax(rmax, sqrt(a * a + b * b));
+    }
+    rmax *= 1.3;
+    const double *d = c->dist;
+    double prev = 0;
+    for (int i = 1; i <= 200; i++) {
+        double r = rmax * i / 200.0, r2 = r * r;
+        double rd = r * (1.0 + r2 * (d[0] + r2 * (d[1] + r2 * d[4])));
+        if (rd <= prev) return 0;
+        prev = rd;
+    }
+    return fabs(d[2]) < 0.05 && fabs(d[3]) < 0.05;
+}
+
+static sh_status layout_markers(phantom_model *m, const phantom_options *o, uint64_t *rng)
+{
+    double white = m->tag_size * 1.25 + 1.0; /* tag with its white ring, plus a gap */
+    double mu = 0.5 * white + 3.0, mv = mu;
+    if (m->num_pads > 0) mu = 45.0 - m->pad_radius - 0.5 * white - 3.0;
+    double w = m->num_pads > 0 ? 2.0 * mu : m->size_u - 2.0 * mu;
+    double h = m->size_v - 2.0 * mv;
+    int n = m->num_markers, best_cols = 0;
+    double best = -1;
+    for (int cols = 1; cols <= n; cols++) {
+        int rows = (n + cols - 1) / cols;
+        double sp = fmin(w / cols, h / rows);
+        if (sp > best + 1e-9) {
+            best = sp;
+            best_cols = cols;
+        }
+    }
+    if (best < white)
+        return sh_error_set(SH_EINVAL,
+                            "%d markers of %.3g mm do not fit on the %gx%g mm patch (spacing %.3g "
+                            "mm < %.3g mm): use fewer markers or a smaller --tag-size",
+                            n, m->tag_size, m->size_u, m->size_v, best, white);
+    int cols = best_cols, rows = (n + cols - 1) / cols;
+    double su = w / cols, sv = h / rows;
+    double jit = fmin(0.12 * fmin(su, sv), 0.5 * (fmin(su, sv) - white));
+    for (int i = 0; i < n; i++) {
+        int r = i / cols, c = i % cols;
+        int in_row = r == rows - 1 ? n - r * cols : cols;
+        double u = -0.5 * w + su * (c + 0.5 + 0.5 * (cols - in_row));
+        double v = 0.5 * h - sv * (r + 0.5);
+        m->marker[i].id = o->ids ? o->ids[i] : i;
+        m->marker[i].u = u + uniform(rng, -jit, jit);
+        m->marker[i].v = v + uniform(rng, -jit, jit);
+    }
+    return SH_OK;
+}
+
+sh_status phantom_model_build(const phantom_options *o, phantom_model *m)
+{
+    memset(m, 0, sizeof *m);
+    int invivo;
+    if (o->preset && strcmp(o->preset, "exvivo") == 0) invivo = 0;
+    else if (o->preset && strcmp(o->preset, "invivo") == 0) invivo = 1;
+    else return sh_error_set(SH_EINVAL, "unknown preset '%s' (exvivo or invivo)", o->preset ? o->preset : "");
+    if (o->cameras < 1 || o->cameras > PHANTOM_MAX_CAMERAS)
+        return sh_error_set(SH_EINVAL, "--cameras %d: 1 to %d", o->cameras, PHANTOM_MAX_CAMERAS);
+    if (o->width < 16 || o->height < 16 || o->width > 8192 || o->height > 8192 || (o->width & 1) ||
+        (o->height & 1))
+        return sh_error_set(SH_EINVAL, "image size %dx%d: even sizes from 16 to 8192", o->width,
+                            o->height);
+    uint64_t rng = o->seed ^ 0x5eedC0FFEEull;
+    m->seed = o->seed;
+    m->width = o->width;
+    m->height = o->height;
+    m->fps = o->fps > 0 ? o->fps : (invivo ? 31.0 : 23.0);
+    m->frames = o->frames > 0 ? o->frames : (invivo ? 337 : 400);
+    if (m->fps > 1000) return sh_error_set(SH_EINVAL, "--fps %g: at most 1000", m->fps);
+
+    m->size_u = 100.0;
+    m->size_v = 80.0;
+    m->dome_height = 18.0;
+    m->dome_su = 75.0;
+    m->dome_sv = 62.0;
+    m->dome_u = 6.0;
+    m->dome_v = -4.0;
+    m->heart_hz = o->bpm > 0 ? o->bpm / 60.0 : (invivo ? 80.0 / 60.0 : 0.7);
+    if (m->heart_hz > 5.0) return sh_error_set(SH_EINVAL, "--bpm %g: at most 300", o->bpm);
+    m->heart_phase = uniform(&rng, 0, 2 * PI);
+    m->delay = 0.08;
+    m->contraction = invivo ? 0.06 : 0.05;
+    m->twist = invivo ? 0.07 : 0.06;
+    m->twist_radius = 50.0;
+    m->lift = invivo ? 7.0 : 6.0;
+    m->lift_u = 12.0;
+    m->lift_v = 6.0;
+    m->lift_sigma = 32.0;
+    m->push = invivo ? 3.0 : 2.5;
+    m->push_u = -22.0;
+    m->push_v = -14.0;
+    m->push_sigma = 18.0;
+    m->push_phase = 1.3;
+    if (invivo) {
+        m->resp_hz = 0.25;
+        m->resp_shift[0] = 1.0;
+        m->resp_shift[1] = 4.0;
+        m->resp_shift[2] = 6.0;
+        m->resp_tilt = 0.03;
+        m->num_pads = 2;
+        m->pad[0] = (phantom_pad){-46.0, -30.0, -46.0, 30.0};
+        m->pad[1] = (phantom_pad){46.0, -30.0, 46.0, 30.0};
+        m->pad_falloff = 20.0;
+        m->pad_radius = 4.0;
+    }
+
+    snprintf(m->family, sizeof m->family, "%s", o->family ? o->family : "tag36h11");
+    int codes = family_codes(m->family);
+    if (!codes)
+        return sh_error_set(SH_EINVAL, "--family %s: tag36h11, tag25h9, tag16h5 or tagStandard41h12",
+                            m->family);
+    m->tag_size = o->tag_size > 0 ? o->tag_size : (invivo ? 8.0 : 10.0);
+    if (m->tag_size < 2.0 || m->tag_size > 40.0)
+        return sh_error_set(SH_EINVAL, "--tag-size %g: 2 to 40 mm", m->tag_size);
+    m->num_markers = o->markers > 0 ? o->markers : (o->ids ? o->num_ids : (invivo ? 14 : 16));
+    if (m->num_markers > PHANTOM_MAX_MARKERS)
+        return sh_error_set(SH_EINVAL, "--markers %d: at most %d", m->num_markers, PHANTOM_MAX_MARKERS);
+    if (o->ids && o->num_ids != m->num_markers)
+        return sh_error_set(SH_EINVAL, "--ids lists %d ids for %d markers", o->num_ids, m->num_markers);
+    for (int i = 0; o->ids && i < o->num_ids; i++) {
+        if (o->ids[i] < 0 || o->ids[i] >= codes)
+            return sh_error_set(SH_EINVAL, "--ids: id %d outside %s's 0..%d", o->ids[i], m->family,
+                                codes - 1);
+        for (int j = 0; j < i; j++)
+            if (o->ids[j] == o->ids[i]) return sh_error_set(SH_EINVAL, "--ids: id %d twice", o->ids[i]);
+    }
+    if (!o->ids && m->num_markers > codes - 1)
+        return sh_error_set(SH_EINVAL, "--markers %d: %s has %d codes", m->num_markers, m->family, codes);
+    sh_status st = layout_markers(m, o, &rng);
+    if (st != SH_OK) return st;
+
+    /* trinocular rig: a triangle of 90 mm sides, 50 cm above the patch, all looking at it */
+    static const double centers[3][3] = {{-45, 26, 500}, {45, 26, 500}, {0, -52, 500}};
+    static const double rolls[3] = {0.012, -0.008, 0.02};
+    static const double off[3][2] = {{3.7, -2.1}, {-4.4, 1.6}, {2.2, 3.3}};
+    m->num_cameras = o->cameras;
+    double scale = o->width / 1920.0;
+    for (int i = 0; i < m->num_cameras; i++) {
+        phantom_camera *c = &m->cam[i];
+        c->fx = 4725.0 * scale;
+        c->fy = 4725.0 * scale;
+        c->cx = 0.5 * (o->width - 1) + off[i][0] * scale;
+        c->cy = 0.5 * (o->height - 1) + off[i][1] * scale;
+        for (int k = 0; k < 5 && o->dist; k++) c->dist[k] = o->dist[k];
+        place_camera(c, centers[i], rolls[i]);
+        if (!distortion_monotonic(c, o->width, o->height))
+            return sh_error_set(SH_EINVAL, "--distortion folds the image (radial part not monotonic "
+                                           "over the view, or |p1|, |p2| >= 0.05)");
+    }
+
+    m->noise = o->noise >= 0 ? o->noise : 1.5;
+    m->exposure = o->exposure > 0 ? o->exposure : 1.0;
+
+    /* shaft period and blob times are drawn even without occlusions, so that turning them on
+     * changes nothing else about a sequence */
+    double dur = m->frames / m->fps;
+    double tip_u = uniform(&rng, -20, 20), tip_v = uniform(&rng, -15, 15);
+    double when[PHANTOM_MAX_BLOBS];
+    for (int b = 0; b < PHANTOM_MAX_BLOBS; b++) when[b] = uniform(&rng, 0.05, 0.65);
+    uint64_t pick = splitmix(&rng);
+    double yaw = uniform(&rng, -0.3, 0.3);
+    if (o->occlusions) {
+        m->shaft = 1;
+        m->shaft_p0[0] = 150.0;
+        m->shaft_p0[1] = -25.0 + tip_v;
+        m->shaft_p0[2] = 45.0;
+        m->shaft_p1[0] = tip_u;
+        m->shaft_p1[1] = tip_v;
+        m->shaft_p1[2] = 32.0;
+        m->shaft_dir[0] = 1.0;
+        m->shaft_dir[1] = -0.25;
+        m->shaft_dir[2] = 0.35;
+        m->shaft_length = 260.0;
+        m->shaft_radius = 4.0;
+        m->shaft_period = dur;
+        m->num_blobs = m->num_markers < 3 ? m->num_markers : 3;
+        for (int b = 0; b < m->num_blobs; b++) {
+            int i = (int)((pick >> (8 * b)) % (uint64_t)m->num_markers);
+            for (int j = 0; j < b; j++)
+                if (m->blob[j].u == m->marker[i].u) i = (i + 1) % m->num_markers;
+            m->blob[b].u = m->marker[i].u + 0.15 * m->tag_size;
+            m->blob[b].v = m->marker[i].v - 0.1 * m->tag_size;
+            m->blob[b].radius = 0.85 * m->tag_size;
+            m->blob[b].t0 = when[b] * dur;
+            m->blob[b].t1 = m->blob[b].t0 + fmax(0.25 * dur, 1.0);
+        }
+        m->decoy = 1;
+        int id = 0;
+        for (int again = 1; again;) {
+            again = 0;
+            for (int i = 0; i < m->num_markers; i++)
+                if (m->marker[i].id == id) {
+                    id++;
+                    again = 1;
+                }
+        }
+        if (id >= codes) return sh_error_set(SH_EINVAL, "no %s id left for the decoy", m->family);
+        m->decoy_id = id;
+        m->decoy_center[0] = -0.5 * m->size_u - 0.5 * PHANTOM_DECOY_CARD * m->tag_size - 6.0;
+        m->decoy_center[1] = 0.2 * m->size_v;
+        m->decoy_center[2] = 6.0;
+        m->decoy_yaw = yaw;
+    }
+    return SH_OK;
+}

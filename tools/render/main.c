@@ -1,0 +1,451 @@
+/* stillheart-render: renders the beating-heart phantom with its exact ground truth.
+ *
+ * The main thread draws (OSMesa's llvmpipe spreads each draw over LP_NUM_THREADS threads); one
+ * worker converts finished frames to I420 with sensor noise and writes them, so drawing and
+ * writing overlap. Frames go through a two-slot ring: the drawing never waits on the disk for
+ * more than one frame. */
+#include <errno.h>
+#include <getopt.h>
+#include <math.h>
+#include <pthread.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "render.h"
+#include "stillheart/calib.h"
+#include "stillheart/y4m.h"
+
+static void usage(FILE *f)
+{
+    fprintf(f,
+"usage: stillheart-render --preset exvivo|invivo --out DIR [options]\n"
+"Renders a beating-heart phantom seen by 1-3 calibrated cameras, with exact ground truth.\n"
+"\n"
+"  --preset NAME      exvivo: artificial heart, 16 markers, 0.7 Hz, 23 fps, 400 frames;\n"
+"                     invivo: porcine heart, 14 markers, 80 bpm + respiration, stabilizer\n"
+"                     pads pressing part of the surface still, 31 fps, 337 frames\n"
+"  --out DIR          output folder (created if missing)\n"
+"  --frames N         number of frames (default: the preset's)\n"
+"  --fps F            frame rate (default: the preset's)\n"
+"  --cameras K        1, 2 or 3 cameras of the trinocular rig (default 3)\n"
+"  --width W          image width, even (default 1920)\n"
+"  --height H         image height, even (default 1080); the focal length scales with W\n"
+"  --seed S           seed of everything random: texture, marker jitter, occlusions, noise\n"
+"                     (default 1); the same seed gives the same bytes\n"
+"  --occlusions       an instrument shaft crossing the view, blood blobs covering markers for\n"
+"                     a while, and a decoy tag on a card beside the heart (not in markers.csv)\n"
+"  --bpm B            heart rate in beats per minute (default 42 exvivo, 80 invivo)\n"
+"  --markers N        number of markers (default 16 exvivo, 14 invivo)\n"
+"  --tag-size MM      edge of a tag's black border in mm (default 10 exvivo, 8 invivo)\n"
+"  --family NAME      tag36h11 (default), tag25h9, tag16h5 or tagStandard41h12\n"
+"  --ids A,B,...      marker ids (default 0..N-1); sets N when --markers is absent\n"
+"  --distortion K1,K2,P1,P2,K3\n"
+"                     OpenCV lens distortion of every camera (default none)\n"
+"  --noise SIGMA      read noise in DN (default 1.5; shot noise grows with the signal; 0: none)\n"
+"  --exposure GAIN    exposure gain on the rendered radiance (default 1; highlights clip)\n"
+"  --quiet            no progress bar (shown only on a terminal anyway) and no closing\n"
+"                     line with the rendering speed\n"
+"  --help             this text\n"
+"\n"
+"Writes DIR/cam0.y4m (cam1, cam2: Y4M 4:2:0, BT.601 limited range), DIR/markers.csv\n"
+"(frame,camera,id,point,x,y,visible,X,Y,Z: point c = tag centre, 0-3 its corners in\n"
+"libapriltag's order; x,y OpenCV pixels of the distorted image, pixel centres at integers;\n"
+"X,Y,Z world mm), DIR/calibration.yaml (OpenCV FileStorage: K_i, dist_i, R_i, t_i, P_i) and\n"
+"DIR/phantom.txt (the analytic motion, reloaded by tools/phantom's truth library).\n"
+"Environment: LP_NUM_THREADS (llvmpipe threads, default: the number of CPUs).\n");
+}
+
+typedef struct {
+    uint8_t *rgba;
+    int camera, frame, full;
+} slot;
+
+typedef struct {
+    pthread_mutex_t mu;
+    pthread_cond_t cv;
+    slot slots[2];
+    int quit;
+    sh_status status;
+    char error[512];
+    const phantom_model *m;
+    rd_sensor sensor;
+    sh_y4m_writer *writers[PHANTOM_MAX_CAMERAS];
+    uint8_t *i420, *scratch;
+} pipeline;
+
+static void *writer_main(void *arg)
+{
+    pipeline *p = arg;
+    int next = 0;
+    for (;;) {
+        pthread_mutex_lock(&p->mu);
+        while (!p->slots[next].full && !p->quit) pthread_cond_wait(&p->cv, &p->mu);
+        if (!p->slots[next].full) {
+            pthread_mutex_unlock(&p->mu);
+            return NULL;
+        }
+        slot *s = &p->slots[next];
+        int failed = p->status != SH_OK;
+        pthread_mutex_unlock(&p->mu);
+        sh_status st = SH_OK;
+        if (!failed) {
+            const phantom_model *m = p->m;
+            rd_sensor_to_i420(&p->sensor, s->camera, s->frame, s->rgba, m->width, m->height, p->i420,
+                              p->scratch);
+            sh_image img;
+            st = sh_image_wrap(&img, SH_PIX_I420, m->width, m->height, p->i420);
+            if (st == SH_OK) st = sh_y4m_writer_write(p->writers[s->camera], &img);
+        }
+        pthread_mutex_lock(&p->mu);
+        if (st != SH_OK) {
+            snprintf(p->error, sizeof p->error, "%s", sh_error_message());
+            p->status = st;
+        }
+        s->full = 0;
+        pthread_cond_broadcast(&p->cv);
+        pthread_mutex_unlock(&p->mu);
+        next ^= 1;
+    }
+}
+
+static int parse_list(const char *s, double *out, int max)
+{
+    int n = 0;
+    while (*s && n < max) {
+        char *end;
+        errno = 0;
+        out[n++] = strtod(s, &end);
+        if (end == s || errno) return -1;
+        s = end;
+        if (*s == ',') s++;
+        else if (*s) return -1;
+    }
+    return *s ? -1 : n;
+}
+
+static int parse_int(const char *s, long lo, long hi, long *out)
+{
+    char *end;
+    errno = 0;
+    long v = strtol(s, &end, 10);
+    if (end == s || *end || errno || v < lo || v > hi) return 0;
+    *out = v;
+    return 1;
+}
+
+static int parse_double(const char *s, double *out)
+{
+    char *end;
+    errno = 0;
+    *out = strtod(s, &end);
+    return end != s && !*end && !errno;
+}
+
+static int make_dir(const char *path)
+{
+    char tmp[4096];
+    if (snprintf(tmp, sizeof tmp, "%s", path) >= (int)sizeof tmp) return -1;
+    for (char *p = tmp + 1; *p; p++)
+        if (*p == '/') {
+            *p = '\0';
+            if (mkdir(tmp, 0777) != 0 && errno != EEXIST) return -1;
+            *p = '/';
+        }
+    if (mkdir(tmp, 0777) != 0 && errno != EEXIST) return -1;
+    struct stat st;
+    return stat(tmp, &st) == 0 && S_ISDIR(st.st_mode) ? 0 : -1;
+}
+
+static double now(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return ts.tv_sec + ts.tv_nsec * 1e-9;
+}
+
+static void progress(int done, int total, double t0)
+{
+    double el = now() - t0, fps = el > 0 ? done / el : 0;
+    int bar = 30, fill = total > 0 ? done * bar / total : bar;
+    double eta = fps > 0 ? (total - done) / fps : 0;
+    fprintf(stderr, "\rrender [%.*s%*s] %d/%d frames  %.1f fps  ETA %d:%02d ", fill,
+            "==============================", bar - fill, "", done, total, fps, (int)eta / 60,
+            (int)eta % 60);
+    if (done == total) fputc('\n', stderr);
+}
+
+static sh_status write_calibration(const phantom_model *m, const char *path)
+{
+    sh_calib cal;
+    memset(&cal, 0, sizeof cal);
+    cal.num_cameras = m->num_cameras;
+    cal.width = m->width;
+    cal.height = m->height;
+    for (int c = 0; c < m->num_cameras; c++) {
+        const phantom_camera *pc = &m->cam[c];
+        sh_calib_camera *k = &cal.cam[c];
+        double K[9] = {pc->fx, 0, pc->cx, 0, pc->fy, pc->cy, 0, 0, 1};
+        memcpy(k->K, K, sizeof K);
+        memcpy(k->dist, pc->dist, sizeof pc->dist);
+        k->num_dist = 5;
+        memcpy(k->R, pc->R, sizeof pc->R);
+        memcpy(k->t, pc->t, sizeof pc->t);
+    }
+    sh_calib_compute_p(&cal);
+    return sh_calib_write(path, &cal);
+}
+
+static void fmt_num(char *buf, size_t n, double v)
+{
+    if (v != v) snprintf(buf, n, "nan");
+    else snprintf(buf, n, "%.6f", v);
+}
+
+static int write_markers(FILE *f, const phantom_model *m, int frame)
+{
+    static const char names[PHANTOM_POINTS] = {'0', '1', '2', '3', 'c'};
+    double t = frame / m->fps;
+    for (int c = 0; c < m->num_cameras; c++)
+        for (int i = 0; i < m->num_markers; i++)
+            for (int k = 0; k < PHANTOM_POINTS; k++) {
+                double X[3], x = NAN, y = NAN;
+                phantom_marker_point(m, i, k, t, X);
+                int front = phantom_project(&m->cam[c], X, &x, &y);
+                int vis = front && phantom_marker_visible(m, c, t, i, k);
+                char xs[32], ys[32];
+                fmt_num(xs, sizeof xs, front ? x : NAN);
+                fmt_num(ys, sizeof ys, front ? y : NAN);
+                if (fprintf(f, "%d,%d,%d,%c,%s,%s,%d,%.6f,%.6f,%.6f\n", frame, c, m->marker[i].id,
+                            names[k], xs, ys, vis, X[0], X[1], X[2]) < 0)
+                    return -1;
+            }
+    return 0;
+}
+
+/* llvmpipe and LLVM keep caches for the life of the process; under LeakSanitizer (the ASan test
+ * build) they are not our leaks. */
+const char *__lsan_default_suppressions(void);
+const char *__lsan_default_suppressions(void)
+{
+    return "leak:libOSMesa\nleak:libLLVM\nleak:libgallium\nleak:libglapi\n";
+}
+
+int main(int argc, char **argv)
+{
+    phantom_options o;
+    phantom_options_default(&o);
+    const char *out = NULL;
+    int quiet = 0;
+    double dist[5];
+    int ids[PHANTOM_MAX_MARKERS];
+    enum { O_PRESET = 256, O_FRAMES, O_CAMERAS, O_WIDTH, O_HEIGHT, O_SEED, O_OCC, O_BPM, O_MARKERS,
+           O_TAG, O_FAMILY, O_IDS, O_FPS, O_DIST, O_NOISE, O_EXPOSURE, O_OUT, O_QUIET, O_HELP };
+    static const struct option opts[] = {
+        {"preset", 1, 0, O_PRESET}, {"frames", 1, 0, O_FRAMES}, {"cameras", 1, 0, O_CAMERAS},
+        {"width", 1, 0, O_WIDTH}, {"height", 1, 0, O_HEIGHT}, {"seed", 1, 0, O_SEED},
+        {"occlusions", 0, 0, O_OCC}, {"bpm", 1, 0, O_BPM}, {"markers", 1, 0, O_MARKERS},
+        {"tag-size", 1, 0, O_TAG}, {"family", 1, 0, O_FAMILY}, {"ids", 1, 0, O_IDS},
+        {"fps", 1, 0, O_FPS}, {"distortion", 1, 0, O_DIST}, {"noise", 1, 0, O_NOISE},
+        {"exposure", 1, 0, O_EXPOSURE}, {"out", 1, 0, O_OUT}, {"quiet", 0, 0, O_QUIET},
+        {"help", 0, 0, O_HELP}, {0, 0, 0, 0}};
+    int ch;
+    long lv;
+    double dv;
+#define BAD(...) do { fprintf(stderr, "stillheart-render: " __VA_ARGS__); fputc('\n', stderr); return 2; } while (0)
+    while ((ch = getopt_long(argc, argv, "", opts, NULL)) != -1) {
+        switch (ch) {
+        case O_PRESET: o.preset = optarg; break;
+        case O_FRAMES: if (!parse_int(optarg, 1, 1000000, &lv)) BAD("--frames '%s': a count from 1", optarg); o.frames = (int)lv; break;
+        case O_CAMERAS: if (!parse_int(optarg, 1, 3, &lv)) BAD("--cameras '%s': 1, 2 or 3", optarg); o.cameras = (int)lv; break;
+        case O_WIDTH: if (!parse_int(optarg, 16, 8192, &lv)) BAD("--width '%s': 16 to 8192", optarg); o.width = (int)lv; break;
+        case O_HEIGHT: if (!parse_int(optarg, 16, 8192, &lv)) BAD("--height '%s': 16 to 8192", optarg); o.height = (int)lv; break;
+        case O_SEED: {
+            char *end;
+            errno = 0;
+            unsigned long long s = strtoull(optarg, &end, 10);
+            if (end == optarg || *end || errno || optarg[0] == '-') BAD("--seed '%s': a non-negative integer", optarg);
+            o.seed = s;
+            break;
+        }
+        case O_OCC: o.occlusions = 1; break;
+        case O_BPM: if (!parse_double(optarg, &dv) || !(dv > 0 && dv <= 300)) BAD("--bpm '%s': 0 to 300", optarg); o.bpm = dv; break;
+        case O_MARKERS: if (!parse_int(optarg, 1, PHANTOM_MAX_MARKERS, &lv)) BAD("--markers '%s': 1 to %d", optarg, PHANTOM_MAX_MARKERS); o.markers = (int)lv; break;
+        case O_TAG: if (!parse_double(optarg, &dv) || !(dv > 0)) BAD("--tag-size '%s': millimetres > 0", optarg); o.tag_size = dv; break;
+        case O_FAMILY: o.family = optarg; break;
+        case O_IDS: {
+            double v[PHANTOM_MAX_MARKERS];
+            int n = parse_list(optarg, v, PHANTOM_MAX_MARKERS);
+            if (n <= 0) BAD("--ids '%s': comma-separated ids, at most %d", optarg, PHANTOM_MAX_MARKERS);
+            for (int i = 0; i < n; i++) {
+                if (v[i] != (int)v[i]) BAD("--ids: '%g' is not an integer", v[i]);
+                ids[i] = (int)v[i];
+            }
+            o.ids = ids;
+            o.num_ids = n;
+            break;
+        }
+        case O_FPS: if (!parse_double(optarg, &dv) || !(dv > 0 && dv <= 1000)) BAD("--fps '%s': 0 to 1000", optarg); o.fps = dv; break;
+        case O_DIST: if (parse_list(optarg, dist, 5) != 5) BAD("--distortion '%s': five numbers k1,k2,p1,p2,k3", optarg); o.dist = dist; break;
+        case O_NOISE: if (!parse_double(optarg, &dv) || !(dv >= 0 && dv <= 100)) BAD("--noise '%s': 0 to 100 DN", optarg); o.noise = dv; break;
+        case O_EXPOSURE: if (!parse_double(optarg, &dv) || !(dv > 0 && dv <= 16)) BAD("--exposure '%s': a gain in (0, 16]", optarg); o.exposure = dv; break;
+        case O_OUT: out = optarg; break;
+        case O_QUIET: quiet = 1; break;
+        case O_HELP: usage(stdout); return 0;
+        default: usage(stderr); return 2;
+        }
+    }
+    if (optind < argc) BAD("unexpected argument '%s' (see --help)", argv[optind]);
+    if (!out) BAD("--out DIR is required (see --help)");
+#undef BAD
+
+    static phantom_model m;
+    if (phantom_model_build(&o, &m) != SH_OK) {
+        fprintf(stderr, "stillheart-render: %s\n", sh_error_message());
+        return 2;
+    }
+    if (make_dir(out) != 0) {
+        fprintf(stderr, "stillheart-render: %s: cannot create the folder: %s\n", out, strerror(errno));
+        return 1;
+    }
+    if (!getenv("LP_NUM_THREADS")) {
+        long n = sysconf(_SC_NPROCESSORS_ONLN);
+        char buf[24];
+        snprintf(buf, sizeof buf, "%ld", n > 0 && n < 1000 ? n : 1);
+        setenv("LP_NUM_THREADS", buf, 0);
+    }
+    rd_sensor_init();
+    double t_start = now();
+
+    char path[4200];
+    int rc = 1;
+    pipeline p;
+    memset(&p, 0, sizeof p);
+    pthread_mutex_init(&p.mu, NULL);
+    pthread_cond_init(&p.cv, NULL);
+    p.m = &m;
+    p.sensor.gain = m.exposure;
+    p.sensor.read_noise = m.noise;
+    p.sensor.seed = m.seed;
+    FILE *csv = NULL;
+    rd_scene *scene = NULL;
+    rd_texture drape[PHANTOM_MAX_CAMERAS];
+    memset(drape, 0, sizeof drape);
+    pthread_t thread;
+    int thread_ok = 0;
+    size_t frame_bytes = (size_t)m.width * m.height * 4;
+    p.slots[0].rgba = malloc(frame_bytes);
+    p.slots[1].rgba = malloc(frame_bytes);
+    p.i420 = malloc(sh_image_packed_size(SH_PIX_I420, m.width, m.height));
+    p.scratch = malloc((size_t)m.width * m.height);
+    if (!p.slots[0].rgba || !p.slots[1].rgba || !p.i420 || !p.scratch) {
+        fprintf(stderr, "stillheart-render: out of memory for %dx%d frames\n", m.width, m.height);
+        goto done;
+    }
+#define FAIL() do { fprintf(stderr, "stillheart-render: %s\n", sh_error_message()); goto done; } while (0)
+    snprintf(path, sizeof path, "%s/%s", out, PHANTOM_PARAMS_FILE);
+    if (phantom_model_write(&m, path) != SH_OK) FAIL();
+    snprintf(path, sizeof path, "%s/calibration.yaml", out);
+    if (write_calibration(&m, path) != SH_OK) FAIL();
+    snprintf(path, sizeof path, "%s/markers.csv", out);
+    csv = fopen(path, "w");
+    if (!csv) {
+        fprintf(stderr, "stillheart-render: %s: %s\n", path, strerror(errno));
+        goto done;
+    }
+    fprintf(csv, "%s\n", PHANTOM_CSV_HEADER);
+    sh_y4m_header hdr;
+    memset(&hdr, 0, sizeof hdr);
+    hdr.width = m.width;
+    hdr.height = m.height;
+    hdr.format = SH_PIX_I420;
+    hdr.siting = SH_CHROMA_CENTER;
+    hdr.fps_num = m.fps == (int)m.fps ? (int)m.fps : (int)(m.fps * 1000 + 0.5);
+    hdr.fps_den = m.fps == (int)m.fps ? 1 : 1000;
+    hdr.aspect_num = hdr.aspect_den = 1;
+    hdr.interlace = 'p';
+    for (int c = 0; c < m.num_cameras; c++) {
+        snprintf(path, sizeof path, "%s/cam%d.y4m", out, c);
+        if (sh_y4m_writer_open(path, &hdr, &p.writers[c]) != SH_OK) FAIL();
+    }
+    for (int c = 0; c < m.num_cameras; c++) {
+        if (rd_texture_drape(m.seed, c, m.width, m.height, &drape[c]) != SH_OK) FAIL();
+        p.sensor.background[c] = drape[c].rgb;
+    }
+    if (rd_scene_create(&m, &scene) != SH_OK) FAIL();
+    if (pthread_create(&thread, NULL, writer_main, &p) != 0) {
+        fprintf(stderr, "stillheart-render: cannot start the writer thread\n");
+        goto done;
+    }
+    thread_ok = 1;
+    int show = !quiet && isatty(2);
+    double t0 = now();
+    int cur = 0;
+    for (int f = 0; f < m.frames; f++) {
+        rd_scene_update(scene, f / m.fps);
+        for (int c = 0; c < m.num_cameras; c++) {
+            pthread_mutex_lock(&p.mu);
+            while (p.slots[cur].full) pthread_cond_wait(&p.cv, &p.mu);
+            sh_status wst = p.status;
+            pthread_mutex_unlock(&p.mu);
+            if (wst != SH_OK) {
+                fprintf(stderr, "stillheart-render: %s\n", p.error);
+                goto done;
+            }
+            if (rd_scene_draw(scene, c, p.slots[cur].rgba) != SH_OK) FAIL();
+            pthread_mutex_lock(&p.mu);
+            p.slots[cur].camera = c;
+            p.slots[cur].frame = f;
+            p.slots[cur].full = 1;
+            pthread_cond_broadcast(&p.cv);
+            pthread_mutex_unlock(&p.mu);
+            cur ^= 1;
+        }
+        if (write_markers(csv, &m, f) != 0) {
+            fprintf(stderr, "stillheart-render: markers.csv: write error: %s\n", strerror(errno));
+            goto done;
+        }
+        if (show) progress(f + 1, m.frames, t0);
+    }
+    rc = 0;
+done:
+    if (thread_ok) {
+        pthread_mutex_lock(&p.mu);
+        p.quit = 1;
+        pthread_cond_broadcast(&p.cv);
+        pthread_mutex_unlock(&p.mu);
+        pthread_join(thread, NULL);
+        if (rc == 0 && p.status != SH_OK) {
+            fprintf(stderr, "stillheart-render: %s\n", p.error);
+            rc = 1;
+        }
+    }
+    if (rc == 0 && !quiet) {
+        double el = now() - t_start;
+        fprintf(stderr, "stillheart-render: %d frames x %d cameras, %dx%d, in %.1f s (%.1f frames/s, %.1f "
+                "images/s, setup included)\n", m.frames, m.num_cameras, m.width, m.height, el,
+                m.frames / el, m.frames * m.num_cameras / el);
+    }
+    for (int c = 0; c < m.num_cameras; c++)
+        if (p.writers[c] && sh_y4m_writer_close(p.writers[c]) != SH_OK && rc == 0) {
+            fprintf(stderr, "stillheart-render: %s\n", sh_error_message());
+            rc = 1;
+        }
+    if (csv && (ferror(csv) | fclose(csv)) && rc == 0) {
+        fprintf(stderr, "stillheart-render: markers.csv: write error\n");
+        rc = 1;
+    }
+    rd_scene_destroy(scene);
+    for (int c = 0; c < PHANTOM_MAX_CAMERAS; c++) rd_texture_free(&drape[c]);
+    free(p.slots[0].rgba);
+    free(p.slots[1].rgba);
+    free(p.i420);
+    free(p.scratch);
+    pthread_mutex_destroy(&p.mu);
+    pthread_cond_destroy(&p.cv);
+    return rc;
+#undef FAIL
+}
