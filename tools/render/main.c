@@ -233,6 +233,11 @@ const char *__lsan_default_suppressions(void)
 {
     return "leak:libOSMesa\nleak:libLLVM\nleak:libgallium\nleak:libglapi\n";
 }
+const char *__lsan_default_options(void);
+const char *__lsan_default_options(void)
+{
+    return "print_suppressions=0";
+}
 
 int main(int argc, char **argv)
 {

@@ -155,8 +155,8 @@ sh_status rd_texture_tissue(const phantom_model *m, int w, int h, rd_texture *ou
             float r = 150 * shade, g = 42 * shade + 10 * mid, b = 45 * shade + 6 * fine;
             float d = vd[(size_t)y * w + x];
             /* fat hugs the vessels and lies in patches elsewhere */
-            float fatness = smooth(0.60f, 0.75f, fbm(u / 9.0f + 20, v / 9.0f + 20, 4, seed + 4000) +
-                                                     0.35f * smooth(6.0f, 1.5f, d));
+            float fatness = smooth(0.68f, 0.80f, fbm(u / 9.0f + 20, v / 9.0f + 20, 4, seed + 4000) +
+                                                     0.30f * smooth(5.0f, 1.4f, d));
             float fr = 225 - 30 * mid, fg = 185 - 35 * mid + 10 * fine, fb = 105 - 20 * mid;
             r += (fr - r) * fatness;
             g += (fg - g) * fatness;
