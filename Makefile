@@ -70,9 +70,9 @@ APP      := $(BUILD)/stillheart
 
 TEST_SRC := $(wildcard tests/unit/test_*.c)
 TEST_BIN := $(TEST_SRC:tests/unit/%.c=$(BUILD)/tests/%)
-TEST_SUPPORT := $(patsubst %.c,$(BUILD)/%.o,$(filter-out $(TEST_SRC),$(wildcard tests/unit/*.c)))
+TEST_SUPPORT := $(patsubst %.c,$(BUILD)/%.o,$(filter-out $(TEST_SRC),$(wildcard tests/unit/*.c)) tools/synth/synth.c)
 
-.PHONY: all deps tests check check-asan bench fuzz install clean
+.PHONY: all deps tests check check-asan bench fuzz demo install clean
 all: $(LIB) $(APP)
 
 deps:
@@ -97,6 +97,8 @@ $(LIB): $(LIB_OBJ)
 $(APP): $(APP_OBJ) $(LIB)
 	$(CC) $(LDFLAGS) $(APP_OBJ) $(LIB) $(LDLIBS_ALL) -o $@
 
+$(BUILD)/tests/unit/%.o: CFLAGS_ALL += -Itools/synth
+
 $(BUILD)/tests/%: $(BUILD)/tests/unit/%.o $(TEST_SUPPORT) $(LIB)
 	@mkdir -p $(dir $@)
 	$(CC) $(LDFLAGS) $< $(TEST_SUPPORT) $(LIB) $(shell $(PKG_CONFIG) --libs cmocka) $(LDLIBS_ALL) -o $@
@@ -116,9 +118,9 @@ check-asan:
 # ---- benchmarks (tools/bench): ours beside the peer, in one process ----
 BENCH_SRC := $(wildcard tools/bench/*.cpp)
 BENCH_BIN := $(BENCH_SRC:tools/bench/%.cpp=$(BUILD)/bench/%)
-$(BUILD)/bench/%: tools/bench/%.cpp $(BUILD)/tests/unit/synth.o $(LIB)
+$(BUILD)/bench/%: tools/bench/%.cpp $(BUILD)/tools/synth/synth.o $(LIB)
 	@mkdir -p $(dir $@)
-	$(CXX) $(CXXFLAGS_ALL) $(OPENCV_CFLAGS) $< $(BUILD)/tests/unit/synth.o $(LIB) $(OPENCV_LIBS) $(LDLIBS_ALL) -o $@
+	$(CXX) $(CXXFLAGS_ALL) $(OPENCV_CFLAGS) $< $(BUILD)/tools/synth/synth.o $(LIB) $(OPENCV_LIBS) $(LDLIBS_ALL) -o $@
 
 bench: deps
 	$(MAKE) --no-print-directory $(BENCH_BIN)
@@ -151,6 +153,16 @@ TOOL_TESTS :=
 -include $(wildcard tools/*/*.mk)
 all: $(TOOLS)
 tests: $(TOOL_TESTS)
+
+# The README's first command: a recording with a known motion, stabilized, e printed.
+DEMO_DIR ?= out/demo
+DEMO_METHOD ?= bspline
+demo: deps
+	$(MAKE) --no-print-directory all
+	$(BUILD)/stillheart-synth --width 960 --height 540 --frames 30 --markers 16 --out $(DEMO_DIR)
+	$(APP) warp --method $(DEMO_METHOD) --threads 2 --points $(DEMO_DIR)/points.csv \
+		$(DEMO_DIR)/video.y4m $(DEMO_DIR)/stabilized.y4m --map-out $(DEMO_DIR)/map.npy
+	@echo "stabilized video: $(DEMO_DIR)/stabilized.y4m (e.g. ffplay $(DEMO_DIR)/stabilized.y4m)"
 
 install: all
 	install -d $(DESTDIR)$(PREFIX)/bin $(DESTDIR)$(PREFIX)/include/stillheart $(DESTDIR)$(PREFIX)/lib

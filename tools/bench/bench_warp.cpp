@@ -17,7 +17,7 @@
 
 extern "C" {
 #include "stillheart/warp.h"
-#include "../../tests/unit/synth.h"
+#include "../synth/synth.h"
 }
 
 // CPU time of this thread: both sides run on this one thread, and on a shared machine it

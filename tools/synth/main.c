@@ -1,0 +1,155 @@
+/* stillheart-synth: a test recording with a known answer, made on the spot: a smooth texture
+ * moved by a known non-uniform motion (tools/synth/synth.c), as Y4M, with the exact marker
+ * positions as a points file for `stillheart warp`. */
+#include <errno.h>
+#include <getopt.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include "stillheart/points.h"
+#include "stillheart/y4m.h"
+#include "synth.h"
+
+static void usage(FILE *out)
+{
+    fprintf(out,
+        "usage: stillheart-synth [OPTIONS] --out DIR\n\n"
+        "Writes DIR/video.y4m, a textured surface moved by a known smooth non-uniform motion\n"
+        "(one period over the sequence; frame 0 is undeformed), and DIR/points.csv, the exact\n"
+        "positions of markers on it ('frame,id,x,y'), ready for 'stillheart warp'.\n\n"
+        "options:\n"
+        "  --width W        frame width (default 640)\n"
+        "  --height H       frame height (default 360)\n"
+        "  --frames N       number of frames (default 24)\n"
+        "  --markers M      number of markers (default 16)\n"
+        "  --amplitude A    motion scale in pixels (default 10)\n"
+        "  --format F       i420 (default), gray8 or yuv444\n"
+        "  --seed S         marker layout (default 1)\n"
+        "  --out DIR        output folder (created if missing)\n"
+        "  --help           this text\n");
+}
+
+static int parse_int(const char *opt, const char *text, int lo, int hi, int *out)
+{
+    char *end;
+    errno = 0;
+    long v = strtol(text, &end, 10);
+    if (errno || *end || end == text || v < lo || v > hi) {
+        fprintf(stderr, "stillheart-synth: %s: '%s' is not a whole number in %d..%d\n", opt, text, lo, hi);
+        return 0;
+    }
+    *out = (int)v;
+    return 1;
+}
+
+/* mkdir -p */
+static int make_dirs(const char *path)
+{
+    char buf[4096];
+    if (snprintf(buf, sizeof buf, "%s", path) >= (int)sizeof buf) {
+        errno = ENAMETOOLONG;
+        return 0;
+    }
+    for (char *p = buf + 1; *p; p++) {
+        if (*p != '/') continue;
+        *p = 0;
+        if (mkdir(buf, 0777) != 0 && errno != EEXIST) return 0;
+        *p = '/';
+    }
+    return mkdir(buf, 0777) == 0 || errno == EEXIST;
+}
+
+int main(int argc, char **argv)
+{
+    static const struct option options[] = {
+        {"width", required_argument, 0, 'w'}, {"height", required_argument, 0, 'h'},
+        {"frames", required_argument, 0, 'n'}, {"markers", required_argument, 0, 'm'},
+        {"amplitude", required_argument, 0, 'a'}, {"format", required_argument, 0, 'f'},
+        {"seed", required_argument, 0, 's'}, {"out", required_argument, 0, 'o'},
+        {"help", no_argument, 0, 'H'}, {0, 0, 0, 0}};
+    int width = 640, height = 360, frames = 24, markers = 16, amplitude = 10, seed = 1, opt;
+    const char *out_dir = NULL;
+    sh_pixfmt format = SH_PIX_I420;
+    while ((opt = getopt_long(argc, argv, "", options, NULL)) != -1) {
+        switch (opt) {
+        case 'w': if (!parse_int("--width", optarg, 16, SH_IMAGE_MAX_SIZE, &width)) return 2; break;
+        case 'h': if (!parse_int("--height", optarg, 16, SH_IMAGE_MAX_SIZE, &height)) return 2; break;
+        case 'n': if (!parse_int("--frames", optarg, 1, 100000, &frames)) return 2; break;
+        case 'm': if (!parse_int("--markers", optarg, 3, 1000, &markers)) return 2; break;
+        case 'a': if (!parse_int("--amplitude", optarg, 0, 1000, &amplitude)) return 2; break;
+        case 's': if (!parse_int("--seed", optarg, 0, 1 << 30, &seed)) return 2; break;
+        case 'f':
+            if (!strcmp(optarg, "i420")) format = SH_PIX_I420;
+            else if (!strcmp(optarg, "gray8")) format = SH_PIX_GRAY8;
+            else if (!strcmp(optarg, "yuv444")) format = SH_PIX_YUV444;
+            else {
+                fprintf(stderr, "stillheart-synth: --format: '%s' is not i420, gray8 or yuv444\n", optarg);
+                return 2;
+            }
+            break;
+        case 'o': out_dir = optarg; break;
+        case 'H': usage(stdout); return 0;
+        default: usage(stderr); return 2;
+        }
+    }
+    if (!out_dir || optind != argc) {
+        usage(stderr);
+        return 2;
+    }
+    if (!make_dirs(out_dir)) {
+        fprintf(stderr, "stillheart-synth: %s: %s\n", out_dir, strerror(errno));
+        return 1;
+    }
+    char video[4096], points[4096];
+    snprintf(video, sizeof video, "%s/video.y4m", out_dir);
+    snprintf(points, sizeof points, "%s/points.csv", out_dir);
+
+    synth_motion motion = {width, height, amplitude};
+    sh_y4m_header h = {.width = width, .height = height, .format = format, .fps_num = 25,
+                       .fps_den = 1, .aspect_num = 1, .aspect_den = 1, .interlace = 'p'};
+    strcpy(h.extra, "XCOLORRANGE=FULL"); /* synth_render writes full-range BT.601 */
+    double *ref = malloc(sizeof(double) * 2 * markers);
+    sh_point *rows = malloc(sizeof(sh_point) * (size_t)markers * frames);
+    sh_image img = {0};
+    sh_y4m_writer *w = NULL;
+    int rc = 1;
+    if (!ref || !rows || sh_image_create(&img, format, width, height) != SH_OK ||
+        sh_y4m_writer_open(video, &h, &w) != SH_OK) {
+        fprintf(stderr, "stillheart-synth: %s\n", sh_error_message());
+        goto done;
+    }
+    synth_markers(&motion, markers, (unsigned)seed, ref);
+    for (int t = 0; t < frames; t++) {
+        double phase = (double)t / frames;
+        synth_render(&motion, phase, &img);
+        if (sh_y4m_writer_write(w, &img) != SH_OK) {
+            fprintf(stderr, "stillheart-synth: %s\n", sh_error_message());
+            goto done;
+        }
+        for (int i = 0; i < markers; i++) {
+            sh_point *p = &rows[(size_t)t * markers + i];
+            *p = (sh_point){.frame = t, .id = i};
+            synth_forward(&motion, phase, ref[2 * i], ref[2 * i + 1], &p->x, &p->y);
+        }
+        if (isatty(STDERR_FILENO)) fprintf(stderr, "\rstillheart-synth: frame %d/%d", t + 1, frames);
+    }
+    if (isatty(STDERR_FILENO)) fputc('\n', stderr);
+    sh_status st = sh_y4m_writer_close(w);
+    w = NULL;
+    FILE *f = fopen(points, "w");
+    if (st != SH_OK || !f || sh_points_write(f, rows, markers * frames, 0) != SH_OK || fclose(f) != 0) {
+        fprintf(stderr, "stillheart-synth: %s: %s\n", points, st != SH_OK ? sh_error_message() : strerror(errno));
+        goto done;
+    }
+    printf("%s\n%s\n", video, points);
+    rc = 0;
+done:
+    if (w) sh_y4m_writer_close(w);
+    sh_image_destroy(&img);
+    free(ref);
+    free(rows);
+    return rc;
+}
