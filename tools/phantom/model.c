@@ -267,7 +267,7 @@ int phantom_point_visible(const phantom_model *m, int c, double t, const double 
                 double py = C[1] + s * (X[1] - C[1]) - m->decoy_center[1];
                 double cy = cos(m->decoy_yaw), sy = sin(m->decoy_yaw);
                 double a = cy * px + sy * py, b = -sy * px + cy * py;
-                double half = 0.5 * m->tag_size * PHANTOM_DECOY_CARD;
+                double half = 0.5 * phantom_decoy_card(m);
                 if (fabs(a) < half && fabs(b) < half) return 0;
             }
         }

@@ -48,7 +48,6 @@ extern "C" {
 #define PHANTOM_MAX_PADS 2
 #define PHANTOM_POINTS 5 /* corners 0..3, then the centre */
 #define PHANTOM_PARAMS_FILE "phantom.txt"
-#define PHANTOM_DECOY_CARD 1.6 /* the decoy card's edge, in tag sizes */
 
 typedef struct {
     double fx, fy, cx, cy;
@@ -147,6 +146,13 @@ int phantom_marker_visible(const phantom_model *m, int c, double t, int i, int k
 void phantom_shaft_axis(const phantom_model *m, double t, double tip[3], double end[3]);
 /* Current radius of blob b at time t (0 when absent). */
 double phantom_blob_radius(const phantom_model *m, int b, double t);
+/* Bits across a family's sticker (apriltag_to_image's width, plus a one-bit white margin for
+ * families whose outer ring holds data) and, in border_bits, across its black border; 0 for a
+ * family we do not draw. */
+int phantom_sticker_bits(const char *family, int *border_bits);
+/* Edge of a marker's sticker (mm, material) and of the decoy's card. */
+double phantom_sticker_size(const phantom_model *m);
+double phantom_decoy_card(const phantom_model *m);
 /* World endpoints of stabilizer pad i's axis (a capsule of radius pad_radius). */
 void phantom_pad_axis(const phantom_model *m, int i, double a[3], double b[3]);
 /* World positions of the decoy's corners (0..3, libapriltag order) and centre (4). */

@@ -33,14 +33,46 @@ void phantom_options_default(phantom_options *o)
     o->noise = -1;
 }
 
-/* Number of codes per family we can draw (families with a square black border only). */
+/* The families we draw (square black border) with their code count and layout in bits:
+ * apriltag_to_image's width (total) and the black border's outer width (border). */
+static const struct {
+    const char *name;
+    int codes, total, border;
+} families[] = {{"tag36h11", 587, 10, 8}, {"tag25h9", 35, 9, 7}, {"tag16h5", 30, 8, 6},
+                {"tagStandard41h12", 2115, 9, 5}};
+
+static int family_index(const char *name)
+{
+    for (int i = 0; i < (int)(sizeof families / sizeof families[0]); i++)
+        if (strcmp(name, families[i].name) == 0) return i;
+    return -1;
+}
+
 static int family_codes(const char *name)
 {
-    static const struct { const char *name; int codes; } fam[] = {
-        {"tag36h11", 587}, {"tag25h9", 35}, {"tag16h5", 30}, {"tagStandard41h12", 2115}};
-    for (size_t i = 0; i < sizeof fam / sizeof fam[0]; i++)
-        if (strcmp(name, fam[i].name) == 0) return fam[i].codes;
-    return 0;
+    int i = family_index(name);
+    return i < 0 ? 0 : families[i].codes;
+}
+
+int phantom_sticker_bits(const char *family, int *border_bits)
+{
+    int i = family_index(family);
+    if (i < 0) return 0;
+    if (border_bits) *border_bits = families[i].border;
+    /* families with data bits outside the border (tagStandard*) get a one-bit white margin, so
+     * that every sticker ends in a quiet zone as tag36h11's image does by itself */
+    return families[i].total + (families[i].total - families[i].border >= 4 ? 2 : 0);
+}
+
+double phantom_sticker_size(const phantom_model *m)
+{
+    int border = 1, bits = phantom_sticker_bits(m->family, &border);
+    return m->tag_size * (bits > 0 ? (double)bits / border : 1.25);
+}
+
+double phantom_decoy_card(const phantom_model *m)
+{
+    return phantom_sticker_size(m) + 0.35 * m->tag_size;
 }
 
 /* Looks at (0, 0, 8) from C, image x along world +X as far as the view allows, rolled a little
@@ -87,7 +119,7 @@ static int distortion_monotonic(const phantom_camera *c, int w, int h)
 
 static sh_status layout_markers(phantom_model *m, const phantom_options *o, uint64_t *rng)
 {
-    double white = m->tag_size * 1.25 + 1.0; /* tag with its white ring, plus a gap */
+    double white = phantom_sticker_size(m) + 1.0; /* the sticker, plus a gap */
     double mu = 0.5 * white + 3.0, mv = mu;
     if (m->num_pads > 0) mu = 45.0 - m->pad_radius - 0.5 * white - 3.0;
     double w = m->num_pads > 0 ? 2.0 * mu : m->size_u - 2.0 * mu;
@@ -271,7 +303,7 @@ sh_status phantom_model_build(const phantom_options *o, phantom_model *m)
         }
         if (id >= codes) return sh_error_set(SH_EINVAL, "no %s id left for the decoy", m->family);
         m->decoy_id = id;
-        m->decoy_center[0] = -0.5 * m->size_u - 0.5 * PHANTOM_DECOY_CARD * m->tag_size - 6.0;
+        m->decoy_center[0] = -0.5 * m->size_u - 0.5 * phantom_decoy_card(m) - 6.0;
         m->decoy_center[1] = 0.2 * m->size_v;
         m->decoy_center[2] = 6.0;
         m->decoy_yaw = yaw;

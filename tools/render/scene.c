@@ -157,6 +157,10 @@ static GLuint upload(const rd_texture *t)
     glGenerateMipmap(GL_TEXTURE_2D);
     glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR_MIPMAP_NEAREST);
     glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+    /* With the nearest mip level, a level still minified up to 1.4x makes bilinear edges
+     * narrower than a pixel: aliased, and tag corners read from them scatter by 0.4 px. The
+     * bias picks the coarser level, so texels are never smaller than pixels. */
+    glTexParameterf(GL_TEXTURE_2D, GL_TEXTURE_LOD_BIAS, 0.5f);
     glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
     glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
     return id;
@@ -290,7 +294,7 @@ sh_status rd_scene_create(const phantom_model *m, rd_scene **out)
     }
     if (m->decoy) {
         /* the card, and the tag on it (a quad each: they are flat and rigid) */
-        double half_card = 0.5 * m->tag_size * PHANTOM_DECOY_CARD;
+        double half_card = 0.5 * phantom_decoy_card(m);
         double half_tag = 0.5 * m->tag_size * total / border;
         mesh *card = &s->card, *tag = &s->decoy;
         if ((st = mesh_alloc(card, 4, 6)) != SH_OK || (st = mesh_alloc(tag, 4, 6)) != SH_OK) goto fail;

@@ -215,11 +215,12 @@ sh_status rd_texture_tag(const char *family, int id, int scale, rd_texture *out,
         return sh_error_set(SH_EINVAL, "%s has no id %d", family, id);
     }
     image_u8_t *im = apriltag_to_image(f, id);
-    *total_bits = f->total_width;
-    *border_bits = f->width_at_border;
     destroy(f);
     if (!im) return sh_error_set(SH_ENOMEM, "tag image: out of memory");
-    int n = im->width * scale;
+    int bits = phantom_sticker_bits(family, border_bits);
+    int margin = (bits - im->width) / 2; /* white bits added around the family's image */
+    *total_bits = bits;
+    int n = bits * scale;
     out->width = out->height = n;
     out->rgb = malloc((size_t)n * n * 3);
     if (!out->rgb) {
@@ -229,9 +230,10 @@ sh_status rd_texture_tag(const char *family, int id, int scale, rd_texture *out,
     /* printed ink: black is not 0 and paper is not 255 */
     for (int y = 0; y < n; y++)
         for (int x = 0; x < n; x++) {
-            uint8_t b = im->buf[(y / scale) * im->stride + x / scale];
-            uint8_t v = b > 127 ? 238 : 22;
-            memset(out->rgb + ((size_t)y * n + x) * 3, v, 3);
+            int bx = x / scale - margin, by = y / scale - margin;
+            int white = bx < 0 || by < 0 || bx >= im->width || by >= im->height ||
+                        im->buf[by * im->stride + bx] > 127;
+            memset(out->rgb + ((size_t)y * n + x) * 3, white ? 238 : 22, 3);
         }
     image_u8_destroy(im);
     return SH_OK;

@@ -13,7 +13,9 @@
 
 #include <apriltag/apriltag.h>
 #include <apriltag/common/image_u8.h>
+#include <apriltag/tag25h9.h>
 #include <apriltag/tag36h11.h>
+#include <apriltag/tagStandard41h12.h>
 
 #include "../../phantom/phantom.h"
 #include "../../phantom/tests/phantom_testutil.h"
@@ -39,7 +41,9 @@ static void detect_all(const char *dir, det_stats *st)
     snprintf(path, sizeof path, "%s/markers.csv", dir);
     phantom_csv csv;
     assert_int_equal(phantom_csv_read(path, &csv), SH_OK);
-    apriltag_family_t *fam = tag36h11_create();
+    apriltag_family_t *fam = !strcmp(m->family, "tag25h9")            ? tag25h9_create()
+                             : !strcmp(m->family, "tagStandard41h12") ? tagStandard41h12_create()
+                                                                      : tag36h11_create();
     apriltag_detector_t *td = apriltag_detector_create();
     apriltag_detector_add_family(td, fam);
     td->quad_decimate = 1.0f;
@@ -99,7 +103,9 @@ static void detect_all(const char *dir, det_stats *st)
         sh_y4m_reader_close(rd);
     }
     apriltag_detector_destroy(td);
-    tag36h11_destroy(fam);
+    if (!strcmp(m->family, "tag25h9")) tag25h9_destroy(fam);
+    else if (!strcmp(m->family, "tagStandard41h12")) tagStandard41h12_destroy(fam);
+    else tag36h11_destroy(fam);
     phantom_csv_free(&csv);
     phantom_truth_close(truth);
 }
@@ -131,6 +137,28 @@ static void test_detections_with_distortion(void **state)
     assert_int_equal(st.missed, 0);
     assert_int_equal(st.detections, 3 * 2 * 14);
     assert_true(st.max_err < 0.5);
+}
+
+/* Other families, chosen ids, exposure and heart rate: the options reach the picture. */
+static void test_families_and_ids(void **state)
+{
+    (void)state;
+    static const char *runs[] = {
+        "--preset exvivo --family tag25h9 --markers 6 --ids 3,5,8,13,21,34 --tag-size 9 --frames 2 "
+        "--cameras 1 --width 960 --height 540 --exposure 1.25 --bpm 95 --seed 2",
+        "--preset invivo --family tagStandard41h12 --markers 9 --ids 100,200,300,400,500,600,700,800,900 "
+        "--tag-size 6 --frames 2 --cameras 1 --width 960 --height 540 --noise 0 --seed 2"};
+    for (int r = 0; r < 2; r++) {
+        const char *dir = pt_render(r, runs[r]);
+        assert_non_null(dir);
+        det_stats st;
+        detect_all(dir, &st);
+        printf("# %s: %d detections, max error %.3f px\n", r ? "tagStandard41h12" : "tag25h9",
+               st.detections, st.max_err);
+        assert_int_equal(st.missed, 0);
+        assert_int_equal(st.detections, r ? 2 * 9 : 2 * 6);
+        assert_true(st.max_err < 0.5);
+    }
 }
 
 static void test_occlusions(void **state)
@@ -223,6 +251,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test_teardown(test_detections_match_csv, teardown),
         cmocka_unit_test_teardown(test_detections_with_distortion, teardown),
+        cmocka_unit_test_teardown(test_families_and_ids, teardown),
         cmocka_unit_test_teardown(test_occlusions, teardown),
         cmocka_unit_test_teardown(test_same_seed_same_bytes, teardown),
         cmocka_unit_test(test_command_line),
