@@ -14,7 +14,8 @@
  * Grid error: between grid nodes the map is interpolated bilinearly. Its error is bounded by
  * h^2/8 (|f_xx| + |f_yy|); each update estimates that bound for every cell from the second
  * differences of the map on the grid. When the bound exceeds max_error the grid is refined
- * (spacing halved, basis rebuilt: the only time an update allocates) until it holds. */
+ * (spacing halved, basis rebuilt: the only time an update allocates) until it holds; the finer
+ * grid then stays for the model's later frames. */
 #ifndef STILLHEART_WARP_H
 #define STILLHEART_WARP_H
 
@@ -28,7 +29,7 @@ extern "C" {
 
 typedef struct {
     double max_error;  /* largest tolerated map error in pixels (default 0.05) */
-    int grid_spacing;  /* initial grid spacing in pixels, a power of two (default 8) */
+    int grid_spacing;  /* initial grid spacing in pixels, a power of two (default 16) */
 } sh_warp_options;
 
 void sh_warp_options_default(sh_warp_options *opts);

@@ -14,11 +14,13 @@
  * non-affine motions (tests/unit/test_warp.c), the true error reaches 1.2 x the raw estimate;
  * 2 leaves a margin over that. */
 #define ERROR_SAFETY 2.0
+/* Rows per band of the triangle index. */
+#define TRIANGLE_BAND 16
 
 void sh_warp_options_default(sh_warp_options *opts)
 {
     opts->max_error = 0.05;
-    opts->grid_spacing = 8;
+    opts->grid_spacing = 16;
 }
 
 static void free_grid(sh_warp_model *m)
@@ -32,6 +34,36 @@ static void free_grid(sh_warp_model *m)
     m->weight = m->map = m->curvature = NULL;
 }
 
+/* Triangles listed per band of TRIANGLE_BAND rows, so a row visits only the few triangles
+ * that can cross it. */
+static sh_status build_bands(sh_warp_model *m)
+{
+    double y0 = m->hull.ymin - 1;
+    m->band_origin = y0;
+    m->bands = (int)((m->hull.ymax + 1 - y0) / TRIANGLE_BAND) + 1;
+    m->band_start = calloc((size_t)m->bands + 1, sizeof(int));
+    if (!m->band_start) return sh_error_set(SH_ENOMEM, "warp: out of memory");
+    for (int pass = 0; pass < 2; pass++) { /* count, then fill */
+        int *next = pass ? calloc((size_t)m->bands, sizeof(int)) : NULL;
+        if (pass && !next) return sh_error_set(SH_ENOMEM, "warp: out of memory");
+        for (int t = 0; t < m->ntri; t++) {
+            int b0 = (int)((m->tri_ybounds[2 * t] - 1e-6 - y0) / TRIANGLE_BAND);
+            int b1 = (int)((m->tri_ybounds[2 * t + 1] + 1e-6 - y0) / TRIANGLE_BAND);
+            for (int b = b0 < 0 ? 0 : b0; b <= b1 && b < m->bands; b++) {
+                if (pass) m->band_tris[m->band_start[b] + next[b]++] = t;
+                else m->band_start[b + 1]++;
+            }
+        }
+        if (!pass) {
+            for (int b = 0; b < m->bands; b++) m->band_start[b + 1] += m->band_start[b];
+            m->band_tris = malloc(sizeof(int) * ((size_t)m->band_start[m->bands] + 1));
+            if (!m->band_tris) return sh_error_set(SH_ENOMEM, "warp: out of memory");
+        }
+        free(next);
+    }
+    return SH_OK;
+}
+
 void sh_warp_model_destroy(sh_warp_model *m)
 {
     if (!m) return;
@@ -39,6 +71,8 @@ void sh_warp_model_destroy(sh_warp_model *m)
     free(m->coef);
     free(m->tri_map);
     free(m->tri_ybounds);
+    free(m->band_start);
+    free(m->band_tris);
     free((void *)m->ref_xy);
     free(m->disp);
     free(m);
@@ -129,6 +163,7 @@ sh_status sh_warp_model_create(const sh_interp *interp, const double *ref_xy, in
             m->tri_ybounds[2 * t] = fmin(y0, fmin(y1, y2));
             m->tri_ybounds[2 * t + 1] = fmax(y0, fmax(y1, y2));
         }
+        if ((st = build_bands(m)) != SH_OK) goto fail;
     } else if (sh_interp_method(interp) == SH_METHOD_AFFINE) {
         m->kind = MODEL_AFFINE;
     } else {
@@ -277,6 +312,8 @@ sh_status sh_warp_model_update(sh_warp_model *m, const double *cur_xy)
         grid_map(m);
         m->error_bound = grid_error_bound(m);
         while (m->error_bound > m->opts.max_error && m->h > 1) {
+            /* Halving, not a jump predicted from h^2 scaling: a coarse grid can overstate the
+             * curvature of a map with finer structure (multilevel B-splines) and overshoot. */
             if ((st = build_grid(m, m->h / 2)) != SH_OK) return st;
             m->refinements++;
             grid_map(m);
@@ -378,7 +415,10 @@ static void fill_triangles(const sh_warp_model *m, const plane_geometry *g, doub
 {
     /* Pixels the triangles miss by rounding at the hull's edge stay outside every frame. */
     for (int k = 0; k <= last - first; k++) fx[k] = fy[k] = -WARP_COORD_LIMIT;
-    for (int t = 0; t < m->ntri; t++) {
+    int b = (int)((Y - m->band_origin) / TRIANGLE_BAND);
+    if (b < 0 || b >= m->bands) return;
+    for (int k = m->band_start[b]; k < m->band_start[b + 1]; k++) {
+        int t = m->band_tris[k];
         if (Y < m->tri_ybounds[2 * t] - 1e-7 || Y > m->tri_ybounds[2 * t + 1] + 1e-7) continue;
         double lo, hi;
         triangle_row(m, t, Y, &lo, &hi);

@@ -20,6 +20,9 @@ struct sh_warp_model {
     const int *tri;          /* owned by interp */
     double *tri_map;         /* per triangle: an affine map as in affine[] */
     double *tri_ybounds;     /* per triangle: ymin, ymax of the reference triangle */
+    int bands;               /* triangles per band of rows: band b lists band_tris[band_start[b] */
+    double band_origin;      /*   .. band_start[b + 1]), rows from band_origin + b * band */
+    int *band_start, *band_tris;
     const double *ref_xy;    /* copy, n x 2 */
     double *disp;            /* displacement of the last update, n x 2 */
 
