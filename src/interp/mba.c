@@ -13,6 +13,10 @@
  * nothing for the tens to hundreds of markers a heart carries. */
 #include "interp_internal.h"
 
+/* Margin of the lattice around the points' bounding box: more than the warp's grid cells. */
+#define MBA_MARGIN_PX 64.0
+#define MBA_MARGIN_FRACTION 0.05
+
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -23,7 +27,7 @@
 #define MBA_MAX_CONTROL (1 << 20)
 
 typedef struct {
-    double x0, y0, x1, y1; /* bounding box of the points; basis clamps queries into it */
+    double x0, y0, x1, y1; /* the points' bounding box and a margin; basis clamps queries into it */
     double h0;
     int m0, n0; /* cells of the coarsest level along x and y */
     int levels;
@@ -260,6 +264,11 @@ sh_status sh_interp_bspline_init(sh_interp *it)
         b->x0 = fmin(b->x0, p[2 * i]), b->x1 = fmax(b->x1, p[2 * i]);
         b->y0 = fmin(b->y0, p[2 * i + 1]), b->y1 = fmax(b->y1, p[2 * i + 1]);
     }
+    /* The lattice covers a margin around the points, so the spline continues smoothly past the
+     * outermost ones: the warp's grid nodes around the hull lie up to a grid cell outside, and a
+     * value clamped there would put a kink into the interpolated map. */
+    double margin = MBA_MARGIN_PX + MBA_MARGIN_FRACTION * fmax(b->x1 - b->x0, b->y1 - b->y0);
+    b->x0 -= margin, b->y0 -= margin, b->x1 += margin, b->y1 += margin;
     /* Square cells, one along the shorter side, at most four along the longer one (a thin box
      * would otherwise start with a needlessly fine lattice). */
     double wx = b->x1 - b->x0, wy = b->y1 - b->y0;
