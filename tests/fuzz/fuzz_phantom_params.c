@@ -9,6 +9,7 @@
 #include "../../tools/phantom/camera.c"
 #include "../../tools/phantom/model.c"
 #include "../../tools/phantom/params.c"
+#include "../../tools/phantom/preset.c"
 
 static void check(int ok)
 {
