@@ -1,0 +1,66 @@
+/* stillheart-eval: the paper's metric e (section V), its error image as a heatmap, and on phantom
+ * sequences the geometric error of the stabilizing map against the ground truth.
+ * Private to tools/eval: main.c parses the command line, the other files do one job each. */
+#ifndef STILLHEART_EVAL_H
+#define STILLHEART_EVAL_H
+
+#include <stdio.h>
+
+#include "phantom.h"
+#include "stillheart/hull.h"
+#include "stillheart/interp.h"
+#include "stillheart/metrics.h"
+#include "stillheart/points.h"
+#include "stillheart/warp.h"
+
+/* ---- geometric error (geometric.c) ---- */
+
+typedef struct {
+    const phantom_truth *truth;
+    int camera;
+    int reference;
+    int stride;                /* sample spacing in pixels */
+    int identity;              /* --method none: the map is q -> q (the unstabilized video) */
+    sh_interp_params params;   /* as `stillheart warp` builds its interpolant */
+    sh_warp_options wopts;
+} eval_geo_options;
+
+typedef struct eval_geo eval_geo;
+
+/* Samples the reference hull, locates every sample on the phantom in the reference frame.
+ * width x height is the video's frame size; it must match the phantom's. */
+sh_status eval_geo_create(const eval_geo_options *opts, const sh_points *points,
+                          const sh_hull *hull, int width, int height, eval_geo **out);
+void eval_geo_destroy(eval_geo *geo);
+/* Adds frame t: rebuilds the map the warp used for it and compares with the truth. */
+sh_status eval_geo_frame(eval_geo *geo, int t);
+
+typedef struct {
+    double mean, p95, max;
+    long long samples;        /* (sample, frame) pairs measured */
+    int points;               /* hull samples that see the heart in the reference frame */
+    long long hidden;         /* pairs skipped: the truth says the point is hidden in frame t */
+    long long unmapped;       /* pairs skipped: outside the warp's hull for that frame's markers */
+    int raw_frames;           /* frames the warp left unstabilized (fewer than 3 markers) */
+} eval_geo_result;
+
+/* Statistics over every frame added (sorts the errors: call once, at the end). */
+sh_status eval_geo_result_get(eval_geo *geo, eval_geo_result *res);
+
+/* ---- heatmap (heatmap.c) ---- */
+
+/* Colour-maps the I_error grey image (NaN outside the hull) with contour lines at
+ * levels * max / (levels + 1), writes a PNG. */
+sh_status eval_heatmap_write(const char *path, const float *grey, int width, int height,
+                             double max, int levels);
+
+/* ---- ground-truth points (export.c) ---- */
+
+/* Writes the points file of the visible tag centres of camera c in DIR/markers.csv. */
+sh_status eval_export_points(const char *dir, int camera, FILE *out, const char *out_name);
+
+/* ---- progress (main.c) ---- */
+
+double eval_now(void);
+
+#endif

@@ -1,0 +1,27 @@
+# stillheart-eval (tools/eval): the paper's metric e, heatmaps, the geometric error on phantom
+# sequences; `make table2` reproduces the paper's Table II on rendered phantoms.
+# Prerequisites name $(BUILD)/libphantom.a literally: fragments are included in any order.
+EVAL_OBJ := $(patsubst %.c,$(BUILD)/%.o,$(wildcard tools/eval/*.c))
+EVAL_BIN := $(BUILD)/stillheart-eval
+
+$(BUILD)/tools/eval/%.o: CFLAGS_ALL += -Itools/phantom
+
+$(EVAL_BIN): $(EVAL_OBJ) $(BUILD)/libphantom.a $(LIB)
+	$(CC) $(LDFLAGS) $(EVAL_OBJ) $(BUILD)/libphantom.a $(LIB) $(LDLIBS_ALL) -o $@
+
+TOOLS += $(EVAL_BIN)
+
+# The test drives the binary of the same build (the ASan build tests the ASan evaluator).
+$(BUILD)/tools/eval/tests/test_eval.o: CFLAGS_ALL += -DEVAL_BIN='"$(abspath $(BUILD))/stillheart-eval"' -Itests/ref
+
+$(BUILD)/tests/test_eval: $(BUILD)/tools/eval/tests/test_eval.o $(BUILD)/libphantom.a $(LIB) $(EVAL_BIN)
+	@mkdir -p $(dir $@)
+	$(CC) $(LDFLAGS) $< $(BUILD)/libphantom.a $(LIB) $(shell $(PKG_CONFIG) --libs cmocka) $(LDLIBS_ALL) -o $@
+
+TOOL_TESTS += $(BUILD)/tests/test_eval
+
+# ---- Table II: both presets at the paper's length, one camera, every 2D method ----
+TABLE2_DIR ?= out/table2
+.PHONY: table2
+table2: $(EVAL_BIN) $(BUILD)/stillheart-render $(APP)
+	@sh tools/eval/table2.sh $(BUILD) $(TABLE2_DIR)

@@ -1,0 +1,242 @@
+/* The geometric error of a stabilized phantom video.
+ *
+ * Output pixel q of stabilized frame t shows the current frame's content at f_t(q), the map the
+ * warp used; it should show the surface point that q showed in the reference frame N, which the
+ * truth puts at g_t(q) in frame t. The error is |f_t(q) - g_t(q)| in pixels.
+ *
+ * f_t is rebuilt exactly as `stillheart warp` builds it (src/app/cmd_warp.c): an interpolant on the
+ * reference positions of the markers frame t shares with frame N, a warp model on it, updated with
+ * frame t's positions, and sh_warp_model_map for the map the executor samples with (grid
+ * interpolation and fixed-point rounding included). A frame with fewer than 3 shared markers, or
+ * whose model the library refuses, was passed through raw by the warp: its map is the identity. */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "eval.h"
+
+struct eval_geo {
+    eval_geo_options o;
+    const sh_points *points;
+    const sh_point *ref_rows;
+    int ref_count, width, height;
+    /* samples: pixel (x, y) of the reference frame and the material point it sees */
+    int n;
+    int *sx, *sy;
+    double *su, *sv;
+    /* the model for the current marker set, rebuilt when the set changes */
+    int model_n;
+    int *model_ids;
+    double *model_ref;
+    sh_interp *interp;
+    sh_warp_model *model;
+    int *ids;
+    double *cur_xy;
+    float *map;
+    /* every measured error, for the percentile */
+    float *err;
+    long long count, cap;
+    double sum, max;
+    long long hidden, unmapped;
+    int raw_frames;
+};
+
+void eval_geo_destroy(eval_geo *g)
+{
+    if (!g) return;
+    sh_warp_model_destroy(g->model);
+    sh_interp_destroy(g->interp);
+    free(g->sx);
+    free(g->sy);
+    free(g->su);
+    free(g->sv);
+    free(g->model_ids);
+    free(g->model_ref);
+    free(g->ids);
+    free(g->cur_xy);
+    free(g->map);
+    free(g->err);
+    free(g);
+}
+
+sh_status eval_geo_create(const eval_geo_options *opts, const sh_points *points,
+                          const sh_hull *hull, int width, int height, eval_geo **out)
+{
+    const phantom_model *pm = phantom_truth_model(opts->truth);
+    if (opts->camera < 0 || opts->camera >= pm->num_cameras)
+        return sh_error_set(SH_EINVAL, "--camera %d: the phantom has %d camera(s)", opts->camera,
+                            pm->num_cameras);
+    if (pm->width != width || pm->height != height)
+        return sh_error_set(SH_EINVAL, "the phantom's images are %dx%d, the video's %dx%d",
+                            pm->width, pm->height, width, height);
+    eval_geo *g = calloc(1, sizeof *g);
+    if (!g) return sh_error_set(SH_ENOMEM, "geometric error: out of memory");
+    g->o = *opts;
+    g->points = points;
+    g->width = width;
+    g->height = height;
+    g->ref_rows = sh_points_frame(points, opts->reference, &g->ref_count);
+
+    long long cap = 0;
+    for (int y = 0; y < height; y += opts->stride) {
+        int first, last;
+        if (sh_hull_plane_row(hull, y, width, 1, 0, 0, &first, &last))
+            cap += (last - first) / opts->stride + 1;
+    }
+    cap += 1;
+    size_t npix = (size_t)width * height;
+    g->sx = malloc(sizeof(int) * (size_t)cap);
+    g->sy = malloc(sizeof(int) * (size_t)cap);
+    g->su = malloc(sizeof(double) * (size_t)cap);
+    g->sv = malloc(sizeof(double) * (size_t)cap);
+    g->ids = malloc(sizeof(int) * (size_t)(g->ref_count + 1));
+    g->model_ids = malloc(sizeof(int) * (size_t)(g->ref_count + 1));
+    g->cur_xy = malloc(sizeof(double) * 2 * (size_t)(g->ref_count + 1));
+    g->model_ref = malloc(sizeof(double) * 2 * (size_t)(g->ref_count + 1));
+    g->map = opts->identity ? NULL : malloc(sizeof(float) * 2 * npix);
+    if (!g->sx || !g->sy || !g->su || !g->sv || !g->ids || !g->model_ids || !g->cur_xy ||
+        !g->model_ref || (!opts->identity && !g->map)) {
+        eval_geo_destroy(g);
+        return sh_error_set(SH_ENOMEM, "geometric error: out of memory");
+    }
+    /* Samples on the stride lattice (multiples of stride, so runs with different hulls share
+     * their points); a pixel that does not see the patch, or sees it hidden, has no truth. */
+    for (int y = 0; y < height; y += opts->stride) {
+        int first, last;
+        if (!sh_hull_plane_row(hull, y, width, 1, 0, 0, &first, &last)) continue;
+        for (int x = (first + opts->stride - 1) / opts->stride * opts->stride; x <= last;
+             x += opts->stride) {
+            double u, v;
+            if (phantom_truth_locate(opts->truth, opts->camera, opts->reference, x, y, &u, &v) !=
+                    SH_OK ||
+                !phantom_truth_visible(opts->truth, opts->camera, opts->reference, u, v))
+                continue;
+            g->sx[g->n] = x;
+            g->sy[g->n] = y;
+            g->su[g->n] = u;
+            g->sv[g->n] = v;
+            g->n++;
+        }
+    }
+    *out = g;
+    return SH_OK;
+}
+
+/* Markers of frame t that the reference frame also has (both sorted by id), as cmd_warp pairs
+ * them. */
+static int common_markers(const eval_geo *g, int t, int *ids, double *cur_xy)
+{
+    int ncur, n = 0;
+    const sh_point *cur = sh_points_frame(g->points, t, &ncur);
+    for (int i = 0, j = 0; i < g->ref_count && j < ncur;) {
+        if (g->ref_rows[i].id < cur[j].id) i++;
+        else if (g->ref_rows[i].id > cur[j].id) j++;
+        else {
+            ids[n] = cur[j].id;
+            cur_xy[2 * n] = cur[j].x;
+            cur_xy[2 * n + 1] = cur[j].y;
+            n++, i++, j++;
+        }
+    }
+    return n;
+}
+
+static sh_status build_model(eval_geo *g, int n)
+{
+    sh_warp_model_destroy(g->model);
+    sh_interp_destroy(g->interp);
+    g->model = NULL;
+    g->interp = NULL;
+    g->model_n = 0;
+    for (int k = 0, r = 0; k < n; k++) {
+        while (g->ref_rows[r].id != g->ids[k]) r++;
+        g->model_ref[2 * k] = g->ref_rows[r].x;
+        g->model_ref[2 * k + 1] = g->ref_rows[r].y;
+    }
+    sh_status st = sh_interp_create(&g->o.params, g->model_ref, n, &g->interp);
+    if (st == SH_OK)
+        st = sh_warp_model_create(g->interp, g->model_ref, n, g->width, g->height, &g->o.wopts,
+                                  &g->model);
+    if (st != SH_OK) return st;
+    memcpy(g->model_ids, g->ids, sizeof(int) * (size_t)n);
+    g->model_n = n;
+    return SH_OK;
+}
+
+/* The map of frame t into g->map; returns 0 when the warp passed the frame through raw. */
+static int frame_map(eval_geo *g, int t)
+{
+    if (g->o.identity) return 0;
+    int n = common_markers(g, t, g->ids, g->cur_xy);
+    if (n < 3) return 0;
+    if (!(g->model && g->model_n == n && !memcmp(g->model_ids, g->ids, sizeof(int) * (size_t)n)) &&
+        build_model(g, n) != SH_OK)
+        return 0;
+    return sh_warp_model_update(g->model, g->cur_xy) == SH_OK &&
+           sh_warp_model_map(g->model, g->map) == SH_OK;
+}
+
+sh_status eval_geo_frame(eval_geo *g, int t)
+{
+    int mapped = frame_map(g, t);
+    if (!mapped && !g->o.identity) g->raw_frames++;
+    if (g->count + g->n > g->cap) {
+        long long cap = g->cap ? g->cap * 2 : 1 << 16;
+        while (cap < g->count + g->n) cap *= 2;
+        float *e = realloc(g->err, sizeof(float) * (size_t)cap);
+        if (!e) return sh_error_set(SH_ENOMEM, "geometric error: out of memory at frame %d", t);
+        g->err = e;
+        g->cap = cap;
+    }
+    for (int i = 0; i < g->n; i++) {
+        double gx, gy;
+        if (!phantom_truth_visible(g->o.truth, g->o.camera, t, g->su[i], g->sv[i]) ||
+            phantom_truth_project(g->o.truth, g->o.camera, t, g->su[i], g->sv[i], &gx, &gy) !=
+                SH_OK) {
+            g->hidden++;
+            continue;
+        }
+        double fx = g->sx[i], fy = g->sy[i];
+        if (mapped) {
+            const float *m = g->map + ((size_t)g->sy[i] * g->width + g->sx[i]) * 2;
+            if (isnan(m[0])) {
+                g->unmapped++;
+                continue;
+            }
+            fx = m[0];
+            fy = m[1];
+        }
+        double e = hypot(fx - gx, fy - gy);
+        g->sum += e;
+        if (e > g->max) g->max = e;
+        g->err[g->count++] = (float)e;
+    }
+    return SH_OK;
+}
+
+static int cmp_float(const void *a, const void *b)
+{
+    float x = *(const float *)a, y = *(const float *)b;
+    return (x > y) - (x < y);
+}
+
+sh_status eval_geo_result_get(eval_geo *g, eval_geo_result *r)
+{
+    memset(r, 0, sizeof *r);
+    r->samples = g->count;
+    r->points = g->n;
+    r->hidden = g->hidden;
+    r->unmapped = g->unmapped;
+    r->raw_frames = g->raw_frames;
+    if (g->count == 0) {
+        r->mean = r->p95 = r->max = NAN;
+        return SH_OK;
+    }
+    qsort(g->err, (size_t)g->count, sizeof(float), cmp_float);
+    /* Nearest rank: the smallest error that at least 95% of the samples do not exceed. */
+    long long k = (long long)ceil(0.95 * (double)g->count) - 1;
+    r->mean = g->sum / (double)g->count;
+    r->p95 = g->err[k < 0 ? 0 : k];
+    r->max = g->max;
+    return SH_OK;
+}

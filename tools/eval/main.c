@@ -1,0 +1,446 @@
+/* stillheart-eval: how still is a stabilized video? The paper's e (section V, Table II), its
+ * error image as a heatmap (Figures 2 and 3), and on phantom sequences the geometric error. */
+#include <errno.h>
+#include <getopt.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "eval.h"
+#include "stillheart/y4m.h"
+
+#define PROG "stillheart-eval"
+
+static void usage(FILE *f)
+{
+    fprintf(f,
+        "usage: " PROG " --points P.csv [options] STABILIZED.y4m [ORIGINAL.y4m]\n"
+        "       " PROG " --truth DIR --export-points OUT.csv [--camera C]\n"
+        "Measures the residual motion of a stabilized video as the paper does (section V):\n"
+        "  I_error(x,y,c) = 1/k sum_t |I_t(x,y,c) - I_N(x,y,c)|,  e = sum_c 1/p sum_(x,y) I_error\n"
+        "over all k frames of the video (the reference frame N included, as `stillheart warp`\n"
+        "counts), the R, G, B channels in [0, 1] (YUV converted with BT.601, full range when the\n"
+        "Y4M header says XCOLORRANGE=FULL, else limited; a mono video counts its one channel), and\n"
+        "the p pixels whose centre lies in the convex hull of frame N's markers in P.csv.\n"
+        "With ORIGINAL (the unstabilized input) its e is reported too, over the same hull.\n\n"
+        "  --points P.csv     marker positions per frame (frame,id,x,y[,X,Y,Z]), as given to\n"
+        "                     `stillheart warp`; frame N's markers make the hull\n"
+        "  --reference N      0-based reference frame (default 0)\n"
+        "  --heatmap OUT.png  I_error averaged over the channels (grey in [0, 1]) in the viridis\n"
+        "                     colour map, with contour lines (white) of its local mean at\n"
+        "                     --contours levels evenly spaced below --heatmap-max; dark grey\n"
+        "                     outside the hull\n"
+        "  --heatmap-max V    grey value shown as the top of the map (default 0.1; larger\n"
+        "                     values saturate), fixed so that heatmaps compare\n"
+        "  --contours L       number of contour levels (default 4; 0: none)\n"
+        "  --json             one JSON object on stdout instead of the table: e_stabilized,\n"
+        "                     e_original (null without ORIGINAL), frames, pixels, reference,\n"
+        "                     geometric {method, camera, stride, mean, p95, max, samples,\n"
+        "                     points, hidden, unmapped, raw_frames} (null without --truth)\n"
+        "  --quiet            no progress bar (shown only when stderr is a terminal anyway)\n"
+        "  --help             this text\n\n"
+        "Geometric error on phantom sequences (stillheart-render folders):\n"
+        "  --truth DIR        the phantom folder (DIR/phantom.txt) the video was rendered from.\n"
+        "                     For every hull pixel q of frame N on a lattice of --geo-stride px,\n"
+        "                     the map f_t(q) the warp used in frame t (rebuilt from P.csv as\n"
+        "                     `stillheart warp --method M` builds it) is compared with g_t(q),\n"
+        "                     where the surface point seen at q in frame N truly is in frame t:\n"
+        "                     mean, 95th percentile (nearest rank) and max of |f_t(q) - g_t(q)|\n"
+        "                     in pixels over all samples and frames. Pairs the truth says are\n"
+        "                     hidden in frame t (or at q in frame N) are skipped and counted, as\n"
+        "                     are pixels outside the warp's hull when markers were missing.\n"
+        "                     Frames the warp left raw (fewer than 3 markers) have f_t(q) = q.\n"
+        "  --camera C         camera of the phantom the video shows (default 0)\n"
+        "  --geo-stride S     sample spacing in pixels (default 4)\n"
+        "  --method M         the warp's method (default bspline): affine, pwlinear, bspline,\n"
+        "                     rbf-local, tps, gaussian, their -pure forms, or none (the map is\n"
+        "                     the identity: the geometric error of the unstabilized video)\n"
+        "  --sigma S, --levels L, --smoothing LAMBDA, --max-error PX\n"
+        "                     as for `stillheart warp`; give the values the warp ran with\n"
+        "  --export-points OUT.csv\n"
+        "                     with --truth: writes the points file of DIR/markers.csv's visible\n"
+        "                     tag centres (point c) of --camera ('-' = standard output), the\n"
+        "                     ground-truth correspondences for `stillheart warp`, and exits\n"
+        "STABILIZED may be '-' (standard input) with --reference 0.\n");
+}
+
+double eval_now(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + ts.tv_nsec * 1e-9;
+}
+
+static int parse_int(const char *opt, const char *s, int min, int max, int *out)
+{
+    char *end;
+    errno = 0;
+    long v = strtol(s, &end, 10);
+    if (errno || end == s || *end || v < min || v > max) {
+        fprintf(stderr, PROG ": %s: '%s' is not a whole number in %d..%d\n", opt, s, min, max);
+        return 0;
+    }
+    *out = (int)v;
+    return 1;
+}
+
+static int parse_double(const char *opt, const char *s, double min, double max, double *out)
+{
+    char *end;
+    errno = 0;
+    double v = strtod(s, &end);
+    if (errno || end == s || *end || !isfinite(v) || v < min || v > max) {
+        fprintf(stderr, PROG ": %s: '%s' is not a number in %g..%g\n", opt, s, min, max);
+        return 0;
+    }
+    *out = v;
+    return 1;
+}
+
+static int fail(const char *what)
+{
+    const char *m = sh_error_message();
+    fprintf(stderr, PROG ": %s%s%s\n", what, *m ? ": " : "", m);
+    return 1;
+}
+
+/* One video being measured: its reader, a frame buffer and the metric against its frame N. */
+typedef struct {
+    const char *path;
+    sh_y4m_reader *reader;
+    sh_image frame;
+    sh_metric *metric;
+    int full_range;
+} video;
+
+static void video_close(video *v)
+{
+    sh_y4m_reader_close(v->reader);
+    sh_image_destroy(&v->frame);
+    sh_metric_destroy(v->metric);
+}
+
+/* Opens the video and, unless it streams, builds the metric from a first pass to frame N (so any
+ * frame can be the reference without holding the video in memory). */
+static sh_status video_open(video *v, const char *path, int reference, const sh_hull *hull)
+{
+    v->path = path;
+    sh_status st = sh_y4m_reader_open(path, &v->reader);
+    if (st != SH_OK) return st;
+    const sh_y4m_header *h = sh_y4m_reader_header(v->reader);
+    v->full_range = strstr(h->extra, "XCOLORRANGE=FULL") != NULL;
+    if ((st = sh_image_create(&v->frame, h->format, h->width, h->height)) != SH_OK) return st;
+    if (!strcmp(path, "-")) {
+        if (reference != 0)
+            return sh_error_set(SH_EINVAL, "--reference %d needs a file, not standard input",
+                                reference);
+        return SH_OK; /* the metric is made from the first frame as it streams by */
+    }
+    sh_y4m_reader *r;
+    if ((st = sh_y4m_reader_open(path, &r)) != SH_OK) return st;
+    for (int i = 0; i <= reference && st == SH_OK; i++) st = sh_y4m_reader_read(r, &v->frame);
+    sh_y4m_reader_close(r);
+    if (st == SH_EEOF) return sh_error_set(SH_EINVAL, "%s has no frame %d", path, reference);
+    if (st != SH_OK) return st;
+    return sh_metric_create(&v->frame, hull, v->full_range, &v->metric);
+}
+
+/* Reads frame t and adds it; SH_EEOF at the end. */
+static sh_status video_next(video *v, const sh_hull *hull, int t)
+{
+    sh_status st = sh_y4m_reader_read(v->reader, &v->frame);
+    if (st != SH_OK) return st;
+    if (!v->metric && t == 0 &&
+        (st = sh_metric_create(&v->frame, hull, v->full_range, &v->metric)) != SH_OK)
+        return st;
+    return sh_metric_add(v->metric, &v->frame);
+}
+
+/* Frames in a Y4M file, for the progress bar only (assumes bare FRAME lines; 0 if unknown). */
+static int frames_estimate(const char *path, const sh_image *img)
+{
+    struct stat sb;
+    if (!strcmp(path, "-") || stat(path, &sb) != 0) return 0;
+    return (int)(sb.st_size / (long long)(sh_image_packed_size(img->format, img->width, img->height) + 6));
+}
+
+static void progress(int enabled, double start, double *last, int done, int total)
+{
+    if (!enabled) return;
+    double now = eval_now();
+    if (now - *last < 0.1 && done != total) return;
+    *last = now;
+    double rate = done / fmax(now - start, 1e-9);
+    if (total >= done && total > 0) {
+        int w = 30, fill = (int)((long)w * done / total);
+        fprintf(stderr, "\reval [%.*s%*s] %d/%d  %.1f frames/s ", fill,
+                "##############################", w - fill, "", done, total, rate);
+    } else {
+        fprintf(stderr, "\reval %d frames  %.1f frames/s ", done, rate);
+    }
+}
+
+static void json_string(const char *s)
+{
+    if (!s) {
+        fputs("null", stdout);
+        return;
+    }
+    putchar('"');
+    for (; *s; s++) {
+        unsigned char c = (unsigned char)*s;
+        if (c == '"' || c == '\\') printf("\\%c", c);
+        else if (c < 0x20) printf("\\u%04x", c);
+        else putchar(c);
+    }
+    putchar('"');
+}
+
+static void json_number(double v)
+{
+    if (isfinite(v)) printf("%.17g", v);
+    else fputs("null", stdout);
+}
+
+typedef struct {
+    const char *points_path, *truth_dir, *heatmap, *method, *export_out;
+    int reference, camera, stride, json, quiet, contours;
+    double heatmap_max;
+    eval_geo_options geo;
+} options;
+
+static void report(const options *o, const video *stab, const video *orig, const eval_geo *geo,
+                   const eval_geo_result *g)
+{
+    double e_orig = orig->metric ? sh_metric_e(orig->metric) : NAN;
+    if (o->json) {
+        printf("{\"stabilized\": ");
+        json_string(stab->path);
+        printf(", \"original\": ");
+        json_string(orig->metric ? orig->path : NULL);
+        printf(", \"points\": ");
+        json_string(o->points_path);
+        printf(", \"reference\": %d, \"frames\": %d, \"pixels\": %d, \"e_stabilized\": ",
+               o->reference, sh_metric_frames(stab->metric), sh_metric_pixels(stab->metric));
+        json_number(sh_metric_e(stab->metric));
+        printf(", \"e_original\": ");
+        json_number(e_orig);
+        printf(", \"heatmap\": ");
+        json_string(o->heatmap);
+        printf(", \"geometric\": ");
+        if (geo) {
+            printf("{\"method\": ");
+            json_string(o->method);
+            printf(", \"camera\": %d, \"stride\": %d, \"mean\": ", o->camera, o->stride);
+            json_number(g->mean);
+            printf(", \"p95\": ");
+            json_number(g->p95);
+            printf(", \"max\": ");
+            json_number(g->max);
+            printf(", \"samples\": %lld, \"points\": %d, \"hidden\": %lld, \"unmapped\": %lld, "
+                   "\"raw_frames\": %d}",
+                   g->samples, g->points, g->hidden, g->unmapped, g->raw_frames);
+        } else {
+            printf("null");
+        }
+        printf("}\n");
+        return;
+    }
+    printf("%s: reference frame %d, %d frames, %d hull pixels\n", stab->path, o->reference,
+           sh_metric_frames(stab->metric), sh_metric_pixels(stab->metric));
+    printf("  %-28s %10s\n", "video", "e");
+    printf("  %-28s %10.6f\n", "stabilized", sh_metric_e(stab->metric));
+    if (orig->metric) printf("  %-28s %10.6f\n", "original (unstabilized)", e_orig);
+    if (geo) {
+        printf("geometric error, method %s, camera %d, every %d px (px):\n", o->method, o->camera,
+               o->stride);
+        printf("  %10s %10s %10s %12s\n", "mean", "p95", "max", "samples");
+        printf("  %10.4f %10.4f %10.4f %12lld\n", g->mean, g->p95, g->max, g->samples);
+        printf("  (%d hull points see the heart in frame %d; skipped: %lld hidden, %lld outside "
+               "the warp's hull; %d frames left raw)\n",
+               g->points, o->reference, g->hidden, g->unmapped, g->raw_frames);
+    }
+    if (o->heatmap) printf("heatmap: %s\n", o->heatmap);
+}
+
+/* The measurement itself, once the options are known. */
+static int evaluate(options *o, const char *stab_path, const char *orig_path)
+{
+    int rc = 1;
+    sh_points points = {0};
+    video stab = {0}, orig = {0};
+    phantom_truth *truth = NULL;
+    eval_geo *geo = NULL;
+    double *xy = NULL;
+    float *grey = NULL;
+    sh_hull hull;
+
+    if (sh_points_read(o->points_path, &points) != SH_OK) return fail("points");
+    int nref;
+    const sh_point *ref = sh_points_frame(&points, o->reference, &nref);
+    if (nref < 3) {
+        fprintf(stderr, PROG ": %s: the reference frame %d has %d markers, need 3\n",
+                o->points_path, o->reference, nref);
+        goto done;
+    }
+    xy = malloc(sizeof(double) * 2 * (size_t)nref);
+    if (!xy) { fail("out of memory"); goto done; }
+    for (int i = 0; i < nref; i++) xy[2 * i] = ref[i].x, xy[2 * i + 1] = ref[i].y;
+    if (sh_hull_compute(xy, nref, &hull) != SH_OK) {
+        fprintf(stderr, PROG ": %s: frame %d's markers: %s\n", o->points_path, o->reference,
+                sh_error_message());
+        goto done;
+    }
+    if (video_open(&stab, stab_path, o->reference, &hull) != SH_OK) { fail("stabilized video"); goto done; }
+    const sh_image *f = &stab.frame;
+    if (orig_path) {
+        if (video_open(&orig, orig_path, o->reference, &hull) != SH_OK) { fail("original video"); goto done; }
+        if (orig.frame.width != f->width || orig.frame.height != f->height) {
+            fprintf(stderr, PROG ": %s is %dx%d, %s is %dx%d\n", orig_path, orig.frame.width,
+                    orig.frame.height, stab_path, f->width, f->height);
+            goto done;
+        }
+    }
+    if (o->truth_dir) {
+        if (phantom_truth_open(o->truth_dir, &truth) != SH_OK) { fail("--truth"); goto done; }
+        o->geo.truth = truth;
+        if (eval_geo_create(&o->geo, &points, &hull, f->width, f->height, &geo) != SH_OK) {
+            fprintf(stderr, PROG ": %s: %s\n", o->truth_dir, sh_error_message());
+            goto done;
+        }
+    }
+
+    int show = !o->quiet && isatty(STDERR_FILENO);
+    int total = frames_estimate(stab_path, f);
+    double start = eval_now(), last = start;
+    int t = 0;
+    sh_status st;
+    while ((st = video_next(&stab, &hull, t)) == SH_OK) {
+        if (orig_path) {
+            sh_status so = video_next(&orig, &hull, t);
+            if (so == SH_EEOF) {
+                fprintf(stderr, "%s" PROG ": %s has %d frames, %s more\n", show ? "\n" : "",
+                        orig_path, t, stab_path);
+                goto done;
+            }
+            if (so != SH_OK) { fail("original video"); goto done; }
+        }
+        if (geo && eval_geo_frame(geo, t) != SH_OK) { fail("geometric error"); goto done; }
+        t++;
+        progress(show, start, &last, t, total);
+    }
+    if (show) fputc('\n', stderr);
+    if (st != SH_EEOF) { fail("stabilized video"); goto done; }
+    if (orig_path && video_next(&orig, &hull, t) != SH_EEOF) {
+        fprintf(stderr, PROG ": %s has more frames than %s (%d)\n", orig_path, stab_path, t);
+        goto done;
+    }
+    if (t <= o->reference) {
+        fprintf(stderr, PROG ": %s has no frame %d\n", stab_path, o->reference);
+        goto done;
+    }
+
+    if (o->heatmap) {
+        grey = malloc(sizeof(float) * (size_t)f->width * f->height);
+        if (!grey) { fail("out of memory"); goto done; }
+        if (sh_metric_error_image(stab.metric, grey) != SH_OK ||
+            eval_heatmap_write(o->heatmap, grey, f->width, f->height, o->heatmap_max,
+                               o->contours) != SH_OK) {
+            fail("--heatmap");
+            goto done;
+        }
+    }
+    eval_geo_result g = {0};
+    if (geo) eval_geo_result_get(geo, &g);
+    report(o, &stab, &orig, geo, &g);
+    rc = fflush(stdout) == 0 ? 0 : 1;
+done:
+    eval_geo_destroy(geo);
+    phantom_truth_close(truth);
+    video_close(&stab);
+    video_close(&orig);
+    sh_points_destroy(&points);
+    free(xy);
+    free(grey);
+    return rc;
+}
+
+int main(int argc, char **argv)
+{
+    static const struct option long_opts[] = {
+        {"points", required_argument, 0, 'p'},   {"reference", required_argument, 0, 'r'},
+        {"truth", required_argument, 0, 'T'},    {"camera", required_argument, 0, 'c'},
+        {"method", required_argument, 0, 'm'},   {"sigma", required_argument, 0, 's'},
+        {"levels", required_argument, 0, 'l'},   {"smoothing", required_argument, 0, 'S'},
+        {"max-error", required_argument, 0, 'e'}, {"geo-stride", required_argument, 0, 'g'},
+        {"heatmap", required_argument, 0, 'H'},  {"heatmap-max", required_argument, 0, 'X'},
+        {"contours", required_argument, 0, 'C'}, {"export-points", required_argument, 0, 'E'},
+        {"json", no_argument, 0, 'j'},           {"quiet", no_argument, 0, 'q'},
+        {"help", no_argument, 0, 'h'},           {0, 0, 0, 0}};
+    options o = {.method = "bspline", .stride = 4, .heatmap_max = 0.1, .contours = 4};
+    double sigma = 0, smoothing = 0, max_error = 0.05;
+    int levels = 0, have_sigma = 0, opt;
+    while ((opt = getopt_long(argc, argv, "", long_opts, NULL)) != -1) {
+        switch (opt) {
+        case 'p': o.points_path = optarg; break;
+        case 'r': if (!parse_int("--reference", optarg, 0, SH_POINTS_MAX_FRAME, &o.reference)) return 2; break;
+        case 'T': o.truth_dir = optarg; break;
+        case 'c': if (!parse_int("--camera", optarg, 0, PHANTOM_MAX_CAMERAS - 1, &o.camera)) return 2; break;
+        case 'm': o.method = optarg; break;
+        case 's': if (!parse_double("--sigma", optarg, 1e-6, 1e9, &sigma)) return 2;
+                  have_sigma = 1; break;
+        case 'l': if (!parse_int("--levels", optarg, 1, 20, &levels)) return 2; break;
+        case 'S': if (!parse_double("--smoothing", optarg, 0, 1e12, &smoothing)) return 2; break;
+        case 'e': if (!parse_double("--max-error", optarg, 1e-4, 100, &max_error)) return 2; break;
+        case 'g': if (!parse_int("--geo-stride", optarg, 1, 4096, &o.stride)) return 2; break;
+        case 'H': o.heatmap = optarg; break;
+        case 'X': if (!parse_double("--heatmap-max", optarg, 1e-6, 1, &o.heatmap_max)) return 2; break;
+        case 'C': if (!parse_int("--contours", optarg, 0, 32, &o.contours)) return 2; break;
+        case 'E': o.export_out = optarg; break;
+        case 'j': o.json = 1; break;
+        case 'q': o.quiet = 1; break;
+        case 'h': usage(stdout); return 0;
+        default: usage(stderr); return 2;
+        }
+    }
+
+    if (o.export_out) {
+        if (!o.truth_dir || optind != argc) {
+            fprintf(stderr, PROG ": --export-points needs --truth DIR and no videos\n");
+            return 2;
+        }
+        int to_stdout = !strcmp(o.export_out, "-");
+        FILE *out = to_stdout ? stdout : fopen(o.export_out, "w");
+        if (!out) {
+            fprintf(stderr, PROG ": %s: cannot create: %s\n", o.export_out, strerror(errno));
+            return 1;
+        }
+        sh_status st = eval_export_points(o.truth_dir, o.camera, out, o.export_out);
+        if (!to_stdout && fclose(out) != 0 && st == SH_OK)
+            st = sh_error_set(SH_EIO, "%s: write failed", o.export_out);
+        return st == SH_OK ? 0 : fail("--export-points");
+    }
+    if (!o.points_path || argc - optind < 1 || argc - optind > 2) {
+        fprintf(stderr, PROG ": need --points and the stabilized video (and optionally the original)\n");
+        usage(stderr);
+        return 2;
+    }
+
+    /* The interpolant exactly as `stillheart warp` configures it from the same options. */
+    o.geo.camera = o.camera;
+    o.geo.reference = o.reference;
+    o.geo.stride = o.stride;
+    o.geo.identity = !strcmp(o.method, "none");
+    if (!o.geo.identity) {
+        if (sh_interp_params_parse(o.method, &o.geo.params) != SH_OK) return fail("--method");
+        if (have_sigma) o.geo.params.sigma = sigma;
+        o.geo.params.levels = levels;
+        o.geo.params.smoothing = smoothing;
+    }
+    sh_warp_options_default(&o.geo.wopts);
+    o.geo.wopts.max_error = max_error;
+    return evaluate(&o, argv[optind], argc - optind == 2 ? argv[optind + 1] : NULL);
+}
