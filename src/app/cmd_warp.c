@@ -37,7 +37,8 @@ static void usage(FILE *out)
         "                     (x, y in the current frame; NaN outside the hull)\n"
         "  --quiet            no progress line, no summary\n"
         "  --help             this text\n"
-        "IN or OUT may be '-' for standard input / output (IN only with --reference 0).\n");
+        "IN or OUT may be '-' for standard input / output (IN only with --reference 0; with\n"
+        "OUT '-' the e figures go to standard error).\n");
 }
 
 typedef struct {
@@ -240,12 +241,14 @@ int cmd_warp(int argc, char **argv)
     if (sh_warp_create(threads, &warp) != SH_OK) { fail("threads"); goto done; }
 
     /* The reference model (all reference markers) and both metrics' reference frames. */
-    if (!read_frame_at(in_path, reference, &ref) && strcmp(in_path, "-")) { fail("reference frame"); goto done; }
+    int from_stdin = !strcmp(in_path, "-");
+    /* From standard input (reference 0 only) the reference frame is the first one read below. */
+    if (!from_stdin && !read_frame_at(in_path, reference, &ref)) { fail("reference frame"); goto done; }
     int nref = common_markers(cache.ref_rows, cache.ref_count, cache.ref_rows, cache.ref_count,
                               ids, cur_xy);
     if (cache_get(&cache, ids, nref, &model) != SH_OK) { fail("reference markers"); goto done; }
     int fr = full_range(hdr);
-    if (strcmp(in_path, "-")) {
+    if (!from_stdin) {
         if (sh_warp_model_update(model, cur_xy) != SH_OK ||
             sh_warp_apply(warp, model, &ref, &out) != SH_OK ||
             sh_metric_create(&ref, sh_warp_model_hull(model), fr, &metric_in) != SH_OK ||
@@ -322,9 +325,11 @@ int cmd_warp(int argc, char **argv)
         if (last_model && sh_warp_model_grid_spacing(last_model))
             fprintf(stderr, "grid spacing %d px, map error bound %.4f px\n",
                     sh_warp_model_grid_spacing(last_model), sh_warp_model_error_bound(last_model));
+        /* stdout carries the video when OUT is "-": the figures go to stderr then */
         if (metric_in)
-            printf("e input %.6f output %.6f (%d frames, %d hull pixels)\n", sh_metric_e(metric_in),
-                   sh_metric_e(metric_out), sh_metric_frames(metric_in), sh_metric_pixels(metric_in));
+            fprintf(strcmp(out_path, "-") ? stdout : stderr,
+                    "e input %.6f output %.6f (%d frames, %d hull pixels)\n", sh_metric_e(metric_in),
+                    sh_metric_e(metric_out), sh_metric_frames(metric_in), sh_metric_pixels(metric_in));
     }
     rc = st == SH_EEOF ? 0 : 1;
 done:
