@@ -1,5 +1,6 @@
 /* The average-difference image as the paper shows it (Figures 2 and 3): I_error in grey, colour
- * mapped, with contour lines, dark outside the hull. */
+ * mapped, with contour lines, dark outside the hull, cropped to the hull's bounding box and a
+ * margin (the rest of the frame is not measured, and a figure should show what was). */
 #include <math.h>
 #include <stdlib.h>
 
@@ -65,15 +66,41 @@ static float *smooth(const float *grey, int w, int h, int r)
     return out;
 }
 
+/* The box [x0, x1) x [y0, y1) around the hull pixels, with a margin. */
+static void crop_box(const float *grey, int w, int h, int margin, int *x0, int *y0, int *x1, int *y1)
+{
+    *x0 = w, *y0 = h, *x1 = *y1 = 0;
+    for (int y = 0; y < h; y++)
+        for (int x = 0; x < w; x++)
+            if (!isnan(grey[(size_t)y * w + x])) {
+                if (x < *x0) *x0 = x;
+                if (x >= *x1) *x1 = x + 1;
+                if (y < *y0) *y0 = y;
+                if (y >= *y1) *y1 = y + 1;
+            }
+    if (*x1 == 0) { /* no hull pixel: show the whole frame */
+        *x0 = *y0 = 0, *x1 = w, *y1 = h;
+        return;
+    }
+    *x0 = *x0 > margin ? *x0 - margin : 0;
+    *y0 = *y0 > margin ? *y0 - margin : 0;
+    *x1 = *x1 + margin < w ? *x1 + margin : w;
+    *y1 = *y1 + margin < h ? *y1 + margin : h;
+}
+
 sh_status eval_heatmap_write(const char *path, const float *grey, int w, int h, double max,
                              int levels)
 {
     if (!(max > 0)) return sh_error_set(SH_EINVAL, "heatmap: scale %g must be positive", max);
-    int r = (w < h ? w : h) / 200;
+    /* About 1% of the frame: wide enough to smooth a marker's black and white cells into the
+     * residual motion around it. */
+    int r = (w < h ? w : h) / 100;
     if (r < 1) r = 1;
+    int cx0, cy0, cx1, cy1;
+    crop_box(grey, w, h, 2 * r, &cx0, &cy0, &cx1, &cy1);
     float *sm = smooth(grey, w, h, r);
     sh_image img = {0};
-    sh_status st = sh_image_create(&img, SH_PIX_RGB24, w, h);
+    sh_status st = sh_image_create(&img, SH_PIX_RGB24, cx1 - cx0, cy1 - cy0);
     if (!sm || st != SH_OK) {
         free(sm);
         sh_image_destroy(&img);
@@ -82,11 +109,11 @@ sh_status eval_heatmap_write(const char *path, const float *grey, int w, int h, 
     /* Contour index of a smoothed value: 0 below the first level, levels above the last. */
     double step = max / (levels + 1);
 #define LEVEL(v) ((int)fmin(floor((v) / step), (double)levels))
-    for (int y = 0; y < h; y++) {
-        unsigned char *row = img.plane[0].data + (size_t)y * img.plane[0].stride;
-        for (int x = 0; x < w; x++) {
+    for (int y = cy0; y < cy1; y++) {
+        unsigned char *row = img.plane[0].data + (size_t)(y - cy0) * img.plane[0].stride;
+        for (int x = cx0; x < cx1; x++) {
             size_t o = (size_t)y * w + x;
-            unsigned char *p = row + 3 * x;
+            unsigned char *p = row + 3 * (x - cx0);
             if (isnan(grey[o])) {
                 p[0] = p[1] = p[2] = 40;
                 continue;

@@ -32,8 +32,8 @@ static void usage(FILE *f)
         "  --heatmap OUT.png  I_error averaged over the channels (grey in [0, 1]) in the viridis\n"
         "                     colour map, with contour lines (white) of its local mean at\n"
         "                     --contours levels evenly spaced below --heatmap-max; dark grey\n"
-        "                     outside the hull\n"
-        "  --heatmap-max V    grey value shown as the top of the map (default 0.1; larger\n"
+        "                     outside the hull, cropped to the hull's bounding box\n"
+        "  --heatmap-max V    grey value shown as the top of the map (default 0.2; larger\n"
         "                     values saturate), fixed so that heatmaps compare\n"
         "  --contours L       number of contour levels (default 4; 0: none)\n"
         "  --json             one JSON object on stdout instead of the table: e_stabilized,\n"
@@ -380,7 +380,7 @@ int main(int argc, char **argv)
         {"contours", required_argument, 0, 'C'}, {"export-points", required_argument, 0, 'E'},
         {"json", no_argument, 0, 'j'},           {"quiet", no_argument, 0, 'q'},
         {"help", no_argument, 0, 'h'},           {0, 0, 0, 0}};
-    options o = {.method = "bspline", .stride = 4, .heatmap_max = 0.1, .contours = 4};
+    options o = {.method = "bspline", .stride = 4, .heatmap_max = 0.2, .contours = 4};
     double sigma = 0, smoothing = 0, max_error = 0.05;
     int levels = 0, have_sigma = 0, opt;
     while ((opt = getopt_long(argc, argv, "", long_opts, NULL)) != -1) {

@@ -72,7 +72,7 @@ md=$OUT/table2.md
     echo
     echo "Hull pixels: ex-vivo $(num exvivo-bspline pixels) over $(num exvivo-bspline frames) frames,"
     echo "in-vivo $(num invivo-bspline pixels) over $(num invivo-bspline frames) frames."
-    echo "Heatmaps (I_error, viridis up to 0.1, contours every 0.02): <preset>-<method>.png."
+    echo "Heatmaps (I_error, viridis up to 0.2, contours every 0.04): <preset>-<method>.png."
     echo "Made by \`make table2\` in ${secs} s."
 } > "$md"
 stamp "done: $md"
