@@ -143,13 +143,18 @@ void phantom_tag_frame(const phantom_model *m, int i, double t, double O[3], dou
     tangents(m, m->marker[i].u, m->marker[i].v, t, ea, eb);
 }
 
+void phantom_sticker_point(const phantom_model *m, int i, double a, double b, double t, double X[3])
+{
+    double O[3], ea[3], eb[3];
+    phantom_tag_frame(m, i, t, O, ea, eb);
+    for (int j = 0; j < 3; j++) X[j] = O[j] + a * ea[j] + b * eb[j];
+}
+
 void phantom_marker_point(const phantom_model *m, int i, int k, double t, double X[3])
 {
     static const double su[4] = {-0.5, 0.5, 0.5, -0.5}, sv[4] = {-0.5, -0.5, 0.5, 0.5};
-    double O[3], ea[3], eb[3];
-    phantom_tag_frame(m, i, t, O, ea, eb);
     double a = k < 4 ? su[k] * m->tag_size : 0, b = k < 4 ? sv[k] * m->tag_size : 0;
-    for (int j = 0; j < 3; j++) X[j] = O[j] + a * ea[j] + b * eb[j];
+    phantom_sticker_point(m, i, a, b, t, X);
 }
 
 void phantom_shaft_axis(const phantom_model *m, double t, double tip[3], double end[3])
@@ -303,11 +308,17 @@ int phantom_visible(const phantom_model *m, int c, double t, double u, double v)
 
 int phantom_marker_visible(const phantom_model *m, int c, double t, int i, int k)
 {
-    double u, v, X[3], O[3], ea[3], eb[3];
+    double u, v;
     phantom_marker_uv(m, i, k, &u, &v);
-    if (under_blob(m, t, u, v)) return 0;
-    phantom_marker_point(m, i, k, t, X);
+    return phantom_sticker_visible(m, c, t, i, u - m->marker[i].u, v - m->marker[i].v);
+}
+
+int phantom_sticker_visible(const phantom_model *m, int c, double t, int i, double a, double b)
+{
+    double X[3], O[3], ea[3], eb[3];
+    if (under_blob(m, t, m->marker[i].u + a, m->marker[i].v + b)) return 0;
     phantom_tag_frame(m, i, t, O, ea, eb);
+    for (int j = 0; j < 3; j++) X[j] = O[j] + a * ea[j] + b * eb[j];
     double n[3] = {ea[1] * eb[2] - ea[2] * eb[1], ea[2] * eb[0] - ea[0] * eb[2], ea[0] * eb[1] - ea[1] * eb[0]};
     return facing(m, c, X, n) && phantom_point_visible(m, c, t, X);
 }

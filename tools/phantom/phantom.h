@@ -19,8 +19,10 @@
  *   centre. It stays flat (so a detector's homography fits it exactly and the image diagonals
  *   meet at the projected centre) but stretches, shears, turns and tilts with the tissue under
  *   its centre. tag_size is the black border's edge in material mm (on the dome's slopes the
- *   sticker is up to ~5% larger in 3D). Over a tag the sticker floats within ~0.1 mm of the
- *   tissue; truth queries of the surface (locate, where) describe the tissue under it.
+ *   sticker is up to ~5% larger in 3D). Over its extent a sticker departs from the tissue
+ *   under it by up to ~0.8 mm (~6 px at 1080p at its rim), so the truth tells the two apart:
+ *   phantom_truth_locate_content() says whether a pixel sees a sticker or the tissue, and
+ *   phantom_truth_where() follows whichever is seen.
  *   Point 0..3 are the outer corners of the black border in libapriltag's detection order (for a
  *   tag seen upright: bottom-left, bottom-right, top-right, top-left, i.e. (a, b) =
  *   (-s/2, -s/2), (s/2, -s/2), (s/2, s/2), (-s/2, s/2)); point 4 (`c` in the CSV) is the centre,
@@ -141,6 +143,9 @@ void phantom_tag_frame(const phantom_model *m, int i, double t, double O[3], dou
 void phantom_marker_point(const phantom_model *m, int i, int k, double t, double X[3]);
 /* Visibility of marker i's point k in camera c at time t (blobs, facing, occluders, image). */
 int phantom_marker_visible(const phantom_model *m, int c, double t, int i, int k);
+/* World position and visibility of sticker i's point (a, b) (mm along ea, eb) at time t. */
+void phantom_sticker_point(const phantom_model *m, int i, double a, double b, double t, double X[3]);
+int phantom_sticker_visible(const phantom_model *m, int c, double t, int i, double a, double b);
 
 /* Tip and far end of the shaft's axis at time t. */
 void phantom_shaft_axis(const phantom_model *m, double t, double tip[3], double end[3]);
@@ -214,8 +219,27 @@ sh_status phantom_truth_locate(const phantom_truth *truth, int c, int frame, dou
 /* Pixel of material point (u, v) in camera c at frame f. SH_ERANGE when behind the camera. */
 sh_status phantom_truth_project(const phantom_truth *truth, int c, int frame, double u, double v,
                                 double *x, double *y);
-/* Where the surface point seen at (x, y) of camera c in ref_frame is, in camera c's pixels, in
- * frame f. For many pixels, locate once in the reference frame and project per frame instead. */
+/* What a pixel sees: the tissue, or a marker's sticker (drawn over the tissue). */
+typedef struct {
+    int marker;  /* -1: the tissue; else the index of the marker whose sticker is seen */
+    double u, v; /* tissue: material coordinates. Sticker: u_c + a, v_c + b for sticker point
+                  * (a, b), i.e. the material point it was laid on */
+} phantom_content;
+
+/* The content seen at pixel (x, y) of camera c in frame f (stickers win over the tissue, as
+ * they are drawn). Errors as phantom_truth_locate. */
+sh_status phantom_truth_locate_content(const phantom_truth *truth, int c, int frame, double x,
+                                       double y, phantom_content *p);
+/* Pixel of that content in camera c at frame f. */
+sh_status phantom_truth_project_content(const phantom_truth *truth, int c, int frame,
+                                        const phantom_content *p, double *x, double *y);
+/* 1 when the content is visible in camera c at frame f (blobs, facing, occluders, image). */
+int phantom_truth_content_visible(const phantom_truth *truth, int c, int frame,
+                                  const phantom_content *p);
+
+/* Where the content seen at (x, y) of camera c in ref_frame (tissue or sticker) is, in camera
+ * c's pixels, in frame f. For many pixels, locate_content once in the reference frame and
+ * project_content per frame instead. */
 sh_status phantom_truth_where(const phantom_truth *truth, int c, int ref_frame, double x, double y,
                               int frame, double *x_t, double *y_t);
 /* 1 when material point (u, v) is visible in camera c at frame f (see phantom_visible). */

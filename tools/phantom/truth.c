@@ -131,13 +131,89 @@ sh_status phantom_truth_locate(const phantom_truth *truth, int c, int frame, dou
     return SH_OK;
 }
 
+/* Sticker i's point (a, b) hit by the ray of normalised coordinates (xn, yn), if any. */
+static int hit_sticker(const phantom_model *m, int c, double t, int i, double xn, double yn,
+                       double *a, double *b)
+{
+    const phantom_camera *cam = &m->cam[c];
+    double C[3], d[3], O[3], ea[3], eb[3];
+    phantom_camera_center(cam, C);
+    for (int k = 0; k < 3; k++) d[k] = cam->R[k] * xn + cam->R[3 + k] * yn + cam->R[6 + k];
+    phantom_tag_frame(m, i, t, O, ea, eb);
+    /* a ea + b eb - s d = C - O, by Cramer's rule */
+    double r[3] = {C[0] - O[0], C[1] - O[1], C[2] - O[2]};
+    double nd[3] = {-d[0], -d[1], -d[2]};
+#define DET3(p, q, w) (p[0] * (q[1] * w[2] - q[2] * w[1]) - q[0] * (p[1] * w[2] - p[2] * w[1]) + \
+                       w[0] * (p[1] * q[2] - p[2] * q[1]))
+    double det = DET3(ea, eb, nd);
+    if (!(fabs(det) > 1e-12)) return 0;
+    *a = DET3(r, eb, nd) / det;
+    *b = DET3(ea, r, nd) / det;
+    double s = DET3(ea, eb, r) / det;
+#undef DET3
+    double half = 0.5 * phantom_sticker_size(m);
+    return s > 0 && fabs(*a) <= half && fabs(*b) <= half;
+}
+
+sh_status phantom_truth_locate_content(const phantom_truth *truth, int c, int frame, double x,
+                                       double y, phantom_content *p)
+{
+    const phantom_model *m = &truth->model;
+    p->marker = -1;
+    sh_status st = phantom_truth_locate(truth, c, frame, x, y, &p->u, &p->v);
+    if (st != SH_OK && st != SH_ERANGE) return st;
+    /* a sticker strays from the tissue under it by < 1 mm: only markers whose sticker covers
+     * the tissue point found, give or take, can be hit */
+    double half = 0.5 * phantom_sticker_size(m), reach = half + 0.25 * half + 1.0;
+    double xn, yn, t = frame_time(m, frame);
+    phantom_undistort(&m->cam[c], x, y, &xn, &yn);
+    for (int i = 0; i < m->num_markers; i++) {
+        double a, b;
+        if (fabs(p->u - m->marker[i].u) > reach || fabs(p->v - m->marker[i].v) > reach) continue;
+        if (hit_sticker(m, c, t, i, xn, yn, &a, &b)) {
+            p->marker = i;
+            p->u = m->marker[i].u + a;
+            p->v = m->marker[i].v + b;
+            return SH_OK;
+        }
+    }
+    return st;
+}
+
+sh_status phantom_truth_project_content(const phantom_truth *truth, int c, int frame,
+                                        const phantom_content *p, double *x, double *y)
+{
+    const phantom_model *m = &truth->model;
+    if (p->marker < 0) return phantom_truth_project(truth, c, frame, p->u, p->v, x, y);
+    sh_status st = check_cam(m, c);
+    if (st != SH_OK) return st;
+    if (p->marker >= m->num_markers)
+        return sh_error_set(SH_EINVAL, "marker %d: the sequence has %d", p->marker, m->num_markers);
+    double X[3];
+    phantom_sticker_point(m, p->marker, p->u - m->marker[p->marker].u, p->v - m->marker[p->marker].v,
+                          frame_time(m, frame), X);
+    if (!phantom_project(&m->cam[c], X, x, y))
+        return sh_error_set(SH_ERANGE, "sticker point is behind camera %d", c);
+    return SH_OK;
+}
+
+int phantom_truth_content_visible(const phantom_truth *truth, int c, int frame,
+                                  const phantom_content *p)
+{
+    const phantom_model *m = &truth->model;
+    if (c < 0 || c >= m->num_cameras || p->marker >= m->num_markers) return 0;
+    if (p->marker < 0) return phantom_truth_visible(truth, c, frame, p->u, p->v);
+    return phantom_sticker_visible(m, c, frame_time(m, frame), p->marker,
+                                   p->u - m->marker[p->marker].u, p->v - m->marker[p->marker].v);
+}
+
 sh_status phantom_truth_where(const phantom_truth *truth, int c, int ref_frame, double x, double y,
                               int frame, double *x_t, double *y_t)
 {
-    double u, v;
-    sh_status st = phantom_truth_locate(truth, c, ref_frame, x, y, &u, &v);
+    phantom_content p;
+    sh_status st = phantom_truth_locate_content(truth, c, ref_frame, x, y, &p);
     if (st != SH_OK) return st;
-    return phantom_truth_project(truth, c, frame, u, v, x_t, y_t);
+    return phantom_truth_project_content(truth, c, frame, &p, x_t, y_t);
 }
 
 int phantom_truth_visible(const phantom_truth *truth, int c, int frame, double u, double v)

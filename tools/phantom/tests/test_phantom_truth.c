@@ -67,6 +67,15 @@ static void test_locate_inverts_project(void **state)
                 }
     printf("# %d points: worst locate/where error %.3g\n", solved, worst);
     assert_true(worst < 1e-6);
+    /* the patch's corner region holds no sticker: tissue */
+    {
+        double x, y;
+        phantom_content pc;
+        assert_int_equal(phantom_truth_project(t, 0, 0, -48, -38, &x, &y), SH_OK);
+        assert_int_equal(phantom_truth_locate_content(t, 0, 0, x, y, &pc), SH_OK);
+        assert_int_equal(pc.marker, -1);
+        assert_true(fabs(pc.u + 48) < 1e-6 && fabs(pc.v + 38) < 1e-6);
+    }
     /* a pixel on the drape sees no heart */
     double u, v;
     assert_int_equal(phantom_truth_locate(t, 0, 0, 2, 2, &u, &v), SH_ERANGE);
@@ -99,16 +108,22 @@ static void test_markers_match_csv(void **state)
         assert_int_equal(id, r->id);
         assert_int_equal(vis, r->visible);
         worst = fmax(worst, fmax(hypot(x - r->x, y - r->y), fabs(X[2] - r->Z)));
-        if (r->point == 4 && r->frame > 0) {
-            /* the centre seen in frame 0 is, in frame f, where the CSV says */
-            const phantom_csv_row *r0 = phantom_csv_find(&csv, 0, r->camera, r->id, 4);
+        if (r->frame > 0) {
+            /* the corner or centre seen in frame 0 is, in frame f, where the CSV says: where()
+             * follows the sticker, not the tissue under it */
+            const phantom_csv_row *r0 = phantom_csv_find(&csv, 0, r->camera, r->id, r->point);
             assert_non_null(r0);
+            phantom_content pc;
+            assert_int_equal(phantom_truth_locate_content(t, r->camera, 0, r0->x, r0->y, &pc), SH_OK);
+            assert_int_equal(pc.marker, idx);
+            assert_int_equal(phantom_truth_content_visible(t, r->camera, r->frame, &pc), r->visible);
             double xt, yt;
             assert_int_equal(phantom_truth_where(t, r->camera, 0, r0->x, r0->y, r->frame, &xt, &yt), SH_OK);
             worst_where = fmax(worst_where, hypot(xt - r->x, yt - r->y));
         }
     }
-    printf("# %d rows: truth vs CSV %.3g, where(0 -> f) vs CSV %.3g px\n", csv.count, worst, worst_where);
+    printf("# %d rows: truth vs CSV %.3g, where(0 -> f) vs CSV %.3g px (corners and centres)\n",
+           csv.count, worst, worst_where);
     assert_true(worst < 2e-6);       /* the CSV prints 6 decimals */
     assert_true(worst_where < 1e-4); /* the frame-0 pixel itself was rounded to 1e-6 */
     int hidden = 0;
