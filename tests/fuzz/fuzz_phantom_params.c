@@ -1,7 +1,8 @@
 /* libFuzzer: arbitrary bytes as the phantom's parameter file (phantom.txt). The reader and the
  * model live with the phantom tool (tools/phantom), outside libstillheart, so they are compiled
- * in here (preset.c too, for the sticker sizes the model asks). A refusal names the file; an accepted model has its counts in range, and evaluating
- * the surface, a marker and a projection on it must not trip a sanitizer. */
+ * in here (preset.c too, for the sticker sizes the model asks). A refusal names the file; an
+ * accepted model has its counts in range, and evaluating the surface, a marker and a
+ * projection on it must not trip a sanitizer. */
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
