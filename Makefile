@@ -152,7 +152,8 @@ TOOLS :=
 TOOL_TESTS :=
 -include $(wildcard tools/*/*.mk)
 all: $(TOOLS)
-tests: $(TOOL_TESTS)
+# unit tests run the programs too (stillheart, stillheart-cat, ...)
+tests: $(TOOL_TESTS) $(TOOLS)
 
 # The README's first command: a recording with a known motion, stabilized, e printed.
 DEMO_DIR ?= out/demo

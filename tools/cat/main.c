@@ -1,0 +1,139 @@
+/* stillheart-cat: the display buffer as a Y4M stream on stdout, so that
+ * `stillheart-cat | ffplay -` shows the live view and `| ffmpeg ...` records it. */
+#include <errno.h>
+#include <getopt.h>
+#include <math.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "stillheart/display.h"
+#include "stillheart/y4m.h"
+
+static void usage(FILE *out)
+{
+    fprintf(out,
+        "usage: stillheart-cat [--name NAME] [--count N] [--timeout S] > OUT.y4m\n\n"
+        "Reads the frames the stillheart daemon publishes to its shared-memory display buffer\n"
+        "and writes them to standard output as YUV4MPEG2 (mono, 4:2:0 or 4:4:4 as published;\n"
+        "RGB frames are converted to 4:4:4, BT.601 full range). Starts with the newest frame;\n"
+        "a frame the reader could not keep up with is skipped, never repeated.\n\n"
+        "options:\n"
+        "  --name NAME     shared-memory segment (default %s)\n"
+        "  --count N       stop after N frames (default: until the daemon stops)\n"
+        "  --timeout S     give up when no new frame arrives for S seconds (default 5)\n"
+        "  -v, --verbose   each frame's status (stabilized / degraded / raw and why) on stderr\n"
+        "  --help          this text\n",
+        SH_DISPLAY_DEFAULT_NAME);
+}
+
+/* BT.601 full range: Y4M carries no RGB. */
+static void rgb_to_yuv444(const sh_image *rgb, sh_image *yuv)
+{
+    for (int y = 0; y < rgb->height; y++) {
+        const uint8_t *s = rgb->plane[0].data + (size_t)y * rgb->plane[0].stride;
+        uint8_t *py = yuv->plane[0].data + (size_t)y * yuv->plane[0].stride;
+        uint8_t *pu = yuv->plane[1].data + (size_t)y * yuv->plane[1].stride;
+        uint8_t *pv = yuv->plane[2].data + (size_t)y * yuv->plane[2].stride;
+        for (int x = 0; x < rgb->width; x++, s += 3) {
+            double r = s[0], g = s[1], b = s[2];
+            double v[3] = {0.299 * r + 0.587 * g + 0.114 * b,
+                           128 - 0.168736 * r - 0.331264 * g + 0.5 * b,
+                           128 + 0.5 * r - 0.418688 * g - 0.081312 * b};
+            uint8_t *out[3] = {py + x, pu + x, pv + x};
+            for (int c = 0; c < 3; c++) *out[c] = (uint8_t)fmin(255, fmax(0, floor(v[c] + 0.5)));
+        }
+    }
+}
+
+int main(int argc, char **argv)
+{
+    static const struct option options[] = {
+        {"name", required_argument, 0, 'n'}, {"count", required_argument, 0, 'c'},
+        {"timeout", required_argument, 0, 't'}, {"verbose", no_argument, 0, 'v'},
+        {"help", no_argument, 0, 'h'}, {0, 0, 0, 0}};
+    const char *name = SH_DISPLAY_DEFAULT_NAME;
+    long count = 0;
+    double timeout = 5;
+    int verbose = 0, opt;
+    char *end;
+    while ((opt = getopt_long(argc, argv, "v", options, NULL)) != -1) {
+        switch (opt) {
+        case 'n': name = optarg; break;
+        case 'c':
+            count = strtol(optarg, &end, 10);
+            if (*end || count < 0) {
+                fprintf(stderr, "stillheart-cat: --count: '%s' is not a whole number >= 0\n", optarg);
+                return 2;
+            }
+            break;
+        case 't':
+            timeout = strtod(optarg, &end);
+            if (*end || !(timeout > 0) || timeout > 86400) {
+                fprintf(stderr, "stillheart-cat: --timeout: '%s' is not a number of seconds in (0, 86400]\n", optarg);
+                return 2;
+            }
+            break;
+        case 'v': verbose = 1; break;
+        case 'h': usage(stdout); return 0;
+        default: usage(stderr); return 2;
+        }
+    }
+    if (optind != argc) {
+        usage(stderr);
+        return 2;
+    }
+    signal(SIGPIPE, SIG_IGN); /* a closed player shows as a write error, handled below */
+    sh_display_reader *r;
+    if (sh_display_reader_open(name, &r) != SH_OK) {
+        fprintf(stderr, "stillheart-cat: %s\n", sh_error_message());
+        return 1;
+    }
+    const sh_display_header *h = sh_display_reader_header(r);
+    sh_pixfmt format = (sh_pixfmt)h->format;
+    sh_image frame = {0}, converted = {0};
+    sh_y4m_writer *w = NULL;
+    int rc = 1;
+    sh_y4m_header yh = {.width = (int)h->width, .height = (int)h->height,
+                        .format = format == SH_PIX_RGB24 ? SH_PIX_YUV444 : format,
+                        .siting = (sh_chroma_siting)h->siting, .interlace = 'p',
+                        .aspect_num = 1, .aspect_den = 1};
+    if (h->full_range || format == SH_PIX_RGB24) strcpy(yh.extra, "XCOLORRANGE=FULL");
+    if (sh_image_create(&frame, format, (int)h->width, (int)h->height) != SH_OK ||
+        (format == SH_PIX_RGB24 &&
+         sh_image_create(&converted, SH_PIX_YUV444, (int)h->width, (int)h->height) != SH_OK) ||
+        sh_y4m_writer_open("-", &yh, &w) != SH_OK) {
+        fprintf(stderr, "stillheart-cat: %s\n", sh_error_message());
+        goto done;
+    }
+    for (long n = 0; count == 0 || n < count; n++) {
+        sh_display_frame_info info;
+        sh_status st = sh_display_reader_next(r, &frame, &info, (int)(timeout * 1000));
+        if (st == SH_EEOF && count == 0) break; /* the daemon stopped cleanly */
+        if (st != SH_OK) {
+            fprintf(stderr, "stillheart-cat: %s: %s\n", name, sh_error_message());
+            goto done;
+        }
+        if (verbose)
+            fprintf(stderr, "frame %llu %s%s%s markers %u\n", (unsigned long long)info.sequence,
+                    info.status == SH_DISPLAY_STABILIZED ? "stabilized"
+                    : info.status == SH_DISPLAY_DEGRADED ? "degraded" : "raw",
+                    info.reason[0] ? ": " : "", info.reason, info.markers_used);
+        if (format == SH_PIX_RGB24) rgb_to_yuv444(&frame, &converted);
+        if (sh_y4m_writer_write(w, format == SH_PIX_RGB24 ? &converted : &frame) != SH_OK) {
+            fprintf(stderr, "stillheart-cat: %s\n", sh_error_message());
+            goto done;
+        }
+    }
+    rc = 0;
+done:
+    if (w && sh_y4m_writer_close(w) != SH_OK && rc == 0) {
+        fprintf(stderr, "stillheart-cat: %s\n", sh_error_message());
+        rc = 1;
+    }
+    sh_image_destroy(&frame);
+    sh_image_destroy(&converted);
+    sh_display_reader_close(r);
+    return rc;
+}
