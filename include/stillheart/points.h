@@ -41,6 +41,12 @@ void sh_points_destroy(sh_points *points);
 /* Rows of one frame (count 0 for frames beyond the file). */
 const sh_point *sh_points_frame(const sh_points *points, int frame, int *count);
 
+/* The markers two frames share: walks both lists (sorted by id, as sh_points_frame returns
+ * them) and writes, for each id found in both, the id and the current frame's x, y. Returns the
+ * count (at most min(nref, ncur)). */
+int sh_points_match(const sh_point *ref, int nref, const sh_point *cur, int ncur, int *ids,
+                    double *cur_xy);
+
 /* Writes rows as CSV with the header (and the 3D columns when has_3d). */
 sh_status sh_points_write(FILE *out, const sh_point *rows, int count, int has_3d);
 

@@ -112,27 +112,21 @@ static sh_status cache_get(model_cache *c, const int *ids, int n, sh_warp_model 
     return SH_OK;
 }
 
-/* Markers of this frame that the reference frame also has (both lists sorted by id). */
-static int common_markers(const sh_point *ref, int nref, const sh_point *cur, int ncur, int *ids,
-                          double *cur_xy)
-{
-    int n = 0;
-    for (int i = 0, j = 0; i < nref && j < ncur;) {
-        if (ref[i].id < cur[j].id) i++;
-        else if (ref[i].id > cur[j].id) j++;
-        else {
-            ids[n] = cur[j].id;
-            cur_xy[2 * n] = cur[j].x;
-            cur_xy[2 * n + 1] = cur[j].y;
-            n++, i++, j++;
-        }
-    }
-    return n;
-}
-
 static int full_range(const sh_y4m_header *h)
 {
     return strstr(h->extra, "XCOLORRANGE=FULL") != NULL;
+}
+
+/* e for the input against the reference frame, and for the output against the reference frame
+ * warped by the model of all reference markers (ref_xy: their positions there). */
+static int start_metrics(sh_warp_model *model, const double *ref_xy, sh_warp *warp,
+                         const sh_image *ref, sh_image *scratch, int full_range,
+                         sh_metric **in, sh_metric **out)
+{
+    return sh_warp_model_update(model, ref_xy) == SH_OK &&
+           sh_warp_apply(warp, model, ref, scratch) == SH_OK &&
+           sh_metric_create(ref, sh_warp_model_hull(model), full_range, in) == SH_OK &&
+           sh_metric_create(scratch, sh_warp_model_hull(model), full_range, out) == SH_OK;
 }
 
 static int fail(const char *what)
@@ -244,18 +238,13 @@ int cmd_warp(int argc, char **argv)
     int from_stdin = !strcmp(in_path, "-");
     /* From standard input (reference 0 only) the reference frame is the first one read below. */
     if (!from_stdin && !read_frame_at(in_path, reference, &ref)) { fail("reference frame"); goto done; }
-    int nref = common_markers(cache.ref_rows, cache.ref_count, cache.ref_rows, cache.ref_count,
+    int nref = sh_points_match(cache.ref_rows, cache.ref_count, cache.ref_rows, cache.ref_count,
                               ids, cur_xy);
     if (cache_get(&cache, ids, nref, &model) != SH_OK) { fail("reference markers"); goto done; }
     int fr = full_range(hdr);
-    if (!from_stdin) {
-        if (sh_warp_model_update(model, cur_xy) != SH_OK ||
-            sh_warp_apply(warp, model, &ref, &out) != SH_OK ||
-            sh_metric_create(&ref, sh_warp_model_hull(model), fr, &metric_in) != SH_OK ||
-            sh_metric_create(&out, sh_warp_model_hull(model), fr, &metric_out) != SH_OK) {
-            fail("reference frame");
-            goto done;
-        }
+    if (!from_stdin && !start_metrics(model, cur_xy, warp, &ref, &out, fr, &metric_in, &metric_out)) {
+        fail("reference frame");
+        goto done;
     }
     if (sh_y4m_writer_open(out_path, hdr, &writer) != SH_OK) { fail("output"); goto done; }
 
@@ -268,17 +257,14 @@ int cmd_warp(int argc, char **argv)
     while ((st = sh_y4m_reader_read(reader, &in)) == SH_OK) {
         if (frames == reference && !metric_in) { /* standard input, reference 0 */
             sh_image_copy(&ref, &in);
-            if (sh_warp_model_update(model, cur_xy) != SH_OK ||
-                sh_warp_apply(warp, model, &ref, &out) != SH_OK ||
-                sh_metric_create(&ref, sh_warp_model_hull(model), fr, &metric_in) != SH_OK ||
-                sh_metric_create(&out, sh_warp_model_hull(model), fr, &metric_out) != SH_OK) {
+            if (!start_metrics(model, cur_xy, warp, &ref, &out, fr, &metric_in, &metric_out)) {
                 fail("reference frame");
                 goto done;
             }
         }
         int ncur;
         const sh_point *cur = sh_points_frame(&points, frames, &ncur);
-        int n = common_markers(cache.ref_rows, cache.ref_count, cur, ncur, ids, cur_xy);
+        int n = sh_points_match(cache.ref_rows, cache.ref_count, cur, ncur, ids, cur_xy);
         double t0 = app_now();
         const sh_image *shown = &out;
         if (n < 3 || cache_get(&cache, ids, n, &model) != SH_OK ||

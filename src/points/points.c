@@ -305,6 +305,25 @@ static int put_real(FILE *out, double v)
     return fputs(buf, out) >= 0;
 }
 
+int sh_points_match(const sh_point *ref, int nref, const sh_point *cur, int ncur, int *ids,
+                    double *cur_xy)
+{
+    int n = 0;
+    for (int i = 0, j = 0; i < nref && j < ncur;) {
+        if (ref[i].id < cur[j].id) {
+            i++;
+        } else if (ref[i].id > cur[j].id) {
+            j++;
+        } else {
+            ids[n] = cur[j].id;
+            cur_xy[2 * n] = cur[j].x;
+            cur_xy[2 * n + 1] = cur[j].y;
+            n++, i++, j++;
+        }
+    }
+    return n;
+}
+
 sh_status sh_points_write(FILE *out, const sh_point *rows, int count, int has_3d)
 {
     if (!out || (count > 0 && !rows) || count < 0)

@@ -212,6 +212,22 @@ static void test_read_file(void **state)
     assert_non_null(strstr(sh_error_message(), "/nonexistent-dir/p.csv"));
 }
 
+/* The ids two frames share, with the current frame's positions, worked by hand. */
+static void test_match(void **state)
+{
+    (void)state;
+    const sh_point ref[] = {{.id = 1}, {.id = 3}, {.id = 4}, {.id = 9}};
+    const sh_point cur[] = {{.id = 0, .x = 5, .y = 6}, {.id = 3, .x = 7, .y = 8},
+                            {.id = 9, .x = 1.5, .y = 2.5}, {.id = 12, .x = 3, .y = 4}};
+    int ids[4];
+    double xy[8];
+    assert_int_equal(sh_points_match(ref, 4, cur, 4, ids, xy), 2);
+    assert_int_equal(ids[0], 3);
+    assert_int_equal(ids[1], 9);
+    assert_true(xy[0] == 7 && xy[1] == 8 && xy[2] == 1.5 && xy[3] == 2.5);
+    assert_int_equal(sh_points_match(ref, 4, cur, 0, ids, xy), 0);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -220,6 +236,7 @@ int main(void)
         cmocka_unit_test(test_refusals_name_the_line),
         cmocka_unit_test(test_write_read_round_trip),
         cmocka_unit_test(test_read_file),
+        cmocka_unit_test(test_match),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
