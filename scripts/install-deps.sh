@@ -7,7 +7,7 @@ set -eu
 
 pkgs="build-essential pkg-config libcmocka-dev libqhull-dev libeigen3-dev libpng-dev
       libopencv-core-dev libopencv-imgproc-dev clang llvm libclang-rt-14-dev
-      libosmesa6-dev libapriltag-dev libopencv-calib3d-dev"
+      libosmesa6-dev libapriltag-dev libopencv-calib3d-dev libturbojpeg0-dev"
 for arg in "$@"; do
     case "$arg" in
         --bench) ;;   # the bench peer (cv::remap) lives in opencv-imgproc, already listed

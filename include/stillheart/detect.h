@@ -3,8 +3,19 @@
  * the pixels with a moved origin, and the window's offset is added back to the results.
  *
  * Coordinates: pixel centres at integers (OpenCV's convention, as the rest of stillheart).
- * libapriltag reports the same convention for its centre and corners... the implementation
- * documents and tests whatever offset it applies. Corners are in libapriltag's order. */
+ * libapriltag 3.3 puts pixel centres at +0.5 (pixel i covers [i, i+1)), so the detector
+ * subtracts SH_DETECT_APRILTAG_OFFSET (0.5) from every centre and corner it returns; the unit
+ * test checks this against the phantom's ground truth and against a tag drawn with exact,
+ * pixel-aligned edges. Corners are in libapriltag's order.
+ *
+ * Pixels: libapriltag reads packed 8-bit rows (one byte per pixel, any stride), so any
+ * contiguous luminance plane works without a copy: GRAY8, the Y plane of I420/NV12/YUV444
+ * (sh_detector_detect_plane). A YUYV frame's luma has a pixel step of 2: it must be copied
+ * into a packed plane first. RGB24 is converted to grey (BT.601 luma) into a buffer the
+ * detector owns, only inside the windows when detecting in windows.
+ *
+ * A detector holds one apriltag_detector per family, reused for every call (per-call overhead
+ * matters); it is not thread-safe: one detector per thread. */
 #ifndef STILLHEART_DETECT_H
 #define STILLHEART_DETECT_H
 
@@ -36,7 +47,17 @@ typedef struct {
     int refine_edges;       /* default 1 */
     double decode_sharpening; /* default 0.25 */
     int threads;            /* libapriltag worker threads (default 1) */
+    int max_hamming;        /* bits corrected at most (default 2, apriltag_detector_add_family's) */
+    double window_decimate; /* quad decimation inside windows (default 1: full resolution) */
+    int merge_windows;      /* 1 (default): windows that overlap or lie close are merged into
+                             * their bounding box when that costs fewer pixels than it saves in
+                             * per-call overhead; tags seen by two windows are reported once */
 } sh_detector_options;
+
+/* libapriltag's pixel-centre offset, subtracted from its coordinates. */
+#define SH_DETECT_APRILTAG_OFFSET 0.5
+/* Windows per call at most. */
+#define SH_DETECT_MAX_WINDOWS 256
 
 void sh_detector_options_default(sh_detector_options *opts);
 sh_status sh_detector_create(const sh_detector_options *opts, sh_detector **out);
@@ -52,6 +73,20 @@ sh_status sh_detector_detect(sh_detector *det, const sh_image *frame, sh_detecti
 sh_status sh_detector_detect_windows(sh_detector *det, const sh_image *frame,
                                      const sh_window *windows, int num_windows,
                                      sh_detection *out, int max, int *count);
+
+/* The same on a caller's 8-bit luminance plane (width x height, rows stride bytes apart,
+ * stride >= width): windows NULL (or num_windows 0) scans the whole plane at quad_decimate,
+ * otherwise each window at window_decimate. */
+sh_status sh_detector_detect_plane(sh_detector *det, const uint8_t *luma, int width, int height,
+                                   int stride, const sh_window *windows, int num_windows,
+                                   sh_detection *out, int max, int *count);
+
+/* The windows the last windowed call actually scanned after clipping and merging (for
+ * benchmarks and tests): returns their number, copies at most max of them. */
+int sh_detector_last_windows(const sh_detector *det, sh_window *out, int max);
+
+/* The family names the build knows, space separated. */
+const char *sh_detector_families(void);
 
 #ifdef __cplusplus
 }

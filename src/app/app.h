@@ -7,6 +7,7 @@
 #define STILLHEART_VERSION "0.1.0"
 
 int cmd_warp(int argc, char **argv);
+int cmd_detect(int argc, char **argv);
 
 /* Parses a whole decimal number / a finite real; on failure prints "OPTION: reason" and
  * returns 0. */

@@ -10,6 +10,7 @@ static const struct {
     const char *summary;
 } commands[] = {
     {"warp", cmd_warp, "stabilize a Y4M video from a points file (paper Algorithm 1)"},
+    {"detect", cmd_detect, "print every AprilTag detection of a video or image as CSV"},
 };
 
 static void usage(FILE *out)

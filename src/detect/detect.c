@@ -1,0 +1,428 @@
+/* AprilTag detection through libapriltag (Debian's 3.3), in the whole frame or in windows.
+ *
+ * A window is the frame's image_u8_t with buf moved to the window's origin and width/height
+ * shrunk (stride unchanged): no pixel is copied. Coordinates come back in libapriltag's
+ * convention (pixel centres at +0.5) relative to the window; the window origin is added and
+ * SH_DETECT_APRILTAG_OFFSET subtracted, giving frame coordinates with pixel centres at
+ * integers. */
+#include "stillheart/detect.h"
+
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+#ifdef SH_HAVE_APRILTAG
+
+#include <apriltag/apriltag.h>
+#include <apriltag/tag16h5.h>
+#include <apriltag/tag25h9.h>
+#include <apriltag/tag36h10.h>
+#include <apriltag/tag36h11.h>
+#include <apriltag/tagCircle21h7.h>
+#include <apriltag/tagCircle49h12.h>
+#include <apriltag/tagCustom48h12.h>
+#include <apriltag/tagStandard41h12.h>
+#include <apriltag/tagStandard52h13.h>
+
+static const struct {
+    const char *name;
+    apriltag_family_t *(*create)(void);
+    void (*destroy)(apriltag_family_t *);
+} families[] = {
+    {"tag36h11", tag36h11_create, tag36h11_destroy},
+    {"tag36h10", tag36h10_create, tag36h10_destroy},
+    {"tag25h9", tag25h9_create, tag25h9_destroy},
+    {"tag16h5", tag16h5_create, tag16h5_destroy},
+    {"tagStandard41h12", tagStandard41h12_create, tagStandard41h12_destroy},
+    {"tagStandard52h13", tagStandard52h13_create, tagStandard52h13_destroy},
+    {"tagCircle21h7", tagCircle21h7_create, tagCircle21h7_destroy},
+    {"tagCircle49h12", tagCircle49h12_create, tagCircle49h12_destroy},
+    {"tagCustom48h12", tagCustom48h12_create, tagCustom48h12_destroy},
+};
+#define NUM_FAMILIES ((int)(sizeof families / sizeof families[0]))
+
+/* Estimated cost of one libapriltag call in pixels of a decimation-1 window (measured with
+ * tools/bench/bench_detect.cpp on 1080p phantom frames: a call costs about as much as
+ * scanning this many extra pixels). Merging two windows pays off when their bounding box
+ * has fewer extra pixels than this. */
+#define CALL_COST_PIXELS 6000
+
+struct sh_detector {
+    apriltag_detector_t *td;
+    apriltag_family_t *tf;
+    void (*tf_destroy)(apriltag_family_t *);
+    sh_detector_options opts;
+    uint8_t *gray;          /* RGB24 -> grey, sized at the first RGB frame */
+    size_t gray_size;
+    int gray_width, gray_height;
+    sh_window scan[SH_DETECT_MAX_WINDOWS];
+    int num_scan;
+};
+
+void sh_detector_options_default(sh_detector_options *opts)
+{
+    if (!opts) return;
+    memset(opts, 0, sizeof *opts);
+    opts->family = "tag36h11";
+    opts->quad_decimate = 2.0;
+    opts->quad_sigma = 0.0;
+    opts->refine_edges = 1;
+    opts->decode_sharpening = 0.25;
+    opts->threads = 1;
+    opts->max_hamming = 2;
+    opts->window_decimate = 1.0;
+    opts->merge_windows = 1;
+}
+
+const char *sh_detector_families(void)
+{
+    return "tag36h11 tag36h10 tag25h9 tag16h5 tagStandard41h12 tagStandard52h13 tagCircle21h7 "
+           "tagCircle49h12 tagCustom48h12";
+}
+
+sh_status sh_detector_create(const sh_detector_options *opts, sh_detector **out)
+{
+    if (!out) return sh_error_set(SH_EINVAL, "detect: missing argument");
+    *out = NULL;
+    sh_detector_options o;
+    if (opts)
+        o = *opts;
+    else
+        sh_detector_options_default(&o);
+    if (!o.family) o.family = "tag36h11";
+    int f = -1;
+    for (int i = 0; i < NUM_FAMILIES; i++)
+        if (!strcmp(o.family, families[i].name)) f = i;
+    if (f < 0)
+        return sh_error_set(SH_EINVAL, "detect: unknown tag family '%s' (known: %s)", o.family,
+                            sh_detector_families());
+    if (!(o.quad_decimate >= 1.0 && o.quad_decimate <= 16.0))
+        return sh_error_set(SH_EINVAL, "detect: quad_decimate %g outside [1, 16]", o.quad_decimate);
+    if (!(o.window_decimate >= 1.0 && o.window_decimate <= 16.0))
+        return sh_error_set(SH_EINVAL, "detect: window_decimate %g outside [1, 16]",
+                            o.window_decimate);
+    if (!(o.quad_sigma >= -10.0 && o.quad_sigma <= 10.0))
+        return sh_error_set(SH_EINVAL, "detect: quad_sigma %g outside [-10, 10]", o.quad_sigma);
+    if (!(o.decode_sharpening >= 0.0 && o.decode_sharpening <= 10.0))
+        return sh_error_set(SH_EINVAL, "detect: decode_sharpening %g outside [0, 10]",
+                            o.decode_sharpening);
+    if (o.threads < 1 || o.threads > 64)
+        return sh_error_set(SH_EINVAL, "detect: threads %d outside [1, 64]", o.threads);
+    if (o.max_hamming < 0 || o.max_hamming > 3)
+        return sh_error_set(SH_EINVAL, "detect: max_hamming %d outside [0, 3]", o.max_hamming);
+
+    sh_detector *det = calloc(1, sizeof *det);
+    if (!det) return sh_error_set(SH_ENOMEM, "detect: cannot allocate the detector");
+    det->opts = o;
+    det->opts.family = families[f].name; /* a static string: the caller's may not outlive us */
+    det->tf = families[f].create();
+    det->tf_destroy = families[f].destroy;
+    det->td = apriltag_detector_create();
+    if (!det->tf || !det->td) {
+        sh_detector_destroy(det);
+        return sh_error_set(SH_ENOMEM, "detect: cannot create the libapriltag detector");
+    }
+    apriltag_detector_add_family_bits(det->td, det->tf, o.max_hamming);
+    det->td->quad_decimate = (float)o.quad_decimate;
+    det->td->quad_sigma = (float)o.quad_sigma;
+    det->td->refine_edges = o.refine_edges != 0;
+    det->td->decode_sharpening = o.decode_sharpening;
+    det->td->nthreads = o.threads;
+    det->td->debug = 0;
+    *out = det;
+    return SH_OK;
+}
+
+void sh_detector_destroy(sh_detector *det)
+{
+    if (!det) return;
+    if (det->td) apriltag_detector_destroy(det->td);
+    if (det->tf && det->tf_destroy) det->tf_destroy(det->tf);
+    free(det->gray);
+    free(det);
+}
+
+/* Copies libapriltag's detections (window-relative) into out[*n...], in frame coordinates.
+ * With dedup, a detection of the same id whose centre lies within a quarter of the tag's edge
+ * of one already reported (the same tag seen by two windows) is dropped. */
+static void collect(zarray_t *dets, int ox, int oy, int dedup, sh_detection *out, int max, int *n)
+{
+    const double off = SH_DETECT_APRILTAG_OFFSET;
+    for (int i = 0; i < zarray_size(dets); i++) {
+        apriltag_detection_t *d;
+        zarray_get(dets, i, &d);
+        sh_detection s;
+        s.id = d->id;
+        s.cx = d->c[0] + ox - off;
+        s.cy = d->c[1] + oy - off;
+        for (int k = 0; k < 4; k++) {
+            s.corner[k][0] = d->p[k][0] + ox - off;
+            s.corner[k][1] = d->p[k][1] + oy - off;
+        }
+        s.margin = d->decision_margin;
+        s.hamming = d->hamming;
+        if (dedup) {
+            double ex = s.corner[1][0] - s.corner[0][0], ey = s.corner[1][1] - s.corner[0][1];
+            double tol2 = (ex * ex + ey * ey) / 16.0;
+            int dup = 0;
+            int seen = *n < max ? *n : max;
+            for (int j = 0; j < seen && !dup; j++) {
+                double dx = out[j].cx - s.cx, dy = out[j].cy - s.cy;
+                if (out[j].id == s.id && dx * dx + dy * dy <= tol2) {
+                    dup = 1;
+                    if (s.margin > out[j].margin) out[j] = s; /* keep the clearer view */
+                }
+            }
+            if (dup) continue;
+        }
+        if (*n < max) out[*n] = s;
+        (*n)++;
+    }
+}
+
+static sh_status run(sh_detector *det, const uint8_t *base, int width, int height, int stride,
+                     int ox, int oy, int dedup, sh_detection *out, int max, int *n)
+{
+    /* image_u8_t's geometry is const: build it by initialization. libapriltag only reads the
+     * pixels (a blur or decimation works on its own copy). */
+    image_u8_t im = {.width = width, .height = height, .stride = stride,
+                     .buf = (uint8_t *)(uintptr_t)(base + (size_t)oy * (size_t)stride + (size_t)ox)};
+    zarray_t *dets = apriltag_detector_detect(det->td, &im);
+    if (!dets) return sh_error_set(SH_ENOMEM, "detect: libapriltag failed on a %dx%d image", width,
+                                   height);
+    collect(dets, ox, oy, dedup, out, max, n);
+    apriltag_detections_destroy(dets);
+    return SH_OK;
+}
+
+static long area(const sh_window *w)
+{
+    return (long)w->width * (long)w->height;
+}
+
+/* Clips the windows to the frame, drops empty ones, and (when asked) merges pairs whose
+ * bounding box costs fewer extra pixels than one call: greedily, until nothing merges. */
+static sh_status plan_windows(sh_detector *det, int width, int height, const sh_window *win,
+                              int nwin)
+{
+    int n = 0;
+    for (int i = 0; i < nwin; i++) {
+        long x0 = win[i].x, y0 = win[i].y;
+        long x1 = x0 + (long)win[i].width, y1 = y0 + (long)win[i].height;
+        if (x0 < 0) x0 = 0;
+        if (y0 < 0) y0 = 0;
+        if (x1 > width) x1 = width;
+        if (y1 > height) y1 = height;
+        if (x1 - x0 < 8 || y1 - y0 < 8) continue; /* nothing a tag fits in */
+        det->scan[n++] = (sh_window){(int)x0, (int)y0, (int)(x1 - x0), (int)(y1 - y0)};
+    }
+    if (det->opts.merge_windows) {
+        int merged = 1;
+        while (merged) {
+            merged = 0;
+            for (int i = 0; i < n && !merged; i++)
+                for (int j = i + 1; j < n && !merged; j++) {
+                    sh_window *a = &det->scan[i], *b = &det->scan[j];
+                    int x0 = a->x < b->x ? a->x : b->x, y0 = a->y < b->y ? a->y : b->y;
+                    int x1 = a->x + a->width > b->x + b->width ? a->x + a->width : b->x + b->width;
+                    int y1 = a->y + a->height > b->y + b->height ? a->y + a->height
+                                                                  : b->y + b->height;
+                    sh_window u = {x0, y0, x1 - x0, y1 - y0};
+                    /* pixels scanned now: a + b (overlap scanned twice) */
+                    if (area(&u) - (area(a) + area(b)) <= CALL_COST_PIXELS) {
+                        *a = u;
+                        det->scan[j] = det->scan[--n];
+                        merged = 1;
+                    }
+                }
+        }
+    }
+    det->num_scan = n;
+    return SH_OK;
+}
+
+sh_status sh_detector_detect_plane(sh_detector *det, const uint8_t *luma, int width, int height,
+                                   int stride, const sh_window *windows, int num_windows,
+                                   sh_detection *out, int max, int *count)
+{
+    if (count) *count = 0;
+    if (!det || !luma || !count || (max > 0 && !out) || max < 0 || num_windows < 0 ||
+        (num_windows > 0 && !windows))
+        return sh_error_set(SH_EINVAL, "detect: missing argument");
+    if (width <= 0 || height <= 0 || width > SH_IMAGE_MAX_SIZE || height > SH_IMAGE_MAX_SIZE ||
+        stride < width)
+        return sh_error_set(SH_EINVAL, "detect: invalid plane %dx%d stride %d", width, height,
+                            stride);
+    if (num_windows > SH_DETECT_MAX_WINDOWS)
+        return sh_error_set(SH_ERANGE, "detect: %d windows (at most %d)", num_windows,
+                            SH_DETECT_MAX_WINDOWS);
+    int n = 0;
+    sh_status st;
+    if (!windows || num_windows == 0) {
+        det->td->quad_decimate = (float)det->opts.quad_decimate;
+        det->num_scan = 0;
+        st = run(det, luma, width, height, stride, 0, 0, 0, out, max, &n);
+    } else {
+        det->td->quad_decimate = (float)det->opts.window_decimate;
+        plan_windows(det, width, height, windows, num_windows);
+        st = SH_OK;
+        for (int i = 0; i < det->num_scan && st == SH_OK; i++) {
+            const sh_window *w = &det->scan[i];
+            st = run(det, luma, w->width, w->height, stride, w->x, w->y, 1, out, max, &n);
+        }
+    }
+    *count = n;
+    return st;
+}
+
+int sh_detector_last_windows(const sh_detector *det, sh_window *out, int max)
+{
+    if (!det) return 0;
+    for (int i = 0; i < det->num_scan && i < max; i++) out[i] = det->scan[i];
+    return det->num_scan;
+}
+
+/* BT.601 luma, Y = (77 R + 150 G + 29 B + 128) >> 8, of the given rectangle. */
+static void rgb_to_gray(const sh_plane *rgb, uint8_t *gray, int gstride, int x0, int y0, int w,
+                        int h)
+{
+    for (int y = y0; y < y0 + h; y++) {
+        const uint8_t *s = rgb->data + (size_t)y * (size_t)rgb->stride + (size_t)x0 * 3;
+        uint8_t *d = gray + (size_t)y * (size_t)gstride + (size_t)x0;
+        for (int x = 0; x < w; x++, s += 3)
+            d[x] = (uint8_t)((77u * s[0] + 150u * s[1] + 29u * s[2] + 128u) >> 8);
+    }
+}
+
+static sh_status detect_image(sh_detector *det, const sh_image *frame, const sh_window *windows,
+                              int num_windows, sh_detection *out, int max, int *count)
+{
+    if (count) *count = 0;
+    if (!det || !frame || !frame->plane[0].data)
+        return sh_error_set(SH_EINVAL, "detect: missing frame");
+    const sh_plane *p = &frame->plane[0];
+    switch (frame->format) {
+    case SH_PIX_GRAY8:
+    case SH_PIX_I420:
+    case SH_PIX_YUV444:
+        return sh_detector_detect_plane(det, p->data, p->width, p->height, p->stride, windows,
+                                        num_windows, out, max, count);
+    case SH_PIX_RGB24:
+        break;
+    default:
+        return sh_error_set(SH_EUNSUPPORTED, "detect: pixel format %d not supported",
+                            (int)frame->format);
+    }
+    int w = p->width, h = p->height;
+    if (w <= 0 || h <= 0 || w > SH_IMAGE_MAX_SIZE || h > SH_IMAGE_MAX_SIZE)
+        return sh_error_set(SH_EINVAL, "detect: invalid frame %dx%d", w, h);
+    if (!det->gray) {
+        det->gray_size = (size_t)w * (size_t)h;
+        det->gray = malloc(det->gray_size);
+        if (!det->gray) return sh_error_set(SH_ENOMEM, "detect: cannot allocate %dx%d grey", w, h);
+        det->gray_width = w;
+        det->gray_height = h;
+    } else if ((size_t)w * (size_t)h > det->gray_size) {
+        return sh_error_set(SH_ERANGE, "detect: RGB frame %dx%d larger than the first (%dx%d)", w,
+                            h, det->gray_width, det->gray_height);
+    }
+    if (!windows || num_windows == 0) {
+        rgb_to_gray(p, det->gray, w, 0, 0, w, h);
+    } else {
+        if (num_windows > SH_DETECT_MAX_WINDOWS)
+            return sh_error_set(SH_ERANGE, "detect: %d windows (at most %d)", num_windows,
+                                SH_DETECT_MAX_WINDOWS);
+        plan_windows(det, w, h, windows, num_windows);
+        for (int i = 0; i < det->num_scan; i++)
+            rgb_to_gray(p, det->gray, w, det->scan[i].x, det->scan[i].y, det->scan[i].width,
+                        det->scan[i].height);
+    }
+    return sh_detector_detect_plane(det, det->gray, w, h, w, windows, num_windows, out, max,
+                                    count);
+}
+
+sh_status sh_detector_detect(sh_detector *det, const sh_image *frame, sh_detection *out, int max,
+                             int *count)
+{
+    return detect_image(det, frame, NULL, 0, out, max, count);
+}
+
+sh_status sh_detector_detect_windows(sh_detector *det, const sh_image *frame,
+                                     const sh_window *windows, int num_windows,
+                                     sh_detection *out, int max, int *count)
+{
+    if (!windows || num_windows <= 0) {
+        if (count) *count = 0;
+        if (det) det->num_scan = 0;
+        return SH_OK; /* no window, nothing to look at */
+    }
+    return detect_image(det, frame, windows, num_windows, out, max, count);
+}
+
+#else /* !SH_HAVE_APRILTAG */
+
+void sh_detector_options_default(sh_detector_options *opts)
+{
+    if (!opts) return;
+    memset(opts, 0, sizeof *opts);
+    opts->family = "tag36h11";
+    opts->quad_decimate = 2.0;
+    opts->refine_edges = 1;
+    opts->decode_sharpening = 0.25;
+    opts->threads = 1;
+    opts->max_hamming = 2;
+    opts->window_decimate = 1.0;
+    opts->merge_windows = 1;
+}
+
+const char *sh_detector_families(void)
+{
+    return "";
+}
+
+sh_status sh_detector_create(const sh_detector_options *opts, sh_detector **out)
+{
+    (void)opts;
+    if (out) *out = NULL;
+    return sh_error_set(SH_EUNSUPPORTED, "detect: built without libapriltag");
+}
+
+void sh_detector_destroy(sh_detector *det)
+{
+    (void)det;
+}
+
+sh_status sh_detector_detect(sh_detector *det, const sh_image *frame, sh_detection *out, int max,
+                             int *count)
+{
+    (void)det, (void)frame, (void)out, (void)max;
+    if (count) *count = 0;
+    return sh_error_set(SH_EUNSUPPORTED, "detect: built without libapriltag");
+}
+
+sh_status sh_detector_detect_windows(sh_detector *det, const sh_image *frame,
+                                     const sh_window *windows, int num_windows,
+                                     sh_detection *out, int max, int *count)
+{
+    (void)det, (void)frame, (void)windows, (void)num_windows, (void)out, (void)max;
+    if (count) *count = 0;
+    return sh_error_set(SH_EUNSUPPORTED, "detect: built without libapriltag");
+}
+
+sh_status sh_detector_detect_plane(sh_detector *det, const uint8_t *luma, int width, int height,
+                                   int stride, const sh_window *windows, int num_windows,
+                                   sh_detection *out, int max, int *count)
+{
+    (void)det, (void)luma, (void)width, (void)height, (void)stride, (void)windows;
+    (void)num_windows, (void)out, (void)max;
+    if (count) *count = 0;
+    return sh_error_set(SH_EUNSUPPORTED, "detect: built without libapriltag");
+}
+
+int sh_detector_last_windows(const sh_detector *det, sh_window *out, int max)
+{
+    (void)det, (void)out, (void)max;
+    return 0;
+}
+
+#endif
