@@ -1,0 +1,149 @@
+/* 3D stabilization (paper section IV, Algorithm 2), split like the 2D warp (DESIGN.md, "Why it
+ * can be fast"):
+ *
+ *  - sh_warp3d_model: one reference marker set. A surface frame (origin at the markers'
+ *    centroid, axes from their PCA: X', Y' in the fitted plane, Z' along its normal) in which
+ *    the reference surface is a function Z' = s(X', Y'): a least-squares quadric trend plus any
+ *    2D interpolant of the residual (multilevel B-splines by default), so s interpolates the
+ *    markers and reproduces quadrics exactly. The displacement h(X', Y') from reference to
+ *    current 3D positions: a least-squares trend in (1, X', Y', s(X', Y')) -- that is, a 3D
+ *    affine map of the surface, which holds every rigid motion exactly -- plus the 2D
+ *    interpolant of the residual, one interpolant applied to the three components. h is
+ *    linear in the current positions (paper IV-B allows h over (X', Y')).
+ *    sh_warp3d_model_update takes the current positions: a small least-squares product and one
+ *    fit of the interpolant (no allocation).
+ *
+ *  - sh_warp3d_view: one output camera (the reference view, a virtual stereo eye, any pose)
+ *    seeing the reference surface (optionally exaggerated along its normal), and the source
+ *    camera whose frames give the colour. Per reference: a grid over the output image's hull
+ *    (the convex hull of the reference markers as that camera sees them); at every grid node
+ *    the ray through the node (lens distortion honoured) is intersected with the surface,
+ *    which fixes the node's surface parameter (X', Y'), its reference point and the interpolant's
+ *    basis there. Per frame: node point = reference point + h, projected into the source camera
+ *    with its distortion; the grid is refined (spacing halved) while the same bilinear error
+ *    bound as the 2D engine's exceeds max_error. The view's map is an sh_warp_model of the 2D
+ *    engine, so sh_warp_apply renders it (threads, bilinear sampling, black outside the hull
+ *    and the frame) and sh_warp_model_map exports it.
+ *
+ * Units: world millimetres as in the calibration file (X_cam = R X + t); pixels with the
+ * centre of the top-left pixel at (0, 0), as in OpenCV. */
+#ifndef STILLHEART_WARP3D_H
+#define STILLHEART_WARP3D_H
+
+#include <stdio.h>
+
+#include "stillheart/calib.h"
+#include "stillheart/hull.h"
+#include "stillheart/image.h"
+#include "stillheart/interp.h"
+#include "stillheart/warp.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef struct {
+    sh_interp_params surface;      /* residual of s over (X', Y') in mm; default bspline */
+    sh_interp_params displacement; /* residual of h over (X', Y') in mm; default bspline */
+    int surface_trend;             /* 2: quadric (default, needs >= 8 markers), 1: plane */
+} sh_warp3d_params;
+
+void sh_warp3d_params_default(sh_warp3d_params *params);
+
+typedef struct sh_warp3d_model sh_warp3d_model;
+
+/* ref_xyz: n reference marker positions (world mm, X0,Y0,Z0,X1,...); copied. Needs n >= 4 and
+ * markers that span a plane; the surface must be a function over that plane. */
+sh_status sh_warp3d_model_create(const sh_warp3d_params *params, const double *ref_xyz, int n,
+                                 sh_warp3d_model **out);
+void sh_warp3d_model_destroy(sh_warp3d_model *model);
+int sh_warp3d_model_num_points(const sh_warp3d_model *model);
+
+/* The current positions of the same n markers, in the same order. Allocation-free. */
+sh_status sh_warp3d_model_update(sh_warp3d_model *model, const double *cur_xyz);
+
+/* The surface frame: origin and rows e1, e2, normal (world). A world point is
+ * origin + X' e1 + Y' e2 + Z' normal. */
+void sh_warp3d_model_frame(const sh_warp3d_model *model, double origin[3], double axes[9]);
+/* The markers' convex hull in (X', Y'), mm: where the surface is defined for export. */
+const sh_hull *sh_warp3d_model_uv_hull(const sh_warp3d_model *model);
+/* s(X', Y') in mm. */
+double sh_warp3d_model_height(const sh_warp3d_model *model, double u, double v);
+/* World point of the surface at (X', Y') = (u, v): the reference surface with its height scaled
+ * by depth_scale (current = 0), or where that point is in the last update (current = 1:
+ * reference point + h(u, v); depth_scale applies to the reference point only). */
+void sh_warp3d_model_point(const sh_warp3d_model *model, double u, double v, double depth_scale,
+                           int current, double X[3]);
+
+/* ---- cameras (OpenCV's pinhole + distortion model, as the calibration file holds it) ---- */
+
+/* Pixel of a world point, distortion applied. Returns 0 when the point is not in front. */
+int sh_warp3d_project(const sh_calib_camera *cam, const double X[3], double *x, double *y);
+/* The ray through pixel (x, y): camera centre C and unit direction d (world). Inverts the
+ * distortion by Newton's method. Returns 0 when that does not converge. */
+int sh_warp3d_ray(const sh_calib_camera *cam, double x, double y, double C[3], double d[3]);
+/* A parallel stereo rig around cam: the same intrinsics without distortion and the same
+ * orientation, centres moved by -/+ baseline/2 along the camera's x axis (left, right).
+ * The disparity x_left - x_right of a point at depth Z is f_x * baseline / Z. */
+void sh_warp3d_stereo_cameras(const sh_calib_camera *cam, double baseline,
+                              sh_calib_camera *left, sh_calib_camera *right);
+/* A virtual camera: cam's intrinsics without distortion, the scene turned about `centre`
+ * (world) by the rotation vector rvec (radians, in cam's axes) and then shifted by tvec (mm,
+ * in cam's axes): X_virtual = Rd (X_cam - c) + c + tvec, with c = centre in cam's axes. */
+void sh_warp3d_pose_camera(const sh_calib_camera *cam, const double centre[3],
+                           const double rvec[3], const double tvec[3], sh_calib_camera *out);
+
+/* ---- views ---- */
+
+typedef struct {
+    sh_warp_options warp;  /* max_error (px) and initial grid spacing, as the 2D engine */
+    double depth_scale;    /* height above the fitted plane is multiplied by this (default 1) */
+} sh_warp3d_view_options;
+
+void sh_warp3d_view_options_default(sh_warp3d_view_options *opts);
+
+typedef struct sh_warp3d_view sh_warp3d_view;
+
+/* view_cam: the output camera; source_cam: the camera the frames come from. Both images are
+ * width x height. The model must outlive the view. */
+sh_status sh_warp3d_view_create(const sh_warp3d_model *model, const sh_calib_camera *view_cam,
+                                const sh_calib_camera *source_cam, int width, int height,
+                                const sh_warp3d_view_options *opts, sh_warp3d_view **out);
+void sh_warp3d_view_destroy(sh_warp3d_view *view);
+
+/* The map for the model's last update (allocates only when the grid must be refined). */
+sh_status sh_warp3d_view_update(sh_warp3d_view *view);
+
+/* The 2D warp model holding the view's map: give it to sh_warp_apply / sh_warp_model_map. */
+const sh_warp_model *sh_warp3d_view_map_model(const sh_warp3d_view *view);
+const sh_hull *sh_warp3d_view_hull(const sh_warp3d_view *view);
+int sh_warp3d_view_grid_spacing(const sh_warp3d_view *view);
+double sh_warp3d_view_error_bound(const sh_warp3d_view *view);
+/* Surface parameter (X', Y') hit by the ray through output pixel (x, y). SH_ERANGE on a miss. */
+sh_status sh_warp3d_view_locate(const sh_warp3d_view *view, double x, double y, double uv[2]);
+
+/* Renders into a width x height window of out at (ox, oy) (even offsets for I420): stereo
+ * layouts put two views side by side or one above the other. */
+sh_status sh_warp3d_view_apply(sh_warp *warp, const sh_warp3d_view *view, const sh_image *current,
+                               sh_image *out, int ox, int oy);
+
+/* ---- PLY export of the surface ---- */
+
+typedef struct sh_warp3d_ply sh_warp3d_ply;
+
+/* Samples the surface on a square lattice of `spacing` mm in (X', Y') inside the markers' hull
+ * (mesh = 1 adds the lattice's triangles). Allocates everything export needs. */
+sh_status sh_warp3d_ply_create(const sh_warp3d_model *model, double spacing, int mesh,
+                               sh_warp3d_ply **out);
+void sh_warp3d_ply_destroy(sh_warp3d_ply *ply);
+int sh_warp3d_ply_num_points(const sh_warp3d_ply *ply);
+/* Writes the surface of the model's last update (current = 1) or the reference surface
+ * (current = 0) as binary little-endian PLY: float x, y, z (world mm), uchar red, green, blue
+ * sampled bilinearly from rgb (RGB24, may be NULL: grey) as cam sees the point. */
+sh_status sh_warp3d_ply_write(sh_warp3d_ply *ply, const sh_warp3d_model *model, int current,
+                              const sh_image *rgb, const sh_calib_camera *cam, const char *path);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

@@ -1,0 +1,314 @@
+/* The reference surface and the displacement model (paper IV-B, IV-C). */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "stillheart/linalg.h"
+#include "warp3d_internal.h"
+
+void sh_warp3d_params_default(sh_warp3d_params *p)
+{
+    if (!p) return;
+    sh_interp_params_default(&p->surface, SH_METHOD_BSPLINE);
+    sh_interp_params_default(&p->displacement, SH_METHOD_BSPLINE);
+    p->surface_trend = 2;
+}
+
+/* Eigen-decomposition of a symmetric 3x3 matrix by Jacobi rotations: a is destroyed, its
+ * diagonal ends as the eigenvalues, the columns of v the eigenvectors. */
+static void jacobi3(double a[9], double v[9])
+{
+    for (int i = 0; i < 9; i++) v[i] = i % 4 == 0;
+    for (int sweep = 0; sweep < 50; sweep++) {
+        double off = fabs(a[1]) + fabs(a[2]) + fabs(a[5]);
+        if (off < 1e-300) return;
+        for (int p = 0; p < 2; p++) {
+            for (int q = p + 1; q < 3; q++) {
+                double apq = a[3 * p + q];
+                if (fabs(apq) < 1e-300) continue;
+                double theta = (a[3 * q + q] - a[3 * p + p]) / (2 * apq);
+                double t = (theta >= 0 ? 1 : -1) / (fabs(theta) + sqrt(theta * theta + 1));
+                double c = 1 / sqrt(t * t + 1), s = t * c;
+                for (int k = 0; k < 3; k++) { /* a = J^T a J */
+                    double akp = a[3 * k + p], akq = a[3 * k + q];
+                    a[3 * k + p] = c * akp - s * akq;
+                    a[3 * k + q] = s * akp + c * akq;
+                }
+                for (int k = 0; k < 3; k++) {
+                    double apk = a[3 * p + k], aqk = a[3 * q + k];
+                    a[3 * p + k] = c * apk - s * aqk;
+                    a[3 * q + k] = s * apk + c * aqk;
+                }
+                for (int k = 0; k < 3; k++) {
+                    double vkp = v[3 * k + p], vkq = v[3 * k + q];
+                    v[3 * k + p] = c * vkp - s * vkq;
+                    v[3 * k + q] = s * vkp + c * vkq;
+                }
+            }
+        }
+    }
+}
+
+static void s_basis(const sh_warp3d_model *m, double u, double v, double *q)
+{
+    double a = u / m->scale, b = v / m->scale;
+    q[0] = 1;
+    q[1] = a;
+    q[2] = b;
+    q[3] = a * a;
+    q[4] = a * b;
+    q[5] = b * b;
+}
+
+double sh_warp3d_model_height(const sh_warp3d_model *m, double u, double v)
+{
+    double q[W3_MAX_TREND], s = 0, r = 0;
+    s_basis(m, u, v, q);
+    for (int k = 0; k < m->s_terms; k++) s += m->s_trend[k] * q[k];
+    /* piecewise linear: no residual outside the hull (SH_ERANGE leaves r = 0) */
+    sh_interp_eval(m->s_interp, m->s_coef, 1, u, v, &r);
+    return s + r;
+}
+
+void w3_h_basis(const sh_warp3d_model *m, double u, double v, double *b)
+{
+    b[0] = 1;
+    b[1] = u / m->scale;
+    b[2] = v / m->scale;
+    if (m->h_terms > 3) b[3] = sh_warp3d_model_height(m, u, v) / m->scale;
+}
+
+void w3_surface_point(const sh_warp3d_model *m, double u, double v, double depth_scale, double X[3])
+{
+    double z = depth_scale * sh_warp3d_model_height(m, u, v);
+    for (int i = 0; i < 3; i++)
+        X[i] = m->origin[i] + u * m->axes[i] + v * m->axes[3 + i] + z * m->axes[6 + i];
+}
+
+void sh_warp3d_model_point(const sh_warp3d_model *m, double u, double v, double depth_scale,
+                           int current, double X[3])
+{
+    w3_surface_point(m, u, v, depth_scale, X);
+    if (!current) return;
+    double b[W3_H_TREND], r[3] = {0, 0, 0};
+    w3_h_basis(m, u, v, b);
+    sh_interp_eval(m->h_interp, m->h_coef, 3, u, v, r);
+    for (int c = 0; c < 3; c++) {
+        double h = r[c];
+        for (int k = 0; k < m->h_terms; k++) h += b[k] * m->h_trend[3 * k + c];
+        X[c] += h;
+    }
+}
+
+void sh_warp3d_model_destroy(sh_warp3d_model *m)
+{
+    if (!m) return;
+    free(m->ref);
+    free(m->uv);
+    free(m->height);
+    sh_interp_destroy(m->s_interp);
+    free(m->s_coef);
+    free(m->h_pinv);
+    free(m->h_basis);
+    sh_interp_destroy(m->h_interp);
+    free(m->h_coef);
+    free(m->disp);
+    free(m->resid);
+    free(m);
+}
+
+int sh_warp3d_model_num_points(const sh_warp3d_model *m)
+{
+    return m->n;
+}
+
+void sh_warp3d_model_frame(const sh_warp3d_model *m, double origin[3], double axes[9])
+{
+    memcpy(origin, m->origin, sizeof m->origin);
+    memcpy(axes, m->axes, sizeof m->axes);
+}
+
+const sh_hull *sh_warp3d_model_uv_hull(const sh_warp3d_model *m)
+{
+    return &m->uv_hull;
+}
+
+/* The PCA frame: origin at the centroid, e1 along the largest spread, normal along the
+ * smallest (pointing to world +Z, the phantom's up), e2 = normal x e1. */
+static sh_status fit_frame(sh_warp3d_model *m)
+{
+    const int n = m->n;
+    double c[3] = {0, 0, 0}, cov[9] = {0};
+    for (int i = 0; i < n; i++)
+        for (int k = 0; k < 3; k++) c[k] += m->ref[3 * i + k] / n;
+    for (int i = 0; i < n; i++) {
+        double d[3] = {m->ref[3 * i] - c[0], m->ref[3 * i + 1] - c[1], m->ref[3 * i + 2] - c[2]};
+        for (int r = 0; r < 3; r++)
+            for (int k = 0; k < 3; k++) cov[3 * r + k] += d[r] * d[k] / n;
+    }
+    double vec[9];
+    jacobi3(cov, vec);
+    int order[3] = {0, 1, 2};
+    for (int a = 0; a < 3; a++)
+        for (int b = a + 1; b < 3; b++)
+            if (cov[4 * order[b]] > cov[4 * order[a]]) {
+                int t = order[a];
+                order[a] = order[b];
+                order[b] = t;
+            }
+    double l0 = cov[4 * order[0]], l1 = cov[4 * order[1]];
+    if (!(l0 > 0) || !(l1 > 1e-6 * l0))
+        return sh_error_set(SH_EDEGENERATE, "warp3d: the %d reference markers lie on a line", n);
+    double e1[3], nrm[3];
+    for (int k = 0; k < 3; k++) {
+        e1[k] = vec[3 * k + order[0]];
+        nrm[k] = vec[3 * k + order[2]];
+    }
+    if (nrm[2] < 0 || (nrm[2] == 0 && nrm[1] < 0))
+        for (int k = 0; k < 3; k++) nrm[k] = -nrm[k];
+    double e2[3] = {nrm[1] * e1[2] - nrm[2] * e1[1], nrm[2] * e1[0] - nrm[0] * e1[2],
+                    nrm[0] * e1[1] - nrm[1] * e1[0]};
+    memcpy(m->origin, c, sizeof c);
+    memcpy(m->axes, e1, sizeof e1);
+    memcpy(m->axes + 3, e2, sizeof e2);
+    memcpy(m->axes + 6, nrm, sizeof nrm);
+    m->scale = sqrt(l0 + l1);
+    return SH_OK;
+}
+
+/* Least-squares trend: coef (terms) of values over the basis rows a (n x terms). */
+static sh_status trend_pinv(const double *a, int n, int terms, double *pinv, double *rcond)
+{
+    return sh_linalg_pinv(n, terms, a, pinv, rcond);
+}
+
+sh_status sh_warp3d_model_create(const sh_warp3d_params *params, const double *ref_xyz, int n,
+                                 sh_warp3d_model **out)
+{
+    if (!ref_xyz || !out || n < 4)
+        return sh_error_set(SH_EINVAL, "warp3d: need at least 4 reference markers, got %d", n);
+    for (int i = 0; i < 3 * n; i++)
+        if (!isfinite(ref_xyz[i]))
+            return sh_error_set(SH_EINVAL, "warp3d: reference marker %d is not finite", i / 3);
+    sh_warp3d_params def;
+    if (!params) {
+        sh_warp3d_params_default(&def);
+        params = &def;
+    }
+    if (params->surface_trend != 1 && params->surface_trend != 2)
+        return sh_error_set(SH_EINVAL, "warp3d: surface trend must be 1 (plane) or 2 (quadric)");
+    sh_warp3d_model *m = calloc(1, sizeof *m);
+    if (!m) return sh_error_set(SH_ENOMEM, "warp3d: out of memory");
+    m->n = n;
+    sh_status st = SH_OK;
+    m->ref = malloc(sizeof(double) * 3 * (size_t)n);
+    m->uv = malloc(sizeof(double) * 2 * (size_t)n);
+    m->height = malloc(sizeof(double) * (size_t)n);
+    m->h_pinv = malloc(sizeof(double) * W3_H_TREND * (size_t)n);
+    m->h_basis = malloc(sizeof(double) * W3_H_TREND * (size_t)n);
+    m->disp = malloc(sizeof(double) * 3 * (size_t)n);
+    m->resid = malloc(sizeof(double) * 3 * (size_t)n);
+    double *a = malloc(sizeof(double) * W3_MAX_TREND * (size_t)n);
+    double *pinv = malloc(sizeof(double) * W3_MAX_TREND * (size_t)n);
+    if (!m->ref || !m->uv || !m->height || !m->h_pinv || !m->h_basis || !m->disp || !m->resid ||
+        !a || !pinv) {
+        st = sh_error_set(SH_ENOMEM, "warp3d: out of memory");
+        goto done;
+    }
+    memcpy(m->ref, ref_xyz, sizeof(double) * 3 * (size_t)n);
+    if ((st = fit_frame(m)) != SH_OK) goto done;
+    for (int i = 0; i < n; i++) {
+        double d[3];
+        for (int k = 0; k < 3; k++) d[k] = m->ref[3 * i + k] - m->origin[k];
+        m->uv[2 * i] = d[0] * m->axes[0] + d[1] * m->axes[1] + d[2] * m->axes[2];
+        m->uv[2 * i + 1] = d[0] * m->axes[3] + d[1] * m->axes[4] + d[2] * m->axes[5];
+        m->height[i] = d[0] * m->axes[6] + d[1] * m->axes[7] + d[2] * m->axes[8];
+    }
+    if ((st = sh_hull_compute(m->uv, n, &m->uv_hull)) != SH_OK) goto done;
+
+    /* the surface: quadric (or plane) trend by least squares, the residual interpolated */
+    double rcond = 0;
+    m->s_terms = params->surface_trend == 2 && n >= 8 ? 6 : 3;
+    for (;;) {
+        for (int i = 0; i < n; i++) {
+            double q[W3_MAX_TREND];
+            s_basis(m, m->uv[2 * i], m->uv[2 * i + 1], q);
+            memcpy(a + (size_t)i * m->s_terms, q, sizeof(double) * (size_t)m->s_terms);
+        }
+        if ((st = trend_pinv(a, n, m->s_terms, pinv, &rcond)) != SH_OK) goto done;
+        if (rcond > 1e-8 || m->s_terms == 3) break;
+        m->s_terms = 3; /* markers on a conic: no quadric through them, a plane */
+    }
+    if (!(rcond > 1e-10)) {
+        st = sh_error_set(SH_EDEGENERATE, "warp3d: reference markers too close to a line");
+        goto done;
+    }
+    for (int k = 0; k < m->s_terms; k++) {
+        double s = 0;
+        for (int i = 0; i < n; i++) s += pinv[(size_t)k * n + i] * m->height[i];
+        m->s_trend[k] = s;
+    }
+    if ((st = sh_interp_create(&params->surface, m->uv, n, &m->s_interp)) != SH_OK) goto done;
+    m->s_coef = calloc((size_t)sh_interp_num_coefs(m->s_interp), sizeof(double));
+    if (!m->s_coef) {
+        st = sh_error_set(SH_ENOMEM, "warp3d: out of memory");
+        goto done;
+    }
+    for (int i = 0; i < n; i++) {
+        double q[W3_MAX_TREND], s = 0;
+        s_basis(m, m->uv[2 * i], m->uv[2 * i + 1], q);
+        for (int k = 0; k < m->s_terms; k++) s += m->s_trend[k] * q[k];
+        m->resid[i] = m->height[i] - s;
+    }
+    if ((st = sh_interp_fit(m->s_interp, m->resid, 1, m->s_coef)) != SH_OK) goto done;
+
+    /* the displacement's trend: 1, u, v, s (an affine map of 3D space restricted to the
+     * surface); markers on a plane make s constant: then 1, u, v */
+    m->h_terms = 4;
+    for (;;) {
+        for (int i = 0; i < n; i++) w3_h_basis(m, m->uv[2 * i], m->uv[2 * i + 1], m->h_basis + (size_t)i * m->h_terms);
+        if ((st = trend_pinv(m->h_basis, n, m->h_terms, m->h_pinv, &rcond)) != SH_OK) goto done;
+        if (rcond > 1e-6 || m->h_terms == 3) break;
+        m->h_terms = 3;
+    }
+    if ((st = sh_interp_create(&params->displacement, m->uv, n, &m->h_interp)) != SH_OK) goto done;
+    m->h_coef = calloc(3 * (size_t)sh_interp_num_coefs(m->h_interp), sizeof(double));
+    if (!m->h_coef) {
+        st = sh_error_set(SH_ENOMEM, "warp3d: out of memory");
+        goto done;
+    }
+    st = sh_warp3d_model_update(m, ref_xyz); /* h = 0 until the first frame */
+done:
+    free(a);
+    free(pinv);
+    if (st != SH_OK) {
+        sh_warp3d_model_destroy(m);
+        return st;
+    }
+    *out = m;
+    return SH_OK;
+}
+
+sh_status sh_warp3d_model_update(sh_warp3d_model *m, const double *cur)
+{
+    if (!m || !cur) return sh_error_set(SH_EINVAL, "warp3d: no positions");
+    const int n = m->n, t = m->h_terms;
+    for (int i = 0; i < 3 * n; i++) {
+        if (!isfinite(cur[i]))
+            return sh_error_set(SH_EINVAL, "warp3d: current position of marker %d is not finite", i / 3);
+        m->disp[i] = cur[i] - m->ref[i];
+    }
+    for (int k = 0; k < t; k++)
+        for (int c = 0; c < 3; c++) {
+            double s = 0;
+            for (int i = 0; i < n; i++) s += m->h_pinv[(size_t)k * n + i] * m->disp[3 * i + c];
+            m->h_trend[3 * k + c] = s;
+        }
+    for (int i = 0; i < n; i++)
+        for (int c = 0; c < 3; c++) {
+            double s = m->disp[3 * i + c];
+            for (int k = 0; k < t; k++) s -= m->h_basis[(size_t)i * t + k] * m->h_trend[3 * k + c];
+            m->resid[3 * i + c] = s;
+        }
+    return sh_interp_fit(m->h_interp, m->resid, 3, m->h_coef);
+}

@@ -1,0 +1,411 @@
+/* The 3D engine against closed forms: a paraboloid seen by a camera with lens distortion, its
+ * markers moved rigidly. The truth (ray-paraboloid intersection, OpenCV's distortion by hand,
+ * the stereo disparity f b / Z) is computed here, independently of the engine. */
+#include <math.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include <cmocka.h>
+
+#include "stillheart/warp3d.h"
+
+#define W 1280
+#define H 720
+#define Z0 20.0   /* apex height, mm */
+#define CURV 0.004 /* Z = Z0 - CURV (X^2 + Y^2) */
+
+static double surface_z(double X, double Y)
+{
+    return Z0 - CURV * (X * X + Y * Y);
+}
+
+/* A camera 500 mm above the patch, tilted by 12 degrees about its x axis, with distortion. */
+static void make_camera(sh_calib_camera *c, int distorted)
+{
+    memset(c, 0, sizeof *c);
+    double a = 12 * M_PI / 180;
+    /* camera axes in world: x = (1,0,0), y = (0,-cos a, sin a)... looking down and forward */
+    double R[9] = {1, 0, 0, 0, -cos(a), -sin(a), 0, sin(a), -cos(a)};
+    memcpy(c->R, R, sizeof R);
+    double C[3] = {0, -500 * sin(a), 500 * cos(a)}; /* looks at the origin */
+    for (int r = 0; r < 3; r++) c->t[r] = -(R[3 * r] * C[0] + R[3 * r + 1] * C[1] + R[3 * r + 2] * C[2]);
+    double K[9] = {1100, 0, 640.5, 0, 1100, 359.5, 0, 0, 1};
+    memcpy(c->K, K, sizeof K);
+    c->num_dist = 5;
+    if (distorted) {
+        c->dist[0] = -0.12, c->dist[1] = 0.05, c->dist[2] = 0.0008, c->dist[3] = -0.0005,
+        c->dist[4] = 0.01;
+    }
+}
+
+/* OpenCV's projection, written out (k1 k2 p1 p2 k3). */
+static void project(const sh_calib_camera *c, const double X[3], double *x, double *y)
+{
+    double q[3];
+    for (int r = 0; r < 3; r++) q[r] = c->R[3 * r] * X[0] + c->R[3 * r + 1] * X[1] + c->R[3 * r + 2] * X[2] + c->t[r];
+    double a = q[0] / q[2], b = q[1] / q[2], r2 = a * a + b * b;
+    const double *k = c->dist;
+    double rad = 1 + k[0] * r2 + k[1] * r2 * r2 + k[4] * r2 * r2 * r2;
+    double xd = a * rad + 2 * k[2] * a * b + k[3] * (r2 + 2 * a * a);
+    double yd = b * rad + k[2] * (r2 + 2 * b * b) + 2 * k[3] * a * b;
+    *x = c->K[0] * xd + c->K[2];
+    *y = c->K[4] * yd + c->K[5];
+}
+
+/* The world point of the true paraboloid seen at pixel (x, y): undistortion by fixed-point
+ * iteration (as cv::undistortPoints), then the ray's quadratic. */
+static int locate(const sh_calib_camera *c, double x, double y, double P[3])
+{
+    double xd = (x - c->K[2]) / c->K[0], yd = (y - c->K[5]) / c->K[4], a = xd, b = yd;
+    const double *k = c->dist;
+    for (int it = 0; it < 200; it++) {
+        double r2 = a * a + b * b, rad = 1 + k[0] * r2 + k[1] * r2 * r2 + k[4] * r2 * r2 * r2;
+        double dx = 2 * k[2] * a * b + k[3] * (r2 + 2 * a * a), dy = k[2] * (r2 + 2 * b * b) + 2 * k[3] * a * b;
+        a = (xd - dx) / rad;
+        b = (yd - dy) / rad;
+    }
+    double dc[3] = {a, b, 1}, d[3], C[3];
+    for (int i = 0; i < 3; i++) {
+        d[i] = c->R[i] * dc[0] + c->R[3 + i] * dc[1] + c->R[6 + i] * dc[2];
+        C[i] = -(c->R[i] * c->t[0] + c->R[3 + i] * c->t[1] + c->R[6 + i] * c->t[2]);
+    }
+    double A = CURV * (d[0] * d[0] + d[1] * d[1]);
+    double B = 2 * CURV * (C[0] * d[0] + C[1] * d[1]) + d[2];
+    double Cc = CURV * (C[0] * C[0] + C[1] * C[1]) + C[2] - Z0;
+    double disc = B * B - 4 * A * Cc;
+    if (disc < 0) return 0;
+    double t1 = (-B - sqrt(disc)) / (2 * A), t2 = (-B + sqrt(disc)) / (2 * A);
+    double t = t1 > 0 && (t1 < t2 || t2 <= 0) ? t1 : t2;
+    if (!(t > 0)) return 0;
+    for (int i = 0; i < 3; i++) P[i] = C[i] + t * d[i];
+    return 1;
+}
+
+static void rotation(const double axis[3], double angle, double R[9])
+{
+    double l = sqrt(axis[0] * axis[0] + axis[1] * axis[1] + axis[2] * axis[2]);
+    double k[3] = {axis[0] / l, axis[1] / l, axis[2] / l}, c = cos(angle), s = sin(angle), v = 1 - c;
+    double M[9] = {c + k[0] * k[0] * v, k[0] * k[1] * v - k[2] * s, k[0] * k[2] * v + k[1] * s,
+                   k[1] * k[0] * v + k[2] * s, c + k[1] * k[1] * v, k[1] * k[2] * v - k[0] * s,
+                   k[2] * k[0] * v - k[1] * s, k[2] * k[1] * v + k[0] * s, c + k[2] * k[2] * v};
+    memcpy(R, M, sizeof M);
+}
+
+static void transform(const double R[9], const double t[3], const double X[3], double Y[3])
+{
+    for (int r = 0; r < 3; r++) Y[r] = R[3 * r] * X[0] + R[3 * r + 1] * X[1] + R[3 * r + 2] * X[2] + t[r];
+}
+
+/* 4 x 4 markers on the paraboloid (symmetric: the fitted plane is Z = const). */
+static int make_markers(double *ref)
+{
+    int n = 0;
+    for (int j = 0; j < 4; j++)
+        for (int i = 0; i < 4; i++) {
+            double X = -45 + 30 * i, Y = -45 + 30 * j;
+            ref[3 * n] = X, ref[3 * n + 1] = Y, ref[3 * n + 2] = surface_z(X, Y);
+            n++;
+        }
+    return n;
+}
+
+static const double motion_axis[3] = {0.3, -1, 0.4};
+static const double motion_t[3] = {4, -3, 2.5};
+#define MOTION_ANGLE (4 * M_PI / 180)
+
+static void test_rigid_motion_removed_exactly(void **state)
+{
+    (void)state;
+    sh_calib_camera cam;
+    make_camera(&cam, 1);
+    double ref[48], cur[48], Rm[9];
+    int n = make_markers(ref);
+    rotation(motion_axis, MOTION_ANGLE, Rm);
+    for (int i = 0; i < n; i++) transform(Rm, motion_t, ref + 3 * i, cur + 3 * i);
+
+    const char *methods[] = {"bspline", "tps", "pwlinear"};
+    for (size_t mi = 0; mi < sizeof methods / sizeof methods[0]; mi++) {
+        sh_warp3d_params params;
+        sh_warp3d_params_default(&params);
+        assert_int_equal(sh_interp_params_parse(methods[mi], &params.surface), SH_OK);
+        assert_int_equal(sh_interp_params_parse(methods[mi], &params.displacement), SH_OK);
+        sh_warp3d_model *model;
+        if (sh_warp3d_model_create(&params, ref, n, &model) != SH_OK) fail_msg("%s", sh_error_message());
+        sh_warp3d_view *view;
+        if (sh_warp3d_view_create(model, &cam, &cam, W, H, NULL, &view) != SH_OK)
+            fail_msg("%s", sh_error_message());
+        assert_int_equal(sh_warp3d_model_update(model, cur), SH_OK);
+        assert_int_equal(sh_warp3d_view_update(view), SH_OK);
+        float *map = malloc(sizeof(float) * 2 * W * H);
+        assert_non_null(map);
+        assert_int_equal(sh_warp_model_map(sh_warp3d_view_map_model(view), map), SH_OK);
+        const sh_hull *hull = sh_warp3d_view_hull(view);
+        double worst = 0;
+        int samples = 0;
+        for (int y = 0; y < H; y += 3)
+            for (int x = 0; x < W; x += 3) {
+                if (!sh_hull_contains(hull, x, y)) continue;
+                double P[3], Q[3], tx, ty;
+                assert_true(locate(&cam, x, y, P));
+                transform(Rm, motion_t, P, Q);
+                project(&cam, Q, &tx, &ty);
+                const float *m = map + 2 * ((size_t)y * W + x);
+                assert_false(isnan(m[0]));
+                worst = fmax(worst, hypot(m[0] - tx, m[1] - ty));
+                samples++;
+            }
+        printf("rigid motion, %s: %d samples, largest error %.4f px (grid %d px)\n", methods[mi],
+               samples, worst, sh_warp3d_view_grid_spacing(view));
+        assert_true(samples > 4000);
+        assert_true(worst < 0.05);
+        free(map);
+        sh_warp3d_view_destroy(view);
+        sh_warp3d_model_destroy(model);
+    }
+}
+
+/* Gaussian dots glued to the paraboloid at known (X, Y), rendered by ray casting (the current
+ * frame: the surface moved rigidly by Rm, t). */
+#define DOTS 9
+static double dot_xy[DOTS][2];
+
+static uint8_t render_pixel(const sh_calib_camera *cam, const double Rm[9], const double t[3], double x,
+                            double y)
+{
+    /* the moved surface seen at (x, y) is the reference surface seen by the camera moved back */
+    sh_calib_camera back = *cam; /* X_cam = R (Rm X0 + t) + t_c */
+    for (int r = 0; r < 3; r++) {
+        for (int c = 0; c < 3; c++) {
+            double s = 0;
+            for (int j = 0; j < 3; j++) s += cam->R[3 * r + j] * Rm[3 * j + c];
+            back.R[3 * r + c] = s;
+        }
+        back.t[r] = cam->t[r] + cam->R[3 * r] * t[0] + cam->R[3 * r + 1] * t[1] + cam->R[3 * r + 2] * t[2];
+    }
+    double P[3];
+    if (!locate(&back, x, y, P)) return 0;
+    double v = 20;
+    for (int d = 0; d < DOTS; d++) {
+        double dx = P[0] - dot_xy[d][0], dy = P[1] - dot_xy[d][1];
+        v += 220 * exp(-(dx * dx + dy * dy) / (2 * 1.2 * 1.2));
+    }
+    return (uint8_t)lrint(fmin(v, 255));
+}
+
+static void centroid(const sh_image *img, int x0, double px, double py, double *cx, double *cy)
+{
+    double sw = 0, sx = 0, sy = 0;
+    for (int y = (int)py - 9; y <= (int)py + 9; y++)
+        for (int x = (int)px - 9; x <= (int)px + 9; x++) {
+            double w = img->plane[0].data[(size_t)y * img->plane[0].stride + x0 + x] - 20.0;
+            if (w < 2) continue;
+            sw += w, sx += w * x, sy += w * y;
+        }
+    *cx = sx / sw;
+    *cy = sy / sw;
+}
+
+static void test_stereo_disparity(void **state)
+{
+    (void)state;
+    sh_calib_camera cam;
+    make_camera(&cam, 1);
+    double ref[48], cur[48], Rm[9];
+    int n = make_markers(ref);
+    rotation(motion_axis, MOTION_ANGLE, Rm);
+    for (int i = 0; i < n; i++) transform(Rm, motion_t, ref + 3 * i, cur + 3 * i);
+    for (int d = 0; d < DOTS; d++) dot_xy[d][0] = -30 + 30 * (d % 3), dot_xy[d][1] = -30 + 30 * (d / 3);
+
+    sh_image frame;
+    assert_int_equal(sh_image_create(&frame, SH_PIX_GRAY8, W, H), SH_OK);
+    for (int y = 0; y < H; y++)
+        for (int x = 0; x < W; x++)
+            frame.plane[0].data[(size_t)y * frame.plane[0].stride + x] = render_pixel(&cam, Rm, motion_t, x, y);
+
+    sh_warp3d_model *model;
+    assert_int_equal(sh_warp3d_model_create(NULL, ref, n, &model), SH_OK);
+    assert_int_equal(sh_warp3d_model_update(model, cur), SH_OK);
+    const double baselines[] = {6, 20};
+    for (int bi = 0; bi < 2; bi++) {
+        double b = baselines[bi];
+        sh_calib_camera eye[2];
+        sh_warp3d_stereo_cameras(&cam, b, &eye[0], &eye[1]);
+        sh_image sbs;
+        assert_int_equal(sh_image_create(&sbs, SH_PIX_GRAY8, 2 * W, H), SH_OK);
+        sh_warp *warp;
+        assert_int_equal(sh_warp_create(1, &warp), SH_OK);
+        for (int e = 0; e < 2; e++) {
+            sh_warp3d_view *view;
+            if (sh_warp3d_view_create(model, &eye[e], &cam, W, H, NULL, &view) != SH_OK)
+                fail_msg("%s", sh_error_message());
+            assert_int_equal(sh_warp3d_view_update(view), SH_OK);
+            assert_int_equal(sh_warp3d_view_apply(warp, view, &frame, &sbs, e * W, 0), SH_OK);
+            sh_warp3d_view_destroy(view);
+        }
+        double worst = 0;
+        for (int d = 0; d < DOTS; d++) {
+            double P[3] = {dot_xy[d][0], dot_xy[d][1], surface_z(dot_xy[d][0], dot_xy[d][1])}, xl, yl, xr, yr;
+            project(&eye[0], P, &xl, &yl);
+            project(&eye[1], P, &xr, &yr);
+            double depth = eye[0].R[6] * P[0] + eye[0].R[7] * P[1] + eye[0].R[8] * P[2] + eye[0].t[2];
+            double expected = cam.K[0] * b / depth; /* closed form */
+            double lx, ly, rx, ry;
+            centroid(&sbs, 0, xl, yl, &lx, &ly);
+            centroid(&sbs, W, xr, yr, &rx, &ry);
+            double err = fabs((lx - rx) - expected);
+            worst = fmax(worst, fmax(err, fabs(ly - ry)));
+            assert_true(fabs(xl - xr - expected) < 1e-9);
+        }
+        printf("stereo baseline %g mm: largest disparity error %.4f px\n", b, worst);
+        assert_true(worst < 0.25);
+        sh_warp_destroy(warp);
+        sh_image_destroy(&sbs);
+    }
+    sh_warp3d_model_destroy(model);
+    sh_image_destroy(&frame);
+}
+
+/* The reference view under the rigid motion gives back the reference picture. */
+static void test_reference_view_image(void **state)
+{
+    (void)state;
+    sh_calib_camera cam;
+    make_camera(&cam, 1);
+    double ref[48], cur[48], Rm[9], I[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1}, zero[3] = {0, 0, 0};
+    int n = make_markers(ref);
+    rotation(motion_axis, MOTION_ANGLE, Rm);
+    for (int i = 0; i < n; i++) transform(Rm, motion_t, ref + 3 * i, cur + 3 * i);
+    sh_image frame, refimg, out;
+    assert_int_equal(sh_image_create(&frame, SH_PIX_GRAY8, W, H), SH_OK);
+    assert_int_equal(sh_image_create(&refimg, SH_PIX_GRAY8, W, H), SH_OK);
+    assert_int_equal(sh_image_create(&out, SH_PIX_GRAY8, W, H), SH_OK);
+    for (int y = 0; y < H; y++)
+        for (int x = 0; x < W; x++) {
+            frame.plane[0].data[(size_t)y * frame.plane[0].stride + x] = render_pixel(&cam, Rm, motion_t, x, y);
+            refimg.plane[0].data[(size_t)y * refimg.plane[0].stride + x] = render_pixel(&cam, I, zero, x, y);
+        }
+    sh_warp3d_model *model;
+    sh_warp3d_view *view;
+    sh_warp *warp;
+    assert_int_equal(sh_warp3d_model_create(NULL, ref, n, &model), SH_OK);
+    assert_int_equal(sh_warp3d_view_create(model, &cam, &cam, W, H, NULL, &view), SH_OK);
+    assert_int_equal(sh_warp_create(2, &warp), SH_OK);
+    assert_int_equal(sh_warp3d_model_update(model, cur), SH_OK);
+    assert_int_equal(sh_warp3d_view_update(view), SH_OK);
+    assert_int_equal(sh_warp3d_view_apply(warp, view, &frame, &out, 0, 0), SH_OK);
+    const sh_hull *hull = sh_warp3d_view_hull(view);
+    double sum = 0;
+    int count = 0, outside_black = 1;
+    for (int y = 0; y < H; y++)
+        for (int x = 0; x < W; x++) {
+            int a = out.plane[0].data[(size_t)y * out.plane[0].stride + x];
+            if (!sh_hull_contains(hull, x, y)) {
+                if (a != 0 && !sh_hull_contains(hull, x + 1, y) && !sh_hull_contains(hull, x - 1, y))
+                    outside_black = 0;
+                continue;
+            }
+            sum += abs(a - refimg.plane[0].data[(size_t)y * refimg.plane[0].stride + x]);
+            count++;
+        }
+    printf("reference view: mean |stabilized - reference| %.3f levels over %d pixels\n", sum / count, count);
+    assert_true(outside_black);
+    assert_true(sum / count < 0.6);
+    sh_warp_destroy(warp);
+    sh_warp3d_view_destroy(view);
+    sh_warp3d_model_destroy(model);
+    sh_image_destroy(&frame);
+    sh_image_destroy(&refimg);
+    sh_image_destroy(&out);
+}
+
+static void test_ply_on_surface(void **state)
+{
+    (void)state;
+    double ref[48];
+    int n = make_markers(ref);
+    sh_warp3d_model *model;
+    sh_warp3d_ply *ply;
+    assert_int_equal(sh_warp3d_model_create(NULL, ref, n, &model), SH_OK);
+    assert_int_equal(sh_warp3d_ply_create(model, 2.0, 1, &ply), SH_OK);
+    char path[] = "/tmp/test_warp3d_XXXXXX";
+    int fd = mkstemp(path);
+    assert_true(fd >= 0);
+    close(fd);
+    assert_int_equal(sh_warp3d_ply_write(ply, model, 0, NULL, NULL, path), SH_OK);
+    FILE *f = fopen(path, "rb");
+    assert_non_null(f);
+    char line[256];
+    int vertices = -1, faces = -1;
+    while (fgets(line, sizeof line, f) && strcmp(line, "end_header\n")) {
+        sscanf(line, "element vertex %d", &vertices);
+        sscanf(line, "element face %d", &faces);
+    }
+    /* 90 x 90 mm hull at 2 mm: 46 x 46 lattice points */
+    assert_int_equal(vertices, 46 * 46);
+    assert_int_equal(faces, 2 * 45 * 45);
+    double worst = 0;
+    for (int k = 0; k < vertices; k++) {
+        unsigned char rec[15];
+        assert_int_equal(fread(rec, 1, 15, f), 15);
+        float p[3];
+        memcpy(p, rec, 12);
+        worst = fmax(worst, fabs(p[2] - surface_z(p[0], p[1])));
+    }
+    fclose(f);
+    unlink(path);
+    assert_true(worst < 1e-4);
+    sh_warp3d_ply_destroy(ply);
+    sh_warp3d_model_destroy(model);
+}
+
+static void test_bad_input(void **state)
+{
+    (void)state;
+    double line[12] = {0, 0, 0, 1, 1, 1, 2, 2, 2, 3, 3, 3}, ref[48];
+    sh_warp3d_model *model = NULL;
+    assert_int_equal(sh_warp3d_model_create(NULL, line, 4, &model), SH_EDEGENERATE);
+    assert_int_equal(sh_warp3d_model_create(NULL, line, 3, &model), SH_EINVAL);
+    int n = make_markers(ref);
+    ref[5] = NAN;
+    assert_int_equal(sh_warp3d_model_create(NULL, ref, n, &model), SH_EINVAL);
+    n = make_markers(ref);
+    assert_int_equal(sh_warp3d_model_create(NULL, ref, n, &model), SH_OK);
+    double cur[48];
+    memcpy(cur, ref, sizeof cur);
+    cur[7] = INFINITY;
+    assert_int_equal(sh_warp3d_model_update(model, cur), SH_EINVAL);
+    sh_calib_camera cam;
+    make_camera(&cam, 0);
+    sh_warp3d_view *view = NULL;
+    sh_warp3d_view_options o;
+    sh_warp3d_view_options_default(&o);
+    o.warp.grid_spacing = 12;
+    assert_int_equal(sh_warp3d_view_create(model, &cam, &cam, W, H, &o, &view), SH_EINVAL);
+    /* a camera looking away */
+    sh_calib_camera away = cam;
+    for (int i = 0; i < 9; i++) away.R[i] = -away.R[i] * (i < 6 ? 1 : 1);
+    away.R[0] = 1, away.R[1] = 0, away.R[2] = 0;
+    for (int r = 0; r < 3; r++) away.t[r] = 0;
+    away.R[3] = 0, away.R[4] = 1, away.R[5] = 0, away.R[6] = 0, away.R[7] = 0, away.R[8] = 1;
+    away.t[2] = -500; /* every marker behind the camera */
+    assert_int_equal(sh_warp3d_view_create(model, &away, &cam, W, H, NULL, &view), SH_EDEGENERATE);
+    sh_warp3d_model_destroy(model);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_rigid_motion_removed_exactly),
+        cmocka_unit_test(test_stereo_disparity),
+        cmocka_unit_test(test_reference_view_image),
+        cmocka_unit_test(test_ply_on_surface),
+        cmocka_unit_test(test_bad_input),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
