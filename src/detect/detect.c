@@ -41,10 +41,10 @@ static const struct {
 };
 #define NUM_FAMILIES ((int)(sizeof families / sizeof families[0]))
 
-/* Estimated cost of one libapriltag call in pixels of a decimation-1 window (measured with
- * tools/bench/bench_detect.cpp on 1080p phantom frames: a call costs about as much as
- * scanning this many extra pixels). Merging two windows pays off when their bounding box
- * has fewer extra pixels than this. */
+/* Fixed cost of one libapriltag call, in pixels of a decimation-1 window: merging two windows
+ * pays off when their bounding box adds fewer pixels than this. An estimate: on the exvivo
+ * phantom (tools/bench/bench_detect.cpp) 16 separate 1.6x windows and the 6 merged ones cost
+ * the same within noise, so the call overhead is small beside the pixels' cost there. */
 #define CALL_COST_PIXELS 6000
 
 struct sh_detector {
