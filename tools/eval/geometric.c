@@ -23,7 +23,7 @@ struct eval_geo {
     /* samples: pixel (x, y) of the reference frame and the material point it sees */
     int n;
     int *sx, *sy;
-    double *su, *sv;
+    phantom_content *seen; /* what each sample shows in the reference frame: tissue or sticker */
     /* the model for the current marker set, rebuilt when the set changes */
     int model_n;
     int *model_ids;
@@ -48,8 +48,7 @@ void eval_geo_destroy(eval_geo *g)
     sh_interp_destroy(g->interp);
     free(g->sx);
     free(g->sy);
-    free(g->su);
-    free(g->sv);
+    free(g->seen);
     free(g->model_ids);
     free(g->model_ref);
     free(g->ids);
@@ -87,14 +86,13 @@ sh_status eval_geo_create(const eval_geo_options *opts, const sh_points *points,
     size_t npix = (size_t)width * height;
     g->sx = malloc(sizeof(int) * (size_t)cap);
     g->sy = malloc(sizeof(int) * (size_t)cap);
-    g->su = malloc(sizeof(double) * (size_t)cap);
-    g->sv = malloc(sizeof(double) * (size_t)cap);
+    g->seen = malloc(sizeof(phantom_content) * (size_t)cap);
     g->ids = malloc(sizeof(int) * (size_t)(g->ref_count + 1));
     g->model_ids = malloc(sizeof(int) * (size_t)(g->ref_count + 1));
     g->cur_xy = malloc(sizeof(double) * 2 * (size_t)(g->ref_count + 1));
     g->model_ref = malloc(sizeof(double) * 2 * (size_t)(g->ref_count + 1));
     g->map = opts->identity ? NULL : malloc(sizeof(float) * 2 * npix);
-    if (!g->sx || !g->sy || !g->su || !g->sv || !g->ids || !g->model_ids || !g->cur_xy ||
+    if (!g->sx || !g->sy || !g->seen || !g->ids || !g->model_ids || !g->cur_xy ||
         !g->model_ref || (!opts->identity && !g->map)) {
         eval_geo_destroy(g);
         return sh_error_set(SH_ENOMEM, "geometric error: out of memory");
@@ -106,39 +104,20 @@ sh_status eval_geo_create(const eval_geo_options *opts, const sh_points *points,
         if (!sh_hull_plane_row(hull, y, width, 1, 0, 0, &first, &last)) continue;
         for (int x = (first + opts->stride - 1) / opts->stride * opts->stride; x <= last;
              x += opts->stride) {
-            double u, v;
-            if (phantom_truth_locate(opts->truth, opts->camera, opts->reference, x, y, &u, &v) !=
-                    SH_OK ||
-                !phantom_truth_visible(opts->truth, opts->camera, opts->reference, u, v))
+            /* a sticker moves with its own rigid patch, not with the tissue under it */
+            phantom_content seen;
+            if (phantom_truth_locate_content(opts->truth, opts->camera, opts->reference, x, y,
+                                             &seen) != SH_OK ||
+                !phantom_truth_content_visible(opts->truth, opts->camera, opts->reference, &seen))
                 continue;
             g->sx[g->n] = x;
             g->sy[g->n] = y;
-            g->su[g->n] = u;
-            g->sv[g->n] = v;
+            g->seen[g->n] = seen;
             g->n++;
         }
     }
     *out = g;
     return SH_OK;
-}
-
-/* Markers of frame t that the reference frame also has (both sorted by id), as cmd_warp pairs
- * them. */
-static int common_markers(const eval_geo *g, int t, int *ids, double *cur_xy)
-{
-    int ncur, n = 0;
-    const sh_point *cur = sh_points_frame(g->points, t, &ncur);
-    for (int i = 0, j = 0; i < g->ref_count && j < ncur;) {
-        if (g->ref_rows[i].id < cur[j].id) i++;
-        else if (g->ref_rows[i].id > cur[j].id) j++;
-        else {
-            ids[n] = cur[j].id;
-            cur_xy[2 * n] = cur[j].x;
-            cur_xy[2 * n + 1] = cur[j].y;
-            n++, i++, j++;
-        }
-    }
-    return n;
 }
 
 static sh_status build_model(eval_geo *g, int n)
@@ -167,7 +146,9 @@ static sh_status build_model(eval_geo *g, int n)
 static int frame_map(eval_geo *g, int t)
 {
     if (g->o.identity) return 0;
-    int n = common_markers(g, t, g->ids, g->cur_xy);
+    int ncur;
+    const sh_point *cur = sh_points_frame(g->points, t, &ncur);
+    int n = sh_points_match(g->ref_rows, g->ref_count, cur, ncur, g->ids, g->cur_xy);
     if (n < 3) return 0;
     if (!(g->model && g->model_n == n && !memcmp(g->model_ids, g->ids, sizeof(int) * (size_t)n)) &&
         build_model(g, n) != SH_OK)
@@ -190,8 +171,8 @@ sh_status eval_geo_frame(eval_geo *g, int t)
     }
     for (int i = 0; i < g->n; i++) {
         double gx, gy;
-        if (!phantom_truth_visible(g->o.truth, g->o.camera, t, g->su[i], g->sv[i]) ||
-            phantom_truth_project(g->o.truth, g->o.camera, t, g->su[i], g->sv[i], &gx, &gy) !=
+        if (!phantom_truth_content_visible(g->o.truth, g->o.camera, t, &g->seen[i]) ||
+            phantom_truth_project_content(g->o.truth, g->o.camera, t, &g->seen[i], &gx, &gy) !=
                 SH_OK) {
             g->hidden++;
             continue;
