@@ -1,0 +1,140 @@
+/* Marker tracking: one Kalman filter per marker, fixed size, allocation-free after create.
+ *
+ * Motion model (docs/tracking.md says why): per coordinate, a slowly drifting baseline plus a
+ * Fourier series of the heartbeat (SH_TRACK_MAX_HEART_HARMONICS harmonics of f_h) and of
+ * respiration (harmonics of f_r), in rotating (oscillator) form so that a rate change only changes
+ * the rotation per frame. f_h and f_r are common to the whole heart and are estimated online from
+ * the recent tracks of all markers (a harmonic-sum periodogram, refined, then least squares), and
+ * re-estimated every half second. Until the rates are locked a marker follows a constant-velocity
+ * model with wide gates.
+ *
+ * 2D mode (no calibration, one camera): the state is the tag centre in pixels.
+ * 3D mode (calibration with 2+ cameras): the state is the world position (calibration units, mm);
+ * a marker's detections are gated per camera against the projected prediction, the accepted ones
+ * triangulated (camera.h), and the filter updated with the triangulated point; estimates are
+ * back-projected into every camera.
+ *
+ * Per frame:
+ *   sh_tracker_predict(t, frame)              advance every filter to `frame`
+ *   sh_tracker_windows(t, cam, ...)           where the detector should look in camera cam
+ *   sh_tracker_reacquire(t, cam, ...)         the strip of the frame to scan for lost markers
+ *   sh_tracker_update(t, detections...)       gate, flag duplicates, update, report
+ *   sh_tracker_estimates(t, ...)              positions with covariance, age and status
+ * Nothing allocates after sh_tracker_create. */
+#ifndef STILLHEART_TRACK_H
+#define STILLHEART_TRACK_H
+
+#include "stillheart/calib.h"
+#include "stillheart/detect.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define SH_TRACK_MAX_MARKERS 64
+#define SH_TRACK_MAX_CAMERAS SH_CALIB_MAX_CAMERAS
+#define SH_TRACK_MAX_HEART_HARMONICS 4
+#define SH_TRACK_MAX_RESP_HARMONICS 2
+#define SH_TRACK_MAX_DETECTIONS 256 /* per camera per frame */
+#define SH_TRACK_HISTORY 512        /* samples kept per marker for rate estimation */
+
+typedef enum {
+    SH_SPATIAL_OFF = 0,  /* occluded markers from their own filter only (time) */
+    SH_SPATIAL_FUSE = 1  /* plus the displacement of visible neighbours (space), fused */
+} sh_spatial_mode;
+
+typedef struct {
+    double fps;              /* frame rate (required) */
+    int width, height;       /* image size (windows are clipped to it; required) */
+    const int *ids;          /* the marker ids to track (copied); NULL: any id seen, confirmed
+                              * only once it moves with the heart (a still tag is not on it) */
+    int num_ids;
+    int heart_harmonics;     /* 1..SH_TRACK_MAX_HEART_HARMONICS (default 3) */
+    int resp_harmonics;      /* 0..SH_TRACK_MAX_RESP_HARMONICS (default 1) */
+    double heart_min_hz, heart_max_hz; /* default 0.6 .. 3.5 */
+    double resp_min_hz, resp_max_hz;   /* default 0.1 .. 0.55 */
+    double meas_sigma;       /* detection noise per pixel coordinate, px (default 0.3) */
+    double q_base;           /* baseline random walk, px / sqrt(s) (default 0.3) */
+    double q_harm;           /* harmonic coefficient random walk, px / sqrt(s) (default 0.2) */
+    double accel;            /* before lock: white acceleration, px / s^2 (default 1500) */
+    double gate;             /* Mahalanobis^2 gate per camera (chi^2, 2 dof; default 16) */
+    double max_reproj;       /* 3D: largest reprojection error of a triangulation, px (default 3) */
+    double lost_after;       /* seconds unseen before a marker is lost (default 2) */
+    double min_motion;       /* auto ids: heart-band amplitude (px) a marker needs (default 2) */
+    double window_sigmas;    /* window half-size = tag extent + this x sigma (default 4) */
+    int min_window;          /* smallest window side, px (default 48) */
+    int reacquire_bands;     /* full frame scanned in this many bands, one per frame (default 4) */
+    sh_spatial_mode spatial; /* default SH_SPATIAL_FUSE */
+} sh_track_options;
+
+void sh_track_options_default(sh_track_options *o);
+
+typedef enum {
+    SH_TRACK_NEW = 0,      /* never seen */
+    SH_TRACK_MEASURED,     /* updated with a detection this frame */
+    SH_TRACK_PREDICTED,    /* not seen this frame; estimate from the model (age > 0) */
+    SH_TRACK_LOST          /* unseen longer than lost_after: no estimate is reported */
+} sh_track_status;
+
+typedef struct {
+    int id;
+    sh_track_status status;
+    int confirmed;             /* reported as a correspondence (auto ids: moves with the heart) */
+    int dim;                   /* 2 or 3 */
+    double pos[3];             /* 2D: x, y (px); 3D: X, Y, Z (calibration units) */
+    double cov[9];             /* dim x dim covariance of pos */
+    double xy[SH_TRACK_MAX_CAMERAS][2]; /* image position per camera (3D: back-projected) */
+    int in_view[SH_TRACK_MAX_CAMERAS];  /* xy valid (in front of the camera) */
+    int age;                   /* frames since the last accepted detection */
+    int seen;                  /* frames with an accepted detection in all */
+    int spatial;               /* this frame's estimate used the neighbours (spatial model) */
+} sh_track_estimate;
+
+typedef struct {
+    long frames;
+    long accepted;      /* detections used (per camera) */
+    long gated;         /* detections rejected by the gate (per camera) */
+    long duplicates;    /* detections of an id seen twice in one camera's frame (never used) */
+    long unknown;       /* detections of ids not tracked (decoys, ids outside the list) */
+    long inconsistent;  /* 3D: triangulations rejected for reprojection error */
+    long lost;          /* markers that became lost */
+    int locked;         /* rates estimated */
+    double heart_hz, resp_hz; /* current estimates (0 when none) */
+} sh_track_stats;
+
+typedef struct sh_tracker sh_tracker;
+
+/* calib: NULL (or one camera) for 2D tracking in pixels; 2+ cameras for 3D tracking. The
+ * calibration is copied. */
+sh_status sh_tracker_create(const sh_track_options *opts, const sh_calib *calib, sh_tracker **out);
+void sh_tracker_destroy(sh_tracker *t);
+
+int sh_tracker_dim(const sh_tracker *t);
+int sh_tracker_num_cameras(const sh_tracker *t);
+
+/* Advances every filter to frame index `frame` (>= the last one; the first call sets time 0). */
+sh_status sh_tracker_predict(sh_tracker *t, int frame);
+
+/* Search windows for camera cam around the current predictions of every tracked, not lost marker,
+ * sized from the prediction's covariance and the marker's apparent size. At most max written. */
+sh_status sh_tracker_windows(const sh_tracker *t, int cam, sh_window *out, int max, int *count);
+
+/* The part of camera cam's frame to scan at full frame this frame, when some marker is lost or
+ * not yet acquired (or, with auto ids, always): the frame in reacquire_bands overlapping bands,
+ * one per frame in turn. *count = 0 or 1. */
+sh_status sh_tracker_reacquire(sh_tracker *t, int cam, sh_window *out, int *count);
+
+/* Updates with this frame's detections: det[c] (count[c] entries) for camera c < num_cameras.
+ * Must follow sh_tracker_predict for the same frame. */
+sh_status sh_tracker_update(sh_tracker *t, const sh_detection *const *det, const int *count,
+                            int num_cameras);
+
+/* Every marker the tracker knows (lost ones included, with status SH_TRACK_LOST), in id order. */
+int sh_tracker_estimates(const sh_tracker *t, sh_track_estimate *out, int max);
+
+void sh_tracker_stats(const sh_tracker *t, sh_track_stats *stats);
+
+#ifdef __cplusplus
+}
+#endif
+#endif
