@@ -45,7 +45,8 @@ extern "C" {
 typedef struct {
     sh_interp_params surface;      /* residual of s over (X', Y') in mm; default bspline */
     sh_interp_params displacement; /* residual of h over (X', Y') in mm; default bspline */
-    int surface_trend;             /* 2: quadric (default, needs >= 8 markers), 1: plane */
+    int surface_trend;             /* polynomial degree of the trend: 3 (default; needs >= 12
+                                      markers, else the highest degree they allow), 2, 1 */
 } sh_warp3d_params;
 
 void sh_warp3d_params_default(sh_warp3d_params *params);

@@ -11,7 +11,7 @@ void sh_warp3d_params_default(sh_warp3d_params *p)
     if (!p) return;
     sh_interp_params_default(&p->surface, SH_METHOD_BSPLINE);
     sh_interp_params_default(&p->displacement, SH_METHOD_BSPLINE);
-    p->surface_trend = 2;
+    p->surface_trend = 3;
 }
 
 /* Eigen-decomposition of a symmetric 3x3 matrix by Jacobi rotations: a is destroyed, its
@@ -58,6 +58,10 @@ static void s_basis(const sh_warp3d_model *m, double u, double v, double *q)
     q[3] = a * a;
     q[4] = a * b;
     q[5] = b * b;
+    q[6] = a * a * a;
+    q[7] = a * a * b;
+    q[8] = a * b * b;
+    q[9] = b * b * b;
 }
 
 double sh_warp3d_model_height(const sh_warp3d_model *m, double u, double v)
@@ -195,8 +199,8 @@ sh_status sh_warp3d_model_create(const sh_warp3d_params *params, const double *r
         sh_warp3d_params_default(&def);
         params = &def;
     }
-    if (params->surface_trend != 1 && params->surface_trend != 2)
-        return sh_error_set(SH_EINVAL, "warp3d: surface trend must be 1 (plane) or 2 (quadric)");
+    if (params->surface_trend < 1 || params->surface_trend > 3)
+        return sh_error_set(SH_EINVAL, "warp3d: surface trend must be 1 (plane), 2 (quadric) or 3 (cubic)");
     sh_warp3d_model *m = calloc(1, sizeof *m);
     if (!m) return sh_error_set(SH_ENOMEM, "warp3d: out of memory");
     m->n = n;
@@ -228,7 +232,10 @@ sh_status sh_warp3d_model_create(const sh_warp3d_params *params, const double *r
 
     /* the surface: quadric (or plane) trend by least squares, the residual interpolated */
     double rcond = 0;
-    m->s_terms = params->surface_trend == 2 && n >= 8 ? 6 : 3;
+    static const int terms_of_degree[4] = {0, 3, 6, 10};
+    int degree = params->surface_trend;
+    while (degree > 1 && n < terms_of_degree[degree] + 2) degree--;
+    m->s_terms = terms_of_degree[degree];
     for (;;) {
         for (int i = 0; i < n; i++) {
             double q[W3_MAX_TREND];
@@ -237,7 +244,7 @@ sh_status sh_warp3d_model_create(const sh_warp3d_params *params, const double *r
         }
         if ((st = trend_pinv(a, n, m->s_terms, pinv, &rcond)) != SH_OK) goto done;
         if (rcond > 1e-8 || m->s_terms == 3) break;
-        m->s_terms = 3; /* markers on a conic: no quadric through them, a plane */
+        m->s_terms = terms_of_degree[--degree]; /* markers on a conic or cubic: a lower degree */
     }
     if (!(rcond > 1e-10)) {
         st = sh_error_set(SH_EDEGENERATE, "warp3d: reference markers too close to a line");

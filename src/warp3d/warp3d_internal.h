@@ -4,7 +4,7 @@
 
 #include "stillheart/warp3d.h"
 
-#define W3_MAX_TREND 6 /* 1, u, v, u^2, uv, v^2 */
+#define W3_MAX_TREND 10 /* 1, u, v, u^2, uv, v^2, u^3, u^2 v, u v^2, v^3 */
 #define W3_H_TREND 4   /* 1, u, v, s(u, v) */
 
 struct sh_warp3d_model {
@@ -16,7 +16,7 @@ struct sh_warp3d_model {
     double *height;           /* n: Z' of each marker */
     sh_hull uv_hull;
 
-    int s_terms;              /* surface trend: 3 or 6 terms */
+    int s_terms;              /* surface trend: 3, 6 or 10 terms */
     double s_trend[W3_MAX_TREND];
     sh_interp *s_interp;
     double *s_coef;           /* num_coefs */

@@ -1,0 +1,507 @@
+/* stillheart warp3d: offline 3D stabilization (paper Algorithm 2) of one camera's Y4M video
+ * from 3D marker positions and the rig's calibration; virtual views and PLY export. */
+#include <errno.h>
+#include <getopt.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+
+#include "app.h"
+#include "stillheart/calib.h"
+#include "stillheart/metrics.h"
+#include "stillheart/points.h"
+#include "stillheart/warp3d.h"
+#include "stillheart/y4m.h"
+
+#define CACHE_SLOTS 4
+
+static void usage(FILE *out)
+{
+    fprintf(out,
+        "usage: stillheart warp3d --cameras CALIB.yaml --points P3.csv [OPTIONS] IN.y4m OUT.y4m\n\n"
+        "3D stabilization (paper section IV, Algorithm 2): the reference surface is fitted to the\n"
+        "reference frame's 3D markers, the displacement of every later frame's markers is\n"
+        "interpolated over it, and each output pixel takes its colour from where its surface\n"
+        "point is now, projected into the camera IN was filmed with (lens distortion honoured).\n"
+        "Pixels outside the convex hull of the reference markers (as the output camera sees them)\n"
+        "are black. A frame with fewer than 4 usable markers is written unchanged and counted.\n\n"
+        "options:\n"
+        "  --cameras FILE     calibration (OpenCV FileStorage YAML: K_i, dist_i, R_i, t_i)\n"
+        "  --points FILE      markers, CSV 'frame,id,x,y,X,Y,Z' (world mm; the X,Y,Z columns\n"
+        "                     are required)\n"
+        "  --camera K         the camera IN comes from (default 0)\n"
+        "  --method NAME      interpolant of the surface and of the displacement (over the\n"
+        "                     surface's plane, mm): affine | pwlinear | bspline | rbf-local |\n"
+        "                     tps | gaussian (and -pure forms). Default bspline\n"
+        "  --surface-method NAME, --displacement-method NAME\n"
+        "                     set one of the two only\n"
+        "  --sigma MM         RBF scale in mm (surface and displacement)\n"
+        "  --reference N      0-based reference frame (default 0)\n"
+        "  --view V           reference: the camera's own view (default; OUT has IN's size)\n"
+        "                     stereo: a left/right pair of virtual cameras (see --baseline,\n"
+        "                     --layout)\n"
+        "                     pose:RX,RY,RZ[,TX,TY,TZ]: a virtual camera, the scene turned about\n"
+        "                     the markers' centre by the rotation vector (degrees, camera axes)\n"
+        "                     and shifted by T (mm, camera axes)\n"
+        "  --baseline MM      stereo: distance between the virtual eyes (default 10)\n"
+        "  --layout L         stereo: sbs (side by side, OUT is 2W x H, default) or tb (top-\n"
+        "                     bottom, W x 2H); left eye left / on top\n"
+        "  --depth-scale S    exaggerate the surface's relief along its normal (default 1)\n"
+        "  --threads T        worker threads for the rendering (default 1)\n"
+        "  --max-error PX     largest tolerated error of the interpolated map (default 0.05)\n"
+        "  --export-ply DIR   write the stabilized (current) surface of every exported frame to\n"
+        "                     DIR/frame_NNNNNN.ply (binary PLY, world mm, colour from IN)\n"
+        "  --ply-spacing MM   lattice spacing of the export over the surface (default 1)\n"
+        "  --ply-mesh         add the lattice's triangles (a mesh instead of a point cloud)\n"
+        "  --ply-every N      export every N-th frame (default 1)\n"
+        "  --quiet            no progress line, no summary\n"
+        "  --help             this text\n"
+        "With --view reference the paper's metric e is printed for the input and the output.\n");
+}
+
+typedef struct {
+    int n;
+    int *ids;
+    sh_warp3d_model *model;
+    sh_warp3d_view *view[2];
+    sh_warp3d_ply *ply;   /* lattice in this model's surface frame (with --export-ply) */
+    unsigned long last_used;
+} slot3d;
+
+typedef struct {
+    sh_warp3d_params params;
+    sh_warp3d_view_options vopts;
+    sh_calib_camera vcam[2], source;
+    int nviews, width, height;
+    double ply_spacing;   /* > 0: build a PLY exporter per marker set */
+    int ply_mesh;
+    const sh_point *ref_rows;
+    int ref_count;
+    slot3d slot[CACHE_SLOTS];
+    unsigned long clock;
+    int builds;
+    double build_seconds;
+} cache3d;
+
+static void slot_clear(slot3d *s)
+{
+    for (int v = 0; v < 2; v++) sh_warp3d_view_destroy(s->view[v]);
+    sh_warp3d_ply_destroy(s->ply);
+    sh_warp3d_model_destroy(s->model);
+    free(s->ids);
+    memset(s, 0, sizeof *s);
+}
+
+static sh_status cache_get(cache3d *c, const int *ids, int n, double *scratch, slot3d **out)
+{
+    slot3d *victim = &c->slot[0];
+    for (int i = 0; i < CACHE_SLOTS; i++) {
+        slot3d *s = &c->slot[i];
+        if (s->model && s->n == n && !memcmp(s->ids, ids, sizeof(int) * (size_t)n)) {
+            s->last_used = ++c->clock;
+            *out = s;
+            return SH_OK;
+        }
+        if (!s->model || s->last_used < victim->last_used) victim = s;
+    }
+    slot_clear(victim);
+    double t0 = app_now();
+    victim->ids = malloc(sizeof(int) * (size_t)n);
+    if (!victim->ids) return sh_error_set(SH_ENOMEM, "warp3d: out of memory");
+    memcpy(victim->ids, ids, sizeof(int) * (size_t)n);
+    victim->n = n;
+    for (int k = 0, r = 0; k < n; k++) {
+        while (c->ref_rows[r].id != ids[k]) r++;
+        scratch[3 * k] = c->ref_rows[r].X;
+        scratch[3 * k + 1] = c->ref_rows[r].Y;
+        scratch[3 * k + 2] = c->ref_rows[r].Z;
+    }
+    sh_status st = sh_warp3d_model_create(&c->params, scratch, n, &victim->model);
+    for (int v = 0; v < c->nviews && st == SH_OK; v++)
+        st = sh_warp3d_view_create(victim->model, &c->vcam[v], &c->source, c->width, c->height,
+                                   &c->vopts, &victim->view[v]);
+    if (st == SH_OK && c->ply_spacing > 0)
+        st = sh_warp3d_ply_create(victim->model, c->ply_spacing, c->ply_mesh, &victim->ply);
+    if (st != SH_OK) {
+        slot_clear(victim);
+        return st;
+    }
+    victim->last_used = ++c->clock;
+    c->builds++;
+    c->build_seconds += app_now() - t0;
+    *out = victim;
+    return SH_OK;
+}
+
+static int has_xyz(const sh_point *p)
+{
+    return isfinite(p->X) && isfinite(p->Y) && isfinite(p->Z);
+}
+
+/* Markers of this frame that the reference frame also has, both with 3D positions. */
+static int common_markers(const sh_point *ref, int nref, const sh_point *cur, int ncur, int *ids,
+                          double *cur_xyz)
+{
+    int n = 0;
+    for (int i = 0, j = 0; i < nref && j < ncur;) {
+        if (ref[i].id < cur[j].id) i++;
+        else if (ref[i].id > cur[j].id) j++;
+        else {
+            if (has_xyz(&ref[i]) && has_xyz(&cur[j])) {
+                ids[n] = cur[j].id;
+                cur_xyz[3 * n] = cur[j].X;
+                cur_xyz[3 * n + 1] = cur[j].Y;
+                cur_xyz[3 * n + 2] = cur[j].Z;
+                n++;
+            }
+            i++, j++;
+        }
+    }
+    return n;
+}
+
+static int fail(const char *what)
+{
+    fprintf(stderr, "stillheart warp3d: %s%s%s\n", what, *sh_error_message() ? ": " : "",
+            sh_error_message());
+    return 1;
+}
+
+static int read_frame_at(const char *path, int index, sh_image *img)
+{
+    sh_y4m_reader *r;
+    if (sh_y4m_reader_open(path, &r) != SH_OK) return 0;
+    sh_status st = SH_OK;
+    for (int i = 0; i <= index && st == SH_OK; i++) st = sh_y4m_reader_read(r, img);
+    sh_y4m_reader_close(r);
+    if (st == SH_EEOF) sh_error_set(SH_EINVAL, "%s has no frame %d", path, index);
+    return st == SH_OK;
+}
+
+/* pose:RX,RY,RZ[,TX,TY,TZ] */
+static int parse_pose(const char *text, double rvec[3], double tvec[3])
+{
+    double v[6] = {0, 0, 0, 0, 0, 0};
+    int count = 0;
+    const char *p = text;
+    while (*p && count < 6) {
+        char *end;
+        v[count] = strtod(p, &end);
+        if (end == p || !isfinite(v[count])) return 0;
+        count++;
+        if (*end == ',') p = end + 1;
+        else if (*end == '\0') p = end;
+        else return 0;
+    }
+    if (*p || (count != 3 && count != 6)) return 0;
+    for (int i = 0; i < 3; i++) {
+        rvec[i] = v[i] * M_PI / 180;
+        tvec[i] = v[3 + i];
+    }
+    return 1;
+}
+
+/* Writes the stabilized frame: one view, or the two eyes in their layout. Raw: the input in
+ * every view's place. */
+static sh_status render(sh_warp *warp, const slot3d *s, int nviews, int tb, const sh_image *in,
+                        sh_image *out, int raw)
+{
+    for (int v = 0; v < nviews; v++) {
+        int ox = tb ? 0 : v * in->width, oy = tb ? v * in->height : 0;
+        sh_status st;
+        if (raw) {
+            if (nviews == 1) return sh_image_copy(out, in);
+            for (int p = 0; p < in->num_planes; p++) {
+                int sub = in->format == SH_PIX_I420 && p > 0;
+                int px = sub ? ox / 2 : ox, py = sub ? oy / 2 : oy;
+                size_t bpp = (size_t)(p == 0 ? sh_pixfmt_channels(in->format) : 1);
+                for (int y = 0; y < in->plane[p].height; y++)
+                    memcpy(out->plane[p].data + (size_t)(py + y) * out->plane[p].stride + px * bpp,
+                           in->plane[p].data + (size_t)y * in->plane[p].stride,
+                           (size_t)in->plane[p].width * bpp);
+            }
+            continue;
+        }
+        if ((st = sh_warp3d_view_apply(warp, s->view[v], in, out, ox, oy)) != SH_OK) return st;
+    }
+    return SH_OK;
+}
+
+int cmd_warp3d(int argc, char **argv)
+{
+    static const struct option options[] = {
+        {"cameras", required_argument, 0, 'C'}, {"points", required_argument, 0, 'p'},
+        {"camera", required_argument, 0, 'k'}, {"method", required_argument, 0, 'm'},
+        {"surface-method", required_argument, 0, 'A'}, {"displacement-method", required_argument, 0, 'D'},
+        {"sigma", required_argument, 0, 's'}, {"reference", required_argument, 0, 'r'},
+        {"view", required_argument, 0, 'v'}, {"baseline", required_argument, 0, 'b'},
+        {"layout", required_argument, 0, 'L'}, {"depth-scale", required_argument, 0, 'z'},
+        {"threads", required_argument, 0, 't'}, {"max-error", required_argument, 0, 'e'},
+        {"export-ply", required_argument, 0, 'P'}, {"ply-spacing", required_argument, 0, 'S'},
+        {"ply-mesh", no_argument, 0, 'M'}, {"ply-every", required_argument, 0, 'E'},
+        {"quiet", no_argument, 0, 'q'}, {"help", no_argument, 0, 'h'}, {0, 0, 0, 0}};
+    const char *calib_path = NULL, *points_path = NULL, *method = "bspline", *smethod = NULL,
+               *dmethod = NULL, *view = "reference", *layout = "sbs", *ply_dir = NULL;
+    double sigma = 0, baseline = 10, depth_scale = 1, max_error = 0.05, ply_spacing = 1;
+    int camera = 0, reference = 0, threads = 1, quiet = 0, have_sigma = 0, ply_mesh = 0, ply_every = 1;
+    int opt;
+    optind = 1;
+    while ((opt = getopt_long(argc, argv, "", options, NULL)) != -1) {
+        switch (opt) {
+        case 'C': calib_path = optarg; break;
+        case 'p': points_path = optarg; break;
+        case 'k': if (!app_parse_int("--camera", optarg, 0, SH_CALIB_MAX_CAMERAS - 1, &camera)) return 2; break;
+        case 'm': method = optarg; break;
+        case 'A': smethod = optarg; break;
+        case 'D': dmethod = optarg; break;
+        case 's': if (!app_parse_double("--sigma", optarg, 1e-6, 1e9, &sigma)) return 2;
+                  have_sigma = 1; break;
+        case 'r': if (!app_parse_int("--reference", optarg, 0, 1 << 30, &reference)) return 2; break;
+        case 'v': view = optarg; break;
+        case 'b': if (!app_parse_double("--baseline", optarg, 0, 1e4, &baseline)) return 2; break;
+        case 'L': layout = optarg; break;
+        case 'z': if (!app_parse_double("--depth-scale", optarg, 0.01, 100, &depth_scale)) return 2; break;
+        case 't': if (!app_parse_int("--threads", optarg, 1, 256, &threads)) return 2; break;
+        case 'e': if (!app_parse_double("--max-error", optarg, 1e-4, 100, &max_error)) return 2; break;
+        case 'P': ply_dir = optarg; break;
+        case 'S': if (!app_parse_double("--ply-spacing", optarg, 1e-3, 1e4, &ply_spacing)) return 2; break;
+        case 'M': ply_mesh = 1; break;
+        case 'E': if (!app_parse_int("--ply-every", optarg, 1, 1 << 30, &ply_every)) return 2; break;
+        case 'q': quiet = 1; break;
+        case 'h': usage(stdout); return 0;
+        default: usage(stderr); return 2;
+        }
+    }
+    if (argc - optind != 2 || !calib_path || !points_path) {
+        fprintf(stderr, "stillheart warp3d: need --cameras, --points and the input and output videos\n");
+        usage(stderr);
+        return 2;
+    }
+    const char *in_path = argv[optind], *out_path = argv[optind + 1];
+    if (!strcmp(in_path, "-") && reference > 0) {
+        fprintf(stderr, "stillheart warp3d: --reference %d needs a file, not standard input\n", reference);
+        return 2;
+    }
+    int stereo = 0, tb = 0, pose = 0;
+    double rvec[3] = {0, 0, 0}, tvec[3] = {0, 0, 0};
+    if (!strcmp(view, "stereo")) stereo = 1;
+    else if (!strncmp(view, "pose:", 5)) {
+        if (!parse_pose(view + 5, rvec, tvec)) {
+            fprintf(stderr, "stillheart warp3d: --view %s: want pose:RX,RY,RZ[,TX,TY,TZ]\n", view);
+            return 2;
+        }
+        pose = 1;
+    } else if (strcmp(view, "reference")) {
+        fprintf(stderr, "stillheart warp3d: --view %s: reference, stereo or pose:...\n", view);
+        return 2;
+    }
+    if (!strcmp(layout, "tb")) tb = 1;
+    else if (strcmp(layout, "sbs")) {
+        fprintf(stderr, "stillheart warp3d: --layout %s: sbs or tb\n", layout);
+        return 2;
+    }
+
+    cache3d cache = {0};
+    sh_warp3d_params_default(&cache.params);
+    if (sh_interp_params_parse(smethod ? smethod : method, &cache.params.surface) != SH_OK ||
+        sh_interp_params_parse(dmethod ? dmethod : method, &cache.params.displacement) != SH_OK) {
+        fail("--method");
+        return 2;
+    }
+    if (have_sigma) cache.params.surface.sigma = cache.params.displacement.sigma = sigma;
+    sh_warp3d_view_options_default(&cache.vopts);
+    cache.vopts.warp.max_error = max_error;
+    cache.vopts.depth_scale = depth_scale;
+
+    int rc = 1;
+    sh_calib calib;
+    sh_points points = {0};
+    sh_y4m_reader *reader = NULL;
+    sh_y4m_writer *writer = NULL;
+    sh_warp *warp = NULL;
+    sh_metric *metric_in = NULL, *metric_out = NULL;
+    sh_image in = {0}, out = {0}, ref = {0}, rgb = {0};
+    int *ids = NULL;
+    double *cur_xyz = NULL, *scratch = NULL;
+
+    if (sh_calib_read(calib_path, &calib) != SH_OK) { fail("cameras"); goto done; }
+    if (camera >= calib.num_cameras) {
+        fprintf(stderr, "stillheart warp3d: --camera %d: %s has %d cameras\n", camera, calib_path,
+                calib.num_cameras);
+        goto done;
+    }
+    if (sh_points_read(points_path, &points) != SH_OK) { fail("points"); goto done; }
+    if (!points.has_3d) {
+        fprintf(stderr, "stillheart warp3d: %s has no X,Y,Z columns\n", points_path);
+        goto done;
+    }
+    if (sh_y4m_reader_open(in_path, &reader) != SH_OK) { fail("input"); goto done; }
+    const sh_y4m_header *hdr = sh_y4m_reader_header(reader);
+    if (calib.width != hdr->width || calib.height != hdr->height) {
+        fprintf(stderr, "stillheart warp3d: %s is %dx%d, the calibration %s is for %dx%d\n", in_path,
+                hdr->width, hdr->height, calib_path, calib.width, calib.height);
+        goto done;
+    }
+    cache.width = hdr->width;
+    cache.height = hdr->height;
+    cache.source = calib.cam[camera];
+    cache.ref_rows = sh_points_frame(&points, reference, &cache.ref_count);
+    ids = malloc(sizeof(int) * ((size_t)cache.ref_count + 1));
+    cur_xyz = malloc(sizeof(double) * 3 * ((size_t)cache.ref_count + 1));
+    scratch = malloc(sizeof(double) * 3 * ((size_t)cache.ref_count + 1));
+    if (!ids || !cur_xyz || !scratch) { fail("out of memory"); goto done; }
+    int nref = common_markers(cache.ref_rows, cache.ref_count, cache.ref_rows, cache.ref_count, ids,
+                              cur_xyz);
+    if (nref < 4) {
+        fprintf(stderr, "stillheart warp3d: %s: the reference frame %d has %d markers with X,Y,Z, need 4\n",
+                points_path, reference, nref);
+        goto done;
+    }
+    double *ref_xyz = malloc(sizeof(double) * 3 * (size_t)nref);
+    if (!ref_xyz) { fail("out of memory"); goto done; }
+    memcpy(ref_xyz, cur_xyz, sizeof(double) * 3 * (size_t)nref);
+    if (stereo) {
+        sh_warp3d_stereo_cameras(&cache.source, baseline, &cache.vcam[0], &cache.vcam[1]);
+        cache.nviews = 2;
+    } else if (pose) {
+        double c[3] = {0, 0, 0};
+        for (int i = 0; i < nref; i++)
+            for (int k = 0; k < 3; k++) c[k] += ref_xyz[3 * i + k] / nref;
+        sh_warp3d_pose_camera(&cache.source, c, rvec, tvec, &cache.vcam[0]);
+        cache.nviews = 1;
+    } else {
+        cache.vcam[0] = cache.source;
+        cache.nviews = 1;
+    }
+    free(ref_xyz);
+
+    sh_y4m_header out_hdr = *hdr;
+    if (stereo) {
+        if (tb) out_hdr.height *= 2;
+        else out_hdr.width *= 2;
+    }
+    if (out_hdr.width > SH_IMAGE_MAX_SIZE || out_hdr.height > SH_IMAGE_MAX_SIZE) {
+        fprintf(stderr, "stillheart warp3d: the stereo frame %dx%d is too large\n", out_hdr.width,
+                out_hdr.height);
+        goto done;
+    }
+    if (sh_image_create(&in, hdr->format, hdr->width, hdr->height) != SH_OK ||
+        sh_image_create(&out, hdr->format, out_hdr.width, out_hdr.height) != SH_OK ||
+        sh_image_create(&ref, hdr->format, hdr->width, hdr->height) != SH_OK ||
+        (ply_dir && sh_image_create(&rgb, SH_PIX_RGB24, hdr->width, hdr->height) != SH_OK)) {
+        fail("frame buffers");
+        goto done;
+    }
+    if (sh_warp_create(threads, &warp) != SH_OK) { fail("threads"); goto done; }
+    if (ply_dir) {
+        if (mkdir(ply_dir, 0777) != 0 && errno != EEXIST) {
+            fprintf(stderr, "stillheart warp3d: --export-ply %s: cannot create the folder\n", ply_dir);
+            goto done;
+        }
+        cache.ply_spacing = ply_spacing;
+        cache.ply_mesh = ply_mesh;
+    }
+    slot3d *slot;
+    if (cache_get(&cache, ids, nref, scratch, &slot) != SH_OK) { fail("reference markers"); goto done; }
+    int fr = strstr(hdr->extra, "XCOLORRANGE=FULL") != NULL;
+    int from_stdin = !strcmp(in_path, "-");
+    int measure = !stereo && !pose;
+    if (measure && !from_stdin) {
+        if (!read_frame_at(in_path, reference, &ref)) { fail("reference frame"); goto done; }
+        if (sh_warp3d_model_update(slot->model, cur_xyz) != SH_OK ||
+            sh_warp3d_view_update(slot->view[0]) != SH_OK ||
+            render(warp, slot, 1, 0, &ref, &out, 0) != SH_OK ||
+            sh_metric_create(&ref, sh_warp3d_view_hull(slot->view[0]), fr, &metric_in) != SH_OK ||
+            sh_metric_create(&out, sh_warp3d_view_hull(slot->view[0]), fr, &metric_out) != SH_OK) {
+            fail("reference frame");
+            goto done;
+        }
+    }
+    if (sh_y4m_writer_open(out_path, &out_hdr, &writer) != SH_OK) { fail("output"); goto done; }
+
+    app_progress progress;
+    app_progress_start(&progress);
+    if (quiet) progress.enabled = 0;
+    int frames = 0, raw_frames = 0, exported = 0;
+    double warp_seconds = 0;
+    sh_status st;
+    char ply_path[4096];
+    while ((st = sh_y4m_reader_read(reader, &in)) == SH_OK) {
+        int ncur;
+        const sh_point *cur = sh_points_frame(&points, frames, &ncur);
+        int n = common_markers(cache.ref_rows, cache.ref_count, cur, ncur, ids, cur_xyz);
+        double t0 = app_now();
+        int raw = n < 4 || cache_get(&cache, ids, n, scratch, &slot) != SH_OK ||
+                  sh_warp3d_model_update(slot->model, cur_xyz) != SH_OK;
+        for (int v = 0; v < cache.nviews && !raw; v++)
+            raw = sh_warp3d_view_update(slot->view[v]) != SH_OK;
+        if (!raw && render(warp, slot, cache.nviews, tb, &in, &out, 0) != SH_OK) raw = 1;
+        if (raw) {
+            raw_frames++;
+            if (!quiet)
+                fprintf(stderr, "%sstillheart warp3d: frame %d left unstabilized (%d markers%s%s)\n",
+                        progress.enabled ? "\n" : "", frames, n, n >= 4 ? ": " : "",
+                        n >= 4 ? sh_error_message() : "");
+            render(warp, slot, cache.nviews, tb, &in, &out, 1);
+        }
+        warp_seconds += app_now() - t0;
+        if (frames == reference && from_stdin && measure && !metric_in && !raw) {
+            sh_image_copy(&ref, &in);
+            if (sh_metric_create(&ref, sh_warp3d_view_hull(slot->view[0]), fr, &metric_in) != SH_OK ||
+                sh_metric_create(&out, sh_warp3d_view_hull(slot->view[0]), fr, &metric_out) != SH_OK) {
+                fail("reference frame");
+                goto done;
+            }
+        }
+        if (sh_y4m_writer_write(writer, &out) != SH_OK) { fail("output"); goto done; }
+        if (metric_in && (sh_metric_add(metric_in, &in) != SH_OK || sh_metric_add(metric_out, &out) != SH_OK)) {
+            fail("metric");
+            goto done;
+        }
+        if (ply_dir && !raw && frames % ply_every == 0) {
+            snprintf(ply_path, sizeof ply_path, "%s/frame_%06d.ply", ply_dir, frames);
+            if (sh_image_to_rgb(&in, &rgb, fr) != SH_OK ||
+                sh_warp3d_ply_write(slot->ply, slot->model, 1, &rgb, &cache.source, ply_path) != SH_OK) {
+                fail("--export-ply");
+                goto done;
+            }
+            exported++;
+        }
+        frames++;
+        app_progress_update(&progress, "warp3d", frames, 0);
+    }
+    app_progress_end(&progress);
+    if (st != SH_EEOF) fail("input");
+    if (sh_y4m_writer_close(writer) != SH_OK) { writer = NULL; fail("output"); goto done; }
+    writer = NULL;
+    if (!quiet) {
+        fprintf(stderr, "warp3d %s view, %s: %d frames (%d unstabilized), %d marker sets built in "
+                        "%.1f ms, %.2f ms/frame",
+                stereo ? "stereo" : pose ? "pose" : "reference", method, frames, raw_frames,
+                cache.builds, cache.build_seconds * 1e3, frames ? warp_seconds * 1e3 / frames : 0.0);
+        if (ply_dir) fprintf(stderr, ", %d PLY files", exported);
+        fprintf(stderr, "\n");
+        if (metric_in)
+            fprintf(strcmp(out_path, "-") ? stdout : stderr,
+                    "e input %.6f output %.6f (%d frames, %d hull pixels)\n", sh_metric_e(metric_in),
+                    sh_metric_e(metric_out), sh_metric_frames(metric_in), sh_metric_pixels(metric_in));
+    }
+    rc = st == SH_EEOF ? 0 : 1;
+done:
+    if (writer) sh_y4m_writer_close(writer);
+    for (int i = 0; i < CACHE_SLOTS; i++) slot_clear(&cache.slot[i]);
+    sh_y4m_reader_close(reader);
+    sh_points_destroy(&points);
+    sh_warp_destroy(warp);
+    sh_metric_destroy(metric_in);
+    sh_metric_destroy(metric_out);
+    sh_image_destroy(&in);
+    sh_image_destroy(&out);
+    sh_image_destroy(&ref);
+    sh_image_destroy(&rgb);
+    free(ids);
+    free(cur_xyz);
+    free(scratch);
+    return rc;
+}

@@ -1,0 +1,318 @@
+/* 3D stabilization on a rendered phantom, against the 2D engine and the phantom's truth:
+ *  - e (paper, section V) and the geometric error of 3D stabilization (multilevel B-splines)
+ *    within 15% of 2D multilevel B-splines on the same sequence and markers (paper Table II:
+ *    0.042 vs 0.037);
+ *  - a PLY export of the reference frame lies on the phantom's true surface (0.2 mm RMS).
+ * The markers are the renderer's ground-truth tag centres (2D for the 2D engine, world X,Y,Z for
+ * the 3D one); the geometric error follows stillheart-eval: hull pixels every 4 px located on the
+ * tissue in the reference frame, compared with where that tissue is in frame t. */
+#include <math.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include <cmocka.h>
+
+#include "phantom.h"
+#include "phantom_testutil.h"
+#include "stillheart/calib.h"
+#include "stillheart/metrics.h"
+#include "stillheart/warp3d.h"
+#include "stillheart/y4m.h"
+
+#define FRAMES 60
+#define STRIDE 4
+#define MAXM PHANTOM_MAX_MARKERS
+
+typedef struct {
+    const char *dir;
+    phantom_truth *truth;
+    phantom_csv csv;
+    sh_calib calib;
+    int width, height, n;
+    int ids[MAXM];
+} sequence;
+
+/* The visible tag centres of camera 0 in frame f, in the order of ids; 0 when one is missing. */
+static int markers(const sequence *s, int f, double *xy, double *xyz)
+{
+    for (int i = 0; i < s->n; i++) {
+        const phantom_csv_row *r = phantom_csv_find(&s->csv, f, 0, s->ids[i], PHANTOM_POINTS - 1);
+        if (!r || !r->visible) return 0;
+        xy[2 * i] = r->x, xy[2 * i + 1] = r->y;
+        xyz[3 * i] = r->X, xyz[3 * i + 1] = r->Y, xyz[3 * i + 2] = r->Z;
+    }
+    return 1;
+}
+
+static void open_sequence(sequence *s, const char *preset, int frames, int slot)
+{
+    char args[256], path[4096];
+    snprintf(args, sizeof args, "--preset %s --frames %d --cameras 1 --width 960 --height 540",
+             preset, frames);
+    s->dir = pt_render(slot, args);
+    assert_non_null(s->dir);
+    if (phantom_truth_open(s->dir, &s->truth) != SH_OK) fail_msg("%s", sh_error_message());
+    snprintf(path, sizeof path, "%s/markers.csv", s->dir);
+    if (phantom_csv_read(path, &s->csv) != SH_OK) fail_msg("%s", sh_error_message());
+    snprintf(path, sizeof path, "%s/calibration.yaml", s->dir);
+    if (sh_calib_read(path, &s->calib) != SH_OK) fail_msg("%s", sh_error_message());
+    s->width = s->calib.width;
+    s->height = s->calib.height;
+    s->n = phantom_truth_num_markers(s->truth);
+    for (int i = 0; i < s->n; i++)
+        assert_int_equal(phantom_truth_marker(s->truth, 0, 0, i, 4, &s->ids[i], NULL, NULL, NULL, NULL), SH_OK);
+}
+
+static void close_sequence(sequence *s)
+{
+    phantom_csv_free(&s->csv);
+    phantom_truth_close(s->truth);
+}
+
+typedef struct {
+    int count;
+    double *x, *y, *u, *v; /* hull samples and their tissue point in the reference frame */
+    double sum;
+    long long pairs;
+} geo;
+
+static void geo_init(geo *g, const sequence *s, const sh_hull *hull)
+{
+    memset(g, 0, sizeof *g);
+    size_t cap = (size_t)(s->width / STRIDE + 1) * (s->height / STRIDE + 1);
+    g->x = malloc(sizeof(double) * cap), g->y = malloc(sizeof(double) * cap);
+    g->u = malloc(sizeof(double) * cap), g->v = malloc(sizeof(double) * cap);
+    assert_true(g->x && g->y && g->u && g->v);
+    for (int y = 0; y < s->height; y += STRIDE)
+        for (int x = 0; x < s->width; x += STRIDE) {
+            double u, v;
+            if (!sh_hull_contains(hull, x, y) ||
+                phantom_truth_locate(s->truth, 0, 0, x, y, &u, &v) != SH_OK ||
+                !phantom_truth_visible(s->truth, 0, 0, u, v))
+                continue;
+            g->x[g->count] = x, g->y[g->count] = y, g->u[g->count] = u, g->v[g->count] = v;
+            g->count++;
+        }
+}
+
+static void geo_add(geo *g, const sequence *s, int t, const float *map, int width)
+{
+    for (int i = 0; i < g->count; i++) {
+        double gx, gy;
+        if (!phantom_truth_visible(s->truth, 0, t, g->u[i], g->v[i]) ||
+            phantom_truth_project(s->truth, 0, t, g->u[i], g->v[i], &gx, &gy) != SH_OK)
+            continue;
+        const float *m = map + 2 * ((size_t)g->y[i] * width + (size_t)g->x[i]);
+        if (isnan(m[0])) continue;
+        g->sum += hypot(m[0] - gx, m[1] - gy);
+        g->pairs++;
+    }
+}
+
+static void geo_free(geo *g)
+{
+    free(g->x), free(g->y), free(g->u), free(g->v);
+}
+
+static void compare(const char *preset, double tolerance)
+{
+    sequence s;
+    open_sequence(&s, preset, FRAMES, 0);
+    char path[4096];
+    snprintf(path, sizeof path, "%s/cam0.y4m", s.dir);
+    double ref_xy[2 * MAXM], ref_xyz[3 * MAXM], xy[2 * MAXM], xyz[3 * MAXM];
+    assert_true(markers(&s, 0, ref_xy, ref_xyz));
+
+    sh_interp_params ip;
+    sh_interp_params_default(&ip, SH_METHOD_BSPLINE);
+    sh_interp *interp;
+    sh_warp_model *m2;
+    sh_warp3d_model *m3;
+    sh_warp3d_view *v3;
+    sh_warp *warp;
+    assert_int_equal(sh_interp_create(&ip, ref_xy, s.n, &interp), SH_OK);
+    assert_int_equal(sh_warp_model_create(interp, ref_xy, s.n, s.width, s.height, NULL, &m2), SH_OK);
+    assert_int_equal(sh_warp3d_model_create(NULL, ref_xyz, s.n, &m3), SH_OK);
+    if (sh_warp3d_view_create(m3, &s.calib.cam[0], &s.calib.cam[0], s.width, s.height, NULL, &v3) != SH_OK)
+        fail_msg("%s", sh_error_message());
+    assert_int_equal(sh_warp_create(1, &warp), SH_OK);
+
+    sh_y4m_reader *r;
+    assert_int_equal(sh_y4m_reader_open(path, &r), SH_OK);
+    const sh_y4m_header *h = sh_y4m_reader_header(r);
+    sh_image in, out2, out3;
+    assert_int_equal(sh_image_create(&in, h->format, s.width, s.height), SH_OK);
+    assert_int_equal(sh_image_create(&out2, h->format, s.width, s.height), SH_OK);
+    assert_int_equal(sh_image_create(&out3, h->format, s.width, s.height), SH_OK);
+    float *map = malloc(sizeof(float) * 2 * (size_t)s.width * s.height);
+    assert_non_null(map);
+    sh_metric *e2 = NULL, *e3 = NULL;
+    const sh_hull *hull = sh_warp_model_hull(m2);
+    geo g2, g3;
+    geo_init(&g2, &s, hull);
+    geo_init(&g3, &s, hull);
+    int used = 0;
+    for (int t = 0; sh_y4m_reader_read(r, &in) == SH_OK; t++) {
+        if (!markers(&s, t, xy, xyz)) continue; /* both engines skip the same frames */
+        assert_int_equal(sh_warp_model_update(m2, xy), SH_OK);
+        assert_int_equal(sh_warp_apply(warp, m2, &in, &out2), SH_OK);
+        assert_int_equal(sh_warp3d_model_update(m3, xyz), SH_OK);
+        assert_int_equal(sh_warp3d_view_update(v3), SH_OK);
+        assert_int_equal(sh_warp3d_view_apply(warp, v3, &in, &out3, 0, 0), SH_OK);
+        if (t == 0) {
+            assert_int_equal(sh_metric_create(&out2, hull, 0, &e2), SH_OK);
+            assert_int_equal(sh_metric_create(&out3, hull, 0, &e3), SH_OK);
+        }
+        assert_int_equal(sh_metric_add(e2, &out2), SH_OK);
+        assert_int_equal(sh_metric_add(e3, &out3), SH_OK);
+        assert_int_equal(sh_warp_model_map(m2, map), SH_OK);
+        geo_add(&g2, &s, t, map, s.width);
+        assert_int_equal(sh_warp_model_map(sh_warp3d_view_map_model(v3), map), SH_OK);
+        geo_add(&g3, &s, t, map, s.width);
+        used++;
+    }
+    double ge2 = g2.sum / (double)g2.pairs, ge3 = g3.sum / (double)g3.pairs;
+    printf("%s, %d frames: e 2D %.5f 3D %.5f (%+.1f%%); geometric mean 2D %.4f px 3D %.4f px "
+           "(%+.1f%%); 3D grid %d px, bound %.4f px\n",
+           preset, used, sh_metric_e(e2), sh_metric_e(e3),
+           100 * (sh_metric_e(e3) / sh_metric_e(e2) - 1), ge2, ge3, 100 * (ge3 / ge2 - 1),
+           sh_warp3d_view_grid_spacing(v3), sh_warp3d_view_error_bound(v3));
+    assert_true(used > FRAMES / 2);
+    assert_true(sh_metric_e(e3) <= (1 + tolerance) * sh_metric_e(e2));
+    assert_true(ge3 <= (1 + tolerance) * ge2);
+
+    geo_free(&g2);
+    geo_free(&g3);
+    free(map);
+    sh_metric_destroy(e2);
+    sh_metric_destroy(e3);
+    sh_image_destroy(&in);
+    sh_image_destroy(&out2);
+    sh_image_destroy(&out3);
+    sh_y4m_reader_close(r);
+    sh_warp_destroy(warp);
+    sh_warp3d_view_destroy(v3);
+    sh_warp3d_model_destroy(m3);
+    sh_warp_model_destroy(m2);
+    sh_interp_destroy(interp);
+    close_sequence(&s);
+}
+
+static void test_exvivo_3d_vs_2d(void **state)
+{
+    (void)state;
+    compare("exvivo", 0.15);
+}
+
+static void test_invivo_3d_vs_2d(void **state)
+{
+    (void)state;
+    compare("invivo", 0.15);
+}
+
+/* Distance from P to the true surface at time t: Gauss-Newton on the material (u, v). */
+static double surface_distance(const phantom_model *pm, double t, const float P[3])
+{
+    double u = 0, v = 0, best = INFINITY;
+    /* start from the nearest point of a coarse lattice */
+    for (double a = -pm->size_u / 2; a <= pm->size_u / 2; a += 2)
+        for (double b = -pm->size_v / 2; b <= pm->size_v / 2; b += 2) {
+            double X[3];
+            phantom_surface(pm, a, b, t, X);
+            double d = (X[0] - P[0]) * (X[0] - P[0]) + (X[1] - P[1]) * (X[1] - P[1]) + (X[2] - P[2]) * (X[2] - P[2]);
+            if (d < best) best = d, u = a, v = b;
+        }
+    for (int it = 0; it < 30; it++) {
+        double X[3], Xu[3], Xv[3], e = 1e-5;
+        phantom_surface(pm, u, v, t, X);
+        phantom_surface(pm, u + e, v, t, Xu);
+        phantom_surface(pm, u, v + e, t, Xv);
+        double a[3], b[3], r[3];
+        for (int k = 0; k < 3; k++) a[k] = (Xu[k] - X[k]) / e, b[k] = (Xv[k] - X[k]) / e, r[k] = X[k] - P[k];
+        double aa = a[0] * a[0] + a[1] * a[1] + a[2] * a[2], ab = a[0] * b[0] + a[1] * b[1] + a[2] * b[2],
+               bb = b[0] * b[0] + b[1] * b[1] + b[2] * b[2];
+        double ar = a[0] * r[0] + a[1] * r[1] + a[2] * r[2], br = b[0] * r[0] + b[1] * r[1] + b[2] * r[2];
+        double det = aa * bb - ab * ab;
+        u -= (bb * ar - ab * br) / det;
+        v -= (aa * br - ab * ar) / det;
+    }
+    double X[3];
+    phantom_surface(pm, u, v, t, X);
+    return sqrt((X[0] - P[0]) * (X[0] - P[0]) + (X[1] - P[1]) * (X[1] - P[1]) + (X[2] - P[2]) * (X[2] - P[2]));
+}
+
+static void ply_on_true_surface(const char *preset, int slot)
+{
+    sequence s;
+    open_sequence(&s, preset, 1, slot);
+    double xy[2 * MAXM], xyz[3 * MAXM];
+    assert_true(markers(&s, 0, xy, xyz));
+    sh_warp3d_model *m3;
+    sh_warp3d_ply *ply;
+    assert_int_equal(sh_warp3d_model_create(NULL, xyz, s.n, &m3), SH_OK);
+    assert_int_equal(sh_warp3d_ply_create(m3, 1.0, 0, &ply), SH_OK);
+    char path[4096];
+    snprintf(path, sizeof path, "%s/reference.ply", s.dir);
+    assert_int_equal(sh_warp3d_ply_write(ply, m3, 0, NULL, NULL, path), SH_OK);
+    FILE *f = fopen(path, "rb");
+    assert_non_null(f);
+    char line[256];
+    int vertices = -1;
+    while (fgets(line, sizeof line, f) && strcmp(line, "end_header\n")) sscanf(line, "element vertex %d", &vertices);
+    assert_true(vertices > 1000);
+    const phantom_model *pm = phantom_truth_model(s.truth);
+    double sum2 = 0, worst = 0;
+    for (int k = 0; k < vertices; k++) {
+        unsigned char rec[15];
+        assert_int_equal(fread(rec, 1, 15, f), 15);
+        float P[3];
+        memcpy(P, rec, 12);
+        double d = surface_distance(pm, 0.0, P);
+        sum2 += d * d;
+        worst = fmax(worst, d);
+    }
+    fclose(f);
+    double rms = sqrt(sum2 / vertices);
+    printf("%s: PLY of the reference surface: %d points, distance to the true surface RMS %.4f mm, "
+           "max %.4f mm\n", preset, vertices, rms, worst);
+    assert_true(rms < 0.2);
+    sh_warp3d_ply_destroy(ply);
+    sh_warp3d_model_destroy(m3);
+    close_sequence(&s);
+}
+
+static void test_ply_exvivo(void **state)
+{
+    (void)state;
+    ply_on_true_surface("exvivo", 1);
+}
+
+static void test_ply_invivo(void **state)
+{
+    (void)state;
+    ply_on_true_surface("invivo", 2);
+}
+
+static int teardown(void **state)
+{
+    (void)state;
+    pt_cleanup();
+    return 0;
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_exvivo_3d_vs_2d),
+        cmocka_unit_test(test_invivo_3d_vs_2d),
+        cmocka_unit_test(test_ply_exvivo),
+        cmocka_unit_test(test_ply_invivo),
+    };
+    return cmocka_run_group_tests(tests, NULL, teardown);
+}
