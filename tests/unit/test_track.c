@@ -1,0 +1,327 @@
+/* The tracker on closed-form motion: markers moving as x0 + A cos(2 pi f t + phi) + B sin(4 pi f t)
+ * with respiration, detections with Gaussian noise. Rates, occlusion prediction, gating,
+ * duplicates, unknown ids, loss and reacquisition, windows and reacquisition bands, bad input. */
+#include <math.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <string.h>
+
+#include <cmocka.h>
+
+#include "stillheart/track.h"
+
+#define PI 3.14159265358979323846
+#define FPS 30.0
+#define NM 6
+#define FH 1.2
+#define FR 0.3
+
+static uint64_t rng = 99;
+static double urand(void)
+{
+    rng = rng * 6364136223846793005ull + 1442695040888963407ull;
+    return ((double)(rng >> 11) + 0.5) / 9007199254740992.0;
+}
+static double nrand(void) { return sqrt(-2 * log(urand())) * cos(2 * PI * urand()); }
+
+static void truth(int i, int f, double *x, double *y)
+{
+    double t = f / FPS, ph = 0.3 * i;
+    *x = 300 + 120 * i + 15 * cos(2 * PI * FH * t + ph) + 4 * sin(4 * PI * FH * t + ph) +
+         6 * cos(2 * PI * FR * t);
+    *y = 400 + 40 * (i % 2) + 10 * sin(2 * PI * FH * t + ph) + 3 * cos(4 * PI * FH * t) +
+         9 * sin(2 * PI * FR * t);
+}
+
+static void detection(int id, double x, double y, sh_detection *d)
+{
+    memset(d, 0, sizeof *d);
+    d->id = id;
+    d->cx = x;
+    d->cy = y;
+    double h = 20;
+    double c[4][2] = {{-h, h}, {h, h}, {h, -h}, {-h, -h}};
+    for (int k = 0; k < 4; k++) {
+        d->corner[k][0] = x + c[k][0];
+        d->corner[k][1] = y + c[k][1];
+    }
+    d->margin = 60;
+}
+
+static sh_tracker *make(int whitelist)
+{
+    sh_track_options o;
+    sh_track_options_default(&o);
+    o.fps = FPS;
+    o.width = 1280;
+    o.height = 720;
+    int ids[NM];
+    for (int i = 0; i < NM; i++) ids[i] = 10 + i;
+    if (whitelist) {
+        o.ids = ids;
+        o.num_ids = NM;
+    }
+    sh_tracker *t = NULL;
+    assert_int_equal(sh_tracker_create(&o, NULL, &t), SH_OK);
+    return t;
+}
+
+/* one frame: markers visible unless hidden[i]; extra detections appended */
+static void step(sh_tracker *t, int f, const int *hidden, const sh_detection *extra, int nextra)
+{
+    sh_detection d[NM + 8];
+    int n = 0;
+    assert_int_equal(sh_tracker_predict(t, f), SH_OK);
+    for (int i = 0; i < NM; i++) {
+        if (hidden && hidden[i]) continue;
+        double x, y;
+        truth(i, f, &x, &y);
+        detection(10 + i, x + 0.2 * nrand(), y + 0.2 * nrand(), &d[n++]);
+    }
+    for (int k = 0; k < nextra; k++) d[n++] = extra[k];
+    const sh_detection *dp[1] = {d};
+    assert_int_equal(sh_tracker_update(t, dp, &n, 1), SH_OK);
+}
+
+static const sh_track_estimate *find(const sh_track_estimate *e, int n, int id)
+{
+    for (int k = 0; k < n; k++)
+        if (e[k].id == id) return &e[k];
+    return NULL;
+}
+
+static void test_rates_and_occlusion(void **state)
+{
+    (void)state;
+    sh_tracker *t = make(1);
+    int hidden[NM] = {0};
+    sh_track_estimate e[SH_TRACK_MAX_MARKERS];
+    double worst = 0, sum = 0;
+    int cnt = 0;
+    for (int f = 0; f < 12 * FPS; f++) {
+        /* markers 0 and 3 hidden for one second from t = 9 s */
+        hidden[0] = hidden[3] = f >= 9 * FPS && f < 10 * FPS;
+        step(t, f, hidden, NULL, 0);
+        if (!hidden[0]) continue;
+        int n = sh_tracker_estimates(t, e, SH_TRACK_MAX_MARKERS);
+        for (int i = 0; i < NM; i += 3) {
+            const sh_track_estimate *q = find(e, n, 10 + i);
+            assert_non_null(q);
+            assert_int_equal(q->status, SH_TRACK_PREDICTED);
+            assert_true(q->age > 0 && q->cov[0] > 0 && q->cov[3] > 0);
+            double x, y;
+            truth(i, f, &x, &y);
+            double err = hypot(q->pos[0] - x, q->pos[1] - y);
+            worst = fmax(worst, err);
+            sum += err;
+            cnt++;
+        }
+    }
+    sh_track_stats s;
+    sh_tracker_stats(t, &s);
+    assert_true(s.locked);
+    assert_true(fabs(s.heart_hz - FH) < 0.01 * FH);
+    assert_true(fabs(s.resp_hz - FR) < 0.05 * FR);
+    assert_true(sum / cnt < 1.0);
+    assert_true(worst < 3.0);
+    sh_tracker_destroy(t);
+}
+
+static void test_gating_duplicates_unknown(void **state)
+{
+    (void)state;
+    sh_tracker *t = make(1);
+    for (int f = 0; f < 8 * FPS; f++) step(t, f, NULL, NULL, 0);
+    sh_track_stats s0, s1;
+    sh_tracker_stats(t, &s0);
+    sh_track_estimate e[SH_TRACK_MAX_MARKERS];
+    int f = (int)(8 * FPS);
+    /* marker 1 detected 25 px off (and not at its place): gated, not measured */
+    {
+        int hidden[NM] = {0};
+        hidden[1] = 1;
+        double x, y;
+        truth(1, f, &x, &y);
+        sh_detection bad;
+        detection(11, x + 25, y, &bad);
+        step(t, f, hidden, &bad, 1);
+        sh_tracker_stats(t, &s1);
+        assert_int_equal(s1.gated, s0.gated + 1);
+        int n = sh_tracker_estimates(t, e, SH_TRACK_MAX_MARKERS);
+        const sh_track_estimate *q = find(e, n, 11);
+        assert_int_equal(q->status, SH_TRACK_PREDICTED);
+        assert_true(hypot(q->pos[0] - x, q->pos[1] - y) < 1.0);
+    }
+    /* marker 2 twice (one at its place): both unused; an id not in the list: unknown */
+    {
+        f++;
+        double x, y;
+        truth(2, f, &x, &y);
+        sh_detection extra[2];
+        detection(12, x + 200, y + 50, &extra[0]);
+        detection(99, 100, 100, &extra[1]);
+        step(t, f, NULL, extra, 2);
+        sh_track_stats s2;
+        sh_tracker_stats(t, &s2);
+        assert_int_equal(s2.duplicates, s1.duplicates + 2);
+        assert_int_equal(s2.unknown, s1.unknown + 1);
+        int n = sh_tracker_estimates(t, e, SH_TRACK_MAX_MARKERS);
+        assert_int_equal(n, NM);
+        assert_null(find(e, n, 99));
+        assert_int_equal(find(e, n, 12)->status, SH_TRACK_PREDICTED);
+        assert_int_equal(find(e, n, 13)->status, SH_TRACK_MEASURED);
+    }
+    sh_tracker_destroy(t);
+}
+
+static void test_lost_and_reacquired(void **state)
+{
+    (void)state;
+    sh_tracker *t = make(1);
+    int hidden[NM] = {0};
+    sh_track_estimate e[SH_TRACK_MAX_MARKERS];
+    sh_window w;
+    int c;
+    for (int f = 0; f < 8 * FPS; f++) step(t, f, NULL, NULL, 0);
+    assert_int_equal(sh_tracker_reacquire(t, 0, &w, &c), SH_OK);
+    assert_int_equal(c, 0); /* every listed marker tracked: no full-frame scan */
+    hidden[4] = 1;
+    int f = (int)(8 * FPS);
+    for (; f < 11 * FPS; f++) step(t, f, hidden, NULL, 0);
+    int n = sh_tracker_estimates(t, e, SH_TRACK_MAX_MARKERS);
+    const sh_track_estimate *q = find(e, n, 14);
+    assert_int_equal(q->status, SH_TRACK_LOST);
+    assert_true(isnan(q->pos[0]));
+    sh_track_stats s;
+    sh_tracker_stats(t, &s);
+    assert_int_equal(s.lost, 1);
+    /* reacquisition: bands over the frame in turn while the marker stays lost */
+    int covered[720] = {0};
+    for (int k = 0; k < 4; k++, f++) {
+        assert_int_equal(sh_tracker_predict(t, f), SH_OK);
+        assert_int_equal(sh_tracker_reacquire(t, 0, &w, &c), SH_OK);
+        assert_int_equal(c, 1);
+        assert_true(w.x == 0 && w.width == 1280 && w.y >= 0 && w.y + w.height <= 720);
+        for (int y = w.y; y < w.y + w.height; y++) covered[y] = 1;
+        sh_detection d[NM];
+        int nn = 0;
+        for (int i = 0; i < NM; i++) {
+            if (hidden[i]) continue;
+            double x, y;
+            truth(i, f, &x, &y);
+            detection(10 + i, x, y, &d[nn++]);
+        }
+        const sh_detection *dq[1] = {d};
+        assert_int_equal(sh_tracker_update(t, dq, &nn, 1), SH_OK);
+    }
+    for (int y = 0; y < 720; y++) assert_true(covered[y]);
+    /* back in view: found again from its (grown) prediction */
+    step(t, f, NULL, NULL, 0);
+    n = sh_tracker_estimates(t, e, SH_TRACK_MAX_MARKERS);
+    q = find(e, n, 14);
+    assert_int_equal(q->status, SH_TRACK_MEASURED);
+    sh_tracker_destroy(t);
+}
+
+static void test_windows_hold_truth(void **state)
+{
+    (void)state;
+    sh_tracker *t = make(1);
+    int f;
+    for (f = 0; f < 6 * FPS; f++) step(t, f, NULL, NULL, 0);
+    assert_int_equal(sh_tracker_predict(t, f), SH_OK);
+    sh_window w[SH_TRACK_MAX_MARKERS];
+    int n;
+    assert_int_equal(sh_tracker_windows(t, 0, w, SH_TRACK_MAX_MARKERS, &n), SH_OK);
+    assert_int_equal(n, NM);
+    for (int i = 0; i < NM; i++) {
+        double x, y;
+        truth(i, f, &x, &y);
+        int inside = 0;
+        for (int k = 0; k < n; k++)
+            inside |= x - 20 >= w[k].x && x + 20 <= w[k].x + w[k].width && y - 20 >= w[k].y &&
+                      y + 20 <= w[k].y + w[k].height;
+        assert_true(inside); /* the whole tag */
+        assert_true(w[i].width < 200 && w[i].height < 200);
+    }
+    sh_tracker_destroy(t);
+}
+
+/* auto ids: a tag that does not move with the heart is never confirmed */
+static void test_auto_ids_refuse_still_tag(void **state)
+{
+    (void)state;
+    sh_tracker *t = make(0);
+    for (int f = 0; f < 10 * FPS; f++) {
+        sh_detection still;
+        detection(77, 900 + 0.2 * nrand(), 150 + 0.2 * nrand(), &still);
+        step(t, f, NULL, &still, 1);
+    }
+    sh_track_estimate e[SH_TRACK_MAX_MARKERS];
+    int n = sh_tracker_estimates(t, e, SH_TRACK_MAX_MARKERS);
+    assert_int_equal(n, NM + 1);
+    for (int k = 0; k < n; k++) assert_int_equal(e[k].confirmed, e[k].id != 77);
+    sh_tracker_destroy(t);
+}
+
+static void test_bad_input(void **state)
+{
+    (void)state;
+    sh_track_options o;
+    sh_track_options_default(&o);
+    sh_tracker *t = NULL;
+    assert_int_equal(sh_tracker_create(&o, NULL, &t), SH_EINVAL); /* no fps */
+    o.fps = 30;
+    o.width = 640;
+    o.height = 480;
+    int ids[2] = {3, 3};
+    o.ids = ids;
+    o.num_ids = 2;
+    assert_int_equal(sh_tracker_create(&o, NULL, &t), SH_EINVAL);
+    o.num_ids = SH_TRACK_MAX_MARKERS + 1;
+    assert_int_equal(sh_tracker_create(&o, NULL, &t), SH_ERANGE);
+    o.num_ids = 0;
+    o.ids = NULL;
+    o.heart_harmonics = SH_TRACK_MAX_HEART_HARMONICS + 1;
+    assert_int_equal(sh_tracker_create(&o, NULL, &t), SH_EINVAL);
+    o.heart_harmonics = 3;
+    assert_int_equal(sh_tracker_create(&o, NULL, &t), SH_OK);
+    sh_detection d;
+    detection(1, 10, 10, &d);
+    const sh_detection *dp[1] = {&d};
+    int n = 1;
+    assert_int_equal(sh_tracker_update(t, dp, &n, 1), SH_EINVAL); /* predict first */
+    assert_int_equal(sh_tracker_predict(t, 5), SH_OK);
+    assert_int_equal(sh_tracker_update(t, dp, &n, 2), SH_EINVAL); /* cameras */
+    n = SH_TRACK_MAX_DETECTIONS + 1;
+    assert_int_equal(sh_tracker_update(t, dp, &n, 1), SH_ERANGE);
+    n = 1;
+    assert_int_equal(sh_tracker_update(t, dp, &n, 1), SH_OK);
+    assert_int_equal(sh_tracker_update(t, dp, &n, 1), SH_EINVAL); /* twice */
+    assert_int_equal(sh_tracker_predict(t, 4), SH_EINVAL);      /* backwards */
+    sh_window w;
+    int c;
+    assert_int_equal(sh_tracker_windows(t, 1, &w, 1, &c), SH_EINVAL);
+    d.cx = NAN;
+    assert_int_equal(sh_tracker_predict(t, 6), SH_OK);
+    assert_int_equal(sh_tracker_update(t, dp, &n, 1), SH_OK); /* counted, not used */
+    sh_track_stats s;
+    sh_tracker_stats(t, &s);
+    assert_int_equal(s.unknown, 1);
+    sh_tracker_destroy(t);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_rates_and_occlusion),
+        cmocka_unit_test(test_gating_duplicates_unknown),
+        cmocka_unit_test(test_lost_and_reacquired),
+        cmocka_unit_test(test_windows_hold_truth),
+        cmocka_unit_test(test_auto_ids_refuse_still_tag),
+        cmocka_unit_test(test_bad_input),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
