@@ -6,10 +6,12 @@ ifeq ($(call have,osmesa)$(call have,apriltag),11)
 
 $(BUILD)/tools/warp3d/tests/%.o: tools/warp3d/tests/%.c
 	@mkdir -p $(dir $@)
-	$(CC) $(CFLAGS_ALL) -Itools/phantom -Itools/phantom/tests -c $< -o $@
+	$(CC) $(CFLAGS_ALL) -Itools/phantom -Itools/phantom/tests \
+		-DAPP_BIN='"$(abspath $(BUILD))/stillheart"' -DEVAL_BIN='"$(abspath $(BUILD))/stillheart-eval"' -c $< -o $@
 
 $(BUILD)/tests/test_warp3d_phantom: $(BUILD)/tools/warp3d/tests/test_warp3d_phantom.o \
-		$(BUILD)/tools/phantom/tests/phantom_testutil.o $(BUILD)/libphantom.a $(LIB) $(BUILD)/stillheart-render
+		$(BUILD)/tools/phantom/tests/phantom_testutil.o $(BUILD)/libphantom.a $(LIB) $(BUILD)/stillheart-render \
+		$(APP) $(BUILD)/stillheart-eval
 	@mkdir -p $(dir $@)
 	$(CC) $(LDFLAGS) $(filter %.o,$^) $(BUILD)/libphantom.a $(LIB) $(shell $(PKG_CONFIG) --libs cmocka) \
 		$(LDLIBS_ALL) -o $@

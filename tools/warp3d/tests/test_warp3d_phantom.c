@@ -14,6 +14,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <cmocka.h>
@@ -299,6 +300,56 @@ static void test_ply_invivo(void **state)
     ply_on_true_surface("invivo", 2);
 }
 
+/* The command: a stereo pair (side by side) from the phantom's ground truth, PLY export, and
+ * refusals. */
+static int run(const char *args)
+{
+    char cmd[8192];
+    snprintf(cmd, sizeof cmd, "'%s' warp3d %s >/dev/null 2>&1", APP_BIN, args);
+    int rc = system(cmd);
+    return rc == -1 ? -1 : WEXITSTATUS(rc);
+}
+
+static void test_cli(void **state)
+{
+    (void)state;
+    const char *dir = pt_render(3, "--preset exvivo --frames 3 --cameras 2 --width 320 --height 180");
+    assert_non_null(dir);
+    char args[4096], cmd[4096];
+    snprintf(cmd, sizeof cmd, "'%s' --truth '%s' --export-points '%s/p3.csv' --camera 1", EVAL_BIN,
+             dir, dir);
+    assert_int_equal(system(cmd), 0);
+    snprintf(args, sizeof args,
+             "--quiet --cameras '%s/calibration.yaml' --points '%s/p3.csv' --camera 1 --view stereo "
+             "--baseline 8 --export-ply '%s/ply' --ply-mesh '%s/cam1.y4m' '%s/sbs.y4m'",
+             dir, dir, dir, dir, dir);
+    assert_int_equal(run(args), 0);
+    snprintf(cmd, sizeof cmd, "%s/sbs.y4m", dir);
+    FILE *f = fopen(cmd, "rb");
+    assert_non_null(f);
+    char line[256];
+    assert_non_null(fgets(line, sizeof line, f));
+    fclose(f);
+    assert_non_null(strstr(line, " W640 H180 "));
+    snprintf(cmd, sizeof cmd, "%s/ply/frame_000002.ply", dir);
+    f = fopen(cmd, "rb");
+    assert_non_null(f);
+    fclose(f);
+    assert_int_equal(run("--help"), 0);
+    snprintf(args, sizeof args, "--cameras '%s/calibration.yaml' --points '%s/p3.csv' --view sideways "
+             "'%s/cam1.y4m' '%s/x.y4m'", dir, dir, dir, dir);
+    assert_int_equal(run(args), 2);
+    snprintf(args, sizeof args, "--cameras '%s/calibration.yaml' --points '%s/p3.csv' --camera 3 "
+             "'%s/cam1.y4m' '%s/x.y4m'", dir, dir, dir, dir);
+    assert_int_equal(run(args), 1);
+    /* a 2D points file has no X,Y,Z */
+    snprintf(cmd, sizeof cmd, "printf 'frame,id,x,y\\n0,1,2,3\\n' > '%s/p2.csv'", dir);
+    assert_int_equal(system(cmd), 0);
+    snprintf(args, sizeof args, "--cameras '%s/calibration.yaml' --points '%s/p2.csv' "
+             "'%s/cam0.y4m' '%s/x.y4m'", dir, dir, dir, dir);
+    assert_int_equal(run(args), 1);
+}
+
 static int teardown(void **state)
 {
     (void)state;
@@ -313,6 +364,7 @@ int main(void)
         cmocka_unit_test(test_invivo_3d_vs_2d),
         cmocka_unit_test(test_ply_exvivo),
         cmocka_unit_test(test_ply_invivo),
+        cmocka_unit_test(test_cli),
     };
     return cmocka_run_group_tests(tests, NULL, teardown);
 }
