@@ -12,6 +12,7 @@ static const struct {
     {"warp", cmd_warp, "stabilize a Y4M video from a points file (paper Algorithm 1)"},
     {"detect", cmd_detect, "print every AprilTag detection of a video or image as CSV"},
     {"warp3d", cmd_warp3d, "3D stabilization, stereo and virtual views, PLY export (paper Algorithm 2)"},
+    {"track", cmd_track, "track the markers of a video (Kalman, 2D or 3D) into a points file"},
 };
 
 static void usage(FILE *out)

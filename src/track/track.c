@@ -1156,7 +1156,9 @@ sh_status sh_tracker_update(sh_tracker *t, const sh_detection *const *det, const
         }
     }
     /* reported estimates */
-    int lost_frames = (int)ceil(t->o.lost_after * t->o.fps);
+    /* before the rates are known the constant-velocity model is no predictor worth reporting for
+     * more than a fifth of a second */
+    int lost_frames = (int)ceil((t->locked ? t->o.lost_after : fmin(0.2, t->o.lost_after)) * t->o.fps);
     for (int i = 0; i < t->nm; i++) {
         marker *mk = &t->m[i];
         if (!mk->init) continue;
