@@ -6,6 +6,19 @@
 #   make install      PREFIX=/usr/local DESTDIR=
 # Optional backends are built only when pkg-config (or the header) finds their library.
 
+# Cross build (docs/arm64.md, tools/cross/cross.mk): make CROSS_COMPILE=aarch64-linux-gnu- takes
+# the cross toolchain, the target's pkg-config folders only (+ libapriltag-dev unpacked by
+# scripts/install-deps.sh --arm64) and a build folder of its own.
+ifneq ($(CROSS_COMPILE),)
+CROSS_ARCH  ?= $(patsubst aarch64,arm64,$(firstword $(subst -, ,$(CROSS_COMPILE))))
+CROSS_MULTIARCH := $(CROSS_COMPILE:%-=%)
+ARM64_CACHE ?= /var/cache/stillheart/arm64
+CC          := $(CROSS_COMPILE)gcc
+CXX         := $(CROSS_COMPILE)g++
+AR          := $(CROSS_COMPILE)ar
+PKG_CONFIG  := PKG_CONFIG_LIBDIR=/usr/lib/$(CROSS_MULTIARCH)/pkgconfig:/usr/share/pkgconfig:$(ARM64_CACHE)/pkgconfig pkg-config
+BUILD       ?= build-$(CROSS_ARCH)
+endif
 CC       ?= cc
 CXX      ?= c++
 ifeq ($(origin CC),default)
@@ -52,7 +65,7 @@ LDLIBS_ALL += $(shell $(PKG_CONFIG) --libs libpng)
 endif
 
 # OpenCV, for benchmarks and test oracles only (Debian's -core/-imgproc packages ship no .pc).
-OPENCV_INC := $(firstword $(wildcard /usr/include/opencv4))
+OPENCV_INC := $(if $(CROSS_COMPILE),,$(firstword $(wildcard /usr/include/opencv4)))
 ifneq ($(OPENCV_INC),)
 OPENCV_CFLAGS := -I$(OPENCV_INC)
 OPENCV_LIBS   := -lopencv_imgproc -lopencv_core
