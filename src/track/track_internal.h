@@ -1,0 +1,84 @@
+/* Private to src/track: the tracker's state and the pieces its files share
+ * (track.c: create and the per-frame steps; filter.c: the Kalman filter of one coordinate;
+ * rates.c: the heartbeat and respiration rates from all markers' recent tracks). */
+#ifndef STILLHEART_TRACK_INTERNAL_H
+#define STILLHEART_TRACK_INTERNAL_H
+
+#include "stillheart/camera.h"
+#include "stillheart/track.h"
+
+#define PI 3.14159265358979323846
+#define HMAX SH_TRACK_MAX_HEART_HARMONICS
+#define RMAX SH_TRACK_MAX_RESP_HARMONICS
+#define NS (2 + 2 * (HMAX + RMAX)) /* state: p, v, heart pairs, resp pairs */
+#define NC (2 + 2 * (HMAX + RMAX)) /* LS fit: mean, trend, heart pairs, resp pairs */
+#define MAXM SH_TRACK_MAX_MARKERS
+#define MAXC SH_TRACK_MAX_CAMERAS
+#define RATE_SERIES 16            /* series used for the periodogram (largest variance) */
+
+typedef struct {
+    double x[NS];
+    double P[NS * NS];
+} axis_filter;
+
+typedef struct {
+    int id;
+    int init;              /* filter initialised */
+    int confirmed;
+    int lost;
+    int age, seen;
+    int measured;          /* accepted detection this frame */
+    int spatial;           /* reported estimate used neighbours this frame */
+    axis_filter f[3];
+    double extent[MAXC];   /* apparent half-size (centre to farthest corner), px; 0 unknown */
+    int last_frame;        /* frame of the last accepted detection */
+    int rejects;           /* consecutive frames with this id's detections gated away */
+    double rej_sum[2], rej_ss; /* their offsets from the prediction (px): sum, sum of squares */
+    /* reported (possibly fused) estimate */
+    double pos[3], cov[9];
+    /* this frame's per-camera detection bookkeeping */
+    int ndet[MAXC];
+    int det[MAXC];
+} marker;
+
+struct sh_tracker {
+    sh_track_options o;
+    int ids[MAXM];
+    int num_ids;
+    int dim, ncam;
+    sh_calib calib;
+    const sh_calib_camera *cams[MAXC];
+    double unit;           /* state units per pixel (1 in 2D; mm/px in 3D, from the first point) */
+    int frame, started, updated;
+    double dt;
+    int nm;
+    marker m[MAXM];
+    /* rates */
+    int locked, nh, nr;    /* nh, nr: active heart / resp harmonics */
+    double fh, fr;
+    int next_rates;        /* frame of the next rate estimate */
+    /* history: one sample every decim frames, ring of SH_TRACK_HISTORY */
+    int decim;
+    long hist_last;        /* last sample index cleared (-1 none) */
+    float *hist;           /* [MAXM][3][SH_TRACK_HISTORY] */
+    double *scratch;       /* [MAXM * 3][SH_TRACK_HISTORY] detrended series */
+    int band;
+    /* spatial model: every marker's filter state in each of the last ring_len frames */
+    int ring_len;
+    double *ring_x;        /* [ring_len][MAXM][3][NS] */
+    unsigned char *ring_ok;/* [ring_len][MAXM]: measured in that frame */
+    int *ring_frame;       /* [ring_len] */
+    sh_track_stats stats;
+};
+
+double trk_hx(const sh_tracker *t, const axis_filter *f);
+void trk_h_row(const sh_tracker *t, double *h);
+double trk_hph(const sh_tracker *t, const axis_filter *f);
+void trk_transition(const sh_tracker *t, double dt, double *F);
+void trk_predict_filter(const sh_tracker *t, axis_filter *f, const double *F, double dt);
+void trk_update_filter(const sh_tracker *t, axis_filter *f, double z, double r);
+void trk_init_filter(axis_filter *f, double z, double r, double vvar);
+void trk_estimate_rates(sh_tracker *t);
+float *trk_hist_at(sh_tracker *t, int mi, int a);
+
+#endif
