@@ -1,0 +1,471 @@
+/* Camera pixel formats to GRAY8 / I420 / RGB24 (see pixconv.h for the conventions).
+ *
+ * BT.601 limited range, from the luma weights Kr = 0.299, Kb = 0.114, Kg = 1 - Kr - Kb:
+ *   Y' = (Y - 16) 255/219,  Cb = (U - 128) 255/224,  Cr = (V - 128) 255/224
+ *   R = Y' + 2(1-Kr) Cr,  G = Y' - (2Kb(1-Kb) Cb + 2Kr(1-Kr) Cr) / Kg,  B = Y' + 2(1-Kb) Cb
+ * and the inverse for RGB input. Fixed point with 14 fractional bits: every product fits in
+ * int32 and the loops are plain element-wise code gcc vectorizes at -O3. */
+#include "stillheart/pixconv.h"
+
+#include <stdlib.h>
+#include <string.h>
+#include <strings.h>
+
+#include <linux/videodev2.h>
+
+#ifdef SH_HAVE_TURBOJPEG
+#include <turbojpeg.h>
+#endif
+
+#define KR 0.299
+#define KB 0.114
+#define KG (1.0 - KR - KB)
+#define SHIFT 14
+#define FIX(x) ((int32_t)((x) * (1 << SHIFT) + ((x) < 0 ? -0.5 : 0.5)))
+#define HALF (1 << (SHIFT - 1))
+
+/* YUV -> RGB */
+#define C_Y FIX(255.0 / 219.0)
+#define C_RV FIX(2.0 * (1.0 - KR) * 255.0 / 224.0)
+#define C_GU FIX(-2.0 * KB * (1.0 - KB) / KG * 255.0 / 224.0)
+#define C_GV FIX(-2.0 * KR * (1.0 - KR) / KG * 255.0 / 224.0)
+#define C_BU FIX(2.0 * (1.0 - KB) * 255.0 / 224.0)
+/* RGB -> YUV */
+#define C_YR FIX(KR * 219.0 / 255.0)
+#define C_YG FIX(KG * 219.0 / 255.0)
+#define C_YB FIX(KB * 219.0 / 255.0)
+#define C_UR FIX(-KR / (2.0 * (1.0 - KB)) * 224.0 / 255.0)
+#define C_UG FIX(-KG / (2.0 * (1.0 - KB)) * 224.0 / 255.0)
+#define C_UB FIX(0.5 * 224.0 / 255.0)
+#define C_VR FIX(0.5 * 224.0 / 255.0)
+#define C_VG FIX(-KG / (2.0 * (1.0 - KR)) * 224.0 / 255.0)
+#define C_VB FIX(-KB / (2.0 * (1.0 - KR)) * 224.0 / 255.0)
+
+static inline uint8_t clip(int32_t v)
+{
+    v >>= SHIFT;
+    return (uint8_t)(v < 0 ? 0 : v > 255 ? 255 : v);
+}
+
+static const struct {
+    const char *name;
+    uint32_t fourcc;
+} formats[SH_RAW_COUNT] = {
+    [SH_RAW_GREY] = {"GREY", V4L2_PIX_FMT_GREY},   [SH_RAW_YUYV] = {"YUYV", V4L2_PIX_FMT_YUYV},
+    [SH_RAW_NV12] = {"NV12", V4L2_PIX_FMT_NV12},   [SH_RAW_RGB24] = {"RGB24", V4L2_PIX_FMT_RGB24},
+    [SH_RAW_BGR24] = {"BGR24", V4L2_PIX_FMT_BGR24}, [SH_RAW_MJPEG] = {"MJPEG", V4L2_PIX_FMT_MJPEG},
+    [SH_RAW_I420] = {"I420", V4L2_PIX_FMT_YUV420}, [SH_RAW_YUV444] = {"YUV444", V4L2_PIX_FMT_YUV444M},
+};
+
+const char *sh_rawfmt_name(sh_rawfmt format)
+{
+    return (unsigned)format < SH_RAW_COUNT ? formats[format].name : "unknown";
+}
+
+sh_status sh_rawfmt_parse(const char *name, sh_rawfmt *out)
+{
+    static const struct {
+        const char *alias;
+        sh_rawfmt f;
+    } aliases[] = {{"gray8", SH_RAW_GREY}, {"gray", SH_RAW_GREY}, {"rgb", SH_RAW_RGB24},
+                   {"bgr", SH_RAW_BGR24}, {"mjpg", SH_RAW_MJPEG}, {"jpeg", SH_RAW_MJPEG},
+                   {"yuv420", SH_RAW_I420}, {"yuyv422", SH_RAW_YUYV}};
+    if (!name || !out) return sh_error_set(SH_EINVAL, "pixel format: no name");
+    for (int i = 0; i < SH_RAW_COUNT; i++)
+        if (!strcasecmp(name, formats[i].name)) return *out = (sh_rawfmt)i, SH_OK;
+    for (size_t i = 0; i < sizeof aliases / sizeof aliases[0]; i++)
+        if (!strcasecmp(name, aliases[i].alias)) return *out = aliases[i].f, SH_OK;
+    return sh_error_set(SH_EUNSUPPORTED,
+                        "pixel format '%s' unknown (GREY, YUYV, NV12, RGB24, BGR24, MJPEG, I420, YUV444)",
+                        name);
+}
+
+uint32_t sh_rawfmt_fourcc(sh_rawfmt format)
+{
+    return (unsigned)format < SH_RAW_COUNT ? formats[format].fourcc : 0;
+}
+
+sh_status sh_rawfmt_from_fourcc(uint32_t fourcc, sh_rawfmt *out)
+{
+    for (int i = 0; i < SH_RAW_COUNT; i++)
+        if (formats[i].fourcc == fourcc) return *out = (sh_rawfmt)i, SH_OK;
+    if (fourcc == V4L2_PIX_FMT_JPEG) return *out = SH_RAW_MJPEG, SH_OK;
+    if (fourcc == V4L2_PIX_FMT_YUV444) return *out = SH_RAW_YUV444, SH_OK;
+    return sh_error_set(SH_EUNSUPPORTED, "pixel format %c%c%c%c not supported", (char)(fourcc & 0xff),
+                        (char)((fourcc >> 8) & 0xff), (char)((fourcc >> 16) & 0xff),
+                        (char)((fourcc >> 24) & 0xff));
+}
+
+int sh_rawfmt_min_stride(sh_rawfmt format, int width)
+{
+    if (width <= 0 || width > SH_IMAGE_MAX_SIZE) return 0;
+    switch (format) {
+    case SH_RAW_GREY: case SH_RAW_NV12: case SH_RAW_I420: case SH_RAW_YUV444: return width;
+    case SH_RAW_YUYV: return 2 * width;
+    case SH_RAW_RGB24: case SH_RAW_BGR24: return 3 * width;
+    default: return 0;
+    }
+}
+
+static int even_needed(sh_rawfmt f) { return f == SH_RAW_YUYV || f == SH_RAW_NV12 || f == SH_RAW_I420; }
+
+size_t sh_raw_frame_size(sh_rawfmt format, int width, int height, int stride)
+{
+    int min = sh_rawfmt_min_stride(format, width);
+    if (!min || stride < min || height <= 0 || height > SH_IMAGE_MAX_SIZE) return 0;
+    if (even_needed(format) && ((width | height) & 1)) return 0;
+    size_t rows = (size_t)stride * (size_t)height;
+    switch (format) {
+    case SH_RAW_NV12: return rows + rows / 2;
+    case SH_RAW_I420: return rows + 2 * ((size_t)(stride / 2) * (size_t)(height / 2));
+    case SH_RAW_YUV444: return 3 * rows;
+    default: return rows;
+    }
+}
+
+sh_status sh_raw_check(const sh_raw *s)
+{
+    if (!s || (unsigned)s->format >= SH_RAW_COUNT)
+        return sh_error_set(SH_EINVAL, "raw frame: bad format");
+    if (s->width <= 0 || s->height <= 0 || s->width > SH_IMAGE_MAX_SIZE || s->height > SH_IMAGE_MAX_SIZE)
+        return sh_error_set(SH_EFORMAT, "raw %s frame: bad size %dx%d", sh_rawfmt_name(s->format),
+                            s->width, s->height);
+    if (!s->data) return sh_error_set(SH_EINVAL, "raw frame: no data");
+    if (s->format == SH_RAW_MJPEG) return s->bytes ? SH_OK : sh_error_set(SH_EFORMAT, "MJPEG frame: empty");
+    if (even_needed(s->format) && ((s->width | s->height) & 1))
+        return sh_error_set(SH_EFORMAT, "raw %s frame: odd size %dx%d", sh_rawfmt_name(s->format),
+                            s->width, s->height);
+    size_t need = sh_raw_frame_size(s->format, s->width, s->height, s->stride);
+    if (!need)
+        return sh_error_set(SH_EFORMAT, "raw %s frame: stride %d too small for width %d",
+                            sh_rawfmt_name(s->format), s->stride, s->width);
+    if (s->bytes < need)
+        return sh_error_set(SH_EFORMAT, "raw %s frame %dx%d: %zu bytes, %zu needed", sh_rawfmt_name(s->format),
+                            s->width, s->height, s->bytes, need);
+    return SH_OK;
+}
+
+/* ---- row kernels ---- */
+
+static void yuyv_row_gray(const uint8_t *restrict s, uint8_t *restrict y, int w)
+{
+    for (int x = 0; x < w; x++) y[x] = s[2 * x];
+}
+
+static void yuv_pair_rgb(uint8_t *restrict o, int y, int u, int v)
+{
+    int32_t yy = C_Y * (y - 16) + HALF;
+    int32_t r = C_RV * (v - 128), g = C_GU * (u - 128) + C_GV * (v - 128), b = C_BU * (u - 128);
+    o[0] = clip(yy + r);
+    o[1] = clip(yy + g);
+    o[2] = clip(yy + b);
+}
+
+static void yuyv_row_rgb(const uint8_t *restrict s, uint8_t *restrict o, int w)
+{
+    for (int x = 0; x < w; x += 2) {
+        int u = s[2 * x + 1], v = s[2 * x + 3];
+        yuv_pair_rgb(o + 3 * x, s[2 * x], u, v);
+        yuv_pair_rgb(o + 3 * x + 3, s[2 * x + 2], u, v);
+    }
+}
+
+/* NV12 or I420 rows: chroma at half width, from interleaved (step 2) or planar (step 1) rows. */
+static void yuv420_row_rgb(const uint8_t *restrict y, const uint8_t *restrict u, const uint8_t *restrict v,
+                           int step, uint8_t *restrict o, int w)
+{
+    for (int x = 0; x < w; x++) yuv_pair_rgb(o + 3 * x, y[x], u[(x >> 1) * step], v[(x >> 1) * step]);
+}
+
+static void rgb_row_y(const uint8_t *restrict s, int ri, int bi, uint8_t *restrict y, int w)
+{
+    for (int x = 0; x < w; x++) {
+        int32_t v = C_YR * s[3 * x + ri] + C_YG * s[3 * x + 1] + C_YB * s[3 * x + bi] + (16 << SHIFT) + HALF;
+        y[x] = (uint8_t)(v >> SHIFT); /* 16..235 by construction */
+    }
+}
+
+/* Chroma of a 2x2 block from the sums of R, G, B over it (sums of 4: one more factor 1/4). */
+static void rgb_rows_uv(const uint8_t *restrict s0, const uint8_t *restrict s1, int ri, int bi,
+                        uint8_t *restrict u, uint8_t *restrict v, int cw)
+{
+    for (int x = 0; x < cw; x++) {
+        int r = s0[6 * x + ri] + s0[6 * x + 3 + ri] + s1[6 * x + ri] + s1[6 * x + 3 + ri];
+        int g = s0[6 * x + 1] + s0[6 * x + 4] + s1[6 * x + 1] + s1[6 * x + 4];
+        int b = s0[6 * x + bi] + s0[6 * x + 3 + bi] + s1[6 * x + bi] + s1[6 * x + 3 + bi];
+        int32_t uu = C_UR * r + C_UG * g + C_UB * b + (128 << (SHIFT + 2)) + (1 << (SHIFT + 1));
+        int32_t vv = C_VR * r + C_VG * g + C_VB * b + (128 << (SHIFT + 2)) + (1 << (SHIFT + 1));
+        u[x] = (uint8_t)(uu >> (SHIFT + 2));
+        v[x] = (uint8_t)(vv >> (SHIFT + 2));
+    }
+}
+
+static void copy_rows(const uint8_t *s, int ss, uint8_t *d, int ds, int bytes, int rows)
+{
+    for (int r = 0; r < rows; r++) memcpy(d + (size_t)r * ds, s + (size_t)r * ss, (size_t)bytes);
+}
+
+static void fill_rows(uint8_t *d, int ds, int bytes, int rows, uint8_t value)
+{
+    for (int r = 0; r < rows; r++) memset(d + (size_t)r * ds, value, (size_t)bytes);
+}
+
+/* ---- MJPEG ---- */
+
+struct sh_pixconv {
+    int max_w, max_h;
+    uint8_t *scratch; /* native-subsampling planes of one frame */
+#ifdef SH_HAVE_TURBOJPEG
+    tjhandle tj;
+#endif
+};
+
+sh_status sh_pixconv_create(int max_width, int max_height, sh_pixconv **out)
+{
+    if (!out || max_width <= 0 || max_height <= 0 || max_width > SH_IMAGE_MAX_SIZE ||
+        max_height > SH_IMAGE_MAX_SIZE)
+        return sh_error_set(SH_EINVAL, "pixconv: bad maximum size %dx%d", max_width, max_height);
+    sh_pixconv *c = calloc(1, sizeof *c);
+    if (!c) return sh_error_set(SH_ENOMEM, "pixconv: out of memory");
+    c->max_w = max_width;
+    c->max_h = max_height;
+    /* 4:4:4 planes, rounded up to the MCU (16 px) in each direction. */
+    size_t w16 = ((size_t)max_width + 15) & ~(size_t)15, h16 = ((size_t)max_height + 15) & ~(size_t)15;
+    c->scratch = malloc(3 * w16 * h16);
+#ifdef SH_HAVE_TURBOJPEG
+    c->tj = tjInitDecompress();
+    if (!c->scratch || !c->tj) {
+        sh_pixconv_destroy(c);
+        return sh_error_set(SH_ENOMEM, "pixconv: cannot create the JPEG decoder");
+    }
+#else
+    if (!c->scratch) {
+        sh_pixconv_destroy(c);
+        return sh_error_set(SH_ENOMEM, "pixconv: out of memory");
+    }
+#endif
+    *out = c;
+    return SH_OK;
+}
+
+void sh_pixconv_destroy(sh_pixconv *c)
+{
+    if (!c) return;
+#ifdef SH_HAVE_TURBOJPEG
+    if (c->tj) tjDestroy(c->tj);
+#endif
+    free(c->scratch);
+    free(c);
+}
+
+#ifdef SH_HAVE_TURBOJPEG
+static sh_status mjpeg_convert(sh_pixconv *c, const sh_raw *s, sh_image *d)
+{
+    if (!c) return sh_error_set(SH_EINVAL, "MJPEG: no decoder (sh_pixconv_create)");
+    int w, h, sub, cs;
+    if (tjDecompressHeader3(c->tj, s->data, (unsigned long)s->bytes, &w, &h, &sub, &cs) != 0)
+        return sh_error_set(SH_EFORMAT, "MJPEG frame: %s", tjGetErrorStr2(c->tj));
+    if (w != s->width || h != s->height)
+        return sh_error_set(SH_EFORMAT, "MJPEG frame is %dx%d, %dx%d expected", w, h, s->width, s->height);
+    if (w > c->max_w || h > c->max_h)
+        return sh_error_set(SH_ERANGE, "MJPEG frame %dx%d larger than %dx%d", w, h, c->max_w, c->max_h);
+    int flags = TJFLAG_NOREALLOC | TJFLAG_STOPONWARNING;
+    if (d->format == SH_PIX_RGB24 || d->format == SH_PIX_GRAY8) {
+        int pf = d->format == SH_PIX_RGB24 ? TJPF_RGB : TJPF_GRAY;
+        if (tjDecompress2(c->tj, s->data, (unsigned long)s->bytes, d->plane[0].data, w, d->plane[0].stride, h,
+                          pf, flags) != 0)
+            return sh_error_set(SH_EFORMAT, "MJPEG frame: %s", tjGetErrorStr2(c->tj));
+        return SH_OK;
+    }
+    /* I420 */
+    d->siting = SH_CHROMA_CENTER;
+    if (sub == TJSAMP_420) {
+        unsigned char *planes[3] = {d->plane[0].data, d->plane[1].data, d->plane[2].data};
+        int strides[3] = {d->plane[0].stride, d->plane[1].stride, d->plane[2].stride};
+        if (tjDecompressToYUVPlanes(c->tj, s->data, (unsigned long)s->bytes, planes, w, strides, h, flags) != 0)
+            return sh_error_set(SH_EFORMAT, "MJPEG frame: %s", tjGetErrorStr2(c->tj));
+        return SH_OK;
+    }
+    if (sub == TJSAMP_GRAY) {
+        unsigned char *planes[3] = {d->plane[0].data, NULL, NULL};
+        int strides[3] = {d->plane[0].stride, 0, 0};
+        if (tjDecompressToYUVPlanes(c->tj, s->data, (unsigned long)s->bytes, planes, w, strides, h, flags) != 0)
+            return sh_error_set(SH_EFORMAT, "MJPEG frame: %s", tjGetErrorStr2(c->tj));
+        fill_rows(d->plane[1].data, d->plane[1].stride, d->plane[1].width, d->plane[1].height, 128);
+        fill_rows(d->plane[2].data, d->plane[2].stride, d->plane[2].width, d->plane[2].height, 128);
+        return SH_OK;
+    }
+    if (sub != TJSAMP_422 && sub != TJSAMP_444)
+        return sh_error_set(SH_EUNSUPPORTED, "MJPEG frame: chroma subsampling %d not supported", sub);
+    int cw = tjPlaneWidth(1, w, sub), chh = tjPlaneHeight(1, h, sub);
+    unsigned char *planes[3] = {d->plane[0].data, c->scratch, c->scratch + (size_t)cw * chh};
+    int strides[3] = {d->plane[0].stride, cw, cw};
+    if (tjDecompressToYUVPlanes(c->tj, s->data, (unsigned long)s->bytes, planes, w, strides, h, flags) != 0)
+        return sh_error_set(SH_EFORMAT, "MJPEG frame: %s", tjGetErrorStr2(c->tj));
+    int hs = sub == TJSAMP_444 ? 2 : 1; /* horizontal step in the native plane */
+    for (int p = 1; p <= 2; p++) {
+        sh_plane *o = &d->plane[p];
+        for (int y = 0; y < o->height; y++) {
+            const uint8_t *r0 = planes[p] + (size_t)(2 * y) * cw;
+            const uint8_t *r1 = planes[p] + (size_t)(2 * y + 1 < chh ? 2 * y + 1 : 2 * y) * cw;
+            uint8_t *q = o->data + (size_t)y * o->stride;
+            if (hs == 1) {
+                for (int x = 0; x < o->width; x++) q[x] = (uint8_t)((r0[x] + r1[x] + 1) >> 1);
+            } else {
+                for (int x = 0; x < o->width; x++) {
+                    int x1 = 2 * x + 1 < cw ? 2 * x + 1 : 2 * x;
+                    q[x] = (uint8_t)((r0[2 * x] + r0[x1] + r1[2 * x] + r1[x1] + 2) >> 2);
+                }
+            }
+        }
+    }
+    return SH_OK;
+}
+#endif
+
+/* ---- dispatch ---- */
+
+sh_status sh_pixconv_convert(sh_pixconv *conv, const sh_raw *s, sh_image *d)
+{
+    sh_status st = sh_raw_check(s);
+    if (st != SH_OK) return st;
+    if (!d || d->width != s->width || d->height != s->height)
+        return sh_error_set(SH_EINVAL, "pixconv: destination is not %dx%d", s->width, s->height);
+    if (d->format != SH_PIX_GRAY8 && d->format != SH_PIX_I420 && d->format != SH_PIX_RGB24)
+        return sh_error_set(SH_EUNSUPPORTED, "pixconv: destination %s not supported", sh_pixfmt_name(d->format));
+    if (d->format == SH_PIX_I420 && ((s->width | s->height) & 1))
+        return sh_error_set(SH_EUNSUPPORTED, "pixconv: I420 needs an even size, not %dx%d", s->width, s->height);
+    const int w = s->width, h = s->height, ss = s->stride;
+    const uint8_t *src = s->data;
+    uint8_t *Y = d->plane[0].data;
+    const int ys = d->plane[0].stride;
+    uint8_t *U = d->num_planes > 1 ? d->plane[1].data : NULL, *V = d->num_planes > 2 ? d->plane[2].data : NULL;
+    const int us = d->num_planes > 1 ? d->plane[1].stride : 0, vs = d->num_planes > 2 ? d->plane[2].stride : 0;
+    const int cw = w / 2, ch = h / 2;
+
+    switch (s->format) {
+    case SH_RAW_MJPEG:
+#ifdef SH_HAVE_TURBOJPEG
+        return mjpeg_convert(conv, s, d);
+#else
+        (void)conv;
+        return sh_error_set(SH_EUNSUPPORTED, "MJPEG: built without libturbojpeg");
+#endif
+    case SH_RAW_GREY:
+        if (d->format == SH_PIX_RGB24) {
+            for (int y = 0; y < h; y++) {
+                const uint8_t *r = src + (size_t)y * ss;
+                uint8_t *o = Y + (size_t)y * ys;
+                for (int x = 0; x < w; x++) o[3 * x] = o[3 * x + 1] = o[3 * x + 2] = r[x];
+            }
+            return SH_OK;
+        }
+        copy_rows(src, ss, Y, ys, w, h);
+        if (d->format == SH_PIX_I420) {
+            d->siting = SH_CHROMA_CENTER;
+            fill_rows(U, us, cw, ch, 128);
+            fill_rows(V, vs, cw, ch, 128);
+        }
+        return SH_OK;
+    case SH_RAW_YUYV:
+        if (d->format == SH_PIX_RGB24) {
+            for (int y = 0; y < h; y++) yuyv_row_rgb(src + (size_t)y * ss, Y + (size_t)y * ys, w);
+            return SH_OK;
+        }
+        for (int y = 0; y < h; y++) yuyv_row_gray(src + (size_t)y * ss, Y + (size_t)y * ys, w);
+        if (d->format == SH_PIX_I420) {
+            d->siting = SH_CHROMA_LEFT;
+            for (int y = 0; y < ch; y++) {
+                const uint8_t *r0 = src + (size_t)(2 * y) * ss, *r1 = r0 + ss;
+                uint8_t *u = U + (size_t)y * us, *v = V + (size_t)y * vs;
+                for (int x = 0; x < cw; x++) {
+                    u[x] = (uint8_t)((r0[4 * x + 1] + r1[4 * x + 1] + 1) >> 1);
+                    v[x] = (uint8_t)((r0[4 * x + 3] + r1[4 * x + 3] + 1) >> 1);
+                }
+            }
+        }
+        return SH_OK;
+    case SH_RAW_NV12:
+    case SH_RAW_I420: {
+        const uint8_t *cb = src + (size_t)ss * h, *cr;
+        int cs, step;
+        if (s->format == SH_RAW_NV12) cs = ss, step = 2, cr = cb + 1;
+        else cs = ss / 2, step = 1, cr = cb + (size_t)cs * ch;
+        if (d->format == SH_PIX_RGB24) {
+            for (int y = 0; y < h; y++)
+                yuv420_row_rgb(src + (size_t)y * ss, cb + (size_t)(y >> 1) * cs, cr + (size_t)(y >> 1) * cs, step,
+                               Y + (size_t)y * ys, w);
+            return SH_OK;
+        }
+        copy_rows(src, ss, Y, ys, w, h);
+        if (d->format == SH_PIX_I420) {
+            d->siting = SH_CHROMA_LEFT;
+            for (int y = 0; y < ch; y++) {
+                const uint8_t *b = cb + (size_t)y * cs, *r = cr + (size_t)y * cs;
+                uint8_t *u = U + (size_t)y * us, *v = V + (size_t)y * vs;
+                for (int x = 0; x < cw; x++) {
+                    u[x] = b[x * step];
+                    v[x] = r[x * step];
+                }
+            }
+        }
+        return SH_OK;
+    }
+    case SH_RAW_YUV444: {
+        const uint8_t *cb = src + (size_t)ss * h, *cr = cb + (size_t)ss * h;
+        if (d->format == SH_PIX_RGB24) {
+            for (int y = 0; y < h; y++) {
+                const uint8_t *yr = src + (size_t)y * ss, *ur = cb + (size_t)y * ss, *vr = cr + (size_t)y * ss;
+                uint8_t *o = Y + (size_t)y * ys;
+                for (int x = 0; x < w; x++) yuv_pair_rgb(o + 3 * x, yr[x], ur[x], vr[x]);
+            }
+            return SH_OK;
+        }
+        copy_rows(src, ss, Y, ys, w, h);
+        if (d->format == SH_PIX_I420) {
+            d->siting = SH_CHROMA_CENTER;
+            for (int p = 0; p < 2; p++) {
+                const uint8_t *pl = p ? cr : cb;
+                uint8_t *o = p ? V : U;
+                int os = p ? vs : us;
+                for (int y = 0; y < ch; y++) {
+                    const uint8_t *r0 = pl + (size_t)(2 * y) * ss, *r1 = r0 + ss;
+                    uint8_t *q = o + (size_t)y * os;
+                    for (int x = 0; x < cw; x++)
+                        q[x] = (uint8_t)((r0[2 * x] + r0[2 * x + 1] + r1[2 * x] + r1[2 * x + 1] + 2) >> 2);
+                }
+            }
+        }
+        return SH_OK;
+    }
+    case SH_RAW_RGB24:
+    case SH_RAW_BGR24: {
+        int ri = s->format == SH_RAW_RGB24 ? 0 : 2, bi = 2 - ri;
+        if (d->format == SH_PIX_RGB24) {
+            for (int y = 0; y < h; y++) {
+                const uint8_t *r = src + (size_t)y * ss;
+                uint8_t *o = Y + (size_t)y * ys;
+                if (ri == 0) memcpy(o, r, (size_t)w * 3);
+                else
+                    for (int x = 0; x < w; x++) {
+                        o[3 * x] = r[3 * x + 2];
+                        o[3 * x + 1] = r[3 * x + 1];
+                        o[3 * x + 2] = r[3 * x];
+                    }
+            }
+            return SH_OK;
+        }
+        for (int y = 0; y < h; y++) rgb_row_y(src + (size_t)y * ss, ri, bi, Y + (size_t)y * ys, w);
+        if (d->format == SH_PIX_I420) {
+            d->siting = SH_CHROMA_CENTER;
+            for (int y = 0; y < ch; y++) {
+                const uint8_t *r0 = src + (size_t)(2 * y) * ss;
+                rgb_rows_uv(r0, r0 + ss, ri, bi, U + (size_t)y * us, V + (size_t)y * vs, cw);
+            }
+        }
+        return SH_OK;
+    }
+    default:
+        return sh_error_set(SH_EINVAL, "pixconv: bad source format");
+    }
+}

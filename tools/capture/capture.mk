@@ -1,0 +1,18 @@
+# Capture (src/source, src/pixconv, src/sync, src/record; docs/capture.md).
+# The pixel-format loops: -O3 lets gcc vectorize them (measured by make bench, bench_pixconv).
+$(BUILD)/src/pixconv/%.o: CFLAGS_ALL += -O3
+# MJPEG decoding (src/pixconv) and the bench's peer: libturbojpeg when pkg-config finds it (the
+# detect fragment adds the same flags; repeating them is harmless and keeps this one standalone).
+ifeq ($(call have,libturbojpeg),1)
+CFLAGS_ALL   += -DSH_HAVE_TURBOJPEG
+CXXFLAGS_ALL += -DSH_HAVE_TURBOJPEG
+LDLIBS_ALL   += $(shell $(PKG_CONFIG) --libs libturbojpeg)
+endif
+# test_pixconv compares with OpenCV's cvtColor (tools/capture/cv_oracle.cpp) when it is there;
+# the top rule links $< only, so the oracle object rides in LDLIBS_ALL of that one binary.
+ifneq ($(OPENCV_INC),)
+$(BUILD)/tests/unit/test_pixconv.o: CFLAGS_ALL += -DSH_HAVE_OPENCV_ORACLE -Itools/capture
+$(BUILD)/tools/capture/cv_oracle.o: CXXFLAGS_ALL += $(OPENCV_CFLAGS)
+$(BUILD)/tests/test_pixconv: $(BUILD)/tools/capture/cv_oracle.o
+$(BUILD)/tests/test_pixconv: LDLIBS_ALL += $(BUILD)/tools/capture/cv_oracle.o $(OPENCV_LIBS) -lstdc++
+endif
