@@ -1,0 +1,33 @@
+# The aarch64 build tested under emulation (docs/arm64.md). Needs scripts/install-deps.sh --arm64.
+#   make check-arm64     the unit suite built with aarch64-linux-gnu- and run under qemu-aarch64
+# binfmt_misc is not available here: tools/cross/qemu-wrap.sh puts each aarch64 program of the
+# build folder behind a script that runs it under qemu-aarch64 (the tests exec the programs too).
+ARM64_BUILD ?= build-arm64
+.PHONY: check-arm64 deps-arm64
+deps-arm64:
+	@sh scripts/install-deps.sh --arm64
+
+check-arm64: deps-arm64
+	$(MAKE) --no-print-directory CROSS_COMPILE=aarch64-linux-gnu- BUILD=$(ARM64_BUILD) tests
+	@sh tools/cross/qemu-wrap.sh $(ARM64_BUILD)
+	@QEMU_LD_PREFIX=/ sh tests/run-tests.sh $(ARM64_BUILD)
+
+# ---- Debian packages (debian/): make deb [DEB_ARCHS="amd64 arm64"] -> build-deb/*.deb ----
+# Built from a copy of the working tree (dpkg-buildpackage writes beside the source folder).
+# arm64 is a cross build: -d because libapriltag-dev:arm64 cannot co-install with the amd64
+# one (the Makefile's cross switch finds the unpacked copy of install-deps --arm64).
+DEB_ARCHS ?= amd64 arm64
+DEB_OUT   ?= build-deb
+.PHONY: deb
+deb:
+	rm -rf $(DEB_OUT) && mkdir -p $(DEB_OUT)/src
+	git ls-files -co --exclude-standard | while read -r f; do [ -e "$$f" ] && echo "$$f"; done | \
+		grep -v '^build' | tar -cf - -T - | tar -xf - -C $(DEB_OUT)/src
+	@for a in $(DEB_ARCHS); do \
+		if [ "$$a" = "$$(dpkg --print-architecture)" ]; then opts=""; else opts="-a $$a -d"; fi; \
+		echo "== dpkg-buildpackage $$opts"; \
+		(cd $(DEB_OUT)/src && dpkg-buildpackage -b -us -uc $$opts) > $(DEB_OUT)/build-$$a.log 2>&1 || \
+			{ tail -30 $(DEB_OUT)/build-$$a.log; exit 1; }; \
+	done
+	@ls $(DEB_OUT)/*.deb
+	@for c in $(DEB_OUT)/*.changes; do echo "== lintian $$c"; lintian --fail-on error $$c || exit 1; done

@@ -1,0 +1,20 @@
+#!/bin/sh
+# Without binfmt_misc, an aarch64 program cannot be exec'd on this host, and the tests exec the
+# build's own programs (system(): the host's /bin/sh runs them). So every aarch64 program of the
+# build folder (stillheart*, tests/test_*) moves to BUILD/.qemu/ and leaves in its place a
+# script that runs it under qemu-aarch64, with argv[0] kept (tests find their siblings by it).
+#   tools/cross/qemu-wrap.sh BUILD
+# Idempotent: a relinked program (an ELF again) is moved anew; wrappers are left alone.
+set -eu
+build=$(cd "$1" && pwd)
+qemu=${QEMU_AARCH64:-qemu-aarch64}
+for f in "$build"/stillheart* "$build"/tests/test_*; do
+    [ -f "$f" ] || continue
+    case "$f" in *.a|*.o|*.d) continue ;; esac
+    [ "$(head -c 4 "$f" | od -An -c | tr -d ' ')" = '177ELF' ] || continue
+    rel=${f#"$build"/}
+    mkdir -p "$build/.qemu/$(dirname "$rel")"
+    mv -f "$f" "$build/.qemu/$rel"
+    printf '#!/bin/sh\nexec %s -L "${QEMU_LD_PREFIX:-/}" -0 "$0" "%s" "$@"\n' "$qemu" "$build/.qemu/$rel" > "$f"
+    chmod 0755 "$f"
+done
