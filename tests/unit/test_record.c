@@ -1,0 +1,313 @@
+/* Recordings: CRC-32 against its published check value, a round trip of streams, frames and
+ * sets, a torn tail at every byte of the last record, a damaged record in the middle, a writer
+ * killed mid-stream, the refusals, and replay through the source interface (rec:DIR). */
+#include <setjmp.h>
+#include <signal.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cmocka.h>
+
+#include "stillheart/record.h"
+#include "stillheart/source.h"
+
+enum { W = 8, H = 4, NF = 10 };
+static char dir[64], file[96];
+
+static void fill(uint8_t *b, size_t n, int k)
+{
+    for (size_t i = 0; i < n; i++) b[i] = (uint8_t)(k * 17 + i * 3);
+}
+
+static void rm_rec(void)
+{
+    unlink(file);
+    rmdir(dir);
+}
+
+static int setup(void **state)
+{
+    (void)state;
+    snprintf(dir, sizeof dir, "/tmp/sh-test-rec-%d", (int)getpid());
+    snprintf(file, sizeof file, "%s/%s", dir, SH_REC_FILE);
+    rm_rec();
+    return 0;
+}
+
+static int teardown(void **state)
+{
+    (void)state;
+    rm_rec();
+    return 0;
+}
+
+/* Camera 0: YUYV 8x4, camera 1: GREY 8x4; frame k of camera c at 1 s + k * 40 ms + c ms; a set
+ * after each pair. */
+static void write_rec(void)
+{
+    sh_rec_writer *w;
+    assert_int_equal(sh_rec_writer_create(dir, &w), SH_OK);
+    sh_rec_stream s0 = {0, SH_RAW_YUYV, W, H, 2 * W, 25, 1, "v4l2:/dev/video0"};
+    sh_rec_stream s1 = {1, SH_RAW_GREY, W, H, W, 25, 1, "v4l2:/dev/video1"};
+    assert_int_equal(sh_rec_writer_stream(w, &s0), SH_OK);
+    assert_int_equal(sh_rec_writer_stream(w, &s1), SH_OK);
+    uint8_t b[2 * W * H];
+    for (int k = 0; k < NF; k++) {
+        for (int c = 0; c < 2; c++) {
+            size_t n = c ? W * H : 2 * W * H;
+            fill(b, n, k + 100 * c);
+            sh_raw raw = {c ? SH_RAW_GREY : SH_RAW_YUYV, W, H, c ? W : 2 * W, b, n};
+            assert_int_equal(sh_rec_writer_frame(w, c, (uint64_t)k, 1000000000LL + k * 40000000LL + c * 1000000, &raw),
+                             SH_OK);
+        }
+        sh_frame_set set;
+        memset(&set, 0, sizeof set);
+        set.index = (uint64_t)k;
+        set.time_ns = 1000000000LL + k * 40000000LL;
+        set.complete = 1;
+        set.present = 3;
+        set.member[0].sequence = set.member[1].sequence = (uint64_t)k;
+        assert_int_equal(sh_rec_writer_set(w, &set), SH_OK);
+    }
+    assert_int_equal(sh_rec_writer_close(w), SH_OK);
+}
+
+/* Reads everything back; returns the number of whole frames, checking each. */
+static int read_all(const char *path, int *sets, int *truncated, uint64_t *skipped)
+{
+    sh_rec_reader *r;
+    assert_int_equal(sh_rec_reader_open(path, &r), SH_OK);
+    assert_int_equal(sh_rec_reader_streams(r, NULL), 2);
+    sh_rec_record rec;
+    int frames = 0;
+    *sets = 0;
+    sh_status st;
+    uint8_t b[2 * W * H];
+    while ((st = sh_rec_reader_next(r, &rec)) == SH_OK) {
+        if (rec.type == SH_REC_FRAME) {
+            int k = (int)rec.sequence, c = rec.camera;
+            assert_int_equal(rec.timestamp_ns, 1000000000LL + k * 40000000LL + c * 1000000);
+            fill(b, rec.raw.bytes, k + 100 * c);
+            assert_int_equal(rec.raw.bytes, c ? W * H : 2 * W * H);
+            assert_memory_equal(b, rec.raw.data, rec.raw.bytes);
+            assert_int_equal(rec.raw.format, c ? SH_RAW_GREY : SH_RAW_YUYV);
+            frames++;
+        } else if (rec.type == SH_REC_SET) {
+            assert_int_equal(rec.set.index, (uint64_t)*sets);
+            assert_true(rec.set.complete);
+            assert_int_equal(rec.set.count, 2);
+            assert_int_equal(rec.set.member[1].sequence, (uint64_t)*sets);
+            (*sets)++;
+        }
+    }
+    assert_int_equal(st, SH_EEOF);
+    *truncated = sh_rec_reader_truncated(r);
+    *skipped = sh_rec_reader_skipped(r);
+    sh_rec_reader_close(r);
+    return frames;
+}
+
+static void test_crc(void **state)
+{
+    (void)state;
+    assert_int_equal(sh_crc32(0, "123456789", 9), 0xcbf43926u);
+    assert_int_equal(sh_crc32(sh_crc32(0, "1234", 4), "56789", 5), 0xcbf43926u);
+}
+
+static void test_round_trip(void **state)
+{
+    (void)state;
+    rm_rec();
+    write_rec();
+    int sets, trunc;
+    uint64_t skipped;
+    assert_int_equal(read_all(dir, &sets, &trunc, &skipped), 2 * NF);
+    assert_int_equal(sets, NF);
+    assert_false(trunc);
+    assert_int_equal(skipped, 0);
+    sh_rec_reader *r;
+    assert_int_equal(sh_rec_reader_open(file, &r), SH_OK); /* the file itself too */
+    const sh_rec_stream *s = sh_rec_reader_stream(r, 0);
+    assert_non_null(s);
+    assert_string_equal(s->source, "v4l2:/dev/video0");
+    assert_int_equal(s->stride, 2 * W);
+    assert_null(sh_rec_reader_stream(r, 2));
+    sh_rec_reader_close(r);
+    /* a second recording into the same folder is refused */
+    sh_rec_writer *w;
+    assert_int_equal(sh_rec_writer_create(dir, &w), SH_EIO);
+    assert_non_null(strstr(sh_error_message(), "already"));
+}
+
+static long file_size(void)
+{
+    struct stat st;
+    assert_int_equal(stat(file, &st), 0);
+    return (long)st.st_size;
+}
+
+/* Cut the file at every byte of its last two records: the rest reads, the tail is reported. */
+static void test_torn_tail(void **state)
+{
+    (void)state;
+    rm_rec();
+    write_rec();
+    long full = file_size();
+    long set_rec = 16 + 8 + 8 + 4 + 4 + 8 * SH_SYNC_MAX_CAMERAS, frame_rec = 16 + 24 + W * H;
+    FILE *f = fopen(file, "rb");
+    char *all = malloc((size_t)full);
+    assert_int_equal(fread(all, 1, (size_t)full, f), (size_t)full);
+    fclose(f);
+    for (long cut = full - set_rec - frame_rec + 1; cut < full; cut++) {
+        f = fopen(file, "wb");
+        assert_int_equal(fwrite(all, 1, (size_t)cut, f), (size_t)cut);
+        fclose(f);
+        int sets, trunc;
+        uint64_t skipped;
+        int frames = read_all(dir, &sets, &trunc, &skipped);
+        int last_frame_whole = cut >= full - set_rec;
+        assert_int_equal(frames, 2 * NF - 1 + last_frame_whole);
+        assert_int_equal(sets, NF - 1);
+        assert_int_equal(trunc, cut != full - set_rec); /* a cut between records is a clean end */
+    }
+    free(all);
+}
+
+/* One flipped byte in frame 3 of camera 0: that frame is skipped and counted, the rest reads. */
+static void test_damaged_middle(void **state)
+{
+    (void)state;
+    rm_rec();
+    write_rec();
+    long stream_rec = 16 + 7 * 4 + 64, frame0 = 16 + 24 + 2 * W * H, frame1 = 16 + 24 + W * H,
+         set_rec = 16 + 24 + 8 * SH_SYNC_MAX_CAMERAS;
+    long at = 16 + 2 * stream_rec + 3 * (frame0 + frame1 + set_rec) + 16 + 24 + 5;
+    FILE *f = fopen(file, "r+b");
+    fseek(f, at, SEEK_SET);
+    int c = fgetc(f);
+    fseek(f, at, SEEK_SET);
+    fputc(c ^ 0x40, f);
+    fclose(f);
+    int sets, trunc;
+    uint64_t skipped;
+    assert_int_equal(read_all(dir, &sets, &trunc, &skipped), 2 * NF - 1);
+    assert_int_equal(sets, NF);
+    assert_false(trunc);
+    assert_int_equal(skipped, 1);
+}
+
+/* A writer killed mid-stream: every frame it finished reads back. */
+static void test_killed_writer(void **state)
+{
+    (void)state;
+    rm_rec();
+    pid_t pid = fork();
+    assert_true(pid >= 0);
+    if (pid == 0) {
+        sh_rec_writer *w;
+        if (sh_rec_writer_create(dir, &w) != SH_OK) _exit(1);
+        sh_rec_stream s0 = {0, SH_RAW_GREY, 640, 480, 640, 25, 1, "test"};
+        sh_rec_writer_stream(w, &s0);
+        static uint8_t b[640 * 480];
+        sh_raw raw = {SH_RAW_GREY, 640, 480, 640, b, sizeof b};
+        for (uint64_t k = 0;; k++) {
+            memset(b, (int)(k & 0xff), sizeof b);
+            sh_rec_writer_frame(w, 0, k, (int64_t)k, &raw);
+        }
+    }
+    usleep(100000);
+    kill(pid, SIGKILL);
+    int status;
+    waitpid(pid, &status, 0);
+    sh_rec_reader *r;
+    assert_int_equal(sh_rec_reader_open(dir, &r), SH_OK);
+    sh_rec_record rec;
+    uint64_t n = 0;
+    while (sh_rec_reader_next(r, &rec) == SH_OK) {
+        assert_int_equal(rec.sequence, n);
+        assert_int_equal(rec.raw.bytes, 640 * 480);
+        assert_int_equal(rec.raw.data[640 * 480 - 1], (uint8_t)(n & 0xff));
+        n++;
+    }
+    assert_true(n > 0);
+    assert_int_equal(sh_rec_reader_skipped(r), 0);
+    sh_rec_reader_close(r);
+}
+
+static void test_refusals(void **state)
+{
+    (void)state;
+    sh_rec_reader *r;
+    assert_int_equal(sh_rec_reader_open("/nonexistent/rec", &r), SH_EIO);
+    assert_non_null(strstr(sh_error_message(), "/nonexistent/rec"));
+    FILE *f = fmemopen((void *)"YUV4MPEG2 W8 H4\n", 16, "rb");
+    assert_int_equal(sh_rec_reader_open_file(f, "x.y4m", &r), SH_EFORMAT);
+    assert_non_null(strstr(sh_error_message(), "x.y4m"));
+    fclose(f);
+    sh_rec_writer *w;
+    rm_rec();
+    assert_int_equal(sh_rec_writer_create(dir, &w), SH_OK);
+    uint8_t b[4] = {0};
+    sh_raw raw = {SH_RAW_GREY, 2, 2, 2, b, 4};
+    assert_int_equal(sh_rec_writer_frame(w, 0, 0, 0, &raw), SH_EINVAL); /* no stream yet */
+    assert_int_equal(sh_rec_writer_close(w), SH_OK);
+}
+
+/* rec: replay, as fast as asked: camera 1's frames with the recorded spacing. */
+static void test_replay(void **state)
+{
+    (void)state;
+    rm_rec();
+    write_rec();
+    char spec[96];
+    snprintf(spec, sizeof spec, "rec:%s", dir);
+    sh_source_options o;
+    sh_source_options_default(&o);
+    o.camera = 1;
+    o.realtime = 0;
+    o.loop = 1;
+    sh_source *s;
+    assert_int_equal(sh_source_open(spec, &o, &s), SH_OK);
+    sh_rawfmt fmt;
+    int w, h;
+    assert_int_equal(sh_source_format(s, &fmt, &w, &h, NULL, NULL), SH_OK);
+    assert_int_equal(fmt, SH_RAW_GREY);
+    assert_int_equal(sh_source_start(s), SH_OK);
+    int64_t t0 = 0;
+    uint8_t b[W * H];
+    for (int i = 0; i < NF + 3; i++) {
+        sh_source_frame f;
+        int got;
+        assert_int_equal(sh_source_dequeue(s, 0, &f, &got), SH_OK);
+        assert_int_equal(got, 1);
+        if (!i) t0 = f.timestamp_ns;
+        /* 40 ms apart, and the loop goes on 40 ms after the last one */
+        assert_int_equal(f.timestamp_ns - t0, (int64_t)i * 40000000);
+        assert_int_equal(f.camera, 1);
+        fill(b, W * H, i % NF + 100);
+        assert_memory_equal(b, f.raw.data, W * H);
+        assert_int_equal(sh_source_release(s, &f), SH_OK);
+    }
+    sh_source_close(s);
+    o.camera = 5;
+    assert_int_equal(sh_source_open(spec, &o, &s), SH_EINVAL);
+    assert_non_null(strstr(sh_error_message(), "camera 5"));
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_crc),           cmocka_unit_test(test_round_trip),
+        cmocka_unit_test(test_torn_tail),     cmocka_unit_test(test_damaged_middle),
+        cmocka_unit_test(test_killed_writer), cmocka_unit_test(test_refusals),
+        cmocka_unit_test(test_replay),
+    };
+    return cmocka_run_group_tests(tests, setup, teardown);
+}
