@@ -9,7 +9,8 @@
  *   COLOR_RGB2YUV_I420 gives), chroma from the mean of each 2x2 block. GRAY8 is always the Y
  *   plane the I420 conversion would give, so detection sees the same numbers either way.
  * - YUYV to I420: chroma of two rows averaged (rounding half up); siting SH_CHROMA_LEFT (the
- *   MPEG-2 convention of 4:2:2 and NV12 sources). NV12 to I420 only de-interleaves.
+ *   MPEG-2 convention of 4:2:2 and NV12 sources). NV12 to I420 only de-interleaves. I420 input
+ *   (from Y4M replay) is copied and taken as SH_CHROMA_CENTER, Y4M's default.
  * - MJPEG (JFIF) is full range: decoded by libturbojpeg, its samples are kept as they are
  *   (GRAY8/I420 full range, siting SH_CHROMA_CENTER); RGB24 is libturbojpeg's own conversion.
  *   4:2:2 and 4:4:4 JPEGs are decoded to their native planes and averaged down to 4:2:0.

@@ -73,6 +73,8 @@ sh_status sh_source_open(const char *spec, const sh_source_options *opts, sh_sou
 /* The negotiated format: valid after open. fps 0/0 when unknown. */
 sh_status sh_source_format(const sh_source *src, sh_rawfmt *format, int *width, int *height, int *fps_num,
                            int *fps_den);
+/* Bytes per row of plane 0 of the frames (the driver's bytesperline; 0 for MJPEG). */
+int sh_source_stride(const sh_source *src);
 sh_status sh_source_start(sh_source *src);
 /* A file descriptor that becomes readable when a frame may be ready; -1 while a camera is down. */
 int sh_source_fd(const sh_source *src);

@@ -399,7 +399,7 @@ sh_status sh_pixconv_convert(sh_pixconv *conv, const sh_raw *s, sh_image *d)
         }
         copy_rows(src, ss, Y, ys, w, h);
         if (d->format == SH_PIX_I420) {
-            d->siting = SH_CHROMA_LEFT;
+            d->siting = s->format == SH_RAW_NV12 ? SH_CHROMA_LEFT : SH_CHROMA_CENTER;
             for (int y = 0; y < ch; y++) {
                 const uint8_t *b = cb + (size_t)y * cs, *r = cr + (size_t)y * cs;
                 uint8_t *u = U + (size_t)y * us, *v = V + (size_t)y * vs;

@@ -72,6 +72,8 @@ sh_status sh_source_format(const sh_source *s, sh_rawfmt *format, int *width, in
     return SH_OK;
 }
 
+int sh_source_stride(const sh_source *s) { return s ? s->stride : 0; }
+
 sh_status sh_source_start(sh_source *s)
 {
     if (!s) return sh_error_set(SH_EINVAL, "source: NULL");

@@ -16,3 +16,10 @@ $(BUILD)/tools/capture/cv_oracle.o: CXXFLAGS_ALL += $(OPENCV_CFLAGS)
 $(BUILD)/tests/test_pixconv: $(BUILD)/tools/capture/cv_oracle.o
 $(BUILD)/tests/test_pixconv: LDLIBS_ALL += $(BUILD)/tools/capture/cv_oracle.o $(OPENCV_LIBS) -lstdc++
 endif
+
+# test_record_cli runs `stillheart record` of the same build (the ASan build tests the ASan one).
+$(BUILD)/tools/capture/tests/test_record_cli.o: CFLAGS_ALL += -DRECORD_BIN='"$(abspath $(BUILD))/stillheart"'
+$(BUILD)/tests/test_record_cli: $(BUILD)/tools/capture/tests/test_record_cli.o $(LIB) $(BUILD)/stillheart
+	@mkdir -p $(dir $@)
+	$(CC) $(LDFLAGS) $< $(LIB) $(shell $(PKG_CONFIG) --libs cmocka) $(LDLIBS_ALL) -o $@
+TOOL_TESTS += $(BUILD)/tests/test_record_cli

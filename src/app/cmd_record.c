@@ -1,0 +1,303 @@
+/* stillheart record: what the cameras deliver, stored as delivered (record.h), grouped into
+ * frame sets (sync.h); and a recording converted to Y4M for other tools. */
+#include <getopt.h>
+#include <poll.h>
+#include <signal.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "app.h"
+#include "stillheart/pixconv.h"
+#include "stillheart/record.h"
+#include "stillheart/source.h"
+#include "stillheart/sync.h"
+#include "stillheart/y4m.h"
+
+#define MAX_SOURCES SH_SYNC_MAX_CAMERAS
+
+static void usage(FILE *out)
+{
+    fprintf(out,
+        "usage: stillheart record --source SPEC [--source SPEC ...] --frames N [OPTIONS] OUT/\n"
+        "       stillheart record --to-y4m REC OUT.y4m [--camera C]\n\n"
+        "Records what the cameras deliver: raw frames in the format they come in, their\n"
+        "sequence numbers and capture timestamps, and the frame sets they form, in OUT/ (an\n"
+        "append-only file: a killed recorder or a full disk loses at most the frame being\n"
+        "written). Replay a recording with the source spec rec:OUT/ (camera chosen by index).\n"
+        "Sources are taken on the command line for now (--config needs the INI config module,\n"
+        "which does not exist yet); the first --source is camera 0, the next camera 1, ...\n\n"
+        "sources:\n"
+        "  v4l2:/dev/videoN   a V4L2 camera\n"
+        "  y4m:FILE           a Y4M file replayed at its frame rate (--fast: at once)\n"
+        "  rec:DIR            camera 0 of a recording\n\n"
+        "options:\n"
+        "  --frames N         frames per camera to record (required)\n"
+        "  --format F         ask the cameras for GREY, YUYV, NV12, RGB24, BGR24 or MJPEG\n"
+        "  --size WxH         ask the cameras for this size\n"
+        "  --fps N            ask the cameras for this frame rate\n"
+        "  --exposure V --gain V --white-balance K   camera controls (manual)\n"
+        "  --tolerance-ms T   frames of one set lie within T ms of each other (default 5)\n"
+        "  --max-wait-ms T    a set waits this long for a missing camera (default 100)\n"
+        "  --fast             replay sources as fast as possible\n"
+        "  --to-y4m REC OUT.y4m  convert camera --camera C (default 0) of recording REC to Y4M\n"
+        "  --help             this text\n");
+}
+
+static volatile sig_atomic_t stop_requested;
+static void on_signal(int sig)
+{
+    (void)sig;
+    stop_requested = 1;
+}
+
+static int to_y4m(const char *rec_path, const char *out_path, int camera)
+{
+    sh_rec_reader *r;
+    if (sh_rec_reader_open(rec_path, &r) != SH_OK) {
+        fprintf(stderr, "stillheart record: %s\n", sh_error_message());
+        return 1;
+    }
+    const sh_rec_stream *s = sh_rec_reader_stream(r, camera);
+    if (!s) {
+        fprintf(stderr, "stillheart record: %s: no camera %d\n", rec_path, camera);
+        sh_rec_reader_close(r);
+        return 1;
+    }
+    sh_y4m_header h;
+    memset(&h, 0, sizeof h);
+    h.width = s->width;
+    h.height = s->height;
+    h.format = s->format == SH_RAW_GREY ? SH_PIX_GRAY8 : SH_PIX_I420;
+    h.siting = s->format == SH_RAW_YUYV || s->format == SH_RAW_NV12 ? SH_CHROMA_LEFT
+                                                                                            : SH_CHROMA_CENTER;
+    h.fps_num = s->fps_num > 0 && s->fps_den > 0 ? s->fps_num : 25;
+    h.fps_den = s->fps_num > 0 && s->fps_den > 0 ? s->fps_den : 1;
+    h.interlace = 'p';
+    if (s->format == SH_RAW_MJPEG) snprintf(h.extra, sizeof h.extra, "XCOLORRANGE=FULL");
+    int rc = 1;
+    sh_image img;
+    sh_pixconv *conv = NULL;
+    sh_y4m_writer *w = NULL;
+    if (sh_image_create(&img, h.format, h.width, h.height) != SH_OK ||
+        sh_pixconv_create(h.width, h.height, &conv) != SH_OK || sh_y4m_writer_open(out_path, &h, &w) != SH_OK) {
+        fprintf(stderr, "stillheart record: %s\n", sh_error_message());
+        goto out;
+    }
+    sh_rec_record rec;
+    long frames = 0, bad = 0;
+    while (sh_rec_reader_next(r, &rec) == SH_OK) {
+        if (rec.type != SH_REC_FRAME || rec.camera != camera) continue;
+        if (sh_pixconv_convert(conv, &rec.raw, &img) != SH_OK) {
+            fprintf(stderr, "stillheart record: %s: frame %llu skipped: %s\n", rec_path,
+                    (unsigned long long)rec.sequence, sh_error_message());
+            bad++;
+            continue;
+        }
+        if (sh_y4m_writer_write(w, &img) != SH_OK) {
+            fprintf(stderr, "stillheart record: %s\n", sh_error_message());
+            goto out;
+        }
+        frames++;
+    }
+    if (sh_rec_reader_truncated(r))
+        fprintf(stderr, "stillheart record: %s: the recording ends in a torn record (kept what precedes it)\n",
+                rec_path);
+    if (sh_rec_reader_skipped(r))
+        fprintf(stderr, "stillheart record: %s: %llu damaged record(s) skipped\n", rec_path,
+                (unsigned long long)sh_rec_reader_skipped(r));
+    fprintf(stderr, "stillheart record: %ld frames of camera %d written to %s (%ld not convertible)\n", frames,
+            camera, out_path, bad);
+    rc = 0;
+out:
+    if (w && sh_y4m_writer_close(w) != SH_OK) {
+        fprintf(stderr, "stillheart record: %s\n", sh_error_message());
+        rc = 1;
+    }
+    sh_pixconv_destroy(conv);
+    sh_image_destroy(&img);
+    sh_rec_reader_close(r);
+    return rc;
+}
+
+int cmd_record(int argc, char **argv)
+{
+    static const struct option longopts[] = {
+        {"source", required_argument, 0, 's'},   {"frames", required_argument, 0, 'n'},
+        {"config", required_argument, 0, 'c'},   {"format", required_argument, 0, 'f'},
+        {"size", required_argument, 0, 'z'},     {"fps", required_argument, 0, 'r'},
+        {"exposure", required_argument, 0, 'e'}, {"gain", required_argument, 0, 'g'},
+        {"white-balance", required_argument, 0, 'w'}, {"tolerance-ms", required_argument, 0, 't'},
+        {"max-wait-ms", required_argument, 0, 'm'}, {"fast", no_argument, 0, 'F'},
+        {"to-y4m", required_argument, 0, 'y'},   {"camera", required_argument, 0, 'C'},
+        {"help", no_argument, 0, 'h'},           {0, 0, 0, 0}};
+    const char *specs[MAX_SOURCES];
+    int nspec = 0, frames = 0, camera = 0, tol_ms = 5, wait_ms = 100;
+    const char *to_y4m_rec = NULL;
+    sh_source_options o;
+    sh_source_options_default(&o);
+    optind = 1;
+    int ch;
+    while ((ch = getopt_long(argc, argv, "", longopts, NULL)) != -1) {
+        switch (ch) {
+        case 's':
+            if (nspec >= MAX_SOURCES) {
+                fprintf(stderr, "--source: at most %d cameras\n", MAX_SOURCES);
+                return 2;
+            }
+            specs[nspec++] = optarg;
+            break;
+        case 'n': if (!app_parse_int("--frames", optarg, 1, 100000000, &frames)) return 2; break;
+        case 'c':
+            fprintf(stderr, "--config: the INI config module does not exist yet; give the cameras with --source\n");
+            return 2;
+        case 'f': {
+            sh_rawfmt f;
+            if (sh_rawfmt_parse(optarg, &f) != SH_OK) {
+                fprintf(stderr, "--format: %s\n", sh_error_message());
+                return 2;
+            }
+            o.format = (int)f;
+            break;
+        }
+        case 'z':
+            if (sscanf(optarg, "%dx%d", &o.width, &o.height) != 2 || o.width <= 0 || o.height <= 0 ||
+                o.width > SH_IMAGE_MAX_SIZE || o.height > SH_IMAGE_MAX_SIZE) {
+                fprintf(stderr, "--size: WxH, not '%s'\n", optarg);
+                return 2;
+            }
+            break;
+        case 'r':
+            if (!app_parse_int("--fps", optarg, 1, 1000, &o.fps_num)) return 2;
+            o.fps_den = 1;
+            break;
+        case 'e': if (!app_parse_int("--exposure", optarg, 0, 100000000, &o.exposure)) return 2; break;
+        case 'g': if (!app_parse_int("--gain", optarg, 0, 100000000, &o.gain)) return 2; break;
+        case 'w': if (!app_parse_int("--white-balance", optarg, 1000, 20000, &o.white_balance)) return 2; break;
+        case 't': if (!app_parse_int("--tolerance-ms", optarg, 1, 1000, &tol_ms)) return 2; break;
+        case 'm': if (!app_parse_int("--max-wait-ms", optarg, 1, 100000, &wait_ms)) return 2; break;
+        case 'F': o.realtime = 0; break;
+        case 'y': to_y4m_rec = optarg; break;
+        case 'C': if (!app_parse_int("--camera", optarg, 0, MAX_SOURCES - 1, &camera)) return 2; break;
+        case 'h': usage(stdout); return 0;
+        default: usage(stderr); return 2;
+        }
+    }
+    if (to_y4m_rec) {
+        if (optind != argc - 1) {
+            fprintf(stderr, "stillheart record --to-y4m REC OUT.y4m: one output file\n");
+            return 2;
+        }
+        return to_y4m(to_y4m_rec, argv[optind], camera);
+    }
+    if (!nspec || !frames || optind != argc - 1) {
+        usage(stderr);
+        return 2;
+    }
+    const char *out_dir = argv[optind];
+
+    sh_source *src[MAX_SOURCES] = {0};
+    sh_rec_writer *w = NULL;
+    sh_sync *sync = NULL;
+    int rc = 1;
+    long done[MAX_SOURCES] = {0};
+    int ended[MAX_SOURCES] = {0};
+    for (int i = 0; i < nspec; i++) {
+        sh_source_options oi = o;
+        oi.camera = i;
+        if (!strncmp(specs[i], "rec:", 4)) oi.camera = 0;
+        if (sh_source_open(specs[i], &oi, &src[i]) != SH_OK) {
+            fprintf(stderr, "stillheart record: %s\n", sh_error_message());
+            goto out;
+        }
+    }
+    sh_sync_options so = {nspec, (int64_t)tol_ms * 1000000, (int64_t)wait_ms * 1000000, 0};
+    if (sh_sync_create(&so, &sync) != SH_OK || sh_rec_writer_create(out_dir, &w) != SH_OK) {
+        fprintf(stderr, "stillheart record: %s\n", sh_error_message());
+        goto out;
+    }
+    for (int i = 0; i < nspec; i++) {
+        sh_rec_stream s;
+        memset(&s, 0, sizeof s);
+        s.camera = i;
+        sh_source_format(src[i], &s.format, &s.width, &s.height, &s.fps_num, &s.fps_den);
+        s.stride = sh_source_stride(src[i]);
+        snprintf(s.source, sizeof s.source, "%s", specs[i]);
+        if (sh_rec_writer_stream(w, &s) != SH_OK || sh_source_start(src[i]) != SH_OK) {
+            fprintf(stderr, "stillheart record: %s\n", sh_error_message());
+            goto out;
+        }
+        fprintf(stderr, "stillheart record: camera %d: %s, %dx%d %s at %d/%d fps\n", i, specs[i], s.width, s.height,
+                sh_rawfmt_name(s.format), s.fps_num, s.fps_den);
+    }
+    struct sigaction sa;
+    memset(&sa, 0, sizeof sa);
+    sa.sa_handler = on_signal;
+    sigaction(SIGINT, &sa, NULL);
+    sigaction(SIGTERM, &sa, NULL);
+    for (;;) {
+        int active = 0;
+        for (int i = 0; i < nspec; i++) active += !ended[i] && done[i] < frames;
+        if (!active || stop_requested) break;
+        struct pollfd p[MAX_SOURCES];
+        for (int i = 0; i < nspec; i++) {
+            p[i].fd = ended[i] || done[i] >= frames ? -1 : sh_source_fd(src[i]);
+            p[i].events = POLLIN;
+            p[i].revents = 0;
+        }
+        poll(p, (nfds_t)nspec, 100);
+        for (int i = 0; i < nspec; i++) {
+            if (ended[i] || done[i] >= frames) continue;
+            sh_source_frame f;
+            int got;
+            sh_status st = sh_source_dequeue(src[i], 0, &f, &got);
+            if (st == SH_EEOF) {
+                ended[i] = 1;
+                continue;
+            }
+            if (st != SH_OK) {
+                fprintf(stderr, "stillheart record: %s\n", sh_error_message());
+                goto out;
+            }
+            if (!got) continue;
+            st = sh_rec_writer_frame(w, i, f.sequence, f.timestamp_ns, &f.raw);
+            sh_sync_disposition d;
+            if (st == SH_OK) st = sh_sync_push(sync, i, f.sequence, f.timestamp_ns, NULL, &d);
+            sh_source_release(src[i], &f);
+            if (st != SH_OK) goto write_failed;
+            done[i]++;
+        }
+        sh_frame_set set;
+        while (sh_sync_pop(sync, &set))
+            if (sh_rec_writer_set(w, &set) != SH_OK) goto write_failed;
+    }
+    sh_sync_flush(sync);
+    sh_frame_set set;
+    while (sh_sync_pop(sync, &set))
+        if (sh_rec_writer_set(w, &set) != SH_OK) goto write_failed;
+    sh_sync_stats ss;
+    sh_sync_get_stats(sync, &ss);
+    for (int i = 0; i < nspec; i++) {
+        sh_source_stats st;
+        sh_source_get_stats(src[i], &st);
+        fprintf(stderr,
+                "stillheart record: camera %d: %ld frames recorded; %llu skipped as damaged, %llu dropped by the "
+                "driver, %llu losses, %llu reopens\n",
+                i, done[i], (unsigned long long)st.errors, (unsigned long long)st.drops,
+                (unsigned long long)st.losses, (unsigned long long)st.reopens);
+    }
+    fprintf(stderr, "stillheart record: %llu sets (%llu incomplete), %llu late and %llu duplicate frames\n",
+            (unsigned long long)ss.sets, (unsigned long long)ss.incomplete, (unsigned long long)ss.late,
+            (unsigned long long)ss.duplicates);
+    rc = stop_requested ? 130 : 0;
+    goto out;
+write_failed:
+    fprintf(stderr, "stillheart record: %s\n", sh_error_message());
+out:
+    if (w && sh_rec_writer_close(w) != SH_OK) {
+        fprintf(stderr, "stillheart record: %s\n", sh_error_message());
+        rc = 1;
+    }
+    sh_sync_destroy(sync);
+    for (int i = 0; i < nspec; i++) sh_source_close(src[i]);
+    return rc;
+}

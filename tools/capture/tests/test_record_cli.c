@@ -1,0 +1,137 @@
+/* stillheart record, run as a program: two replayed cameras recorded and converted back to Y4M
+ * give the input frames byte for byte; the refusals (--config, a missing camera, an existing
+ * recording) exit non-zero with a message naming what was wrong. */
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include <cmocka.h>
+
+#include "stillheart/y4m.h"
+
+enum { W = 48, H = 32, N = 6 };
+static char tmp[64], cmd[1024], out[4096];
+
+/* Runs a shell command; returns its exit status and its stderr+stdout in out. */
+static int run(const char *fmt, ...)
+{
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(cmd, sizeof cmd, fmt, ap);
+    va_end(ap);
+    char full[1200];
+    snprintf(full, sizeof full, "%s 2>&1", cmd);
+    FILE *p = popen(full, "r");
+    assert_non_null(p);
+    size_t n = fread(out, 1, sizeof out - 1, p);
+    out[n] = 0;
+    int st = pclose(p);
+    return WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+}
+
+static int setup(void **state)
+{
+    (void)state;
+    snprintf(tmp, sizeof tmp, "/tmp/sh-test-reccli-%d", (int)getpid());
+    run("rm -rf %s && mkdir -p %s", tmp, tmp);
+    /* an input Y4M: frame n, pixel i = n * 7 + i */
+    sh_y4m_header h;
+    memset(&h, 0, sizeof h);
+    h.width = W;
+    h.height = H;
+    h.format = SH_PIX_I420;
+    h.fps_num = 100;
+    h.fps_den = 1;
+    char path[128];
+    snprintf(path, sizeof path, "%s/in.y4m", tmp);
+    sh_y4m_writer *w;
+    assert_int_equal(sh_y4m_writer_open(path, &h, &w), SH_OK);
+    sh_image img;
+    assert_int_equal(sh_image_create(&img, SH_PIX_I420, W, H), SH_OK);
+    for (int n = 0; n < N; n++) {
+        for (int p = 0; p < 3; p++)
+            for (int y = 0; y < img.plane[p].height; y++)
+                for (int x = 0; x < img.plane[p].width; x++)
+                    img.plane[p].data[y * img.plane[p].stride + x] = (uint8_t)(n * 7 + x + y * 3 + p * 50);
+        assert_int_equal(sh_y4m_writer_write(w, &img), SH_OK);
+    }
+    sh_image_destroy(&img);
+    assert_int_equal(sh_y4m_writer_close(w), SH_OK);
+    return 0;
+}
+
+static int teardown(void **state)
+{
+    (void)state;
+    run("rm -rf %s", tmp);
+    return 0;
+}
+
+static void test_record_and_convert(void **state)
+{
+    (void)state;
+    assert_int_equal(run("%s record --source y4m:%s/in.y4m --source y4m:%s/in.y4m --frames %d %s/rec", RECORD_BIN,
+                         tmp, tmp, N, tmp),
+                     0);
+    assert_non_null(strstr(out, "6 sets (0 incomplete)"));
+    assert_int_equal(run("%s record --to-y4m %s/rec %s/cam1.y4m --camera 1", RECORD_BIN, tmp, tmp), 0);
+    /* same frames as the input */
+    char a[128], b[128];
+    snprintf(a, sizeof a, "%s/in.y4m", tmp);
+    snprintf(b, sizeof b, "%s/cam1.y4m", tmp);
+    sh_y4m_reader *ra, *rb;
+    assert_int_equal(sh_y4m_reader_open(a, &ra), SH_OK);
+    assert_int_equal(sh_y4m_reader_open(b, &rb), SH_OK);
+    assert_int_equal(sh_y4m_reader_header(rb)->fps_num, 100);
+    sh_image ia, ib;
+    assert_int_equal(sh_image_create(&ia, SH_PIX_I420, W, H), SH_OK);
+    assert_int_equal(sh_image_create(&ib, SH_PIX_I420, W, H), SH_OK);
+    int n = 0;
+    while (sh_y4m_reader_read(ra, &ia) == SH_OK) {
+        assert_int_equal(sh_y4m_reader_read(rb, &ib), SH_OK);
+        for (int p = 0; p < 3; p++)
+            for (int y = 0; y < ia.plane[p].height; y++)
+                assert_memory_equal(ia.plane[p].data + y * ia.plane[p].stride,
+                                    ib.plane[p].data + y * ib.plane[p].stride, ia.plane[p].width);
+        n++;
+    }
+    assert_int_equal(n, N);
+    assert_int_equal(sh_y4m_reader_read(rb, &ib), SH_EEOF);
+    sh_image_destroy(&ia);
+    sh_image_destroy(&ib);
+    sh_y4m_reader_close(ra);
+    sh_y4m_reader_close(rb);
+    /* and the recording replays as a source */
+    assert_int_equal(run("%s record --source rec:%s/rec --fast --frames 4 %s/rec2", RECORD_BIN, tmp, tmp), 0);
+    assert_non_null(strstr(out, "4 frames recorded"));
+    /* an existing recording is not overwritten */
+    assert_int_equal(run("%s record --source y4m:%s/in.y4m --frames 1 %s/rec", RECORD_BIN, tmp, tmp), 1);
+    assert_non_null(strstr(out, "already"));
+}
+
+static void test_refusals(void **state)
+{
+    (void)state;
+    assert_int_equal(run("%s record --config x.ini --frames 1 %s/r", RECORD_BIN, tmp), 2);
+    assert_non_null(strstr(out, "config module does not exist yet"));
+    assert_int_equal(run("%s record --source v4l2:/dev/video-missing --frames 1 %s/r", RECORD_BIN, tmp), 1);
+    assert_non_null(strstr(out, "/dev/video-missing"));
+    assert_int_equal(run("%s record --source webcam --frames 1 %s/r", RECORD_BIN, tmp), 1);
+    assert_int_equal(run("%s record --to-y4m %s/nothing %s/x.y4m", RECORD_BIN, tmp, tmp), 1);
+    assert_non_null(strstr(out, "nothing"));
+    assert_int_equal(run("%s record --source y4m:%s/in.y4m %s/r", RECORD_BIN, tmp, tmp), 2); /* no --frames */
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_record_and_convert),
+        cmocka_unit_test(test_refusals),
+    };
+    return cmocka_run_group_tests(tests, setup, teardown);
+}
