@@ -62,10 +62,39 @@ static void sample_row_gray(const sh_plane *src, uint8_t black, uint8_t *dst, co
     }
 }
 
-/* RGB24, one pixel per step in 8 lanes of 16 bits: the two source rows' 8 bytes
- * (R0 G0 B0 R1 G1 B1 . .) are blended vertically and rounded to 8 bits, then lanes 0-2 with
- * lanes 3-5 horizontally. Two roundings instead of one: at most 1 level from the exact
- * bilinear value. SSE2 is part of x86-64; other targets take the scalar loop. */
+/* RGB24, the one definition every path computes bit for bit (warp_sample_row_rgb_portable):
+ * the two source rows are blended vertically and rounded to 8 bits, for the left tap's and the
+ * right tap's channels, then those horizontally. Two roundings instead of one: at most 1 level
+ * from the exact bilinear value. Positions whose 8-byte loads would leave the row (the last 3
+ * columns: ix >= width - 3) or the plane take sample_checked, as do the SIMD paths. */
+static inline int round7(int v)
+{
+    return (v + (1 << (WEIGHT_BITS - 1))) >> WEIGHT_BITS;
+}
+
+void warp_sample_row_rgb_portable(const sh_plane *src, uint8_t black, uint8_t *dst,
+                                  const int32_t *fx, const int32_t *fy, int count)
+{
+    const int fast_x = src->width > 3 ? src->width - 3 : 0, last_y = src->height - 1;
+    const size_t stride = (size_t)src->stride;
+    for (int k = 0; k < count; k++, dst += 3) {
+        int ix = fx[k] >> FRAC_BITS, iy = fy[k] >> FRAC_BITS;
+        if (ix < 0 || iy < 0 || ix >= fast_x || iy >= last_y) {
+            sample_checked(src, 3, fx[k], fy[k], black, dst);
+            continue;
+        }
+        const uint8_t *p = src->data + (size_t)iy * stride + (size_t)ix * 3u, *q = p + stride;
+        int wx = weight_of(fx[k]), wy = weight_of(fy[k]);
+        for (int c = 0; c < 3; c++) {
+            int left = round7(p[c] * (ONE - wy) + q[c] * wy);
+            int right = round7(p[c + 3] * (ONE - wy) + q[c + 3] * wy);
+            dst[c] = (uint8_t)round7(left * (ONE - wx) + right * wx);
+        }
+    }
+}
+
+/* SSE2 (part of x86-64) and NEON (part of AArch64): one pixel per step in 8 lanes, the row's
+ * 8 bytes R0 G0 B0 R1 G1 B1 . . ; lanes 0-2 are then blended with lanes 3-5. */
 #if defined(__SSE2__)
 #include <emmintrin.h>
 
@@ -93,9 +122,25 @@ static inline uint32_t blend_rgb(const uint8_t *p, size_t stride, int wx, int wy
     return (uint32_t)_mm_cvtsi128_si32(_mm_packus_epi16(h, h));
 }
 
+static inline void sample_one(const sh_plane *src, uint8_t black, uint8_t *dst, int32_t fx,
+                              int32_t fy, int fast_x, int last_y)
+{
+    int ix = fx >> FRAC_BITS, iy = fy >> FRAC_BITS;
+    if (ix < 0 || iy < 0 || ix >= fast_x || iy >= last_y) {
+        sample_checked(src, 3, fx, fy, black, dst);
+        return;
+    }
+    const size_t stride = (size_t)src->stride;
+    uint32_t rgb = blend_rgb(src->data + (size_t)iy * stride + (size_t)ix * 3u, stride,
+                             weight_of(fx), weight_of(fy), _mm_setzero_si128(),
+                             _mm_set1_epi16(1 << (WEIGHT_BITS - 1)));
+    memcpy(dst, &rgb, 3);
+}
+
 static void sample_row_rgb(const sh_plane *src, uint8_t black, uint8_t *dst, const int32_t *fx,
                            const int32_t *fy, int count)
 {
+    const uint8_t *const data = src->data; /* dst's stores could alias *src: read once */
     const __m128i zero = _mm_setzero_si128(), round = _mm_set1_epi16(1 << (WEIGHT_BITS - 1));
     const size_t stride = (size_t)src->stride;
     /* The 8-byte loads read 2 bytes past the right tap: 2 spare pixels keep them in the row. */
@@ -116,9 +161,9 @@ static void sample_row_rgb(const sh_plane *src, uint8_t black, uint8_t *dst, con
             __m128i bad = _mm_or_si128(_mm_or_si128(_mm_cmplt_epi32(ix, zero), _mm_cmplt_epi32(iy, zero)),
                                        _mm_or_si128(_mm_cmpgt_epi32(ix, _mm_sub_epi32(lim_x, _mm_set1_epi32(1))),
                                                     _mm_cmpgt_epi32(iy, _mm_sub_epi32(lim_y, _mm_set1_epi32(1)))));
-            if (_mm_movemask_epi8(bad)) {
+            if (_mm_movemask_epi8(bad)) { /* pixel by pixel: the inside ones as always */
                 for (int q = k; q < k + 4; q++, dst += 3)
-                    sample_checked(src, 3, fx[q], fy[q], black, dst);
+                    sample_one(src, black, dst, fx[q], fy[q], fast_x, last_y);
                 continue;
             }
             int32_t off[4], wx[4], wy[4];
@@ -126,23 +171,99 @@ static void sample_row_rgb(const sh_plane *src, uint8_t black, uint8_t *dst, con
             _mm_storeu_si128((__m128i *)wx, _mm_and_si128(_mm_srai_epi32(px, FRAC_BITS - WEIGHT_BITS), wmask));
             _mm_storeu_si128((__m128i *)wy, _mm_and_si128(_mm_srai_epi32(py, FRAC_BITS - WEIGHT_BITS), wmask));
             for (int q = 0; q < 4; q++, dst += 3) {
-                uint32_t rgb = blend_rgb(src->data + off[q], stride, wx[q], wy[q], zero, round);
+                uint32_t rgb = blend_rgb(data + off[q], stride, wx[q], wy[q], zero, round);
                 /* A 4-byte store is cheaper; its spare byte lands on the next pixel, which is
                  * written next (the row's last pixel is left to the tail loop). */
                 memcpy(dst, &rgb, 4);
             }
         }
     }
-    for (; k < count; k++, dst += 3) {
-        int ix = fx[k] >> FRAC_BITS, iy = fy[k] >> FRAC_BITS;
-        if (ix < 0 || iy < 0 || ix >= fast_x || iy >= last_y) {
-            sample_checked(src, 3, fx[k], fy[k], black, dst);
-            continue;
-        }
-        uint32_t rgb = blend_rgb(src->data + (size_t)iy * stride + (size_t)ix * 3u, stride,
-                                 weight_of(fx[k]), weight_of(fy[k]), zero, round);
-        memcpy(dst, &rgb, 3);
+    for (; k < count; k++, dst += 3)
+        sample_one(src, black, dst, fx[k], fy[k], fast_x, last_y);
+}
+#elif defined(__aarch64__) && defined(__ARM_NEON)
+#include <arm_neon.h>
+
+static void init_weights(void) {}
+
+/* umull/umlal on the 8 bytes of each row with the weights (<= 128, so they fit a byte) give
+ * exact 16-bit sums (<= 255 * 128); rshrn #7 is (v + 64) >> 7 narrowed, the portable round7. */
+static inline uint8x8_t blend_rgb(const uint8_t *p, size_t stride, int wx, int wy)
+{
+    uint16x8_t v = vmull_u8(vld1_u8(p), vdup_n_u8((uint8_t)(ONE - wy)));
+    v = vmlal_u8(v, vld1_u8(p + stride), vdup_n_u8((uint8_t)wy));
+    uint8x8_t t = vrshrn_n_u16(v, WEIGHT_BITS);
+    uint16x8_t h = vmull_u8(t, vdup_n_u8((uint8_t)(ONE - wx)));
+    h = vmlal_u8(h, vext_u8(t, t, 3), vdup_n_u8((uint8_t)wx));
+    return vrshrn_n_u16(h, WEIGHT_BITS);
+}
+
+static inline void sample_one(const sh_plane *src, uint8_t black, uint8_t *dst, int32_t fx,
+                              int32_t fy, int fast_x, int last_y)
+{
+    int ix = fx >> FRAC_BITS, iy = fy >> FRAC_BITS;
+    if (ix < 0 || iy < 0 || ix >= fast_x || iy >= last_y) {
+        sample_checked(src, 3, fx, fy, black, dst);
+        return;
     }
+    const size_t stride = (size_t)src->stride;
+    uint8x8_t rgb = blend_rgb(src->data + (size_t)iy * stride + (size_t)ix * 3u, stride,
+                              weight_of(fx), weight_of(fy));
+    uint8_t b[8];
+    vst1_u8(b, rgb);
+    memcpy(dst, b, 3);
+}
+
+static void sample_row_rgb(const sh_plane *src, uint8_t black, uint8_t *dst, const int32_t *fx,
+                           const int32_t *fy, int count)
+{
+    const uint8_t *const data = src->data; /* dst's stores could alias *src: read once */
+    const size_t stride = (size_t)src->stride;
+    /* The 8-byte loads read 2 bytes past the right tap: 2 spare pixels keep them in the row. */
+    const int fast_x = src->width > 3 ? src->width - 3 : 0, last_y = src->height - 1;
+    int k = 0;
+    if (src->stride <= 32767) {
+        /* Four pixels' checks, offsets (iy * stride + ix * 3 < 2^31 once both lie in
+         * 0..32767) and weights at once. */
+        const uint32x4_t lim_x = vdupq_n_u32((uint32_t)fast_x), lim_y = vdupq_n_u32((uint32_t)last_y);
+        const int32x4_t wmask = vdupq_n_s32(ONE - 1);
+        /* The last pixel stays for the tail loop: it must not store a 4th byte. */
+        for (; k + 4 < count; k += 4) {
+            int32x4_t px = vld1q_s32(fx + k), py = vld1q_s32(fy + k);
+            uint32x4_t ix = vreinterpretq_u32_s32(vshrq_n_s32(px, FRAC_BITS));
+            uint32x4_t iy = vreinterpretq_u32_s32(vshrq_n_s32(py, FRAC_BITS));
+            /* inside: ix < fast_x and iy < last_y as unsigned (negatives wrap to huge) */
+            uint32x4_t bad = vorrq_u32(vcgeq_u32(ix, lim_x), vcgeq_u32(iy, lim_y));
+            if (vmaxvq_u32(bad)) { /* pixel by pixel: the inside ones as always */
+                for (int q = k; q < k + 4; q++, dst += 3)
+                    sample_one(src, black, dst, fx[q], fy[q], fast_x, last_y);
+                continue;
+            }
+            uint32x4_t off = vmlaq_n_u32(vmulq_n_u32(ix, 3u), iy, (uint32_t)stride);
+            /* the weights as bytes, w = [wx0..3 wy0..3] and ONE - w, taken by lane below */
+            uint16x4_t wx = vmovn_u32(vreinterpretq_u32_s32(vandq_s32(vshrq_n_s32(px, FRAC_BITS - WEIGHT_BITS), wmask)));
+            uint16x4_t wy = vmovn_u32(vreinterpretq_u32_s32(vandq_s32(vshrq_n_s32(py, FRAC_BITS - WEIGHT_BITS), wmask)));
+            uint8x8_t w = vmovn_u16(vcombine_u16(wx, wy)), iw = vsub_u8(vdup_n_u8(ONE), w);
+            /* A 4-byte store is cheaper; its spare byte lands on the next pixel, which is
+             * written next (the row's last pixel is left to the tail loop). */
+#define PIXEL(q)                                                                           \
+            do {                                                                           \
+                const uint8_t *p = data + vgetq_lane_u32(off, q);                          \
+                uint16x8_t v = vmull_u8(vld1_u8(p), vdup_lane_u8(iw, 4 + (q)));            \
+                v = vmlal_u8(v, vld1_u8(p + stride), vdup_lane_u8(w, 4 + (q)));            \
+                uint8x8_t t = vrshrn_n_u16(v, WEIGHT_BITS);                                \
+                uint16x8_t h = vmull_u8(t, vdup_lane_u8(iw, q));                           \
+                h = vmlal_u8(h, vext_u8(t, t, 3), vdup_lane_u8(w, q));                     \
+                uint32_t word = vget_lane_u32(vreinterpret_u32_u8(vrshrn_n_u16(h, WEIGHT_BITS)), 0); \
+                memcpy(dst + 3 * (q), &word, 4);                                           \
+            } while (0)
+            PIXEL(0); PIXEL(1); PIXEL(2); PIXEL(3);
+#undef PIXEL
+            dst += 12;
+        }
+    }
+    for (; k < count; k++, dst += 3)
+        sample_one(src, black, dst, fx[k], fy[k], fast_x, last_y);
 }
 #else
 static void init_weights(void) {}
@@ -150,19 +271,7 @@ static void init_weights(void) {}
 static void sample_row_rgb(const sh_plane *src, uint8_t black, uint8_t *dst, const int32_t *fx,
                            const int32_t *fy, int count)
 {
-    const unsigned last_x = (unsigned)src->width - 1, last_y = (unsigned)src->height - 1;
-    const size_t stride = (size_t)src->stride;
-    for (int k = 0; k < count; k++, dst += 3) {
-        unsigned ix = (unsigned)(fx[k] >> FRAC_BITS), iy = (unsigned)(fy[k] >> FRAC_BITS);
-        if (ix >= last_x || iy >= last_y) {
-            sample_checked(src, 3, fx[k], fy[k], black, dst);
-            continue;
-        }
-        const uint8_t *p = src->data + iy * stride + ix * 3u;
-        int wx = weight_of(fx[k]), wy = weight_of(fy[k]);
-        for (int c = 0; c < 3; c++)
-            dst[c] = blend(p + c, p + 3 + c, p + stride + c, p + stride + 3 + c, wx, wy);
-    }
+    warp_sample_row_rgb_portable(src, black, dst, fx, fy, count);
 }
 #endif
 

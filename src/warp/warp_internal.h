@@ -63,4 +63,9 @@ void warp_sample_init(void);
 void warp_sample_row(const sh_plane *src, int channels, uint8_t black, uint8_t *dst,
                      const int32_t *fx, const int32_t *fy, int count);
 
+/* The RGB path's definition in portable C: the SSE2 and NEON paths of warp_sample_row give
+ * exactly these bytes (tests/unit/test_sample_simd.c). */
+void warp_sample_row_rgb_portable(const sh_plane *src, uint8_t black, uint8_t *dst,
+                                  const int32_t *fx, const int32_t *fy, int count);
+
 #endif
