@@ -24,7 +24,11 @@ static double urand(void)
     rng = rng * 6364136223846793005ull + 1442695040888963407ull;
     return ((double)(rng >> 11) + 0.5) / 9007199254740992.0;
 }
-static double nrand(void) { return sqrt(-2 * log(urand())) * cos(2 * PI * urand()); }
+static double nrand(void)
+{
+    double r = sqrt(-2 * log(urand()));
+    return r * cos(2 * PI * urand());
+}
 
 static void truth(int i, int f, double *x, double *y)
 {
@@ -78,7 +82,10 @@ static void step(sh_tracker *t, int f, const int *hidden, const sh_detection *ex
         if (hidden && hidden[i]) continue;
         double x, y;
         truth(i, f, &x, &y);
-        detection(10 + i, x + 0.2 * nrand(), y + 0.2 * nrand(), &d[n++]);
+        /* one draw per statement: C leaves the order of function arguments open (gcc takes
+         * them right to left on x86-64, left to right on aarch64) */
+        double ny = 0.2 * nrand(), nx = 0.2 * nrand();
+        detection(10 + i, x + nx, y + ny, &d[n++]);
     }
     for (int k = 0; k < nextra; k++) d[n++] = extra[k];
     const sh_detection *dp[1] = {d};
@@ -256,7 +263,8 @@ static void test_auto_ids_refuse_still_tag(void **state)
     sh_tracker *t = make(0);
     for (int f = 0; f < 10 * FPS; f++) {
         sh_detection still;
-        detection(77, 900 + 0.2 * nrand(), 150 + 0.2 * nrand(), &still);
+        double ny = 0.2 * nrand(), nx = 0.2 * nrand();
+        detection(77, 900 + nx, 150 + ny, &still);
         step(t, f, NULL, &still, 1);
     }
     sh_track_estimate e[SH_TRACK_MAX_MARKERS];
