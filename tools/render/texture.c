@@ -137,9 +137,13 @@ sh_status rd_texture_tissue(const phantom_model *m, int w, int h, rd_texture *ou
     vessel(vd, w, h, &rng, w * 0.12, h * 1.02, -0.9, 1.6 * tpm, 1.6 * w, 0);
     vessel(vd, w, h, &rng, w * 0.98, h * 0.75, -2.6, 1.1 * tpm, 1.0 * w, 0);
     vessel(vd, w, h, &rng, w * 0.55, -0.02 * h, 1.7, 0.9 * tpm, 0.7 * w, 0);
-    for (int k = 0; k < 6; k++)
-        vessel(vd, w, h, &rng, rng_uniform(&rng, 0, w), rng_uniform(&rng, 0, h),
-               rng_uniform(&rng, 0, 6.283), 0.45 * tpm, 0.25 * w, 1);
+    for (int k = 0; k < 6; k++) {
+        /* one draw per statement: C leaves the order of function arguments open, and gcc takes
+         * them right to left on x86-64, left to right on aarch64 (this is x86-64's order) */
+        double dir = rng_uniform(&rng, 0, 6.283), vy = rng_uniform(&rng, 0, h);
+        double vx = rng_uniform(&rng, 0, w);
+        vessel(vd, w, h, &rng, vx, vy, dir, 0.45 * tpm, 0.25 * w, 1);
+    }
     uint32_t seed = (uint32_t)(m->seed * 2654435761u);
     float cell = (float)(1.0 / tpm); /* mm per texel */
     for (int y = 0; y < h; y++) {
