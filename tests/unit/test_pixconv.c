@@ -61,6 +61,7 @@ static void ref_yuv(double r, double g, double b, double out[3])
     out[2] = 128 + (r - yp) / (2 * (1 - kr)) * 224.0 / 255.0;
 }
 
+#ifdef SH_HAVE_OPENCV_ORACLE /* its only user (not in the OpenCV-less aarch64 build) */
 static int max_diff(const uint8_t *a, const uint8_t *b, size_t n)
 {
     int m = 0;
@@ -70,6 +71,7 @@ static int max_diff(const uint8_t *a, const uint8_t *b, size_t n)
     }
     return m;
 }
+#endif
 
 /* Packs an image's planes (for comparisons with packed references). */
 static void pack(const sh_image *img, uint8_t *out)
