@@ -81,6 +81,34 @@ int sh_sync_pop(sh_sync *sync, sh_frame_set *out);
 void sh_sync_flush(sh_sync *sync);
 void sh_sync_get_stats(const sh_sync *sync, sh_sync_stats *stats);
 
+/* ---- GPIO trigger (libgpiod 1.6, the v1 API; built when pkg-config finds libgpiod) ----
+ * Output: stillheart drives the line: a pulse of pulse_ns every period_ns, the cameras expose on
+ * it. Input: stillheart timestamps the active edges of a camera strobe or a master trigger.
+ * Either way sh_gpio_trigger_service gives the active edge's CLOCK_MONOTONIC time, for
+ * sh_sync_trigger. The fd goes into the caller's poll loop beside the cameras'. */
+typedef struct {
+    const char *chip;      /* "gpiochip0", "/dev/gpiochip0", a label or a number */
+    unsigned line;
+    int active_low;        /* polarity: the active edge is the falling one on the wire */
+    int output;            /* 1: drive pulses; 0: read edges */
+    int64_t period_ns;     /* output: pulse period (> pulse_ns) */
+    int64_t pulse_ns;      /* output: pulse width (> 0) */
+} sh_gpio_options;
+
+typedef struct sh_gpio_trigger sh_gpio_trigger;
+
+/* A missing chip, a line out of range or a line another consumer holds is refused here with
+ * a message naming chip and line. */
+sh_status sh_gpio_trigger_open(const sh_gpio_options *opts, sh_gpio_trigger **out);
+/* Output: starts the pulses (first at once). Input: nothing to do. */
+sh_status sh_gpio_trigger_start(sh_gpio_trigger *t);
+int sh_gpio_trigger_fd(const sh_gpio_trigger *t);
+/* Call when the fd is readable (or any time): *got = 1 with *edge_ns when an active edge was
+ * produced (output) or received (input); 0 otherwise. Never blocks. */
+sh_status sh_gpio_trigger_service(sh_gpio_trigger *t, int64_t *edge_ns, int *got);
+uint64_t sh_gpio_trigger_edges(const sh_gpio_trigger *t);
+void sh_gpio_trigger_close(sh_gpio_trigger *t);
+
 #ifdef __cplusplus
 }
 #endif

@@ -220,13 +220,27 @@ static void test_bad_args(void **state)
     sh_sync_destroy(s);
 }
 
+/* A missing GPIO chip is refused naming it (with or without libgpiod in the build); the lines
+ * themselves are tested against gpio-sim in tests/vm/. */
+static void test_gpio_refusals(void **state)
+{
+    (void)state;
+    sh_gpio_options o = {"gpiochip-stillheart-missing", 3, 0, 1, 20 * MS, 1 * MS};
+    sh_gpio_trigger *t = NULL;
+    assert_int_not_equal(sh_gpio_trigger_open(&o, &t), SH_OK);
+    assert_non_null(strstr(sh_error_message(), "gpiochip-stillheart-missing"));
+    o.pulse_ns = 30 * MS; /* wider than the period */
+    assert_int_not_equal(sh_gpio_trigger_open(&o, &t), SH_OK);
+    assert_null(t);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_steady),        cmocka_unit_test(test_missing_and_late),
         cmocka_unit_test(test_duplicate),     cmocka_unit_test(test_out_of_order),
         cmocka_unit_test(test_stall_and_flush), cmocka_unit_test(test_trigger),
-        cmocka_unit_test(test_bad_args),
+        cmocka_unit_test(test_bad_args),      cmocka_unit_test(test_gpio_refusals),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -9,7 +9,7 @@
 set -eu
 BUILD="${1:-build}"
 CACHE="${SH_VM_CACHE:-/var/cache/stillheart/vm}"
-KVER="${SH_VM_KVER:-6.12.57+deb12-amd64}"
+KVER="${SH_VM_KVER:-6.12.95+deb12-amd64}"   # headers exist only for the newest
 MIRROR="${SH_VM_MIRROR:-http://deb.debian.org/debian}"
 TIMEOUT="${SH_VM_TIMEOUT:-240}"
 PROBE="$BUILD/stillheart-vmprobe"
@@ -27,9 +27,11 @@ fi
 BUSYBOX=$(command -v busybox)
 case "$(file -L "$BUSYBOX" 2>/dev/null)" in *dynamically*) echo "vmtest: $BUSYBOX is not static (busybox-static)" >&2; exit 2;; esac
 
-# ---- the kernel (cached) ----
+# ---- the kernel and the modules Debian does not ship (cached) ----
 KDIR="$CACHE/k/$KVER"
-if [ ! -f "$KDIR/boot/vmlinuz-$KVER" ]; then
+KBASE="${KVER%-amd64}"            # 6.12.95+deb12
+MODS="$CACHE/mod/$KVER"
+if [ ! -f "$KDIR/boot/vmlinuz-$KVER" ] || [ ! -f "$MODS/gpio-sim.ko" ]; then
     mkdir -p "$CACHE/apt/state/lists/partial" "$CACHE/apt/cache/archives/partial" "$CACHE/apt/etc" "$CACHE/deb"
     echo "deb $MIRROR bookworm-backports main" > "$CACHE/apt/etc/sources.list"
     cat > "$CACHE/apt/apt.conf" <<CONF
@@ -41,10 +43,26 @@ Dir::Etc::SourceParts "$CACHE/apt/etc";
 CONF
     APT_CONFIG="$CACHE/apt/apt.conf" apt-get update -q >&2
     chmod 777 "$CACHE/deb"
-    (cd "$CACHE/deb" && APT_CONFIG="$CACHE/apt/apt.conf" apt-get download -q "linux-image-$KVER" >&2)
-    mkdir -p "$KDIR"
+    (cd "$CACHE/deb" && APT_CONFIG="$CACHE/apt/apt.conf" apt-get download -q "linux-image-$KVER" \
+        "linux-headers-$KVER" "linux-headers-$KBASE-common" "linux-kbuild-$KBASE" linux-source-6.12 >&2)
+    rm -rf "$KDIR" "$CACHE/hdr" "$CACHE/src" "$MODS"; mkdir -p "$KDIR" "$CACHE/hdr" "$CACHE/src" "$MODS"
     dpkg -x "$CACHE"/deb/linux-image-"$KVER"_*.deb "$KDIR"
     depmod -b "$KDIR" "$KVER"
+    for d in "linux-headers-$KVER" "linux-headers-$KBASE-common" "linux-kbuild-$KBASE"; do
+        dpkg -x "$CACHE"/deb/"$d"_*.deb "$CACHE/hdr"
+    done
+    H="$CACHE/hdr/usr/src/linux-headers-$KVER"
+    sed -i "s|include /usr/src/|include $CACHE/hdr/usr/src/|" "$H/Makefile"
+    dpkg-deb --fsys-tarfile "$CACHE"/deb/linux-source-6.12_*.deb | tar -xO ./usr/src/linux-source-6.12.tar.xz |
+        tar -xJ -C "$CACHE/src" linux-source-6.12/drivers/gpio/gpio-sim.c linux-source-6.12/kernel/irq/irq_sim.c
+    # gpio-sim with the irq simulator in one module; irq_to_desc is not exported to modules
+    B="$CACHE/build-gpio-sim"; rm -rf "$B"; mkdir -p "$B"
+    cp "$CACHE/src/linux-source-6.12/drivers/gpio/gpio-sim.c" "$B/gpio-sim-main.c"
+    sed 's/handle_simple_irq(irq_to_desc(irqnum));/generic_handle_irq(irqnum);/' \
+        "$CACHE/src/linux-source-6.12/kernel/irq/irq_sim.c" > "$B/irq_sim.c"
+    printf 'obj-m := gpio-sim.o\ngpio-sim-y := gpio-sim-main.o irq_sim.o\n' > "$B/Kbuild"
+    make -s -C "$H" M="$B" CONFIG_DEBUG_INFO_BTF_MODULES= modules >&2
+    cp "$B/gpio-sim.ko" "$MODS/"
 fi
 
 # ---- the initramfs ----
@@ -52,7 +70,7 @@ WORK=$(mktemp -d); trap 'rm -rf "$WORK"' EXIT
 R="$WORK/root"
 mkdir -p "$R/bin" "$R/sbin" "$R/proc" "$R/sys" "$R/dev" "$R/tmp" "$R/mods"
 cp "$BUSYBOX" "$R/bin/busybox"
-for a in sh mount insmod poweroff sleep ls cat echo; do ln -s busybox "$R/bin/$a"; done
+for a in sh mount insmod poweroff sleep ls cat echo mkdir; do ln -s busybox "$R/bin/$a"; done
 i=0
 for m in $(/sbin/modprobe -d "$KDIR" -S "$KVER" --show-depends vivid | awk '$1 == "insmod" {print $2}'); do
     i=$((i + 1))
@@ -61,6 +79,10 @@ for m in $(/sbin/modprobe -d "$KDIR" -S "$KVER" --show-depends vivid | awk '$1 =
         *) cp "$m" "$R/mods/$(printf %02d $i)-$(basename "$m")" ;;
     esac
 done
+for m in $(/sbin/modprobe -d "$KDIR" -S "$KVER" --show-depends configfs | awk '$1 == "insmod" {print $2}'); do
+    xz -dc "$m" > "$R/mods/00-configfs.ko"
+done
+cp "$MODS/gpio-sim.ko" "$R/mods/99-gpio-sim.ko"
 cp "$PROBE" "$R/bin/stillheart-vmprobe"
 for lib in $(ldd "$PROBE" | awk '/=>/ {print $3} /^\t\// {print $1}'); do
     mkdir -p "$R$(dirname "$lib")"; cp -L "$lib" "$R$lib"
@@ -83,6 +105,12 @@ echo "VMTEST INFO devices: $(ls /dev | grep video | tr '\n' ' ')"
 /bin/stillheart-vmprobe formats /dev/video0
 /bin/stillheart-vmprobe sets /dev/video0 /dev/video1
 /bin/stillheart-vmprobe loss /dev/video0 vivid.0
+mount -t configfs none /sys/kernel/config
+G=/sys/kernel/config/gpio-sim/stillheart
+mkdir $G $G/bank0 && echo 4 > $G/bank0/num_lines && echo 1 > $G/live
+CHIP=$(cat $G/bank0/chip_name); DEV=$(cat $G/dev_name)
+echo "VMTEST INFO gpio-sim: $CHIP on $DEV"
+/bin/stillheart-vmprobe gpio "$CHIP" "/sys/devices/platform/$DEV/$CHIP"
 echo "VMTEST-DONE"
 poweroff -f
 INIT

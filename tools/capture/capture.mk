@@ -8,6 +8,13 @@ CFLAGS_ALL   += -DSH_HAVE_TURBOJPEG
 CXXFLAGS_ALL += -DSH_HAVE_TURBOJPEG
 LDLIBS_ALL   += $(shell $(PKG_CONFIG) --libs libturbojpeg)
 endif
+# GPIO trigger lines (src/sync/gpio.c): libgpiod 1.6, the v1 API (2.x is a different API).
+ifeq ($(call have,libgpiod),1)
+ifneq ($(shell $(PKG_CONFIG) --atleast-version=2 libgpiod && echo 2),2)
+CFLAGS_ALL   += -DSH_HAVE_GPIOD
+LDLIBS_ALL   += $(shell $(PKG_CONFIG) --libs libgpiod)
+endif
+endif
 # test_pixconv compares with OpenCV's cvtColor (tools/capture/cv_oracle.cpp) when it is there;
 # the top rule links $< only, so the oracle object rides in LDLIBS_ALL of that one binary.
 ifneq ($(OPENCV_INC),)

@@ -6,7 +6,10 @@
  *                                            offers: frames, geometry, timestamps, conversion
  *   stillheart-vmprobe sets DEV0 DEV1        frame sets from two devices
  *   stillheart-vmprobe loss DEV PLATDEV      unbind the driver mid-stream, rebind: reported,
- *                                            running on, resumed */
+ *                                            running on, resumed
+ *   stillheart-vmprobe gpio CHIP SYSDIR      gpio-sim: output pulses read back from the
+ *                                            simulator, a busy line refused, input edges made
+ *                                            by the simulator's pull and timestamped */
 #include <errno.h>
 #include <stdarg.h>
 #include <fcntl.h>
@@ -14,6 +17,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/ioctl.h>
+#include <poll.h>
 #include <unistd.h>
 
 #include <linux/videodev2.h>
@@ -236,11 +240,85 @@ static void loss(const char *dev, const char *platdev)
            (unsigned long long)st.losses, (unsigned long long)st.reopens);
 }
 
+static int read_sys_int(const char *path)
+{
+    char b[16] = "";
+    int fd = open(path, O_RDONLY);
+    if (fd < 0) return -1;
+    ssize_t r = read(fd, b, sizeof b - 1);
+    close(fd);
+    return r > 0 ? atoi(b) : -1;
+}
+
+static void gpio(const char *chip, const char *sysdir)
+{
+    /* output: 20 ms period, 5 ms pulses on line 0 */
+    sh_gpio_options o = {chip, 0, 0, 1, 20000000, 5000000};
+    sh_gpio_trigger *t;
+    if (sh_gpio_trigger_open(&o, &t) != SH_OK) return result(0, "gpio-output", "%s", sh_error_message());
+    sh_gpio_trigger *busy = NULL;
+    sh_status bst = sh_gpio_trigger_open(&o, &busy);
+    result(bst != SH_OK && strstr(sh_error_message(), "busy") != NULL, "gpio-busy", "second request: %s",
+           bst != SH_OK ? sh_error_message() : "accepted");
+    sh_gpio_trigger_close(busy);
+    char vpath[256];
+    snprintf(vpath, sizeof vpath, "%s/sim_gpio0/value", sysdir);
+    sh_gpio_trigger_start(t);
+    int64_t end = sh_monotonic_ns() + 400000000, last_edge = 0;
+    int edges = 0, seen[2] = {0, 0}, spacing_ok = 1;
+    while (sh_monotonic_ns() < end) {
+        struct pollfd p = {sh_gpio_trigger_fd(t), POLLIN, 0};
+        poll(&p, 1, 2);
+        int64_t e;
+        int got;
+        if (sh_gpio_trigger_service(t, &e, &got) != SH_OK) return result(0, "gpio-output", "%s", sh_error_message());
+        if (got) {
+            if (edges && (e - last_edge < 15000000 || e - last_edge > 60000000)) spacing_ok = 0;
+            last_edge = e;
+            edges++;
+        }
+        int v = read_sys_int(vpath);
+        if (v == 0 || v == 1) seen[v]++;
+    }
+    sh_gpio_trigger_close(t);
+    result(edges >= 15 && edges <= 22 && seen[0] && seen[1] && spacing_ok, "gpio-output",
+           "%d pulses in 400 ms, line read back high %d and low %d times, spacing %s", edges, seen[1], seen[0],
+           spacing_ok ? "20 ms" : "wrong");
+    /* input: rising edges of line 1, made by the simulator's pull */
+    sh_gpio_options in = {chip, 1, 0, 0, 0, 0};
+    if (sh_gpio_trigger_open(&in, &t) != SH_OK) return result(0, "gpio-input", "%s", sh_error_message());
+    snprintf(vpath, sizeof vpath, "%s/sim_gpio1/pull", sysdir);
+    int ok = 1, n = 0;
+    for (int k = 0; k < 3; k++) {
+        write_sys(vpath, "pull-down");
+        usleep(20000);
+        int64_t e, before = sh_monotonic_ns();
+        int got = 0;
+        sh_gpio_trigger_service(t, &e, &got); /* drain */
+        if (write_sys(vpath, "pull-up") < 0) ok = 0;
+        int64_t after = sh_monotonic_ns();
+        struct pollfd p = {sh_gpio_trigger_fd(t), POLLIN, 0};
+        poll(&p, 1, 1000);
+        if (sh_gpio_trigger_service(t, &e, &got) != SH_OK || !got) {
+            ok = 0;
+            continue;
+        }
+        if (e < before || e > after + 1000000) ok = 0; /* the kernel's monotonic edge time */
+        n++;
+    }
+    sh_gpio_trigger_close(t);
+    result(ok && n == 3, "gpio-input", "%d of 3 rising edges timestamped within the pull write", n);
+    sh_gpio_options missing = {"gpiochip-missing", 0, 0, 0, 0, 0};
+    result(sh_gpio_trigger_open(&missing, &t) != SH_OK && strstr(sh_error_message(), "gpiochip-missing"),
+           "gpio-missing-chip", "%s", sh_error_message());
+}
+
 int main(int argc, char **argv)
 {
     if (argc >= 3 && !strcmp(argv[1], "formats")) formats(argv[2]);
     else if (argc >= 4 && !strcmp(argv[1], "sets")) sets(argv[2], argv[3]);
     else if (argc >= 4 && !strcmp(argv[1], "loss")) loss(argv[2], argv[3]);
+    else if (argc >= 4 && !strcmp(argv[1], "gpio")) gpio(argv[2], argv[3]);
     else {
         fprintf(stderr, "usage: stillheart-vmprobe formats DEV | sets DEV0 DEV1 | loss DEV PLATDEV\n");
         return 2;
