@@ -51,10 +51,9 @@ sh_status sh_source_open(const char *spec, const sh_source_options *opts, sh_sou
     if (!strncmp(spec, "y4m:", 4)) st = sh_source_open_y4m(spec + 4, opts, out);
     else if (!strncmp(spec, "v4l2:", 5)) st = sh_source_open_v4l2(spec + 5, opts, out);
     else if (!strncmp(spec, "rec:", 4)) st = sh_source_open_rec(spec + 4, opts, out);
-    else if (!strncmp(spec, "libcamera:", 10))
-        return sh_error_set(SH_EUNSUPPORTED, "source '%s': libcamera backend not built yet", spec);
+    else if (!strncmp(spec, "libcamera:", 10)) st = sh_source_open_libcamera(spec + 10, opts, out);
     else
-        return sh_error_set(SH_EINVAL, "source '%s': unknown kind (v4l2:DEVICE, y4m:FILE, rec:DIR)", spec);
+        return sh_error_set(SH_EINVAL, "source '%s': unknown kind (v4l2:DEVICE, libcamera:NAME, y4m:FILE, rec:DIR)", spec);
     if (st != SH_OK) return st;
     snprintf((*out)->name, sizeof (*out)->name, "%s", spec);
     return SH_OK;

@@ -4,6 +4,10 @@
 
 #include "stillheart/source.h"
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 typedef struct {
     sh_status (*start)(sh_source *src);
     int (*fd)(const sh_source *src);
@@ -28,10 +32,14 @@ struct sh_source {
 sh_status sh_source_open_y4m(const char *path, const sh_source_options *opts, sh_source **out);
 sh_status sh_source_open_v4l2(const char *path, const sh_source_options *opts, sh_source **out);
 sh_status sh_source_open_rec(const char *dir, const sh_source_options *opts, sh_source **out);
+sh_status sh_source_open_libcamera(const char *name, const sh_source_options *opts, sh_source **out);
 
 /* t0 + k frames at num/den frames per second, exact in integers (no overflow for any k). */
 int64_t sh_source_schedule_ns(int64_t t0, uint64_t k, int fps_num, int fps_den);
 /* Sleeps until the absolute CLOCK_MONOTONIC time (ns). */
 void sh_source_sleep_until(int64_t t_ns);
 
+#ifdef __cplusplus
+}
+#endif
 #endif

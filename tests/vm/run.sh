@@ -1,11 +1,13 @@
 #!/bin/sh
-# make vmtest: stillheart's capture code against the kernel's own V4L2 test driver (vivid) in a
-# QEMU guest, no hardware needed (../shared/vm-drivers.md has the background).
+# make vmtest: stillheart's capture code against the kernel's own test drivers (vivid, vimc,
+# gpio-sim) in a QEMU guest, no hardware needed (../shared/vm-drivers.md has the background).
 #   sh tests/vm/run.sh [BUILD]      BUILD holds stillheart-vmprobe (default: build)
 # Downloads Debian 12's backports kernel once (pinned: SH_VM_KVER) into SH_VM_CACHE
-# (/var/cache/stillheart/vm), builds a busybox initramfs with the probe, its shared libraries and
-# the vivid modules, boots it under TCG and reads "VMTEST PASS/FAIL" lines off the serial console.
-# Host packages: qemu-system-x86 busybox-static kmod cpio xz-utils (installed when missing).
+# (/var/cache/stillheart/vm), builds a busybox initramfs with the probe, its shared libraries,
+# libcamera's IPA modules, vivid (two instances), vimc and gpio-sim (these two built out of tree
+# from linux-source), boots it under TCG and reads "VMTEST PASS/FAIL" lines off the serial console.
+# Host packages: qemu-system-x86 busybox-static kmod cpio xz-utils, libcamera-ipa when the probe
+# links libcamera (installed when missing).
 set -eu
 BUILD="${1:-build}"
 CACHE="${SH_VM_CACHE:-/var/cache/stillheart/vm}"
@@ -20,6 +22,9 @@ need=""
 for t in qemu-system-x86_64:qemu-system-x86 busybox:busybox-static depmod:kmod cpio:cpio xz:xz-utils; do
     command -v "${t%%:*}" >/dev/null 2>&1 || [ -x "/usr/sbin/${t%%:*}" ] || need="$need ${t#*:}"
 done
+if ldd "$PROBE" | grep -q libcamera && [ ! -d /usr/lib/x86_64-linux-gnu/libcamera ]; then
+    need="$need libcamera-ipa"
+fi
 if [ -n "$need" ]; then
     echo "vmtest: installing$need" >&2
     $SUDO apt-get install -y -q --no-install-recommends $need >&2
@@ -31,7 +36,7 @@ case "$(file -L "$BUSYBOX" 2>/dev/null)" in *dynamically*) echo "vmtest: $BUSYBO
 KDIR="$CACHE/k/$KVER"
 KBASE="${KVER%-amd64}"            # 6.12.95+deb12
 MODS="$CACHE/mod/$KVER"
-if [ ! -f "$KDIR/boot/vmlinuz-$KVER" ] || [ ! -f "$MODS/gpio-sim.ko" ]; then
+if [ ! -f "$KDIR/boot/vmlinuz-$KVER" ] || [ ! -f "$MODS/gpio-sim.ko" ] || [ ! -f "$MODS/vimc.ko" ]; then
     mkdir -p "$CACHE/apt/state/lists/partial" "$CACHE/apt/cache/archives/partial" "$CACHE/apt/etc" "$CACHE/deb"
     echo "deb $MIRROR bookworm-backports main" > "$CACHE/apt/etc/sources.list"
     cat > "$CACHE/apt/apt.conf" <<CONF
@@ -54,7 +59,8 @@ CONF
     H="$CACHE/hdr/usr/src/linux-headers-$KVER"
     sed -i "s|include /usr/src/|include $CACHE/hdr/usr/src/|" "$H/Makefile"
     dpkg-deb --fsys-tarfile "$CACHE"/deb/linux-source-6.12_*.deb | tar -xO ./usr/src/linux-source-6.12.tar.xz |
-        tar -xJ -C "$CACHE/src" linux-source-6.12/drivers/gpio/gpio-sim.c linux-source-6.12/kernel/irq/irq_sim.c
+        tar -xJ -C "$CACHE/src" linux-source-6.12/drivers/gpio/gpio-sim.c linux-source-6.12/kernel/irq/irq_sim.c \
+            linux-source-6.12/drivers/media/test-drivers/vimc
     # gpio-sim with the irq simulator in one module; irq_to_desc is not exported to modules
     B="$CACHE/build-gpio-sim"; rm -rf "$B"; mkdir -p "$B"
     cp "$CACHE/src/linux-source-6.12/drivers/gpio/gpio-sim.c" "$B/gpio-sim-main.c"
@@ -63,6 +69,12 @@ CONF
     printf 'obj-m := gpio-sim.o\ngpio-sim-y := gpio-sim-main.o irq_sim.o\n' > "$B/Kbuild"
     make -s -C "$H" M="$B" CONFIG_DEBUG_INFO_BTF_MODULES= modules >&2
     cp "$B/gpio-sim.ko" "$MODS/"
+    # vimc: its own sources, one module
+    B="$CACHE/build-vimc"; rm -rf "$B"; mkdir -p "$B"
+    cp "$CACHE"/src/linux-source-6.12/drivers/media/test-drivers/vimc/*.[ch] "$B/"
+    printf 'obj-m := vimc.o\nvimc-y := %s\n' "$(cd "$B" && ls *.c | sed 's/\.c$/.o/' | tr '\n' ' ')" > "$B/Kbuild"
+    make -s -C "$H" M="$B" CONFIG_DEBUG_INFO_BTF_MODULES= modules >&2
+    cp "$B/vimc.ko" "$MODS/"
 fi
 
 # ---- the initramfs ----
@@ -83,6 +95,16 @@ for m in $(/sbin/modprobe -d "$KDIR" -S "$KVER" --show-depends configfs | awk '$
     xz -dc "$m" > "$R/mods/00-configfs.ko"
 done
 cp "$MODS/gpio-sim.ko" "$R/mods/99-gpio-sim.ko"
+cp "$MODS/vimc.ko" "$R/mods/98-vimc.ko"
+# libcamera's IPA modules and data (the vimc pipeline handler loads ipa_vimc)
+LCDIR=/usr/lib/x86_64-linux-gnu/libcamera
+if [ -d "$LCDIR" ]; then
+    mkdir -p "$R$LCDIR"; cp -a "$LCDIR"/. "$R$LCDIR/"
+    for lib in $(ldd "$LCDIR"/*.so "$LCDIR"/*_proxy 2>/dev/null | awk '/=>/ {print $3}' | sort -u); do
+        mkdir -p "$R$(dirname "$lib")"; cp -L "$lib" "$R$lib"
+    done
+fi
+[ -d /usr/share/libcamera ] && mkdir -p "$R/usr/share" && cp -a /usr/share/libcamera "$R/usr/share/"
 cp "$PROBE" "$R/bin/stillheart-vmprobe"
 for lib in $(ldd "$PROBE" | awk '/=>/ {print $3} /^\t\// {print $1}'); do
     mkdir -p "$R$(dirname "$lib")"; cp -L "$lib" "$R$lib"
@@ -105,6 +127,12 @@ echo "VMTEST INFO devices: $(ls /dev | grep video | tr '\n' ' ')"
 /bin/stillheart-vmprobe formats /dev/video0
 /bin/stillheart-vmprobe sets /dev/video0 /dev/video1
 /bin/stillheart-vmprobe loss /dev/video0 vivid.0
+# libcamera enumerates through udev: a database entry per video, subdev and media node
+mkdir -p /run/udev/data
+for d in /sys/class/video4linux/* /sys/bus/media/devices/*; do
+    [ -f "$d/dev" ] && echo "I:1" > "/run/udev/data/c$(cat "$d/dev")"
+done
+LIBCAMERA_LOG_LEVELS='*:ERROR' /bin/stillheart-vmprobe libcamera "Sensor B" 636x480   # vimc: widths in steps of 12
 mount -t configfs none /sys/kernel/config
 G=/sys/kernel/config/gpio-sim/stillheart
 mkdir $G $G/bank0 && echo 4 > $G/bank0/num_lines && echo 1 > $G/live

@@ -15,6 +15,11 @@ CFLAGS_ALL   += -DSH_HAVE_GPIOD
 LDLIBS_ALL   += $(shell $(PKG_CONFIG) --libs libgpiod)
 endif
 endif
+# libcamera (src/source/libcamera.cpp): its headers as system headers (they warn under -Werror).
+ifeq ($(call have,libcamera),1)
+CXXFLAGS_ALL += -DSH_HAVE_LIBCAMERA $(patsubst -I%,-isystem %,$(shell $(PKG_CONFIG) --cflags libcamera))
+LDLIBS_ALL   += $(shell $(PKG_CONFIG) --libs libcamera)
+endif
 # test_pixconv compares with OpenCV's cvtColor (tools/capture/cv_oracle.cpp) when it is there;
 # the top rule links $< only, so the oracle object rides in LDLIBS_ALL of that one binary.
 ifneq ($(OPENCV_INC),)

@@ -7,6 +7,7 @@
  *   stillheart-vmprobe sets DEV0 DEV1        frame sets from two devices
  *   stillheart-vmprobe loss DEV PLATDEV      unbind the driver mid-stream, rebind: reported,
  *                                            running on, resumed
+ *   stillheart-vmprobe libcamera NAME WxH    libcamera (vimc): frames, geometry, timestamps
  *   stillheart-vmprobe gpio CHIP SYSDIR      gpio-sim: output pulses read back from the
  *                                            simulator, a busy line refused, input edges made
  *                                            by the simulator's pull and timestamped */
@@ -313,12 +314,63 @@ static void gpio(const char *chip, const char *sysdir)
            "gpio-missing-chip", "%s", sh_error_message());
 }
 
+static void libcamera(const char *name, const char *size)
+{
+    sh_source_options o;
+    sh_source_options_default(&o);
+    o.format = SH_RAW_RGB24;
+    if (sscanf(size, "%dx%d", &o.width, &o.height) != 2) return result(0, "libcamera", "bad size %s", size);
+    o.timeout_ms = 20000;
+    char spec[128];
+    snprintf(spec, sizeof spec, "libcamera:%s", name);
+    sh_source *s;
+    if (sh_source_open(spec, &o, &s) != SH_OK || sh_source_start(s) != SH_OK) {
+        if (strstr(sh_error_message(), "built without")) {
+            printf("VMTEST SKIP libcamera: %s\n", sh_error_message());
+            return;
+        }
+        return result(0, "libcamera", "%s", sh_error_message());
+    }
+    sh_rawfmt f;
+    int w, h;
+    sh_source_format(s, &f, &w, &h, NULL, NULL);
+    sh_image i420;
+    sh_image_create(&i420, SH_PIX_I420, w & ~1, h & ~1);
+    int n = 0, ok = 1;
+    int64_t last = 0;
+    char why[256] = "";
+    for (int tries = 0; n < 4 && tries < 60; tries++) {
+        sh_source_frame fr;
+        int got;
+        if (sh_source_dequeue(s, 1000, &fr, &got) != SH_OK) {
+            ok = 0;
+            snprintf(why, sizeof why, "%s", sh_error_message());
+            break;
+        }
+        if (!got) continue;
+        if (fr.raw.width != o.width || fr.raw.height != o.height || fr.raw.format != SH_RAW_RGB24)
+            ok = 0, snprintf(why, sizeof why, "frame %dx%d %s", fr.raw.width, fr.raw.height, sh_rawfmt_name(fr.raw.format));
+        if (n && fr.timestamp_ns <= last) ok = 0, snprintf(why, sizeof why, "timestamps not increasing");
+        if (sh_raw_check(&fr.raw) != SH_OK || sh_pixconv_convert(NULL, &fr.raw, &i420) != SH_OK)
+            ok = 0, snprintf(why, sizeof why, "%s", sh_error_message());
+        last = fr.timestamp_ns;
+        sh_source_release(s, &fr);
+        n++;
+    }
+    sh_source_close(s);
+    sh_image_destroy(&i420);
+    if (n < 4 && ok) ok = 0, snprintf(why, sizeof why, "%d of 4 frames", n);
+    if (ok) result(1, "libcamera", "%s: %d frames %dx%d %s, timestamps increasing", name, n, w, h, sh_rawfmt_name(f));
+    else result(0, "libcamera", "%s", why);
+}
+
 int main(int argc, char **argv)
 {
     if (argc >= 3 && !strcmp(argv[1], "formats")) formats(argv[2]);
     else if (argc >= 4 && !strcmp(argv[1], "sets")) sets(argv[2], argv[3]);
     else if (argc >= 4 && !strcmp(argv[1], "loss")) loss(argv[2], argv[3]);
     else if (argc >= 4 && !strcmp(argv[1], "gpio")) gpio(argv[2], argv[3]);
+    else if (argc >= 4 && !strcmp(argv[1], "libcamera")) libcamera(argv[2], argv[3]);
     else {
         fprintf(stderr, "usage: stillheart-vmprobe formats DEV | sets DEV0 DEV1 | loss DEV PLATDEV\n");
         return 2;
