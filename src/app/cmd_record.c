@@ -39,6 +39,10 @@ static void usage(FILE *out)
         "  --tolerance-ms T   frames of one set lie within T ms of each other (default 5)\n"
         "  --max-wait-ms T    a set waits this long for a missing camera (default 100)\n"
         "  --fast             replay sources as fast as possible\n"
+        "  --trigger-out CHIP:LINE[:low]  drive the cameras' trigger line at --fps (libgpiod)\n"
+        "  --trigger-in CHIP:LINE[:low]   timestamp a strobe or master trigger line's edges\n"
+        "  --pulse-ms T       trigger pulse width (default 1)\n"
+        "  --trigger-offset-ms T  a frame's timestamp minus its trigger edge, expected (default 0)\n"
         "  --to-y4m REC OUT.y4m  convert camera --camera C (default 0) of recording REC to Y4M\n"
         "  --help             this text\n");
 }
@@ -129,10 +133,13 @@ int cmd_record(int argc, char **argv)
         {"white-balance", required_argument, 0, 'w'}, {"tolerance-ms", required_argument, 0, 't'},
         {"max-wait-ms", required_argument, 0, 'm'}, {"fast", no_argument, 0, 'F'},
         {"to-y4m", required_argument, 0, 'y'},   {"camera", required_argument, 0, 'C'},
+        {"trigger-out", required_argument, 0, 'O'}, {"trigger-in", required_argument, 0, 'I'},
+        {"pulse-ms", required_argument, 0, 'p'}, {"trigger-offset-ms", required_argument, 0, 'x'},
         {"help", no_argument, 0, 'h'},           {0, 0, 0, 0}};
     const char *specs[MAX_SOURCES];
     int nspec = 0, frames = 0, camera = 0, tol_ms = 5, wait_ms = 100;
-    const char *to_y4m_rec = NULL;
+    const char *to_y4m_rec = NULL, *trigger_spec = NULL;
+    int trigger_out = 0, pulse_ms = 1, offset_ms = 0;
     sh_source_options o;
     sh_source_options_default(&o);
     optind = 1;
@@ -178,6 +185,10 @@ int cmd_record(int argc, char **argv)
         case 'F': o.realtime = 0; break;
         case 'y': to_y4m_rec = optarg; break;
         case 'C': if (!app_parse_int("--camera", optarg, 0, MAX_SOURCES - 1, &camera)) return 2; break;
+        case 'O': trigger_spec = optarg, trigger_out = 1; break;
+        case 'I': trigger_spec = optarg, trigger_out = 0; break;
+        case 'p': if (!app_parse_int("--pulse-ms", optarg, 1, 1000, &pulse_ms)) return 2; break;
+        case 'x': if (!app_parse_int("--trigger-offset-ms", optarg, -1000, 1000, &offset_ms)) return 2; break;
         case 'h': usage(stdout); return 0;
         default: usage(stderr); return 2;
         }
@@ -194,6 +205,32 @@ int cmd_record(int argc, char **argv)
         return 2;
     }
     const char *out_dir = argv[optind];
+    char chip[64] = "";
+    sh_gpio_options go = {chip, 0, 0, trigger_out, 0, (int64_t)pulse_ms * 1000000};
+    if (trigger_spec) {
+        const char *c1 = strchr(trigger_spec, ':');
+        char *end;
+        if (!c1 || c1 == trigger_spec || (size_t)(c1 - trigger_spec) >= sizeof chip) {
+            fprintf(stderr, "--trigger-%s: CHIP:LINE[:low], not '%s'\n", trigger_out ? "out" : "in", trigger_spec);
+            return 2;
+        }
+        memcpy(chip, trigger_spec, (size_t)(c1 - trigger_spec));
+        long line = strtol(c1 + 1, &end, 10);
+        if (end == c1 + 1 || line < 0 || line > 1023 || (*end && strcmp(end, ":low"))) {
+            fprintf(stderr, "--trigger-%s: CHIP:LINE[:low], not '%s'\n", trigger_out ? "out" : "in", trigger_spec);
+            return 2;
+        }
+        go.line = (unsigned)line;
+        go.active_low = *end != 0;
+        if (trigger_out) {
+            if (o.fps_num <= 0) {
+                fprintf(stderr, "--trigger-out: give the frame rate with --fps\n");
+                return 2;
+            }
+            go.period_ns = 1000000000LL / o.fps_num;
+        }
+    }
+    sh_gpio_trigger *trig = NULL;
 
     sh_source *src[MAX_SOURCES] = {0};
     sh_rec_writer *w = NULL;
@@ -210,7 +247,11 @@ int cmd_record(int argc, char **argv)
             goto out;
         }
     }
-    sh_sync_options so = {nspec, (int64_t)tol_ms * 1000000, (int64_t)wait_ms * 1000000, 0};
+    sh_sync_options so = {nspec, (int64_t)tol_ms * 1000000, (int64_t)wait_ms * 1000000, (int64_t)offset_ms * 1000000};
+    if (trigger_spec && sh_gpio_trigger_open(&go, &trig) != SH_OK) {
+        fprintf(stderr, "stillheart record: %s\n", sh_error_message());
+        goto out;
+    }
     if (sh_sync_create(&so, &sync) != SH_OK || sh_rec_writer_create(out_dir, &w) != SH_OK) {
         fprintf(stderr, "stillheart record: %s\n", sh_error_message());
         goto out;
@@ -229,6 +270,10 @@ int cmd_record(int argc, char **argv)
         fprintf(stderr, "stillheart record: camera %d: %s, %dx%d %s at %d/%d fps\n", i, specs[i], s.width, s.height,
                 sh_rawfmt_name(s.format), s.fps_num, s.fps_den);
     }
+    if (trig && sh_gpio_trigger_start(trig) != SH_OK) {
+        fprintf(stderr, "stillheart record: %s\n", sh_error_message());
+        goto out;
+    }
     struct sigaction sa;
     memset(&sa, 0, sizeof sa);
     sa.sa_handler = on_signal;
@@ -238,13 +283,25 @@ int cmd_record(int argc, char **argv)
         int active = 0;
         for (int i = 0; i < nspec; i++) active += !ended[i] && done[i] < frames;
         if (!active || stop_requested) break;
-        struct pollfd p[MAX_SOURCES];
+        struct pollfd p[MAX_SOURCES + 1];
         for (int i = 0; i < nspec; i++) {
             p[i].fd = ended[i] || done[i] >= frames ? -1 : sh_source_fd(src[i]);
             p[i].events = POLLIN;
             p[i].revents = 0;
         }
-        poll(p, (nfds_t)nspec, 100);
+        p[nspec].fd = trig ? sh_gpio_trigger_fd(trig) : -1;
+        p[nspec].events = POLLIN;
+        p[nspec].revents = 0;
+        poll(p, (nfds_t)nspec + 1, 100);
+        if (trig) {
+            int64_t edge;
+            int got;
+            if (sh_gpio_trigger_service(trig, &edge, &got) != SH_OK) {
+                fprintf(stderr, "stillheart record: %s\n", sh_error_message());
+                goto out;
+            }
+            if (got) sh_sync_trigger(sync, edge);
+        }
         for (int i = 0; i < nspec; i++) {
             if (ended[i] || done[i] >= frames) continue;
             sh_source_frame f;
@@ -288,6 +345,9 @@ int cmd_record(int argc, char **argv)
     fprintf(stderr, "stillheart record: %llu sets (%llu incomplete), %llu late and %llu duplicate frames\n",
             (unsigned long long)ss.sets, (unsigned long long)ss.incomplete, (unsigned long long)ss.late,
             (unsigned long long)ss.duplicates);
+    if (trig)
+        fprintf(stderr, "stillheart record: %llu trigger edges %s %s line %u\n",
+                (unsigned long long)sh_gpio_trigger_edges(trig), trigger_out ? "driven on" : "read from", chip, go.line);
     rc = stop_requested ? 130 : 0;
     goto out;
 write_failed:
@@ -297,6 +357,7 @@ out:
         fprintf(stderr, "stillheart record: %s\n", sh_error_message());
         rc = 1;
     }
+    sh_gpio_trigger_close(trig);
     sh_sync_destroy(sync);
     for (int i = 0; i < nspec; i++) sh_source_close(src[i]);
     return rc;

@@ -106,7 +106,8 @@ if [ -d "$LCDIR" ]; then
 fi
 [ -d /usr/share/libcamera ] && mkdir -p "$R/usr/share" && cp -a /usr/share/libcamera "$R/usr/share/"
 cp "$PROBE" "$R/bin/stillheart-vmprobe"
-for lib in $(ldd "$PROBE" | awk '/=>/ {print $3} /^\t\// {print $1}'); do
+[ -x "$BUILD/stillheart" ] && cp "$BUILD/stillheart" "$R/bin/stillheart"
+for lib in $(ldd "$PROBE" "$BUILD/stillheart" 2>/dev/null | awk '/=>/ {print $3} /^\t\// {print $1}' | sort -u); do
     mkdir -p "$R$(dirname "$lib")"; cp -L "$lib" "$R$lib"
 done
 # ld.so may be asked for by its /lib64 name
@@ -139,6 +140,16 @@ mkdir $G $G/bank0 && echo 4 > $G/bank0/num_lines && echo 1 > $G/live
 CHIP=$(cat $G/bank0/chip_name); DEV=$(cat $G/dev_name)
 echo "VMTEST INFO gpio-sim: $CHIP on $DEV"
 /bin/stillheart-vmprobe gpio "$CHIP" "/sys/devices/platform/$DEV/$CHIP"
+# stillheart record: two vivid cameras, sets on the trigger pulses it drives on gpio-sim line 2
+if /bin/stillheart record --source v4l2:/dev/video0 --source v4l2:/dev/video1 --format YUYV --size 320x180 \
+        --fps 30 --trigger-out "$CHIP:2" --tolerance-ms 16 --frames 10 /tmp/rec > /tmp/rec.log 2>&1 &&
+   grep -q "10 frames recorded" /tmp/rec.log && grep -q "trigger edges driven" /tmp/rec.log &&
+   /bin/stillheart record --to-y4m /tmp/rec /tmp/cam1.y4m --camera 1 >> /tmp/rec.log 2>&1 &&
+   grep -q "10 frames of camera 1" /tmp/rec.log; then
+    echo "VMTEST PASS record: $(grep -E 'sets|trigger' /tmp/rec.log | tr '\n' ' ')"
+else
+    echo "VMTEST FAIL record: $(tr '\n' ' ' < /tmp/rec.log)"
+fi
 echo "VMTEST-DONE"
 poweroff -f
 INIT

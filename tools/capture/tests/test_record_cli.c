@@ -125,6 +125,14 @@ static void test_refusals(void **state)
     assert_int_equal(run("%s record --to-y4m %s/nothing %s/x.y4m", RECORD_BIN, tmp, tmp), 1);
     assert_non_null(strstr(out, "nothing"));
     assert_int_equal(run("%s record --source y4m:%s/in.y4m %s/r", RECORD_BIN, tmp, tmp), 2); /* no --frames */
+    /* a trigger line on a chip that is not there, with or without libgpiod in the build */
+    assert_int_equal(run("%s record --source y4m:%s/in.y4m --trigger-out gpiochip-missing:1 --fps 25 --frames 1 %s/t",
+                         RECORD_BIN, tmp, tmp),
+                     1);
+    assert_non_null(strstr(out, "gpiochip-missing"));
+    assert_int_equal(run("%s record --source y4m:%s/in.y4m --trigger-out gpiochip0 --frames 1 %s/t", RECORD_BIN,
+                         tmp, tmp),
+                     2);
 }
 
 int main(void)
