@@ -1,9 +1,10 @@
-/* Frame sources: cameras (V4L2, later libcamera), Y4M replay and recordings, behind one interface.
+/* Frame sources: cameras (V4L2, libcamera), Y4M replay and recordings, behind one interface.
  *
  * A source is opened from a spec:
  *   v4l2:/dev/video0     a V4L2 capture device (memory-mapped streaming)
  *   y4m:FILE             a Y4M file replayed in real time (its frame rate) or as fast as possible
  *   rec:DIR              a stillheart recording (record.h), camera chosen by options.camera
+ *   libcamera:NAME       a libcamera camera (id, part of one, or index; built with libcamera)
  * Frames are delivered raw (sh_raw: the pixel format the device gave) with the camera index,
  * a sequence number and a CLOCK_MONOTONIC capture timestamp (the driver's where it gives one).
  * Convert them with pixconv.h.
