@@ -222,7 +222,13 @@ static void test_killed_writer(void **state)
             sh_rec_writer_frame(w, 0, k, (int64_t)k, &raw);
         }
     }
-    usleep(100000);
+    /* let it write a few frames (slow machines and emulators included), then kill it */
+    struct stat stt;
+    for (int i = 0; i < 500; i++) {
+        if (stat(file, &stt) == 0 && stt.st_size > 3 * 640 * 480) break;
+        usleep(10000);
+    }
+    usleep(20000);
     kill(pid, SIGKILL);
     int status;
     waitpid(pid, &status, 0);
