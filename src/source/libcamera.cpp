@@ -365,6 +365,7 @@ extern "C" sh_status sh_source_open_libcamera(const char *name, const sh_source_
         destroy(m);
         return st;
     }
+    m->done.reserve(m->requests.size() + 1); // the completion thread never allocates
     m->camera->requestCompleted.connect(m, &Impl::completed);
     lc_source *l = (lc_source *)calloc(1, sizeof *l);
     if (!l) {
