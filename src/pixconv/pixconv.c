@@ -152,6 +152,63 @@ static void yuyv_row_gray(const uint8_t *restrict s, uint8_t *restrict y, int w)
     for (int x = 0; x < w; x++) y[x] = s[2 * x];
 }
 
+/* YUV 4:2:x rows to RGB24 in chunks: the samples are first gathered into int16 arrays, the chroma
+ * terms computed once per chroma sample, the pixels as int16 x int16 -> int32 products (gcc turns
+ * these into SSE2/NEON widening multiplies), then interleaved. 13 fractional bits keep every
+ * coefficient within int16. Strides are compile-time constants at each call (inlined). */
+#define CS 13
+#define FIX13(x) ((int16_t)((x) * (1 << CS) + ((x) < 0 ? -0.5 : 0.5)))
+#define CHUNK 128
+
+static inline uint8_t clip13(int32_t v)
+{
+    v >>= CS;
+    return (uint8_t)(v < 0 ? 0 : v > 255 ? 255 : v);
+}
+
+static inline void yuv422_row_rgb(const uint8_t *restrict y, int ystep, const uint8_t *restrict u,
+                                  const uint8_t *restrict v, int cstep, uint8_t *restrict o, int w)
+{
+    const int16_t cy = FIX13(255.0 / 219.0), crv = FIX13(2.0 * (1.0 - KR) * 255.0 / 224.0),
+                  cgu = FIX13(-2.0 * KB * (1.0 - KB) / KG * 255.0 / 224.0),
+                  cgv = FIX13(-2.0 * KR * (1.0 - KR) / KG * 255.0 / 224.0),
+                  cbu = FIX13(2.0 * (1.0 - KB) * 255.0 / 224.0);
+    int16_t Y[CHUNK], U[CHUNK / 2], V[CHUNK / 2];
+    int32_t tr[CHUNK / 2], tg[CHUNK / 2], tb[CHUNK / 2];
+    uint8_t R[CHUNK], G[CHUNK], B[CHUNK];
+    for (int x0 = 0; x0 < w; x0 += CHUNK) {
+        int n = w - x0 < CHUNK ? w - x0 : CHUNK, c0 = x0 / 2;
+        for (int i = 0; i < n; i++) Y[i] = (int16_t)(y[(x0 + i) * ystep] - 16);
+        for (int i = 0; i < n / 2; i++) {
+            U[i] = (int16_t)(u[(c0 + i) * cstep] - 128);
+            V[i] = (int16_t)(v[(c0 + i) * cstep] - 128);
+        }
+        for (int i = 0; i < n / 2; i++) {
+            tr[i] = (int32_t)V[i] * crv + (1 << (CS - 1));
+            tg[i] = (int32_t)U[i] * cgu + (int32_t)V[i] * cgv + (1 << (CS - 1));
+            tb[i] = (int32_t)U[i] * cbu + (1 << (CS - 1));
+        }
+        for (int i = 0; i < n; i++) {
+            int32_t yy = (int32_t)Y[i] * cy;
+            R[i] = clip13(yy + tr[i >> 1]);
+            G[i] = clip13(yy + tg[i >> 1]);
+            B[i] = clip13(yy + tb[i >> 1]);
+        }
+        uint8_t *q = o + 3 * x0;
+        for (int i = 0; i < n; i++) {
+            q[3 * i] = R[i];
+            q[3 * i + 1] = G[i];
+            q[3 * i + 2] = B[i];
+        }
+    }
+}
+
+static void yuyv_row_rgb(const uint8_t *restrict s, uint8_t *restrict o, int w)
+{
+    yuv422_row_rgb(s, 2, s + 1, s + 3, 4, o, w);
+}
+
+/* YUV444 (replay only): one chroma sample per pixel. */
 static void yuv_pair_rgb(uint8_t *restrict o, int y, int u, int v)
 {
     int32_t yy = C_Y * (y - 16) + HALF;
@@ -159,22 +216,6 @@ static void yuv_pair_rgb(uint8_t *restrict o, int y, int u, int v)
     o[0] = clip(yy + r);
     o[1] = clip(yy + g);
     o[2] = clip(yy + b);
-}
-
-static void yuyv_row_rgb(const uint8_t *restrict s, uint8_t *restrict o, int w)
-{
-    for (int x = 0; x < w; x += 2) {
-        int u = s[2 * x + 1], v = s[2 * x + 3];
-        yuv_pair_rgb(o + 3 * x, s[2 * x], u, v);
-        yuv_pair_rgb(o + 3 * x + 3, s[2 * x + 2], u, v);
-    }
-}
-
-/* NV12 or I420 rows: chroma at half width, from interleaved (step 2) or planar (step 1) rows. */
-static void yuv420_row_rgb(const uint8_t *restrict y, const uint8_t *restrict u, const uint8_t *restrict v,
-                           int step, uint8_t *restrict o, int w)
-{
-    for (int x = 0; x < w; x++) yuv_pair_rgb(o + 3 * x, y[x], u[(x >> 1) * step], v[(x >> 1) * step]);
 }
 
 static void rgb_row_y(const uint8_t *restrict s, int ri, int bi, uint8_t *restrict y, int w)
@@ -392,9 +433,12 @@ sh_status sh_pixconv_convert(sh_pixconv *conv, const sh_raw *s, sh_image *d)
         if (s->format == SH_RAW_NV12) cs = ss, step = 2, cr = cb + 1;
         else cs = ss / 2, step = 1, cr = cb + (size_t)cs * ch;
         if (d->format == SH_PIX_RGB24) {
-            for (int y = 0; y < h; y++)
-                yuv420_row_rgb(src + (size_t)y * ss, cb + (size_t)(y >> 1) * cs, cr + (size_t)(y >> 1) * cs, step,
-                               Y + (size_t)y * ys, w);
+            for (int y = 0; y < h; y++) {
+                const uint8_t *yr = src + (size_t)y * ss, *ur = cb + (size_t)(y >> 1) * cs,
+                              *vr = cr + (size_t)(y >> 1) * cs;
+                if (step == 2) yuv422_row_rgb(yr, 1, ur, vr, 2, Y + (size_t)y * ys, w);
+                else yuv422_row_rgb(yr, 1, ur, vr, 1, Y + (size_t)y * ys, w);
+            }
             return SH_OK;
         }
         copy_rows(src, ss, Y, ys, w, h);
