@@ -4,6 +4,7 @@
  *
  *   stillheart-vmprobe formats DEV           each of GREY YUYV NV12 RGB24 BGR24 MJPEG the driver
  *                                            offers: frames, geometry, timestamps, conversion
+ *   stillheart-vmprobe controls DEV          gain set and read back, exposure refused (vivid)
  *   stillheart-vmprobe sets DEV0 DEV1        frame sets from two devices
  *   stillheart-vmprobe loss DEV PLATDEV      unbind the driver mid-stream, rebind: reported,
  *                                            running on, resumed
@@ -127,6 +128,34 @@ static void formats(const char *dev)
     }
     sh_image_destroy(&i420);
     sh_pixconv_destroy(conv);
+}
+
+/* Controls: vivid has gain (with autogain) but no exposure: the first is set and read back, the
+ * second refused naming it. */
+static void controls(const char *dev)
+{
+    sh_source_options o;
+    sh_source_options_default(&o);
+    o.format = SH_RAW_YUYV;
+    o.width = W;
+    o.height = H;
+    o.gain = 77;
+    char spec[128];
+    snprintf(spec, sizeof spec, "v4l2:%s", dev);
+    sh_source *s;
+    if (sh_source_open(spec, &o, &s) != SH_OK) return result(0, "controls-gain", "%s", sh_error_message());
+    sh_source_close(s);
+    int fd = open(dev, O_RDWR), got = -1;
+    struct v4l2_control c = {.id = V4L2_CID_GAIN};
+    if (fd >= 0 && ioctl(fd, VIDIOC_G_CTRL, &c) == 0) got = c.value;
+    if (fd >= 0) close(fd);
+    result(got == 77, "controls-gain", "gain set to 77, driver reads %d", got);
+    o.gain = SH_SOURCE_CTRL_UNSET;
+    o.exposure = 100;
+    sh_status st = sh_source_open(spec, &o, &s);
+    if (st == SH_OK) sh_source_close(s);
+    result(st != SH_OK && strstr(sh_error_message(), "exposure") != NULL, "controls-exposure",
+           "refused: %s", st != SH_OK ? sh_error_message() : "accepted");
 }
 
 static void sets(const char *d0, const char *d1)
@@ -367,6 +396,7 @@ static void libcamera(const char *name, const char *size)
 int main(int argc, char **argv)
 {
     if (argc >= 3 && !strcmp(argv[1], "formats")) formats(argv[2]);
+    else if (argc >= 3 && !strcmp(argv[1], "controls")) controls(argv[2]);
     else if (argc >= 4 && !strcmp(argv[1], "sets")) sets(argv[2], argv[3]);
     else if (argc >= 4 && !strcmp(argv[1], "loss")) loss(argv[2], argv[3]);
     else if (argc >= 4 && !strcmp(argv[1], "gpio")) gpio(argv[2], argv[3]);
