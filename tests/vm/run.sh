@@ -127,6 +127,7 @@ sleep 1
 echo "VMTEST INFO devices: $(ls /dev | grep video | tr '\n' ' ')"
 /bin/stillheart-vmprobe formats /dev/video0
 /bin/stillheart-vmprobe controls /dev/video0
+/bin/stillheart-vmprobe errors /dev/video0
 /bin/stillheart-vmprobe sets /dev/video0 /dev/video1
 /bin/stillheart-vmprobe loss /dev/video0 vivid.0
 # libcamera enumerates through udev: a database entry per video, subdev and media node
