@@ -14,6 +14,17 @@ for dir in "$@"; do
         if [ "$rc" -ne 0 ] && [ -z "$f" ]; then failed=$((failed + 1)); crashed="$crashed $t"; fi
     done
 done
+# make vmtest's own closing line ("vmtest: N passed, N failed"), when the suite ran it
+if [ -n "${VMTEST_OUT:-}" ]; then
+    line=$(grep -E '^vmtest: [0-9]+ passed, [0-9]+ failed' "$VMTEST_OUT" 2>/dev/null | tail -1)
+    if [ -n "$line" ]; then
+        p=$(echo "$line" | sed 's/^vmtest: \([0-9]*\) passed.*/\1/')
+        f=$(echo "$line" | sed 's/.* \([0-9]*\) failed.*/\1/')
+        passed=$((passed + p)); failed=$((failed + f))
+    else
+        failed=$((failed + 1)); crashed="$crashed vmtest(no summary: see $VMTEST_OUT)"
+    fi
+fi
 [ -n "$crashed" ] && echo "crashed or exited non-zero:$crashed"
 echo "$passed passed, $failed failed"
 [ "$failed" -eq 0 ] && [ "$passed" -gt 0 ]
