@@ -7,10 +7,14 @@ ARM64_BUILD ?= build-arm64
 deps-arm64:
 	@sh scripts/install-deps.sh --arm64
 
+# The tests that take minutes under emulation (the phantom renders, the tracker on the phantom's
+# truth, the warps) run side by side, each in a lane of its own (tools/cross/run-lanes.sh); the
+# rest one after another; ARM64_LANES= runs everything one after another.
+ARM64_LANES ?= test_render test_track_phantom test_warp3d_phantom test_warp3d test_warp test_phantom_truth
 check-arm64: deps-arm64
 	$(MAKE) --no-print-directory CROSS_COMPILE=aarch64-linux-gnu- BUILD=$(ARM64_BUILD) tests
 	@sh tools/cross/qemu-wrap.sh $(ARM64_BUILD)
-	@QEMU_LD_PREFIX=/ sh tests/run-tests.sh $(ARM64_BUILD)
+	@QEMU_LD_PREFIX=/ sh tools/cross/run-lanes.sh $(ARM64_BUILD) $(ARM64_LANES)
 
 # ---- Debian packages (debian/): make deb [DEB_ARCHS="amd64 arm64"] -> build-deb/*.deb ----
 # Built from a copy of the working tree (dpkg-buildpackage writes beside the source folder).

@@ -4,17 +4,21 @@
 # build folder (stillheart*, tests/test_*) moves to BUILD/.qemu/ and leaves in its place a
 # script that runs it under qemu-aarch64, with argv[0] kept (tests find their siblings by it).
 #   tools/cross/qemu-wrap.sh BUILD
-# Idempotent: a relinked program (an ELF again) is moved anew; wrappers are left alone.
+# Idempotent: a relinked program (an ELF again) is moved anew; wrappers are rewritten.
 set -eu
 build=$(cd "$1" && pwd)
 qemu=${QEMU_AARCH64:-qemu-aarch64}
 for f in "$build"/stillheart* "$build"/tests/test_*; do
     [ -f "$f" ] || continue
     case "$f" in *.a|*.o|*.d) continue ;; esac
-    [ "$(head -c 4 "$f" | od -An -c | tr -d ' ')" = '177ELF' ] || continue
     rel=${f#"$build"/}
-    mkdir -p "$build/.qemu/$(dirname "$rel")"
-    mv -f "$f" "$build/.qemu/$rel"
-    printf '#!/bin/sh\nexec %s -L "${QEMU_LD_PREFIX:-/}" -0 "$0" "%s" "$@"\n' "$qemu" "$build/.qemu/$rel" > "$f"
+    if [ "$(head -c 4 "$f" | od -An -c | tr -d ' ')" = '177ELF' ]; then
+        mkdir -p "$build/.qemu/$(dirname "$rel")"
+        mv -f "$f" "$build/.qemu/$rel"
+    fi
+    [ -f "$build/.qemu/$rel" ] || continue
+    # argv[0]: the wrapper's own path, links resolved (tools/cross/run-lanes.sh runs links)
+    printf '#!/bin/sh\nexec %s -L "${QEMU_LD_PREFIX:-/}" -0 "$(readlink -f "$0")" "%s" "$@"\n' \
+        "$qemu" "$build/.qemu/$rel" > "$f"
     chmod 0755 "$f"
 done
