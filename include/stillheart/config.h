@@ -1,0 +1,84 @@
+/* The daemon's configuration: one INI file (firmware-config/stillheart.ini documents every key),
+ * every key also settable from the command line, which wins over the file.
+ *
+ * A bad section, key or value, or a file that cannot be read, is refused with one line naming the
+ * file, the line and the key ("stillheart.ini:12: [gating] min_markers: 'x' is not a whole number
+ * in 1..1024"). Loading never touches a running configuration: parse into a fresh sh_config and
+ * swap only when it succeeded (that is how SIGHUP reloads keep the running config on error). */
+#ifndef STILLHEART_CONFIG_H
+#define STILLHEART_CONFIG_H
+
+#include <stdint.h>
+#include <stdio.h>
+#include "stillheart/core.h"
+#include "stillheart/interp.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define SH_CONFIG_STR 256
+#define SH_CONFIG_MAX_IDS 1024 /* tag ids 0..1023 */
+#define SH_CONFIG_ERR 512
+
+typedef struct {
+    /* [source] */
+    char source[SH_CONFIG_STR];      /* y4m:FILE, v4l2:/dev/videoN, ... (source.h spec) */
+    int realtime;                    /* 1: the stream's frame rate; 0: as fast as possible */
+    int loop;                        /* replay: start over at the end */
+    /* [detect] */
+    char family[32];                 /* tag36h11, tagStandard41h12, ... */
+    uint8_t ids[SH_CONFIG_MAX_IDS];  /* ids[i] = 1: tag i is a marker */
+    char ids_text[SH_CONFIG_STR];    /* as written: "0-15", "1,3,5-9" */
+    /* [method] */
+    char method_name[32];
+    sh_interp_params method;         /* sigma / levels / smoothing applied over the defaults */
+    double sigma;                    /* < 0: the method's default */
+    int levels;
+    double smoothing;
+    double grid;                     /* warp grid spacing in px; 0 = from the error bound */
+    /* [reference] */
+    int reference_frame;             /* 0: first good frame; N: the N-th frame (1-based) */
+    /* [gating] */
+    int min_markers;                 /* fewer -> raw ("too few markers") */
+    double max_residual_px;          /* larger -> raw ("residual") */
+    double max_sigma_px;             /* position uncertainty (1 sigma) over this -> raw */
+    int dropout_ms;                  /* stale up to this -> degraded; longer -> raw */
+    /* [run] */
+    int threads;
+    char points[SH_CONFIG_STR];      /* test mode: markers from a points file, no detection */
+    /* [sink] */
+    char sink[SH_CONFIG_STR];        /* shm:NAME or none */
+    int slots;
+    char group[64];                  /* owner group of the segment ("" = the process's) */
+    char record[SH_CONFIG_STR];      /* "" or FILE.y4m: what is shown, also to a file */
+    int watchdog;                    /* 1: WATCHDOG=1 pings when systemd asks for them */
+} sh_config;
+
+/* The embedded defaults (the run demo's config): y4m:out/run-demo/video.y4m, tps, shm:/stillheart. */
+void sh_config_default(sh_config *cfg);
+
+/* Sets one key from text. origin (a file name or "command line") and line (0: none) only serve
+ * the error message, written to err (SH_CONFIG_ERR bytes). */
+sh_status sh_config_set(sh_config *cfg, const char *section, const char *key, const char *value,
+                        const char *origin, int line, char *err);
+
+/* Parses INI text over cfg (keys not mentioned keep their value). */
+sh_status sh_config_parse_string(sh_config *cfg, const char *text, const char *origin, char *err);
+/* Reads and parses the file; a file that cannot be opened is an error naming it. */
+sh_status sh_config_load_file(sh_config *cfg, const char *path, char *err);
+
+/* Command line: finds the key that --NAME sets (e.g. "max-residual" -> [gating] max_residual_px).
+ * Returns 1 and the section/key, or 0 when no key has that option name. */
+int sh_config_option(const char *name, const char **section, const char **key, int *is_flag);
+/* Checks the whole config (consistency across keys: min_markers vs method, ...). */
+sh_status sh_config_check(const sh_config *cfg, char *err);
+/* Writes the config as INI (every key), e.g. for --print-config. */
+void sh_config_write(const sh_config *cfg, FILE *out);
+/* Prints the option list for --help. */
+void sh_config_usage(FILE *out);
+
+#ifdef __cplusplus
+}
+#endif
+#endif
