@@ -14,6 +14,7 @@ static const struct {
     {"warp3d", cmd_warp3d, "3D stabilization, stereo and virtual views, PLY export (paper Algorithm 2)"},
     {"track", cmd_track, "track the markers of a video (Kalman, 2D or 3D) into a points file"},
     {"record", cmd_record, "record cameras as delivered (frames, timestamps, sets); recording to Y4M"},
+    {"run", cmd_run, "the daemon: live stabilization into the shared-memory display buffer"},
 };
 
 static void usage(FILE *out)
