@@ -3,3 +3,34 @@ ifeq ($(call have,inih),1)
 CFLAGS_ALL += -DSH_HAVE_INIH $(shell $(PKG_CONFIG) --cflags inih)
 LDLIBS_ALL += $(shell $(PKG_CONFIG) --libs inih)
 endif
+
+# The daemon's tests: a script run by the suite like a cmocka binary (needs the renderer).
+$(BUILD)/tests/test_daemon: tools/daemon/test_daemon.sh $(APP) $(BUILD)/stillheart-cat $(BUILD)/stillheart-render
+	@mkdir -p $(dir $@)
+	cp $< $@
+	chmod +x $@
+TOOL_TESTS += $(BUILD)/tests/test_daemon
+
+# make run-demo: a short phantom, the daemon on it in real time for a few seconds, and
+# stillheart-cat showing that frames arrive (docs/daemon.md).
+RUN_DEMO_DIR ?= out/run-demo
+RUN_DEMO_SHM ?= /stillheart-demo
+.PHONY: run-demo
+run-demo: deps
+	$(MAKE) --no-print-directory all
+	@[ -s $(RUN_DEMO_DIR)/cam0.y4m ] || $(BUILD)/stillheart-render --preset exvivo --frames 200 --cameras 1 --out $(RUN_DEMO_DIR)
+	@rm -f /dev/shm$(RUN_DEMO_SHM)
+	@$(APP) run --source y4m:$(RUN_DEMO_DIR)/cam0.y4m --sink shm:$(RUN_DEMO_SHM) --group= & pid=$$!; \
+	  for i in 1 2 3 4 5 6 7 8 9 10 11 12 13 14 15 16 17 18 19 20; do [ -e /dev/shm$(RUN_DEMO_SHM) ] && break; sleep 0.1; done; \
+	  $(BUILD)/stillheart-cat --name $(RUN_DEMO_SHM) --count 69 --timeout 5 -v > $(RUN_DEMO_DIR)/shown.y4m 2> $(RUN_DEMO_DIR)/cat.log; rc=$$?; \
+	  kill -TERM $$pid; wait $$pid; \
+	  echo "stillheart-cat read $$(grep -c . $(RUN_DEMO_DIR)/cat.log) frame lines, $$(grep -c stabilized $(RUN_DEMO_DIR)/cat.log) stabilized; shown frames: $(RUN_DEMO_DIR)/shown.y4m (ffplay it)"; \
+	  exit $$rc
+
+# make bench: the daemon replaying a 1080p phantom as fast as possible, 16 tags, 2 threads.
+BENCH_DAEMON := $(BUILD)/bench/bench_daemon
+$(BENCH_DAEMON): tools/bench/bench_daemon.sh $(APP) $(BUILD)/stillheart-render
+	@mkdir -p $(dir $@)
+	cp $< $@
+	chmod +x $@
+BENCH_BIN += $(BENCH_DAEMON)
