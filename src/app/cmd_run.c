@@ -447,6 +447,7 @@ int cmd_run(int argc, char **argv)
         sh_detector_options dopt;
         sh_detector_options_default(&dopt);
         dopt.family = cfg.family;
+        dopt.window_decimate = 2; /* ~2.4x cheaper, as accurate on ~100 px tags (detect.h) */
         if (sh_detector_create(&dopt, &det) != SH_OK) {
             fprintf(stderr, "stillheart run: [detect] family: %s\n", sh_error_message());
             goto done;
