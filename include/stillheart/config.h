@@ -55,7 +55,7 @@ typedef struct {
     int watchdog;                    /* 1: WATCHDOG=1 pings when systemd asks for them */
 } sh_config;
 
-/* The embedded defaults (the run demo's config): y4m:out/run-demo/video.y4m, tps, shm:/stillheart. */
+/* The embedded defaults (the run demo's config): y4m:out/run-demo/cam0.y4m, tps, shm:/stillheart. */
 void sh_config_default(sh_config *cfg);
 
 /* Sets one key from text. origin (a file name or "command line") and line (0: none) only serve

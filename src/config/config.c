@@ -55,7 +55,7 @@ static const keydef keys[] = {
 void sh_config_default(sh_config *cfg)
 {
     memset(cfg, 0, sizeof *cfg);
-    snprintf(cfg->source, sizeof cfg->source, "y4m:out/run-demo/video.y4m");
+    snprintf(cfg->source, sizeof cfg->source, "y4m:out/run-demo/cam0.y4m");
     cfg->realtime = 1;
     cfg->loop = 1;
     snprintf(cfg->family, sizeof cfg->family, "tag36h11");

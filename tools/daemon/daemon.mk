@@ -34,3 +34,19 @@ $(BENCH_DAEMON): tools/bench/bench_daemon.sh $(APP) $(BUILD)/stillheart-render
 	cp $< $@
 	chmod +x $@
 BENCH_BIN += $(BENCH_DAEMON)
+
+# make install also installs the unit, the example config (kept when one exists) and udev rules.
+SYSTEMD_UNIT_DIR ?= /etc/systemd/system
+UDEV_RULES_DIR ?= /etc/udev/rules.d
+SYSCONF_DIR ?= /etc/stillheart
+.PHONY: install-daemon
+install: install-daemon
+install-daemon: all
+	install -d $(DESTDIR)$(SYSTEMD_UNIT_DIR) $(DESTDIR)$(UDEV_RULES_DIR) $(DESTDIR)$(SYSCONF_DIR) \
+		$(DESTDIR)$(PREFIX)/share/doc/stillheart
+	sed 's|/usr/local/bin/stillheart|$(PREFIX)/bin/stillheart|; s|/usr/local/share/doc|$(PREFIX)/share/doc|' \
+		firmware-config/stillheart.service > $(DESTDIR)$(SYSTEMD_UNIT_DIR)/stillheart.service
+	chmod 0644 $(DESTDIR)$(SYSTEMD_UNIT_DIR)/stillheart.service
+	install -m 0644 firmware-config/99-stillheart.rules $(DESTDIR)$(UDEV_RULES_DIR)/
+	[ -e $(DESTDIR)$(SYSCONF_DIR)/stillheart.ini ] || install -m 0644 firmware-config/stillheart.ini $(DESTDIR)$(SYSCONF_DIR)/
+	install -m 0644 docs/daemon.md $(DESTDIR)$(PREFIX)/share/doc/stillheart/
