@@ -50,3 +50,14 @@ install-daemon: all
 	install -m 0644 firmware-config/99-stillheart.rules $(DESTDIR)$(UDEV_RULES_DIR)/
 	[ -e $(DESTDIR)$(SYSCONF_DIR)/stillheart.ini ] || install -m 0644 firmware-config/stillheart.ini $(DESTDIR)$(SYSCONF_DIR)/
 	install -m 0644 docs/daemon.md $(DESTDIR)$(PREFIX)/share/doc/stillheart/
+
+# fuzz_config reaches the interpolation code (method names), whose Eigen object needs the C++
+# sanitizer runtime: the same build as the top rule, linked by clang++.
+build-fuzz/fuzz_config: tests/fuzz/fuzz_config.c $(LIB_C) $(LIB_CXX)
+	@mkdir -p build-fuzz
+	$(MAKE) --no-print-directory BUILD=build-fuzz/lib CC=clang CXX=clang++ SAN=0 \
+		CFLAGS="-fsanitize=fuzzer-no-link,address,undefined" \
+		CXXFLAGS="-fsanitize=fuzzer-no-link,address,undefined" build-fuzz/lib/libstillheart.a
+	clang $(FUZZ_FLAGS) -c $< -o build-fuzz/fuzz_config.o
+	clang++ -fsanitize=fuzzer,address,undefined build-fuzz/fuzz_config.o build-fuzz/lib/libstillheart.a \
+		$(filter-out -lstdc++,$(LDLIBS_ALL)) -o $@
