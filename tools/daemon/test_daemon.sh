@@ -68,7 +68,7 @@ msg=$($RUN --config "$T/good.ini" --min-markers 7 --print-config 2>&1)
 echo "$msg" | grep -q "^min_markers = 7" && ok "command line wins" || bad "command line wins" "$msg"
 
 # 4. SIGTERM stops within a second, segment closed; sd_notify READY/STATUS/WATCHDOG; SIGHUP bad reload kept
-python3 - "$B/stillheart" "$T/ph/cam0.y4m" "$T/good.ini" "$SHM" <<'PY' && ok "notify, reload, SIGTERM < 1 s" || bad "notify, reload, SIGTERM < 1 s" "see above"
+python3 - "$B/stillheart" "$T/ph/cam0.y4m" "$T/good.ini" "$SHM" <<'PY' && ok "notify, reload, SIGUSR1 reference, SIGTERM < 1 s" || bad "notify, reload, SIGUSR1 reference, SIGTERM < 1 s" "see above"
 import os, socket, subprocess, sys, time, signal
 exe, video, ini, shm = sys.argv[1:5]
 sp = "/tmp/sh-notify-test-%d" % os.getpid()
@@ -83,6 +83,7 @@ while time.time() - t0 < 3:
     except socket.timeout: break
 open(ini, "w").write("[gating]\nmin_markers = nope\n")
 p.send_signal(signal.SIGHUP); time.sleep(0.5)
+p.send_signal(signal.SIGUSR1); time.sleep(0.5)
 alive = p.poll() is None
 t1 = time.time(); p.send_signal(signal.SIGTERM); p.wait(timeout=5); dt = time.time() - t1
 err = p.stderr.read().decode()
@@ -95,6 +96,7 @@ need(got and got[0].startswith("READY=1"), "READY=1 first: %r" % got[:2])
 need(any(g.startswith("STATUS=") and "fps" in g for g in got), "STATUS with fps")
 need(sum(g == "WATCHDOG=1" for g in got) >= 3, "WATCHDOG=1 pings: %d" % sum(g == "WATCHDOG=1" for g in got))
 need(alive and "reload refused, keeping the running config" in err and "min_markers" in err, "bad reload kept: " + err[-300:])
+need(err.count("reference: frame") == 2 and "new reference requested" in err, "SIGUSR1 new reference")
 need(dt < 1.0 and p.returncode == 0, "SIGTERM took %.2f s rc %s" % (dt, p.returncode))
 sys.exit(0 if ok else 1)
 PY
