@@ -4,10 +4,7 @@
  * reference, takes the model for that marker set from a cache, warps, gates and publishes to
  * the shared-memory display buffer with status, reason, markers used and residual.
  *
- * Source seam: the replay below reads Y4M with sh_y4m_reader (frames arrive as sh_image, which
- * keeps the hot loop free of conversions). Live cameras plug in through include/stillheart/
- * source.h (sh_source_dequeue + sh_pixconv_convert into the same mailbox buffers) in
- * source_thread(); see docs/daemon.md. */
+ * The source thread and the mailbox are in run_source.c. */
 #include <errno.h>
 #include <math.h>
 #include <pthread.h>
@@ -21,6 +18,7 @@
 #include <unistd.h>
 
 #include "app.h"
+#include "run_source.h"
 #include "stillheart/config.h"
 #include "stillheart/detect.h"
 #include "stillheart/display.h"
@@ -70,113 +68,6 @@ static void on_signal(int s)
     if (s == SIGHUP) sig_hup = 1;
     else if (s == SIGUSR1) sig_usr1 = 1;
     else sig_stop = 1;
-}
-
-/* ---- the mailbox: three buffers, one being filled, one waiting, one being processed ---- */
-typedef struct {
-    sh_image img;
-    int index;          /* frame index in the file */
-    int64_t avail_ns;   /* when the frame became available */
-} slot;
-
-typedef struct {
-    pthread_mutex_t mu;
-    pthread_cond_t cv;
-    slot buf[3];
-    int w, m, p;        /* filled by the source / waiting (-1: none) / held by processing (-1) */
-    int eof;            /* the source ended (no loop) or failed */
-    int realtime, loop;
-    uint64_t delivered, dropped;
-    sh_y4m_reader *reader;
-    const char *path;
-    double fps;
-} mailbox;
-
-static int free_slot(const mailbox *mb)
-{
-    for (int i = 0; i < 3; i++)
-        if (i != mb->w && i != mb->m && i != mb->p) return i;
-    return -1;
-}
-
-static void *source_thread(void *arg)
-{
-    mailbox *mb = arg;
-    int index = 0, err_once = 0;
-    int64_t start = mono_ns();
-    uint64_t k = 0;
-    while (!sig_stop) {
-        slot *s = &mb->buf[mb->w];
-        sh_status st = sh_y4m_reader_read(mb->reader, &s->img);
-        if (st == SH_EEOF && mb->loop) {
-            sh_y4m_reader_close(mb->reader);
-            mb->reader = NULL;
-            if (sh_y4m_reader_open(mb->path, &mb->reader) != SH_OK) {
-                logm("ERROR", "source", "%s: reopen: %s", mb->path, sh_error_message());
-                break;
-            }
-            index = 0;
-            continue;
-        }
-        if (st == SH_EEOF) { logm("INFO", "source", "%s: end of stream", mb->path); break; }
-        if (st != SH_OK) {
-            LOG_ONCE(err_once, "ERROR", "source", "%s: %s", mb->path, sh_error_message());
-            break;
-        }
-        if (mb->realtime && mb->fps > 0) { /* frame k is due at start + k / fps */
-            int64_t due = start + (int64_t)((double)k * 1e9 / mb->fps);
-            int64_t now = mono_ns();
-            if (due > now) {
-                struct timespec ts = {(time_t)((due - now) / 1000000000), (long)((due - now) % 1000000000)};
-                while (nanosleep(&ts, &ts) && errno == EINTR && !sig_stop) {}
-            }
-        }
-        k++;
-        s->index = index++;
-        pthread_mutex_lock(&mb->mu);
-        if (!mb->realtime) /* as fast as processing takes them: wait, nothing dropped */
-            while (mb->m >= 0 && !sig_stop) pthread_cond_wait(&mb->cv, &mb->mu);
-        s->avail_ns = mono_ns(); /* available to processing from now */
-        if (mb->m >= 0) { /* behind: the waiting frame is the oldest, drop it */
-            int old = mb->m;
-            mb->m = mb->w;
-            mb->w = old;
-            mb->dropped++;
-        } else {
-            mb->m = mb->w;
-            mb->w = free_slot(mb);
-        }
-        mb->delivered++;
-        pthread_cond_broadcast(&mb->cv);
-        pthread_mutex_unlock(&mb->mu);
-    }
-    pthread_mutex_lock(&mb->mu);
-    mb->eof = 1;
-    pthread_cond_broadcast(&mb->cv);
-    pthread_mutex_unlock(&mb->mu);
-    return NULL;
-}
-
-/* Takes the waiting frame (returns its slot) or -1 on timeout / end. */
-static int mailbox_take(mailbox *mb, int timeout_ms)
-{
-    pthread_mutex_lock(&mb->mu);
-    mb->p = -1;
-    struct timespec ts;
-    clock_gettime(CLOCK_REALTIME, &ts);
-    ts.tv_nsec += (long)timeout_ms * 1000000;
-    ts.tv_sec += ts.tv_nsec / 1000000000;
-    ts.tv_nsec %= 1000000000;
-    while (mb->m < 0 && !mb->eof && !sig_stop)
-        if (pthread_cond_timedwait(&mb->cv, &mb->mu, &ts) == ETIMEDOUT) break;
-    int got = mb->m;
-    if (got >= 0) {
-        mb->p = got;
-        mb->m = -1;
-        pthread_cond_broadcast(&mb->cv);
-    }
-    pthread_mutex_unlock(&mb->mu);
-    return got;
 }
 
 /* ---- model cache per marker set (as cmd_warp) ---- */
@@ -399,14 +290,7 @@ int cmd_run(int argc, char **argv)
         return 2;
     }
     int rc = 1;
-    mailbox mb;
-    memset(&mb, 0, sizeof mb);
-    pthread_mutex_init(&mb.mu, NULL);
-    pthread_cond_init(&mb.cv, NULL);
-    mb.w = 0; mb.m = -1; mb.p = -1;
-    mb.path = cfg.source + 4;
-    mb.realtime = cfg.realtime;
-    mb.loop = cfg.loop;
+    run_source *src = NULL;
     sh_points points = {0};
     sh_detector *det = NULL;
     sh_display_writer *disp = NULL;
@@ -416,22 +300,14 @@ int cmd_run(int argc, char **argv)
     model_cache *cache = calloc(1, sizeof *cache);
     sh_detection *dets = malloc(sizeof(sh_detection) * MAX_DET);
     float *lat = malloc(sizeof(float) * LAT_CAP);
-    pthread_t src_thread;
-    int src_started = 0;
     if (!cache || !dets || !lat) { fprintf(stderr, "stillheart run: out of memory\n"); goto done; }
 
-    if (sh_y4m_reader_open(mb.path, &mb.reader) != SH_OK) {
+    if (run_source_open(&cfg, logm, &src) != SH_OK) {
         fprintf(stderr, "stillheart run: [source] spec: %s\n", sh_error_message());
         goto done;
     }
-    const sh_y4m_header *hdr = sh_y4m_reader_header(mb.reader);
+    const sh_y4m_header *hdr = run_source_header(src);
     sh_y4m_header hcopy = *hdr;
-    mb.fps = hdr->fps_num > 0 && hdr->fps_den > 0 ? (double)hdr->fps_num / hdr->fps_den : 0;
-    for (int i = 0; i < 3; i++)
-        if (sh_image_create(&mb.buf[i].img, hdr->format, hdr->width, hdr->height) != SH_OK) {
-            fprintf(stderr, "stillheart run: frame buffers: %s\n", sh_error_message());
-            goto done;
-        }
     if (sh_image_create(&out, hdr->format, hdr->width, hdr->height) != SH_OK) goto done;
     cache->params = cfg.method;
     sh_warp_options_default(&cache->wopts);
@@ -479,10 +355,9 @@ int cmd_run(int argc, char **argv)
     sigaction(SIGUSR1, &sa, NULL);
     signal(SIGPIPE, SIG_IGN);
 
-    if (pthread_create(&src_thread, NULL, source_thread, &mb)) { fprintf(stderr, "stillheart run: thread\n"); goto done; }
-    src_started = 1;
+    if (run_source_start(src) != SH_OK) { fprintf(stderr, "stillheart run: %s\n", sh_error_message()); goto done; }
     logm("INFO", "main", "source %s %dx%d %s %.3f fps (%s%s), sink %s, method %s, %s",
-         cfg.source, hdr->width, hdr->height, sh_pixfmt_name(hdr->format), mb.fps,
+         cfg.source, hdr->width, hdr->height, sh_pixfmt_name(hdr->format), run_source_fps(src),
          cfg.realtime ? "real time" : "as fast as possible", cfg.loop ? ", looping" : "", cfg.sink,
          cfg.method_name, cfg.points[0] ? "markers from the points file (test mode)" : "markers detected");
     sh_notify("READY=1\nSTATUS=started, waiting for the reference frame");
@@ -524,10 +399,7 @@ int cmd_run(int argc, char **argv)
                 cfg.max_sigma_px = fresh.max_sigma_px;
                 cfg.dropout_ms = fresh.dropout_ms;
                 memcpy(cfg.ids, fresh.ids, sizeof cfg.ids);
-                pthread_mutex_lock(&mb.mu);
-                mb.realtime = fresh.realtime;
-                mb.loop = fresh.loop;
-                pthread_mutex_unlock(&mb.mu);
+                run_source_set_pacing(src, fresh.realtime, fresh.loop);
                 cfg.realtime = fresh.realtime;
                 cfg.loop = fresh.loop;
                 logm("INFO", "main", "config reloaded (gating, ids, pacing)%s",
@@ -539,17 +411,13 @@ int cmd_run(int argc, char **argv)
             want_ref = 1;
             logm("INFO", "main", "new reference requested");
         }
-        int si = mailbox_take(&mb, 100);
+        const run_frame *s = run_source_take(src, 100);
         int64_t now = mono_ns();
-        if (si >= 0 && published) last_frame_ns = prev_now;
-        if (si < 0) {
-            pthread_mutex_lock(&mb.mu);
-            int eof = mb.eof && mb.m < 0;
-            pthread_mutex_unlock(&mb.mu);
-            if (eof) break;
+        if (s && published) last_frame_ns = prev_now;
+        if (!s) {
+            if (run_source_ended(src)) break;
             continue;
         }
-        slot *s = &mb.buf[si];
         /* markers of this frame */
         int ncur = 0;
         if (cfg.points[0]) {
@@ -678,7 +546,7 @@ int cmd_run(int argc, char **argv)
             double fps = (double)(published - published_at_status) * 1e9 / (double)(done_ns - last_status);
             static const char *names[] = {"raw", "stabilized", "degraded"};
             sh_notifyf("STATUS=%.1f fps, %u markers, %s%s%s, %llu dropped", fps, info.markers_used,
-                       names[status], info.reason[0] ? " " : "", info.reason, (unsigned long long)mb.dropped);
+                       names[status], info.reason[0] ? " " : "", info.reason, (unsigned long long)run_source_dropped(src));
             last_status = done_ns;
             published_at_status = published;
         }
@@ -704,17 +572,12 @@ int cmd_run(int argc, char **argv)
                 "stats: %llu published (%llu raw, %llu degraded), %llu dropped, latency ms median %.2f "
                 "p99 %.2f max %.2f, RSS kB start %ld max %ld end %ld, %d models built\n",
                 (unsigned long long)published, (unsigned long long)raw_count,
-                (unsigned long long)degraded_count, (unsigned long long)mb.dropped, med, p99, mx,
+                (unsigned long long)degraded_count, (unsigned long long)run_source_dropped(src), med, p99, mx,
                 rss_start, rss_max, r, cache->builds);
     }
 done:
     sig_stop = 1;
-    if (src_started) {
-        pthread_mutex_lock(&mb.mu);
-        pthread_cond_broadcast(&mb.cv);
-        pthread_mutex_unlock(&mb.mu);
-        pthread_join(src_thread, NULL);
-    }
+    run_source_destroy(src);
     if (rec && sh_y4m_writer_close(rec) != SH_OK) { logm("ERROR", "main", "[sink] record: %s", sh_error_message()); rc = 1; }
     if (disp) sh_display_writer_destroy(disp, 0); /* marked closed; readers see the end */
     if (cache) for (int i = 0; i < CACHE_SLOTS; i++) slot_clear(&cache->slot[i]);
@@ -724,8 +587,6 @@ done:
     sh_warp_destroy(warp);
     sh_detector_destroy(det);
     sh_points_destroy(&points);
-    sh_y4m_reader_close(mb.reader);
-    for (int i = 0; i < 3; i++) sh_image_destroy(&mb.buf[i].img);
     sh_image_destroy(&out);
     return rc;
 }
