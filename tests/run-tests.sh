@@ -17,7 +17,10 @@ done
 # make vmtest's own closing line ("vmtest: N passed, N failed"), when the suite ran it
 if [ -n "${VMTEST_OUT:-}" ]; then
     line=$(grep -E '^vmtest: [0-9]+ passed, [0-9]+ failed' "$VMTEST_OUT" 2>/dev/null | tail -1)
-    if [ -n "$line" ]; then
+    skipped=$(grep -E '^vmtest: skipped' "$VMTEST_OUT" 2>/dev/null | tail -1)
+    if [ -n "$skipped" ]; then
+        echo "$skipped"   # nothing could be fetched: not a failure, and said on its own line
+    elif [ -n "$line" ]; then
         p=$(echo "$line" | sed 's/^vmtest: \([0-9]*\) passed.*/\1/')
         f=$(echo "$line" | sed 's/.* \([0-9]*\) failed.*/\1/')
         passed=$((passed + p)); failed=$((failed + f))
