@@ -193,6 +193,9 @@ typedef struct {
 } phantom_options;
 
 void phantom_options_default(phantom_options *o);
+/* The presets' random numbers (splitmix64): the next word, and a uniform double in [lo, hi). */
+uint64_t phantom_splitmix(uint64_t *s);
+double phantom_uniform(uint64_t *s, double lo, double hi);
 /* Builds the model for the options; refuses impossible ones (too many markers for the patch,
  * duplicate ids, lens distortion that folds the image) with a message. */
 sh_status phantom_model_build(const phantom_options *o, phantom_model *m);

@@ -9,7 +9,7 @@
 
 #define PI 3.14159265358979323846
 
-static uint64_t splitmix(uint64_t *s)
+uint64_t phantom_splitmix(uint64_t *s)
 {
     uint64_t z = (*s += 0x9E3779B97F4A7C15ull);
     z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
@@ -17,9 +17,9 @@ static uint64_t splitmix(uint64_t *s)
     return z ^ (z >> 31);
 }
 
-static double uniform(uint64_t *s, double lo, double hi)
+double phantom_uniform(uint64_t *s, double lo, double hi)
 {
-    return lo + (hi - lo) * (double)(splitmix(s) >> 11) * (1.0 / 9007199254740992.0);
+    return lo + (hi - lo) * (double)(phantom_splitmix(s) >> 11) * (1.0 / 9007199254740992.0);
 }
 
 void phantom_options_default(phantom_options *o)
@@ -148,8 +148,8 @@ static sh_status layout_markers(phantom_model *m, const phantom_options *o, uint
         double u = -0.5 * w + su * (c + 0.5 + 0.5 * (cols - in_row));
         double v = 0.5 * h - sv * (r + 0.5);
         m->marker[i].id = o->ids ? o->ids[i] : i;
-        m->marker[i].u = u + uniform(rng, -jit, jit);
-        m->marker[i].v = v + uniform(rng, -jit, jit);
+        m->marker[i].u = u + phantom_uniform(rng, -jit, jit);
+        m->marker[i].v = v + phantom_uniform(rng, -jit, jit);
     }
     return SH_OK;
 }
@@ -184,7 +184,7 @@ sh_status phantom_model_build(const phantom_options *o, phantom_model *m)
     m->dome_v = -4.0;
     m->heart_hz = o->bpm > 0 ? o->bpm / 60.0 : (invivo ? 80.0 / 60.0 : 0.7);
     if (m->heart_hz > 5.0) return sh_error_set(SH_EINVAL, "--bpm %g: at most 300", o->bpm);
-    m->heart_phase = uniform(&rng, 0, 2 * PI);
+    m->heart_phase = phantom_uniform(&rng, 0, 2 * PI);
     m->delay = 0.08;
     m->contraction = invivo ? 0.06 : 0.05;
     m->twist = invivo ? 0.07 : 0.06;
@@ -261,11 +261,11 @@ sh_status phantom_model_build(const phantom_options *o, phantom_model *m)
     /* shaft period and blob times are drawn even without occlusions, so that turning them on
      * changes nothing else about a sequence */
     double dur = m->frames / m->fps;
-    double tip_u = uniform(&rng, -20, 20), tip_v = uniform(&rng, -15, 15);
+    double tip_u = phantom_uniform(&rng, -20, 20), tip_v = phantom_uniform(&rng, -15, 15);
     double when[PHANTOM_MAX_BLOBS];
-    for (int b = 0; b < PHANTOM_MAX_BLOBS; b++) when[b] = uniform(&rng, 0.05, 0.65);
-    uint64_t pick = splitmix(&rng);
-    double yaw = uniform(&rng, -0.3, 0.3);
+    for (int b = 0; b < PHANTOM_MAX_BLOBS; b++) when[b] = phantom_uniform(&rng, 0.05, 0.65);
+    uint64_t pick = phantom_splitmix(&rng);
+    double yaw = phantom_uniform(&rng, -0.3, 0.3);
     if (o->occlusions) {
         m->shaft = 1;
         m->shaft_p0[0] = 150.0;

@@ -47,6 +47,15 @@ static void usage(FILE *f)
 "                     OpenCV lens distortion of every camera (default none)\n"
 "  --noise SIGMA      read noise in DN (default 1.5; shot noise grows with the signal; 0: none)\n"
 "  --exposure GAIN    exposure gain on the rendered radiance (default 1; highlights clip)\n"
+"  --calib-target checkerboard:COLSxROWS:SQUARE_MM\n"
+"                     instead of the heart: a planar checkerboard (COLS x ROWS inner corners,\n"
+"                     one count odd and one even; squares SQUARE_MM) in --frames poses\n"
+"                     (default 20), each seen whole by every camera, tilted 15-40 degrees in\n"
+"                     directions spread round the circle (every fifth nearly frontal); lens\n"
+"                     distortion, noise and exposure as for the heart. Writes cam*.y4m,\n"
+"                     calibration.yaml (the truth) and board.csv (frame,camera,corner,x,y,X,Y,Z:\n"
+"                     inner corner r * COLS + c at board (c, r) * SQUARE_MM, its pixel and world\n"
+"                     position), no markers.csv or phantom.txt\n"
 "  --quiet            no progress bar (shown only on a terminal anyway) and no closing\n"
 "                     line with the rendering speed\n"
 "  --help             this text\n"
@@ -226,6 +235,23 @@ static int write_markers(FILE *f, const phantom_model *m, int frame)
     return 0;
 }
 
+/* The board's inner corners: their true pixels in every camera (the calibration's truth). */
+static int write_board_corners(FILE *f, const phantom_model *m, const rd_board *b, const rd_board_pose *p,
+                               int frame)
+{
+    for (int c = 0; c < m->num_cameras; c++)
+        for (int r = 0; r < b->rows; r++)
+            for (int k = 0; k < b->cols; k++) {
+                double X[3], x = NAN, y = NAN;
+                rd_board_point(p, k * b->square, r * b->square, X);
+                phantom_project(&m->cam[c], X, &x, &y);
+                if (fprintf(f, "%d,%d,%d,%.6f,%.6f,%.6f,%.6f,%.6f\n", frame, c, r * b->cols + k, x, y, X[0],
+                            X[1], X[2]) < 0)
+                    return -1;
+            }
+    return 0;
+}
+
 /* llvmpipe and LLVM keep caches for the life of the process; under LeakSanitizer (the ASan test
  * build) they are not our leaks. */
 const char *__lsan_default_suppressions(void);
@@ -248,7 +274,8 @@ int main(int argc, char **argv)
     double dist[5];
     int ids[PHANTOM_MAX_MARKERS];
     enum { O_PRESET = 256, O_FRAMES, O_CAMERAS, O_WIDTH, O_HEIGHT, O_SEED, O_OCC, O_BPM, O_MARKERS,
-           O_TAG, O_FAMILY, O_IDS, O_FPS, O_DIST, O_NOISE, O_EXPOSURE, O_OUT, O_QUIET, O_HELP };
+           O_TAG, O_FAMILY, O_IDS, O_FPS, O_DIST, O_NOISE, O_EXPOSURE, O_OUT, O_QUIET, O_HELP,
+           O_TARGET };
     static const struct option opts[] = {
         {"preset", 1, 0, O_PRESET}, {"frames", 1, 0, O_FRAMES}, {"cameras", 1, 0, O_CAMERAS},
         {"width", 1, 0, O_WIDTH}, {"height", 1, 0, O_HEIGHT}, {"seed", 1, 0, O_SEED},
@@ -256,7 +283,9 @@ int main(int argc, char **argv)
         {"tag-size", 1, 0, O_TAG}, {"family", 1, 0, O_FAMILY}, {"ids", 1, 0, O_IDS},
         {"fps", 1, 0, O_FPS}, {"distortion", 1, 0, O_DIST}, {"noise", 1, 0, O_NOISE},
         {"exposure", 1, 0, O_EXPOSURE}, {"out", 1, 0, O_OUT}, {"quiet", 0, 0, O_QUIET},
-        {"help", 0, 0, O_HELP}, {0, 0, 0, 0}};
+        {"help", 0, 0, O_HELP}, {"calib-target", 1, 0, O_TARGET}, {0, 0, 0, 0}};
+    rd_board board;
+    int board_mode = 0;
     int ch;
     long lv;
     double dv;
@@ -299,6 +328,10 @@ int main(int argc, char **argv)
         case O_EXPOSURE: if (!parse_double(optarg, &dv) || !(dv > 0 && dv <= 16)) BAD("--exposure '%s': a gain in (0, 16]", optarg); o.exposure = dv; break;
         case O_OUT: out = optarg; break;
         case O_QUIET: quiet = 1; break;
+        case O_TARGET:
+            if (rd_board_parse(optarg, &board) != SH_OK) BAD("%s", sh_error_message());
+            board_mode = 1;
+            break;
         case O_HELP: usage(stdout); return 0;
         default: usage(stderr); return 2;
         }
@@ -306,6 +339,7 @@ int main(int argc, char **argv)
     if (optind < argc) BAD("unexpected argument '%s' (see --help)", argv[optind]);
     if (!out) BAD("--out DIR is required (see --help)");
 #undef BAD
+    if (board_mode && o.frames <= 0) o.frames = 20;
 
     static phantom_model m;
     if (phantom_model_build(&o, &m) != SH_OK) {
@@ -337,6 +371,8 @@ int main(int argc, char **argv)
     p.sensor.seed = m.seed;
     FILE *csv = NULL;
     rd_scene *scene = NULL;
+    rd_board_pose *poses = NULL;
+    rd_board_raster *raster[PHANTOM_MAX_CAMERAS] = {NULL};
     rd_texture drape[PHANTOM_MAX_CAMERAS];
     memset(drape, 0, sizeof drape);
     pthread_t thread;
@@ -352,16 +388,16 @@ int main(int argc, char **argv)
     }
 #define FAIL() do { fprintf(stderr, "stillheart-render: %s\n", sh_error_message()); goto done; } while (0)
     snprintf(path, sizeof path, "%s/%s", out, PHANTOM_PARAMS_FILE);
-    if (phantom_model_write(&m, path) != SH_OK) FAIL();
+    if (!board_mode && phantom_model_write(&m, path) != SH_OK) FAIL();
     snprintf(path, sizeof path, "%s/calibration.yaml", out);
     if (write_calibration(&m, path) != SH_OK) FAIL();
-    snprintf(path, sizeof path, "%s/markers.csv", out);
+    snprintf(path, sizeof path, "%s/%s", out, board_mode ? "board.csv" : "markers.csv");
     csv = fopen(path, "w");
     if (!csv) {
         fprintf(stderr, "stillheart-render: %s: %s\n", path, strerror(errno));
         goto done;
     }
-    fprintf(csv, "%s\n", PHANTOM_CSV_HEADER);
+    fprintf(csv, "%s\n", board_mode ? "frame,camera,corner,x,y,X,Y,Z" : PHANTOM_CSV_HEADER);
     sh_y4m_header hdr;
     memset(&hdr, 0, sizeof hdr);
     hdr.width = m.width;
@@ -380,7 +416,18 @@ int main(int argc, char **argv)
         if (rd_texture_drape(m.seed, c, m.width, m.height, &drape[c]) != SH_OK) FAIL();
         p.sensor.background[c] = drape[c].rgb;
     }
-    if (rd_scene_create(&m, &scene) != SH_OK) FAIL();
+    if (board_mode) {
+        poses = malloc(sizeof *poses * (size_t)m.frames);
+        if (!poses) {
+            fprintf(stderr, "stillheart-render: out of memory for %d poses\n", m.frames);
+            goto done;
+        }
+        if (rd_board_poses(&m, &board, m.frames, m.seed, poses) != SH_OK) FAIL();
+        for (int c = 0; c < m.num_cameras; c++)
+            if (rd_board_raster_create(&m, c, &raster[c]) != SH_OK) FAIL();
+    } else if (rd_scene_create(&m, &scene) != SH_OK) {
+        FAIL();
+    }
     if (pthread_create(&thread, NULL, writer_main, &p) != 0) {
         fprintf(stderr, "stillheart-render: cannot start the writer thread\n");
         goto done;
@@ -390,7 +437,7 @@ int main(int argc, char **argv)
     double t0 = now();
     int cur = 0;
     for (int f = 0; f < m.frames; f++) {
-        rd_scene_update(scene, f / m.fps);
+        if (!board_mode) rd_scene_update(scene, f / m.fps);
         for (int c = 0; c < m.num_cameras; c++) {
             pthread_mutex_lock(&p.mu);
             while (p.slots[cur].full) pthread_cond_wait(&p.cv, &p.mu);
@@ -400,7 +447,10 @@ int main(int argc, char **argv)
                 fprintf(stderr, "stillheart-render: %s\n", p.error);
                 goto done;
             }
-            if (rd_scene_draw(scene, c, p.slots[cur].rgba) != SH_OK) FAIL();
+            sh_status dst = board_mode ? rd_board_draw(raster[c], &m.cam[c], &board, &poses[f], drape[c].rgb,
+                                                       p.slots[cur].rgba)
+                                       : rd_scene_draw(scene, c, p.slots[cur].rgba);
+            if (dst != SH_OK) FAIL();
             pthread_mutex_lock(&p.mu);
             p.slots[cur].camera = c;
             p.slots[cur].frame = f;
@@ -409,8 +459,9 @@ int main(int argc, char **argv)
             pthread_mutex_unlock(&p.mu);
             cur ^= 1;
         }
-        if (write_markers(csv, &m, f) != 0) {
-            fprintf(stderr, "stillheart-render: markers.csv: write error: %s\n", strerror(errno));
+        if ((board_mode ? write_board_corners(csv, &m, &board, &poses[f], f) : write_markers(csv, &m, f)) != 0) {
+            fprintf(stderr, "stillheart-render: %s: write error: %s\n", board_mode ? "board.csv" : "markers.csv",
+                    strerror(errno));
             goto done;
         }
         if (show) progress(f + 1, m.frames, t0);
@@ -440,10 +491,12 @@ done:
             rc = 1;
         }
     if (csv && (ferror(csv) | fclose(csv)) && rc == 0) {
-        fprintf(stderr, "stillheart-render: markers.csv: write error\n");
+        fprintf(stderr, "stillheart-render: %s: write error\n", board_mode ? "board.csv" : "markers.csv");
         rc = 1;
     }
     rd_scene_destroy(scene);
+    for (int c = 0; c < PHANTOM_MAX_CAMERAS; c++) rd_board_raster_destroy(raster[c]);
+    free(poses);
     for (int c = 0; c < PHANTOM_MAX_CAMERAS; c++) rd_texture_free(&drape[c]);
     free(p.slots[0].rgba);
     free(p.slots[1].rgba);

@@ -50,4 +50,35 @@ void rd_sensor_init(void);
 void rd_sensor_to_i420(const rd_sensor *sn, int camera, int frame, const uint8_t *rgba, int width,
                        int height, uint8_t *i420, uint8_t *scratch);
 
+/* The calibration target (board.c): a planar checkerboard of cols x rows inner corners (OpenCV's
+ * patternSize), squares of `square` mm. Board frame: inner corner (r, c) at (c square, r square,
+ * 0), as cv::calibrateCamera's object points; the square outside corner (0, 0) is black; the
+ * printed face looks along -z. */
+typedef struct {
+    int cols, rows;
+    double square;
+} rd_board;
+
+typedef struct {
+    double R[9], t[3]; /* board -> world: X = R (u, v, 0) + t, mm */
+} rd_board_pose;
+
+/* "checkerboard:COLSxROWS:SQUARE_MM"; one count odd, one even (orientation unambiguous). */
+sh_status rd_board_parse(const char *spec, rd_board *b);
+/* World position of board point (u, v). */
+void rd_board_point(const rd_board_pose *p, double u, double v, double X[3]);
+/* n poses from the seed, each showing the whole board to every camera of m, tilted 15-40 degrees
+ * in directions spread round the circle (every fifth nearly frontal). */
+sh_status rd_board_poses(const phantom_model *m, const rd_board *b, int n, uint64_t seed,
+                         rd_board_pose *out);
+
+typedef struct rd_board_raster rd_board_raster;
+/* Per camera c: the undistorted rays of the pixel corners (the lens is fixed). */
+sh_status rd_board_raster_create(const phantom_model *m, int c, rd_board_raster **out);
+void rd_board_raster_destroy(rd_board_raster *r);
+/* The board in pose p seen by cam into rgba (alpha 255), drape (width x height RGB) around it;
+ * each pixel the area average of what it sees. */
+sh_status rd_board_draw(rd_board_raster *r, const phantom_camera *cam, const rd_board *b,
+                        const rd_board_pose *p, const uint8_t *drape, uint8_t *rgba);
+
 #endif
