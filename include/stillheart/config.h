@@ -47,11 +47,12 @@ typedef struct {
     /* [run] */
     int threads;
     char points[SH_CONFIG_STR];      /* test mode: markers from a points file, no detection */
+    char control[SH_CONFIG_STR];     /* control socket path ("" = none): reference, status */
     /* [sink] */
     char sink[SH_CONFIG_STR];        /* shm:NAME or none */
     int slots;
     char group[64];                  /* owner group of the segment ("" = the process's) */
-    char record[SH_CONFIG_STR];      /* "" or FILE.y4m: what is shown, also to a file */
+    char record[SH_CONFIG_STR];      /* "", FILE.y4m or png:DIR: what is shown, also to files */
     int watchdog;                    /* 1: WATCHDOG=1 pings when systemd asks for them */
 } sh_config;
 

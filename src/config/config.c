@@ -43,11 +43,12 @@ static const keydef keys[] = {
     {"gating", "max_sigma_px", "max-sigma", K_DOUBLE, F(max_sigma_px), 0, 0, 1e4, "position uncertainty (1 sigma) over this -> raw"},
     {"gating", "dropout_ms", "dropout-ms", K_INT, F(dropout_ms), 0, 0, 60000, "stale estimates up to this -> degraded, longer -> raw"},
     {"run", "threads", "threads", K_INT, F(threads), 0, 1, 64, "warp threads"},
+    {"run", "control", "control", K_STR, F(control), S(control), 0, 0, "control socket path (\"\": none)"},
     {"run", "points", "points", K_STR, F(points), S(points), 0, 0, "test mode: markers from a points file instead of detection"},
     {"sink", "display", "sink", K_STR, F(sink), S(sink), 0, 0, "shm:NAME | none"},
     {"sink", "slots", "slots", K_INT, F(slots), 0, 3, 16, "frame slots of the segment"},
     {"sink", "group", "group", K_STR, F(group), S(group), 0, 0, "owner group of the segment (\"\": the process's)"},
-    {"sink", "record", "record", K_STR, F(record), S(record), 0, 0, "also write what is shown to FILE.y4m (\"\": no)"},
+    {"sink", "record", "record", K_STR, F(record), S(record), 0, 0, "also write what is shown: FILE.y4m or png:DIR (\"\": no)"},
     {"sink", "watchdog", "watchdog", K_BOOL, F(watchdog), 0, 0, 1, "send WATCHDOG=1 when systemd asks"},
 };
 #define NKEYS ((int)(sizeof keys / sizeof keys[0]))
@@ -427,12 +428,21 @@ sh_status sh_config_check(const sh_config *cfg, char *err)
                  cfg->min_markers);
         return SH_EINVAL;
     }
+    if (!cfg->points[0] && nids > 64) { /* SH_TRACK_MAX_MARKERS */
+        snprintf(err, SH_CONFIG_ERR, "[detect] ids: %d ids, the tracker follows at most 64", nids);
+        return SH_EINVAL;
+    }
     if (cfg->record[0]) {
         size_t n = strlen(cfg->record);
-        if (n < 4 || strcmp(cfg->record + n - 4, ".y4m") != 0) {
-            snprintf(err, SH_CONFIG_ERR, "[sink] record: '%s': only FILE.y4m is supported", cfg->record);
+        int png = !strncmp(cfg->record, "png:", 4);
+        if (png ? n == 4 : (n < 4 || strcmp(cfg->record + n - 4, ".y4m") != 0)) {
+            snprintf(err, SH_CONFIG_ERR, "[sink] record: '%s': want FILE.y4m or png:DIR", cfg->record);
             return SH_EINVAL;
         }
+    }
+    if (cfg->control[0] && strlen(cfg->control) >= 108) { /* sizeof sockaddr_un.sun_path */
+        snprintf(err, SH_CONFIG_ERR, "[run] control: '%s': a socket path has at most 107 bytes", cfg->control);
+        return SH_EINVAL;
     }
     return SH_OK;
 }

@@ -36,7 +36,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     (void)sh_config_check(&c, err);
     /* write back and parse again: the same config (strings without newlines or comments only) */
     if (strpbrk(c.source, "\n\r;#") || strpbrk(c.sink, "\n\r;#") || strpbrk(c.group, "\n\r;#") ||
-        strpbrk(c.record, "\n\r;#") || strpbrk(c.points, "\n\r;#") || strpbrk(c.family, "\n\r;#"))
+        strpbrk(c.record, "\n\r;#") || strpbrk(c.points, "\n\r;#") || strpbrk(c.control, "\n\r;#") || strpbrk(c.family, "\n\r;#"))
         return 0;
     char *buf = NULL;
     size_t len = 0;

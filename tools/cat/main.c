@@ -116,10 +116,10 @@ int main(int argc, char **argv)
             goto done;
         }
         if (verbose)
-            fprintf(stderr, "frame %llu %s%s%s markers %u\n", (unsigned long long)info.sequence,
+            fprintf(stderr, "frame %llu %s%s%s markers %u residual %.3f\n", (unsigned long long)info.sequence,
                     info.status == SH_DISPLAY_STABILIZED ? "stabilized"
                     : info.status == SH_DISPLAY_DEGRADED ? "degraded" : "raw",
-                    info.reason[0] ? ": " : "", info.reason, info.markers_used);
+                    info.reason[0] ? ": " : "", info.reason, info.markers_used, (double)info.residual_px);
         if (format == SH_PIX_RGB24) rgb_to_yuv444(&frame, &converted);
         if (sh_y4m_writer_write(w, format == SH_PIX_RGB24 ? &converted : &frame) != SH_OK) {
             fprintf(stderr, "stillheart-cat: %s\n", sh_error_message());

@@ -61,3 +61,10 @@ build-fuzz/fuzz_config: tests/fuzz/fuzz_config.c $(LIB_C) $(LIB_CXX)
 	clang $(FUZZ_FLAGS) -c $< -o build-fuzz/fuzz_config.o
 	clang++ -fsanitize=fuzzer,address,undefined build-fuzz/fuzz_config.o build-fuzz/lib/libstillheart.a \
 		$(filter-out -lstdc++,$(LDLIBS_ALL)) -o $@
+
+# test_daemon_proc (tests/unit) also links the daemon's processing objects, which live in the
+# stillheart command (src/app), not in the library.
+DAEMON_PROC_OBJ := $(BUILD)/src/app/run_model.o $(BUILD)/src/app/run_track.o
+$(BUILD)/tests/test_daemon_proc: $(BUILD)/tests/unit/test_daemon_proc.o $(DAEMON_PROC_OBJ) $(TEST_SUPPORT) $(LIB)
+	@mkdir -p $(dir $@)
+	$(CC) $(LDFLAGS) $< $(DAEMON_PROC_OBJ) $(TEST_SUPPORT) $(LIB) $(shell $(PKG_CONFIG) --libs cmocka) $(LDLIBS_ALL) -o $@

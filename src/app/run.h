@@ -1,0 +1,115 @@
+/* Private to stillheart run: the processing side of the daemon (run_model.c: models per marker
+ * set built on a helper thread, with their leave-one-out residual; run_track.c: the markers of a
+ * frame from the Kalman tracker and the safety gate; run_ctl.c: the control socket; run_sink.c:
+ * recording what was shown). The source side is run_source.h. */
+#ifndef STILLHEART_RUN_H
+#define STILLHEART_RUN_H
+
+#include <stdint.h>
+
+#include "stillheart/config.h"
+#include "stillheart/detect.h"
+#include "stillheart/image.h"
+#include "stillheart/interp.h"
+#include "stillheart/points.h"
+#include "stillheart/warp.h"
+#include "stillheart/y4m.h"
+
+#define RUN_MAX_MARKERS 64 /* the tracker's limit (SH_TRACK_MAX_MARKERS) */
+
+/* ---- models (run_model.c) ----
+ * Everything that depends on the reference (the interpolant, the warp's grid basis, and the n
+ * leave-one-out interpolants of the residual) is built on a helper thread. The processing thread
+ * asks for the model of a marker set and gets it when it is ready; a new reference is built
+ * beside the running one and swapped in by run_models_poll, so frames keep being published with
+ * the old reference meanwhile. With wait = 1 every request blocks until built (deterministic
+ * output: the test mode that must equal `stillheart warp` frame for frame). */
+typedef struct run_models run_models;
+typedef struct run_model run_model;
+
+sh_status run_models_create(const sh_interp_params *params, const sh_warp_options *wopts, int width,
+                            int height, int wait, run_models **out);
+void run_models_destroy(run_models *m);
+/* Requests a new reference (markers sorted by id, n <= RUN_MAX_MARKERS); its full-set model is
+ * built first. A reference still being built is replaced. frame: for the log. */
+sh_status run_models_set_reference(run_models *m, const sh_point *ref, int n, int frame);
+/* Swaps in a new reference once its full-set model is built: returns 1 (and its frame and
+ * marker count) when it did, 0 otherwise. */
+int run_models_poll(run_models *m, int *frame, int *n);
+/* 1 while a new reference is being built (the old one is still in use). */
+int run_models_pending(run_models *m);
+/* The reference in use (NULL and n = 0 before the first one is swapped in). */
+const sh_point *run_models_reference(const run_models *m, int *n);
+/* The model for ids (sorted, a subset of the reference's): 1 ready (*out set), 0 being built,
+ * -1 its build failed (sh_error_message says why, once). */
+int run_models_get(run_models *m, const int *ids, int n, run_model **out);
+/* Map for the current positions cur_xy (n points in the model's id order, x0,y0,x1,y1,...) and
+ * the residual: the largest distance, over the markers detected this frame, between where the
+ * map puts the marker's reference position and where the detector saw it (det_xy; NaN for a
+ * marker not detected). *residual is -1 when no marker was detected, NaN if the map cannot be
+ * evaluated at a marker. */
+sh_status run_model_update(run_model *md, const double *cur_xy, const double *det_xy, double *residual);
+const sh_warp_model *run_model_warp(const run_model *md);
+const int *run_model_ids(const run_model *md, int *n);
+int run_models_builds(const run_models *m);
+/* The residual alone, on a model built here (tests). */
+sh_status run_residual(const sh_interp_params *params, const double *ref_xy, const double *cur_xy,
+                       const double *det_xy, int n, double *residual);
+
+/* ---- markers and gate (run_track.c) ---- */
+typedef struct {
+    int id;
+    double x, y;      /* camera 0 pixels */
+    double dx, dy;    /* the detection this frame (NaN when not detected) */
+    double sigma;     /* 1-sigma position uncertainty, px (largest axis; 0 from a points file) */
+    int age;          /* frames since it was last detected (0: this frame) */
+} run_marker;
+
+typedef struct run_tracker run_tracker;
+/* cfg: [detect] family and ids (at most RUN_MAX_MARKERS ids); fps 0: 30. */
+sh_status run_tracker_create(const sh_config *cfg, int width, int height, double fps, run_tracker **out);
+void run_tracker_destroy(run_tracker *t);
+/* Detects in the tracker's windows plus a reacquisition band (the whole frame when nothing is
+ * tracked), updates the filters and writes every confirmed, not lost marker in view, sorted by
+ * id. index: the frame's index in the stream; an index that does not advance (a replay that
+ * looped, a restarted camera) restarts the tracker. */
+sh_status run_tracker_frame(run_tracker *t, const sh_image *img, int index, run_marker *out, int *n);
+/* The frame rate the tracker assumes (ages in ms use it). */
+double run_tracker_fps(const run_tracker *t);
+
+typedef struct {
+    int ids[RUN_MAX_MARKERS];
+    double xy[2 * RUN_MAX_MARKERS];
+    double det[2 * RUN_MAX_MARKERS]; /* their detections (NaN: predicted) */
+    int n;            /* markers matched to the reference and used */
+    int predicted;    /* of them, not detected this frame (age > 0) */
+    int stale;        /* matched but unseen longer than dropout_ms: left out */
+    int worst_id;     /* the most uncertain used marker */
+    double worst_sigma;
+} run_selection;
+
+/* Matches the markers to the reference: a marker unseen for more than dropout_ms (age / fps)
+ * leaves the set. */
+void run_select(const sh_config *cfg, double fps, const sh_point *ref, int nref, const run_marker *m,
+                int nm, run_selection *sel);
+
+/* ---- control socket (run_ctl.c) ----
+ * A local SOCK_DGRAM UNIX socket: one command per datagram ("reference", "status"), one reply
+ * datagram to the sender's address. */
+typedef struct run_ctl run_ctl;
+sh_status run_ctl_open(const char *path, run_ctl **out);
+void run_ctl_close(run_ctl *c);
+/* Non-blocking: reads every waiting command; returns the number of "reference" requests seen.
+ * "status" is answered with status_line. Unknown commands get "error: ..." */
+int run_ctl_poll(run_ctl *c, const char *status_line);
+
+/* ---- recording what was shown (run_sink.c): y4m FILE, FILE.y4m or png:DIR ---- */
+typedef struct run_record run_record;
+sh_status run_record_open(const char *spec, const sh_y4m_header *hdr, run_record **out);
+sh_status run_record_write(run_record *r, const sh_image *shown);
+/* Frames the PNG writer could not keep up with (not recorded). */
+uint64_t run_record_skipped(const run_record *r);
+/* Writes what is queued, closes; an error when a file could not be written. */
+sh_status run_record_close(run_record *r);
+
+#endif

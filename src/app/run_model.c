@@ -1,0 +1,372 @@
+/* The daemon's models per marker set, built on a helper thread (run.h says what and why).
+ *
+ * A "generation" is one reference with its slots (one per marker set seen, LRU). The processing
+ * thread owns the slot table's shape (which ids a slot holds, evictions); the helper thread only
+ * fills a slot in state BUILDING and marks it READY or FAILED, under the mutex. A model in a
+ * READY slot is used by the processing thread alone, so the per-frame path takes the mutex only
+ * to look at states. Evicted models and a replaced generation are freed by the helper, so that no
+ * free of a large grid basis lands on a published frame either. */
+#include <math.h>
+#include <pthread.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "run.h"
+
+#define SLOTS 8
+
+enum { EMPTY = 0, BUILDING, READY, FAILED };
+
+struct run_model {
+    int n;
+    int ids[RUN_MAX_MARKERS];
+    double ref_xy[2 * RUN_MAX_MARKERS];
+    sh_interp *interp;
+    sh_warp_model *model;
+    double *coef;   /* the interpolant's coefficients, 2 columns (for the residual) */
+    double vals[2 * RUN_MAX_MARKERS];
+    int state;
+    int taken;      /* the helper is building it */
+    char err[160];  /* why the build failed */
+    unsigned long last_used;
+};
+
+typedef struct {
+    sh_point ref[RUN_MAX_MARKERS];
+    int nref, frame;
+    run_model *full; /* the full set's slot: the swap waits for it */
+    run_model slot[SLOTS];
+    unsigned long clock;
+} generation;
+
+struct run_models {
+    sh_interp_params params;
+    sh_warp_options wopts;
+    int width, height, wait;
+    pthread_mutex_t mu;
+    pthread_cond_t cv;      /* the helper waits for work; waiters for results */
+    pthread_t helper;
+    int started, stop;
+    generation *cur, *next; /* in use / being built */
+    generation *trash[4];   /* to free on the helper */
+    run_model *evicted[SLOTS * 2];
+    int nevicted;
+    int builds;
+    run_model *pinned;      /* the model last handed out: never evicted (the fallback) */
+};
+
+static void model_free(run_model *md)
+{
+    sh_warp_model_destroy(md->model);
+    sh_interp_destroy(md->interp);
+    free(md->coef);
+    memset(md, 0, sizeof *md);
+}
+
+static void generation_free(generation *g)
+{
+    if (!g) return;
+    for (int i = 0; i < SLOTS; i++) model_free(&g->slot[i]);
+    free(g);
+}
+
+/* Builds interpolant and warp model of md (ids, n, ref_xy set). */
+static sh_status model_build(const run_models *m, run_model *md)
+{
+    sh_status st = sh_interp_create(&m->params, md->ref_xy, md->n, &md->interp);
+    if (st == SH_OK)
+        st = sh_warp_model_create(md->interp, md->ref_xy, md->n, m->width, m->height, &m->wopts, &md->model);
+    if (st != SH_OK) return st;
+    md->coef = malloc(sizeof(double) * 2 * (size_t)sh_interp_num_coefs(md->interp));
+    if (!md->coef) return sh_error_set(SH_ENOMEM, "model: out of memory");
+    return SH_OK;
+}
+
+sh_status run_model_update(run_model *md, const double *cur_xy, const double *det_xy, double *residual)
+{
+    sh_status st = sh_warp_model_update(md->model, cur_xy);
+    if (st != SH_OK) return st;
+    /* The map at a marker's reference position, f(q) = q + D(q), against where the detector saw
+     * it this frame: the tracker's smoothing plus what an approximating method leaves out. */
+    for (int k = 0; k < 2 * md->n; k++) md->vals[k] = cur_xy[k] - md->ref_xy[k];
+    st = sh_interp_fit(md->interp, md->vals, 2, md->coef);
+    if (st != SH_OK) return st;
+    double worst = -1;
+    for (int k = 0; k < md->n; k++) {
+        double d[2];
+        if (!isfinite(det_xy[2 * k])) continue; /* predicted this frame: nothing to compare */
+        if (sh_interp_eval(md->interp, md->coef, 2, md->ref_xy[2 * k], md->ref_xy[2 * k + 1], d) != SH_OK) {
+            worst = NAN;
+            break;
+        }
+        double ex = md->ref_xy[2 * k] + d[0] - det_xy[2 * k], ey = md->ref_xy[2 * k + 1] + d[1] - det_xy[2 * k + 1];
+        double r = sqrt(ex * ex + ey * ey);
+        if (!(r <= worst)) worst = r; /* a NaN wins: never hidden */
+    }
+    *residual = worst;
+    return SH_OK;
+}
+
+sh_status run_residual(const sh_interp_params *params, const double *ref_xy, const double *cur_xy,
+                       const double *det_xy, int n, double *residual)
+{
+    if (n < 1 || n > RUN_MAX_MARKERS) return sh_error_set(SH_EINVAL, "residual: %d markers", n);
+    run_models m;
+    memset(&m, 0, sizeof m);
+    m.params = *params;
+    sh_warp_options_default(&m.wopts);
+    m.width = m.height = 2;
+    for (int k = 0; k < n; k++) { /* a frame that holds the points */
+        if (ref_xy[2 * k] + 2 > m.width) m.width = (int)ref_xy[2 * k] + 2;
+        if (ref_xy[2 * k + 1] + 2 > m.height) m.height = (int)ref_xy[2 * k + 1] + 2;
+    }
+    run_model *md = calloc(1, sizeof *md);
+    if (!md) return sh_error_set(SH_ENOMEM, "residual: out of memory");
+    md->n = n;
+    memcpy(md->ref_xy, ref_xy, sizeof(double) * 2 * (size_t)n);
+    sh_status st = model_build(&m, md);
+    if (st == SH_OK) st = run_model_update(md, cur_xy, det_xy, residual);
+    model_free(md);
+    free(md);
+    return st;
+}
+
+/* ---- the helper thread ---- */
+static run_model *find_building(generation *g)
+{
+    if (!g) return NULL;
+    for (int i = 0; i < SLOTS; i++)
+        if (g->slot[i].state == BUILDING && !g->slot[i].taken) return &g->slot[i];
+    return NULL;
+}
+
+static void *helper_main(void *arg)
+{
+    run_models *m = arg;
+    pthread_mutex_lock(&m->mu);
+    for (;;) {
+        generation *trash = NULL;
+        for (int i = 0; i < 4 && !trash; i++)
+            if (m->trash[i]) { trash = m->trash[i]; m->trash[i] = NULL; }
+        run_model evicted;
+        int have_evicted = 0;
+        if (!trash && m->nevicted) {
+            evicted = *m->evicted[--m->nevicted];
+            free(m->evicted[m->nevicted]);
+            have_evicted = 1;
+        }
+        /* the next reference first: the running one still works meanwhile */
+        run_model *job = find_building(m->next);
+        generation *job_gen = job ? m->next : NULL;
+        if (!job) { job = find_building(m->cur); job_gen = job ? m->cur : NULL; }
+        if (!trash && !have_evicted && !job) {
+            if (m->stop) break;
+            pthread_cond_wait(&m->cv, &m->mu);
+            continue;
+        }
+        if (trash || have_evicted) {
+            pthread_mutex_unlock(&m->mu);
+            generation_free(trash);
+            if (have_evicted) model_free(&evicted);
+            pthread_mutex_lock(&m->mu);
+            continue;
+        }
+        /* Build outside the lock on a private copy: the processing thread may evict the slot
+         * or replace the generation meanwhile; the result lands only if the slot still asks. */
+        run_model tmp;
+        memset(&tmp, 0, sizeof tmp);
+        tmp.n = job->n;
+        memcpy(tmp.ids, job->ids, sizeof(int) * (size_t)job->n);
+        memcpy(tmp.ref_xy, job->ref_xy, sizeof(double) * 2 * (size_t)job->n);
+        job->taken = 1;
+        pthread_mutex_unlock(&m->mu);
+        sh_status st = model_build(m, &tmp);
+        pthread_mutex_lock(&m->mu);
+        int still = (job_gen == m->cur || job_gen == m->next) && job->state == BUILDING &&
+                    job->taken && job->n == tmp.n && !memcmp(job->ids, tmp.ids, sizeof(int) * (size_t)tmp.n);
+        if (still) {
+            unsigned long lu = job->last_used;
+            if (st == SH_OK) {
+                *job = tmp;
+                job->state = READY;
+                m->builds++;
+            } else {
+                model_free(&tmp);
+                job->state = FAILED;
+                snprintf(job->err, sizeof job->err, "%s", sh_error_message());
+            }
+            job->taken = 0;
+            job->last_used = lu;
+            pthread_cond_broadcast(&m->cv);
+        } else {
+            pthread_mutex_unlock(&m->mu);
+            model_free(&tmp);
+            pthread_mutex_lock(&m->mu);
+        }
+    }
+    pthread_mutex_unlock(&m->mu);
+    return NULL;
+}
+
+sh_status run_models_create(const sh_interp_params *params, const sh_warp_options *wopts, int width,
+                            int height, int wait, run_models **out)
+{
+    run_models *m = calloc(1, sizeof *m);
+    if (!m) return sh_error_set(SH_ENOMEM, "models: out of memory");
+    m->params = *params;
+    m->wopts = *wopts;
+    m->width = width;
+    m->height = height;
+    m->wait = wait;
+    pthread_mutex_init(&m->mu, NULL);
+    pthread_cond_init(&m->cv, NULL);
+    if (pthread_create(&m->helper, NULL, helper_main, m)) {
+        run_models_destroy(m);
+        return sh_error_set(SH_ENOMEM, "models: cannot start the helper thread");
+    }
+    m->started = 1;
+    *out = m;
+    return SH_OK;
+}
+
+void run_models_destroy(run_models *m)
+{
+    if (!m) return;
+    pthread_mutex_lock(&m->mu);
+    m->stop = 1;
+    pthread_cond_broadcast(&m->cv);
+    pthread_mutex_unlock(&m->mu);
+    if (m->started) pthread_join(m->helper, NULL);
+    generation_free(m->cur);
+    generation_free(m->next);
+    for (int i = 0; i < 4; i++) generation_free(m->trash[i]);
+    for (int i = 0; i < m->nevicted; i++) { model_free(m->evicted[i]); free(m->evicted[i]); }
+    pthread_mutex_destroy(&m->mu);
+    pthread_cond_destroy(&m->cv);
+    free(m);
+}
+
+/* Under the mutex: hands g to the helper to free (inline when the trash is full). */
+static void discard(run_models *m, generation *g)
+{
+    if (!g) return;
+    for (int i = 0; i < 4; i++)
+        if (!m->trash[i]) { m->trash[i] = g; pthread_cond_broadcast(&m->cv); return; }
+    generation_free(g);
+}
+
+/* Under the mutex: slot for ids in g (a hit, or a new BUILDING slot in place of the LRU one). */
+static run_model *slot_for(run_models *m, generation *g, const int *ids, int n)
+{
+    run_model *victim = NULL;
+    for (int i = 0; i < SLOTS; i++) {
+        run_model *s = &g->slot[i];
+        if (s->state != EMPTY && s->n == n && !memcmp(s->ids, ids, sizeof(int) * (size_t)n)) {
+            s->last_used = ++g->clock;
+            return s;
+        }
+        /* a slot being built is not evicted (the helper holds it), nor the one in use */
+        if (s->state == BUILDING || s == m->pinned) continue;
+        if (!victim || (victim->state != EMPTY && (s->state == EMPTY || s->last_used < victim->last_used)))
+            victim = s;
+    }
+    if (!victim) return NULL; /* every slot building: ask again next frame */
+    if (victim->state == READY || victim->state == FAILED) {
+        run_model *e = m->nevicted < SLOTS * 2 ? malloc(sizeof *e) : NULL;
+        if (e) {
+            *e = *victim;
+            m->evicted[m->nevicted++] = e;
+        } else {
+            model_free(victim);
+        }
+    }
+    memset(victim, 0, sizeof *victim);
+    victim->n = n;
+    memcpy(victim->ids, ids, sizeof(int) * (size_t)n);
+    for (int k = 0, r = 0; k < n; k++) {
+        while (r < g->nref && g->ref[r].id != ids[k]) r++;
+        if (r == g->nref) return NULL; /* not in the reference: the caller's bug */
+        victim->ref_xy[2 * k] = g->ref[r].x;
+        victim->ref_xy[2 * k + 1] = g->ref[r].y;
+    }
+    victim->state = BUILDING;
+    victim->last_used = ++g->clock;
+    pthread_cond_broadcast(&m->cv);
+    return victim;
+}
+
+sh_status run_models_set_reference(run_models *m, const sh_point *ref, int n, int frame)
+{
+    if (n < 1 || n > RUN_MAX_MARKERS) return sh_error_set(SH_EINVAL, "reference: %d markers", n);
+    generation *g = calloc(1, sizeof *g);
+    if (!g) return sh_error_set(SH_ENOMEM, "reference: out of memory");
+    memcpy(g->ref, ref, sizeof(sh_point) * (size_t)n);
+    g->nref = n;
+    g->frame = frame;
+    int ids[RUN_MAX_MARKERS];
+    for (int i = 0; i < n; i++) ids[i] = ref[i].id;
+    pthread_mutex_lock(&m->mu);
+    discard(m, m->next);
+    m->next = g;
+    run_model *s = g->full = slot_for(m, g, ids, n);
+    while (m->wait && s && s->state == BUILDING) pthread_cond_wait(&m->cv, &m->mu);
+    pthread_mutex_unlock(&m->mu);
+    return SH_OK;
+}
+
+int run_models_poll(run_models *m, int *frame, int *n)
+{
+    pthread_mutex_lock(&m->mu);
+    int swapped = 0;
+    /* the swap waits for the full-set model (slot 0 of a fresh generation) */
+    if (m->next && (!m->next->full || m->next->full->state != BUILDING)) {
+        discard(m, m->cur);
+        m->pinned = NULL;
+        m->cur = m->next;
+        m->next = NULL;
+        swapped = 1;
+        if (frame) *frame = m->cur->frame;
+        if (n) *n = m->cur->nref;
+    }
+    pthread_mutex_unlock(&m->mu);
+    return swapped;
+}
+
+int run_models_pending(run_models *m)
+{
+    pthread_mutex_lock(&m->mu);
+    int p = m->next != NULL;
+    pthread_mutex_unlock(&m->mu);
+    return p;
+}
+
+const sh_point *run_models_reference(const run_models *m, int *n)
+{
+    /* cur changes only in run_models_poll, on the calling (processing) thread */
+    *n = m->cur ? m->cur->nref : 0;
+    return m->cur ? m->cur->ref : NULL;
+}
+
+int run_models_get(run_models *m, const int *ids, int n, run_model **out)
+{
+    if (!m->cur) return 0;
+    pthread_mutex_lock(&m->mu);
+    run_model *s = slot_for(m, m->cur, ids, n);
+    while (m->wait && s && s->state == BUILDING) pthread_cond_wait(&m->cv, &m->mu);
+    int r = !s ? 0 : s->state == READY ? 1 : s->state == FAILED ? -1 : 0;
+    if (r == -1) sh_error_set(SH_EDEGENERATE, "model for %d markers: %s", n, s->err);
+    pthread_mutex_unlock(&m->mu);
+    if (r == 1) *out = m->pinned = s;
+    return r;
+}
+
+const sh_warp_model *run_model_warp(const run_model *md) { return md->model; }
+
+const int *run_model_ids(const run_model *md, int *n)
+{
+    *n = md->n;
+    return md->ids;
+}
+
+int run_models_builds(const run_models *m) { return m->builds; }

@@ -1,0 +1,237 @@
+/* The daemon's processing of one frame: markers (tracker or points file), reference, selection,
+ * model, gate, warp. docs/daemon.md ("Safety gating") is the specification of the gate. */
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "run.h"
+#include "run_proc.h"
+
+struct run_proc {
+    sh_config cfg;
+    run_log_fn log;
+    run_models *models;
+    run_tracker *tracker; /* NULL in test mode (points file) */
+    sh_points points;
+    sh_warp *warp;
+    sh_image out;
+    double fps;
+    int want_ref;
+    run_marker mk[RUN_MAX_MARKERS];
+    run_model *last;      /* the last model used: the fallback while another set is built */
+    int model_err_once, track_err_once;
+};
+
+sh_status run_proc_create(const sh_config *cfg, const sh_y4m_header *hdr, double fps, run_log_fn log,
+                          run_proc **out)
+{
+    run_proc *p = calloc(1, sizeof *p);
+    if (!p) return sh_error_set(SH_ENOMEM, "processing: out of memory");
+    p->cfg = *cfg;
+    p->log = log;
+    p->fps = fps > 0 ? fps : 30;
+    sh_warp_options wopts;
+    sh_warp_options_default(&wopts);
+    if (cfg->grid > 0) wopts.grid_spacing = (int)cfg->grid;
+    sh_status st = sh_image_create(&p->out, hdr->format, hdr->width, hdr->height);
+    /* test mode waits for every model: its output must equal `stillheart warp`'s frame by frame */
+    if (st == SH_OK) st = run_models_create(&cfg->method, &wopts, hdr->width, hdr->height, cfg->points[0] != 0, &p->models);
+    if (st == SH_OK) st = sh_warp_create(cfg->threads, &p->warp);
+    if (st == SH_OK && cfg->points[0]) {
+        st = sh_points_read(cfg->points, &p->points);
+        if (st != SH_OK) st = sh_error_set(st, "[run] points: %s", sh_error_message());
+    } else if (st == SH_OK) {
+        st = run_tracker_create(cfg, hdr->width, hdr->height, p->fps, &p->tracker);
+    }
+    if (st != SH_OK) {
+        run_proc_destroy(p);
+        return st;
+    }
+    *out = p;
+    return SH_OK;
+}
+
+void run_proc_destroy(run_proc *p)
+{
+    if (!p) return;
+    run_models_destroy(p->models);
+    run_tracker_destroy(p->tracker);
+    sh_points_destroy(&p->points);
+    sh_warp_destroy(p->warp);
+    sh_image_destroy(&p->out);
+    free(p);
+}
+
+void run_proc_set_gating(run_proc *p, const sh_config *cfg)
+{
+    p->cfg.min_markers = cfg->min_markers;
+    p->cfg.max_residual_px = cfg->max_residual_px;
+    p->cfg.max_sigma_px = cfg->max_sigma_px;
+    p->cfg.dropout_ms = cfg->dropout_ms;
+}
+
+/* The reason field holds 43 characters: longer reasons are cut (the counts come first). */
+static __attribute__((format(printf, 2, 3))) void reason(sh_display_frame_info *info, const char *fmt, ...)
+{
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(info->reason, sizeof info->reason, fmt, ap);
+    va_end(ap);
+}
+
+void run_proc_request_reference(run_proc *p) { p->want_ref = 1; }
+
+int run_proc_builds(const run_proc *p) { return run_models_builds(p->models); }
+
+/* The markers of this frame, sorted by id. */
+static int markers(run_proc *p, const sh_image *img, int index)
+{
+    int n = 0;
+    if (!p->tracker) {
+        int cnt;
+        const sh_point *rows = sh_points_frame(&p->points, index, &cnt);
+        for (int i = 0; i < cnt && n < RUN_MAX_MARKERS; i++) {
+            if (!isfinite(rows[i].x) || !isfinite(rows[i].y)) continue;
+            p->mk[n] = (run_marker){rows[i].id, rows[i].x, rows[i].y, rows[i].x, rows[i].y, 0, 0};
+            n++;
+        }
+        return n;
+    }
+    if (run_tracker_frame(p->tracker, img, index, p->mk, &n) != SH_OK) {
+        if (!p->track_err_once++) p->log("ERROR", "main", "tracker: %s", sh_error_message());
+        return 0;
+    }
+    p->track_err_once = 0;
+    return n;
+}
+
+static void take_reference(run_proc *p, int index, int nm)
+{
+    sh_point ref[RUN_MAX_MARKERS];
+    int n = 0;
+    for (int i = 0; i < nm; i++)
+        if (p->mk[i].age == 0) /* detected in this very frame: no prediction in a reference */
+            ref[n++] = (sh_point){index, p->mk[i].id, p->mk[i].x, p->mk[i].y, NAN, NAN, NAN};
+    int first = run_models_reference(p->models, &(int){0}) == NULL;
+    int due = p->want_ref ? n >= p->cfg.min_markers
+            : !first || run_models_pending(p->models) ? 0
+            : p->cfg.reference_frame > 0 ? index == p->cfg.reference_frame - 1
+            : n >= p->cfg.min_markers;
+    if (!due || n < 3) return;
+    if (run_models_set_reference(p->models, ref, n, index) != SH_OK) {
+        p->log("ERROR", "main", "reference: %s", sh_error_message());
+        return;
+    }
+    p->want_ref = 0;
+    p->log("INFO", "main", "frame %d: %d markers taken as the new reference; its models are being built", index, n);
+}
+
+/* Falls back on the last model while sel's is built: usable when every one of its markers still
+ * has an estimate within max_sigma_px (a prediction is fine: the status says degraded). */
+static int fallback(run_proc *p, int nm, double *xy, double *det)
+{
+    if (!p->last) return 0;
+    int n;
+    const int *ids = run_model_ids(p->last, &n);
+    for (int k = 0, c = 0; k < n; k++) {
+        while (c < nm && p->mk[c].id < ids[k]) c++;
+        if (c == nm || p->mk[c].id != ids[k] || p->mk[c].sigma > p->cfg.max_sigma_px) return 0;
+        xy[2 * k] = p->mk[c].x;
+        xy[2 * k + 1] = p->mk[c].y;
+        det[2 * k] = p->mk[c].dx;
+        det[2 * k + 1] = p->mk[c].dy;
+    }
+    return n;
+}
+
+const sh_image *run_proc_frame(run_proc *p, const sh_image *img, int index, sh_display_frame_info *info)
+{
+    int nm = markers(p, img, index);
+    take_reference(p, index, nm);
+    int ref_frame, ref_n;
+    if (run_models_poll(p->models, &ref_frame, &ref_n)) {
+        p->last = NULL; /* it belonged to the old reference, now freed */
+        p->log("INFO", "main", "reference: frame %d, %d markers", ref_frame, ref_n);
+    }
+    info->status = SH_DISPLAY_RAW;
+    info->residual_px = -1; /* not measured */
+    info->markers_used = 0;
+    int nref;
+    const sh_point *ref = run_models_reference(p->models, &nref);
+    if (!ref) {
+        reason(info, run_models_pending(p->models) ? "building the reference (%d markers)" : "no reference yet (%d markers)", nm);
+        return img;
+    }
+    run_selection sel;
+    run_select(&p->cfg, p->fps, ref, nref, p->mk, nm, &sel);
+    info->markers_used = (uint32_t)sel.n;
+    int need = p->cfg.min_markers > 3 ? p->cfg.min_markers : 3;
+    if (sel.n < need) {
+        if (sel.stale)
+            reason(info, "too few markers (%d < %d, %d stale)", sel.n, need, sel.stale);
+        else
+            reason(info, "too few markers (%d < %d)", sel.n, need);
+        return img;
+    }
+    if (sel.worst_sigma > p->cfg.max_sigma_px) {
+        reason(info, "uncertain: marker %d %.1f px > %.1f", sel.worst_id,
+                 sel.worst_sigma, p->cfg.max_sigma_px);
+        return img;
+    }
+    run_model *md = NULL;
+    const double *xy = sel.xy, *det = sel.det;
+    double fb_xy[2 * RUN_MAX_MARKERS], fb_det[2 * RUN_MAX_MARKERS];
+    int building = 0;
+    int got = run_models_get(p->models, sel.ids, sel.n, &md);
+    if (got < 0) {
+        if (!p->model_err_once++) p->log("ERROR", "main", "%s", sh_error_message());
+        reason(info, "model failed (%d markers)", sel.n);
+        return img;
+    }
+    p->model_err_once = 0;
+    if (got == 0) {
+        int n = fallback(p, nm, fb_xy, fb_det);
+        if (!n) {
+            reason(info, "model for %d markers building", sel.n);
+            return img;
+        }
+        md = p->last;
+        xy = fb_xy;
+        det = fb_det;
+        building = 1;
+        info->markers_used = (uint32_t)n;
+    }
+    double residual;
+    if (run_model_update(md, xy, det, &residual) != SH_OK) {
+        reason(info, "model update failed");
+        return img;
+    }
+    if (!isfinite(residual)) {
+        reason(info, "map not defined at a marker");
+        return img;
+    }
+    info->residual_px = (float)residual; /* -1: every marker predicted, nothing to compare */
+    if (residual > p->cfg.max_residual_px) {
+        reason(info, "residual %.1f px > %.1f", residual, p->cfg.max_residual_px);
+        return img;
+    }
+    if (sh_warp_apply(p->warp, run_model_warp(md), img, &p->out) != SH_OK) {
+        if (!p->model_err_once++) p->log("ERROR", "main", "warp: %s", sh_error_message());
+        reason(info, "warp failed");
+        return img;
+    }
+    p->last = md;
+    if (building) {
+        info->status = SH_DISPLAY_DEGRADED;
+        reason(info, "model for %d markers building", sel.n);
+    } else if (sel.predicted) {
+        info->status = SH_DISPLAY_DEGRADED;
+        reason(info, "dropout: %d markers predicted", sel.predicted);
+    } else {
+        info->status = SH_DISPLAY_STABILIZED;
+        info->reason[0] = 0;
+    }
+    return &p->out;
+}

@@ -1,0 +1,27 @@
+/* Private to stillheart run: one frame's processing (run_proc.c), between the source
+ * (run_source.h) and the sinks: markers, reference, gate, model, warp. */
+#ifndef STILLHEART_RUN_PROC_H
+#define STILLHEART_RUN_PROC_H
+
+#include "run_source.h"
+#include "stillheart/display.h"
+
+typedef struct run_proc run_proc;
+
+/* Tracker and detector from [detect], models from [method] (built on a helper thread), markers
+ * from [run] points in test mode. fps: the stream's (0: 30). */
+sh_status run_proc_create(const sh_config *cfg, const sh_y4m_header *hdr, double fps, run_log_fn log,
+                          run_proc **out);
+void run_proc_destroy(run_proc *p);
+/* SIGHUP: [gating] takes effect from the next frame. */
+void run_proc_set_gating(run_proc *p, const sh_config *cfg);
+/* The next frame with at least min_markers detected markers becomes the reference (its models
+ * are built beside the running ones and swapped in when ready). */
+void run_proc_request_reference(run_proc *p);
+/* Processes one frame: returns what to show (img itself when raw) and fills info's status,
+ * reason, markers_used and residual_px (-1 when not measured; never NaN). The returned image
+ * stays valid until the next call. */
+const sh_image *run_proc_frame(run_proc *p, const sh_image *img, int index, sh_display_frame_info *info);
+int run_proc_builds(const run_proc *p);
+
+#endif

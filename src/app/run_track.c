@@ -1,0 +1,159 @@
+/* The daemon's markers: detection in the Kalman tracker's windows (include/stillheart/track.h,
+ * docs/tracking.md), the estimates as correspondences, and their match to the reference. */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "run.h"
+#include "stillheart/track.h"
+
+#define MAX_DET SH_TRACK_MAX_DETECTIONS
+
+struct run_tracker {
+    sh_track_options opts;
+    int ids[RUN_MAX_MARKERS];
+    sh_tracker *t;
+    sh_detector *det;
+    int last_index, frame, started;
+    sh_detection dets[MAX_DET];
+    sh_window win[SH_TRACK_MAX_MARKERS + 1];
+    sh_track_estimate est[SH_TRACK_MAX_MARKERS];
+};
+
+sh_status run_tracker_create(const sh_config *cfg, int width, int height, double fps, run_tracker **out)
+{
+    run_tracker *rt = calloc(1, sizeof *rt);
+    if (!rt) return sh_error_set(SH_ENOMEM, "tracker: out of memory");
+    sh_track_options_default(&rt->opts);
+    int n = 0;
+    for (int i = 0; i < SH_CONFIG_MAX_IDS; i++)
+        if (cfg->ids[i]) {
+            if (n == RUN_MAX_MARKERS) {
+                free(rt);
+                return sh_error_set(SH_EINVAL, "[detect] ids: '%s': the tracker follows at most %d markers",
+                                    cfg->ids_text, RUN_MAX_MARKERS);
+            }
+            rt->ids[n++] = i;
+        }
+    rt->opts.ids = rt->ids;
+    rt->opts.num_ids = n;
+    rt->opts.fps = fps > 0 ? fps : 30;
+    rt->opts.width = width;
+    rt->opts.height = height;
+    sh_detector_options dopt;
+    sh_detector_options_default(&dopt);
+    dopt.family = cfg->family;
+    dopt.window_decimate = 2; /* ~2.4x cheaper, as accurate on ~100 px tags (detect.h) */
+    sh_status st = sh_detector_create(&dopt, &rt->det);
+    if (st == SH_OK) st = sh_tracker_create(&rt->opts, NULL, &rt->t);
+    if (st != SH_OK) {
+        run_tracker_destroy(rt);
+        return st;
+    }
+    *out = rt;
+    return SH_OK;
+}
+
+void run_tracker_destroy(run_tracker *rt)
+{
+    if (!rt) return;
+    sh_tracker_destroy(rt->t);
+    sh_detector_destroy(rt->det);
+    free(rt);
+}
+
+double run_tracker_fps(const run_tracker *rt) { return rt->opts.fps; }
+
+/* One tag seen by two overlapping windows comes back twice; the tracker would discard an id
+ * detected twice as ambiguous, so copies within a pixel of each other are merged first. */
+static int merge_copies(sh_detection *d, int n)
+{
+    int kept = 0;
+    for (int i = 0; i < n; i++) {
+        int j = 0;
+        while (j < kept && !(d[j].id == d[i].id && fabs(d[j].cx - d[i].cx) < 1 && fabs(d[j].cy - d[i].cy) < 1)) j++;
+        if (j == kept) d[kept++] = d[i];
+    }
+    return kept;
+}
+
+sh_status run_tracker_frame(run_tracker *rt, const sh_image *img, int index, run_marker *out, int *n)
+{
+    *n = 0;
+    if (rt->started && index <= rt->last_index) {
+        /* time went backwards (a replay looped): the filters' history no longer applies */
+        sh_tracker *fresh;
+        sh_status st = sh_tracker_create(&rt->opts, NULL, &fresh);
+        if (st != SH_OK) return st;
+        sh_tracker_destroy(rt->t);
+        rt->t = fresh;
+        rt->started = 0;
+    }
+    /* frames dropped by the mailbox still count as time for the filters */
+    rt->frame = rt->started ? rt->frame + (index - rt->last_index) : 0;
+    rt->last_index = index;
+    sh_status st = sh_tracker_predict(rt->t, rt->frame);
+    int nw = 0, nb = 0, nd = 0;
+    if (st == SH_OK) st = sh_tracker_windows(rt->t, 0, rt->win, SH_TRACK_MAX_MARKERS, &nw);
+    if (st == SH_OK) st = sh_tracker_reacquire(rt->t, 0, &rt->win[nw], &nb);
+    if (st != SH_OK) return st;
+    st = !rt->started || nw == 0 ? sh_detector_detect(rt->det, img, rt->dets, MAX_DET, &nd)
+                                 : sh_detector_detect_windows(rt->det, img, rt->win, nw + nb, rt->dets, MAX_DET, &nd);
+    if (st != SH_OK) nd = 0; /* a detector failure is a frame without detections */
+    rt->started = 1;
+    int count = merge_copies(rt->dets, nd < MAX_DET ? nd : MAX_DET);
+    const sh_detection *dp = rt->dets;
+    sh_status ust = sh_tracker_update(rt->t, &dp, &count, 1);
+    if (ust != SH_OK) return ust;
+    int ne = sh_tracker_estimates(rt->t, rt->est, SH_TRACK_MAX_MARKERS);
+    for (int k = 0; k < ne; k++) {
+        const sh_track_estimate *e = &rt->est[k];
+        if (!e->confirmed || e->status == SH_TRACK_LOST || e->status == SH_TRACK_NEW || !e->in_view[0]) continue;
+        if (!isfinite(e->xy[0][0]) || !isfinite(e->xy[0][1])) continue;
+        run_marker *m = &out[(*n)++];
+        m->id = e->id;
+        m->x = e->xy[0][0];
+        m->y = e->xy[0][1];
+        /* largest axis of the 2x2 covariance: sqrt of its larger eigenvalue */
+        double a = e->cov[0], b = e->cov[1], d = e->cov[e->dim + 1];
+        double l = 0.5 * (a + d) + sqrt(0.25 * (a - d) * (a - d) + b * b);
+        m->sigma = sqrt(l > 0 ? l : 0);
+        m->age = e->age;
+        m->dx = m->dy = NAN;
+        for (int j = 0; j < count && e->status == SH_TRACK_MEASURED; j++)
+            if (rt->dets[j].id == e->id) {
+                m->dx = rt->dets[j].cx;
+                m->dy = rt->dets[j].cy;
+                break;
+            }
+    }
+    return st;
+}
+
+void run_select(const sh_config *cfg, double fps, const sh_point *ref, int nref, const run_marker *m,
+                int nm, run_selection *sel)
+{
+    memset(sel, 0, sizeof *sel);
+    sel->worst_id = -1;
+    double frame_ms = 1000.0 / (fps > 0 ? fps : 30);
+    for (int r = 0, c = 0; r < nref; r++) {
+        while (c < nm && m[c].id < ref[r].id) c++;
+        if (c == nm || m[c].id != ref[r].id) continue;
+        const run_marker *k = &m[c];
+        if (k->age * frame_ms > cfg->dropout_ms) {
+            sel->stale++;
+            continue;
+        }
+        sel->ids[sel->n] = k->id;
+        sel->xy[2 * sel->n] = k->x;
+        sel->xy[2 * sel->n + 1] = k->y;
+        sel->det[2 * sel->n] = k->dx;
+        sel->det[2 * sel->n + 1] = k->dy;
+        sel->n++;
+        sel->predicted += k->age > 0;
+        if (sel->worst_id < 0 || k->sigma > sel->worst_sigma) {
+            sel->worst_id = k->id;
+            sel->worst_sigma = k->sigma;
+        }
+    }
+}

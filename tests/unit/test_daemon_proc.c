@@ -1,0 +1,187 @@
+/* The daemon's processing pieces (src/app/run_model.c, run_track.c): the residual against its
+ * closed form, the dropout / staleness rule of the selection, and the helper-thread models (a new
+ * reference is swapped in only once built; the old one stays in use meanwhile). */
+#include <math.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <string.h>
+#include <time.h>
+
+#include <cmocka.h>
+
+#include "../../src/app/run.h"
+
+#define N 9
+
+/* a 3x3 grid of markers, 100 px apart, slightly irregular */
+static void grid(double *xy)
+{
+    for (int i = 0; i < N; i++) {
+        xy[2 * i] = 200 + 100 * (i % 3) + 7 * (i == 4);
+        xy[2 * i + 1] = 150 + 100 * (i / 3) - 5 * (i == 2);
+    }
+}
+
+/* TPS interpolates: the map at a marker is its tracked position, so the residual is the largest
+ * distance between tracked and detected positions. */
+static void test_residual_tps(void **state)
+{
+    (void)state;
+    sh_interp_params p;
+    sh_interp_params_parse("tps", &p);
+    double ref[2 * N], cur[2 * N], det[2 * N], r;
+    grid(ref);
+    for (int i = 0; i < 2 * N; i++) cur[i] = det[i] = ref[i] + (i & 1 ? -4.0 : 6.0) + 0.01 * i * i;
+    assert_int_equal(run_residual(&p, ref, cur, det, N, &r), SH_OK);
+    assert_true(r < 1e-6);
+    det[2 * 5] += 3;
+    det[2 * 5 + 1] += 4; /* the detector saw marker 5 elsewhere: 5 px */
+    det[2 * 7] = det[2 * 7 + 1] = NAN; /* marker 7 predicted: not compared */
+    assert_int_equal(run_residual(&p, ref, cur, det, N, &r), SH_OK);
+    assert_true(fabs(r - 5) < 1e-6);
+    for (int i = 0; i < 2 * N; i++) det[i] = NAN;
+    assert_int_equal(run_residual(&p, ref, cur, det, N, &r), SH_OK);
+    assert_true(r == -1);
+}
+
+/* Least-squares affine: one marker moved by e off a translation leaves residual
+ * |e| max(1 - h_jj, max_k |h_kj|), h the hat matrix X (X^T X)^-1 X^T of X = [1 x y]. */
+static void test_residual_affine_leverage(void **state)
+{
+    (void)state;
+    sh_interp_params p;
+    sh_interp_params_parse("affine", &p);
+    double ref[2 * N], cur[2 * N], r;
+    grid(ref);
+    for (int j = 0; j < N; j++) {
+        for (int i = 0; i < N; i++) {
+            cur[2 * i] = ref[2 * i] + 2.5;
+            cur[2 * i + 1] = ref[2 * i + 1] - 1.5;
+        }
+        cur[2 * j] += 0.6;
+        cur[2 * j + 1] += 0.8; /* |e| = 1 */
+        assert_int_equal(run_residual(&p, ref, cur, cur, N, &r), SH_OK);
+        double m[3][3] = {{0}};
+        for (int i = 0; i < N; i++) {
+            double row[3] = {1, ref[2 * i], ref[2 * i + 1]};
+            for (int a = 0; a < 3; a++)
+                for (int b = 0; b < 3; b++) m[a][b] += row[a] * row[b];
+        }
+        double det = m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0]) +
+                     m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]);
+        double inv[3][3];
+        for (int a = 0; a < 3; a++)
+            for (int b = 0; b < 3; b++) {
+                int a1 = (b + 1) % 3, a2 = (b + 2) % 3, b1 = (a + 1) % 3, b2 = (a + 2) % 3;
+                inv[a][b] = (m[a1][b1] * m[a2][b2] - m[a1][b2] * m[a2][b1]) / det;
+            }
+        double want = 0;
+        double xj[3] = {1, ref[2 * j], ref[2 * j + 1]};
+        for (int k = 0; k < N; k++) {
+            double xk[3] = {1, ref[2 * k], ref[2 * k + 1]}, h = 0;
+            for (int a = 0; a < 3; a++)
+                for (int b = 0; b < 3; b++) h += xk[a] * inv[a][b] * xj[b];
+            double e = fabs((k == j) - h);
+            if (e > want) want = e;
+        }
+        assert_true(fabs(r - want) < 1e-9);
+    }
+}
+
+/* dropout_ms at 20 fps: age 4 (200 ms) is still used and predicted, age 5 is stale */
+static void test_select_dropout(void **state)
+{
+    (void)state;
+    sh_config cfg;
+    sh_config_default(&cfg);
+    cfg.dropout_ms = 200;
+    sh_point ref[5];
+    run_marker m[4];
+    for (int i = 0; i < 5; i++) ref[i] = (sh_point){0, 2 * i, 10.0 * i, 5.0 * i, NAN, NAN, NAN};
+    /* ids 0, 2, 4, 6 tracked (8 lost); 4 unseen 4 frames, 6 unseen 5 frames */
+    int ages[4] = {0, 0, 4, 5};
+    double sig[4] = {0.2, 0.3, 2.5, 9};
+    for (int i = 0; i < 4; i++) m[i] = (run_marker){2 * i, 1.0 + i, 2.0 + i, 1.0 + i, 2.0 + i, sig[i], ages[i]};
+    run_selection sel;
+    run_select(&cfg, 20, ref, 5, m, 4, &sel);
+    assert_int_equal(sel.n, 3);
+    assert_int_equal(sel.predicted, 1);
+    assert_int_equal(sel.stale, 1);
+    assert_int_equal(sel.ids[2], 4);
+    assert_int_equal(sel.worst_id, 4);
+    assert_true(sel.worst_sigma == 2.5);
+    assert_true(sel.xy[4] == 3.0 && sel.det[5] == 4.0);
+}
+
+static void wait_ms(int ms)
+{
+    struct timespec ts = {0, ms * 1000000L};
+    nanosleep(&ts, NULL);
+}
+
+/* a new reference is built beside the old one, which stays in use until the swap */
+static void test_models_swap(void **state)
+{
+    (void)state;
+    sh_interp_params p;
+    sh_interp_params_parse("tps", &p);
+    sh_warp_options wo;
+    sh_warp_options_default(&wo);
+    run_models *m;
+    assert_int_equal(run_models_create(&p, &wo, 640, 480, 0, &m), SH_OK);
+    double xy[2 * N];
+    grid(xy);
+    sh_point ref[N];
+    int ids[N], nref, frame, n;
+    for (int i = 0; i < N; i++) {
+        ref[i] = (sh_point){0, i, xy[2 * i], xy[2 * i + 1], NAN, NAN, NAN};
+        ids[i] = i;
+    }
+    assert_null(run_models_reference(m, &nref));
+    assert_int_equal(run_models_set_reference(m, ref, N, 3), SH_OK);
+    int swapped = 0;
+    for (int t = 0; t < 2000 && !swapped; t++) {
+        swapped = run_models_poll(m, &frame, &n);
+        if (!swapped) wait_ms(5);
+    }
+    assert_true(swapped);
+    assert_int_equal(frame, 3);
+    assert_int_equal(n, N);
+    run_model *md = NULL;
+    assert_int_equal(run_models_get(m, ids, N, &md), 1); /* the full set came with the swap */
+    /* second reference: until swapped, the first stays (same pointer, same positions) */
+    for (int i = 0; i < N; i++) ref[i].x += 1;
+    assert_int_equal(run_models_set_reference(m, ref, N, 9), SH_OK);
+    assert_true(run_models_pending(m));
+    const sh_point *r0 = run_models_reference(m, &nref);
+    assert_true(r0 && r0[0].x == xy[0]);
+    /* a subset of the running reference is built on request meanwhile */
+    int got = 0;
+    for (int t = 0; t < 2000 && got != 1; t++) {
+        got = run_models_get(m, ids + 1, N - 1, &md);
+        if (got != 1) wait_ms(5);
+    }
+    assert_int_equal(got, 1);
+    swapped = 0;
+    for (int t = 0; t < 2000 && !swapped; t++) {
+        swapped = run_models_poll(m, &frame, &n);
+        if (!swapped) wait_ms(5);
+    }
+    assert_true(swapped);
+    assert_int_equal(frame, 9);
+    assert_true(run_models_reference(m, &nref)[0].x == xy[0] + 1);
+    assert_true(run_models_builds(m) >= 3);
+    run_models_destroy(m);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_residual_tps),
+        cmocka_unit_test(test_residual_affine_leverage),
+        cmocka_unit_test(test_select_dropout),
+        cmocka_unit_test(test_models_swap),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
