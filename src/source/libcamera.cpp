@@ -6,14 +6,27 @@
 // options.buffers (4) buffers from FrameBufferAllocator, mapped once; one request per buffer.
 // libcamera completes requests on its own thread: the handler only records the request's index in
 // a small locked ring and writes an eventfd, which is this source's pollable fd. Frames whose
-// metadata says FrameError are requeued and counted. Not yet: controls, and reopening a camera
-// that went away (a timeout is counted as a loss; the camera is not reopened).
+// metadata says FrameError are requeued and counted.
+//
+// Controls: exposure, gain and white balance become ExposureTime, AnalogueGain and
+// ColourTemperature (with AeEnable / AwbEnable off where listed), set on the first requests; a
+// control the camera does not list, or a value outside its range, is refused naming it.
+//
+// Loss (the camera's disconnected signal, or no frame for timeout_ms): the camera is stopped and
+// released, its buffers unmapped once the caller has released the frames it holds, and it is
+// looked up again by NAME with a back-off doubling from backoff_min_ms to backoff_max_ms. The
+// manager's list follows hotplug only through udev; when this source is the manager's only user
+// the manager is restarted for each attempt, so that a camera that returns is found without udev
+// (the vmtest guest) too. The camera must come back with the same format and size.
 #include "source_internal.h"
 
 #ifdef SH_HAVE_LIBCAMERA
 
+#include <atomic>
+#include <dirent.h>
 #include <errno.h>
 #include <poll.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/eventfd.h>
@@ -74,8 +87,11 @@ struct Impl {
     bool acquired = false, running = false;
     std::mutex lock;
     std::vector<int> done; // completed request indices, oldest first
-    int64_t last_frame = 0;
-    sh_rawfmt format = SH_RAW_YUYV;
+    std::vector<char> held; // per request: a frame the caller has not released
+    int nheld = 0;
+    std::atomic<bool> gone{false}; // the camera's disconnected signal (udev hotplug)
+    bool vanished = false;         // lost with its device nodes gone: cannot be stopped
+    ControlList initial;   // the controls asked for, set on the first requests
 
     void completed(Request *r)
     {
@@ -84,6 +100,17 @@ struct Impl {
             std::lock_guard<std::mutex> g(lock);
             done.push_back((int)r->cookie());
         }
+        wake();
+    }
+
+    void disconnected()
+    {
+        gone = true;
+        wake();
+    }
+
+    void wake()
+    {
         uint64_t one = 1;
         ssize_t w = write(efd, &one, sizeof one);
         (void)w;
@@ -92,7 +119,12 @@ struct Impl {
 
 struct lc_source {
     sh_source base;
-    Impl *impl;
+    Impl *impl;            // null while the camera is down and its buffers are gone
+    std::string name;
+    bool down;
+    int64_t last_frame, retry_at;
+    int backoff_ms;
+    uint64_t seq_base, next_seq; // the camera's sequence restarts at each reopen; ours keeps rising
 };
 
 bool to_raw(const PixelFormat &f, sh_rawfmt *out)
@@ -120,26 +152,178 @@ PixelFormat from_raw(sh_rawfmt f)
     }
 }
 
+int backoff_min(const sh_source *s) { return s->opts.backoff_min_ms > 0 ? s->opts.backoff_min_ms : 100; }
+int backoff_max(const sh_source *s) { return s->opts.backoff_max_ms > 0 ? s->opts.backoff_max_ms : 5000; }
+int timeout_of(const sh_source *s) { return s->opts.timeout_ms > 0 ? s->opts.timeout_ms : 1000; }
+
+void destroy(Impl *m)
+{
+    // libcamera 0.0.3 asserts in Camera::stop() when the requests queued to a device that has
+    // gone never come back (streamOff fails before it cancels them): such a camera is left
+    // running, unreleased. A disconnected camera (udev told libcamera) stops at once.
+    if (m->running && !m->vanished) {
+        m->camera->stop();
+        m->running = false;
+    }
+    if (m->camera) {
+        m->camera->requestCompleted.disconnect(m, &Impl::completed);
+        m->camera->disconnected.disconnect(m, &Impl::disconnected);
+    }
+    for (size_t i = 0; i < m->maps.size(); i++)
+        if (m->maps[i] && m->maps[i] != MAP_FAILED) munmap(m->maps[i], m->map_len[i]);
+    m->requests.clear();
+    m->alloc.reset();
+    if (m->acquired && !m->running) m->camera->release();
+    if (m->running) {
+        // Nor can it be destroyed: its pipeline's IPA thread still runs, and a running std::thread
+        // destroyed terminates the process. It is kept, never freed (so not destroyed at exit
+        // either): one camera object per device that vanished unnoticed by udev.
+        static std::vector<std::shared_ptr<Camera>> *kept = new std::vector<std::shared_ptr<Camera>>();
+        std::lock_guard<std::mutex> g(manager_lock);
+        kept->push_back(m->camera);
+    }
+    m->camera.reset();
+    if (m->efd >= 0) close(m->efd);
+    delete m;
+    manager_put();
+}
+
+// Whether a V4L2 or media device node this process holds open has been removed: without udev
+// hotplug (no disconnected signal) that is how a camera whose device went away is told apart
+// from one that only stalled.
+bool device_node_removed()
+{
+    DIR *d = opendir("/proc/self/fd");
+    if (!d) return false;
+    bool removed = false;
+    while (struct dirent *e = readdir(d)) {
+        char path[300], target[256];
+        snprintf(path, sizeof path, "/proc/self/fd/%s", e->d_name);
+        ssize_t n = readlink(path, target, sizeof target - 1);
+        if (n <= 0) continue;
+        target[n] = 0;
+        if ((!strncmp(target, "/dev/video", 10) || !strncmp(target, "/dev/v4l-subdev", 15) ||
+             !strncmp(target, "/dev/media", 10)) &&
+            strstr(target, " (deleted)"))
+            removed = true;
+    }
+    closedir(d);
+    return removed;
+}
+
+// Starts the camera and queues every request, the asked controls on each of these first ones.
+sh_status start_impl(Impl *m, const char *name)
+{
+    if (m->camera->start() != 0) return sh_error_set(SH_EIO, "%s: cannot start", name);
+    m->running = true;
+    for (auto &r : m->requests) {
+        r->reuse(Request::ReuseBuffers); // requests cancelled by an earlier stop are pending again
+        for (const auto &c : m->initial) r->controls().set(c.first, c.second);
+        if (m->camera->queueRequest(r.get()) != 0) return sh_error_set(SH_EIO, "%s: cannot queue a request", name);
+    }
+    return SH_OK;
+}
+
+// The camera is lost: stopped and released now; its buffers stay mapped until the caller's
+// frames are back.
+void lose(lc_source *l, int64_t now)
+{
+    Impl *m = l->impl;
+    l->down = true;
+    l->base.stats.losses++;
+    l->base.stats.online = 0;
+    l->backoff_ms = backoff_min(&l->base);
+    l->retry_at = now + (int64_t)l->backoff_ms * 1000000;
+    m->vanished = !m->gone && device_node_removed();
+    if (m->running && !m->vanished) {
+        m->camera->stop(); // cancels the queued requests
+        m->running = false;
+    }
+    {
+        std::lock_guard<std::mutex> g(m->lock);
+        m->done.clear();
+    }
+    if (!m->nheld) {
+        destroy(m);
+        l->impl = nullptr;
+    }
+}
+
+sh_status open_camera(const char *name, const sh_source_options *o, Impl **out, sh_rawfmt *format, int *width,
+                      int *height, int *stride);
+
+void try_reopen(lc_source *l, int64_t now)
+{
+    if (now < l->retry_at || (l->impl && l->impl->nheld)) return;
+    if (l->impl) {
+        destroy(l->impl);
+        l->impl = nullptr;
+    }
+    // the same geometry as negotiated at the first open
+    sh_source_options o = l->base.opts;
+    o.format = (int)l->base.format;
+    o.width = l->base.width;
+    o.height = l->base.height;
+    sh_rawfmt f;
+    int w, h, stride;
+    Impl *m = nullptr;
+    if (open_camera(l->name.c_str(), &o, &m, &f, &w, &h, &stride) == SH_OK && stride == l->base.stride &&
+        start_impl(m, l->base.name) == SH_OK) {
+        l->impl = m;
+        l->down = false;
+        l->base.stats.reopens++;
+        l->base.stats.online = 1;
+        l->last_frame = now;
+        l->seq_base = l->next_seq;
+        return;
+    }
+    if (m) destroy(m);
+    l->backoff_ms = l->backoff_ms * 2 > backoff_max(&l->base) ? backoff_max(&l->base) : l->backoff_ms * 2;
+    l->retry_at = now + (int64_t)l->backoff_ms * 1000000;
+}
+
 sh_status lc_start(sh_source *s)
 {
-    Impl *m = ((lc_source *)s)->impl;
-    if (m->camera->start() != 0) return sh_error_set(SH_EIO, "%s: cannot start", s->name);
-    m->running = true;
-    for (auto &r : m->requests)
-        if (m->camera->queueRequest(r.get()) != 0) return sh_error_set(SH_EIO, "%s: cannot queue a request", s->name);
-    m->last_frame = sh_monotonic_ns();
+    lc_source *l = (lc_source *)s;
+    if (!l->impl) { // stopped while down: a fresh attempt at once
+        l->down = true;
+        l->retry_at = 0;
+        l->backoff_ms = backoff_min(s);
+        return SH_OK;
+    }
+    sh_status st = start_impl(l->impl, s->name);
+    if (st != SH_OK) return st;
+    l->last_frame = sh_monotonic_ns();
     s->stats.online = 1;
     return SH_OK;
 }
 
-int lc_fd(const sh_source *s) { return ((const lc_source *)s)->impl->efd; }
+int lc_fd(const sh_source *s)
+{
+    const lc_source *l = (const lc_source *)s;
+    return l->down || !l->impl ? -1 : l->impl->efd;
+}
 
 sh_status lc_dequeue(sh_source *s, int timeout_ms, sh_source_frame *f, int *got)
 {
-    Impl *m = ((lc_source *)s)->impl;
+    lc_source *l = (lc_source *)s;
     int64_t deadline = timeout_ms < 0 ? INT64_MAX : sh_monotonic_ns() + (int64_t)timeout_ms * 1000000;
-    int lost_ms = s->opts.timeout_ms > 0 ? s->opts.timeout_ms : 1000;
     for (;;) {
+        int64_t now = sh_monotonic_ns();
+        if (l->down) {
+            try_reopen(l, now);
+            if (l->down) {
+                if (now >= deadline || (l->impl && l->impl->nheld)) return SH_OK;
+                sh_source_sleep_until(l->retry_at < deadline ? l->retry_at : deadline);
+                continue;
+            }
+        }
+        Impl *m = l->impl;
+        if (m->gone) {
+            sh_error_set(SH_EIO, "%s: the camera was disconnected", s->name);
+            lose(l, now);
+            continue;
+        }
         int index = -1;
         {
             std::lock_guard<std::mutex> g(m->lock);
@@ -148,16 +332,17 @@ sh_status lc_dequeue(sh_source *s, int timeout_ms, sh_source_frame *f, int *got)
                 m->done.erase(m->done.begin());
             }
         }
-        int64_t now = sh_monotonic_ns();
         if (index < 0) {
-            if (s->stats.online && now - m->last_frame > (int64_t)lost_ms * 1000000) {
-                s->stats.losses++;
-                s->stats.online = 0;
+            int64_t lost_at = l->last_frame + (int64_t)timeout_of(s) * 1000000;
+            if (now >= lost_at) {
+                sh_error_set(SH_EIO, "%s: no frame for %d ms", s->name, timeout_of(s));
+                lose(l, now);
+                continue;
             }
             if (now >= deadline) return SH_OK;
-            int64_t left = deadline - now;
+            int64_t wake = lost_at < deadline ? lost_at : deadline;
             struct pollfd p = {m->efd, POLLIN, 0};
-            poll(&p, 1, left > 100000000 ? 100 : (int)(left / 1000000) + 1);
+            poll(&p, 1, (int)((wake - now + 999999) / 1000000));
             uint64_t n;
             ssize_t r = read(m->efd, &n, sizeof n);
             (void)r;
@@ -172,15 +357,16 @@ sh_status lc_dequeue(sh_source *s, int timeout_ms, sh_source_frame *f, int *got)
             m->camera->queueRequest(req);
             continue;
         }
-        m->last_frame = now;
-        s->stats.online = 1;
+        l->last_frame = now;
         size_t bytes = 0;
         for (const auto &p : md.planes()) bytes += p.bytesused;
         if (s->format != SH_RAW_MJPEG && bytes < sh_raw_frame_size(s->format, s->width, s->height, s->stride))
             bytes = sh_raw_frame_size(s->format, s->width, s->height, s->stride);
         memset(f, 0, sizeof *f);
         f->camera = s->opts.camera;
-        f->sequence = md.sequence;
+        f->sequence = l->seq_base + md.sequence;
+        if (f->sequence > l->next_seq && l->next_seq > l->seq_base) s->stats.drops += f->sequence - l->next_seq;
+        l->next_seq = f->sequence + 1;
         f->timestamp_ns = (int64_t)md.timestamp;
         f->raw.format = s->format;
         f->raw.width = s->width;
@@ -189,6 +375,8 @@ sh_status lc_dequeue(sh_source *s, int timeout_ms, sh_source_frame *f, int *got)
         f->raw.data = m->data[(size_t)index];
         f->raw.bytes = bytes;
         f->slot = index;
+        m->held[(size_t)index] = 1;
+        m->nheld++;
         s->stats.frames++;
         *got = 1;
         return SH_OK;
@@ -197,59 +385,110 @@ sh_status lc_dequeue(sh_source *s, int timeout_ms, sh_source_frame *f, int *got)
 
 sh_status lc_release(sh_source *s, sh_source_frame *f)
 {
-    Impl *m = ((lc_source *)s)->impl;
-    if (f->slot < 0 || (size_t)f->slot >= m->requests.size())
+    lc_source *l = (lc_source *)s;
+    Impl *m = l->impl;
+    if (!m || f->slot < 0 || (size_t)f->slot >= m->requests.size() || !m->held[(size_t)f->slot])
         return sh_error_set(SH_EINVAL, "%s: release of a frame not held", s->name);
     Request *req = m->requests[(size_t)f->slot].get();
+    m->held[(size_t)f->slot] = 0;
+    m->nheld--;
     f->slot = -1;
-    if (!m->running) return SH_OK;
+    if (l->down || !m->running) {
+        if (l->down && !m->nheld) { // the last frame of a lost camera: its buffers can go
+            destroy(m);
+            l->impl = nullptr;
+        }
+        return SH_OK;
+    }
     req->reuse(Request::ReuseBuffers);
-    if (m->camera->queueRequest(req) != 0) return sh_error_set(SH_EIO, "%s: cannot requeue", s->name);
+    if (m->camera->queueRequest(req) != 0) {
+        sh_error_set(SH_EIO, "%s: cannot requeue", s->name);
+        lose(l, sh_monotonic_ns());
+    }
     return SH_OK;
 }
 
 sh_status lc_stop(sh_source *s)
 {
-    Impl *m = ((lc_source *)s)->impl;
+    lc_source *l = (lc_source *)s;
+    Impl *m = l->impl;
+    s->stats.online = 0;
+    bool was_down = l->down;
+    l->down = false;
+    if (!m) return SH_OK;
+    std::fill(m->held.begin(), m->held.end(), 0);
+    m->nheld = 0;
+    if (was_down) { // what is left of a lost camera goes; start looks it up again
+        destroy(m);
+        l->impl = nullptr;
+        return SH_OK;
+    }
     if (m->running) m->camera->stop();
     m->running = false;
     std::lock_guard<std::mutex> g(m->lock);
     m->done.clear();
-    s->stats.online = 0;
     return SH_OK;
-}
-
-void destroy(Impl *m)
-{
-    if (m->running) m->camera->stop();
-    if (m->camera) m->camera->requestCompleted.disconnect(m, &Impl::completed);
-    for (size_t i = 0; i < m->maps.size(); i++)
-        if (m->maps[i] && m->maps[i] != MAP_FAILED) munmap(m->maps[i], m->map_len[i]);
-    m->requests.clear();
-    m->alloc.reset();
-    if (m->acquired) m->camera->release();
-    m->camera.reset();
-    if (m->efd >= 0) close(m->efd);
-    delete m;
-    manager_put();
 }
 
 void lc_close(sh_source *s)
 {
     lc_source *l = (lc_source *)s;
-    destroy(l->impl);
-    free(l);
+    if (l->impl) destroy(l->impl);
+    delete l;
 }
 
 const sh_source_ops ops = {lc_start, lc_fd, lc_dequeue, lc_release, lc_stop, lc_close};
 
-} // namespace
-
-extern "C" sh_status sh_source_open_libcamera(const char *name, const sh_source_options *o, sh_source **out)
+// A control's limit as a double, whatever its type.
+double as_double(const ControlValue &v)
 {
-    if (o->exposure != SH_SOURCE_CTRL_UNSET || o->gain != SH_SOURCE_CTRL_UNSET ||
-        o->white_balance != SH_SOURCE_CTRL_UNSET)
-        return sh_error_set(SH_EUNSUPPORTED, "libcamera:%s: camera controls not supported yet", name);
+    switch (v.type()) {
+    case ControlTypeInteger32: return v.get<int32_t>();
+    case ControlTypeInteger64: return (double)v.get<int64_t>();
+    case ControlTypeFloat: return v.get<float>();
+    default: return 0;
+    }
+}
+
+// The controls asked for, as libcamera controls the camera lists; anything else refused by name.
+sh_status camera_controls(Camera *cam, const char *name, const sh_source_options *o, ControlList *out)
+{
+    const ControlInfoMap &info = cam->controls();
+    std::string listed;
+    for (const auto &kv : info) listed += (listed.empty() ? "" : ", ") + kv.first->name();
+    struct {
+        int32_t value;
+        const char *what;
+        const ControlId *id;
+        const ControlId *automatic; // switched off first where listed
+        double scale;               // libcamera value = option * scale
+    } want[] = {
+        {o->exposure, "exposure", &controls::ExposureTime, &controls::AeEnable, 100.0}, // 100 us units -> us
+        {o->gain, "gain", &controls::AnalogueGain, &controls::AeEnable, 0.01},          // 100 = unity
+        {o->white_balance, "white balance", &controls::ColourTemperature, &controls::AwbEnable, 1.0}, // K
+    };
+    for (const auto &c : want) {
+        if (c.value == SH_SOURCE_CTRL_UNSET) continue;
+        auto it = info.find(c.id);
+        if (it == info.end())
+            return sh_error_set(SH_EUNSUPPORTED, "libcamera:%s: control %s (%s) not offered by the camera (it lists: %s)",
+                                name, c.what, c.id->name().c_str(), listed.empty() ? "none" : listed.c_str());
+        double v = c.value * c.scale, lo = as_double(it->second.min()), hi = as_double(it->second.max());
+        if (lo < hi && (v < lo || v > hi))
+            return sh_error_set(SH_EUNSUPPORTED, "libcamera:%s: control %s (%s) = %g outside %g..%g", name, c.what,
+                                c.id->name().c_str(), v, lo, hi);
+        if (info.find(c.automatic) != info.end()) out->set(c.automatic->id(), ControlValue(false));
+        if (c.id->type() == ControlTypeFloat) out->set(c.id->id(), ControlValue((float)v));
+        else out->set(c.id->id(), ControlValue((int32_t)v));
+    }
+    return SH_OK;
+}
+
+// Looks the camera up, configures, allocates and maps; *out is left null on failure.
+sh_status open_camera(const char *name, const sh_source_options *o, Impl **out, sh_rawfmt *format, int *width,
+                      int *height, int *stride_out)
+{
+    *out = nullptr;
     CameraManager *cm = manager_get();
     if (!cm) return sh_error_set(SH_EIO, "libcamera:%s: the camera manager does not start", name);
     Impl *m = new (std::nothrow) Impl();
@@ -272,6 +511,10 @@ extern "C" sh_status sh_source_open_libcamera(const char *name, const sh_source_
     }
     if (!m->camera) {
         st = sh_error_set(SH_EIO, "libcamera:%s: no such camera (found: %s)", name, ids.empty() ? "none" : ids.c_str());
+        destroy(m);
+        return st;
+    }
+    if ((st = camera_controls(m->camera.get(), name, o, &m->initial)) != SH_OK) {
         destroy(m);
         return st;
     }
@@ -366,19 +609,31 @@ extern "C" sh_status sh_source_open_libcamera(const char *name, const sh_source_
         return st;
     }
     m->done.reserve(m->requests.size() + 1); // the completion thread never allocates
+    m->held.assign(m->requests.size(), 0);
     m->camera->requestCompleted.connect(m, &Impl::completed);
-    lc_source *l = (lc_source *)calloc(1, sizeof *l);
-    if (!l) {
-        destroy(m);
-        return sh_error_set(SH_ENOMEM, "libcamera:%s: out of memory", name);
+    m->camera->disconnected.connect(m, &Impl::disconnected);
+    *out = m;
+    *format = got;
+    *width = (int)sc.size.width;
+    *height = (int)sc.size.height;
+    *stride_out = stride;
+    return SH_OK;
+}
+
+} // namespace
+
+extern "C" sh_status sh_source_open_libcamera(const char *name, const sh_source_options *o, sh_source **out)
+{
+    lc_source *l = new (std::nothrow) lc_source();
+    if (!l) return sh_error_set(SH_ENOMEM, "libcamera:%s: out of memory", name);
+    sh_status st = open_camera(name, o, &l->impl, &l->base.format, &l->base.width, &l->base.height, &l->base.stride);
+    if (st != SH_OK) {
+        delete l;
+        return st;
     }
-    l->impl = m;
+    l->name = name;
     l->base.ops = &ops;
     l->base.opts = *o;
-    l->base.format = got;
-    l->base.width = (int)sc.size.width;
-    l->base.height = (int)sc.size.height;
-    l->base.stride = stride;
     *out = &l->base;
     return SH_OK;
 }

@@ -46,6 +46,7 @@ typedef struct {
     uint64_t next_seq;
     int have_seq;
     uint32_t last_driver_seq;
+    int64_t last_stamp;   /* timestamp of the last frame delivered */
 } v4l2_source;
 
 static int xioctl(int fd, unsigned long req, void *arg)
@@ -82,11 +83,21 @@ static void unmap_close(v4l2_source *v)
     v->mapped = 0;
 }
 
-static sh_status set_ctrl(v4l2_source *v, uint32_t id, int32_t value, const char *name)
+/* A control the driver does not list, or a value outside its range, is refused by name rather
+ * than left to the driver (some clamp silently). */
+static sh_status set_ctrl(v4l2_source *v, uint32_t id, int32_t value, const char *name, const char *cid)
 {
+    struct v4l2_queryctrl q;
+    memset(&q, 0, sizeof q);
+    q.id = id;
+    if (xioctl(v->fd, VIDIOC_QUERYCTRL, &q) < 0 || (q.flags & V4L2_CTRL_FLAG_DISABLED))
+        return sh_error_set(SH_EUNSUPPORTED, "v4l2:%s: control %s (%s) not offered by the driver", v->path, name, cid);
+    if (value < q.minimum || value > q.maximum)
+        return sh_error_set(SH_EUNSUPPORTED, "v4l2:%s: control %s (%s) = %d outside %d..%d", v->path, name, cid,
+                            (int)value, (int)q.minimum, (int)q.maximum);
     struct v4l2_control c = {.id = id, .value = value};
     if (xioctl(v->fd, VIDIOC_S_CTRL, &c) < 0)
-        return sh_error_set(SH_EUNSUPPORTED, "v4l2:%s: control %s = %d: %s", v->path, name, (int)value,
+        return sh_error_set(SH_EUNSUPPORTED, "v4l2:%s: control %s (%s) = %d: %s", v->path, name, cid, (int)value,
                             strerror(errno));
     return SH_OK;
 }
@@ -193,17 +204,20 @@ static sh_status open_device(v4l2_source *v, int first)
     if (o->exposure != SH_SOURCE_CTRL_UNSET) {
         struct v4l2_control c = {.id = V4L2_CID_EXPOSURE_AUTO, .value = V4L2_EXPOSURE_MANUAL};
         xioctl(v->fd, VIDIOC_S_CTRL, &c);
-        if ((st = set_ctrl(v, V4L2_CID_EXPOSURE_ABSOLUTE, o->exposure, "exposure")) != SH_OK) goto out;
+        if ((st = set_ctrl(v, V4L2_CID_EXPOSURE_ABSOLUTE, o->exposure, "exposure", "V4L2_CID_EXPOSURE_ABSOLUTE")) !=
+            SH_OK)
+            goto out;
     }
     if (o->gain != SH_SOURCE_CTRL_UNSET) {
         struct v4l2_control c = {.id = V4L2_CID_AUTOGAIN, .value = 0};
         xioctl(v->fd, VIDIOC_S_CTRL, &c);
-        if ((st = set_ctrl(v, V4L2_CID_GAIN, o->gain, "gain")) != SH_OK) goto out;
+        if ((st = set_ctrl(v, V4L2_CID_GAIN, o->gain, "gain", "V4L2_CID_GAIN")) != SH_OK) goto out;
     }
     if (o->white_balance != SH_SOURCE_CTRL_UNSET) {
         struct v4l2_control c = {.id = V4L2_CID_AUTO_WHITE_BALANCE, .value = 0};
         xioctl(v->fd, VIDIOC_S_CTRL, &c);
-        if ((st = set_ctrl(v, V4L2_CID_WHITE_BALANCE_TEMPERATURE, o->white_balance, "white balance")) != SH_OK)
+        if ((st = set_ctrl(v, V4L2_CID_WHITE_BALANCE_TEMPERATURE, o->white_balance, "white balance",
+                           "V4L2_CID_WHITE_BALANCE_TEMPERATURE")) != SH_OK)
             goto out;
     }
 
@@ -399,6 +413,11 @@ static sh_status v_dequeue(sh_source *s, int timeout_ms, sh_source_frame *f, int
             f->timestamp_ns = (int64_t)b.timestamp.tv_sec * 1000000000 + (int64_t)b.timestamp.tv_usec * 1000;
         else
             f->timestamp_ns = now;
+        /* A driver stamp that is not after the last one is stale: vivid (6.12) completes a
+         * buffer before it writes its timestamp, so a prompt DQBUF can see the stamp of the
+         * buffer's previous use. The dequeue time replaces it: sets need rising times. */
+        if (f->timestamp_ns <= v->last_stamp && v->last_stamp) f->timestamp_ns = now;
+        v->last_stamp = f->timestamp_ns;
         f->raw.format = s->format;
         f->raw.width = s->width;
         f->raw.height = s->height;

@@ -156,6 +156,8 @@ for d in /sys/class/video4linux/* /sys/bus/media/devices/*; do
     [ -f "$d/dev" ] && echo "I:1" > "/run/udev/data/c$(cat "$d/dev")"
 done
 LIBCAMERA_LOG_LEVELS='*:ERROR' /bin/stillheart-vmprobe libcamera "Sensor B" 636x480   # vimc: widths in steps of 12
+LIBCAMERA_LOG_LEVELS='*:ERROR' /bin/stillheart-vmprobe libcamera-controls "Sensor B" 636x480
+LIBCAMERA_LOG_LEVELS='*:FATAL' /bin/stillheart-vmprobe libcamera-loss "Sensor B" 636x480 "$(ls /sys/bus/platform/drivers/vimc | grep '^vimc')"
 mount -t configfs none /sys/kernel/config
 G=/sys/kernel/config/gpio-sim/stillheart
 mkdir $G $G/bank0 && echo 4 > $G/bank0/num_lines && echo 1 > $G/live
