@@ -17,6 +17,23 @@
 #include <turbojpeg.h>
 #endif
 
+/* The RGB24 loops read or write 3-byte pixels: gcc vectorizes their interleaving only with
+ * byte shuffles (SSSE3 pshufb, AVX2), which x86-64's SSE2 baseline lacks. The frame loops below
+ * are therefore built three times and the best one for the CPU is picked at load time (an
+ * ifunc). The code is the same integer C in each, so the results are identical bit for bit.
+ * AArch64 needs no clones: NEON's ld3/st3 are baseline and gcc uses them. */
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+#define SH_CLONES __attribute__((target_clones("avx2", "ssse3", "default")))
+#else
+#define SH_CLONES
+#endif
+/* Row kernels must be inlined into each clone to be built for its instruction set. */
+#if defined(__GNUC__)
+#define ROW static inline __attribute__((always_inline))
+#else
+#define ROW static inline
+#endif
+
 #define KR 0.299
 #define KB 0.114
 #define KG (1.0 - KR - KB)
@@ -166,7 +183,7 @@ static inline uint8_t clip13(int32_t v)
     return (uint8_t)(v < 0 ? 0 : v > 255 ? 255 : v);
 }
 
-static inline void yuv422_row_rgb(const uint8_t *restrict y, int ystep, const uint8_t *restrict u,
+ROW void yuv422_row_rgb(const uint8_t *restrict y, int ystep, const uint8_t *restrict u,
                                   const uint8_t *restrict v, int cstep, uint8_t *restrict o, int w)
 {
     const int16_t cy = FIX13(255.0 / 219.0), crv = FIX13(2.0 * (1.0 - KR) * 255.0 / 224.0),
@@ -203,7 +220,7 @@ static inline void yuv422_row_rgb(const uint8_t *restrict y, int ystep, const ui
     }
 }
 
-static void yuyv_row_rgb(const uint8_t *restrict s, uint8_t *restrict o, int w)
+ROW void yuyv_row_rgb(const uint8_t *restrict s, uint8_t *restrict o, int w)
 {
     yuv422_row_rgb(s, 2, s + 1, s + 3, 4, o, w);
 }
@@ -218,7 +235,7 @@ static void yuv_pair_rgb(uint8_t *restrict o, int y, int u, int v)
     o[2] = clip(yy + b);
 }
 
-static void rgb_row_y(const uint8_t *restrict s, int ri, int bi, uint8_t *restrict y, int w)
+ROW void rgb_row_y(const uint8_t *restrict s, int ri, int bi, uint8_t *restrict y, int w)
 {
     for (int x = 0; x < w; x++) {
         int32_t v = C_YR * s[3 * x + ri] + C_YG * s[3 * x + 1] + C_YB * s[3 * x + bi] + (16 << SHIFT) + HALF;
@@ -226,18 +243,84 @@ static void rgb_row_y(const uint8_t *restrict s, int ri, int bi, uint8_t *restri
     }
 }
 
-/* Chroma of a 2x2 block from the sums of R, G, B over it (sums of 4: one more factor 1/4). */
-static void rgb_rows_uv(const uint8_t *restrict s0, const uint8_t *restrict s1, int ri, int bi,
-                        uint8_t *restrict u, uint8_t *restrict v, int cw)
+/* Chroma of a 2x2 block from the sums of R, G, B over it (sums of 4: one more factor 1/4). The
+ * two rows are first summed and de-interleaved into int16 arrays, a chunk at a time (stride-3
+ * loads, which the clones vectorize), then the pairs summed (stride 2). */
+ROW void rgb_rows_uv(const uint8_t *restrict s0, const uint8_t *restrict s1, int ri, int bi,
+                     uint8_t *restrict u, uint8_t *restrict v, int cw)
 {
-    for (int x = 0; x < cw; x++) {
-        int r = s0[6 * x + ri] + s0[6 * x + 3 + ri] + s1[6 * x + ri] + s1[6 * x + 3 + ri];
-        int g = s0[6 * x + 1] + s0[6 * x + 4] + s1[6 * x + 1] + s1[6 * x + 4];
-        int b = s0[6 * x + bi] + s0[6 * x + 3 + bi] + s1[6 * x + bi] + s1[6 * x + 3 + bi];
-        int32_t uu = C_UR * r + C_UG * g + C_UB * b + (128 << (SHIFT + 2)) + (1 << (SHIFT + 1));
-        int32_t vv = C_VR * r + C_VG * g + C_VB * b + (128 << (SHIFT + 2)) + (1 << (SHIFT + 1));
-        u[x] = (uint8_t)(uu >> (SHIFT + 2));
-        v[x] = (uint8_t)(vv >> (SHIFT + 2));
+    int16_t R[CHUNK], G[CHUNK], B[CHUNK];
+    for (int c0 = 0; c0 < cw; c0 += CHUNK / 2) {
+        const int n = cw - c0 < CHUNK / 2 ? cw - c0 : CHUNK / 2;
+        const uint8_t *restrict a = s0 + 6 * (size_t)c0, *restrict b = s1 + 6 * (size_t)c0;
+        for (int i = 0; i < 2 * n; i++) {
+            R[i] = (int16_t)(a[3 * i + ri] + b[3 * i + ri]);
+            G[i] = (int16_t)(a[3 * i + 1] + b[3 * i + 1]);
+            B[i] = (int16_t)(a[3 * i + bi] + b[3 * i + bi]);
+        }
+        for (int x = 0; x < n; x++) {
+            int32_t r = R[2 * x] + R[2 * x + 1], g = G[2 * x] + G[2 * x + 1], bb = B[2 * x] + B[2 * x + 1];
+            int32_t uu = C_UR * r + C_UG * g + C_UB * bb + (128 << (SHIFT + 2)) + (1 << (SHIFT + 1));
+            int32_t vv = C_VR * r + C_VG * g + C_VB * bb + (128 << (SHIFT + 2)) + (1 << (SHIFT + 1));
+            u[c0 + x] = (uint8_t)(uu >> (SHIFT + 2));
+            v[c0 + x] = (uint8_t)(vv >> (SHIFT + 2));
+        }
+    }
+}
+
+/* ---- frame loops (cloned per instruction set; the row kernels inline into each clone) ---- */
+
+SH_CLONES static void frame_yuyv_rgb(const uint8_t *src, int ss, uint8_t *dst, int ds, int w, int h)
+{
+    for (int y = 0; y < h; y++) yuyv_row_rgb(src + (size_t)y * ss, dst + (size_t)y * ds, w);
+}
+
+/* 4:2:0 (NV12: cstep 2, I420: cstep 1) to RGB24: each chroma row serves two luma rows. */
+SH_CLONES static void frame_yuv420_rgb(const uint8_t *src, int ss, const uint8_t *cb, const uint8_t *cr, int cs,
+                                       int cstep, uint8_t *dst, int ds, int w, int h)
+{
+    for (int y = 0; y < h; y++) {
+        const uint8_t *yr = src + (size_t)y * ss, *ur = cb + (size_t)(y >> 1) * cs, *vr = cr + (size_t)(y >> 1) * cs;
+        if (cstep == 2) yuv422_row_rgb(yr, 1, ur, vr, 2, dst + (size_t)y * ds, w);
+        else yuv422_row_rgb(yr, 1, ur, vr, 1, dst + (size_t)y * ds, w);
+    }
+}
+
+/* RGB24 or BGR24 (ri = 0 or 2) to BT.601 luma, and to 2x2 chroma when U and V are given. */
+SH_CLONES static void frame_rgb_yuv(const uint8_t *src, int ss, int ri, uint8_t *Y, int ys, uint8_t *U, int us,
+                                    uint8_t *V, int vs, int w, int h)
+{
+    for (int y = 0; y < h; y++) {
+        if (ri == 0) rgb_row_y(src + (size_t)y * ss, 0, 2, Y + (size_t)y * ys, w);
+        else rgb_row_y(src + (size_t)y * ss, 2, 0, Y + (size_t)y * ys, w);
+    }
+    if (!U) return;
+    for (int y = 0; y < h / 2; y++) {
+        const uint8_t *r0 = src + (size_t)(2 * y) * ss;
+        if (ri == 0) rgb_rows_uv(r0, r0 + ss, 0, 2, U + (size_t)y * us, V + (size_t)y * vs, w / 2);
+        else rgb_rows_uv(r0, r0 + ss, 2, 0, U + (size_t)y * us, V + (size_t)y * vs, w / 2);
+    }
+}
+
+SH_CLONES static void frame_bgr_rgb(const uint8_t *src, int ss, uint8_t *dst, int ds, int w, int h)
+{
+    for (int y = 0; y < h; y++) {
+        const uint8_t *restrict r = src + (size_t)y * ss;
+        uint8_t *restrict o = dst + (size_t)y * ds;
+        for (int x = 0; x < w; x++) {
+            o[3 * x] = r[3 * x + 2];
+            o[3 * x + 1] = r[3 * x + 1];
+            o[3 * x + 2] = r[3 * x];
+        }
+    }
+}
+
+SH_CLONES static void frame_grey_rgb(const uint8_t *src, int ss, uint8_t *dst, int ds, int w, int h)
+{
+    for (int y = 0; y < h; y++) {
+        const uint8_t *restrict r = src + (size_t)y * ss;
+        uint8_t *restrict o = dst + (size_t)y * ds;
+        for (int x = 0; x < w; x++) o[3 * x] = o[3 * x + 1] = o[3 * x + 2] = r[x];
     }
 }
 
@@ -394,11 +477,7 @@ sh_status sh_pixconv_convert(sh_pixconv *conv, const sh_raw *s, sh_image *d)
 #endif
     case SH_RAW_GREY:
         if (d->format == SH_PIX_RGB24) {
-            for (int y = 0; y < h; y++) {
-                const uint8_t *r = src + (size_t)y * ss;
-                uint8_t *o = Y + (size_t)y * ys;
-                for (int x = 0; x < w; x++) o[3 * x] = o[3 * x + 1] = o[3 * x + 2] = r[x];
-            }
+            frame_grey_rgb(src, ss, Y, ys, w, h);
             return SH_OK;
         }
         copy_rows(src, ss, Y, ys, w, h);
@@ -410,7 +489,7 @@ sh_status sh_pixconv_convert(sh_pixconv *conv, const sh_raw *s, sh_image *d)
         return SH_OK;
     case SH_RAW_YUYV:
         if (d->format == SH_PIX_RGB24) {
-            for (int y = 0; y < h; y++) yuyv_row_rgb(src + (size_t)y * ss, Y + (size_t)y * ys, w);
+            frame_yuyv_rgb(src, ss, Y, ys, w, h);
             return SH_OK;
         }
         for (int y = 0; y < h; y++) yuyv_row_gray(src + (size_t)y * ss, Y + (size_t)y * ys, w);
@@ -433,12 +512,7 @@ sh_status sh_pixconv_convert(sh_pixconv *conv, const sh_raw *s, sh_image *d)
         if (s->format == SH_RAW_NV12) cs = ss, step = 2, cr = cb + 1;
         else cs = ss / 2, step = 1, cr = cb + (size_t)cs * ch;
         if (d->format == SH_PIX_RGB24) {
-            for (int y = 0; y < h; y++) {
-                const uint8_t *yr = src + (size_t)y * ss, *ur = cb + (size_t)(y >> 1) * cs,
-                              *vr = cr + (size_t)(y >> 1) * cs;
-                if (step == 2) yuv422_row_rgb(yr, 1, ur, vr, 2, Y + (size_t)y * ys, w);
-                else yuv422_row_rgb(yr, 1, ur, vr, 1, Y + (size_t)y * ys, w);
-            }
+            frame_yuv420_rgb(src, ss, cb, cr, cs, step, Y, ys, w, h);
             return SH_OK;
         }
         copy_rows(src, ss, Y, ys, w, h);
@@ -484,29 +558,14 @@ sh_status sh_pixconv_convert(sh_pixconv *conv, const sh_raw *s, sh_image *d)
     }
     case SH_RAW_RGB24:
     case SH_RAW_BGR24: {
-        int ri = s->format == SH_RAW_RGB24 ? 0 : 2, bi = 2 - ri;
+        int ri = s->format == SH_RAW_RGB24 ? 0 : 2;
         if (d->format == SH_PIX_RGB24) {
-            for (int y = 0; y < h; y++) {
-                const uint8_t *r = src + (size_t)y * ss;
-                uint8_t *o = Y + (size_t)y * ys;
-                if (ri == 0) memcpy(o, r, (size_t)w * 3);
-                else
-                    for (int x = 0; x < w; x++) {
-                        o[3 * x] = r[3 * x + 2];
-                        o[3 * x + 1] = r[3 * x + 1];
-                        o[3 * x + 2] = r[3 * x];
-                    }
-            }
+            if (ri == 0) copy_rows(src, ss, Y, ys, 3 * w, h);
+            else frame_bgr_rgb(src, ss, Y, ys, w, h);
             return SH_OK;
         }
-        for (int y = 0; y < h; y++) rgb_row_y(src + (size_t)y * ss, ri, bi, Y + (size_t)y * ys, w);
-        if (d->format == SH_PIX_I420) {
-            d->siting = SH_CHROMA_CENTER;
-            for (int y = 0; y < ch; y++) {
-                const uint8_t *r0 = src + (size_t)(2 * y) * ss;
-                rgb_rows_uv(r0, r0 + ss, ri, bi, U + (size_t)y * us, V + (size_t)y * vs, cw);
-            }
-        }
+        if (d->format == SH_PIX_I420) d->siting = SH_CHROMA_CENTER;
+        frame_rgb_yuv(src, ss, ri, Y, ys, d->format == SH_PIX_I420 ? U : NULL, us, V, vs, w, h);
         return SH_OK;
     }
     default:
