@@ -38,10 +38,12 @@ typedef struct {
     int buffers;           /* V4L2 buffers asked for (>= 2 accepted); 0 = 4 */
     int timeout_ms;        /* no frame for this long = camera lost; 0 = 1000 */
     int backoff_min_ms, backoff_max_ms; /* reopen back-off; 0 = 100 and 5000 */
-    /* Controls, set when not SH_SOURCE_CTRL_UNSET: */
-    int32_t exposure;      /* V4L2_CID_EXPOSURE_ABSOLUTE (100 us units), manual exposure */
-    int32_t gain;          /* V4L2_CID_GAIN */
-    int32_t white_balance; /* V4L2_CID_WHITE_BALANCE_TEMPERATURE (K), manual white balance */
+    /* Controls, set when not SH_SOURCE_CTRL_UNSET, the automatic one switched off first where
+     * the camera has it; a control the camera does not list, or a value outside its range,
+     * fails the open naming it. V4L2 / libcamera: */
+    int32_t exposure;      /* V4L2_CID_EXPOSURE_ABSOLUTE (100 us units) / ExposureTime = 100 us x this */
+    int32_t gain;          /* V4L2_CID_GAIN (driver units) / AnalogueGain = this / 100 (100: unity) */
+    int32_t white_balance; /* V4L2_CID_WHITE_BALANCE_TEMPERATURE / ColourTemperature (K) */
     /* Replay (y4m:, rec:): */
     int realtime;          /* 1: frame k is due at start + k/fps; 0: as fast as asked */
     int loop;              /* 1: start again at the end (sequence and timestamps keep rising) */
