@@ -21,11 +21,41 @@ extern "C" {
 #define SH_CONFIG_MAX_IDS 1024 /* tag ids 0..1023 */
 #define SH_CONFIG_ERR 512
 
+#define SH_CONFIG_MAX_CAMERAS 4
+#define SH_CONFIG_CTRL_UNSET INT32_MIN /* a control left as the camera has it (SH_SOURCE_CTRL_UNSET) */
+
+/* [cameraN]: one camera of the rig (the source.h options of the same names). */
 typedef struct {
+    char spec[SH_CONFIG_STR];        /* v4l2:/dev/videoN, libcamera:NAME, y4m:FILE, rec:DIR; "" = none */
+    char format[16];                 /* sh_rawfmt name ("yuyv", "nv12", ...); "" = the device's */
+    int width, height;               /* 0 = the device's */
+    int fps_num, fps_den;            /* 0/0 = the device's */
+    int32_t exposure, gain, white_balance; /* SH_CONFIG_CTRL_UNSET = leave as the camera has it */
+} sh_config_camera;
+
+typedef enum { SH_TRIGGER_OFF = 0, SH_TRIGGER_OUT, SH_TRIGGER_IN } sh_trigger_mode;
+
+typedef struct {
+    /* [cameraN]; source is camera[0].spec, the name [source] spec and --source give it */
+    union {
+        char source[SH_CONFIG_STR];
+        sh_config_camera camera[SH_CONFIG_MAX_CAMERAS];
+    };
     /* [source] */
-    char source[SH_CONFIG_STR];      /* y4m:FILE, v4l2:/dev/videoN, ... (source.h spec) */
     int realtime;                    /* 1: the stream's frame rate; 0: as fast as possible */
     int loop;                        /* replay: start over at the end */
+    int output_camera;               /* the camera whose frames are warped and shown */
+    double sync_tolerance_ms;        /* frames this close form a set; 0 = a quarter frame period */
+    double sync_wait_ms;             /* a set waits this long for a missing frame; 0 = 2 periods */
+    int camera_timeout_ms;           /* no frame for this long: the camera is lost and reopened */
+    /* [trigger] */
+    sh_trigger_mode trigger;
+    char trigger_chip[64];           /* gpiochip0, /dev/gpiochip0, a label or a number */
+    int trigger_line;
+    int trigger_active_low;          /* polarity low: the active edge is the falling one */
+    double trigger_fps;              /* out: pulse rate; 0 = camera 0's frame rate */
+    int trigger_pulse_us;            /* out: pulse width */
+    int trigger_offset_us;           /* frame timestamp - trigger edge, expected */
     /* [detect] */
     char family[32];                 /* tag36h11, tagStandard41h12, ... */
     uint8_t ids[SH_CONFIG_MAX_IDS];  /* ids[i] = 1: tag i is a marker */
@@ -76,6 +106,8 @@ int sh_config_option(const char *name, const char **section, const char **key, i
 sh_status sh_config_check(const sh_config *cfg, char *err);
 /* Writes the config as INI (every key), e.g. for --print-config. */
 void sh_config_write(const sh_config *cfg, FILE *out);
+/* The number of cameras: those with a spec, from camera 0 on (sh_config_check refuses gaps). */
+int sh_config_cameras(const sh_config *cfg);
 /* Prints the option list for --help. */
 void sh_config_usage(FILE *out);
 

@@ -7,6 +7,8 @@
 #include <string.h>
 
 #include "app.h"
+#include "run_source.h"
+#include "stillheart/config.h"
 #include "stillheart/pixconv.h"
 #include "stillheart/record.h"
 #include "stillheart/source.h"
@@ -19,19 +21,23 @@ static void usage(FILE *out)
 {
     fprintf(out,
         "usage: stillheart record --source SPEC [--source SPEC ...] --frames N [OPTIONS] OUT/\n"
+        "       stillheart record --config FILE --frames N OUT/\n"
         "       stillheart record --to-y4m REC OUT.y4m [--camera C]\n\n"
         "Records what the cameras deliver: raw frames in the format they come in, their\n"
         "sequence numbers and capture timestamps, and the frame sets they form, in OUT/ (an\n"
         "append-only file: a killed recorder or a full disk loses at most the frame being\n"
         "written). Replay a recording with the source spec rec:OUT/ (camera chosen by index).\n"
-        "Sources are taken on the command line for now (--config needs the INI config module,\n"
-        "which does not exist yet); the first --source is camera 0, the next camera 1, ...\n\n"
+        "The cameras come from the command line (the first --source is camera 0, the next\n"
+        "camera 1, ...) or from the daemon's config file (--config: its [cameraN], [trigger] and\n"
+        "[source] keys, as `stillheart run` reads them; firmware-config/stillheart.ini).\n\n"
         "sources:\n"
         "  v4l2:/dev/videoN   a V4L2 camera\n"
         "  y4m:FILE           a Y4M file replayed at its frame rate (--fast: at once)\n"
         "  rec:DIR            camera 0 of a recording\n\n"
         "options:\n"
         "  --frames N         frames per camera to record (required)\n"
+        "  --config FILE      cameras, formats, controls, sets and trigger from the INI file\n"
+        "                     (then none of the camera options below)\n"
         "  --format F         ask the cameras for GREY, YUYV, NV12, RGB24, BGR24 or MJPEG\n"
         "  --size WxH         ask the cameras for this size\n"
         "  --fps N            ask the cameras for this frame rate\n"
@@ -68,16 +74,7 @@ static int to_y4m(const char *rec_path, const char *out_path, int camera)
         return 1;
     }
     sh_y4m_header h;
-    memset(&h, 0, sizeof h);
-    h.width = s->width;
-    h.height = s->height;
-    h.format = s->format == SH_RAW_GREY ? SH_PIX_GRAY8 : SH_PIX_I420;
-    h.siting = s->format == SH_RAW_YUYV || s->format == SH_RAW_NV12 ? SH_CHROMA_LEFT
-                                                                                            : SH_CHROMA_CENTER;
-    h.fps_num = s->fps_num > 0 && s->fps_den > 0 ? s->fps_num : 25;
-    h.fps_den = s->fps_num > 0 && s->fps_den > 0 ? s->fps_den : 1;
-    h.interlace = 'p';
-    if (s->format == SH_RAW_MJPEG) snprintf(h.extra, sizeof h.extra, "XCOLORRANGE=FULL");
+    run_y4m_header(s->format, s->width, s->height, s->fps_num, s->fps_den, &h);
     int rc = 1;
     sh_image img;
     sh_pixconv *conv = NULL;
@@ -138,13 +135,15 @@ int cmd_record(int argc, char **argv)
         {"help", no_argument, 0, 'h'},           {0, 0, 0, 0}};
     const char *specs[MAX_SOURCES];
     int nspec = 0, frames = 0, camera = 0, tol_ms = 5, wait_ms = 100;
-    const char *to_y4m_rec = NULL, *trigger_spec = NULL;
+    const char *to_y4m_rec = NULL, *trigger_spec = NULL, *config_path = NULL;
+    int camera_opts = 0; /* options the config file gives instead */
     int trigger_out = 0, pulse_ms = 1, offset_ms = 0;
     sh_source_options o;
     sh_source_options_default(&o);
     optind = 1;
     int ch;
     while ((ch = getopt_long(argc, argv, "", longopts, NULL)) != -1) {
+        camera_opts += strchr("sfzregwtmFOIpx", ch) != NULL;
         switch (ch) {
         case 's':
             if (nspec >= MAX_SOURCES) {
@@ -154,9 +153,7 @@ int cmd_record(int argc, char **argv)
             specs[nspec++] = optarg;
             break;
         case 'n': if (!app_parse_int("--frames", optarg, 1, 100000000, &frames)) return 2; break;
-        case 'c':
-            fprintf(stderr, "--config: the INI config module does not exist yet; give the cameras with --source\n");
-            return 2;
+        case 'c': config_path = optarg; break;
         case 'f': {
             sh_rawfmt f;
             if (sh_rawfmt_parse(optarg, &f) != SH_OK) {
@@ -200,6 +197,22 @@ int cmd_record(int argc, char **argv)
         }
         return to_y4m(to_y4m_rec, argv[optind], camera);
     }
+    if (config_path && camera_opts) {
+        fprintf(stderr, "stillheart record: --config gives the cameras, their formats and controls, the sets and the "
+                        "trigger ([cameraN], [source], [trigger]); set them there, not with --source, --format, ...\n");
+        return 2;
+    }
+    static sh_config cfg; /* the specs and the trigger chip point into it */
+    if (config_path) {
+        char err[SH_CONFIG_ERR];
+        sh_config_default(&cfg);
+        if (sh_config_load_file(&cfg, config_path, err) != SH_OK || sh_config_check(&cfg, err) != SH_OK) {
+            fprintf(stderr, "stillheart record: %s\n", err);
+            return 2;
+        }
+        nspec = sh_config_cameras(&cfg);
+        for (int i = 0; i < nspec; i++) specs[i] = cfg.camera[i].spec;
+    }
     if (!nspec || !frames || optind != argc - 1) {
         usage(stderr);
         return 2;
@@ -207,6 +220,7 @@ int cmd_record(int argc, char **argv)
     const char *out_dir = argv[optind];
     char chip[64] = "";
     sh_gpio_options go = {chip, 0, 0, trigger_out, 0, (int64_t)pulse_ms * 1000000};
+    int have_trigger = trigger_spec != NULL;
     if (trigger_spec) {
         const char *c1 = strchr(trigger_spec, ':');
         char *end;
@@ -242,13 +256,22 @@ int cmd_record(int argc, char **argv)
         sh_source_options oi = o;
         oi.camera = i;
         if (!strncmp(specs[i], "rec:", 4)) oi.camera = 0;
+        if (config_path) run_camera_options(&cfg, i, &oi); /* rec:DIR: its camera i */
         if (sh_source_open(specs[i], &oi, &src[i]) != SH_OK) {
-            fprintf(stderr, "stillheart record: %s\n", sh_error_message());
+            fprintf(stderr, "stillheart record: %s%d%s: %s\n", config_path ? "[camera" : "camera ", i,
+                    config_path ? "] spec" : "", sh_error_message());
             goto out;
         }
     }
     sh_sync_options so = {nspec, (int64_t)tol_ms * 1000000, (int64_t)wait_ms * 1000000, (int64_t)offset_ms * 1000000};
-    if (trigger_spec && sh_gpio_trigger_open(&go, &trig) != SH_OK) {
+    if (config_path) { /* the defaults follow camera 0's rate, as in the daemon */
+        int num = 0, den = 0;
+        sh_source_format(src[0], NULL, NULL, NULL, &num, &den);
+        run_sync_options(&cfg, nspec, num, den, &so);
+        have_trigger = run_gpio_options(&cfg, num, den, &go);
+        trigger_out = go.output;
+    }
+    if (have_trigger && sh_gpio_trigger_open(&go, &trig) != SH_OK) {
         fprintf(stderr, "stillheart record: %s\n", sh_error_message());
         goto out;
     }
@@ -347,7 +370,7 @@ int cmd_record(int argc, char **argv)
             (unsigned long long)ss.duplicates);
     if (trig)
         fprintf(stderr, "stillheart record: %llu trigger edges %s %s line %u\n",
-                (unsigned long long)sh_gpio_trigger_edges(trig), trigger_out ? "driven on" : "read from", chip, go.line);
+                (unsigned long long)sh_gpio_trigger_edges(trig), trigger_out ? "driven on" : "read from", go.chip, go.line);
     rc = stop_requested ? 130 : 0;
     goto out;
 write_failed:

@@ -190,11 +190,6 @@ int cmd_run(int argc, char **argv)
     }
     if (ro.print_config) { sh_config_write(&cfg, stdout); return 0; }
 
-    if (strncmp(cfg.source, "y4m:", 4)) {
-        fprintf(stderr, "stillheart run: [source] spec: '%s': this build's daemon replays y4m:FILE only "
-                        "(live capture: docs/daemon.md)\n", cfg.source);
-        return 2;
-    }
     int rc = 1;
     run_source *src = NULL;
     run_proc *proc = NULL;
@@ -206,7 +201,7 @@ int cmd_run(int argc, char **argv)
     if (!lat) { fprintf(stderr, "stillheart run: out of memory\n"); goto done; }
 
     if (run_source_open(&cfg, logm, &src) != SH_OK) {
-        fprintf(stderr, "stillheart run: [source] spec: %s\n", sh_error_message());
+        fprintf(stderr, "stillheart run: %s\n", sh_error_message());
         goto done;
     }
     const sh_y4m_header *hdr = run_source_header(src);
@@ -273,8 +268,8 @@ int cmd_run(int argc, char **argv)
             if (load_config(&fresh, ro.config_path, argc, argv, err) != SH_OK) {
                 logm("ERROR", "main", "reload refused, keeping the running config: %s", err);
             } else {
-                /* live: gating, pacing; the rest needs a restart */
-                int restart = strcmp(fresh.source, cfg.source) || strcmp(fresh.sink, cfg.sink) ||
+                /* live: gating; the rest needs a restart */
+                int restart = run_source_config_changed(&fresh, &cfg) || strcmp(fresh.sink, cfg.sink) ||
                               strcmp(fresh.method_name, cfg.method_name) || fresh.threads != cfg.threads ||
                               strcmp(fresh.points, cfg.points) || fresh.slots != cfg.slots ||
                               memcmp(&fresh.method, &cfg.method, sizeof cfg.method) ||
@@ -284,11 +279,8 @@ int cmd_run(int argc, char **argv)
                 cfg.max_sigma_px = fresh.max_sigma_px;
                 cfg.dropout_ms = fresh.dropout_ms;
                 run_proc_set_gating(proc, &cfg);
-                run_source_set_pacing(src, fresh.realtime, fresh.loop);
-                cfg.realtime = fresh.realtime;
-                cfg.loop = fresh.loop;
                 restart |= memcmp(fresh.ids, cfg.ids, sizeof cfg.ids) || strcmp(fresh.control, cfg.control);
-                logm("INFO", "main", "config reloaded (gating, pacing)%s",
+                logm("INFO", "main", "config reloaded (gating)%s",
                      restart ? "; source/sink/method/ids/threads/control changes take effect at restart" : "");
             }
         }

@@ -1,31 +1,57 @@
-/* stillheart run's source: a replay thread feeding the three-buffer mailbox (run_source.h). */
+/* stillheart run's cameras: a thread per camera, sets grouped under one lock, a one-set mailbox
+ * (run_source.h). Frame buffers live in a small pool per camera; a buffer is free, being filled
+ * by its camera's thread, in a pending set (sync.h holds its index as `user`), in the waiting set
+ * or in the set processing holds. */
 #include "run_source.h"
 
 #include <errno.h>
+#include <poll.h>
 #include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
 
+#define POOL 8 /* per camera: filling + pending sets (a few frame periods) + waiting + held */
+#define DEQUEUE_MS 100
+
+enum { FREE = 0, FILLING, PENDING, IN_SET };
+
 typedef struct {
-    run_frame f;
-} slot;
+    run_source *rs;
+    int index;
+    char name[SH_CONFIG_STR + 8];
+    char thread_name[8];
+    sh_source *src;
+    sh_pixconv *conv;
+    sh_rawfmt format;
+    int width, height, fps_num, fps_den;
+    int replay;            /* y4m: or rec: */
+    int nframes;           /* y4m: frames in the file (points test mode), 0 = unknown */
+    sh_image pool[POOL];
+    uint64_t seq[POOL];
+    int state[POOL];
+    int inflight;          /* buffers PENDING */
+    run_camera_stats st;
+    pthread_t thread;
+    int started;
+} camera;
 
 struct run_source {
     pthread_mutex_t mu;
     pthread_cond_t cv;
-    pthread_t thread;
-    int started;
-    slot buf[3];
-    int w, m, p;        /* filled by the source / waiting (-1: none) / held by processing (-1) */
-    int eof;            /* the source ended (no loop) or failed */
-    int stop;
-    int realtime, loop;
-    uint64_t delivered, dropped;
-    sh_y4m_reader *reader;
+    int ncam, out;
+    camera cam[SH_CONFIG_MAX_CAMERAS];
+    sh_sync *sync;
+    sh_gpio_trigger *trig;
+    pthread_t trig_thread;
+    int trig_started;
+    run_frame waiting, held;
+    int have_waiting, have_held;
+    int paced;             /* as fast as possible, nothing dropped: every camera a replay */
+    int nended, eof, stop;
+    uint64_t dropped;
     sh_y4m_header hdr;
-    char path[SH_CONFIG_STR];
     double fps;
     run_log_fn log;
 };
@@ -37,105 +63,359 @@ static int64_t mono_ns(void)
     return (int64_t)ts.tv_sec * 1000000000 + ts.tv_nsec;
 }
 
-static int free_slot(const run_source *mb)
+/* The last error again, with what it concerns in front (a copy: sh_error_set writes the buffer
+ * sh_error_message returns). */
+static sh_status prefixed(sh_status st, const char *prefix)
 {
-    for (int i = 0; i < 3; i++)
-        if (i != mb->w && i != mb->m && i != mb->p) return i;
-    return -1;
+    char m[512];
+    snprintf(m, sizeof m, "%s", sh_error_message());
+    return sh_error_set(st, "%s: %s", prefix, m);
 }
 
-static int stopping(run_source *mb)
+static int is_replay(const char *spec) { return !strncmp(spec, "y4m:", 4) || !strncmp(spec, "rec:", 4); }
+
+void run_camera_options(const sh_config *cfg, int i, sh_source_options *o)
 {
-    pthread_mutex_lock(&mb->mu);
-    int s = mb->stop;
-    pthread_mutex_unlock(&mb->mu);
+    const sh_config_camera *c = &cfg->camera[i];
+    sh_source_options_default(o);
+    o->camera = i;
+    o->width = c->width;
+    o->height = c->height;
+    sh_rawfmt f;
+    if (c->format[0] && sh_rawfmt_parse(c->format, &f) == SH_OK) o->format = (int)f;
+    o->fps_num = c->fps_num;
+    o->fps_den = c->fps_den;
+    o->timeout_ms = cfg->camera_timeout_ms;
+    o->exposure = c->exposure;
+    o->gain = c->gain;
+    o->white_balance = c->white_balance;
+    o->realtime = cfg->realtime;
+    o->loop = cfg->loop;
+}
+
+static double period_ns(int fps_num, int fps_den)
+{
+    return fps_num > 0 && fps_den > 0 ? 1e9 * fps_den / fps_num : 1e9 / 25; /* unknown: PAL's */
+}
+
+void run_sync_options(const sh_config *cfg, int cameras, int fps_num, int fps_den, sh_sync_options *o)
+{
+    double p = period_ns(fps_num, fps_den);
+    o->cameras = cameras;
+    o->tolerance_ns = cfg->sync_tolerance_ms > 0 ? (int64_t)(cfg->sync_tolerance_ms * 1e6) : (int64_t)(p / 4);
+    o->max_wait_ns = cfg->sync_wait_ms > 0 ? (int64_t)(cfg->sync_wait_ms * 1e6) : (int64_t)(2 * p);
+    o->trigger_offset_ns = (int64_t)cfg->trigger_offset_us * 1000;
+}
+
+int run_gpio_options(const sh_config *cfg, int fps_num, int fps_den, sh_gpio_options *o)
+{
+    memset(o, 0, sizeof *o);
+    if (cfg->trigger == SH_TRIGGER_OFF) return 0;
+    o->chip = cfg->trigger_chip;
+    o->line = (unsigned)cfg->trigger_line;
+    o->active_low = cfg->trigger_active_low;
+    o->output = cfg->trigger == SH_TRIGGER_OUT;
+    o->period_ns = cfg->trigger_fps > 0 ? (int64_t)(1e9 / cfg->trigger_fps) : (int64_t)period_ns(fps_num, fps_den);
+    o->pulse_ns = (int64_t)cfg->trigger_pulse_us * 1000;
+    return 1;
+}
+
+void run_y4m_header(sh_rawfmt format, int width, int height, int fps_num, int fps_den, sh_y4m_header *h)
+{
+    memset(h, 0, sizeof *h);
+    h->width = width;
+    h->height = height;
+    h->format = format == SH_RAW_GREY ? SH_PIX_GRAY8 : SH_PIX_I420;
+    /* where pixconv puts the chroma (pixconv.h): 4:2:2 and NV12 keep theirs */
+    h->siting = format == SH_RAW_YUYV || format == SH_RAW_NV12 ? SH_CHROMA_LEFT : SH_CHROMA_CENTER;
+    h->fps_num = fps_num > 0 && fps_den > 0 ? fps_num : 25;
+    h->fps_den = fps_num > 0 && fps_den > 0 ? fps_den : 1;
+    h->interlace = 'p';
+    if (format == SH_RAW_MJPEG) snprintf(h->extra, sizeof h->extra, "XCOLORRANGE=FULL");
+}
+
+/* ---- under rs->mu ---- */
+static void free_buffers(run_source *rs, const run_frame *f)
+{
+    for (int c = 0; c < rs->ncam; c++)
+        if (f->cam[c]) rs->cam[c].state[f->cam[c] - rs->cam[c].pool] = FREE;
+}
+
+/* A set popped from the grouping goes to the mailbox (replacing, and dropping, the waiting one). */
+static void deliver(run_source *rs, const sh_frame_set *set)
+{
+    run_frame f;
+    memset(&f, 0, sizeof f);
+    f.cameras = rs->ncam;
+    for (int c = 0; c < rs->ncam; c++) {
+        if (!(set->present & (1u << c))) continue;
+        camera *k = &rs->cam[c];
+        int b = (int)(intptr_t)set->member[c].user;
+        k->state[b] = IN_SET;
+        k->inflight--;
+        f.cam[c] = &k->pool[b];
+    }
+    if (!f.cam[rs->out]) { /* nothing to show */
+        free_buffers(rs, &f);
+        rs->dropped++;
+        return;
+    }
+    camera *o = &rs->cam[rs->out];
+    uint64_t seq = set->member[rs->out].sequence;
+    f.img = *f.cam[rs->out];
+    f.index = o->nframes > 0 ? (int)(seq % (uint64_t)o->nframes) : (int)seq;
+    f.capture_ns = set->time_ns;
+    f.set = set->index;
+    f.complete = set->complete;
+    f.avail_ns = mono_ns();
+    if (rs->have_waiting) { /* behind: the waiting set is the oldest, drop it */
+        free_buffers(rs, &rs->waiting);
+        rs->dropped++;
+    }
+    rs->waiting = f;
+    rs->have_waiting = 1;
+    pthread_cond_broadcast(&rs->cv);
+}
+
+static void drain(run_source *rs)
+{
+    sh_frame_set set;
+    while (sh_sync_pop(rs->sync, &set)) deliver(rs, &set);
+}
+
+static void flush(run_source *rs)
+{
+    sh_sync_flush(rs->sync);
+    drain(rs);
+}
+
+/* The camera's replay ended or failed for good: the others go on (their sets incomplete); when
+ * every camera, or the output camera, is gone the source has ended. */
+static void camera_ended(run_source *rs, camera *k)
+{
+    pthread_mutex_lock(&rs->mu);
+    k->st.ended = 1;
+    rs->nended++;
+    flush(rs);
+    if (rs->nended == rs->ncam || k->index == rs->out) rs->eof = 1;
+    pthread_cond_broadcast(&rs->cv);
+    pthread_mutex_unlock(&rs->mu);
+}
+
+/* Paced replay: wait while a set waits for processing or this camera's last frame has not yet
+ * left the grouping, so the cameras go in step with processing and nothing is dropped. A set
+ * that cannot complete (a frame refused as late) is flushed after a while rather than stalling. */
+static void pace(run_source *rs, camera *k)
+{
+    pthread_mutex_lock(&rs->mu);
+    int64_t since = mono_ns();
+    while (rs->paced && !rs->stop && (rs->have_waiting || k->inflight)) {
+        if (!rs->have_waiting && k->inflight && mono_ns() - since > 200000000) {
+            flush(rs);
+            continue;
+        }
+        struct timespec ts;
+        clock_gettime(CLOCK_REALTIME, &ts);
+        ts.tv_nsec += 50000000;
+        ts.tv_sec += ts.tv_nsec / 1000000000;
+        ts.tv_nsec %= 1000000000;
+        pthread_cond_timedwait(&rs->cv, &rs->mu, &ts);
+    }
+    pthread_mutex_unlock(&rs->mu);
+}
+
+static int stopping(run_source *rs)
+{
+    pthread_mutex_lock(&rs->mu);
+    int s = rs->stop;
+    pthread_mutex_unlock(&rs->mu);
     return s;
 }
 
-static void *source_thread(void *arg)
+static void *camera_thread(void *arg)
 {
-    run_source *mb = arg;
-    int index = 0;
-    int64_t start = mono_ns();
-    uint64_t k = 0;
-    while (!stopping(mb)) {
-        slot *s = &mb->buf[mb->w];
-        sh_status st = sh_y4m_reader_read(mb->reader, &s->f.img);
-        if (st == SH_EEOF && mb->loop) {
-            sh_y4m_reader_close(mb->reader);
-            mb->reader = NULL;
-            if (sh_y4m_reader_open(mb->path, &mb->reader) != SH_OK) {
-                mb->log("ERROR", "source", "%s: reopen: %s", mb->path, sh_error_message());
-                break;
-            }
-            index = 0;
-            continue;
-        }
-        if (st == SH_EEOF) { mb->log("INFO", "source", "%s: end of stream", mb->path); break; }
-        if (st != SH_OK) {
-            mb->log("ERROR", "source", "%s: %s", mb->path, sh_error_message());
+    camera *k = arg;
+    run_source *rs = k->rs;
+    int bad_once = 0;
+    uint64_t losses = 0, reopens = 0;
+    while (!stopping(rs)) {
+        pace(rs, k);
+        sh_source_frame f;
+        int got = 0;
+        sh_status st = sh_source_dequeue(k->src, DEQUEUE_MS, &f, &got);
+        sh_source_stats ss;
+        sh_source_get_stats(k->src, &ss);
+        if (ss.losses != losses)
+            rs->log("WARN", k->thread_name, "%s lost (%llu times so far), reopening with back-off; the other cameras go on",
+                    k->name, (unsigned long long)ss.losses);
+        if (ss.reopens != reopens) rs->log("INFO", k->thread_name, "%s is back", k->name);
+        losses = ss.losses;
+        reopens = ss.reopens;
+        if (st == SH_EEOF) {
+            rs->log("INFO", k->thread_name, "%s: end of stream", k->name);
+            camera_ended(rs, k);
             break;
         }
-        if (mb->realtime && mb->fps > 0) { /* frame k is due at start + k / fps */
-            int64_t due = start + (int64_t)((double)k * 1e9 / mb->fps);
-            int64_t now = mono_ns();
-            if (due > now) {
-                struct timespec ts = {(time_t)((due - now) / 1000000000), (long)((due - now) % 1000000000)};
-                while (nanosleep(&ts, &ts) && errno == EINTR && !stopping(mb)) {}
-            }
+        if (st != SH_OK) {
+            rs->log("ERROR", k->thread_name, "%s: %s", k->name, sh_error_message());
+            camera_ended(rs, k);
+            break;
         }
-        k++;
-        s->f.index = index++;
-        pthread_mutex_lock(&mb->mu);
-        if (!mb->realtime) /* as fast as processing takes them: wait, nothing dropped */
-            while (mb->m >= 0 && !mb->stop) pthread_cond_wait(&mb->cv, &mb->mu);
-        s->f.avail_ns = mono_ns(); /* available to processing from now */
-        if (mb->m >= 0) { /* behind: the waiting frame is the oldest, drop it */
-            int old = mb->m;
-            mb->m = mb->w;
-            mb->w = old;
-            mb->dropped++;
+        if (!got) continue;
+        pthread_mutex_lock(&rs->mu);
+        int b = -1;
+        for (int i = 0; i < POOL && b < 0; i++)
+            if (k->state[i] == FREE) b = i;
+        if (b >= 0) k->state[b] = FILLING;
+        else k->st.no_buffer++;
+        pthread_mutex_unlock(&rs->mu);
+        sh_status cst = b >= 0 ? sh_pixconv_convert(k->conv, &f.raw, &k->pool[b]) : SH_OK;
+        if (cst != SH_OK && !bad_once) {
+            rs->log("ERROR", k->thread_name, "%s: frame %llu: %s (further bad frames counted only)", k->name,
+                    (unsigned long long)f.sequence, sh_error_message());
+            bad_once = 1;
+        }
+        uint64_t seq = f.sequence;
+        int64_t ts = f.timestamp_ns;
+        sh_source_release(k->src, &f);
+        if (b < 0) continue;
+        pthread_mutex_lock(&rs->mu);
+        k->st.source = ss;
+        if (cst != SH_OK) {
+            k->st.bad++;
+            k->state[b] = FREE;
         } else {
-            mb->m = mb->w;
-            mb->w = free_slot(mb);
+            k->st.converted++;
+            k->seq[b] = seq;
+            sh_sync_disposition d = SH_SYNC_LATE;
+            k->state[b] = PENDING;
+            k->inflight++;
+            sh_sync_push(rs->sync, k->index, seq, ts, (void *)(intptr_t)b, &d);
+            if (d != SH_SYNC_ADDED) {
+                if (d == SH_SYNC_LATE) k->st.late++;
+                else k->st.duplicates++;
+                k->state[b] = FREE;
+                k->inflight--;
+            }
+            drain(rs);
+            if (rs->nended) flush(rs); /* a camera is gone for good: its frame will not come */
         }
-        mb->delivered++;
-        pthread_cond_broadcast(&mb->cv);
-        pthread_mutex_unlock(&mb->mu);
+        pthread_mutex_unlock(&rs->mu);
     }
-    pthread_mutex_lock(&mb->mu);
-    mb->eof = 1;
-    pthread_cond_broadcast(&mb->cv);
-    pthread_mutex_unlock(&mb->mu);
     return NULL;
+}
+
+static void *trigger_thread(void *arg)
+{
+    run_source *rs = arg;
+    int err_once = 0;
+    while (!stopping(rs)) {
+        struct pollfd p = {sh_gpio_trigger_fd(rs->trig), POLLIN, 0};
+        poll(&p, 1, DEQUEUE_MS);
+        int64_t edge;
+        int got = 0;
+        if (sh_gpio_trigger_service(rs->trig, &edge, &got) != SH_OK) {
+            if (!err_once) rs->log("ERROR", "trigger", "%s", sh_error_message());
+            err_once = 1;
+            continue;
+        }
+        err_once = 0;
+        if (!got) continue;
+        pthread_mutex_lock(&rs->mu);
+        sh_sync_trigger(rs->sync, edge);
+        drain(rs);
+        pthread_mutex_unlock(&rs->mu);
+    }
+    return NULL;
+}
+
+/* Frames in a Y4M file (for the points test mode, whose frame numbers restart with each loop). */
+static int count_y4m_frames(const char *path)
+{
+    sh_y4m_reader *r;
+    if (sh_y4m_reader_open(path, &r) != SH_OK) return 0;
+    const sh_y4m_header *h = sh_y4m_reader_header(r);
+    sh_image img;
+    int n = 0;
+    if (sh_image_create(&img, h->format, h->width, h->height) == SH_OK) {
+        while (sh_y4m_reader_read(r, &img) == SH_OK) n++;
+        sh_image_destroy(&img);
+    }
+    sh_y4m_reader_close(r);
+    return n;
+}
+
+static sh_status open_camera(run_source *rs, const sh_config *cfg, int i)
+{
+    camera *k = &rs->cam[i];
+    const char *spec = cfg->camera[i].spec;
+    k->rs = rs;
+    k->index = i;
+    snprintf(k->name, sizeof k->name, "camera %d (%s)", i, spec);
+    snprintf(k->thread_name, sizeof k->thread_name, "cam%d", i);
+    k->replay = is_replay(spec);
+    sh_source_options o;
+    run_camera_options(cfg, i, &o);
+    sh_status st = sh_source_open(spec, &o, &k->src);
+    char what[32];
+    snprintf(what, sizeof what, "[camera%d] spec", i);
+    if (st != SH_OK) return prefixed(st, what);
+    sh_source_format(k->src, &k->format, &k->width, &k->height, &k->fps_num, &k->fps_den);
+    if (k->format == SH_RAW_MJPEG && (st = sh_pixconv_create(k->width, k->height, &k->conv)) != SH_OK) return st;
+    sh_pixfmt pf = k->format == SH_RAW_GREY ? SH_PIX_GRAY8 : SH_PIX_I420;
+    for (int b = 0; b < POOL; b++)
+        if ((st = sh_image_create(&k->pool[b], pf, k->width, k->height)) != SH_OK) return st;
+    if (cfg->points[0] && !strncmp(spec, "y4m:", 4)) k->nframes = count_y4m_frames(spec + 4);
+    return SH_OK;
 }
 
 sh_status run_source_open(const sh_config *cfg, run_log_fn log, run_source **out)
 {
     *out = NULL;
-    run_source *mb = calloc(1, sizeof *mb);
-    if (!mb) return sh_error_set(SH_ENOMEM, "source: out of memory");
-    pthread_mutex_init(&mb->mu, NULL);
-    pthread_cond_init(&mb->cv, NULL);
-    mb->w = 0; mb->m = -1; mb->p = -1;
-    mb->realtime = cfg->realtime;
-    mb->loop = cfg->loop;
-    mb->log = log;
-    snprintf(mb->path, sizeof mb->path, "%s", cfg->source + 4);
-    sh_status st = sh_y4m_reader_open(mb->path, &mb->reader);
+    run_source *rs = calloc(1, sizeof *rs);
+    if (!rs) return sh_error_set(SH_ENOMEM, "source: out of memory");
+    pthread_mutex_init(&rs->mu, NULL);
+    pthread_cond_init(&rs->cv, NULL);
+    rs->log = log;
+    rs->out = cfg->output_camera;
+    int n = sh_config_cameras(cfg);
+    int all_replay = 1;
+    sh_status st = SH_OK;
+    for (int i = 0; i < n && st == SH_OK; i++) {
+        rs->ncam = i + 1;
+        st = open_camera(rs, cfg, i);
+        all_replay &= rs->cam[i].replay;
+    }
+    if (st == SH_OK && rs->out >= n)
+        st = sh_error_set(SH_EINVAL, "[source] output: camera %d, but %d configured", rs->out, n);
     if (st != SH_OK) {
-        run_source_destroy(mb);
+        run_source_destroy(rs);
         return st;
     }
-    const sh_y4m_header *hdr = sh_y4m_reader_header(mb->reader);
-    mb->hdr = *hdr;
-    mb->fps = hdr->fps_num > 0 && hdr->fps_den > 0 ? (double)hdr->fps_num / hdr->fps_den : 0;
-    for (int i = 0; i < 3; i++)
-        if ((st = sh_image_create(&mb->buf[i].f.img, hdr->format, hdr->width, hdr->height)) != SH_OK) {
-            run_source_destroy(mb);
-            return st;
-        }
-    *out = mb;
+    rs->paced = all_replay && !cfg->realtime;
+    camera *k0 = &rs->cam[0], *ko = &rs->cam[rs->out];
+    sh_sync_options so;
+    run_sync_options(cfg, n, k0->fps_num, k0->fps_den, &so);
+    sh_gpio_options go;
+    if ((st = sh_sync_create(&so, &rs->sync)) != SH_OK ||
+        (run_gpio_options(cfg, k0->fps_num, k0->fps_den, &go) && (st = sh_gpio_trigger_open(&go, &rs->trig)) != SH_OK)) {
+        if (rs->sync && !rs->trig) st = prefixed(st, "[trigger]");
+        run_source_destroy(rs);
+        return st;
+    }
+    /* a replayed file keeps its own header (extras, siting), so a record of it is a Y4M like
+     * the input; cameras get one from their format */
+    sh_y4m_reader *r = NULL;
+    const char *ospec = cfg->camera[rs->out].spec;
+    if (!strncmp(ospec, "y4m:", 4) && sh_y4m_reader_open(ospec + 4, &r) == SH_OK) {
+        rs->hdr = *sh_y4m_reader_header(r);
+        rs->hdr.format = ko->pool[0].format;
+        sh_y4m_reader_close(r);
+    } else {
+        run_y4m_header(ko->format, ko->width, ko->height, ko->fps_num, ko->fps_den, &rs->hdr);
+    }
+    rs->fps = ko->fps_num > 0 && ko->fps_den > 0 ? (double)ko->fps_num / ko->fps_den : 0;
+    *out = rs;
     return SH_OK;
 }
 
@@ -143,72 +423,140 @@ const sh_y4m_header *run_source_header(const run_source *rs) { return &rs->hdr; 
 
 double run_source_fps(const run_source *rs) { return rs->fps; }
 
+int run_source_cameras(const run_source *rs) { return rs->ncam; }
+
 sh_status run_source_start(run_source *rs)
 {
-    if (pthread_create(&rs->thread, NULL, source_thread, rs))
-        return sh_error_set(SH_ENOMEM, "source: cannot start its thread");
-    rs->started = 1;
+    /* every camera's clock starts here, back to back, so replays' schedules line up in sets */
+    for (int i = 0; i < rs->ncam; i++)
+        if (sh_source_start(rs->cam[i].src) != SH_OK) return prefixed(SH_EIO, rs->cam[i].name);
+    if (rs->trig) {
+        if (sh_gpio_trigger_start(rs->trig) != SH_OK) return prefixed(SH_EIO, "[trigger]");
+        if (pthread_create(&rs->trig_thread, NULL, trigger_thread, rs))
+            return sh_error_set(SH_ENOMEM, "trigger: cannot start its thread");
+        rs->trig_started = 1;
+    }
+    for (int i = 0; i < rs->ncam; i++) {
+        camera *k = &rs->cam[i];
+        rs->log("INFO", "main", "%s: %dx%d %s at %d/%d fps%s%s", k->name, k->width, k->height,
+                sh_rawfmt_name(k->format), k->fps_num, k->fps_den, i == rs->out ? ", shown" : "",
+                k->replay ? (rs->paced ? ", replayed as fast as processing goes" : ", replayed in real time") : "");
+        if (pthread_create(&rs->cam[i].thread, NULL, camera_thread, &rs->cam[i]))
+            return sh_error_set(SH_ENOMEM, "%s: cannot start its thread", rs->cam[i].name);
+        rs->cam[i].started = 1;
+    }
     return SH_OK;
 }
 
-const run_frame *run_source_take(run_source *mb, int timeout_ms)
+const run_frame *run_source_take(run_source *rs, int timeout_ms)
 {
-    pthread_mutex_lock(&mb->mu);
-    mb->p = -1;
+    pthread_mutex_lock(&rs->mu);
+    if (rs->have_held) {
+        free_buffers(rs, &rs->held);
+        rs->have_held = 0;
+        pthread_cond_broadcast(&rs->cv);
+    }
     struct timespec ts;
     clock_gettime(CLOCK_REALTIME, &ts);
     ts.tv_nsec += (long)timeout_ms * 1000000;
     ts.tv_sec += ts.tv_nsec / 1000000000;
     ts.tv_nsec %= 1000000000;
-    while (mb->m < 0 && !mb->eof && !mb->stop)
-        if (pthread_cond_timedwait(&mb->cv, &mb->mu, &ts) == ETIMEDOUT) break;
-    int got = mb->m;
-    if (got >= 0) {
-        mb->p = got;
-        mb->m = -1;
-        pthread_cond_broadcast(&mb->cv);
+    while (!rs->have_waiting && !rs->eof && !rs->stop)
+        if (pthread_cond_timedwait(&rs->cv, &rs->mu, &ts) == ETIMEDOUT) break;
+    if (rs->have_waiting) {
+        rs->held = rs->waiting;
+        rs->have_held = 1;
+        rs->have_waiting = 0;
+        pthread_cond_broadcast(&rs->cv);
     }
-    pthread_mutex_unlock(&mb->mu);
-    return got >= 0 ? &mb->buf[got].f : NULL;
+    int got = rs->have_held;
+    pthread_mutex_unlock(&rs->mu);
+    return got ? &rs->held : NULL;
 }
 
-int run_source_ended(run_source *mb)
+int run_source_ended(run_source *rs)
 {
-    pthread_mutex_lock(&mb->mu);
-    int eof = mb->eof && mb->m < 0;
-    pthread_mutex_unlock(&mb->mu);
-    return eof;
+    pthread_mutex_lock(&rs->mu);
+    int e = rs->eof && !rs->have_waiting;
+    pthread_mutex_unlock(&rs->mu);
+    return e;
 }
 
-void run_source_set_pacing(run_source *mb, int realtime, int loop)
+int run_source_config_changed(const sh_config *a, const sh_config *b)
 {
-    pthread_mutex_lock(&mb->mu);
-    mb->realtime = realtime;
-    mb->loop = loop;
-    pthread_mutex_unlock(&mb->mu);
+    return memcmp(a->camera, b->camera, sizeof a->camera) || a->realtime != b->realtime || a->loop != b->loop ||
+           a->output_camera != b->output_camera || a->sync_tolerance_ms != b->sync_tolerance_ms ||
+           a->sync_wait_ms != b->sync_wait_ms || a->camera_timeout_ms != b->camera_timeout_ms ||
+           a->trigger != b->trigger || strcmp(a->trigger_chip, b->trigger_chip) || a->trigger_line != b->trigger_line ||
+           a->trigger_active_low != b->trigger_active_low || a->trigger_fps != b->trigger_fps ||
+           a->trigger_pulse_us != b->trigger_pulse_us || a->trigger_offset_us != b->trigger_offset_us;
 }
 
-uint64_t run_source_dropped(run_source *mb)
+uint64_t run_source_dropped(run_source *rs)
 {
-    pthread_mutex_lock(&mb->mu);
-    uint64_t d = mb->dropped;
-    pthread_mutex_unlock(&mb->mu);
+    pthread_mutex_lock(&rs->mu);
+    uint64_t d = rs->dropped;
+    pthread_mutex_unlock(&rs->mu);
     return d;
 }
 
-void run_source_destroy(run_source *mb)
+void run_source_camera_stats(run_source *rs, int c, run_camera_stats *out)
 {
-    if (!mb) return;
-    if (mb->started) {
-        pthread_mutex_lock(&mb->mu);
-        mb->stop = 1;
-        pthread_cond_broadcast(&mb->cv);
-        pthread_mutex_unlock(&mb->mu);
-        pthread_join(mb->thread, NULL);
+    memset(out, 0, sizeof *out);
+    if (c < 0 || c >= rs->ncam) return;
+    pthread_mutex_lock(&rs->mu);
+    *out = rs->cam[c].st;
+    pthread_mutex_unlock(&rs->mu);
+}
+
+void run_source_sync_stats(run_source *rs, sh_sync_stats *out)
+{
+    pthread_mutex_lock(&rs->mu);
+    sh_sync_get_stats(rs->sync, out);
+    pthread_mutex_unlock(&rs->mu);
+}
+
+static void log_stats(run_source *rs)
+{
+    for (int c = 0; c < rs->ncam; c++) {
+        run_camera_stats st;
+        run_source_camera_stats(rs, c, &st);
+        rs->log("INFO", "main",
+                "%s: %llu frames, %llu damaged, %llu dropped by the driver, %llu without a buffer, %llu bad, %llu late, "
+                "%llu duplicate, %llu losses, %llu reopens",
+                rs->cam[c].name, (unsigned long long)st.converted, (unsigned long long)st.source.errors,
+                (unsigned long long)st.source.drops, (unsigned long long)st.no_buffer, (unsigned long long)st.bad,
+                (unsigned long long)st.late, (unsigned long long)st.duplicates, (unsigned long long)st.source.losses,
+                (unsigned long long)st.source.reopens);
     }
-    sh_y4m_reader_close(mb->reader);
-    for (int i = 0; i < 3; i++) sh_image_destroy(&mb->buf[i].f.img);
-    pthread_mutex_destroy(&mb->mu);
-    pthread_cond_destroy(&mb->cv);
-    free(mb);
+    sh_sync_stats ss;
+    run_source_sync_stats(rs, &ss);
+    rs->log("INFO", "main", "sets: %llu (%llu incomplete), %llu dropped (processing behind or no output frame)",
+            (unsigned long long)ss.sets, (unsigned long long)ss.incomplete,
+            (unsigned long long)run_source_dropped(rs));
+}
+
+void run_source_destroy(run_source *rs)
+{
+    if (!rs) return;
+    pthread_mutex_lock(&rs->mu);
+    rs->stop = 1;
+    pthread_cond_broadcast(&rs->cv);
+    pthread_mutex_unlock(&rs->mu);
+    int ran = 0;
+    for (int i = 0; i < rs->ncam; i++)
+        if (rs->cam[i].started) pthread_join(rs->cam[i].thread, NULL), ran = 1;
+    if (ran) log_stats(rs);
+    if (rs->trig_started) pthread_join(rs->trig_thread, NULL);
+    for (int i = 0; i < rs->ncam; i++) {
+        camera *k = &rs->cam[i];
+        sh_source_close(k->src);
+        sh_pixconv_destroy(k->conv);
+        for (int b = 0; b < POOL; b++) sh_image_destroy(&k->pool[b]);
+    }
+    sh_gpio_trigger_close(rs->trig);
+    sh_sync_destroy(rs->sync);
+    pthread_mutex_destroy(&rs->mu);
+    pthread_cond_destroy(&rs->cv);
+    free(rs);
 }

@@ -1,8 +1,13 @@
-/* Private to stillheart run: the daemon's frame source. A thread reads frames and hands the
- * newest to the processing thread through a three-buffer mailbox (one being filled, one waiting,
- * one being processed): when processing falls behind, the waiting frame is the oldest and is
- * dropped and counted, never queued. As fast as possible (no real time), nothing is dropped: the
- * source waits for processing instead. */
+/* Private to stillheart run (and record --config): the daemon's cameras. One thread per camera
+ * ([cameraN] in the config, opened through include/stillheart/source.h: V4L2, libcamera, Y4M
+ * replay, recordings) converts each frame into its working format (pixconv.h: GRAY8 for a grey
+ * camera, I420 otherwise) and groups it with the other cameras' into a set (sync.h: by trigger
+ * edge with [trigger], else by timestamp). The newest set that holds the output camera's frame
+ * waits for the processing thread in a one-set mailbox: when processing falls behind, the waiting
+ * set is the oldest and is dropped and counted, never queued. Replay as fast as possible (every
+ * camera a y4m: or rec:, realtime off) drops nothing: the cameras wait for processing instead.
+ * A camera that vanishes is reopened by source.h with back-off while the others go on (its frames
+ * are missing from the sets meanwhile: incomplete sets, counted). */
 #ifndef STILLHEART_RUN_SOURCE_H
 #define STILLHEART_RUN_SOURCE_H
 
@@ -10,36 +15,70 @@
 
 #include "stillheart/config.h"
 #include "stillheart/image.h"
+#include "stillheart/source.h"
+#include "stillheart/sync.h"
 #include "stillheart/y4m.h"
 
 /* The daemon's logger ("-- LEVEL [time thread] -- message"). */
 typedef void (*run_log_fn)(const char *level, const char *thread, const char *fmt, ...);
 
 typedef struct {
-    sh_image img;      /* the frame, in the working format of run_source_header */
-    int index;         /* frame index in the file (from 0 again after a loop) */
-    int64_t avail_ns;  /* CLOCK_MONOTONIC time it became available to processing */
+    sh_image img;         /* the output camera's frame (the one warped), in the header's format */
+    int index;            /* its frame index: in the file for a replay (from 0 again after a loop),
+                           * else the camera's sequence number */
+    int64_t avail_ns;     /* CLOCK_MONOTONIC time the set became available to processing */
+    int64_t capture_ns;   /* the set's time: trigger edge + offset, or its first frame's timestamp */
+    uint64_t set;         /* the set's index (sync.h) */
+    int complete;         /* every camera's frame is in it */
+    int cameras;
+    const sh_image *cam[SH_CONFIG_MAX_CAMERAS]; /* each camera's frame, NULL when missing (3D) */
 } run_frame;
+
+typedef struct {
+    sh_source_stats source; /* delivered, damaged, driver drops, losses, reopens, online */
+    uint64_t converted;     /* frames converted into the working format */
+    uint64_t bad;           /* frames pixconv refused (logged once) */
+    uint64_t no_buffer;     /* frames dropped for want of a free buffer */
+    uint64_t late, duplicates; /* refused by the set grouping */
+    int ended;              /* end of a replay, or an error reopening cannot cure */
+} run_camera_stats;
 
 typedef struct run_source run_source;
 
-/* Opens the configured source ([source] spec, realtime, loop) and allocates its buffers; a missing
- * file fails here (sh_error_message names it). */
+/* Opens every configured camera (a missing device or file fails here, sh_error_message naming
+ * it), the trigger line when [trigger] mode is not off, and allocates all buffers. */
 sh_status run_source_open(const sh_config *cfg, run_log_fn log, run_source **out);
-/* The frames' geometry, format and rate, as a Y4M header (also what a Y4M record gets). */
+/* The output camera's frames: geometry, working format, rate (also what a Y4M record gets). */
 const sh_y4m_header *run_source_header(const run_source *rs);
-/* Frames per second of the stream (0: unknown). */
+/* Frames per second of the output camera (0: unknown). */
 double run_source_fps(const run_source *rs);
+int run_source_cameras(const run_source *rs);
 sh_status run_source_start(run_source *rs);
-/* The newest frame, waiting up to timeout_ms; NULL on timeout or at the end. The frame stays
- * valid until the next call. */
+/* The newest set, waiting up to timeout_ms; NULL on timeout or at the end. The set (and the
+ * frames it points to) stays valid until the next call. */
 const run_frame *run_source_take(run_source *rs, int timeout_ms);
-/* 1 once the source has ended (no loop, or failed) and its last frame was taken. */
+/* 1 once the source has ended (replays without loop, or the output camera failed for good) and
+ * its last set was taken. */
 int run_source_ended(run_source *rs);
-/* Pacing can change at run time (SIGHUP). */
-void run_source_set_pacing(run_source *rs, int realtime, int loop);
+/* 1 when a and b differ in what the source was opened with ([cameraN], [source], [trigger]):
+ * such a change takes a restart (a reload cannot reopen the cameras under the pipeline). */
+int run_source_config_changed(const sh_config *a, const sh_config *b);
+/* Sets dropped because processing was behind, or because they lacked the output camera. */
 uint64_t run_source_dropped(run_source *rs);
-/* Stops the thread (if started) and frees everything. */
+void run_source_camera_stats(run_source *rs, int camera, run_camera_stats *out);
+void run_source_sync_stats(run_source *rs, sh_sync_stats *out);
+/* Stops the threads (if started; then logs each camera's counters and the sets formed, INFO)
+ * and frees everything. */
 void run_source_destroy(run_source *rs);
+
+/* ---- shared with stillheart record --config ---- */
+/* source.h options of [cameraN] (and [source] realtime, loop, camera_timeout_ms). */
+void run_camera_options(const sh_config *cfg, int camera, sh_source_options *o);
+/* sync.h options for the cameras; fps_num/den: camera 0's rate (for the defaults). */
+void run_sync_options(const sh_config *cfg, int cameras, int fps_num, int fps_den, sh_sync_options *o);
+/* [trigger] as sh_gpio_options (chip points into cfg); 0 when mode is off. fps as above. */
+int run_gpio_options(const sh_config *cfg, int fps_num, int fps_den, sh_gpio_options *o);
+/* The Y4M header of a raw format's frames converted by pixconv (GRAY8 or I420). */
+void run_y4m_header(sh_rawfmt format, int width, int height, int fps_num, int fps_den, sh_y4m_header *h);
 
 #endif

@@ -78,6 +78,21 @@ static void test_refusals(void **state)
         {"[nosuch]\nx = 3\n", "bad.ini:2: [nosuch] x: unknown section"},
         {"[run]\nthreads = 2\nthreads = 99\n", "bad.ini:3: [run] threads:"},
         {"[run]\njust text\n", "bad.ini:2:"},
+        {"[camera1]\nspec = webcam\n", "bad.ini:2: [camera1] spec: 'webcam' is not v4l2:"},
+        {"[camera0]\nspec = v4l2:\n", "bad.ini:2: [camera0] spec:"},
+        {"[camera0]\n\nformat = yuv9\n", "bad.ini:3: [camera0] format: unknown pixel format 'yuv9'"},
+        {"[camera2]\nsize = 640\n", "bad.ini:2: [camera2] size: '640' is not WIDTHxHEIGHT"},
+        {"[camera2]\nsize = 0x480\n", "bad.ini:2: [camera2] size:"},
+        {"[camera0]\nfps = 0/1\n", "bad.ini:2: [camera0] fps: '0/1' is not a frame rate"},
+        {"[camera0]\nfps = 30/0\n", "bad.ini:2: [camera0] fps:"},
+        {"[camera0]\nfps = 2000\n", "bad.ini:2: [camera0] fps:"},
+        {"[camera3]\nexposure = short\n", "bad.ini:2: [camera3] exposure: 'short' is not auto or a whole number"},
+        {"[camera1]\nwhite_balance = 100\n", "bad.ini:2: [camera1] white_balance:"},
+        {"[camera4]\nspec = y4m:x\n", "bad.ini:2: [camera4] spec: unknown section"},
+        {"[source]\noutput = 4\n", "bad.ini:2: [source] output:"},
+        {"[trigger]\nmode = sideways\n", "bad.ini:2: [trigger] mode: 'sideways' is not one of off|out|in"},
+        {"[trigger]\npolarity = up\n", "bad.ini:2: [trigger] polarity:"},
+        {"[trigger]\npulse_us = 0\n", "bad.ini:2: [trigger] pulse_us:"},
     };
     for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
         sh_config c, before;
@@ -89,6 +104,80 @@ static void test_refusals(void **state)
             fail_msg("case %zu: got '%s', want '%s...'", i, err, cases[i].want);
         assert_memory_equal(&c, &before, sizeof c);
     }
+}
+
+/* Cameras and trigger: values as written, [source] spec is camera 0's, the option names. */
+static void test_cameras_and_trigger(void **state)
+{
+    (void)state;
+    sh_config c;
+    char err[SH_CONFIG_ERR];
+    sh_config_default(&c);
+    assert_int_equal(sh_config_cameras(&c), 1);
+    assert_true(c.camera[0].exposure == SH_CONFIG_CTRL_UNSET);
+    const char *text = "[source]\nrealtime = no\noutput = 1\nsync_tolerance_ms = 4.5\nsync_wait_ms = 80\n"
+                       "camera_timeout_ms = 500\n"
+                       "[camera0]\nspec = v4l2:/dev/video0\nformat = YUYV\nsize = 1920x1080\nfps = 30000/1001\n"
+                       "exposure = 120\ngain = 0\nwhite_balance = 4600\n"
+                       "[camera1]\nspec = libcamera:imx219\nformat = mjpeg\nsize = 640X480\nfps = 29.97\n"
+                       "exposure = auto\n"
+                       "[trigger]\nmode = OUT\nchip = /dev/gpiochip1\nline = 17\npolarity = low\nfps = 30\n"
+                       "pulse_us = 2000\noffset_us = -1500\n";
+    assert_int_equal(sh_config_parse_string(&c, text, "t.ini", err), SH_OK);
+    assert_int_equal(sh_config_check(&c, err), SH_OK);
+    assert_int_equal(sh_config_cameras(&c), 2);
+    assert_string_equal(c.source, "v4l2:/dev/video0");
+    assert_string_equal(c.camera[0].format, "YUYV");
+    assert_int_equal(c.camera[0].width, 1920);
+    assert_int_equal(c.camera[0].height, 1080);
+    assert_int_equal(c.camera[0].fps_num, 30000);
+    assert_int_equal(c.camera[0].fps_den, 1001);
+    assert_int_equal(c.camera[0].exposure, 120);
+    assert_int_equal(c.camera[0].gain, 0);
+    assert_int_equal(c.camera[0].white_balance, 4600);
+    assert_string_equal(c.camera[1].spec, "libcamera:imx219");
+    assert_int_equal(c.camera[1].width, 640);
+    assert_int_equal(c.camera[1].fps_num, 2997); /* 29.97 = 2997/100 */
+    assert_int_equal(c.camera[1].fps_den, 100);
+    assert_true(c.camera[1].exposure == SH_CONFIG_CTRL_UNSET);
+    assert_int_equal(c.output_camera, 1);
+    assert_true(c.sync_tolerance_ms == 4.5 && c.sync_wait_ms == 80);
+    assert_int_equal(c.camera_timeout_ms, 500);
+    assert_int_equal(c.trigger, SH_TRIGGER_OUT);
+    assert_string_equal(c.trigger_chip, "/dev/gpiochip1");
+    assert_int_equal(c.trigger_line, 17);
+    assert_int_equal(c.trigger_active_low, 1);
+    assert_true(c.trigger_fps == 30);
+    assert_int_equal(c.trigger_pulse_us, 2000);
+    assert_int_equal(c.trigger_offset_us, -1500);
+    /* [source] spec is camera 0's */
+    assert_int_equal(sh_config_set(&c, "source", "spec", "y4m:a.y4m", "x", 0, err), SH_OK);
+    assert_string_equal(c.camera[0].spec, "y4m:a.y4m");
+
+    /* written back and read again: the same */
+    char *buf = NULL;
+    size_t len = 0;
+    FILE *f = open_memstream(&buf, &len);
+    sh_config_write(&c, f);
+    fclose(f);
+    assert_null(strstr(buf, "[camera2]")); /* absent cameras are not written */
+    sh_config d;
+    sh_config_default(&d);
+    assert_int_equal(sh_config_parse_string(&d, buf, "written", err), SH_OK);
+    free(buf);
+    assert_memory_equal(&c, &d, sizeof c);
+
+    const char *sec, *key;
+    int flag = 1;
+    assert_int_equal(sh_config_option("camera2-white-balance", &sec, &key, &flag), 1);
+    assert_string_equal(sec, "camera2");
+    assert_string_equal(key, "white_balance");
+    assert_int_equal(flag, 0);
+    assert_int_equal(sh_config_option("trigger-pulse-us", &sec, &key, &flag), 1);
+    assert_string_equal(key, "pulse_us");
+    assert_int_equal(sh_config_option("source", &sec, &key, &flag), 1);
+    assert_string_equal(sec, "source");
+    assert_int_equal(sh_config_option("camera4-spec", &sec, &key, &flag), 0);
 }
 
 static void test_check_across_keys(void **state)
@@ -107,6 +196,30 @@ static void test_check_across_keys(void **state)
     sh_config_default(&c);
     assert_int_equal(sh_config_set(&c, "gating", "min_markers", "2", "command line", 0, err), SH_OK);
     assert_int_not_equal(sh_config_check(&c, err), SH_OK);
+    /* cameras from 0 without gaps; the output camera among them; a trigger needs a chip and a
+     * pulse shorter than its period */
+    sh_config_default(&c);
+    assert_int_equal(sh_config_set(&c, "camera2", "spec", "y4m:b.y4m", "x", 0, err), SH_OK);
+    assert_int_not_equal(sh_config_check(&c, err), SH_OK);
+    assert_non_null(strstr(err, "[camera2] spec: set while [camera1] spec is empty"));
+    sh_config_default(&c);
+    assert_int_equal(sh_config_set(&c, "source", "output", "1", "x", 0, err), SH_OK);
+    assert_int_not_equal(sh_config_check(&c, err), SH_OK);
+    assert_non_null(strstr(err, "[source] output: camera 1, but 1 camera is configured"));
+    sh_config_default(&c);
+    assert_int_equal(sh_config_set(&c, "trigger", "mode", "in", "x", 0, err), SH_OK);
+    assert_int_equal(sh_config_check(&c, err), SH_OK);
+    assert_int_equal(sh_config_set(&c, "trigger", "chip", "", "x", 0, err), SH_OK);
+    assert_int_not_equal(sh_config_check(&c, err), SH_OK);
+    assert_non_null(strstr(err, "[trigger] chip: empty"));
+    sh_config_default(&c);
+    assert_int_equal(sh_config_set(&c, "trigger", "mode", "out", "x", 0, err), SH_OK);
+    assert_int_equal(sh_config_set(&c, "trigger", "fps", "100", "x", 0, err), SH_OK);
+    assert_int_equal(sh_config_set(&c, "trigger", "pulse_us", "10000", "x", 0, err), SH_OK); /* = 1/100 s */
+    assert_int_not_equal(sh_config_check(&c, err), SH_OK);
+    assert_non_null(strstr(err, "[trigger] pulse_us"));
+    assert_int_equal(sh_config_set(&c, "trigger", "pulse_us", "9999", "x", 0, err), SH_OK);
+    assert_int_equal(sh_config_check(&c, err), SH_OK);
     /* no line: the origin only */
     assert_int_not_equal(sh_config_set(&c, "run", "threads", "-1", "command line", 0, err), SH_OK);
     assert_string_equal(err, "command line: [run] threads: '-1' is not a whole number in 1..64");
@@ -179,6 +292,7 @@ int main(int argc, char **argv)
         cmocka_unit_test(test_defaults_check),
         cmocka_unit_test(test_parse_every_kind),
         cmocka_unit_test(test_refusals),
+        cmocka_unit_test(test_cameras_and_trigger),
         cmocka_unit_test(test_check_across_keys),
         cmocka_unit_test(test_options_and_write_round_trip),
         cmocka_unit_test(test_files),
