@@ -147,5 +147,111 @@ sys.exit(0 if ok else 1)
 PY
 [ -e "/dev/shm$SHM" ] && rm -f "/dev/shm$SHM"
 
+# 5. a new reference without a hitch, asked for on the control socket and by SIGUSR1: frames keep
+#    being stabilized with the old reference while the new one's models are built; status and
+#    unknown commands answered
+"$B/stillheart-render" --preset exvivo --frames 120 --cameras 1 --width 640 --height 360 --out "$T/clean" >/dev/null 2>&1
+python3 - "$B/stillheart" "$T/clean/cam0.y4m" "$T/ctl" "$T/ref.csv" <<'PY' && ok "control socket and SIGUSR1: new reference without a hitch" || bad "control socket and SIGUSR1: new reference without a hitch" "see above"
+import csv, os, signal, socket, subprocess, sys, time
+exe, video, ctl, trace = sys.argv[1:5]
+p = subprocess.Popen([exe, "run", "--group=", "--source", "y4m:" + video, "--realtime", "--no-loop", "--sink", "none",
+                      "--control", ctl, "--trace", trace], stderr=subprocess.PIPE)
+def ask(cmd):
+    s = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM); s.settimeout(3); s.connect(ctl)
+    s.sendall(cmd.encode() + b"\n"); out = b""
+    while True:
+        b = s.recv(256)
+        if not b: break
+        out += b
+    s.close(); return out.decode().strip()
+for i in range(50):
+    if os.path.exists(ctl): break
+    time.sleep(0.1)
+time.sleep(1.0)
+replies = [ask("status"), ask("reference")]
+time.sleep(1.2)
+p.send_signal(signal.SIGUSR1)
+time.sleep(1.2)
+replies.append(ask("frobnicate"))
+err = p.communicate(timeout=20)[1].decode()
+ok = True
+def need(c, m):
+    global ok
+    if not c: print("FAIL:", m); ok = False
+need(replies[0].startswith("frame ") and "markers" in replies[0] and "residual" in replies[0], "status reply %r" % replies[0])
+need(replies[1] == "ok: new reference requested", "reference reply %r" % replies[1])
+need(replies[2].startswith("error: 'frobnicate'"), "unknown command reply %r" % replies[2])
+need(err.count("reference: frame") == 3 and "(control socket)" in err and "(SIGUSR1)" in err, "three references: " + err[-400:])
+need(p.returncode == 0 and not os.path.exists(ctl), "exit %s, socket left: %s" % (p.returncode, os.path.exists(ctl)))
+rows = list(csv.DictReader(open(trace)))
+first = next(i for i, r in enumerate(rows) if r['status'] == 'stabilized')
+hitch = [r['index'] + ' ' + r['status'] + ' ' + r['reason'] for r in rows[first:] if r['status'] != 'stabilized']
+need(len(rows) >= 100 and not hitch, "%d frames; not stabilized after the first reference: %s" % (len(rows), hitch[:5]))
+sys.exit(0 if ok else 1)
+PY
+
+# 6. PNG record: each PNG equals the frame the shared-memory buffer showed under the same sequence
+#    number (I420 -> RGB by BT.601 computed here, bilinear chroma at the centre siting)
+$RUN --source "y4m:$T/ph/cam0.y4m" --no-loop --realtime --sink "shm:$SHM" --record "png:$T/png" & pid=$!
+for i in 1 2 3 4 5 6 7 8 9 10; do [ -e "/dev/shm$SHM" ] && break; sleep 0.1; done
+"$B/stillheart-cat" --name "$SHM" --count 25 --timeout 5 -v > "$T/catpng.y4m" 2> "$T/catpng.log"
+wait $pid
+python3 - "$T/catpng.y4m" "$T/catpng.log" "$T/png" <<'PY' && ok "PNG record equals the shm frames" || bad "PNG record equals the shm frames" "see above"
+import os, re, struct, sys, zlib
+def png(path):
+    d = open(path, 'rb').read(); pos = 8; idat = b''
+    while pos < len(d):
+        n, t = struct.unpack('>I4s', d[pos:pos + 8]); body = d[pos + 8:pos + 8 + n]; pos += 12 + n
+        if t == b'IHDR': w, h, depth, ctype = struct.unpack('>IIBB', body[:10])
+        if t == b'IDAT': idat += body
+    bpp = {0: 1, 2: 3}[ctype]; raw = zlib.decompress(idat); stride = w * bpp; rows = []; prev = bytearray(stride)
+    for y in range(h):
+        f = raw[y * (stride + 1)]; cur = bytearray(raw[y * (stride + 1) + 1:(y + 1) * (stride + 1)])
+        for i in range(stride):
+            a = cur[i - bpp] if i >= bpp else 0; b = prev[i]; c = prev[i - bpp] if i >= bpp else 0
+            if f == 1: cur[i] = (cur[i] + a) & 255
+            elif f == 2: cur[i] = (cur[i] + b) & 255
+            elif f == 3: cur[i] = (cur[i] + (a + b) // 2) & 255
+            elif f == 4:
+                pa, pb, pc = abs(b - c), abs(a - c), abs(a + b - 2 * c)
+                cur[i] = (cur[i] + (a if pa <= pb and pa <= pc else b if pb <= pc else c)) & 255
+        rows.append(bytes(cur)); prev = cur
+    return w, h, bpp, rows
+d = open(sys.argv[1], 'rb').read(); hdr, rest = d.split(b'\n', 1)
+w = int(re.search(rb' W(\d+)', hdr).group(1)); h = int(re.search(rb' H(\d+)', hdr).group(1))
+full = b'XCOLORRANGE=FULL' in hdr
+frames = []
+while rest:
+    line, rest = rest.split(b'\n', 1); frames.append(rest[:w * h * 3 // 2]); rest = rest[w * h * 3 // 2:]
+seqs = [int(m.group(1)) for m in re.finditer(r'^frame (\d+) ', open(sys.argv[2]).read(), re.M)]
+ys, yo, cs = (1, 0, 1) if full else (255 / 219, 16, 255 / 224)
+kr, kb = 0.299, 0.114; kg = 1 - kr - kb
+def tap(x, n):
+    q = 2 * x - 1; a = q // 4; fr = q - 4 * a
+    return min(max(a, 0), n - 1), min(max(a + 1, 0), n - 1), (4 - fr) / 4, fr / 4
+cw, ch = (w + 1) // 2, (h + 1) // 2
+matched = 0; worst = 0
+for seq, f in zip(seqs, frames):
+    path = os.path.join(sys.argv[3], '%06d.png' % seq)
+    if not os.path.exists(path): continue
+    pw, ph, bpp, rows = png(path)
+    if (pw, ph, bpp) != (w, h, 3): print("PNG", path, pw, ph, bpp); sys.exit(1)
+    U = f[w * h:w * h + cw * ch]; V = f[w * h + cw * ch:]
+    for y in range(0, h, 7):
+        va, vb, vwa, vwb = tap(y, ch)
+        for x in range(0, w, 5):
+            ha, hb, hwa, hwb = tap(x, cw)
+            u = vwa * (hwa * U[va * cw + ha] + hwb * U[va * cw + hb]) + vwb * (hwa * U[vb * cw + ha] + hwb * U[vb * cw + hb])
+            v = vwa * (hwa * V[va * cw + ha] + hwb * V[va * cw + hb]) + vwb * (hwa * V[vb * cw + ha] + hwb * V[vb * cw + hb])
+            Y = ys * (f[y * w + x] - yo); cb = cs * (u - 128); cr = cs * (v - 128)
+            rgb = (Y + 2 * (1 - kr) * cr, Y - (2 * kb * (1 - kb) * cb + 2 * kr * (1 - kr) * cr) / kg, Y + 2 * (1 - kb) * cb)
+            for k in range(3):
+                want = min(max(int(rgb[k] + 0.5 if rgb[k] >= 0 else 0), 0), 255)
+                worst = max(worst, abs(rows[y][3 * x + k] - want))
+    matched += 1
+print("matched", matched, "of", len(frames), "frames, largest difference", worst)
+sys.exit(0 if matched >= 10 and worst <= 1 else 1)
+PY
+
 echo "[==========] $((pass + fail)) test(s) run."
 [ $fail -eq 0 ] && echo "[  PASSED  ] $pass test(s)." || { echo "[  PASSED  ] $pass test(s)."; echo "[  FAILED  ] $fail test(s)."; exit 1; }
