@@ -21,7 +21,7 @@ typedef struct {
     run_source *rs;
     int index;
     char name[SH_CONFIG_STR + 8];
-    char thread_name[8];
+    char thread_name[16];
     sh_source *src;
     sh_pixconv *conv;
     sh_rawfmt format;
@@ -329,17 +329,33 @@ static void *trigger_thread(void *arg)
     return NULL;
 }
 
-/* Frames in a Y4M file (for the points test mode, whose frame numbers restart with each loop). */
+/* Frames in a Y4M file (for the points test mode, whose frame numbers restart with each loop):
+ * from its size when every frame header is a bare "FRAME" (so a long 1080p file is not read
+ * through at start), else by reading it. */
 static int count_y4m_frames(const char *path)
 {
     sh_y4m_reader *r;
     if (sh_y4m_reader_open(path, &r) != SH_OK) return 0;
     const sh_y4m_header *h = sh_y4m_reader_header(r);
-    sh_image img;
+    size_t frame = sh_image_packed_size(h->format, h->width, h->height) + 6; /* "FRAME\n" */
     int n = 0;
-    if (sh_image_create(&img, h->format, h->width, h->height) == SH_OK) {
-        while (sh_y4m_reader_read(r, &img) == SH_OK) n++;
-        sh_image_destroy(&img);
+    FILE *f = fopen(path, "rb");
+    long hlen = 0, size = -1;
+    if (f) {
+        int c;
+        while ((c = fgetc(f)) != EOF && c != '\n') hlen++;
+        if (c == '\n' && !fseek(f, 0, SEEK_END)) size = ftell(f);
+        fclose(f);
+    }
+    long body = size - hlen - 1;
+    if (size > 0 && body >= 0 && (size_t)body % frame == 0) {
+        n = (int)((size_t)body / frame);
+    } else {
+        sh_image img;
+        if (sh_image_create(&img, h->format, h->width, h->height) == SH_OK) {
+            while (sh_y4m_reader_read(r, &img) == SH_OK) n++;
+            sh_image_destroy(&img);
+        }
     }
     sh_y4m_reader_close(r);
     return n;

@@ -158,6 +158,48 @@ static void test_two_cameras_realtime_cli(void **state)
     if (!strstr(out, want)) fail_msg("no '%s' in:\n%s", want, out);
 }
 
+/* Frame k of a (the daemon's record) equals frame k % period of b (stillheart warp's); n frames. */
+static void assert_frames_repeat(const char *a, const char *b, int n, int period)
+{
+    char pa[128], pb[128];
+    snprintf(pa, sizeof pa, "%s/%s", tmp, a);
+    snprintf(pb, sizeof pb, "%s/%s", tmp, b);
+    sh_y4m_reader *ra, *rb = NULL;
+    assert_int_equal(sh_y4m_reader_open(pa, &ra), SH_OK);
+    sh_image ia, ib;
+    assert_int_equal(sh_image_create(&ia, SH_PIX_I420, W, H), SH_OK);
+    assert_int_equal(sh_image_create(&ib, SH_PIX_I420, W, H), SH_OK);
+    for (int k = 0; k < n; k++) {
+        if (k % period == 0) {
+            sh_y4m_reader_close(rb);
+            assert_int_equal(sh_y4m_reader_open(pb, &rb), SH_OK);
+        }
+        assert_int_equal(sh_y4m_reader_read(ra, &ia), SH_OK);
+        assert_int_equal(sh_y4m_reader_read(rb, &ib), SH_OK);
+        for (int p = 0; p < 3; p++)
+            for (int y = 0; y < ia.plane[p].height; y++)
+                if (memcmp(ia.plane[p].data + y * ia.plane[p].stride, ib.plane[p].data + y * ib.plane[p].stride,
+                           (size_t)ia.plane[p].width))
+                    fail_msg("frame %d, plane %d, row %d differs", k, p, y);
+    }
+    assert_int_equal(sh_y4m_reader_read(ra, &ia), SH_EEOF);
+    sh_image_destroy(&ia);
+    sh_image_destroy(&ib);
+    sh_y4m_reader_close(ra);
+    sh_y4m_reader_close(rb);
+}
+
+/* Two cameras looping: the frame numbers (the points file's) start again with each loop, so two
+ * and a half loops show warp's frames 0..N-1, 0..N-1, 0..N/2-1. */
+static void test_two_cameras_loop(void **state)
+{
+    (void)state;
+    ok(run("%s run --camera0-spec y4m:%s/cam0.y4m --camera1-spec y4m:%s/cam1.y4m --output-camera 1 "
+           "--no-realtime --loop --max-frames %d " RUN_ARGS " --record %s/loop.y4m",
+           bin, tmp, tmp, 2 * N + N / 2, tmp, tmp));
+    assert_frames_repeat("loop.y4m", "warp1.y4m", 2 * N + N / 2, N);
+}
+
 /* Camera 1 ends after SHORT frames: camera 0 (shown) goes on; its last sets are incomplete. */
 static void test_camera_ends_others_go_on(void **state)
 {
@@ -206,6 +248,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_two_cameras_output_warped),
         cmocka_unit_test(test_two_cameras_realtime_cli),
+        cmocka_unit_test(test_two_cameras_loop),
         cmocka_unit_test(test_camera_ends_others_go_on),
         cmocka_unit_test(test_refusals),
     };
