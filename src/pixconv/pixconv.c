@@ -191,7 +191,7 @@ ROW void yuv422_row_rgb(const uint8_t *restrict y, int ystep, const uint8_t *res
                   cgv = FIX13(-2.0 * KR * (1.0 - KR) / KG * 255.0 / 224.0),
                   cbu = FIX13(2.0 * (1.0 - KB) * 255.0 / 224.0);
     int16_t Y[CHUNK], U[CHUNK / 2], V[CHUNK / 2];
-    int32_t tr[CHUNK / 2], tg[CHUNK / 2], tb[CHUNK / 2];
+    int32_t tr[CHUNK], tg[CHUNK], tb[CHUNK]; /* per pixel: each chroma term written twice */
     uint8_t R[CHUNK], G[CHUNK], B[CHUNK];
     for (int x0 = 0; x0 < w; x0 += CHUNK) {
         int n = w - x0 < CHUNK ? w - x0 : CHUNK, c0 = x0 / 2;
@@ -201,15 +201,15 @@ ROW void yuv422_row_rgb(const uint8_t *restrict y, int ystep, const uint8_t *res
             V[i] = (int16_t)(v[(c0 + i) * cstep] - 128);
         }
         for (int i = 0; i < n / 2; i++) {
-            tr[i] = (int32_t)V[i] * crv + (1 << (CS - 1));
-            tg[i] = (int32_t)U[i] * cgu + (int32_t)V[i] * cgv + (1 << (CS - 1));
-            tb[i] = (int32_t)U[i] * cbu + (1 << (CS - 1));
+            tr[2 * i] = tr[2 * i + 1] = (int32_t)V[i] * crv + (1 << (CS - 1));
+            tg[2 * i] = tg[2 * i + 1] = (int32_t)U[i] * cgu + (int32_t)V[i] * cgv + (1 << (CS - 1));
+            tb[2 * i] = tb[2 * i + 1] = (int32_t)U[i] * cbu + (1 << (CS - 1));
         }
         for (int i = 0; i < n; i++) {
             int32_t yy = (int32_t)Y[i] * cy;
-            R[i] = clip13(yy + tr[i >> 1]);
-            G[i] = clip13(yy + tg[i >> 1]);
-            B[i] = clip13(yy + tb[i >> 1]);
+            R[i] = clip13(yy + tr[i]);
+            G[i] = clip13(yy + tg[i]);
+            B[i] = clip13(yy + tb[i]);
         }
         uint8_t *q = o + 3 * x0;
         for (int i = 0; i < n; i++) {
