@@ -84,7 +84,8 @@ static void usage(FILE *out)
         "  --config FILE      INI file (keys above; the command line wins)\n"
         "  --max-frames N     stop after N published frames (tests, bench)\n"
         "  --stats            print a summary line at exit (fps, latency, drops, RSS)\n"
-        "  --trace FILE       one CSV line per published frame: index,status,markers,residual,reason\n"
+        "  --trace FILE       one CSV line per published frame: index, status, markers, residual, reason,\n"
+        "                     stage CPU times (markers, model, warp) and latency in ms\n"
         "  --print-config     print the resulting config as INI and exit\n"
         "  --quiet            errors and warnings only\n"
         "signals: SIGTERM/SIGINT stop (segment marked closed), SIGHUP reloads the config file,\n"
@@ -228,7 +229,7 @@ int cmd_run(int argc, char **argv)
         fprintf(stderr, "stillheart run: --trace: %s: %s\n", ro.trace_path, strerror(errno));
         goto done;
     }
-    if (trace) fprintf(trace, "index,status,markers,residual,reason\n");
+    if (trace) fprintf(trace, "index,status,markers,residual,reason,markers_ms,model_ms,warp_ms,latency_ms\n");
     if (cfg.control[0] && run_ctl_open(cfg.control, &ctl) != SH_OK) {
         fprintf(stderr, "stillheart run: [run] control: %s\n", sh_error_message());
         goto done;
@@ -339,9 +340,12 @@ int cmd_run(int argc, char **argv)
         snprintf(status_line, sizeof status_line, "frame %d: %s%s%s, %u markers, residual %.2f px, %llu published, %llu dropped",
                  s->index, names[status], info.reason[0] ? ": " : "", info.reason, info.markers_used,
                  (double)info.residual_px, (unsigned long long)published, (unsigned long long)run_source_dropped(src));
-        if (trace)
-            fprintf(trace, "%d,%s,%u,%.3f,%s\n", s->index, names[status], info.markers_used, (double)info.residual_px,
-                    info.reason);
+        if (trace) {
+            double tm, tmod, tw;
+            run_proc_times(proc, &tm, &tmod, &tw);
+            fprintf(trace, "%d,%s,%u,%.3f,\"%s\",%.3f,%.3f,%.3f,%.3f\n", s->index, names[status], info.markers_used,
+                    (double)info.residual_px, info.reason, tm, tmod, tw, (double)(done_ns - s->avail_ns) / 1e6);
+        }
         if (ro.max_frames && published >= (uint64_t)ro.max_frames) break;
     }
     sh_notify("STOPPING=1");

@@ -5,6 +5,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 #include "run.h"
 #include "run_proc.h"
@@ -22,7 +23,23 @@ struct run_proc {
     run_marker mk[RUN_MAX_MARKERS];
     run_model *last;      /* the last model used: the fallback while another set is built */
     int model_err_once, track_err_once;
+    double ms[3];         /* this frame: markers (detection + tracker), model update, warp */
 };
+
+/* This thread's CPU time: on a shared machine wall time mostly measures the neighbours. */
+static double now_ms(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+    return (double)ts.tv_sec * 1e3 + (double)ts.tv_nsec / 1e6;
+}
+
+void run_proc_times(const run_proc *p, double *markers_ms, double *model_ms, double *warp_ms)
+{
+    *markers_ms = p->ms[0];
+    *model_ms = p->ms[1];
+    *warp_ms = p->ms[2];
+}
 
 sh_status run_proc_create(const sh_config *cfg, const sh_y4m_header *hdr, double fps, run_log_fn log,
                           run_proc **out)
@@ -148,7 +165,11 @@ static int fallback(run_proc *p, int nm, double *xy, double *det)
 
 const sh_image *run_proc_frame(run_proc *p, const sh_image *img, int index, sh_display_frame_info *info)
 {
+    double t0 = now_ms();
+    p->ms[0] = p->ms[1] = p->ms[2] = 0;
     int nm = markers(p, img, index);
+    double t1 = now_ms();
+    p->ms[0] = t1 - t0;
     take_reference(p, index, nm);
     int ref_frame, ref_n;
     if (run_models_poll(p->models, &ref_frame, &ref_n)) {
@@ -204,7 +225,10 @@ const sh_image *run_proc_frame(run_proc *p, const sh_image *img, int index, sh_d
         info->markers_used = (uint32_t)n;
     }
     double residual;
-    if (run_model_update(md, xy, det, &residual) != SH_OK) {
+    sh_status ust = run_model_update(md, xy, det, &residual);
+    double t2 = now_ms();
+    p->ms[1] = t2 - t1;
+    if (ust != SH_OK) {
         reason(info, "model update failed");
         return img;
     }
@@ -217,7 +241,9 @@ const sh_image *run_proc_frame(run_proc *p, const sh_image *img, int index, sh_d
         reason(info, "residual %.1f px > %.1f", residual, p->cfg.max_residual_px);
         return img;
     }
-    if (sh_warp_apply(p->warp, run_model_warp(md), img, &p->out) != SH_OK) {
+    sh_status wst = sh_warp_apply(p->warp, run_model_warp(md), img, &p->out);
+    p->ms[2] = now_ms() - t2;
+    if (wst != SH_OK) {
         if (!p->model_err_once++) p->log("ERROR", "main", "warp: %s", sh_error_message());
         reason(info, "warp failed");
         return img;

@@ -23,5 +23,9 @@ void run_proc_request_reference(run_proc *p);
  * stays valid until the next call. */
 const sh_image *run_proc_frame(run_proc *p, const sh_image *img, int index, sh_display_frame_info *info);
 int run_proc_builds(const run_proc *p);
+/* The processing thread's CPU time in the last frame's stages, ms (the warp's helper threads
+ * not counted): markers (detection and tracker), model (selection,
+ * model lookup, map update, residual), warp (0 when not warped). */
+void run_proc_times(const run_proc *p, double *markers_ms, double *model_ms, double *warp_ms);
 
 #endif

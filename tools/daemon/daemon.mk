@@ -25,6 +25,7 @@ run-demo: deps
 	  $(BUILD)/stillheart-cat --name $(RUN_DEMO_SHM) --count 69 --timeout 5 -v > $(RUN_DEMO_DIR)/shown.y4m 2> $(RUN_DEMO_DIR)/cat.log; rc=$$?; \
 	  kill -TERM $$pid; wait $$pid; \
 	  echo "stillheart-cat read $$(grep -c . $(RUN_DEMO_DIR)/cat.log) frame lines, $$(grep -c stabilized $(RUN_DEMO_DIR)/cat.log) stabilized; shown frames: $(RUN_DEMO_DIR)/shown.y4m (ffplay it)"; \
+	  echo "live: $(APP) run --group= --source y4m:$(RUN_DEMO_DIR)/cam0.y4m & then $(BUILD)/stillheart-cat | ffplay -   (stop: kill %1)"; \
 	  exit $$rc
 
 # make bench: the daemon replaying a 1080p phantom as fast as possible, 16 tags, 2 threads.
