@@ -16,10 +16,11 @@ TOOLS += $(CALIB_BIN)
 ifeq ($(call have,osmesa)$(call have,apriltag),11)
 $(BUILD)/tools/calib/tests/%.o: tools/calib/tests/%.c
 	@mkdir -p $(dir $@)
-	$(CC) $(CFLAGS_ALL) -DCALIB_BIN='"$(abspath $(CALIB_BIN))"' \
+	$(CC) $(CFLAGS_ALL) -Itools/phantom/tests -DCALIB_BIN='"$(abspath $(CALIB_BIN))"' \
 		-DRENDER_BIN='"$(abspath $(BUILD))/stillheart-render"' -c $< -o $@
 
-$(BUILD)/tests/test_calib: $(BUILD)/tools/calib/tests/test_calib.o $(LIB) $(CALIB_BIN) $(BUILD)/stillheart-render
+$(BUILD)/tests/test_calib: $(BUILD)/tools/calib/tests/test_calib.o $(BUILD)/tools/phantom/tests/phantom_testutil.o \
+		$(LIB) $(CALIB_BIN) $(BUILD)/stillheart-render
 	@mkdir -p $(dir $@)
 	$(CC) $(LDFLAGS) $(filter %.o,$^) $(LIB) $(shell $(PKG_CONFIG) --libs cmocka) $(LDLIBS_ALL) -o $@
 

@@ -88,7 +88,7 @@ double patch(const cv::Mat &img, cv::Point2f p)
 bool find_corners(const cv::Mat &grey, const board_spec &b, std::vector<cv::Point2f> &corners)
 {
     cv::Size pattern(b.cols, b.rows);
-    if (!cv::findChessboardCorners(grey, pattern, corners, cv::CALIB_CB_ADAPTIVE_THRESH | cv::CALIB_CB_NORMALIZE_IMAGE))
+    if (!cv::findChessboardCorners(grey, pattern, corners, cv::CALIB_CB_ADAPTIVE_THRESH | cv::CALIB_CB_NORMALIZE_IMAGE | cv::CALIB_CB_FAST_CHECK))
         return false;
     // the search window must hold one corner only: under half the smallest square side seen
     double side = 1e9;
