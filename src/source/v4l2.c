@@ -393,6 +393,9 @@ static sh_status v_dequeue(sh_source *s, int timeout_ms, sh_source_frame *f, int
         v->last_frame = now;
         if (v->have_seq && b.sequence > v->last_driver_seq + 1)
             s->stats.drops += b.sequence - v->last_driver_seq - 1;
+        /* A driver sequence that does not rise (vivid under load ticks twice on one count) moves
+         * the base so that ours still does. */
+        if (v->have_seq && b.sequence <= v->last_driver_seq) v->seq_base += v->last_driver_seq - b.sequence + 1;
         v->have_seq = 1;
         v->last_driver_seq = b.sequence;
         size_t bytes = b.bytesused ? b.bytesused : v->length[b.index];
