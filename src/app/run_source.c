@@ -74,6 +74,9 @@ static sh_status prefixed(sh_status st, const char *prefix)
 
 static int is_replay(const char *spec) { return !strncmp(spec, "y4m:", 4) || !strncmp(spec, "rec:", 4); }
 
+_Static_assert(SH_CONFIG_CTRL_UNSET == SH_SOURCE_CTRL_UNSET, "config's unset control is source.h's");
+_Static_assert(SH_CONFIG_MAX_CAMERAS <= SH_SYNC_MAX_CAMERAS, "every configured camera fits in a set");
+
 void run_camera_options(const sh_config *cfg, int i, sh_source_options *o)
 {
     const sh_config_camera *c = &cfg->camera[i];

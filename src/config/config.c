@@ -1,5 +1,5 @@
-/* The daemon's INI configuration (inih when found, else a small built-in line parser with the
- * same rules), the command-line names of its keys, and the checks. */
+/* The daemon's configuration keys: their table, values from text, the command-line names, the
+ * checks across keys and writing back. Reading INI text and files is in ini.c. */
 #include "stillheart/config.h"
 #include "stillheart/pixconv.h"
 
@@ -10,10 +10,6 @@
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
-
-#ifdef SH_HAVE_INIH
-#include <ini.h>
-#endif
 
 typedef enum { K_STR, K_BOOL, K_INT, K_DOUBLE, K_METHOD, K_IDS, K_SPEC, K_RAWFMT, K_SIZE, K_FPS, K_CTRL, K_ENUM } ktype;
 
@@ -377,158 +373,6 @@ int sh_config_cameras(const sh_config *cfg)
     while (n < SH_CONFIG_MAX_CAMERAS && cfg->camera[n].spec[0])
         n++;
     return n;
-}
-
-typedef struct {
-    sh_config *cfg;
-    const char *origin;
-    char *err;
-    int failed;
-} parse_ctx;
-
-#ifdef SH_HAVE_INIH
-/* Debian's inih calls the handler without a line number; a handler returning 0 makes
- * ini_parse_string return that line, which names it in the message afterwards. */
-static int on_key(void *user, const char *section, const char *name, const char *value)
-{
-    parse_ctx *c = user;
-    if (c->failed)
-        return 1; /* keep the first error's line as the one returned */
-    if (sh_config_set(c->cfg, section, name, value, "", 0, c->err) != SH_OK) {
-        c->failed = 1;
-        return 0;
-    }
-    return 1;
-}
-#endif
-
-sh_status sh_config_parse_string(sh_config *cfg, const char *text, const char *origin, char *err)
-{
-    sh_config work = *cfg; /* all or nothing */
-    parse_ctx c = {&work, origin, err, 0};
-    err[0] = 0;
-#ifdef SH_HAVE_INIH
-    int r = ini_parse_string(text, on_key, &c);
-    if (c.failed) {
-        char why[SH_CONFIG_ERR];
-        snprintf(why, sizeof why, "%s", err + 2); /* past the empty origin's ": " */
-        snprintf(err, SH_CONFIG_ERR, "%.200s:%d: %.300s", origin, r, why);
-        return SH_EINVAL;
-    }
-    if (r != 0) {
-        snprintf(err, SH_CONFIG_ERR, "%s:%d: not an INI line (want [section] or key = value)",
-                 origin, r > 0 ? r : 0);
-        return SH_EFORMAT;
-    }
-#else
-    /* The same rules as inih's defaults: [section], key = value or key : value, ; and # comments. */
-    char section[64] = "";
-    int lineno = 0;
-    const char *p = text;
-    while (*p) {
-        char line[1024];
-        size_t n = strcspn(p, "\n");
-        lineno++;
-        if (n >= sizeof line) {
-            snprintf(err, SH_CONFIG_ERR, "%s:%d: line too long", origin, lineno);
-            return SH_EFORMAT;
-        }
-        memcpy(line, p, n);
-        line[n] = 0;
-        p += n + (p[n] == '\n');
-        char *s = line;
-        while (*s == ' ' || *s == '\t' || *s == '\r')
-            s++;
-        char *e = s + strlen(s);
-        while (e > s && (e[-1] == ' ' || e[-1] == '\t' || e[-1] == '\r'))
-            *--e = 0;
-        if (!*s || *s == ';' || *s == '#')
-            continue;
-        if (*s == '[') {
-            char *close = strchr(s, ']');
-            if (!close || close - s - 1 >= (long)sizeof section) {
-                snprintf(err, SH_CONFIG_ERR, "%s:%d: not an INI line (want [section] or key = value)", origin, lineno);
-                return SH_EFORMAT;
-            }
-            *close = 0;
-            snprintf(section, sizeof section, "%s", s + 1);
-            continue;
-        }
-        char *eq = strpbrk(s, "=:");
-        if (!eq) {
-            snprintf(err, SH_CONFIG_ERR, "%s:%d: not an INI line (want [section] or key = value)", origin, lineno);
-            return SH_EFORMAT;
-        }
-        *eq = 0;
-        char *k = s, *v = eq + 1;
-        char *ke = eq;
-        while (ke > k && (ke[-1] == ' ' || ke[-1] == '\t'))
-            *--ke = 0;
-        while (*v == ' ' || *v == '\t')
-            v++;
-        char *c2 = strstr(v, " ;");
-        if (c2) {
-            *c2 = 0;
-            char *ve = c2;
-            while (ve > v && (ve[-1] == ' ' || ve[-1] == '\t'))
-                *--ve = 0;
-        }
-        if (sh_config_set(&work, section, k, v, origin, lineno, err) != SH_OK)
-            return SH_EINVAL;
-    }
-#endif
-    *cfg = work;
-    return SH_OK;
-}
-
-sh_status sh_config_load_file(sh_config *cfg, const char *path, char *err)
-{
-    FILE *f = fopen(path, "rb");
-    if (!f) {
-        snprintf(err, SH_CONFIG_ERR, "%s: cannot open: %s", path, strerror(errno));
-        return SH_EIO;
-    }
-    char *text = NULL;
-    size_t len = 0, cap = 0;
-    for (;;) {
-        if (len + 4097 > cap) {
-            cap = cap ? cap * 2 : 8192;
-            if (cap > (1u << 20)) {
-                free(text);
-                fclose(f);
-                snprintf(err, SH_CONFIG_ERR, "%s: larger than 1 MiB", path);
-                return SH_EFORMAT;
-            }
-            char *t = realloc(text, cap);
-            if (!t) {
-                free(text);
-                fclose(f);
-                snprintf(err, SH_CONFIG_ERR, "%s: out of memory", path);
-                return SH_ENOMEM;
-            }
-            text = t;
-        }
-        size_t got = fread(text + len, 1, 4096, f);
-        len += got;
-        if (got < 4096)
-            break;
-    }
-    int bad = ferror(f);
-    fclose(f);
-    if (bad) {
-        free(text);
-        snprintf(err, SH_CONFIG_ERR, "%s: read error", path);
-        return SH_EIO;
-    }
-    text[len] = 0;
-    if (strlen(text) != len) {
-        free(text);
-        snprintf(err, SH_CONFIG_ERR, "%s: contains a NUL byte", path);
-        return SH_EFORMAT;
-    }
-    sh_status st = sh_config_parse_string(cfg, text, path, err);
-    free(text);
-    return st;
 }
 
 int sh_config_option(const char *name, const char **section, const char **key, int *is_flag)
