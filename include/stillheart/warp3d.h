@@ -128,6 +128,12 @@ sh_status sh_warp3d_view_locate(const sh_warp3d_view *view, double x, double y, 
 sh_status sh_warp3d_view_apply(sh_warp *warp, const sh_warp3d_view *view, const sh_image *current,
                                sh_image *out, int ox, int oy);
 
+/* The squeezed stereo layouts (half-resolution side by side / top and bottom): halves full
+ * along x (axis 0) or y (axis 1), averaging pixel pairs, into the window of out at (ox, oy).
+ * Same format; the halved size must be even (a multiple of 4 for I420, whose chroma is halved
+ * too) and the window's offsets even for I420. */
+sh_status sh_warp3d_squeeze(const sh_image *full, int axis, sh_image *out, int ox, int oy);
+
 /* ---- PLY export of the surface ---- */
 
 typedef struct sh_warp3d_ply sh_warp3d_ply;

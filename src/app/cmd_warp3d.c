@@ -46,7 +46,9 @@ static void usage(FILE *out)
         "                     and shifted by T (mm, camera axes)\n"
         "  --baseline MM      stereo: distance between the virtual eyes (default 10)\n"
         "  --layout L         stereo: sbs (side by side, OUT is 2W x H, default) or tb (top-\n"
-        "                     bottom, W x 2H); left eye left / on top\n"
+        "                     bottom, W x 2H); sbs-half / tb-half: the same squeezed into\n"
+        "                     W x H (each eye at half width / height, as 3D TVs take it; W resp.\n"
+        "                     H a multiple of 4 for 4:2:0); left eye left / on top\n"
         "  --depth-scale S    exaggerate the surface's relief along its normal (default 1)\n"
         "  --threads T        worker threads for the rendering (default 1)\n"
         "  --max-error PX     largest tolerated error of the interpolated map (default 0.05)\n"
@@ -203,10 +205,19 @@ static int parse_pose(const char *text, double rvec[3], double tvec[3])
 }
 
 /* Writes the stabilized frame: one view, or the two eyes in their layout. Raw: the input in
- * every view's place. */
-static sh_status render(sh_warp *warp, const slot3d *s, int nviews, int tb, const sh_image *in,
-                        sh_image *out, int raw)
+ * every view's place. Half layouts render each eye into `eye` (W x H) and squeeze it. */
+static sh_status render(sh_warp *warp, const slot3d *s, int nviews, int tb, int half, sh_image *eye,
+                        const sh_image *in, sh_image *out, int raw)
 {
+    if (half && nviews == 2) {
+        for (int v = 0; v < 2; v++) {
+            sh_status st = raw ? SH_OK : sh_warp3d_view_apply(warp, s->view[v], in, eye, 0, 0);
+            if (st == SH_OK)
+                st = sh_warp3d_squeeze(raw ? in : eye, tb, out, tb ? 0 : v * in->width / 2, tb ? v * in->height / 2 : 0);
+            if (st != SH_OK) return st;
+        }
+        return SH_OK;
+    }
     for (int v = 0; v < nviews; v++) {
         int ox = tb ? 0 : v * in->width, oy = tb ? v * in->height : 0;
         sh_status st;
@@ -283,7 +294,7 @@ int cmd_warp3d(int argc, char **argv)
         fprintf(stderr, "stillheart warp3d: --reference %d needs a file, not standard input\n", reference);
         return 2;
     }
-    int stereo = 0, tb = 0, pose = 0;
+    int stereo = 0, tb = 0, half = 0, pose = 0;
     double rvec[3] = {0, 0, 0}, tvec[3] = {0, 0, 0};
     if (!strcmp(view, "stereo")) stereo = 1;
     else if (!strncmp(view, "pose:", 5)) {
@@ -296,9 +307,10 @@ int cmd_warp3d(int argc, char **argv)
         fprintf(stderr, "stillheart warp3d: --view %s: reference, stereo or pose:...\n", view);
         return 2;
     }
-    if (!strcmp(layout, "tb")) tb = 1;
-    else if (strcmp(layout, "sbs")) {
-        fprintf(stderr, "stillheart warp3d: --layout %s: sbs or tb\n", layout);
+    if (!strcmp(layout, "tb") || !strcmp(layout, "tb-half")) tb = 1;
+    half = !strcmp(layout, "sbs-half") || !strcmp(layout, "tb-half");
+    if (!tb && !half && strcmp(layout, "sbs")) {
+        fprintf(stderr, "stillheart warp3d: --layout %s: sbs, tb, sbs-half or tb-half\n", layout);
         return 2;
     }
 
@@ -321,7 +333,7 @@ int cmd_warp3d(int argc, char **argv)
     sh_y4m_writer *writer = NULL;
     sh_warp *warp = NULL;
     sh_metric *metric_in = NULL, *metric_out = NULL;
-    sh_image in = {0}, out = {0}, ref = {0}, rgb = {0};
+    sh_image in = {0}, out = {0}, ref = {0}, rgb = {0}, eye = {0};
     int *ids = NULL;
     double *cur_xyz = NULL, *scratch = NULL;
 
@@ -377,9 +389,14 @@ int cmd_warp3d(int argc, char **argv)
     free(ref_xyz);
 
     sh_y4m_header out_hdr = *hdr;
-    if (stereo) {
+    if (stereo && !half) {
         if (tb) out_hdr.height *= 2;
         else out_hdr.width *= 2;
+    }
+    if (stereo && half && (tb ? hdr->height : hdr->width) % (hdr->format == SH_PIX_I420 ? 4 : 2)) {
+        fprintf(stderr, "stillheart warp3d: --layout %s: the frame's %s (%d) must be a multiple of %d\n", layout,
+                tb ? "height" : "width", tb ? hdr->height : hdr->width, hdr->format == SH_PIX_I420 ? 4 : 2);
+        goto done;
     }
     if (out_hdr.width > SH_IMAGE_MAX_SIZE || out_hdr.height > SH_IMAGE_MAX_SIZE) {
         fprintf(stderr, "stillheart warp3d: the stereo frame %dx%d is too large\n", out_hdr.width,
@@ -389,7 +406,8 @@ int cmd_warp3d(int argc, char **argv)
     if (sh_image_create(&in, hdr->format, hdr->width, hdr->height) != SH_OK ||
         sh_image_create(&out, hdr->format, out_hdr.width, out_hdr.height) != SH_OK ||
         sh_image_create(&ref, hdr->format, hdr->width, hdr->height) != SH_OK ||
-        (ply_dir && sh_image_create(&rgb, SH_PIX_RGB24, hdr->width, hdr->height) != SH_OK)) {
+        (ply_dir && sh_image_create(&rgb, SH_PIX_RGB24, hdr->width, hdr->height) != SH_OK) ||
+        (stereo && half && sh_image_create(&eye, hdr->format, hdr->width, hdr->height) != SH_OK)) {
         fail("frame buffers");
         goto done;
     }
@@ -411,7 +429,7 @@ int cmd_warp3d(int argc, char **argv)
         if (!read_frame_at(in_path, reference, &ref)) { fail("reference frame"); goto done; }
         if (sh_warp3d_model_update(slot->model, cur_xyz) != SH_OK ||
             sh_warp3d_view_update(slot->view[0]) != SH_OK ||
-            render(warp, slot, 1, 0, &ref, &out, 0) != SH_OK ||
+            render(warp, slot, 1, 0, 0, NULL, &ref, &out, 0) != SH_OK ||
             sh_metric_create(&ref, sh_warp3d_view_hull(slot->view[0]), fr, &metric_in) != SH_OK ||
             sh_metric_create(&out, sh_warp3d_view_hull(slot->view[0]), fr, &metric_out) != SH_OK) {
             fail("reference frame");
@@ -436,14 +454,14 @@ int cmd_warp3d(int argc, char **argv)
                   sh_warp3d_model_update(slot->model, cur_xyz) != SH_OK;
         for (int v = 0; v < cache.nviews && !raw; v++)
             raw = sh_warp3d_view_update(slot->view[v]) != SH_OK;
-        if (!raw && render(warp, slot, cache.nviews, tb, &in, &out, 0) != SH_OK) raw = 1;
+        if (!raw && render(warp, slot, cache.nviews, tb, half, &eye, &in, &out, 0) != SH_OK) raw = 1;
         if (raw) {
             raw_frames++;
             if (!quiet)
                 fprintf(stderr, "%sstillheart warp3d: frame %d left unstabilized (%d markers%s%s)\n",
                         progress.enabled ? "\n" : "", frames, n, n >= 4 ? ": " : "",
                         n >= 4 ? sh_error_message() : "");
-            render(warp, slot, cache.nviews, tb, &in, &out, 1);
+            render(warp, slot, cache.nviews, tb, half, &eye, &in, &out, 1);
         }
         warp_seconds += app_now() - t0;
         if (frames == reference && from_stdin && measure && !metric_in && !raw) {
@@ -500,6 +518,7 @@ done:
     sh_image_destroy(&out);
     sh_image_destroy(&ref);
     sh_image_destroy(&rgb);
+    sh_image_destroy(&eye);
     free(ids);
     free(cur_xyz);
     free(scratch);

@@ -264,11 +264,86 @@ static void test_stereo_disparity(void **state)
         }
         printf("stereo baseline %g mm: largest disparity error %.4f px\n", b, worst);
         assert_true(worst < 0.25);
+        /* the squeezed layout (sbs-half): each eye halved along x into one W x H frame; pixel i
+         * of a half covers full pixels 2i and 2i + 1, so x_half = (x - 0.5) / 2 and the
+         * disparity halves */
+        sh_image half;
+        assert_int_equal(sh_image_create(&half, SH_PIX_GRAY8, W, H), SH_OK);
+        for (int e = 0; e < 2; e++) {
+            sh_image one = sbs;
+            one.owned = NULL;
+            one.width = one.plane[0].width = W;
+            one.plane[0].data += e * W;
+            assert_int_equal(sh_warp3d_squeeze(&one, 0, &half, e * W / 2, 0), SH_OK);
+        }
+        double worst_half = 0;
+        for (int d = 0; d < DOTS; d++) {
+            double P[3] = {dot_xy[d][0], dot_xy[d][1], surface_z(dot_xy[d][0], dot_xy[d][1])}, xl, yl, xr, yr;
+            project(&eye[0], P, &xl, &yl);
+            project(&eye[1], P, &xr, &yr);
+            double depth = eye[0].R[6] * P[0] + eye[0].R[7] * P[1] + eye[0].R[8] * P[2] + eye[0].t[2];
+            double lx, ly, rx, ry;
+            centroid(&half, 0, (xl - 0.5) / 2, yl, &lx, &ly);
+            centroid(&half, W / 2, (xr - 0.5) / 2, yr, &rx, &ry);
+            worst_half = fmax(worst_half, fabs((lx - rx) - cam.K[0] * b / depth / 2));
+            worst_half = fmax(worst_half, fabs(lx - (xl - 0.5) / 2)); /* and each eye where it belongs */
+        }
+        printf("stereo baseline %g mm, sbs-half: largest disparity / position error %.4f px (half width)\n", b,
+               worst_half);
+        assert_true(worst_half < 0.25);
+        sh_image_destroy(&half);
         sh_warp_destroy(warp);
         sh_image_destroy(&sbs);
     }
     sh_warp3d_model_destroy(model);
     sh_image_destroy(&frame);
+}
+
+/* The squeeze of the half-resolution layouts against closed forms: a ramp 10 x + y halved
+ * along x is 20 x + y + 5 (pairs 10 (2x) + y and 10 (2x + 1) + y, rounded up), along y
+ * 10 x + 2 y + 1. */
+static void test_squeeze(void **state)
+{
+    (void)state;
+    sh_image full, out;
+    assert_int_equal(sh_image_create(&full, SH_PIX_GRAY8, 16, 8), SH_OK);
+    assert_int_equal(sh_image_create(&out, SH_PIX_GRAY8, 16, 8), SH_OK);
+    for (int y = 0; y < 8; y++)
+        for (int x = 0; x < 16; x++) full.plane[0].data[(size_t)y * full.plane[0].stride + x] = (uint8_t)(10 * x + y);
+    memset(out.plane[0].data, 0, (size_t)out.plane[0].stride * 8);
+    assert_int_equal(sh_warp3d_squeeze(&full, 0, &out, 8, 0), SH_OK);
+    for (int y = 0; y < 8; y++)
+        for (int x = 0; x < 16; x++)
+            assert_int_equal(out.plane[0].data[(size_t)y * out.plane[0].stride + x], x < 8 ? 0 : 20 * (x - 8) + y + 5);
+    assert_int_equal(sh_warp3d_squeeze(&full, 1, &out, 0, 4), SH_OK);
+    for (int y = 4; y < 8; y++)
+        for (int x = 0; x < 16; x++)
+            assert_int_equal(out.plane[0].data[(size_t)y * out.plane[0].stride + x], 10 * x + 2 * (y - 4) + 1);
+    assert_int_equal(sh_warp3d_squeeze(&full, 0, &out, 9, 0), SH_EINVAL); /* past the edge */
+    assert_int_equal(sh_warp3d_squeeze(&full, 2, &out, 0, 0), SH_EINVAL);
+    sh_image_destroy(&full);
+    sh_image_destroy(&out);
+    /* 4:2:0: chroma halves with luma; widths / heights a multiple of 4, even offsets */
+    sh_image a, b, c;
+    assert_int_equal(sh_image_create(&a, SH_PIX_I420, 8, 4), SH_OK);
+    assert_int_equal(sh_image_create(&b, SH_PIX_I420, 8, 4), SH_OK);
+    assert_int_equal(sh_image_create(&c, SH_PIX_I420, 6, 4), SH_OK);
+    for (int p = 0; p < 3; p++)
+        for (int y = 0; y < a.plane[p].height; y++)
+            for (int x = 0; x < a.plane[p].width; x++)
+                a.plane[p].data[(size_t)y * a.plane[p].stride + x] = (uint8_t)(100 * p + 4 * x);
+    assert_int_equal(sh_warp3d_squeeze(&a, 0, &b, 4, 0), SH_OK);
+    for (int p = 0; p < 3; p++)
+        for (int y = 0; y < b.plane[p].height; y++)
+            for (int x = b.plane[p].width / 2; x < b.plane[p].width; x++)
+                assert_int_equal(b.plane[p].data[(size_t)y * b.plane[p].stride + x],
+                                 100 * p + 8 * (x - b.plane[p].width / 2) + 2);
+    assert_int_equal(sh_warp3d_squeeze(&c, 0, &b, 0, 0), SH_EINVAL); /* 6 wide */
+    assert_int_equal(sh_warp3d_squeeze(&a, 1, &b, 0, 1), SH_EINVAL); /* odd offset */
+    assert_int_equal(sh_warp3d_squeeze(&a, 0, &c, 4, 0), SH_EINVAL); /* no room */
+    sh_image_destroy(&a);
+    sh_image_destroy(&b);
+    sh_image_destroy(&c);
 }
 
 /* The reference view under the rigid motion gives back the reference picture. */
@@ -403,6 +478,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_rigid_motion_removed_exactly),
         cmocka_unit_test(test_stereo_disparity),
+        cmocka_unit_test(test_squeeze),
         cmocka_unit_test(test_reference_view_image),
         cmocka_unit_test(test_ply_on_surface),
         cmocka_unit_test(test_bad_input),
