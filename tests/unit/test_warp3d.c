@@ -211,6 +211,16 @@ static void centroid(const sh_image *img, int x0, double px, double py, double *
     *cy = sy / sw;
 }
 
+/* Dot d's true pixels in the two eyes and its depth (closed form, not the engine). */
+static void dot_truth(const sh_calib_camera eye[2], int d, double *xl, double *yl, double *xr, double *yr,
+                      double *depth)
+{
+    double P[3] = {dot_xy[d][0], dot_xy[d][1], surface_z(dot_xy[d][0], dot_xy[d][1])};
+    project(&eye[0], P, xl, yl);
+    project(&eye[1], P, xr, yr);
+    *depth = eye[0].R[6] * P[0] + eye[0].R[7] * P[1] + eye[0].R[8] * P[2] + eye[0].t[2];
+}
+
 static void test_stereo_disparity(void **state)
 {
     (void)state;
@@ -250,10 +260,8 @@ static void test_stereo_disparity(void **state)
         }
         double worst = 0;
         for (int d = 0; d < DOTS; d++) {
-            double P[3] = {dot_xy[d][0], dot_xy[d][1], surface_z(dot_xy[d][0], dot_xy[d][1])}, xl, yl, xr, yr;
-            project(&eye[0], P, &xl, &yl);
-            project(&eye[1], P, &xr, &yr);
-            double depth = eye[0].R[6] * P[0] + eye[0].R[7] * P[1] + eye[0].R[8] * P[2] + eye[0].t[2];
+            double xl, yl, xr, yr, depth;
+            dot_truth(eye, d, &xl, &yl, &xr, &yr, &depth);
             double expected = cam.K[0] * b / depth; /* closed form */
             double lx, ly, rx, ry;
             centroid(&sbs, 0, xl, yl, &lx, &ly);
@@ -278,10 +286,8 @@ static void test_stereo_disparity(void **state)
         }
         double worst_half = 0;
         for (int d = 0; d < DOTS; d++) {
-            double P[3] = {dot_xy[d][0], dot_xy[d][1], surface_z(dot_xy[d][0], dot_xy[d][1])}, xl, yl, xr, yr;
-            project(&eye[0], P, &xl, &yl);
-            project(&eye[1], P, &xr, &yr);
-            double depth = eye[0].R[6] * P[0] + eye[0].R[7] * P[1] + eye[0].R[8] * P[2] + eye[0].t[2];
+            double xl, yl, xr, yr, depth;
+            dot_truth(eye, d, &xl, &yl, &xr, &yr, &depth);
             double lx, ly, rx, ry;
             centroid(&half, 0, (xl - 0.5) / 2, yl, &lx, &ly);
             centroid(&half, W / 2, (xr - 0.5) / 2, yr, &rx, &ry);
