@@ -100,6 +100,10 @@ typedef struct {
     long lost;          /* markers that became lost */
     int locked;         /* rates estimated */
     double heart_hz, resp_hz; /* current estimates (0 when none) */
+    long misshapen;     /* detections refused for their quad's shape (a partly hidden tag whose
+                         * corners an occluder moved: docs/tracking.md) */
+    long held;          /* detections of a lost or suspect marker held back until two more agree
+                         * with them (docs/tracking.md) */
 } sh_track_stats;
 
 typedef struct sh_tracker sh_tracker;

@@ -136,10 +136,26 @@ static int fit_basis(double tj, double tmid, double fh, int nh, double fr, int n
     return m;
 }
 
+#define FIT_PASSES 4
+
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+/* median of v[0..n-1] (sorts v; at most SH_TRACK_HISTORY values, only when the rates change) */
+static double median_of(double *v, int n)
+{
+    if (n <= 0) return 0;
+    qsort(v, (size_t)n, sizeof *v, cmp_double);
+    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
 /* Least squares fit of one series; coef (m), cov (m x m, unscaled (A^T A)^-1), returns the residual
- * RMS of the inliers or -1 when the fit is impossible. Robust: refitted twice without the samples
- * off by more than 3 RMS (never less than 3 floor), so the odd wrong detection accepted before the
- * rates were known does not bend the model. */
+ * RMS of the inliers or -1 when the fit is impossible. Robust: refitted without the samples off by
+ * more than 3 robust standard deviations (1.4826 x the median absolute residual, never less than
+ * floor), so the wrong detections accepted before the rates were known do not bend the model. */
 static double fit_series(const double *x, int n, double ts, double fh, int nh, double fr, int nr,
                          double *coef, double *cov, int *mout, double floor)
 {
@@ -147,7 +163,7 @@ static double fit_series(const double *x, int n, double ts, double fh, int nh, d
     memset(out, 0, sizeof out);
     int m = 2 + 2 * nh + 2 * nr;
     double tmid = 0.5 * (n - 1) * ts, rms = -1;
-    for (int pass = 0; pass < 3; pass++) {
+    for (int pass = 0; pass < FIT_PASSES; pass++) {
         double A[NC * NC] = {0}, b[NC] = {0}, phi[NC];
         int cnt = 0;
         for (int j = 0; j < n; j++) {
@@ -173,15 +189,25 @@ static double fit_series(const double *x, int n, double ts, double fh, int nh, d
             ss += (x[j] - v) * (x[j] - v);
         }
         rms = sqrt(ss / (cnt > m ? cnt - m : 1));
-        if (pass == 2 || floor < 0) break;
-        double lim = 3 * fmax(rms, floor);
-        int changed = 0;
+        if (pass == FIT_PASSES - 1 || floor < 0) break;
+        /* the scale from the median absolute residual of every sample: a run of wrong detections
+         * inflates the RMS enough to hide inside 3 of it, not the median */
+        double res[SH_TRACK_HISTORY];
+        int nres = 0;
         for (int j = 0; j < n; j++) {
             if (isnan(x[j])) continue;
             fit_basis(j * ts, tmid, fh, nh, fr, nr, phi);
             double v = 0;
             for (int a = 0; a < m; a++) v += phi[a] * coef[a];
-            unsigned char o = fabs(x[j] - v) > lim;
+            res[nres++] = fabs(x[j] - v);
+        }
+        double sorted[SH_TRACK_HISTORY];
+        memcpy(sorted, res, sizeof(double) * nres);
+        double lim = 3 * fmax(1.4826 * median_of(sorted, nres), floor);
+        int changed = 0;
+        for (int j = 0, q = 0; j < n; j++) {
+            if (isnan(x[j])) continue;
+            unsigned char o = res[q++] > lim;
             if (o != out[j]) changed = 1;
             out[j] = o;
         }

@@ -1,6 +1,7 @@
 /* Private to src/track: the tracker's state and the pieces its files share
- * (track.c: create and the per-frame steps; filter.c: the Kalman filter of one coordinate;
- * rates.c: the heartbeat and respiration rates from all markers' recent tracks). */
+ * (track.c: create and the per-frame steps; gate.c: one marker's update and the predictions it
+ * is gated against; quad.c: the shape test of a detection; filter.c: the Kalman filter of one
+ * coordinate; rates.c: the heartbeat and respiration rates from all markers' recent tracks). */
 #ifndef STILLHEART_TRACK_INTERNAL_H
 #define STILLHEART_TRACK_INTERNAL_H
 
@@ -34,6 +35,17 @@ typedef struct {
     int last_frame;        /* frame of the last accepted detection */
     int rejects;           /* consecutive frames with this id's detections gated away */
     double rej_sum[2], rej_ss; /* their offsets from the prediction (px): sum, sum of squares */
+    /* shape test (quad.c): per camera the last accepted quad (corners minus their mean) */
+    double quad[MAXC][4][2];
+    int quad_ok[MAXC], quad_frame[MAXC];
+    /* a lost marker's last detection that passed the gate (track.c: confirmed_return) */
+    double pend_off[MAXC][2], pend_quad[MAXC][4][2];
+    int pend_frame[MAXC];  /* its frame + 1; 0 none */
+    int pend_agree[MAXC];  /* successive pairs of them that agreed */
+    int suspect_until;     /* frame until which its detections need confirming (a quad of it was
+                            * refused for its shape: an occluder is at it) */
+    int cut_until;         /* frame until which it is gated against its neighbours' motion too (a
+                            * quad of it was refused for its shape) */
     /* reported (possibly fused) estimate */
     double pos[3], cov[9];
     /* this frame's per-camera detection bookkeeping */
@@ -80,5 +92,19 @@ void trk_update_filter(const sh_tracker *t, axis_filter *f, double z, double r);
 void trk_init_filter(axis_filter *f, double z, double r, double vvar);
 void trk_estimate_rates(sh_tracker *t);
 float *trk_hist_at(sh_tracker *t, int mi, int a);
+/* track.c */
+void trk_marker_pos(const sh_tracker *t, const marker *mk, double *p, double *var);
+/* gate.c */
+int trk_predicted_xy(const sh_tracker *t, const marker *mk, int c, const double *shift,
+                     const double *fvar, double xy[2], double S[4]);
+int trk_spatial_estimate(const sh_tracker *t, const marker *mk, int self, double *corr, double *var);
+void trk_update_marker(sh_tracker *t, int i, const sh_detection *const *det, int num_cameras);
+/* quad.c: 1 when detection d of marker mk in camera c has the shape of a whole tag (quad.c) */
+int trk_quad_check(sh_tracker *t, marker *mk, int c, const sh_detection *d);
+/* 1 when d's quad is the quad ref (centred corners) of `age` frames ago, up to the tag's motion */
+int trk_quad_similar(const sh_tracker *t, const double ref[4][2], int age, const sh_detection *d);
+void trk_quad_centred(const sh_detection *d, double q[4][2]);
+/* d was accepted: it is the reference of the next shape tests */
+void trk_quad_learn(sh_tracker *t, marker *mk, int c, const sh_detection *d);
 
 #endif

@@ -17,7 +17,7 @@ void track_sim_default(track_sim_config *c)
     c->seed = 1;
     c->noise_px = 0.2;
     c->dropout = 0.01;
-    c->partial_shift = 4.0;
+    c->partial_shift = 8.0;
     c->duplicate_rate = 0.0;
     c->hide_start = 7.0;
     c->spatial = SH_SPATIAL_FUSE;
@@ -32,6 +32,44 @@ static uint64_t rng_next(uint64_t *s)
 }
 static double urand(uint64_t *s) { return ((double)(rng_next(s) >> 11) + 0.5) / 9007199254740992.0; }
 static double nrand(uint64_t *s) { return sqrt(-2 * log(urand(s))) * cos(2 * PI * urand(s)); }
+
+/* A quad libapriltag fits to a partly hidden tag: the border it sees is cut or extended by the
+ * occluder, so hidden corners land off by `shift` px. Half the time every hidden corner moves on
+ * its own (the occluder covers corners); otherwise one side moves as a whole (an occluder along an
+ * edge: the quad stays a parallelogram and only its size gives it away); an occluder over the
+ * centre alone breaks a side too. The centre is where libapriltag puts it: the homography's image
+ * of the tag centre, i.e. the intersection of the corrupted quad's diagonals. */
+static void corrupt_quad(sh_detection *d, const int *vis, double shift, double noise, uint64_t *rng)
+{
+    int hidden = -1;
+    for (int k = 0; k < 4; k++)
+        if (!vis[k] && (hidden < 0 || urand(rng) < 0.5)) hidden = k;
+    if (hidden >= 0 && urand(rng) < 0.5) {
+        for (int k = 0; k < 4; k++) {
+            if (vis[k]) continue;
+            double a = 2 * PI * urand(rng);
+            d->corner[k][0] += shift * cos(a);
+            d->corner[k][1] += shift * sin(a);
+        }
+    } else {
+        int k0 = hidden >= 0 ? hidden : (int)(urand(rng) * 4) & 3;
+        int k1 = urand(rng) < 0.5 ? (k0 + 1) & 3 : (k0 + 3) & 3;
+        double a = 2 * PI * urand(rng);
+        for (int k = 0; k < 2; k++) {
+            d->corner[k ? k1 : k0][0] += shift * cos(a);
+            d->corner[k ? k1 : k0][1] += shift * sin(a);
+        }
+    }
+    /* diagonals 0-2 and 1-3: p0 + s (p2 - p0) = p1 + u (p3 - p1) */
+    double ax = d->corner[2][0] - d->corner[0][0], ay = d->corner[2][1] - d->corner[0][1];
+    double bx = d->corner[3][0] - d->corner[1][0], by = d->corner[3][1] - d->corner[1][1];
+    double cx = d->corner[1][0] - d->corner[0][0], cy = d->corner[1][1] - d->corner[0][1];
+    double den = ax * by - ay * bx;
+    if (fabs(den) < 1e-9) return;
+    double s = (cx * by - cy * bx) / den;
+    d->cx = d->corner[0][0] + s * ax + noise * nrand(rng);
+    d->cy = d->corner[0][1] + s * ay + noise * nrand(rng);
+}
 
 static void to_calib(const phantom_model *m, sh_calib *calib)
 {
@@ -149,10 +187,7 @@ sh_status track_sim_run(const track_sim_config *c, const sh_track_options *topts
                     d->corner[k][1] += c->noise_px * nrand(&rng);
                 }
                 if (partial) {
-                    /* a quad fitted to a partly hidden tag: the centre lands off */
-                    double a = 2 * PI * urand(&rng);
-                    d->cx += c->partial_shift * cos(a);
-                    d->cy += c->partial_shift * sin(a);
+                    corrupt_quad(d, vis, c->partial_shift, c->noise_px, &rng);
                     corrupted[cam][i] = 1;
                     r->corrupted_fed++;
                 }

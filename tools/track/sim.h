@@ -17,8 +17,10 @@ typedef struct {
     double noise_px;        /* detection noise per coordinate (0.2) */
     double dropout;         /* probability a visible tag is not detected */
     double partial_shift;   /* a tag partly hidden is detected in 30% of the frames
-                             * (libapriltag mostly fails on a broken border) with its centre off by
-                             * this (px) in a random direction; 0: never detected */
+                             * (libapriltag mostly fails on a broken border) with its hidden
+                             * corners, or one side, off by this (px) in a random direction and
+                             * the centre where libapriltag puts it (the diagonals' crossing:
+                             * about half of this off); 0: never detected */
     double duplicate_rate;  /* probability per frame and camera of a duplicated id far away */
     double hide_fraction;   /* forced occlusion: this fraction of the markers ... */
     double hide_start, hide_duration; /* ... from hide_start for hide_duration seconds */

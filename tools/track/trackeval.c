@@ -58,11 +58,11 @@ int main(int argc, char **argv)
     printf("%s cams=%d hide=%.2f/%.2fs spatial=%s: lock@%d f_h=%.4f (true %.4f) f_r=%.4f (true %.4f)\n"
            "  visible: mean %.3f px max %.3f px (raw detections %.3f px)  3D mean %.3f mm max %.3f mm  n=%ld\n"
            "  hidden:  mean %.3f px max %.3f px  3D mean %.3f mm  n=%ld lost=%ld\n"
-           "  gated %ld duplicates %ld unknown %ld inconsistent %ld corrupted-fed %ld false %ld decoy %ld\n",
+           "  gated %ld misshapen %ld held %ld duplicates %ld unknown %ld inconsistent %ld corrupted-fed %ld false %ld decoy %ld\n",
            c.preset, c.cameras, c.hide_fraction, c.hide_duration, c.spatial ? "fuse" : "off",
            r.lock_frame, r.heart_hz, r.true_heart_hz, r.resp_hz, r.true_resp_hz, r.vis_mean_px,
            r.vis_max_px, r.raw_mean_px, r.vis_mean_mm, r.vis_max_mm, r.vis_count, r.hid_mean_px,
-           r.hid_max_px, r.hid_mean_mm, r.hid_count, r.hid_lost, r.stats.gated, r.stats.duplicates,
+           r.hid_max_px, r.hid_mean_mm, r.hid_count, r.hid_lost, r.stats.gated, r.stats.misshapen, r.stats.held, r.stats.duplicates,
            r.stats.unknown, r.stats.inconsistent, r.corrupted_fed, r.false_corr, r.decoy_reported);
     return 0;
 }
