@@ -22,6 +22,7 @@
 
 #ifdef SH_HAVE_LIBCAMERA
 
+#include <algorithm>
 #include <atomic>
 #include <dirent.h>
 #include <errno.h>
@@ -91,6 +92,7 @@ struct Impl {
     int nheld = 0;
     std::atomic<bool> gone{false}; // the camera's disconnected signal (udev hotplug)
     bool vanished = false;         // lost with its device nodes gone: cannot be stopped
+    std::vector<int> removed_before; // device fds already removed at open (not this camera's)
     ControlList initial;   // the controls asked for, set on the first requests
 
     void completed(Request *r)
@@ -156,15 +158,28 @@ int backoff_min(const sh_source *s) { return s->opts.backoff_min_ms > 0 ? s->opt
 int backoff_max(const sh_source *s) { return s->opts.backoff_max_ms > 0 ? s->opts.backoff_max_ms : 5000; }
 int timeout_of(const sh_source *s) { return s->opts.timeout_ms > 0 ? s->opts.timeout_ms : 1000; }
 
+void removed_device_fds(std::vector<int> *out);
+
+// Stops a running camera where that is possible; otherwise it stays marked running. libcamera
+// 0.0.3 asserts in Camera::stop() when the requests queued to a device that has gone never come
+// back (streamOff fails before it cancels them), so a camera whose device vanished unnoticed by
+// udev is not stopped; a disconnected one (udev told libcamera) refuses to stop (-ENODEV).
+void stop_camera(Impl *m)
+{
+    if (!m->running) return;
+    if (!m->gone) {
+        std::vector<int> now;
+        removed_device_fds(&now);
+        for (int fd : now)
+            if (std::find(m->removed_before.begin(), m->removed_before.end(), fd) == m->removed_before.end())
+                m->vanished = true;
+    }
+    if (!m->vanished && m->camera->stop() == 0) m->running = false;
+}
+
 void destroy(Impl *m)
 {
-    // libcamera 0.0.3 asserts in Camera::stop() when the requests queued to a device that has
-    // gone never come back (streamOff fails before it cancels them): such a camera is left
-    // running, unreleased. A disconnected camera (udev told libcamera) stops at once.
-    if (m->running && !m->vanished) {
-        m->camera->stop();
-        m->running = false;
-    }
+    stop_camera(m);
     if (m->camera) {
         m->camera->requestCompleted.disconnect(m, &Impl::completed);
         m->camera->disconnected.disconnect(m, &Impl::disconnected);
@@ -175,9 +190,9 @@ void destroy(Impl *m)
     m->alloc.reset();
     if (m->acquired && !m->running) m->camera->release();
     if (m->running) {
-        // Nor can it be destroyed: its pipeline's IPA thread still runs, and a running std::thread
-        // destroyed terminates the process. It is kept, never freed (so not destroyed at exit
-        // either): one camera object per device that vanished unnoticed by udev.
+        // A camera that could not be stopped cannot be destroyed either: its pipeline's IPA
+        // thread may still run, and a running std::thread destroyed terminates the process. It
+        // is kept, never freed (so not destroyed at exit either): one camera object per loss.
         static std::vector<std::shared_ptr<Camera>> *kept = new std::vector<std::shared_ptr<Camera>>();
         std::lock_guard<std::mutex> g(manager_lock);
         kept->push_back(m->camera);
@@ -188,14 +203,15 @@ void destroy(Impl *m)
     manager_put();
 }
 
-// Whether a V4L2 or media device node this process holds open has been removed: without udev
-// hotplug (no disconnected signal) that is how a camera whose device went away is told apart
-// from one that only stalled.
-bool device_node_removed()
+// The fds of V4L2 and media device nodes this process holds open that have been removed (their
+// link ends in " (deleted)"). Without udev hotplug (no disconnected signal) a new one is how a
+// camera whose device went away is told apart from one that only stalled; those already there
+// at open belong to cameras lost before.
+void removed_device_fds(std::vector<int> *out)
 {
+    out->clear();
     DIR *d = opendir("/proc/self/fd");
-    if (!d) return false;
-    bool removed = false;
+    if (!d) return;
     while (struct dirent *e = readdir(d)) {
         char path[300], target[256];
         snprintf(path, sizeof path, "/proc/self/fd/%s", e->d_name);
@@ -205,10 +221,9 @@ bool device_node_removed()
         if ((!strncmp(target, "/dev/video", 10) || !strncmp(target, "/dev/v4l-subdev", 15) ||
              !strncmp(target, "/dev/media", 10)) &&
             strstr(target, " (deleted)"))
-            removed = true;
+            out->push_back(atoi(e->d_name));
     }
     closedir(d);
-    return removed;
 }
 
 // Starts the camera and queues every request, the asked controls on each of these first ones.
@@ -234,11 +249,7 @@ void lose(lc_source *l, int64_t now)
     l->base.stats.online = 0;
     l->backoff_ms = backoff_min(&l->base);
     l->retry_at = now + (int64_t)l->backoff_ms * 1000000;
-    m->vanished = !m->gone && device_node_removed();
-    if (m->running && !m->vanished) {
-        m->camera->stop(); // cancels the queued requests
-        m->running = false;
-    }
+    stop_camera(m); // cancels the queued requests where it can
     {
         std::lock_guard<std::mutex> g(m->lock);
         m->done.clear();
@@ -423,8 +434,12 @@ sh_status lc_stop(sh_source *s)
         l->impl = nullptr;
         return SH_OK;
     }
-    if (m->running) m->camera->stop();
-    m->running = false;
+    stop_camera(m);
+    if (m->running) { // its device has gone: what is left goes, start looks it up again
+        destroy(m);
+        l->impl = nullptr;
+        return SH_OK;
+    }
     std::lock_guard<std::mutex> g(m->lock);
     m->done.clear();
     return SH_OK;
@@ -496,6 +511,7 @@ sh_status open_camera(const char *name, const sh_source_options *o, Impl **out, 
         manager_put();
         return sh_error_set(SH_ENOMEM, "libcamera:%s: out of memory", name);
     }
+    removed_device_fds(&m->removed_before);
     sh_status st = SH_OK;
     std::string want(name), ids;
     {
