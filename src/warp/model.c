@@ -14,8 +14,6 @@
  * non-affine motions (tests/unit/test_warp.c), the true error reaches 1.2 x the raw estimate;
  * 2 leaves a margin over that. */
 #define ERROR_SAFETY 2.0
-/* Rows per band of the triangle index. */
-#define TRIANGLE_BAND 16
 
 void sh_warp_options_default(sh_warp_options *opts)
 {
@@ -197,8 +195,8 @@ static int triangle_map(const double *p0, const double *p1, const double *p2, co
 
 static void grid_map(sh_warp_model *m)
 {
-    size_t nodes = (size_t)m->nx * (size_t)m->ny;
-    for (size_t node = 0; node < nodes; node++) {
+    for (size_t node = 0, j = 0; j < (size_t)m->ny; j++)
+    for (size_t i = 0; i < (size_t)m->nx; i++, node++) {
         const int *index = m->index + m->row_start[node];
         const double *weight = m->weight + m->row_start[node];
         int terms = m->row_start[node + 1] - m->row_start[node];
@@ -227,20 +225,26 @@ static void grid_map(sh_warp_model *m)
             y += weight[k] * m->coef[2 * (size_t)index[k] + 1];
         }
 #endif
-        int i = (int)(node % (size_t)m->nx), j = (int)(node / (size_t)m->nx);
         m->map[2 * node] = m->gx0 + (double)i * m->h + x;
         m->map[2 * node + 1] = m->gy0 + (double)j * m->h + y;
     }
 }
 
+static inline double max2(double a, double b)
+{
+    return a > b ? a : b; /* maxsd: fmax is a libm call, and the values are never NaN here */
+}
+
 /* Per node, |second difference| of x and y along both axes (nodes on the grid's edge take
  * their inner neighbour's), then per cell the bilinear interpolation error bound
- * h^2/8 (|f_xx| + |f_yy|) with each second derivative's largest value at the cell's corners. */
+ * h^2/8 (|f_xx| + |f_yy|) with each second derivative's largest value at the cell's corners.
+ * x and y sit side by side in the map, so each step works on both at once (SSE2: one register). */
 static double grid_error_bound(sh_warp_model *m)
 {
     if (m->h == 1) return 0; /* every pixel is a node */
     if (m->nx < 3 || m->ny < 3) return INFINITY;
     const int nx = m->nx, ny = m->ny;
+    const ptrdiff_t row = 2 * (ptrdiff_t)nx;
     double *curv = m->curvature; /* per node: |dxx x|, |dxx y|, |dyy x|, |dyy y| */
     for (int j = 0; j < ny; j++) {
         int jc = j == 0 ? 1 : (j == ny - 1 ? ny - 2 : j);
@@ -248,25 +252,49 @@ static double grid_error_bound(sh_warp_model *m)
             int ic = i == 0 ? 1 : (i == nx - 1 ? nx - 2 : i);
             const double *mx = m->map + 2 * ((size_t)j * nx + ic);
             const double *my = m->map + 2 * ((size_t)jc * nx + i);
-            const size_t row = 2 * (size_t)nx;
             double *c = curv + 4 * ((size_t)j * nx + i);
+#if defined(__SSE2__)
+            const __m128d two = _mm_set1_pd(2.0), sign = _mm_set1_pd(-0.0);
+            __m128d dxx = _mm_add_pd(_mm_sub_pd(_mm_loadu_pd(mx - 2), _mm_mul_pd(two, _mm_loadu_pd(mx))),
+                                     _mm_loadu_pd(mx + 2));
+            __m128d dyy = _mm_add_pd(_mm_sub_pd(_mm_loadu_pd(my - row), _mm_mul_pd(two, _mm_loadu_pd(my))),
+                                     _mm_loadu_pd(my + row));
+            _mm_storeu_pd(c, _mm_andnot_pd(sign, dxx));
+            _mm_storeu_pd(c + 2, _mm_andnot_pd(sign, dyy));
+#else
             c[0] = fabs(mx[-2] - 2 * mx[0] + mx[2]);
             c[1] = fabs(mx[-1] - 2 * mx[1] + mx[3]);
-            c[2] = fabs(my[-(ptrdiff_t)row] - 2 * my[0] + my[row]);
-            c[3] = fabs(my[1 - (ptrdiff_t)row] - 2 * my[1] + my[row + 1]);
+            c[2] = fabs(my[-row] - 2 * my[0] + my[row]);
+            c[3] = fabs(my[1 - row] - 2 * my[1] + my[row + 1]);
+#endif
         }
     }
     double worst = 0;
+#if defined(__SSE2__)
+    __m128d worst2 = _mm_setzero_pd();
+#endif
     for (int j = 0; j + 1 < ny; j++) {
         for (int i = 0; i + 1 < nx; i++) {
             const double *a = curv + 4 * ((size_t)j * nx + i), *b = a + 4, *c = a + 4 * nx,
                          *d = c + 4;
+#if defined(__SSE2__)
+            __m128d exx = _mm_max_pd(_mm_max_pd(_mm_loadu_pd(a), _mm_loadu_pd(b)),
+                                     _mm_max_pd(_mm_loadu_pd(c), _mm_loadu_pd(d)));
+            __m128d eyy = _mm_max_pd(_mm_max_pd(_mm_loadu_pd(a + 2), _mm_loadu_pd(b + 2)),
+                                     _mm_max_pd(_mm_loadu_pd(c + 2), _mm_loadu_pd(d + 2)));
+            __m128d e = _mm_add_pd(exx, eyy), sq = _mm_mul_pd(e, e); /* ex, ey; squared */
+            worst2 = _mm_max_pd(worst2, _mm_add_sd(sq, _mm_unpackhi_pd(sq, sq)));
+#else
             double e[4];
-            for (int k = 0; k < 4; k++) e[k] = fmax(fmax(a[k], b[k]), fmax(c[k], d[k]));
+            for (int k = 0; k < 4; k++) e[k] = max2(max2(a[k], b[k]), max2(c[k], d[k]));
             double ex = e[0] + e[2], ey = e[1] + e[3];
-            worst = fmax(worst, ex * ex + ey * ey);
+            worst = max2(worst, ex * ex + ey * ey);
+#endif
         }
     }
+#if defined(__SSE2__)
+    worst = _mm_cvtsd_f64(worst2);
+#endif
     return ERROR_SAFETY / 8 * sqrt(worst);
 }
 
@@ -342,195 +370,6 @@ double sh_warp_model_error_bound(const sh_warp_model *m)
 int sh_warp_model_refinements(const sh_warp_model *m)
 {
     return m->refinements;
-}
-
-/* Positions along a row move linearly within a cell, a triangle or an affine map. They step in
- * 16.16 fixed point (int32, which SSE2 and NEON vectorize); the step's rounding (2^-17 px)
- * accumulates, so every RESTART pixels the position starts again from an exact value
- * (drift below 64 * 2^-17 = 5e-4 px). Positions beyond the limit (outside every frame) are
- * clamped to it. */
-#define RESTART 64
-
-static void fill_linear(double start, double step, int count, int32_t *fx)
-{
-    const double unit = 1 << WARP_FRAC_BITS;
-    const double limit = (double)WARP_COORD_LIMIT / unit;
-    for (int base = 0; base < count; base += RESTART) {
-        int n = count - base < RESTART ? count - base : RESTART;
-        double s = start + base * step, e = s + (n - 1) * step;
-        int32_t *out = fx + base;
-        if (fabs(s) < limit && fabs(e) < limit) {
-            int32_t v = (int32_t)lrint(s * unit), dv = (int32_t)lrint(step * unit);
-            for (int k = 0; k < n; k++, v += dv) out[k] = v;
-            continue;
-        }
-        for (int k = 0; k < n; k++) { /* a map leaving every frame: saturate pixel by pixel */
-            double p = s + k * step;
-            p = p > limit ? limit : (p < -limit ? -limit : p);
-            out[k] = p == p ? (int32_t)lrint(p * unit) : -WARP_COORD_LIMIT;
-        }
-    }
-}
-
-/* Pixels x0..x1 of an affine map a (full-resolution coordinates), in plane coordinates. */
-static void fill_affine(const plane_geometry *g, double Y, int x0, int x1, const double *a,
-                        int32_t *fx, int32_t *fy)
-{
-    double X = g->scale * x0 + g->ox;
-    /* d/dx of (a X - o) / s with X = s x + o is a1 */
-    fill_linear((a[0] + a[1] * X + a[2] * Y - g->ox) / g->scale, a[1], x1 - x0 + 1, fx);
-    fill_linear((a[3] + a[4] * X + a[5] * Y - g->oy) / g->scale, a[4], x1 - x0 + 1, fy);
-}
-
-static void triangle_row(const sh_warp_model *m, int t, double Y, double *lo, double *hi)
-{
-    *lo = INFINITY;
-    *hi = -INFINITY;
-    const int *v = m->tri + 3 * t;
-    for (int e = 0; e < 3; e++) {
-        const double *p = m->ref_xy + 2 * v[e], *q = m->ref_xy + 2 * v[(e + 1) % 3];
-        double ya = fmin(p[1], q[1]), yb = fmax(p[1], q[1]);
-        if (Y < ya - 1e-9 || Y > yb + 1e-9) continue;
-        if (yb - ya < 1e-12) {
-            *lo = fmin(*lo, fmin(p[0], q[0]));
-            *hi = fmax(*hi, fmax(p[0], q[0]));
-            continue;
-        }
-        double t01 = (Y - p[1]) / (q[1] - p[1]);
-        t01 = t01 < 0 ? 0 : (t01 > 1 ? 1 : t01);
-        double x = p[0] + t01 * (q[0] - p[0]);
-        *lo = fmin(*lo, x);
-        *hi = fmax(*hi, x);
-    }
-}
-
-int warp_model_row_extent(const sh_warp_model *m, const plane_geometry *g, int py, int *first,
-                          int *last)
-{
-    return sh_hull_plane_row(&m->hull, py, g->width, g->scale, g->ox, g->oy, first, last);
-}
-
-static void fill_triangles(const sh_warp_model *m, const plane_geometry *g, double Y, int first,
-                           int last, int32_t *fx, int32_t *fy)
-{
-    /* Pixels the triangles miss by rounding at the hull's edge stay outside every frame. */
-    for (int k = 0; k <= last - first; k++) fx[k] = fy[k] = -WARP_COORD_LIMIT;
-    int b = (int)((Y - m->band_origin) / TRIANGLE_BAND);
-    if (b < 0 || b >= m->bands) return;
-    for (int k = m->band_start[b]; k < m->band_start[b + 1]; k++) {
-        int t = m->band_tris[k];
-        if (Y < m->tri_ybounds[2 * t] - 1e-7 || Y > m->tri_ybounds[2 * t + 1] + 1e-7) continue;
-        double lo, hi;
-        triangle_row(m, t, Y, &lo, &hi);
-        if (!(lo <= hi)) continue;
-        /* Closed intervals with a hair of slack: a pixel on a shared edge may be written twice
-         * (with the same value: the map is continuous) but never left out. */
-        int s = (int)ceil((lo - g->ox) / g->scale - 1e-7);
-        int e = (int)floor((hi - g->ox) / g->scale + 1e-7);
-        if (s < first) s = first;
-        if (e > last) e = last;
-        if (s <= e) fill_affine(g, Y, s, e, m->tri_map + 6 * t, fx + (s - first), fy + (s - first));
-    }
-}
-
-static inline void fill_steps(int32_t *o, int n, int32_t v, int32_t step)
-{
-    int k = 0;
-#if defined(__SSE2__)
-    /* gcc's own vectorization of this loop costs more than it saves on 4- and 8-pixel cells */
-    __m128i run = _mm_add_epi32(_mm_set1_epi32(v), _mm_set_epi32(3 * step, 2 * step, step, 0));
-    const __m128i inc = _mm_set1_epi32(4 * step);
-    for (; k + 4 <= n; k += 4, run = _mm_add_epi32(run, inc)) _mm_storeu_si128((__m128i *)(o + k), run);
-#endif
-    for (; k < n; k++) o[k] = v + k * step;
-}
-
-/* Full-resolution planes have a pixel on every node column, so the position steps by an
- * integer (16.16) per pixel from an integer at each node: no per-cell conversion, and whole
- * cells fill four pixels per store. Returns 0 (nothing written) when a value would leave the
- * fixed-point range, for the careful path. */
-static int fill_grid_aligned(const sh_warp_model *m, const double *row0, const double *row1,
-                             double ty, int first, int last, int32_t *fx, int32_t *fy)
-{
-    const double unit = 1 << WARP_FRAC_BITS, limit = (double)WARP_COORD_LIMIT / unit;
-    const int h = m->h, shift = __builtin_ctz((unsigned)h);
-    int i0 = (first - m->gx0) >> shift, i1 = (last - m->gx0) >> shift;
-    if (i0 < 0 || i1 + 1 > m->nx - 1) return 0;
-    int32_t node[2][2]; /* [left/right][x/y] */
-    for (int i = i0; i <= i1; i++) {
-        for (int c = 0; c < 2; c++) {
-            for (int side = i == i0 ? 0 : 1; side < 2; side++) {
-                size_t k = 2 * (size_t)(i + side) + c;
-                double v = row0[k] + ty * (row1[k] - row0[k]);
-                if (!(fabs(v) < limit)) return 0;
-                node[side][c] = (int32_t)lrint(v * unit);
-            }
-        }
-        int cell_x = m->gx0 + i * h;
-        int x0 = cell_x > first ? cell_x : first;
-        int x1 = cell_x + h - 1 < last ? cell_x + h - 1 : last;
-        for (int c = 0; c < 2; c++) {
-            int32_t step = (node[1][c] - node[0][c]) >> shift; /* floor: 2^-16 px per pixel */
-            int32_t v = node[0][c] + (x0 - cell_x) * step;
-            int32_t *o = (c ? fy : fx) + (x0 - first);
-            fill_steps(o, x1 - x0 + 1, v, step);
-            node[0][c] = node[1][c];
-        }
-    }
-    return 1;
-}
-
-/* Grid rows: the map's value on this row at each node column (in plane units) is interpolated
- * once and carried from one cell to the next; within a cell the position moves linearly. */
-static void fill_grid(const sh_warp_model *m, const plane_geometry *g, double Y, int first,
-                      int last, int32_t *fx, int32_t *fy)
-{
-    const int h = m->h;
-    const double inv_h = 1.0 / h, inv_scale = 1.0 / g->scale, off[2] = {g->ox, g->oy};
-    double fy_cell = (Y - m->gy0) * inv_h;
-    int j = (int)floor(fy_cell);
-    if (j > m->ny - 2) j = m->ny - 2;
-    if (j < 0) j = 0;
-    const double ty = fy_cell - j;
-    const double *row0 = m->map + 2 * (size_t)j * m->nx, *row1 = row0 + 2 * m->nx;
-    int32_t *out[2] = {fx, fy};
-    int x = first;
-    double X = g->scale * x + g->ox;
-    int i = (int)floor((X - m->gx0) * inv_h);
-    if (i > m->nx - 2) i = m->nx - 2;
-    if (i < 0) i = 0;
-    double left[2], right[2];
-    for (int c = 0; c < 2; c++)
-        left[c] = (row0[2 * i + c] + ty * (row1[2 * i + c] - row0[2 * i + c]) - off[c]) * inv_scale;
-    if (g->scale == 1 && g->ox == 0 && fill_grid_aligned(m, row0, row1, ty, first, last, fx, fy))
-        return;
-    while (x <= last) {
-        double Xc = m->gx0 + (double)i * h;
-        int e = i == m->nx - 2 ? last : (int)ceil((Xc + h - g->ox) * inv_scale) - 1;
-        if (e > last) e = last;
-        if (e < x) e = x;
-        for (int c = 0; c < 2; c++) {
-            right[c] = (row0[2 * i + 2 + c] + ty * (row1[2 * i + 2 + c] - row0[2 * i + 2 + c]) -
-                        off[c]) * inv_scale;
-            double slope = (right[c] - left[c]) * inv_h; /* per full-resolution pixel */
-            fill_linear(left[c] + slope * (X - Xc), slope * g->scale, e - x + 1, out[c] + (x - first));
-            left[c] = right[c];
-        }
-        x = e + 1;
-        X = g->scale * x + g->ox;
-        i++;
-    }
-}
-
-void warp_model_row_fill(const sh_warp_model *m, const plane_geometry *g, int py, int first,
-                         int last, int32_t *fx, int32_t *fy)
-{
-    double Y = g->scale * py + g->oy;
-    switch (m->kind) {
-    case MODEL_AFFINE: fill_affine(g, Y, first, last, m->affine, fx, fy); return;
-    case MODEL_TRIANGLES: fill_triangles(m, g, Y, first, last, fx, fy); return;
-    case MODEL_GRID: fill_grid(m, g, Y, first, last, fx, fy); return;
-    }
 }
 
 sh_status sh_warp_model_map(const sh_warp_model *m, float *map)

@@ -5,6 +5,9 @@
 
 #include "stillheart/warp.h"
 
+/* Rows per band of the triangle index. */
+#define TRIANGLE_BAND 16
+
 typedef enum { MODEL_AFFINE, MODEL_TRIANGLES, MODEL_GRID } model_kind;
 
 struct sh_warp_model {

@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <ctime>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <thread>
 #include <vector>
@@ -43,9 +44,12 @@ static void check(sh_status st, const char *what)
     }
 }
 
-int main()
+int main(int argc, char **argv)
 {
-    const int W = 1920, H = 1080, REPEAT = 15;
+    // Optional filters for profiling one case: bench_warp [METHOD [MARKERS [REPEAT]]]
+    const char *only_method = argc > 1 ? argv[1] : nullptr;
+    int only_markers = argc > 2 ? std::atoi(argv[2]) : 0;
+    const int W = 1920, H = 1080, REPEAT = argc > 3 ? std::max(1, std::atoi(argv[3])) : 15;
     cv::setNumThreads(1);
     synth_motion motion = {W, H, 12.0};
     sh_image frame, out;
@@ -63,11 +67,13 @@ int main()
                 "(map ms)", "remap ms", "ratio", "grid", "err px");
     const char *methods[] = {"affine", "pwlinear", "bspline", "rbf-local", "tps", "gaussian"};
     for (int markers : {16, 80}) {
+        if (only_markers && markers != only_markers) continue;
         std::vector<double> ref(2 * markers), cur(2 * markers);
         synth_markers(&motion, markers, 7, ref.data());
         for (int i = 0; i < markers; i++)
             synth_forward(&motion, 0.3, ref[2 * i], ref[2 * i + 1], &cur[2 * i], &cur[2 * i + 1]);
         for (const char *name : methods) {
+            if (only_method && std::strcmp(only_method, name) != 0) continue;
             sh_interp_params params;
             check(sh_interp_params_parse(name, &params), "method");
             std::vector<double> build_ms, frame_ms, map_ms, remap_ms;

@@ -1,0 +1,256 @@
+/* The row fill: source positions (16.16) of one output row's pixels, from the model's affine
+ * map, its triangles or its grid (warp_model_row_fill). */
+#include <math.h>
+
+#include "warp_internal.h"
+
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
+/* Positions along a row move linearly within a cell, a triangle or an affine map. They step in
+ * 16.16 fixed point (int32, which SSE2 and NEON vectorize); the step's rounding (2^-17 px)
+ * accumulates, so every RESTART pixels the position starts again from an exact value
+ * (drift below 64 * 2^-17 = 5e-4 px). Positions beyond the limit (outside every frame) are
+ * clamped to it. */
+#define RESTART 64
+
+static void fill_linear(double start, double step, int count, int32_t *fx)
+{
+    const double unit = 1 << WARP_FRAC_BITS;
+    const double limit = (double)WARP_COORD_LIMIT / unit;
+    for (int base = 0; base < count; base += RESTART) {
+        int n = count - base < RESTART ? count - base : RESTART;
+        double s = start + base * step, e = s + (n - 1) * step;
+        int32_t *out = fx + base;
+        if (fabs(s) < limit && fabs(e) < limit) {
+            int32_t v = (int32_t)lrint(s * unit), dv = (int32_t)lrint(step * unit);
+            for (int k = 0; k < n; k++, v += dv) out[k] = v;
+            continue;
+        }
+        for (int k = 0; k < n; k++) { /* a map leaving every frame: saturate pixel by pixel */
+            double p = s + k * step;
+            p = p > limit ? limit : (p < -limit ? -limit : p);
+            out[k] = p == p ? (int32_t)lrint(p * unit) : -WARP_COORD_LIMIT;
+        }
+    }
+}
+
+/* Pixels x0..x1 of an affine map a (full-resolution coordinates), in plane coordinates. */
+static void fill_affine(const plane_geometry *g, double Y, int x0, int x1, const double *a,
+                        int32_t *fx, int32_t *fy)
+{
+    double X = g->scale * x0 + g->ox;
+    /* d/dx of (a X - o) / s with X = s x + o is a1 */
+    fill_linear((a[0] + a[1] * X + a[2] * Y - g->ox) / g->scale, a[1], x1 - x0 + 1, fx);
+    fill_linear((a[3] + a[4] * X + a[5] * Y - g->oy) / g->scale, a[4], x1 - x0 + 1, fy);
+}
+
+static void triangle_row(const sh_warp_model *m, int t, double Y, double *lo, double *hi)
+{
+    *lo = INFINITY;
+    *hi = -INFINITY;
+    const int *v = m->tri + 3 * t;
+    for (int e = 0; e < 3; e++) {
+        const double *p = m->ref_xy + 2 * v[e], *q = m->ref_xy + 2 * v[(e + 1) % 3];
+        double ya = fmin(p[1], q[1]), yb = fmax(p[1], q[1]);
+        if (Y < ya - 1e-9 || Y > yb + 1e-9) continue;
+        if (yb - ya < 1e-12) {
+            *lo = fmin(*lo, fmin(p[0], q[0]));
+            *hi = fmax(*hi, fmax(p[0], q[0]));
+            continue;
+        }
+        double t01 = (Y - p[1]) / (q[1] - p[1]);
+        t01 = t01 < 0 ? 0 : (t01 > 1 ? 1 : t01);
+        double x = p[0] + t01 * (q[0] - p[0]);
+        *lo = fmin(*lo, x);
+        *hi = fmax(*hi, x);
+    }
+}
+
+int warp_model_row_extent(const sh_warp_model *m, const plane_geometry *g, int py, int *first,
+                          int *last)
+{
+    return sh_hull_plane_row(&m->hull, py, g->width, g->scale, g->ox, g->oy, first, last);
+}
+
+static void fill_triangles(const sh_warp_model *m, const plane_geometry *g, double Y, int first,
+                           int last, int32_t *fx, int32_t *fy)
+{
+    /* Pixels the triangles miss by rounding at the hull's edge stay outside every frame. */
+    for (int k = 0; k <= last - first; k++) fx[k] = fy[k] = -WARP_COORD_LIMIT;
+    int b = (int)((Y - m->band_origin) / TRIANGLE_BAND);
+    if (b < 0 || b >= m->bands) return;
+    for (int k = m->band_start[b]; k < m->band_start[b + 1]; k++) {
+        int t = m->band_tris[k];
+        if (Y < m->tri_ybounds[2 * t] - 1e-7 || Y > m->tri_ybounds[2 * t + 1] + 1e-7) continue;
+        double lo, hi;
+        triangle_row(m, t, Y, &lo, &hi);
+        if (!(lo <= hi)) continue;
+        /* Closed intervals with a hair of slack: a pixel on a shared edge may be written twice
+         * (with the same value: the map is continuous) but never left out. */
+        int s = (int)ceil((lo - g->ox) / g->scale - 1e-7);
+        int e = (int)floor((hi - g->ox) / g->scale + 1e-7);
+        if (s < first) s = first;
+        if (e > last) e = last;
+        if (s <= e) fill_affine(g, Y, s, e, m->tri_map + 6 * t, fx + (s - first), fy + (s - first));
+    }
+}
+
+/* Nodes per chunk of the aligned fill (its stack arrays). */
+#define NODE_CHUNK 128
+
+/* The row's value and per-pixel step at nodes c0..c1 (cells c0..c1 - 1 and node c1's value),
+ * 16.16, x and y side by side: vs[4 k .. 4 k + 3] = value x, value y, step x, step y of node
+ * c0 + k. Returns 0 when a value leaves the fixed-point range (then the careful path). */
+static int node_pass(const double *row0, const double *row1, double ty, double inv_h, int c0,
+                     int c1, int32_t *vs)
+{
+    const double unit = 1 << WARP_FRAC_BITS, limit = (double)WARP_COORD_LIMIT / unit;
+#if defined(__SSE2__)
+    const __m128d t = _mm_set1_pd(ty), u = _mm_set1_pd(unit), su = _mm_set1_pd(inv_h * unit);
+    const __m128d lim = _mm_set1_pd(limit), sign = _mm_set1_pd(-0.0);
+    const double *a = row0 + 2 * (size_t)c0, *b = row1 + 2 * (size_t)c0;
+    __m128d prev = _mm_add_pd(_mm_loadu_pd(a), _mm_mul_pd(t, _mm_sub_pd(_mm_loadu_pd(b), _mm_loadu_pd(a))));
+    __m128d ok = _mm_cmplt_pd(_mm_andnot_pd(sign, prev), lim); /* false for NaN too */
+    for (int k = 0; k < c1 - c0; k++) {
+        a += 2, b += 2;
+        __m128d next = _mm_add_pd(_mm_loadu_pd(a), _mm_mul_pd(t, _mm_sub_pd(_mm_loadu_pd(b), _mm_loadu_pd(a))));
+        ok = _mm_and_pd(ok, _mm_cmplt_pd(_mm_andnot_pd(sign, next), lim));
+        /* cvtpd rounds to nearest as lrint; out-of-range lanes are refused by ok below */
+        __m128i v = _mm_cvtpd_epi32(_mm_mul_pd(prev, u));
+        __m128i s = _mm_cvtpd_epi32(_mm_mul_pd(_mm_sub_pd(next, prev), su));
+        _mm_storeu_si128((__m128i *)(vs + 4 * k), _mm_unpacklo_epi64(v, s));
+        prev = next;
+    }
+    _mm_storel_epi64((__m128i *)(vs + 4 * (c1 - c0)), _mm_cvtpd_epi32(_mm_mul_pd(prev, u)));
+    return _mm_movemask_pd(ok) == 3;
+#else
+    double prev[2];
+    for (int k = 0; k <= c1 - c0; k++) {
+        for (int c = 0; c < 2; c++) {
+            size_t i = 2 * (size_t)(c0 + k) + c;
+            double v = row0[i] + ty * (row1[i] - row0[i]);
+            if (!(fabs(v) < limit)) return 0;
+            vs[4 * k + c] = (int32_t)lrint(v * unit);
+            if (k) vs[4 * (k - 1) + 2 + c] = (int32_t)lrint((v - prev[c]) * inv_h * unit);
+            prev[c] = v;
+        }
+    }
+    return 1;
+#endif
+}
+
+/* count pixels from (vx, vy), stepping (sx, sy) per pixel. */
+static inline void fill_steps(int32_t *ox, int32_t *oy, int count, int32_t vx, int32_t vy,
+                              int32_t sx, int32_t sy)
+{
+    int k = 0;
+#if defined(__SSE2__)
+    /* (The compiler's own vectorization of this loop costs more than it saves on short cells.) */
+    /* lanes v + {0, 1, 2, 3} s in wrapping SIMD adds: lanes past count may overflow harmlessly */
+    const __m128i zero = _mm_setzero_si128();
+    __m128i s1x = _mm_set1_epi32(sx), s1y = _mm_set1_epi32(sy);
+    __m128i s2x = _mm_add_epi32(s1x, s1x), s2y = _mm_add_epi32(s1y, s1y);
+    __m128i x = _mm_add_epi32(_mm_set1_epi32(vx), _mm_add_epi32(_mm_unpacklo_epi32(zero, s1x),
+                                                                _mm_unpacklo_epi64(zero, s2x)));
+    __m128i y = _mm_add_epi32(_mm_set1_epi32(vy), _mm_add_epi32(_mm_unpacklo_epi32(zero, s1y),
+                                                                _mm_unpacklo_epi64(zero, s2y)));
+    const __m128i ix = _mm_add_epi32(s2x, s2x), iy = _mm_add_epi32(s2y, s2y);
+    for (; k + 4 <= count; k += 4) {
+        _mm_storeu_si128((__m128i *)(ox + k), x);
+        _mm_storeu_si128((__m128i *)(oy + k), y);
+        x = _mm_add_epi32(x, ix);
+        y = _mm_add_epi32(y, iy);
+    }
+#endif
+    for (; k < count; k++) {
+        ox[k] = vx + k * sx;
+        oy[k] = vy + k * sy;
+    }
+}
+
+/* Full-resolution planes have a pixel on every node column: a node pass converts the row's
+ * values at the node columns (and the per-pixel step to the next one) to 16.16 a chunk at a
+ * time, then each cell steps from its left node's exact value, so no error carries from one
+ * cell to the next. The step's rounding (2^-17 px per pixel) adds at most h 2^-17 px.
+ * Returns 0 (rows' pixels partly written) when a value would leave the fixed-point range, for
+ * the careful path. */
+static int fill_grid_aligned(const sh_warp_model *m, const double *row0, const double *row1,
+                             double ty, int first, int last, int32_t *fx, int32_t *fy)
+{
+    const int h = m->h;
+    if (first < m->gx0) return 0;
+    int i0 = (first - m->gx0) / h, i1 = (last - m->gx0) / h;
+    if (i1 == m->nx - 1) i1--; /* a pixel on the last node column: the last cell's far end */
+    if (i0 > i1 || i1 > m->nx - 2) return 0;
+    const double inv_h = 1.0 / h;
+    int32_t vs[4 * (NODE_CHUNK + 1)];
+    for (int c0 = i0; c0 <= i1; c0 += NODE_CHUNK) {
+        int c1 = c0 + NODE_CHUNK - 1 < i1 ? c0 + NODE_CHUNK - 1 : i1;
+        if (!node_pass(row0, row1, ty, inv_h, c0, c1 + 1, vs)) return 0;
+        for (int i = c0; i <= c1; i++) {
+            const int32_t *n = vs + 4 * (i - c0);
+            int cell_x = m->gx0 + i * h;
+            int x0 = cell_x > first ? cell_x : first;
+            int x1 = i == i1 ? last : cell_x + h - 1;
+            int skip = x0 - cell_x;
+            fill_steps(fx + (x0 - first), fy + (x0 - first), x1 - x0 + 1, n[0] + skip * n[2],
+                       n[1] + skip * n[3], n[2], n[3]);
+        }
+    }
+    return 1;
+}
+
+/* Grid rows: the map's value on this row at each node column (in plane units) is interpolated
+ * once and carried from one cell to the next; within a cell the position moves linearly. */
+static void fill_grid(const sh_warp_model *m, const plane_geometry *g, double Y, int first,
+                      int last, int32_t *fx, int32_t *fy)
+{
+    const int h = m->h;
+    const double inv_h = 1.0 / h, inv_scale = 1.0 / g->scale, off[2] = {g->ox, g->oy};
+    double fy_cell = (Y - m->gy0) * inv_h;
+    int j = (int)floor(fy_cell);
+    if (j > m->ny - 2) j = m->ny - 2;
+    if (j < 0) j = 0;
+    const double ty = fy_cell - j;
+    const double *row0 = m->map + 2 * (size_t)j * m->nx, *row1 = row0 + 2 * m->nx;
+    if (g->scale == 1 && g->ox == 0 && fill_grid_aligned(m, row0, row1, ty, first, last, fx, fy))
+        return;
+    int32_t *out[2] = {fx, fy};
+    int x = first;
+    double X = g->scale * x + g->ox;
+    int i = (int)floor((X - m->gx0) * inv_h);
+    if (i > m->nx - 2) i = m->nx - 2;
+    if (i < 0) i = 0;
+    double left[2], right[2];
+    for (int c = 0; c < 2; c++)
+        left[c] = (row0[2 * i + c] + ty * (row1[2 * i + c] - row0[2 * i + c]) - off[c]) * inv_scale;
+    while (x <= last) {
+        double Xc = m->gx0 + (double)i * h;
+        int e = i == m->nx - 2 ? last : (int)ceil((Xc + h - g->ox) * inv_scale) - 1;
+        if (e > last) e = last;
+        if (e < x) e = x;
+        for (int c = 0; c < 2; c++) {
+            right[c] = (row0[2 * i + 2 + c] + ty * (row1[2 * i + 2 + c] - row0[2 * i + 2 + c]) -
+                        off[c]) * inv_scale;
+            double slope = (right[c] - left[c]) * inv_h; /* per full-resolution pixel */
+            fill_linear(left[c] + slope * (X - Xc), slope * g->scale, e - x + 1, out[c] + (x - first));
+            left[c] = right[c];
+        }
+        x = e + 1;
+        X = g->scale * x + g->ox;
+        i++;
+    }
+}
+
+void warp_model_row_fill(const sh_warp_model *m, const plane_geometry *g, int py, int first,
+                         int last, int32_t *fx, int32_t *fy)
+{
+    double Y = g->scale * py + g->oy;
+    switch (m->kind) {
+    case MODEL_AFFINE: fill_affine(g, Y, first, last, m->affine, fx, fy); return;
+    case MODEL_TRIANGLES: fill_triangles(m, g, Y, first, last, fx, fy); return;
+    case MODEL_GRID: fill_grid(m, g, Y, first, last, fx, fy); return;
+    }
+}
