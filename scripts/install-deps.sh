@@ -28,6 +28,7 @@ done
 # below), and the emulator that runs the tests.
 arm64_pkgs="crossbuild-essential-arm64 qemu-user libcmocka-dev:arm64 libqhull-dev:arm64
       libpng-dev:arm64 libturbojpeg0-dev:arm64 libapriltag3:arm64 libosmesa6-dev:arm64
+      libinih-dev:arm64 libgpiod-dev:arm64 libcamera-dev:arm64
       dpkg-dev debhelper fakeroot lintian"
 if [ "$arm64" = 1 ]; then
     pkgs="$pkgs $arm64_pkgs"

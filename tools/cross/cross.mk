@@ -36,3 +36,8 @@ deb:
 	done
 	@ls $(DEB_OUT)/*.deb
 	@for c in $(DEB_OUT)/*.changes; do echo "== lintian $$c"; lintian --fail-on error $$c || exit 1; done
+
+# make deb-test: the built packages installed into a fresh debootstrap'd Debian 12 root (as root).
+.PHONY: deb-test
+deb-test:
+	sh tools/cross/deb-test.sh $(DEB_OUT)

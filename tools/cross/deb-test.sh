@@ -1,0 +1,72 @@
+#!/bin/sh
+# make deb-test: the packages of `make deb` installed into a fresh Debian 12 root (debootstrap
+# minbase, cached as a tarball), dependencies resolved from the archive as on a real box:
+# the user and its groups, the conffile, the unit accepted by systemd-analyze verify, the
+# program running from the root's own libraries; then the arm64 package in the same root,
+# run under qemu-aarch64 against that root. Needs root (chroot) and network on the first run.
+set -eu
+DEB_OUT=${1:-build-deb}
+CACHE=${SH_DEB_CACHE:-/var/cache/stillheart/deb-root}
+MIRROR=${SH_DEB_MIRROR:-http://deb.debian.org/debian}
+ver=$(dpkg-parsechangelog -S Version)
+fail=0
+check() { # check NAME COMMAND...: one PASS/FAIL line per check
+    name=$1; shift
+    if "$@" > /tmp/deb-test.$$ 2>&1; then echo "deb-test PASS $name"
+    else echo "deb-test FAIL $name"; sed 's/^/    /' /tmp/deb-test.$$ | tail -20; fail=1; fi
+}
+
+[ "$(id -u)" = 0 ] || { echo "deb-test: needs root (chroot); run it as root or with sudo" >&2; exit 2; }
+for a in amd64 arm64; do
+    [ -f "$DEB_OUT/stillheart_${ver}_$a.deb" ] || { echo "deb-test: $DEB_OUT/stillheart_${ver}_$a.deb missing: run make deb" >&2; exit 2; }
+done
+command -v debootstrap >/dev/null || apt-get install -y -qq debootstrap >/dev/null
+
+mkdir -p "$CACHE"
+if [ ! -s "$CACHE/bookworm-minbase.tar" ]; then
+    echo "deb-test: debootstrap --variant=minbase bookworm (once; cached in $CACHE)"
+    tmp=$(mktemp -d)
+    debootstrap --variant=minbase bookworm "$tmp" "$MIRROR" > "$CACHE/debootstrap.log" 2>&1 ||
+        { tail -20 "$CACHE/debootstrap.log"; rm -rf "$tmp"; exit 1; }
+    tar -C "$tmp" -cf "$CACHE/bookworm-minbase.tar" .
+    rm -rf "$tmp"
+fi
+
+root=$(mktemp -d /tmp/deb-root.XXXXXX)
+cleanup() { umount "$root/proc" 2>/dev/null || true; rm -rf "$root" /tmp/deb-test.$$; }
+trap cleanup EXIT
+tar -C "$root" -xf "$CACHE/bookworm-minbase.tar"
+cp /etc/resolv.conf "$root/etc/resolv.conf"
+mount -t proc proc "$root/proc"
+cp "$DEB_OUT"/stillheart_"${ver}"_*.deb "$DEB_OUT"/stillheart-tools_"${ver}"_amd64.deb "$root/tmp/"
+in_root() { chroot "$root" env DEBIAN_FRONTEND=noninteractive PATH=/usr/sbin:/usr/bin:/sbin:/bin "$@"; }
+
+check "apt-get update in the fresh root" in_root apt-get update -qq
+check "install stillheart + stillheart-tools (amd64), deps from the archive" \
+    in_root apt-get install -y -qq "/tmp/stillheart_${ver}_amd64.deb" "/tmp/stillheart-tools_${ver}_amd64.deb"
+check "system user stillheart, member of video" sh -c "chroot '$root' id -nG stillheart | tr ' ' '\n' | grep -qx video"
+check "no login shell for stillheart" sh -c "chroot '$root' getent passwd stillheart | grep -q nologin"
+check "example config is a conffile" grep -qx /etc/stillheart/stillheart.ini "$root/var/lib/dpkg/info/stillheart.conffiles"
+check "udev rules installed" test -s "$root/lib/udev/rules.d/99-stillheart.rules"
+check "unit not enabled by installation" sh -c "! ls '$root'/etc/systemd/system/*/stillheart.service 2>/dev/null | grep -q ."
+check "stillheart --help from the root's libraries" in_root stillheart --help
+check "stillheart run refuses the example config's missing file, naming it" \
+    sh -c "chroot '$root' stillheart run --config /etc/stillheart/stillheart.ini 2>&1 | grep -q 'cam0.y4m'"
+check "stillheart-render --help (tools package)" in_root stillheart-render --help
+# The unit against the root's own files: ExecStart exists there, User/Group resolve there.
+# minbase has no init; a box runs systemd and udev (the unit orders itself after udev settle).
+check "install systemd, udev, procps into the root" in_root apt-get install -y -qq systemd udev procps
+check "systemd-analyze verify accepts the installed unit" \
+    systemd-analyze verify --root="$root" /lib/systemd/system/stillheart.service
+check "reinstall keeps the user" sh -c "chroot '$root' env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --reinstall /tmp/stillheart_${ver}_amd64.deb >/dev/null && chroot '$root' id stillheart"
+
+# arm64 in the same root (the amd64 package removed: the two are not co-installable).
+check "remove the amd64 packages" in_root apt-get remove -y -qq stillheart stillheart-tools
+in_root dpkg --add-architecture arm64
+check "apt-get update with arm64" in_root apt-get update -qq
+check "install stillheart (arm64), deps from the archive" in_root apt-get install -y -qq "/tmp/stillheart_${ver}_arm64.deb"
+check "arm64 stillheart --help under qemu-aarch64 against the root" \
+    qemu-aarch64 -L "$root" "$root/usr/bin/stillheart" --help
+check "arm64: system user in video" sh -c "chroot '$root' id -nG stillheart | tr ' ' '\n' | grep -qx video"
+
+[ "$fail" = 0 ] && echo "deb-test: all checks passed" || { echo "deb-test: FAILED"; exit 1; }
