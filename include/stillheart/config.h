@@ -67,6 +67,7 @@ typedef struct {
     int levels;
     double smoothing;
     double grid;                     /* warp grid spacing in px; 0 = from the error bound */
+    char calibration[SH_CONFIG_STR]; /* the cameras' calibration YAML: 3D tracking and warp ("" = 2D) */
     /* [reference] */
     int reference_frame;             /* 0: first good frame; N: the N-th frame (1-based) */
     /* [gating] */

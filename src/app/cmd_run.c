@@ -207,7 +207,7 @@ int cmd_run(int argc, char **argv)
     }
     const sh_y4m_header *hdr = run_source_header(src);
     sh_y4m_header hcopy = *hdr;
-    if (run_proc_create(&cfg, hdr, run_source_fps(src), logm, &proc) != SH_OK) {
+    if (run_proc_create(&cfg, hdr, run_source_fps(src), run_source_cameras(src), logm, &proc) != SH_OK) {
         fprintf(stderr, "stillheart run: %s\n", sh_error_message());
         goto done;
     }
@@ -255,7 +255,8 @@ int cmd_run(int argc, char **argv)
     uint64_t wd_usec = cfg.watchdog ? sh_notify_watchdog_usec() : 0;
     int64_t last_ping = mono_ns(), last_status = mono_ns();
     uint64_t published = 0, published_at_ping = 0, published_at_status = 0, raw_count = 0, degraded_count = 0;
-    long rss_start = 0, rss_max = 0;
+    long rss_start = 0, rss_max = 0, rss_1min = 0; /* warm-up (detector, caches) is over after a minute */
+    int64_t t_start = mono_ns();
     size_t nlat = 0;
     uint32_t last_status_shown = 99;
     char last_reason[44] = "";
@@ -299,7 +300,7 @@ int cmd_run(int argc, char **argv)
         sh_display_frame_info info;
         memset(&info, 0, sizeof info);
         info.capture_ns = s->avail_ns;
-        const sh_image *shown = run_proc_frame(proc, &s->img, s->index, &info);
+        const sh_image *shown = run_proc_frame(proc, &s->img, s->cam, s->index, &info);
         uint32_t status = info.status;
         if (status == SH_DISPLAY_RAW) raw_count++;
         if (status == SH_DISPLAY_DEGRADED) degraded_count++;
@@ -324,6 +325,7 @@ int cmd_run(int argc, char **argv)
         published++;
         if (published == 30) rss_start = rss_kb();
         if ((published & 63) == 0) { long r = rss_kb(); if (r > rss_max) rss_max = r; }
+        if (!rss_1min && done_ns - t_start >= 60000000000LL) rss_1min = rss_kb();
         /* systemd: STATUS each second, WATCHDOG only while frames progress */
         if (done_ns - last_status >= 1000000000) {
             double fps = (double)(published - published_at_status) * 1e9 / (double)(done_ns - last_status);
@@ -359,10 +361,10 @@ int cmd_run(int argc, char **argv)
         if (r > rss_max) rss_max = r;
         fprintf(ro.stats ? stdout : stderr,
                 "stats: %llu published (%llu raw, %llu degraded), %llu dropped, latency ms median %.2f "
-                "p99 %.2f max %.2f, RSS kB start %ld max %ld end %ld, %d models built\n",
+                "p99 %.2f max %.2f, RSS kB start %ld at 1 min %ld max %ld end %ld, %d models built\n",
                 (unsigned long long)published, (unsigned long long)raw_count,
                 (unsigned long long)degraded_count, (unsigned long long)run_source_dropped(src), med, p99, mx,
-                rss_start, rss_max, r, run_proc_builds(proc));
+                rss_start, rss_1min, rss_max, r, run_proc_builds(proc));
     }
 done:
     sig_stop = 1;

@@ -7,6 +7,7 @@
 
 #include <stdint.h>
 
+#include "stillheart/calib.h"
 #include "stillheart/config.h"
 #include "stillheart/detect.h"
 #include "stillheart/image.h"
@@ -29,6 +30,10 @@ typedef struct run_model run_model;
 
 sh_status run_models_create(const sh_interp_params *params, const sh_warp_options *wopts, int width,
                             int height, int wait, run_models **out);
+/* 3D (before the first reference): models are warp3d surfaces over the markers' world positions
+ * (params: the interpolant of surface and displacement), seen by calibration camera `camera`,
+ * which is also the one whose frames are warped. */
+sh_status run_models_set_3d(run_models *m, const sh_calib *calib, int camera);
 void run_models_destroy(run_models *m);
 /* Requests a new reference (markers sorted by id, n <= RUN_MAX_MARKERS); its full-set model is
  * built first. A reference still being built is replaced. frame: for the log. */
@@ -48,7 +53,8 @@ int run_models_get(run_models *m, const int *ids, int n, run_model **out);
  * map puts the marker's reference position and where the detector saw it (det_xy; NaN for a
  * marker not detected). *residual is -1 when no marker was detected, NaN if the map cannot be
  * evaluated at a marker. */
-sh_status run_model_update(run_model *md, const double *cur_xy, const double *det_xy, double *residual);
+sh_status run_model_update(run_model *md, const double *cur_xy, const double *cur_xyz, const double *det_xy,
+                           double *residual);
 const sh_warp_model *run_model_warp(const run_model *md);
 const int *run_model_ids(const run_model *md, int *n);
 int run_models_builds(const run_models *m);
@@ -63,17 +69,21 @@ typedef struct {
     double dx, dy;    /* the detection this frame (NaN when not detected) */
     double sigma;     /* 1-sigma position uncertainty, px (largest axis; 0 from a points file) */
     int age;          /* frames since it was last detected (0: this frame) */
+    double X, Y, Z;   /* 3D: world position, mm (calibration units) */
 } run_marker;
 
 typedef struct run_tracker run_tracker;
-/* cfg: [detect] family and ids (at most RUN_MAX_MARKERS ids); fps 0: 30. */
-sh_status run_tracker_create(const sh_config *cfg, int width, int height, double fps, run_tracker **out);
+/* cfg: [detect] family and ids (at most RUN_MAX_MARKERS ids); fps 0: 30. calib: NULL for 2D, or
+ * 2+ cameras for 3D tracking over every camera's frames (out_cam: the one whose pixels count). */
+sh_status run_tracker_create(const sh_config *cfg, const sh_calib *calib, int out_cam, int width, int height,
+                             double fps, run_tracker **out);
 void run_tracker_destroy(run_tracker *t);
-/* Detects in the tracker's windows plus a reacquisition band (the whole frame when nothing is
- * tracked), updates the filters and writes every confirmed, not lost marker in view, sorted by
- * id. index: the frame's index in the stream; an index that does not advance (a replay that
+/* Detects in each camera's frame (cams[c], NULL when the set lacks it; 2D: cams[0] only) in the
+ * tracker's windows plus a reacquisition band (the whole frame when nothing is tracked),
+ * updates the filters and writes every confirmed, not lost marker in the output camera's view,
+ * sorted by id. index: the frame's index in the stream; an index that does not advance (a replay that
  * looped, a restarted camera) restarts the tracker. */
-sh_status run_tracker_frame(run_tracker *t, const sh_image *img, int index, run_marker *out, int *n);
+sh_status run_tracker_frame(run_tracker *t, const sh_image *const *cams, int index, run_marker *out, int *n);
 /* The frame rate the tracker assumes (ages in ms use it). */
 double run_tracker_fps(const run_tracker *t);
 
@@ -81,6 +91,7 @@ typedef struct {
     int ids[RUN_MAX_MARKERS];
     double xy[2 * RUN_MAX_MARKERS];
     double det[2 * RUN_MAX_MARKERS]; /* their detections (NaN: predicted) */
+    double xyz[3 * RUN_MAX_MARKERS]; /* 3D: their world positions */
     int n;            /* markers matched to the reference and used */
     int predicted;    /* of them, not detected this frame (age > 0) */
     int stale;        /* matched but unseen longer than dropout_ms: left out */

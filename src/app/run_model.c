@@ -13,6 +13,7 @@
 #include <string.h>
 
 #include "run.h"
+#include "stillheart/warp3d.h"
 
 #define SLOTS 8
 
@@ -24,6 +25,13 @@ struct run_model {
     double ref_xy[2 * RUN_MAX_MARKERS];
     sh_interp *interp;
     sh_warp_model *model;
+    /* 3D: the surface over the reference markers, the output camera's view of it, and each
+     * marker's surface parameter (for the residual; NaN where the view's ray misses) */
+    double ref_xyz[3 * RUN_MAX_MARKERS];
+    sh_warp3d_model *m3;
+    sh_warp3d_view *view;
+    double uv[2 * RUN_MAX_MARKERS];
+    const run_models *owner; /* its camera, for the 3D residual */
     double *coef;   /* the interpolant's coefficients, 2 columns (for the residual) */
     double vals[2 * RUN_MAX_MARKERS];
     int state;
@@ -53,11 +61,17 @@ struct run_models {
     run_model *evicted[SLOTS * 2];
     int nevicted;
     int builds;
+    int three_d;            /* run_models_set_3d */
+    sh_calib_camera cam;
+    sh_warp3d_params p3;
+    sh_warp3d_view_options vopts;
     run_model *pinned;      /* the model last handed out: never evicted (the fallback) */
 };
 
 static void model_free(run_model *md)
 {
+    sh_warp3d_view_destroy(md->view);
+    sh_warp3d_model_destroy(md->m3);
     sh_warp_model_destroy(md->model);
     sh_interp_destroy(md->interp);
     free(md->coef);
@@ -74,6 +88,15 @@ static void generation_free(generation *g)
 /* Builds interpolant and warp model of md (ids, n, ref_xy set). */
 static sh_status model_build(const run_models *m, run_model *md)
 {
+    md->owner = m;
+    if (m->three_d) {
+        sh_status st = sh_warp3d_model_create(&m->p3, md->ref_xyz, md->n, &md->m3);
+        if (st == SH_OK) st = sh_warp3d_view_create(md->m3, &m->cam, &m->cam, m->width, m->height, &m->vopts, &md->view);
+        for (int k = 0; st == SH_OK && k < md->n; k++)
+            if (sh_warp3d_view_locate(md->view, md->ref_xy[2 * k], md->ref_xy[2 * k + 1], &md->uv[2 * k]) != SH_OK)
+                md->uv[2 * k] = md->uv[2 * k + 1] = NAN;
+        return st;
+    }
     sh_status st = sh_interp_create(&m->params, md->ref_xy, md->n, &md->interp);
     if (st == SH_OK)
         st = sh_warp_model_create(md->interp, md->ref_xy, md->n, m->width, m->height, &m->wopts, &md->model);
@@ -83,8 +106,33 @@ static sh_status model_build(const run_models *m, run_model *md)
     return SH_OK;
 }
 
-sh_status run_model_update(run_model *md, const double *cur_xy, const double *det_xy, double *residual)
+/* 3D: the same residual, the map at a marker's reference pixel being the projection of its
+ * surface point displaced by h. */
+static sh_status update_3d(const run_models *m, run_model *md, const double *cur_xyz, const double *det_xy,
+                           double *residual)
 {
+    sh_status st = sh_warp3d_model_update(md->m3, cur_xyz);
+    if (st == SH_OK) st = sh_warp3d_view_update(md->view);
+    if (st != SH_OK) return st;
+    double worst = -1;
+    for (int k = 0; k < md->n; k++) {
+        if (!isfinite(det_xy[2 * k])) continue;
+        double X[3], x = NAN, y = NAN;
+        if (isfinite(md->uv[2 * k])) {
+            sh_warp3d_model_point(md->m3, md->uv[2 * k], md->uv[2 * k + 1], 1.0, 1, X);
+            if (!sh_warp3d_project(&m->cam, X, &x, &y)) x = y = NAN;
+        }
+        double r = hypot(x - det_xy[2 * k], y - det_xy[2 * k + 1]);
+        if (!(r <= worst)) worst = r; /* a NaN wins: never hidden */
+    }
+    *residual = worst;
+    return SH_OK;
+}
+
+sh_status run_model_update(run_model *md, const double *cur_xy, const double *cur_xyz, const double *det_xy,
+                           double *residual)
+{
+    if (md->m3) return update_3d(md->owner, md, cur_xyz, det_xy, residual);
     sh_status st = sh_warp_model_update(md->model, cur_xy);
     if (st != SH_OK) return st;
     /* The map at a marker's reference position, f(q) = q + D(q), against where the detector saw
@@ -126,7 +174,7 @@ sh_status run_residual(const sh_interp_params *params, const double *ref_xy, con
     md->n = n;
     memcpy(md->ref_xy, ref_xy, sizeof(double) * 2 * (size_t)n);
     sh_status st = model_build(&m, md);
-    if (st == SH_OK) st = run_model_update(md, cur_xy, det_xy, residual);
+    if (st == SH_OK) st = run_model_update(md, cur_xy, NULL, det_xy, residual);
     model_free(md);
     free(md);
     return st;
@@ -179,6 +227,7 @@ static void *helper_main(void *arg)
         tmp.n = job->n;
         memcpy(tmp.ids, job->ids, sizeof(int) * (size_t)job->n);
         memcpy(tmp.ref_xy, job->ref_xy, sizeof(double) * 2 * (size_t)job->n);
+        memcpy(tmp.ref_xyz, job->ref_xyz, sizeof(double) * 3 * (size_t)job->n);
         job->taken = 1;
         pthread_mutex_unlock(&m->mu);
         sh_status st = model_build(m, &tmp);
@@ -289,6 +338,9 @@ static run_model *slot_for(run_models *m, generation *g, const int *ids, int n)
         if (r == g->nref) return NULL; /* not in the reference: the caller's bug */
         victim->ref_xy[2 * k] = g->ref[r].x;
         victim->ref_xy[2 * k + 1] = g->ref[r].y;
+        victim->ref_xyz[3 * k] = g->ref[r].X;
+        victim->ref_xyz[3 * k + 1] = g->ref[r].Y;
+        victim->ref_xyz[3 * k + 2] = g->ref[r].Z;
     }
     victim->state = BUILDING;
     victim->last_used = ++g->clock;
@@ -361,7 +413,23 @@ int run_models_get(run_models *m, const int *ids, int n, run_model **out)
     return r;
 }
 
-const sh_warp_model *run_model_warp(const run_model *md) { return md->model; }
+const sh_warp_model *run_model_warp(const run_model *md)
+{
+    return md->view ? sh_warp3d_view_map_model(md->view) : md->model;
+}
+
+sh_status run_models_set_3d(run_models *m, const sh_calib *calib, int camera)
+{
+    if (camera < 0 || camera >= calib->num_cameras)
+        return sh_error_set(SH_EINVAL, "calibration: no camera %d (%d cameras)", camera, calib->num_cameras);
+    m->cam = calib->cam[camera];
+    sh_warp3d_params_default(&m->p3);
+    m->p3.surface = m->p3.displacement = m->params;
+    sh_warp3d_view_options_default(&m->vopts);
+    m->vopts.warp = m->wopts;
+    m->three_d = 1;
+    return SH_OK;
+}
 
 const int *run_model_ids(const run_model *md, int *n)
 {

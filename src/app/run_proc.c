@@ -21,6 +21,8 @@ struct run_proc {
     double fps;
     int want_ref;
     run_marker mk[RUN_MAX_MARKERS];
+    int three_d, out_cam;
+    sh_calib calib;
     run_model *last;      /* the last model used: the fallback while another set is built */
     int model_err_once, track_err_once;
     double ms[3];         /* this frame: markers (detection + tracker), model update, warp */
@@ -41,12 +43,28 @@ void run_proc_times(const run_proc *p, double *markers_ms, double *model_ms, dou
     *warp_ms = p->ms[2];
 }
 
-sh_status run_proc_create(const sh_config *cfg, const sh_y4m_header *hdr, double fps, run_log_fn log,
+sh_status run_proc_create(const sh_config *cfg, const sh_y4m_header *hdr, double fps, int cameras, run_log_fn log,
                           run_proc **out)
 {
     run_proc *p = calloc(1, sizeof *p);
     if (!p) return sh_error_set(SH_ENOMEM, "processing: out of memory");
     p->cfg = *cfg;
+    p->out_cam = cfg->output_camera;
+    if (cfg->calibration[0]) {
+        sh_status st = sh_calib_read(cfg->calibration, &p->calib);
+        if (st == SH_OK && (p->calib.num_cameras < 2 || p->calib.num_cameras != cameras))
+            st = sh_error_set(SH_EINVAL, "[method] calibration: %s has %d cameras, %d configured (3D needs the same "
+                              "2 or more, [camera0] first)", cfg->calibration, p->calib.num_cameras, cameras);
+        if (st == SH_OK && (p->calib.width != hdr->width || p->calib.height != hdr->height))
+            st = sh_error_set(SH_EINVAL, "[method] calibration: %s is for %dx%d, the output camera gives %dx%d",
+                              cfg->calibration, p->calib.width, p->calib.height, hdr->width, hdr->height);
+        if (st != SH_OK) {
+            if (st != SH_EINVAL) sh_error_set(st, "[method] calibration: %s", sh_error_message());
+            free(p);
+            return st;
+        }
+        p->three_d = 1;
+    }
     p->log = log;
     p->fps = fps > 0 ? fps : 30;
     sh_warp_options wopts;
@@ -55,12 +73,14 @@ sh_status run_proc_create(const sh_config *cfg, const sh_y4m_header *hdr, double
     sh_status st = sh_image_create(&p->out, hdr->format, hdr->width, hdr->height);
     /* test mode waits for every model: its output must equal `stillheart warp`'s frame by frame */
     if (st == SH_OK) st = run_models_create(&cfg->method, &wopts, hdr->width, hdr->height, cfg->points[0] != 0, &p->models);
+    if (st == SH_OK && p->three_d) st = run_models_set_3d(p->models, &p->calib, p->out_cam);
     if (st == SH_OK) st = sh_warp_create(cfg->threads, &p->warp);
     if (st == SH_OK && cfg->points[0]) {
         st = sh_points_read(cfg->points, &p->points);
         if (st != SH_OK) st = sh_error_set(st, "[run] points: %s", sh_error_message());
     } else if (st == SH_OK) {
-        st = run_tracker_create(cfg, hdr->width, hdr->height, p->fps, &p->tracker);
+        st = run_tracker_create(cfg, p->three_d ? &p->calib : NULL, p->out_cam, hdr->width, hdr->height, p->fps,
+                                &p->tracker);
     }
     if (st != SH_OK) {
         run_proc_destroy(p);
@@ -103,20 +123,23 @@ void run_proc_request_reference(run_proc *p) { p->want_ref = 1; }
 int run_proc_builds(const run_proc *p) { return run_models_builds(p->models); }
 
 /* The markers of this frame, sorted by id. */
-static int markers(run_proc *p, const sh_image *img, int index)
+static int markers(run_proc *p, const sh_image *img, const sh_image *const *cams, int index)
 {
     int n = 0;
     if (!p->tracker) {
         int cnt;
         const sh_point *rows = sh_points_frame(&p->points, index, &cnt);
         for (int i = 0; i < cnt && n < RUN_MAX_MARKERS; i++) {
-            if (!isfinite(rows[i].x) || !isfinite(rows[i].y)) continue;
-            p->mk[n] = (run_marker){rows[i].id, rows[i].x, rows[i].y, rows[i].x, rows[i].y, 0, 0};
+            const sh_point *r = &rows[i];
+            if (!isfinite(r->x) || !isfinite(r->y) || (p->three_d && !(isfinite(r->X) && isfinite(r->Y) && isfinite(r->Z))))
+                continue;
+            p->mk[n] = (run_marker){r->id, r->x, r->y, r->x, r->y, 0, 0, r->X, r->Y, r->Z};
             n++;
         }
         return n;
     }
-    if (run_tracker_frame(p->tracker, img, index, p->mk, &n) != SH_OK) {
+    const sh_image *only[1] = {img};
+    if (run_tracker_frame(p->tracker, p->three_d ? cams : only, index, p->mk, &n) != SH_OK) {
         if (!p->track_err_once++) p->log("ERROR", "main", "tracker: %s", sh_error_message());
         return 0;
     }
@@ -130,7 +153,7 @@ static void take_reference(run_proc *p, int index, int nm)
     int n = 0;
     for (int i = 0; i < nm; i++)
         if (p->mk[i].age == 0) /* detected in this very frame: no prediction in a reference */
-            ref[n++] = (sh_point){index, p->mk[i].id, p->mk[i].x, p->mk[i].y, NAN, NAN, NAN};
+            ref[n++] = (sh_point){index, p->mk[i].id, p->mk[i].x, p->mk[i].y, p->mk[i].X, p->mk[i].Y, p->mk[i].Z};
     int first = run_models_reference(p->models, &(int){0}) == NULL;
     int due = p->want_ref ? n >= p->cfg.min_markers
             : !first || run_models_pending(p->models) ? 0
@@ -147,7 +170,7 @@ static void take_reference(run_proc *p, int index, int nm)
 
 /* Falls back on the last model while sel's is built: usable when every one of its markers still
  * has an estimate within max_sigma_px (a prediction is fine: the status says degraded). */
-static int fallback(run_proc *p, int nm, double *xy, double *det)
+static int fallback(run_proc *p, int nm, double *xy, double *xyz, double *det)
 {
     if (!p->last) return 0;
     int n;
@@ -157,17 +180,21 @@ static int fallback(run_proc *p, int nm, double *xy, double *det)
         if (c == nm || p->mk[c].id != ids[k] || p->mk[c].sigma > p->cfg.max_sigma_px) return 0;
         xy[2 * k] = p->mk[c].x;
         xy[2 * k + 1] = p->mk[c].y;
+        xyz[3 * k] = p->mk[c].X;
+        xyz[3 * k + 1] = p->mk[c].Y;
+        xyz[3 * k + 2] = p->mk[c].Z;
         det[2 * k] = p->mk[c].dx;
         det[2 * k + 1] = p->mk[c].dy;
     }
     return n;
 }
 
-const sh_image *run_proc_frame(run_proc *p, const sh_image *img, int index, sh_display_frame_info *info)
+const sh_image *run_proc_frame(run_proc *p, const sh_image *img, const sh_image *const *cams, int index,
+                               sh_display_frame_info *info)
 {
     double t0 = now_ms();
     p->ms[0] = p->ms[1] = p->ms[2] = 0;
-    int nm = markers(p, img, index);
+    int nm = markers(p, img, cams, index);
     double t1 = now_ms();
     p->ms[0] = t1 - t0;
     take_reference(p, index, nm);
@@ -202,8 +229,8 @@ const sh_image *run_proc_frame(run_proc *p, const sh_image *img, int index, sh_d
         return img;
     }
     run_model *md = NULL;
-    const double *xy = sel.xy, *det = sel.det;
-    double fb_xy[2 * RUN_MAX_MARKERS], fb_det[2 * RUN_MAX_MARKERS];
+    const double *xy = sel.xy, *xyz = sel.xyz, *det = sel.det;
+    double fb_xy[2 * RUN_MAX_MARKERS], fb_xyz[3 * RUN_MAX_MARKERS], fb_det[2 * RUN_MAX_MARKERS];
     int building = 0;
     int got = run_models_get(p->models, sel.ids, sel.n, &md);
     if (got < 0) {
@@ -213,19 +240,20 @@ const sh_image *run_proc_frame(run_proc *p, const sh_image *img, int index, sh_d
     }
     p->model_err_once = 0;
     if (got == 0) {
-        int n = fallback(p, nm, fb_xy, fb_det);
+        int n = fallback(p, nm, fb_xy, fb_xyz, fb_det);
         if (!n) {
             reason(info, "model for %d markers building", sel.n);
             return img;
         }
         md = p->last;
         xy = fb_xy;
+        xyz = fb_xyz;
         det = fb_det;
         building = 1;
         info->markers_used = (uint32_t)n;
     }
     double residual;
-    sh_status ust = run_model_update(md, xy, det, &residual);
+    sh_status ust = run_model_update(md, xy, xyz, det, &residual);
     double t2 = now_ms();
     p->ms[1] = t2 - t1;
     if (ust != SH_OK) {

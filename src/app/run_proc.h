@@ -9,8 +9,9 @@
 typedef struct run_proc run_proc;
 
 /* Tracker and detector from [detect], models from [method] (built on a helper thread), markers
- * from [run] points in test mode. fps: the stream's (0: 30). */
-sh_status run_proc_create(const sh_config *cfg, const sh_y4m_header *hdr, double fps, run_log_fn log,
+ * from [run] points in test mode. fps: the stream's (0: 30). With [method] calibration (as many
+ * cameras as configured, 2+): tracking in 3D over every camera's frames and warp3d. */
+sh_status run_proc_create(const sh_config *cfg, const sh_y4m_header *hdr, double fps, int cameras, run_log_fn log,
                           run_proc **out);
 void run_proc_destroy(run_proc *p);
 /* SIGHUP: [gating] takes effect from the next frame. */
@@ -18,10 +19,12 @@ void run_proc_set_gating(run_proc *p, const sh_config *cfg);
 /* The next frame with at least min_markers detected markers becomes the reference (its models
  * are built beside the running ones and swapped in when ready). */
 void run_proc_request_reference(run_proc *p);
-/* Processes one frame: returns what to show (img itself when raw) and fills info's status,
+/* Processes one frame (img: the output camera's; cams: every camera's frame of the set, NULL
+ * where missing, read in 3D only): returns what to show (img itself when raw) and fills info's status,
  * reason, markers_used and residual_px (-1 when not measured; never NaN). The returned image
  * stays valid until the next call. */
-const sh_image *run_proc_frame(run_proc *p, const sh_image *img, int index, sh_display_frame_info *info);
+const sh_image *run_proc_frame(run_proc *p, const sh_image *img, const sh_image *const *cams, int index,
+                               sh_display_frame_info *info);
 int run_proc_builds(const run_proc *p);
 /* The processing thread's CPU time in the last frame's stages, ms (the warp's helper threads
  * not counted): markers (detection and tracker), model (selection,

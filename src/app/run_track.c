@@ -12,18 +12,24 @@
 struct run_tracker {
     sh_track_options opts;
     int ids[RUN_MAX_MARKERS];
+    sh_calib calib;
+    int ncam, out_cam;
     sh_tracker *t;
     sh_detector *det;
     int last_index, frame, started;
-    sh_detection dets[MAX_DET];
+    sh_detection dets[SH_TRACK_MAX_CAMERAS][MAX_DET];
     sh_window win[SH_TRACK_MAX_MARKERS + 1];
     sh_track_estimate est[SH_TRACK_MAX_MARKERS];
 };
 
-sh_status run_tracker_create(const sh_config *cfg, int width, int height, double fps, run_tracker **out)
+sh_status run_tracker_create(const sh_config *cfg, const sh_calib *calib, int out_cam, int width, int height,
+                             double fps, run_tracker **out)
 {
     run_tracker *rt = calloc(1, sizeof *rt);
     if (!rt) return sh_error_set(SH_ENOMEM, "tracker: out of memory");
+    rt->ncam = calib ? calib->num_cameras : 1;
+    rt->out_cam = calib ? out_cam : 0;
+    if (calib) rt->calib = *calib;
     sh_track_options_default(&rt->opts);
     int n = 0;
     for (int i = 0; i < SH_CONFIG_MAX_IDS; i++)
@@ -45,7 +51,7 @@ sh_status run_tracker_create(const sh_config *cfg, int width, int height, double
     dopt.family = cfg->family;
     dopt.window_decimate = 2; /* ~2.4x cheaper, as accurate on ~100 px tags (detect.h) */
     sh_status st = sh_detector_create(&dopt, &rt->det);
-    if (st == SH_OK) st = sh_tracker_create(&rt->opts, NULL, &rt->t);
+    if (st == SH_OK) st = sh_tracker_create(&rt->opts, calib ? &rt->calib : NULL, &rt->t);
     if (st != SH_OK) {
         run_tracker_destroy(rt);
         return st;
@@ -77,13 +83,13 @@ static int merge_copies(sh_detection *d, int n)
     return kept;
 }
 
-sh_status run_tracker_frame(run_tracker *rt, const sh_image *img, int index, run_marker *out, int *n)
+sh_status run_tracker_frame(run_tracker *rt, const sh_image *const *cams, int index, run_marker *out, int *n)
 {
     *n = 0;
     if (rt->started && index <= rt->last_index) {
         /* time went backwards (a replay looped): the filters' history no longer applies */
         sh_tracker *fresh;
-        sh_status st = sh_tracker_create(&rt->opts, NULL, &fresh);
+        sh_status st = sh_tracker_create(&rt->opts, rt->ncam > 1 ? &rt->calib : NULL, &fresh);
         if (st != SH_OK) return st;
         sh_tracker_destroy(rt->t);
         rt->t = fresh;
@@ -93,37 +99,56 @@ sh_status run_tracker_frame(run_tracker *rt, const sh_image *img, int index, run
     rt->frame = rt->started ? rt->frame + (index - rt->last_index) : 0;
     rt->last_index = index;
     sh_status st = sh_tracker_predict(rt->t, rt->frame);
-    int nw = 0, nb = 0, nd = 0;
-    if (st == SH_OK) st = sh_tracker_windows(rt->t, 0, rt->win, SH_TRACK_MAX_MARKERS, &nw);
-    if (st == SH_OK) st = sh_tracker_reacquire(rt->t, 0, &rt->win[nw], &nb);
     if (st != SH_OK) return st;
-    st = !rt->started || nw == 0 ? sh_detector_detect(rt->det, img, rt->dets, MAX_DET, &nd)
-                                 : sh_detector_detect_windows(rt->det, img, rt->win, nw + nb, rt->dets, MAX_DET, &nd);
-    if (st != SH_OK) nd = 0; /* a detector failure is a frame without detections */
+    const sh_detection *dp[SH_TRACK_MAX_CAMERAS];
+    int count[SH_TRACK_MAX_CAMERAS];
+    for (int c = 0; c < rt->ncam; c++) {
+        int nw = 0, nb = 0, nd = 0;
+        dp[c] = rt->dets[c];
+        count[c] = 0;
+        if (!cams[c]) continue; /* this set lacks camera c */
+        st = sh_tracker_windows(rt->t, c, rt->win, SH_TRACK_MAX_MARKERS, &nw);
+        if (st == SH_OK) st = sh_tracker_reacquire(rt->t, c, &rt->win[nw], &nb);
+        if (st != SH_OK) return st;
+        st = !rt->started || nw == 0
+                 ? sh_detector_detect(rt->det, cams[c], rt->dets[c], MAX_DET, &nd)
+                 : sh_detector_detect_windows(rt->det, cams[c], rt->win, nw + nb, rt->dets[c], MAX_DET, &nd);
+        if (st != SH_OK) nd = 0; /* a detector failure is a frame without detections */
+        count[c] = merge_copies(rt->dets[c], nd < MAX_DET ? nd : MAX_DET);
+    }
     rt->started = 1;
-    int count = merge_copies(rt->dets, nd < MAX_DET ? nd : MAX_DET);
-    const sh_detection *dp = rt->dets;
-    sh_status ust = sh_tracker_update(rt->t, &dp, &count, 1);
-    if (ust != SH_OK) return ust;
+    st = sh_tracker_update(rt->t, dp, count, rt->ncam);
+    if (st != SH_OK) return st;
     int ne = sh_tracker_estimates(rt->t, rt->est, SH_TRACK_MAX_MARKERS);
     for (int k = 0; k < ne; k++) {
         const sh_track_estimate *e = &rt->est[k];
-        if (!e->confirmed || e->status == SH_TRACK_LOST || e->status == SH_TRACK_NEW || !e->in_view[0]) continue;
-        if (!isfinite(e->xy[0][0]) || !isfinite(e->xy[0][1])) continue;
+        int oc = rt->out_cam;
+        if (!e->confirmed || e->status == SH_TRACK_LOST || e->status == SH_TRACK_NEW || !e->in_view[oc]) continue;
+        if (!isfinite(e->xy[oc][0]) || !isfinite(e->xy[oc][1])) continue;
         run_marker *m = &out[(*n)++];
         m->id = e->id;
-        m->x = e->xy[0][0];
-        m->y = e->xy[0][1];
-        /* largest axis of the 2x2 covariance: sqrt of its larger eigenvalue */
-        double a = e->cov[0], b = e->cov[1], d = e->cov[e->dim + 1];
-        double l = 0.5 * (a + d) + sqrt(0.25 * (a - d) * (a - d) + b * b);
-        m->sigma = sqrt(l > 0 ? l : 0);
+        m->x = e->xy[oc][0];
+        m->y = e->xy[oc][1];
+        m->X = e->dim == 3 ? e->pos[0] : NAN;
+        m->Y = e->dim == 3 ? e->pos[1] : NAN;
+        m->Z = e->dim == 3 ? e->pos[2] : NAN;
+        if (e->dim == 2) { /* largest axis of the 2x2 covariance: sqrt of its larger eigenvalue */
+            double a = e->cov[0], b = e->cov[1], d = e->cov[3];
+            double l = 0.5 * (a + d) + sqrt(0.25 * (a - d) * (a - d) + b * b);
+            m->sigma = sqrt(l > 0 ? l : 0);
+        } else { /* mm -> px at the marker's depth in the output camera; sqrt(trace) bounds the
+                  * largest axis from above */
+            const sh_calib_camera *k = &rt->calib.cam[oc];
+            double z = k->R[6] * e->pos[0] + k->R[7] * e->pos[1] + k->R[8] * e->pos[2] + k->t[2];
+            double tr = e->cov[0] + e->cov[4] + e->cov[8];
+            m->sigma = z > 0 ? sqrt(tr > 0 ? tr : 0) * k->K[0] / z : INFINITY;
+        }
         m->age = e->age;
         m->dx = m->dy = NAN;
-        for (int j = 0; j < count && e->status == SH_TRACK_MEASURED; j++)
-            if (rt->dets[j].id == e->id) {
-                m->dx = rt->dets[j].cx;
-                m->dy = rt->dets[j].cy;
+        for (int j = 0; j < count[oc] && e->status == SH_TRACK_MEASURED; j++)
+            if (rt->dets[oc][j].id == e->id) {
+                m->dx = rt->dets[oc][j].cx;
+                m->dy = rt->dets[oc][j].cy;
                 break;
             }
     }
@@ -149,6 +174,9 @@ void run_select(const sh_config *cfg, double fps, const sh_point *ref, int nref,
         sel->xy[2 * sel->n + 1] = k->y;
         sel->det[2 * sel->n] = k->dx;
         sel->det[2 * sel->n + 1] = k->dy;
+        sel->xyz[3 * sel->n] = k->X;
+        sel->xyz[3 * sel->n + 1] = k->Y;
+        sel->xyz[3 * sel->n + 2] = k->Z;
         sel->n++;
         sel->predicted += k->age > 0;
         if (sel->worst_id < 0 || k->sigma > sel->worst_sigma) {

@@ -70,6 +70,7 @@ static const keydef keys[] = {
     {"method", "levels", "levels", K_INT, F(levels), 0, 0, 16, "B-spline levels (0: automatic)"},
     {"method", "smoothing", "smoothing", K_DOUBLE, F(smoothing), 0, 0, 1e9, "RBF smoothing lambda (0: interpolate)"},
     {"method", "grid", "grid", K_DOUBLE, F(grid), 0, 0, 256, "warp grid spacing in px (0: from the error bound)"},
+    {"method", "calibration", "calibration", K_STR, F(calibration), S(calibration), 0, 0, "cameras' calibration YAML: 3D tracking and warp (\"\": 2D)"},
     {"reference", "frame", "reference", K_INT, F(reference_frame), 0, 0, 1e9, "0: first good frame; N: the N-th frame"},
     {"gating", "min_markers", "min-markers", K_INT, F(min_markers), 0, 1, SH_CONFIG_MAX_IDS, "fewer markers -> raw"},
     {"gating", "max_residual_px", "max-residual", K_DOUBLE, F(max_residual_px), 0, 0, 1e4, "residual over this -> raw"},

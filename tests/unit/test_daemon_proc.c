@@ -102,7 +102,7 @@ static void test_select_dropout(void **state)
     /* ids 0, 2, 4, 6 tracked (8 lost); 4 unseen 4 frames, 6 unseen 5 frames */
     int ages[4] = {0, 0, 4, 5};
     double sig[4] = {0.2, 0.3, 2.5, 9};
-    for (int i = 0; i < 4; i++) m[i] = (run_marker){2 * i, 1.0 + i, 2.0 + i, 1.0 + i, 2.0 + i, sig[i], ages[i]};
+    for (int i = 0; i < 4; i++) m[i] = (run_marker){2 * i, 1.0 + i, 2.0 + i, 1.0 + i, 2.0 + i, sig[i], ages[i], NAN, NAN, NAN};
     run_selection sel;
     run_select(&cfg, 20, ref, 5, m, 4, &sel);
     assert_int_equal(sel.n, 3);
