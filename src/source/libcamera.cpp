@@ -239,8 +239,8 @@ sh_status start_impl(Impl *m, const char *name)
     return SH_OK;
 }
 
-// The camera is lost: stopped and released now; its buffers stay mapped until the caller's
-// frames are back.
+// The camera is lost: stopped now where it can be; released, unmapped and dropped once the
+// caller's frames are back.
 void lose(lc_source *l, int64_t now)
 {
     Impl *m = l->impl;
