@@ -69,6 +69,14 @@ sh_status sh_interp_fit(const sh_interp *interp, const double *values, int dim, 
  * Piecewise linear returns 0 terms outside the convex hull of the reference points. */
 int sh_interp_basis(const sh_interp *interp, double x, double y, int *index, double *weight);
 
+/* Gaussian RBFs only (with or without the affine term): the kernel term of point k at (x, y)
+ * is the product gx_k(x) gy_k(y), which lets a regular grid's basis be stored per axis (the
+ * warp's grid: nx + ny rows of n factors instead of nx ny rows of n terms). Writes
+ * f[k] = exp(-(v - p_k)^2 / sigma^2), p_k the point's coordinate along axis (0: x, 1: y), for
+ * the n points and returns n; returns 0 for every other method. The basis row's other terms
+ * (the affine term's, indices n .. n + 2) are sh_interp_basis's. */
+int sh_interp_kernel_factors(const sh_interp *interp, int axis, double v, double *f);
+
 /* value(x, y) = sum basis * coef, for dim components. Piecewise linear outside the convex hull:
  * SH_ERANGE with out set to 0 (no silent zero map). */
 sh_status sh_interp_eval(const sh_interp *interp, const double *coef, int dim, double x, double y,

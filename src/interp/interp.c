@@ -170,6 +170,18 @@ int sh_interp_basis(const sh_interp *it, double x, double y, int *index, double 
     return it->ops->basis(it, x, y, index, weight);
 }
 
+int sh_interp_kernel_factors(const sh_interp *it, int axis, double v, double *f)
+{
+    if (!it || !f || axis < 0 || axis > 1 || it->params.method != SH_METHOD_GAUSSIAN) return 0;
+    /* the factors of rbf.c's exp(-r^2 / sigma^2), computed the same way */
+    const double s = it->params.sigma, inv_sigma2 = s > 0 ? 1.0 / (s * s) : 0.0;
+    for (int k = 0; k < it->n; k++) {
+        double d = v - it->ref[2 * k + axis];
+        f[k] = exp(-d * d * inv_sigma2);
+    }
+    return it->n;
+}
+
 sh_status sh_interp_eval(const sh_interp *it, const double *coef, int dim, double x, double y,
                          double *out)
 {

@@ -133,7 +133,7 @@ static int node_pass(const double *row0, const double *row1, double ty, double i
             double v = row0[i] + ty * (row1[i] - row0[i]);
             if (!(fabs(v) < limit)) return 0;
             vs[4 * k + c] = (int32_t)lrint(v * unit);
-            if (k) vs[4 * (k - 1) + 2 + c] = (int32_t)lrint((v - prev[c]) * inv_h * unit);
+            if (k) vs[4 * (k - 1) + 2 + c] = (int32_t)lrint((v - prev[c]) * (inv_h * unit));
             prev[c] = v;
         }
     }
@@ -170,12 +170,80 @@ static inline void fill_steps(int32_t *ox, int32_t *oy, int count, int32_t vx, i
     }
 }
 
+/* Cells c_from..c_to of a row whose pixels first..last lie in cells i0..i1 (clipped to them;
+ * cell i1 also takes a pixel on its far node), a chunk of nodes at a time. */
+static int fill_cells(const sh_warp_model *m, const double *row0, const double *row1, double ty,
+                      int c_from, int c_to, int i1, int first, int last, int32_t *fx, int32_t *fy)
+{
+    const int h = m->h;
+    const double inv_h = 1.0 / h;
+    int32_t vs[4 * (NODE_CHUNK + 1)];
+    for (int c0 = c_from; c0 <= c_to; c0 += NODE_CHUNK) {
+        int c1 = c0 + NODE_CHUNK - 1 < c_to ? c0 + NODE_CHUNK - 1 : c_to;
+        if (!node_pass(row0, row1, ty, inv_h, c0, c1 + 1, vs)) return 0;
+        for (int i = c0; i <= c1; i++) {
+            const int32_t *n = vs + 4 * (i - c0);
+            int cell_x = m->gx0 + i * h;
+            int x0 = cell_x > first ? cell_x : first;
+            int x1 = i == i1 || cell_x + h - 1 > last ? last : cell_x + h - 1;
+            int skip = x0 - cell_x;
+            fill_steps(fx + (x0 - first), fy + (x0 - first), x1 - x0 + 1, n[0] + skip * n[2],
+                       n[1] + skip * n[3], n[2], n[3]);
+        }
+    }
+    return 1;
+}
+
+#if defined(__SSE2__)
+/* Whole cells ia..ib of a grid whose spacing is a multiple of 4: node_pass and fill_steps fused,
+ * the four lanes v + {0, 1, 2, 3} s of x and y built from the node's (x, y) pairs in registers.
+ * Same values as fill_cells. */
+static int fill_whole_cells(const sh_warp_model *m, const double *row0, const double *row1,
+                            double ty, int ia, int ib, int32_t *ox, int32_t *oy)
+{
+    const int h = m->h;
+    const double unit = 1 << WARP_FRAC_BITS, limit = (double)WARP_COORD_LIMIT / unit;
+    const __m128d t = _mm_set1_pd(ty), u = _mm_set1_pd(unit), su = _mm_set1_pd(1.0 / h * unit);
+    const __m128d lim = _mm_set1_pd(limit), sign = _mm_set1_pd(-0.0);
+    const double *a = row0 + 2 * (size_t)ia, *b = row1 + 2 * (size_t)ia;
+    __m128d prev = _mm_add_pd(_mm_loadu_pd(a), _mm_mul_pd(t, _mm_sub_pd(_mm_loadu_pd(b), _mm_loadu_pd(a))));
+    __m128d ok = _mm_cmplt_pd(_mm_andnot_pd(sign, prev), lim);
+    for (int i = ia; i <= ib; i++, ox += h, oy += h) {
+        a += 2, b += 2;
+        __m128d next = _mm_add_pd(_mm_loadu_pd(a), _mm_mul_pd(t, _mm_sub_pd(_mm_loadu_pd(b), _mm_loadu_pd(a))));
+        ok = _mm_and_pd(ok, _mm_cmplt_pd(_mm_andnot_pd(sign, next), lim));
+        __m128i v = _mm_cvtpd_epi32(_mm_mul_pd(prev, u));                     /* vx vy 0 0 */
+        __m128i s = _mm_cvtpd_epi32(_mm_mul_pd(_mm_sub_pd(next, prev), su));  /* sx sy 0 0 */
+        __m128i s2 = _mm_add_epi32(s, s);
+        s2 = _mm_unpacklo_epi64(s2, s2);
+        __m128i q = _mm_unpacklo_epi64(v, _mm_add_epi32(v, s)); /* x0 y0 x1 y1 */
+        __m128i r = _mm_add_epi32(q, s2);                       /* x2 y2 x3 y3 */
+        q = _mm_shuffle_epi32(q, _MM_SHUFFLE(3, 1, 2, 0));      /* x0 x1 y0 y1 */
+        r = _mm_shuffle_epi32(r, _MM_SHUFFLE(3, 1, 2, 0));
+        __m128i x = _mm_unpacklo_epi64(q, r), y = _mm_unpackhi_epi64(q, r);
+        _mm_storeu_si128((__m128i *)ox, x);
+        _mm_storeu_si128((__m128i *)oy, y);
+        if (h > 4) {
+            __m128i s4 = _mm_add_epi32(s2, s2);
+            __m128i ix = _mm_shuffle_epi32(s4, 0x00), iy = _mm_shuffle_epi32(s4, 0x55);
+            for (int k = 4; k < h; k += 4) {
+                x = _mm_add_epi32(x, ix);
+                y = _mm_add_epi32(y, iy);
+                _mm_storeu_si128((__m128i *)(ox + k), x);
+                _mm_storeu_si128((__m128i *)(oy + k), y);
+            }
+        }
+        prev = next;
+    }
+    return _mm_movemask_pd(ok) == 3;
+}
+#endif
+
 /* Full-resolution planes have a pixel on every node column: a node pass converts the row's
- * values at the node columns (and the per-pixel step to the next one) to 16.16 a chunk at a
- * time, then each cell steps from its left node's exact value, so no error carries from one
- * cell to the next. The step's rounding (2^-17 px per pixel) adds at most h 2^-17 px.
- * Returns 0 (rows' pixels partly written) when a value would leave the fixed-point range, for
- * the careful path. */
+ * values at the node columns (and the per-pixel step to the next one) to 16.16, then each cell
+ * steps from its left node's exact value, so no error carries from one cell to the next. The
+ * step's rounding (2^-17 px per pixel) adds at most h 2^-17 px. Returns 0 (the row's pixels
+ * partly written) when a value would leave the fixed-point range, for the careful path. */
 static int fill_grid_aligned(const sh_warp_model *m, const double *row0, const double *row1,
                              double ty, int first, int last, int32_t *fx, int32_t *fy)
 {
@@ -184,22 +252,20 @@ static int fill_grid_aligned(const sh_warp_model *m, const double *row0, const d
     int i0 = (first - m->gx0) / h, i1 = (last - m->gx0) / h;
     if (i1 == m->nx - 1) i1--; /* a pixel on the last node column: the last cell's far end */
     if (i0 > i1 || i1 > m->nx - 2) return 0;
-    const double inv_h = 1.0 / h;
-    int32_t vs[4 * (NODE_CHUNK + 1)];
-    for (int c0 = i0; c0 <= i1; c0 += NODE_CHUNK) {
-        int c1 = c0 + NODE_CHUNK - 1 < i1 ? c0 + NODE_CHUNK - 1 : i1;
-        if (!node_pass(row0, row1, ty, inv_h, c0, c1 + 1, vs)) return 0;
-        for (int i = c0; i <= c1; i++) {
-            const int32_t *n = vs + 4 * (i - c0);
-            int cell_x = m->gx0 + i * h;
-            int x0 = cell_x > first ? cell_x : first;
-            int x1 = i == i1 ? last : cell_x + h - 1;
-            int skip = x0 - cell_x;
-            fill_steps(fx + (x0 - first), fy + (x0 - first), x1 - x0 + 1, n[0] + skip * n[2],
-                       n[1] + skip * n[3], n[2], n[3]);
+#if defined(__SSE2__)
+    if (h % 4 == 0) {
+        int ia = m->gx0 + i0 * h == first ? i0 : i0 + 1;
+        int ib = (last + 1 - m->gx0) / h - 1; /* the last cell whose h pixels all lie in the row */
+        if (ib >= i1) ib = m->gx0 + i1 * h + h - 1 == last ? i1 : i1 - 1; /* far-node pixel */
+        if (ia <= ib) {
+            int xa = m->gx0 + ia * h;
+            return (ia == i0 || fill_cells(m, row0, row1, ty, i0, ia - 1, i1, first, last, fx, fy)) &&
+                   fill_whole_cells(m, row0, row1, ty, ia, ib, fx + (xa - first), fy + (xa - first)) &&
+                   (ib == i1 || fill_cells(m, row0, row1, ty, ib + 1, i1, i1, first, last, fx, fy));
         }
     }
-    return 1;
+#endif
+    return fill_cells(m, row0, row1, ty, i0, i1, i1, first, last, fx, fy);
 }
 
 /* Grid rows: the map's value on this row at each node column (in plane units) is interpolated

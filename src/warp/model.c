@@ -28,8 +28,12 @@ static void free_grid(sh_warp_model *m)
     free(m->weight);
     free(m->map);
     free(m->curvature);
+    free(m->sep_x);
+    free(m->sep_y);
+    free(m->sep_row);
     m->row_start = m->index = NULL;
-    m->weight = m->map = m->curvature = NULL;
+    m->weight = m->map = m->curvature = m->sep_x = m->sep_y = m->sep_row = NULL;
+    m->sep_n = 0;
 }
 
 /* Triangles listed per band of TRIANGLE_BAND rows, so a row visits only the few triangles
@@ -76,6 +80,32 @@ void sh_warp_model_destroy(sh_warp_model *m)
     free(m);
 }
 
+/* A Gaussian kernel's factors per node column and row (see sh_interp_kernel_factors); returns
+ * 0 with nothing allocated for the other methods. */
+static sh_status build_separable(sh_warp_model *m)
+{
+    const int n = m->n, h = m->h;
+    m->sep_y = malloc(sizeof(double) * (size_t)m->ny * n);
+    if (!m->sep_y) return sh_error_set(SH_ENOMEM, "warp: out of memory");
+    if (sh_interp_kernel_factors(m->interp, 1, m->gy0, m->sep_y) != n) {
+        free(m->sep_y);
+        m->sep_y = NULL;
+        return SH_OK;
+    }
+    m->sep_x = malloc(sizeof(double) * 2 * (size_t)m->nx * n);
+    m->sep_row = malloc(sizeof(double) * 2 * (size_t)n);
+    if (!m->sep_x || !m->sep_row) return sh_error_set(SH_ENOMEM, "warp: out of memory");
+    for (int j = 1; j < m->ny; j++)
+        sh_interp_kernel_factors(m->interp, 1, m->gy0 + (double)j * h, m->sep_y + (size_t)j * n);
+    for (int i = 0; i < m->nx; i++) {
+        double *f = m->sep_x + 2 * (size_t)i * n;
+        sh_interp_kernel_factors(m->interp, 0, m->gx0 + (double)i * h, f + n);
+        for (int k = 0; k < n; k++) f[2 * k] = f[2 * k + 1] = f[n + k];
+    }
+    m->sep_n = n;
+    return SH_OK;
+}
+
 static sh_status build_grid(sh_warp_model *m, int h)
 {
     free_grid(m);
@@ -85,26 +115,46 @@ static sh_status build_grid(sh_warp_model *m, int h)
     m->nx = ((int)ceil(m->hull.xmax / h) * h - m->gx0) / h + 1;
     m->ny = ((int)ceil(m->hull.ymax / h) * h - m->gy0) / h + 1;
     size_t nodes = (size_t)m->nx * (size_t)m->ny;
+    sh_status st = build_separable(m);
+    if (st != SH_OK) return st;
     int max_terms = sh_interp_max_terms(m->interp);
-    size_t cap = nodes * (size_t)max_terms;
+    /* separable: the CSR rows keep only the terms past the kernel's n */
+    size_t cap = nodes * (size_t)(max_terms - m->sep_n) + 1;
     m->row_start = malloc(sizeof(int) * (nodes + 1));
     m->index = malloc(sizeof(int) * cap);
     m->weight = malloc(sizeof(double) * cap);
     m->map = malloc(sizeof(double) * 2 * nodes);
     m->curvature = malloc(sizeof(double) * 4 * nodes);
-    if (!m->row_start || !m->index || !m->weight || !m->map || !m->curvature)
+    int *row_index = m->sep_n ? malloc(sizeof(int) * (size_t)max_terms) : NULL;
+    double *row_weight = m->sep_n ? malloc(sizeof(double) * (size_t)max_terms) : NULL;
+    if (!m->row_start || !m->index || !m->weight || !m->map || !m->curvature ||
+        (m->sep_n && (!row_index || !row_weight))) {
+        free(row_index);
+        free(row_weight);
         return sh_error_set(SH_ENOMEM, "warp: grid of %zu nodes does not fit in memory", nodes);
+    }
     size_t used = 0;
     for (int j = 0; j < m->ny; j++) {
         for (int i = 0; i < m->nx; i++) {
             size_t node = (size_t)j * m->nx + i;
             m->row_start[node] = (int)used;
-            int k = sh_interp_basis(m->interp, m->gx0 + (double)i * h, m->gy0 + (double)j * h,
-                                    m->index + used, m->weight + used);
-            if (k < 0) return (sh_status)k;
-            used += (size_t)k;
+            double x = m->gx0 + (double)i * h, y = m->gy0 + (double)j * h;
+            if (!m->sep_n) {
+                int k = sh_interp_basis(m->interp, x, y, m->index + used, m->weight + used);
+                if (k < 0) return (sh_status)k;
+                used += (size_t)k;
+                continue;
+            }
+            int k = sh_interp_basis(m->interp, x, y, row_index, row_weight);
+            for (int t = 0; t < k; t++) {
+                if (row_index[t] < m->sep_n) continue;
+                m->index[used] = row_index[t];
+                m->weight[used++] = row_weight[t];
+            }
         }
     }
+    free(row_index);
+    free(row_weight);
     m->row_start[nodes] = (int)used;
     return SH_OK;
 }
@@ -193,40 +243,65 @@ static int triangle_map(const double *p0, const double *p1, const double *p2, co
     return 1;
 }
 
+/* The separable kernel part of a node's value: sum_k gx_k(x_i) (gy_k(y_j) coef_k), the
+ * second factor once per grid row in m->sep_row; x and y side by side as everywhere here. */
+static inline void separable_sum(const sh_warp_model *m, size_t i, double *xy)
+{
+    const int n = m->sep_n;
+    const double *f = m->sep_x + 2 * i * (size_t)n, *a = m->sep_row;
+#if defined(__SSE2__)
+    __m128d even = _mm_setzero_pd(), odd = _mm_setzero_pd();
+    int k = 0;
+    for (; k + 2 <= n; k += 2) {
+        even = _mm_add_pd(even, _mm_mul_pd(_mm_loadu_pd(f + 2 * k), _mm_loadu_pd(a + 2 * k)));
+        odd = _mm_add_pd(odd, _mm_mul_pd(_mm_loadu_pd(f + 2 * k + 2), _mm_loadu_pd(a + 2 * k + 2)));
+    }
+    if (k < n) even = _mm_add_pd(even, _mm_mul_pd(_mm_loadu_pd(f + 2 * k), _mm_loadu_pd(a + 2 * k)));
+    _mm_storeu_pd(xy, _mm_add_pd(_mm_loadu_pd(xy), _mm_add_pd(even, odd)));
+#else
+    for (int k = 0; k < n; k++) {
+        xy[0] += f[2 * k] * a[2 * k];
+        xy[1] += f[2 * k + 1] * a[2 * k + 1];
+    }
+#endif
+}
+
 static void grid_map(sh_warp_model *m)
 {
-    for (size_t node = 0, j = 0; j < (size_t)m->ny; j++)
-    for (size_t i = 0; i < (size_t)m->nx; i++, node++) {
-        const int *index = m->index + m->row_start[node];
-        const double *weight = m->weight + m->row_start[node];
-        int terms = m->row_start[node + 1] - m->row_start[node];
-        double x, y;
+    for (size_t node = 0, j = 0; j < (size_t)m->ny; j++) {
+        if (m->sep_n)
+            for (size_t k = 0; k < 2 * (size_t)m->sep_n; k++)
+                m->sep_row[k] = m->coef[k] * m->sep_y[j * m->sep_n + k / 2];
+        for (size_t i = 0; i < (size_t)m->nx; i++, node++) {
+            const int *index = m->index + m->row_start[node];
+            const double *weight = m->weight + m->row_start[node];
+            int terms = m->row_start[node + 1] - m->row_start[node];
+            double xy[2];
 #if defined(__SSE2__)
-        /* x and y side by side in one register; two chains to hide the adder's latency */
-        __m128d even = _mm_setzero_pd(), odd = _mm_setzero_pd();
-        int k = 0;
-        for (; k + 2 <= terms; k += 2) {
-            even = _mm_add_pd(even, _mm_mul_pd(_mm_set1_pd(weight[k]),
-                                               _mm_loadu_pd(m->coef + 2 * (size_t)index[k])));
-            odd = _mm_add_pd(odd, _mm_mul_pd(_mm_set1_pd(weight[k + 1]),
-                                             _mm_loadu_pd(m->coef + 2 * (size_t)index[k + 1])));
-        }
-        if (k < terms)
-            even = _mm_add_pd(even, _mm_mul_pd(_mm_set1_pd(weight[k]),
-                                               _mm_loadu_pd(m->coef + 2 * (size_t)index[k])));
-        double sum[2];
-        _mm_storeu_pd(sum, _mm_add_pd(even, odd));
-        x = sum[0];
-        y = sum[1];
+            /* x and y side by side in one register; two chains to hide the adder's latency */
+            __m128d even = _mm_setzero_pd(), odd = _mm_setzero_pd();
+            int k = 0;
+            for (; k + 2 <= terms; k += 2) {
+                even = _mm_add_pd(even, _mm_mul_pd(_mm_set1_pd(weight[k]),
+                                                   _mm_loadu_pd(m->coef + 2 * (size_t)index[k])));
+                odd = _mm_add_pd(odd, _mm_mul_pd(_mm_set1_pd(weight[k + 1]),
+                                                 _mm_loadu_pd(m->coef + 2 * (size_t)index[k + 1])));
+            }
+            if (k < terms)
+                even = _mm_add_pd(even, _mm_mul_pd(_mm_set1_pd(weight[k]),
+                                                   _mm_loadu_pd(m->coef + 2 * (size_t)index[k])));
+            _mm_storeu_pd(xy, _mm_add_pd(even, odd));
 #else
-        x = y = 0;
-        for (int k = 0; k < terms; k++) {
-            x += weight[k] * m->coef[2 * (size_t)index[k]];
-            y += weight[k] * m->coef[2 * (size_t)index[k] + 1];
-        }
+            xy[0] = xy[1] = 0;
+            for (int k = 0; k < terms; k++) {
+                xy[0] += weight[k] * m->coef[2 * (size_t)index[k]];
+                xy[1] += weight[k] * m->coef[2 * (size_t)index[k] + 1];
+            }
 #endif
-        m->map[2 * node] = m->gx0 + (double)i * m->h + x;
-        m->map[2 * node + 1] = m->gy0 + (double)j * m->h + y;
+            if (m->sep_n) separable_sum(m, i, xy);
+            m->map[2 * node] = m->gx0 + (double)i * m->h + xy[0];
+            m->map[2 * node + 1] = m->gy0 + (double)j * m->h + xy[1];
+        }
     }
 }
 
