@@ -30,11 +30,11 @@ typedef struct {
     {"camera" #i, "spec", "camera" #i "-spec", K_SPEC, F(camera[i].spec), S(camera[i].spec), 0, 0,           \
      "v4l2:/dev/videoN | libcamera:NAME | y4m:FILE | rec:DIR (\"\": no camera)", NULL, i + 1, 0},             \
     {"camera" #i, "format", "camera" #i "-format", K_RAWFMT, F(camera[i].format), S(camera[i].format), 0, 0,   \
-     "yuyv nv12 grey rgb24 bgr24 mjpeg (\"\": the device's)", NULL, i + 1, 0},                                \
+     "yuyv nv12 grey rgb24 bgr24 mjpeg (auto: the device's)", NULL, i + 1, 0},                                \
     {"camera" #i, "size", "camera" #i "-size", K_SIZE, F(camera[i].width), 0, 1, 16384,                       \
-     "WIDTHxHEIGHT (\"\": the device's)", NULL, i + 1, 0},                                                    \
+     "WIDTHxHEIGHT (auto: the device's)", NULL, i + 1, 0},                                                    \
     {"camera" #i, "fps", "camera" #i "-fps", K_FPS, F(camera[i].fps_num), 0, 0, 1000,                         \
-     "frames per second, 30 or 30000/1001 (\"\": the device's)", NULL, i + 1, 0},                             \
+     "frames per second, 30 or 30000/1001 (auto: the device's)", NULL, i + 1, 0},                             \
     {"camera" #i, "exposure", "camera" #i "-exposure", K_CTRL, F(camera[i].exposure), 0, 1, 10000000,         \
      "manual exposure in 100 us units (auto: the camera's)", NULL, i + 1, 0},                                 \
     {"camera" #i, "gain", "camera" #i "-gain", K_CTRL, F(camera[i].gain), 0, 0, 1000000,                      \
@@ -533,10 +533,10 @@ void sh_config_usage(FILE *out)
     for (int i = 0; i < NKEYS; i++) {
         if (keys[i].cam > 1)
             continue; /* cameras 1.. have camera 0's keys: one line says so */
-        fprintf(out, "  --%-14s %s  [%s] %s: %s\n", keys[i].option, keys[i].type == K_BOOL ? "0|1" : "V  ",
+        fprintf(out, "  --%-21s %s  [%s] %s: %s\n", keys[i].option, keys[i].type == K_BOOL ? "0|1" : "V  ",
                 keys[i].section, keys[i].key, keys[i].help);
         if (i + 1 < NKEYS && keys[i].cam == 1 && !keys[i].alias && keys[i + 1].cam != 1)
-            fprintf(out, "  --cameraN-KEY      V    [cameraN] KEY: the same keys for cameras 1..%d\n",
+            fprintf(out, "  --cameraN-KEY           V    [cameraN] KEY: the same keys for cameras 1..%d\n",
                     SH_CONFIG_MAX_CAMERAS - 1);
     }
 }
