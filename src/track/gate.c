@@ -254,7 +254,14 @@ void trk_update_marker(sh_tracker *t, int i, const sh_detection *const *det, int
         double ext = 0;
         for (int q = 0; q < 4; q++)
             ext = fmax(ext, hypot(d->corner[q][0] - d->cx, d->corner[q][1] - d->cy));
-        if (isfinite(ext) && ext < 0.5 * t->o.width) mk->extent[c] = ext;
+        if (isfinite(ext) && ext < 0.5 * t->o.width) {
+            mk->extent[c] = ext;
+            for (int a = 0; a < 2; a++) {
+                double h = 0;
+                for (int q = 0; q < 4; q++) h = fmax(h, fabs(d->corner[q][a] - (a ? d->cy : d->cx)));
+                mk->half[c][a] = h;
+            }
+        }
         uv[2 * nv] = z[0];
         uv[2 * nv + 1] = z[1];
         vc[nv] = t->cams[c];

@@ -188,6 +188,8 @@ sh_status sh_tracker_predict(sh_tracker *t, int frame)
     return SH_OK;
 }
 
+#define TRK_WINDOW_MARGIN 4 /* px beyond the tag's black border */
+
 sh_status sh_tracker_windows(const sh_tracker *t, int cam, sh_window *out, int max, int *count)
 {
     if (!t || !count || (max > 0 && !out) || cam < 0 || cam >= t->ncam)
@@ -200,12 +202,19 @@ sh_status sh_tracker_windows(const sh_tracker *t, int cam, sh_window *out, int m
         if (!trk_predicted_xy(t, mk, cam, NULL, NULL, xy, S)) continue;
         double tr = S[0] + S[3], det = S[0] * S[3] - S[1] * S[2];
         double lmax = 0.5 * tr + sqrt(fmax(0, 0.25 * tr * tr - det));
-        double ext = mk->extent[cam] > 0 ? mk->extent[cam] : 0.5 * t->o.min_window;
-        double half = ext + t->o.window_sigmas * sqrt(lmax) + 4;
-        if (half < 0.5 * t->o.min_window) half = 0.5 * t->o.min_window;
-        if (!isfinite(xy[0]) || !isfinite(xy[1]) || !isfinite(half)) continue;
-        double x0 = floor(xy[0] - half), y0 = floor(xy[1] - half);
-        double x1 = ceil(xy[0] + half) + 1, y1 = ceil(xy[1] + half) + 1;
+        /* the tag's bounding box (a tag seen square-on fills half its circumscribed circle's
+         * square: per-call cost grows with the pixels) plus the prediction's uncertainty plus a
+         * margin for the tag's white border; before a detection, a square of the largest extent */
+        double hw[2];
+        for (int a = 0; a < 2; a++) {
+            double ext = mk->half[cam][a] > 0 ? mk->half[cam][a]
+                         : mk->extent[cam] > 0 ? mk->extent[cam] : 0.5 * t->o.min_window;
+            hw[a] = ext + t->o.window_sigmas * sqrt(lmax) + TRK_WINDOW_MARGIN;
+            if (hw[a] < 0.5 * t->o.min_window) hw[a] = 0.5 * t->o.min_window;
+        }
+        if (!isfinite(xy[0]) || !isfinite(xy[1]) || !isfinite(hw[0]) || !isfinite(hw[1])) continue;
+        double x0 = floor(xy[0] - hw[0]), y0 = floor(xy[1] - hw[1]);
+        double x1 = ceil(xy[0] + hw[0]) + 1, y1 = ceil(xy[1] + hw[1]) + 1;
         if (x0 < 0) x0 = 0;
         if (y0 < 0) y0 = 0;
         if (x1 > t->o.width) x1 = t->o.width;

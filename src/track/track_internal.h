@@ -32,6 +32,7 @@ typedef struct {
     int spatial;           /* reported estimate used neighbours this frame */
     axis_filter f[3];
     double extent[MAXC];   /* apparent half-size (centre to farthest corner), px; 0 unknown */
+    double half[MAXC][2];  /* half-width and half-height of its last accepted quad's bounding box */
     int last_frame;        /* frame of the last accepted detection */
     int rejects;           /* consecutive frames with this id's detections gated away */
     double rej_sum[2], rej_ss; /* their offsets from the prediction (px): sum, sum of squares */
