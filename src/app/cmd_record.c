@@ -286,13 +286,20 @@ int cmd_record(int argc, char **argv)
         sh_source_format(src[i], &s.format, &s.width, &s.height, &s.fps_num, &s.fps_den);
         s.stride = sh_source_stride(src[i]);
         snprintf(s.source, sizeof s.source, "%s", specs[i]);
-        if (sh_rec_writer_stream(w, &s) != SH_OK || sh_source_start(src[i]) != SH_OK) {
+        if (sh_rec_writer_stream(w, &s) != SH_OK) {
             fprintf(stderr, "stillheart record: %s\n", sh_error_message());
             goto out;
         }
         fprintf(stderr, "stillheart record: camera %d: %s, %dx%d %s at %d/%d fps\n", i, specs[i], s.width, s.height,
                 sh_rawfmt_name(s.format), s.fps_num, s.fps_den);
     }
+    /* started back to back, after the stream records are written: a replay's schedule starts at
+     * its start, so the gap between two starts would offset the cameras' stamps */
+    for (int i = 0; i < nspec; i++)
+        if (sh_source_start(src[i]) != SH_OK) {
+            fprintf(stderr, "stillheart record: %s\n", sh_error_message());
+            goto out;
+        }
     if (trig && sh_gpio_trigger_start(trig) != SH_OK) {
         fprintf(stderr, "stillheart record: %s\n", sh_error_message());
         goto out;

@@ -1,6 +1,7 @@
 /* stillheart run with several cameras, run as a program (the binary next to this test's folder):
  * two replayed cameras form complete sets and the configured output camera is the one warped (its
- * record equals `stillheart warp` of that camera's file, not of the other's); a camera that ends
+ * record equals `stillheart warp` of that camera's file, not of the other's), also looping and
+ * from a `stillheart record` recording of the two (rec:DIR); a camera that ends
  * early leaves the other going with incomplete sets; a missing camera file or device, a gap in
  * the camera numbering, an output camera that is not configured and a missing GPIO chip are
  * refused at start, naming what is wrong. */
@@ -200,6 +201,25 @@ static void test_two_cameras_loop(void **state)
     assert_frames_repeat("loop.y4m", "warp1.y4m", 2 * N + N / 2, N);
 }
 
+/* A recording of the two cameras replayed: [cameraN] rec:DIR is camera N of it, so the frames
+ * shown for camera 1 are again stillheart warp's of cam1.y4m (the header differs: a recording
+ * keeps no Y4M extras). Sets within 19 ms (under half the 40 ms period) on both sides, so that a
+ * slow start of one replay under a loaded machine cannot split them. */
+static void test_recording_cameras(void **state)
+{
+    (void)state;
+    ok(run("%s record --source y4m:%s/cam0.y4m --source y4m:%s/cam1.y4m --fast --tolerance-ms 19 --max-wait-ms 1000 "
+           "--frames %d %s/rig",
+           bin, tmp, tmp, N, tmp));
+    ok(run("%s run --camera0-spec rec:%s/rig --camera1-spec rec:%s/rig --output-camera 1 --no-realtime --no-loop "
+           "--sync-tolerance-ms 19 " RUN_ARGS " --record %s/fromrec.y4m",
+           bin, tmp, tmp, tmp, tmp));
+    char want[64];
+    snprintf(want, sizeof want, "sets: %d (0 incomplete)", N);
+    if (!strstr(out, want)) fail_msg("no '%s' in:\n%s", want, out);
+    assert_frames_repeat("fromrec.y4m", "warp1.y4m", N, N);
+}
+
 /* Camera 1 ends after SHORT frames: camera 0 (shown) goes on; its last sets are incomplete. */
 static void test_camera_ends_others_go_on(void **state)
 {
@@ -249,6 +269,7 @@ int main(void)
         cmocka_unit_test(test_two_cameras_output_warped),
         cmocka_unit_test(test_two_cameras_realtime_cli),
         cmocka_unit_test(test_two_cameras_loop),
+        cmocka_unit_test(test_recording_cameras),
         cmocka_unit_test(test_camera_ends_others_go_on),
         cmocka_unit_test(test_refusals),
     };
