@@ -150,6 +150,12 @@ int sh_warp3d_ply_num_points(const sh_warp3d_ply *ply);
 sh_status sh_warp3d_ply_write(sh_warp3d_ply *ply, const sh_warp3d_model *model, int current,
                               const sh_image *rgb, const sh_calib_camera *cam, const char *path);
 
+/* The same surface as a textured mesh: base.obj (vertices, texture coordinates = each vertex's
+ * pixel in cam over the frame's size, the lattice's triangles), base.mtl and base.png (rgb,
+ * RGB24, the texture). Needs an exporter created with mesh = 1. */
+sh_status sh_warp3d_obj_write(sh_warp3d_ply *ply, const sh_warp3d_model *model, int current,
+                              const sh_image *rgb, const sh_calib_camera *cam, const char *base);
+
 #ifdef __cplusplus
 }
 #endif

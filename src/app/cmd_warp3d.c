@@ -56,6 +56,8 @@ static void usage(FILE *out)
         "                     DIR/frame_NNNNNN.ply (binary PLY, world mm, colour from IN)\n"
         "  --ply-spacing MM   lattice spacing of the export over the surface (default 1)\n"
         "  --ply-mesh         add the lattice's triangles (a mesh instead of a point cloud)\n"
+        "  --ply-texture      also write each exported surface as a textured mesh beside its PLY:\n"
+        "                     frame_NNNNNN.obj, .mtl and .png (IN's frame; implies --ply-mesh)\n"
         "  --ply-every N      export every N-th frame (default 1)\n"
         "  --quiet            no progress line, no summary\n"
         "  --help             this text\n"
@@ -250,12 +252,12 @@ int cmd_warp3d(int argc, char **argv)
         {"layout", required_argument, 0, 'L'}, {"depth-scale", required_argument, 0, 'z'},
         {"threads", required_argument, 0, 't'}, {"max-error", required_argument, 0, 'e'},
         {"export-ply", required_argument, 0, 'P'}, {"ply-spacing", required_argument, 0, 'S'},
-        {"ply-mesh", no_argument, 0, 'M'}, {"ply-every", required_argument, 0, 'E'},
+        {"ply-mesh", no_argument, 0, 'M'}, {"ply-texture", no_argument, 0, 'T'}, {"ply-every", required_argument, 0, 'E'},
         {"quiet", no_argument, 0, 'q'}, {"help", no_argument, 0, 'h'}, {0, 0, 0, 0}};
     const char *calib_path = NULL, *points_path = NULL, *method = "bspline", *smethod = NULL,
                *dmethod = NULL, *view = "reference", *layout = "sbs", *ply_dir = NULL;
     double sigma = 0, baseline = 10, depth_scale = 1, max_error = 0.05, ply_spacing = 1;
-    int camera = 0, reference = 0, threads = 1, quiet = 0, have_sigma = 0, ply_mesh = 0, ply_every = 1;
+    int camera = 0, reference = 0, threads = 1, quiet = 0, have_sigma = 0, ply_mesh = 0, ply_every = 1, ply_texture = 0;
     int opt;
     optind = 1;
     while ((opt = getopt_long(argc, argv, "", options, NULL)) != -1) {
@@ -278,6 +280,7 @@ int cmd_warp3d(int argc, char **argv)
         case 'P': ply_dir = optarg; break;
         case 'S': if (!app_parse_double("--ply-spacing", optarg, 1e-3, 1e4, &ply_spacing)) return 2; break;
         case 'M': ply_mesh = 1; break;
+        case 'T': ply_texture = ply_mesh = 1; break;
         case 'E': if (!app_parse_int("--ply-every", optarg, 1, 1 << 30, &ply_every)) return 2; break;
         case 'q': quiet = 1; break;
         case 'h': usage(stdout); return 0;
@@ -481,6 +484,11 @@ int cmd_warp3d(int argc, char **argv)
             snprintf(ply_path, sizeof ply_path, "%s/frame_%06d.ply", ply_dir, frames);
             if (sh_image_to_rgb(&in, &rgb, fr) != SH_OK ||
                 sh_warp3d_ply_write(slot->ply, slot->model, 1, &rgb, &cache.source, ply_path) != SH_OK) {
+                fail("--export-ply");
+                goto done;
+            }
+            snprintf(ply_path, sizeof ply_path, "%s/frame_%06d", ply_dir, frames);
+            if (ply_texture && sh_warp3d_obj_write(slot->ply, slot->model, 1, &rgb, &cache.source, ply_path) != SH_OK) {
                 fail("--export-ply");
                 goto done;
             }

@@ -5,6 +5,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "stillheart/png.h"
 #include "warp3d_internal.h"
 
 #define VERTEX_BYTES 15 /* 3 float + 3 uchar */
@@ -160,4 +161,63 @@ sh_status sh_warp3d_ply_write(sh_warp3d_ply *p, const sh_warp3d_model *m, int cu
     if (fclose(f) != 0 || bad || wrote != p->buf_size)
         return sh_error_set(SH_EIO, "%s: write failed", path);
     return SH_OK;
+}
+
+/* The textured mesh: OBJ + MTL + PNG, which every mesh viewer reads (PLY has no standard way to
+ * name a texture). Texture coordinates are each vertex's pixel in cam, with OpenCV's pixel
+ * centres at integers: s = (x + 0.5) / W, t = 1 - (y + 0.5) / H (OBJ's t runs up). */
+sh_status sh_warp3d_obj_write(sh_warp3d_ply *p, const sh_warp3d_model *m, int current, const sh_image *rgb,
+                              const sh_calib_camera *cam, const char *base)
+{
+    if (!p || !m || !rgb || !cam || !base) return sh_error_set(SH_EINVAL, "warp3d: OBJ: missing argument");
+    if (!p->faces) return sh_error_set(SH_EINVAL, "warp3d: OBJ: the exporter was made without triangles");
+    if (rgb->format != SH_PIX_RGB24) return sh_error_set(SH_EINVAL, "warp3d: OBJ texture must be RGB24");
+    size_t n = strlen(base);
+    char *path = malloc(n + 5);
+    if (!path) return sh_error_set(SH_ENOMEM, "warp3d: out of memory");
+    const char *name = strrchr(base, '/');
+    name = name ? name + 1 : base;
+    sh_status st = SH_OK;
+    snprintf(path, n + 5, "%s.png", base);
+    if ((st = sh_png_write(path, rgb, 1)) != SH_OK) goto done;
+    snprintf(path, n + 5, "%s.mtl", base);
+    FILE *f = fopen(path, "w");
+    if (!f) {
+        st = sh_error_set(SH_EIO, "%s: cannot create", path);
+        goto done;
+    }
+    fprintf(f, "newmtl frame\nKa 1 1 1\nKd 1 1 1\nKs 0 0 0\nillum 1\nmap_Kd %s.png\n", name);
+    if (fclose(f) != 0) {
+        st = sh_error_set(SH_EIO, "%s: write failed", path);
+        goto done;
+    }
+    snprintf(path, n + 5, "%s.obj", base);
+    f = fopen(path, "w");
+    if (!f) {
+        st = sh_error_set(SH_EIO, "%s: cannot create", path);
+        goto done;
+    }
+    fprintf(f, "# stillheart warp3d: %s surface, world mm, texture from the camera's frame\nmtllib %s.mtl\n",
+            current ? "stabilized current" : "reference", name);
+    for (int k = 0; k < p->count; k++) {
+        double X[3];
+        sh_warp3d_model_point(m, p->uv[2 * k], p->uv[2 * k + 1], 1, current, X);
+        fprintf(f, "v %.5f %.5f %.5f\n", X[0], X[1], X[2]);
+    }
+    for (int k = 0; k < p->count; k++) {
+        double X[3], x = -0.5, y = rgb->height - 0.5; /* behind the camera: texel (0, 0) */
+        sh_warp3d_model_point(m, p->uv[2 * k], p->uv[2 * k + 1], 1, current, X);
+        if (!sh_warp3d_project(cam, X, &x, &y)) x = -0.5, y = rgb->height - 0.5;
+        fprintf(f, "vt %.7f %.7f\n", (x + 0.5) / rgb->width, 1.0 - (y + 0.5) / rgb->height);
+    }
+    fprintf(f, "usemtl frame\n");
+    for (int t = 0; t < p->faces; t++) {
+        const int *v = p->tri + 3 * t;
+        fprintf(f, "f %d/%d %d/%d %d/%d\n", v[0] + 1, v[0] + 1, v[1] + 1, v[1] + 1, v[2] + 1, v[2] + 1);
+    }
+    int bad = ferror(f);
+    if (fclose(f) != 0 || bad) st = sh_error_set(SH_EIO, "%s: write failed", path);
+done:
+    free(path);
+    return st;
 }

@@ -13,6 +13,8 @@
 
 #include <cmocka.h>
 
+#include "stillheart/camera.h"
+#include "stillheart/imageio.h"
 #include "stillheart/warp3d.h"
 
 #define W 1280
@@ -445,6 +447,93 @@ static void test_ply_on_surface(void **state)
     sh_warp3d_model_destroy(model);
 }
 
+/* The textured mesh: every vertex on the paraboloid, its texture coordinate its pixel in the
+ * camera (libstillheart's own projection, sh_camera_project) over the frame's size, the
+ * lattice's triangles, and the texture the frame itself. */
+static void test_obj_textured(void **state)
+{
+    (void)state;
+    double ref[48];
+    int n = make_markers(ref);
+    sh_calib_camera cam;
+    make_camera(&cam, 1);
+    sh_warp3d_model *model;
+    sh_warp3d_ply *ply, *cloud;
+    assert_int_equal(sh_warp3d_model_create(NULL, ref, n, &model), SH_OK);
+    assert_int_equal(sh_warp3d_ply_create(model, 2.0, 1, &ply), SH_OK);
+    assert_int_equal(sh_warp3d_ply_create(model, 2.0, 0, &cloud), SH_OK);
+    sh_image rgb;
+    assert_int_equal(sh_image_create(&rgb, SH_PIX_RGB24, W, H), SH_OK);
+    for (int y = 0; y < H; y++)
+        for (int x = 0; x < 3 * W; x++) rgb.plane[0].data[(size_t)y * rgb.plane[0].stride + x] = (uint8_t)(x ^ y);
+    char dir[] = "/tmp/test_warp3d_obj_XXXXXX", base[64], path[80];
+    assert_non_null(mkdtemp(dir));
+    snprintf(base, sizeof base, "%s/mesh", dir);
+    assert_int_equal(sh_warp3d_obj_write(cloud, model, 0, &rgb, &cam, base), SH_EINVAL); /* no triangles */
+    assert_int_equal(sh_warp3d_obj_write(ply, model, 0, &rgb, &cam, base), SH_OK);
+    snprintf(path, sizeof path, "%s.obj", base);
+    FILE *f = fopen(path, "r");
+    assert_non_null(f);
+    static double v[46 * 46][3];
+    int nv = 0, nvt = 0, nf = 0, mtl = 0;
+    double worst_z = 0, worst_t = 0;
+    char line[256];
+    while (fgets(line, sizeof line, f)) {
+        double a, b, c;
+        int i[6];
+        if (sscanf(line, "v %lf %lf %lf", &a, &b, &c) == 3) {
+            assert_true(nv < 46 * 46);
+            v[nv][0] = a, v[nv][1] = b, v[nv][2] = c;
+            worst_z = fmax(worst_z, fabs(c - surface_z(a, b)));
+            nv++;
+        } else if (sscanf(line, "vt %lf %lf", &a, &b) == 2) {
+            double uv[2];
+            assert_true(nvt < nv);
+            assert_int_equal(sh_camera_project(&cam, v[nvt], uv, NULL), SH_OK);
+            worst_t = fmax(worst_t, fmax(fabs(a * W - 0.5 - uv[0]), fabs((1 - b) * H - 0.5 - uv[1])));
+            nvt++;
+        } else if (sscanf(line, "f %d/%d %d/%d %d/%d", &i[0], &i[1], &i[2], &i[3], &i[4], &i[5]) == 6) {
+            for (int k = 0; k < 6; k++) assert_true(i[k] >= 1 && i[k] <= nv);
+            nf++;
+        } else if (!strcmp(line, "mtllib mesh.mtl\n")) {
+            mtl = 1;
+        }
+    }
+    fclose(f);
+    /* 90 x 90 mm hull at 2 mm: 46 x 46 lattice points */
+    assert_int_equal(nv, 46 * 46);
+    assert_int_equal(nvt, nv);
+    assert_int_equal(nf, 2 * 45 * 45);
+    assert_true(mtl);
+    printf("OBJ: %d vertices, |z - surface| max %.2e mm, |texture coordinate - pixel| max %.2e px\n", nv, worst_z,
+           worst_t);
+    assert_true(worst_z < 1e-4);
+    assert_true(worst_t < 1e-3); /* 7 decimals of W or H */
+    snprintf(path, sizeof path, "%s.mtl", base);
+    f = fopen(path, "r");
+    assert_non_null(f);
+    int map = 0;
+    while (fgets(line, sizeof line, f)) map |= !strcmp(line, "map_Kd mesh.png\n");
+    fclose(f);
+    assert_true(map);
+    snprintf(path, sizeof path, "%s.png", base);
+    sh_image back;
+    if (sh_imageio_read(path, &back) == SH_OK) { /* built with libpng */
+        assert_int_equal(back.format, SH_PIX_RGB24);
+        for (int y = 0; y < H; y++)
+            assert_memory_equal(back.plane[0].data + (size_t)y * back.plane[0].stride,
+                                rgb.plane[0].data + (size_t)y * rgb.plane[0].stride, 3 * W);
+        sh_image_destroy(&back);
+    }
+    char cmd[128];
+    snprintf(cmd, sizeof cmd, "rm -rf '%s'", dir);
+    assert_int_equal(system(cmd), 0);
+    sh_image_destroy(&rgb);
+    sh_warp3d_ply_destroy(ply);
+    sh_warp3d_ply_destroy(cloud);
+    sh_warp3d_model_destroy(model);
+}
+
 static void test_bad_input(void **state)
 {
     (void)state;
@@ -487,6 +576,7 @@ int main(void)
         cmocka_unit_test(test_squeeze),
         cmocka_unit_test(test_reference_view_image),
         cmocka_unit_test(test_ply_on_surface),
+        cmocka_unit_test(test_obj_textured),
         cmocka_unit_test(test_bad_input),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

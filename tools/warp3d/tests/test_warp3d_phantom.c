@@ -452,7 +452,7 @@ static void test_cli(void **state)
     assert_int_equal(system(cmd), 0);
     snprintf(args, sizeof args,
              "--quiet --cameras '%s/calibration.yaml' --points '%s/p3.csv' --camera 1 --view stereo "
-             "--baseline 8 --export-ply '%s/ply' --ply-mesh '%s/cam1.y4m' '%s/sbs.y4m'",
+             "--baseline 8 --export-ply '%s/ply' --ply-texture '%s/cam1.y4m' '%s/sbs.y4m'",
              dir, dir, dir, dir, dir);
     assert_int_equal(run(args), 0);
     snprintf(cmd, sizeof cmd, "%s/sbs.y4m", dir);
@@ -475,10 +475,13 @@ static void test_cli(void **state)
         fclose(f);
         assert_non_null(strstr(line, " W320 H180 "));
     }
-    snprintf(cmd, sizeof cmd, "%s/ply/frame_000002.ply", dir);
-    f = fopen(cmd, "rb");
-    assert_non_null(f);
-    fclose(f);
+    static const char *exported[] = {"ply", "obj", "mtl", "png"};
+    for (int i = 0; i < 4; i++) {
+        snprintf(cmd, sizeof cmd, "%s/ply/frame_000002.%s", dir, exported[i]);
+        f = fopen(cmd, "rb");
+        assert_non_null(f);
+        fclose(f);
+    }
     assert_int_equal(run("--help"), 0);
     snprintf(args, sizeof args, "--cameras '%s/calibration.yaml' --points '%s/p3.csv' --view sideways "
              "'%s/cam1.y4m' '%s/x.y4m'", dir, dir, dir, dir);
