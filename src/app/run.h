@@ -5,6 +5,7 @@
 #ifndef STILLHEART_RUN_H
 #define STILLHEART_RUN_H
 
+#include <stddef.h>
 #include <stdint.h>
 
 #include "stillheart/calib.h"
@@ -113,6 +114,9 @@ void run_ctl_close(run_ctl *c);
 /* Non-blocking: reads every waiting command; returns the number of "reference" requests seen.
  * "status" is answered with status_line. Unknown commands get "error: ..." */
 int run_ctl_poll(run_ctl *c, const char *status_line);
+/* One command (data: len bytes, up to the first newline) -> reply (one line, NUL-terminated);
+ * 1 for "reference", else 0. */
+int run_ctl_command(const char *data, size_t len, const char *status_line, char *reply, size_t cap);
 
 /* ---- recording what was shown (run_sink.c): y4m FILE, FILE.y4m or png:DIR ---- */
 typedef struct run_record run_record;

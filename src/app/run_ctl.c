@@ -20,7 +20,7 @@
 typedef struct {
     int fd;
     size_t len;
-    char line[128];
+    char line[256]; /* longer than any command: a full buffer is refused as too long, not cut */
     struct timespec since;
 } client;
 
@@ -78,6 +78,33 @@ static void reply(client *k, const char *text)
     k->fd = -1;
 }
 
+int run_ctl_command(const char *data, size_t len, const char *status_line, char *reply, size_t cap)
+{
+    char line[128];
+    size_t n = 0;
+    while (n < len && data[n] != '\n') n++;
+    if (n > sizeof line - 1) { /* never read a cut command as a shorter one */
+        snprintf(reply, cap, "error: command longer than %zu bytes", sizeof line - 1);
+        return 0;
+    }
+    memcpy(line, data, n);
+    while (n && (line[n - 1] == '\r' || line[n - 1] == ' ')) n--;
+    line[n] = 0;
+    if (n == strlen("reference") && !memcmp(line, "reference", n)) {
+        snprintf(reply, cap, "ok: new reference requested");
+        return 1;
+    }
+    if (n == strlen("status") && !memcmp(line, "status", n)) {
+        snprintf(reply, cap, "%s", status_line);
+        return 0;
+    }
+    /* echoed back on one line: anything but printable ASCII shows as '?' */
+    for (size_t i = 0; i < n; i++)
+        if (line[i] < 0x20 || line[i] > 0x7e) line[i] = '?';
+    snprintf(reply, cap, "error: '%.64s': unknown command (reference, status)", line);
+    return 0;
+}
+
 int run_ctl_poll(run_ctl *c, const char *status_line)
 {
     struct timespec now;
@@ -98,26 +125,14 @@ int run_ctl_poll(run_ctl *c, const char *status_line)
         if (k->fd < 0) continue;
         ssize_t got = recv(k->fd, k->line + k->len, sizeof k->line - 1 - k->len, MSG_DONTWAIT);
         if (got > 0) k->len += (size_t)got;
-        k->line[k->len] = 0;
-        char *nl = strchr(k->line, '\n');
-        int done = nl || got == 0 || k->len == sizeof k->line - 1;
+        int done = memchr(k->line, '\n', k->len) || got == 0 || k->len == sizeof k->line - 1;
         if (!done) {
             if (now.tv_sec - k->since.tv_sec > 1) reply(k, "error: no command within a second");
             continue;
         }
-        if (nl) *nl = 0;
-        size_t n = strlen(k->line);
-        while (n && (k->line[n - 1] == '\r' || k->line[n - 1] == ' ')) k->line[--n] = 0;
-        if (!strcmp(k->line, "reference")) {
-            refs++;
-            reply(k, "ok: new reference requested");
-        } else if (!strcmp(k->line, "status")) {
-            reply(k, status_line);
-        } else {
-            char msg[192];
-            snprintf(msg, sizeof msg, "error: '%.64s': unknown command (reference, status)", k->line);
-            reply(k, msg);
-        }
+        char text[192];
+        refs += run_ctl_command(k->line, k->len, status_line, text, sizeof text);
+        reply(k, text);
     }
     return refs;
 }
