@@ -297,14 +297,44 @@ static void test_photos_match_libapriltag(void **state)
     sh_detector_destroy(det);
 }
 
-/* The issue's check: upstream's expected corners (.txt), the upstream test's settings
- * (libapriltag's defaults: tag36h11 with 2 bits corrected, decimate 2, sigma 0, refine edges,
- * sharpening 0.25, one thread): the same number of tags, every corner within 0.2 px. Those
- * files were written by a newer libapriltag than Debian 12's 3.3.0, which finds fewer tags on
- * these photos (9/18/7 of 12/25/10, whatever the JPEG decoder: its own pjpeg, OpenCV or
- * libturbojpeg) with corners up to ~0.6 px apart. So the figures are printed always and
- * asserted when they hold, or when STILLHEART_APRILTAG_STRICT=1; otherwise the test skips
- * saying why. */
+/* Every expected tag of one photo: the nearest detection of the same id, its largest corner error.
+ * Returns how many have every corner within tol; *worst: the largest error of those matched within
+ * 5 px; *stray: detections that are no expected tag (same id within 5 px). */
+static int match_expected(const sh_detection *d, int n, const ref_det *ref, int nref, double tol,
+                          double *worst, int *stray)
+{
+    int matched = 0;
+    *worst = 0;
+    for (int r = 0; r < nref; r++) {
+        double best = INFINITY;
+        for (int j = 0; j < n; j++)
+            if (d[j].id == ref[r].id) best = fmin(best, corner_error(&d[j], &ref[r]));
+        if (best <= tol) matched++;
+        if (isfinite(best) && best < 5) *worst = fmax(*worst, best);
+    }
+    *stray = 0;
+    for (int j = 0; j < n; j++) {
+        double best = INFINITY;
+        for (int r = 0; r < nref; r++)
+            if (d[j].id == ref[r].id) best = fmin(best, corner_error(&d[j], &ref[r]));
+        *stray += !(best < 5);
+    }
+    return matched;
+}
+
+/* The issue's check against upstream's expected corners (.txt). Upstream's test
+ * (test/test_detection.c) runs libapriltag's defaults: tag36h11 with 2 bits corrected, decimate
+ * 2, sigma 0, refine edges, sharpening 0.25, one thread. Those files were written by a newer
+ * libapriltag than Debian 12's 3.3.0: at those settings 3.3.0 finds 9/18/7 of the 12/25/10 tags
+ * (whatever the JPEG decoder), its corners 0.4-1.9 px off. Without decimation and without edge
+ * refinement 3.3.0 reproduces the files: every tag, corners within 0.14 px (median 0.001 px: the
+ * JPEG decoders differ by a grey level here and there). Upstream's decimated path was reworked
+ * after 3.3.0 (AprilRobotics/apriltag PR #346: coordinate recovery at decimate > 1 and
+ * refine_edges sampling), which is what the files record. So this test asserts, always:
+ *  - at decimate 1 without edge refinement: the same number of tags, every corner within 0.2 px;
+ *  - at upstream's settings: every detection is an expected tag, and at least the counts 3.3.0
+ *    gives, so a newer libapriltag passes too; STILLHEART_APRILTAG_STRICT=1 (for a libapriltag
+ *    built from upstream) asserts the full count within 0.2 px there as well. */
 static void test_photos_expected_corners(void **state)
 {
     (void)state;
@@ -316,9 +346,14 @@ static void test_photos_expected_corners(void **state)
     }
     const char *strict_env = getenv("STILLHEART_APRILTAG_STRICT");
     int strict = strict_env && !strcmp(strict_env, "1");
-    sh_detector *det;
-    assert_int_equal(sh_detector_create(NULL, &det), SH_OK);
-    int all_ok = 1;
+    static const int min_found_default[3] = {9, 18, 7}; /* Debian 12's 3.3.0 */
+    sh_detector_options exact;
+    sh_detector_options_default(&exact);
+    exact.quad_decimate = 1;
+    exact.refine_edges = 0;
+    sh_detector *det_default, *det_exact;
+    assert_int_equal(sh_detector_create(NULL, &det_default), SH_OK);
+    assert_int_equal(sh_detector_create(&exact, &det_exact), SH_OK);
     for (size_t i = 0; i < sizeof photo_names / sizeof photo_names[0]; i++) {
         char path[PATH_MAX + 64];
         ref_det ref[MAXD];
@@ -329,32 +364,30 @@ static void test_photos_expected_corners(void **state)
         sh_image img;
         assert_int_equal(sh_imageio_read_gray(path, &img), SH_OK);
         sh_detection d[MAXD];
-        int n = 0;
-        assert_int_equal(sh_detector_detect(det, &img, d, MAXD, &n), SH_OK);
-        /* each expected tag: its nearest detection of the same id */
-        int matched = 0;
+        int n = 0, stray = 0;
         double worst = 0;
-        for (int r = 0; r < nref; r++) {
-            double best = INFINITY;
-            for (int j = 0; j < n; j++)
-                if (d[j].id == ref[r].id) best = fmin(best, corner_error(&d[j], &ref[r]));
-            if (best <= 0.2) matched++;
-            if (isfinite(best) && best < 5) worst = fmax(worst, best);
-        }
-        int ok = n == nref && matched == nref;
-        all_ok &= ok;
-        print_message("%s: expected %d tags, found %d, %d with every corner within 0.2 px "
-                      "(worst corner of the matched ones %.3f px)\n",
+        assert_int_equal(sh_detector_detect(det_exact, &img, d, MAXD, &n), SH_OK);
+        int matched = match_expected(d, n, ref, nref, 0.2, &worst, &stray);
+        print_message("%s: expected %d tags; decimate 1, no edge refinement: found %d, %d with every "
+                      "corner within 0.2 px (worst %.3f px)\n",
                       photo_names[i], nref, n, matched, worst);
+        assert_int_equal(n, nref);
+        assert_int_equal(matched, nref);
+        assert_int_equal(sh_detector_detect(det_default, &img, d, MAXD, &n), SH_OK);
+        matched = match_expected(d, n, ref, nref, 0.2, &worst, &stray);
+        print_message("%s: upstream's settings (decimate 2, refine edges): found %d, %d within "
+                      "0.2 px (worst matched corner %.3f px), %d not expected\n",
+                      photo_names[i], n, matched, worst, stray);
+        assert_int_equal(stray, 0);
+        assert_true(n >= min_found_default[i] && n <= nref);
+        if (strict) {
+            assert_int_equal(n, nref);
+            assert_int_equal(matched, nref);
+        }
         sh_image_destroy(&img);
     }
-    sh_detector_destroy(det);
-    if (!all_ok && !strict) {
-        print_message("SKIP: this libapriltag does not reproduce upstream's expected corners "
-                      "(Debian 12's 3.3.0 does not; STILLHEART_APRILTAG_STRICT=1 asserts)\n");
-        skip();
-    }
-    assert_true(all_ok);
+    sh_detector_destroy(det_default);
+    sh_detector_destroy(det_exact);
 }
 
 /* ---- a phantom frame -------------------------------------------------------------------- */
