@@ -17,3 +17,17 @@ $(BUILD)/tests/test_track_phantom: $(BUILD)/tools/track/tests/test_track_phantom
 		$(LDLIBS_ALL) -o $@
 
 TOOL_TESTS += $(BUILD)/tests/test_track_phantom
+
+# `stillheart track` from the outside, and the issue's end-to-end bar (stabilizing from its points
+# within 10 % of stabilizing from the truth): drives this build's binaries.
+$(BUILD)/tools/track/tests/test_track_cli.o: CFLAGS_ALL += -DAPP_BIN='"$(abspath $(BUILD))/stillheart"' \
+	-DRENDER_BIN='"$(abspath $(BUILD))/stillheart-render"' -DEVAL_BIN='"$(abspath $(BUILD))/stillheart-eval"'
+$(BUILD)/tests/test_track_cli: $(BUILD)/tools/track/tests/test_track_cli.o $(LIB) | $(BUILD)/stillheart \
+		$(BUILD)/stillheart-eval
+	@mkdir -p $(dir $@)
+	$(CC) $(LDFLAGS) $< $(shell $(PKG_CONFIG) --libs cmocka) $(LDLIBS_ALL) -o $@
+ifeq ($(call have,osmesa),1)
+$(BUILD)/tests/test_track_cli: | $(BUILD)/stillheart-render
+endif
+
+TOOL_TESTS += $(BUILD)/tests/test_track_cli

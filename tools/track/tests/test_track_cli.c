@@ -1,0 +1,317 @@
+/* `stillheart track` from the outside: its options and refusals, its points file against the
+ * phantom's ground truth (2D and, with the calibration, 3D), standard input, and the issue's end
+ * to end bar: stabilizing a rendered phantom from `stillheart track`'s points comes within 10 % of
+ * stabilizing it from the ground-truth points, in the paper's metric e and in the geometric error
+ * of the warp against the truth (stillheart-eval). The binaries are this build's. */
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <cmocka.h>
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#if !defined(APP_BIN) || !defined(RENDER_BIN) || !defined(EVAL_BIN)
+#error "APP_BIN, RENDER_BIN and EVAL_BIN must name this build's binaries"
+#endif
+
+static char tmp[64];
+static int rendered; /* 1: tmp/one (1 camera) and tmp/three (3 cameras) hold phantom renders */
+
+static void path(char *out, size_t size, const char *name)
+{
+    snprintf(out, size, "%s/%s", tmp, name);
+}
+
+static char *slurp(const char *file, size_t *len)
+{
+    FILE *f = fopen(file, "rb");
+    if (!f) return NULL;
+    fseek(f, 0, SEEK_END);
+    long n = ftell(f);
+    fseek(f, 0, SEEK_SET);
+    char *buf = malloc((size_t)n + 1);
+    size_t got = buf ? fread(buf, 1, (size_t)n, f) : 0;
+    fclose(f);
+    if (!buf) return NULL;
+    buf[got] = 0;
+    if (len) *len = got;
+    return buf;
+}
+
+/* Runs `stillheart ARGS` (a shell fragment), stdout to tmp/NAME.out (unless redirected in args),
+ * stderr to tmp/err; returns the exit status. */
+static int app(const char *args, const char *name)
+{
+    char cmd[4096], out[512], err[512];
+    path(out, sizeof out, name);
+    strcat(out, ".out");
+    path(err, sizeof err, "err");
+    snprintf(cmd, sizeof cmd, "'%s' %s > '%s' 2> '%s'", APP_BIN, args, out, err);
+    int rc = system(cmd);
+    return WIFEXITED(rc) ? WEXITSTATUS(rc) : -1;
+}
+
+static int stderr_has(const char *text)
+{
+    char p[512];
+    path(p, sizeof p, "err");
+    char *e = slurp(p, NULL);
+    int has = e && strstr(e, text);
+    if (!has) fprintf(stderr, "stderr lacks \"%s\":\n%s\n", text, e ? e : "(none)");
+    free(e);
+    return has;
+}
+
+static int setup(void **state)
+{
+    (void)state;
+    snprintf(tmp, sizeof tmp, "/tmp/sh_test_track_cli_XXXXXX");
+    if (!mkdtemp(tmp)) return -1;
+    if (access(RENDER_BIN, X_OK) != 0) return 0; /* no OSMesa: the phantom tests skip */
+    char cmd[2048];
+    /* in-vivo (respiration, stabilizer pads), half resolution: 60 frames of one camera, 20 of three */
+    snprintf(cmd, sizeof cmd,
+             "'%s' --preset invivo --cameras 1 --frames 60 --width 960 --height 540 --quiet --out '%s/one' "
+             "&& '%s' --preset invivo --cameras 3 --frames 20 --width 960 --height 540 --quiet --out '%s/three' "
+             "&& '%s' --truth '%s/one' --export-points '%s/one/truth.csv'",
+             RENDER_BIN, tmp, RENDER_BIN, tmp, EVAL_BIN, tmp, tmp);
+    rendered = system(cmd) == 0;
+    return rendered ? 0 : -1;
+}
+
+static int teardown(void **state)
+{
+    (void)state;
+    char cmd[512];
+    snprintf(cmd, sizeof cmd, "rm -rf '%s'", tmp);
+    return system(cmd) == 0 ? 0 : -1;
+}
+
+static void test_options_and_refusals(void **state)
+{
+    (void)state;
+    assert_int_equal(app("track --help", "help"), 0);
+    char p[512];
+    path(p, sizeof p, "help.out");
+    char *help = slurp(p, NULL);
+    assert_non_null(help);
+    assert_non_null(strstr(help, "usage: stillheart track"));
+    free(help);
+    assert_int_equal(app("track", "none"), 2);
+    assert_true(stderr_has("usage: stillheart track"));
+    assert_int_equal(app("track --ids 5-2 x.y4m", "ids"), 2);
+    assert_true(stderr_has("--ids: '5-2'"));
+    assert_int_equal(app("track --ids 0-64 x.y4m", "ids"), 2); /* 65 ids: more than the tracker holds */
+    assert_int_equal(app("track --spatial sideways x.y4m", "spatial"), 2);
+    assert_true(stderr_has("--spatial: off or fuse"));
+    assert_int_equal(app("track --noise 0 x.y4m", "noise"), 2);
+    assert_int_equal(app("track --lost-after 0 x.y4m", "lost"), 2);
+    assert_int_equal(app("track --bogus x.y4m", "bogus"), 2);
+    assert_int_equal(app("track a.y4m b.y4m", "two"), 2);
+    assert_true(stderr_has("need --cameras"));
+    assert_int_equal(app("track --ids 0-3 - < /dev/null", "stdin"), 1);
+    assert_int_equal(app("track - < /dev/null", "stdin"), 2);
+    assert_true(stderr_has("standard input needs --ids"));
+    assert_int_equal(app("track --ids 0-3 /nonexistent/in.y4m", "missing"), 1);
+    assert_true(stderr_has("/nonexistent/in.y4m"));
+    assert_int_equal(app("track --ids 0-3 --family tag99h99 /nonexistent/in.y4m", "family"), 1);
+    assert_int_equal(app("track --cameras /nonexistent/calib.yaml x.y4m", "calib"), 1);
+    if (!rendered) return;
+    char args[1024];
+    snprintf(args, sizeof args, "track --cameras '%s/three/calibration.yaml' '%s/three/cam0.y4m'", tmp, tmp);
+    assert_int_equal(app(args, "calib"), 2);
+    assert_true(stderr_has("has 3 cameras, 1 videos given"));
+}
+
+typedef struct {
+    int frame, id;
+    double x, y, X, Y, Z;
+} row;
+
+/* Parses a points file with the given header; returns the rows (malloc'd), n. */
+static row *read_points(const char *file, const char *header, int *n)
+{
+    size_t len;
+    char *text = slurp(file, &len);
+    assert_non_null(text);
+    size_t hl = strlen(header);
+    assert_true(len > hl && !strncmp(text, header, hl) && text[hl] == '\n');
+    int cap = 1024, cnt = 0;
+    row *r = malloc(sizeof *r * (size_t)cap);
+    int xyz = strstr(header, ",X,Y,Z") != NULL;
+    for (char *line = strtok(text + hl + 1, "\n"); line; line = strtok(NULL, "\n")) {
+        if (cnt == cap) r = realloc(r, sizeof *r * (size_t)(cap *= 2));
+        row *q = &r[cnt];
+        int got = sscanf(line, "%d,%d,%lf,%lf,%lf,%lf,%lf", &q->frame, &q->id, &q->x, &q->y, &q->X, &q->Y, &q->Z);
+        assert_int_equal(got, xyz ? 7 : 4);
+        cnt++;
+    }
+    free(text);
+    *n = cnt;
+    return r;
+}
+
+static const row *find_row(const row *r, int n, int frame, int id)
+{
+    for (int i = 0; i < n; i++)
+        if (r[i].frame == frame && r[i].id == id) return &r[i];
+    return NULL;
+}
+
+/* The points file: header, frames in order from 0, ids of the phantom once per frame, positions
+ * on the truth; standard input gives the same bytes; --measured-only a subset. */
+static void test_points_2d(void **state)
+{
+    (void)state;
+    if (!rendered) skip();
+    char args[1024], p[512], q[512];
+    snprintf(args, sizeof args, "track --ids 0-13 '%s/one/cam0.y4m'", tmp);
+    assert_int_equal(app(args, "track"), 0);
+    path(p, sizeof p, "track.out");
+    int n, nt;
+    row *r = read_points(p, "frame,id,x,y", &n);
+    path(q, sizeof q, "one/truth.csv");
+    row *t = read_points(q, "frame,id,x,y,X,Y,Z", &nt);
+    double sum = 0, mx = 0;
+    int matched = 0;
+    for (int i = 0; i < n; i++) {
+        assert_true(r[i].id >= 0 && r[i].id <= 13 && r[i].frame >= 0 && r[i].frame < 60);
+        if (i) assert_true(r[i].frame >= r[i - 1].frame);
+        if (i && r[i].frame == r[i - 1].frame) assert_true(r[i].id > r[i - 1].id);
+        const row *g = find_row(t, nt, r[i].frame, r[i].id);
+        if (!g) continue;
+        double e = hypot(r[i].x - g->x, r[i].y - g->y);
+        sum += e;
+        mx = fmax(mx, e);
+        matched++;
+    }
+    fprintf(stderr, "  2D: %d rows, %d on visible truth: mean %.3f px, max %.3f px\n", n, matched, sum / matched, mx);
+    assert_int_equal(r[0].frame, 0);
+    assert_true(matched >= nt * 95 / 100);
+    assert_true(sum / matched < 0.15);
+    assert_true(mx < 1.0);
+    /* standard input: the same bytes */
+    snprintf(args, sizeof args, "track --ids 0-13 - < '%s/one/cam0.y4m'", tmp);
+    assert_int_equal(app(args, "stdin"), 0);
+    path(q, sizeof q, "stdin.out");
+    char *a = slurp(p, NULL), *b = slurp(q, NULL);
+    assert_string_equal(a, b);
+    free(a);
+    free(b);
+    /* measured only: a subset of the rows */
+    snprintf(args, sizeof args, "track --ids 0-13 --measured-only '%s/one/cam0.y4m'", tmp);
+    assert_int_equal(app(args, "measured"), 0);
+    path(q, sizeof q, "measured.out");
+    int nm;
+    row *m = read_points(q, "frame,id,x,y", &nm);
+    assert_true(nm > 0 && nm <= n);
+    for (int i = 0; i < nm; i++) assert_non_null(find_row(r, n, m[i].frame, m[i].id));
+    free(m);
+    free(r);
+    free(t);
+}
+
+/* Three calibrated cameras: X,Y,Z columns in the calibration's millimetres, on the truth. */
+static void test_points_3d(void **state)
+{
+    (void)state;
+    if (!rendered) skip();
+    char args[1024], p[512], q[512];
+    snprintf(args, sizeof args,
+             "track --ids 0-13 --cameras '%s/three/calibration.yaml' '%s/three/cam0.y4m' '%s/three/cam1.y4m' "
+             "'%s/three/cam2.y4m'",
+             tmp, tmp, tmp, tmp);
+    assert_int_equal(app(args, "track3"), 0);
+    snprintf(args, sizeof args, "--truth '%s/three' --export-points '%s/three/truth.csv'", tmp, tmp);
+    char cmd[2048];
+    snprintf(cmd, sizeof cmd, "'%s' %s", EVAL_BIN, args);
+    assert_int_equal(system(cmd), 0);
+    path(p, sizeof p, "track3.out");
+    path(q, sizeof q, "three/truth.csv");
+    int n, nt;
+    row *r = read_points(p, "frame,id,x,y,X,Y,Z", &n);
+    row *t = read_points(q, "frame,id,x,y,X,Y,Z", &nt);
+    double sum = 0;
+    int matched = 0;
+    for (int i = 0; i < n; i++) {
+        const row *g = find_row(t, nt, r[i].frame, r[i].id);
+        if (!g) continue;
+        sum += sqrt((r[i].X - g->X) * (r[i].X - g->X) + (r[i].Y - g->Y) * (r[i].Y - g->Y) +
+                    (r[i].Z - g->Z) * (r[i].Z - g->Z));
+        matched++;
+    }
+    fprintf(stderr, "  3D: %d rows, %d on visible truth: mean %.3f mm\n", n, matched, sum / matched);
+    assert_true(matched > nt / 2);
+    assert_true(sum / matched < 0.5);
+    free(r);
+    free(t);
+}
+
+/* One JSON number of stillheart-eval's output: the first "key": value. */
+static double json_num(const char *json, const char *key)
+{
+    char pat[64];
+    snprintf(pat, sizeof pat, "\"%s\": ", key);
+    const char *p = strstr(json, pat);
+    return p ? strtod(p + strlen(pat), NULL) : NAN;
+}
+
+/* warp with points file P (tmp/one/P.csv or tmp/track.out), then stillheart-eval: e and the
+ * geometric mean error */
+static void stabilize(const char *method, const char *points, double *e, double *geo)
+{
+    char args[2048], cmd[4096], out[512];
+    snprintf(args, sizeof args, "warp --quiet --method %s --points '%s' '%s/one/cam0.y4m' '%s/stab.y4m'",
+             method, points, tmp, tmp);
+    assert_int_equal(app(args, "warp"), 0);
+    path(out, sizeof out, "eval.json");
+    snprintf(cmd, sizeof cmd, "'%s' --quiet --json --points '%s' --truth '%s/one' --method %s '%s/stab.y4m' > '%s'",
+             EVAL_BIN, points, tmp, method, tmp, out);
+    assert_int_equal(system(cmd), 0);
+    char *json = slurp(out, NULL);
+    assert_non_null(json);
+    *e = json_num(json, "e_stabilized");
+    const char *g = strstr(json, "\"geometric\"");
+    assert_non_null(g);
+    *geo = json_num(g, "mean");
+    free(json);
+    assert_true(isfinite(*e) && isfinite(*geo));
+}
+
+static void test_stabilize_within_ten_percent(void **state)
+{
+    (void)state;
+    if (!rendered) skip();
+    char args[1024], tracked[512], truth[512];
+    snprintf(args, sizeof args, "track --ids 0-13 '%s/one/cam0.y4m'", tmp);
+    assert_int_equal(app(args, "e2e"), 0);
+    path(tracked, sizeof tracked, "e2e.out");
+    path(truth, sizeof truth, "one/truth.csv");
+    const char *methods[] = {"bspline", "tps"};
+    for (int k = 0; k < 2; k++) {
+        double e_tr, g_tr, e_gt, g_gt;
+        stabilize(methods[k], tracked, &e_tr, &g_tr);
+        stabilize(methods[k], truth, &e_gt, &g_gt);
+        fprintf(stderr, "  %s: e %.5f (truth %.5f, %+.1f %%), geometric mean %.4f px (truth %.4f, %+.1f %%)\n",
+                methods[k], e_tr, e_gt, 100 * (e_tr / e_gt - 1), g_tr, g_gt, 100 * (g_tr / g_gt - 1));
+        assert_true(e_tr <= 1.10 * e_gt);
+        assert_true(g_tr <= 1.10 * g_gt);
+    }
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_options_and_refusals),
+        cmocka_unit_test(test_points_2d),
+        cmocka_unit_test(test_points_3d),
+        cmocka_unit_test(test_stabilize_within_ten_percent),
+    };
+    return cmocka_run_group_tests(tests, setup, teardown);
+}
