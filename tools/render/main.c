@@ -286,11 +286,16 @@ int main(int argc, char **argv)
         {"help", 0, 0, O_HELP}, {"calib-target", 1, 0, O_TARGET}, {0, 0, 0, 0}};
     rd_board board;
     int board_mode = 0;
+    const char *heart_option = NULL; /* the last option that only the heart uses */
     int ch;
     long lv;
     double dv;
 #define BAD(...) do { fprintf(stderr, "stillheart-render: " __VA_ARGS__); fputc('\n', stderr); return 2; } while (0)
-    while ((ch = getopt_long(argc, argv, "", opts, NULL)) != -1) {
+    int idx;
+    while ((ch = getopt_long(argc, argv, "", opts, &idx)) != -1) {
+        if (ch == O_PRESET || ch == O_OCC || ch == O_BPM || ch == O_MARKERS || ch == O_TAG || ch == O_FAMILY ||
+            ch == O_IDS)
+            heart_option = opts[idx].name;
         switch (ch) {
         case O_PRESET: o.preset = optarg; break;
         case O_FRAMES: if (!parse_int(optarg, 1, 1000000, &lv)) BAD("--frames '%s': a count from 1", optarg); o.frames = (int)lv; break;
@@ -338,6 +343,7 @@ int main(int argc, char **argv)
     }
     if (optind < argc) BAD("unexpected argument '%s' (see --help)", argv[optind]);
     if (!out) BAD("--out DIR is required (see --help)");
+    if (board_mode && heart_option) BAD("--%s: the heart's option, not the board's (--calib-target)", heart_option);
 #undef BAD
     if (board_mode && o.frames <= 0) o.frames = 20;
 
@@ -346,8 +352,23 @@ int main(int argc, char **argv)
         fprintf(stderr, "stillheart-render: %s\n", sh_error_message());
         return 2;
     }
+    /* the board's poses before anything is written: a board too large for the view is refused */
+    rd_board_pose *poses = NULL;
+    if (board_mode) {
+        poses = malloc(sizeof *poses * (size_t)m.frames);
+        if (!poses) {
+            fprintf(stderr, "stillheart-render: out of memory for %d poses\n", m.frames);
+            return 1;
+        }
+        if (rd_board_poses(&m, &board, m.frames, m.seed, poses) != SH_OK) {
+            fprintf(stderr, "stillheart-render: %s\n", sh_error_message());
+            free(poses);
+            return 2;
+        }
+    }
     if (make_dir(out) != 0) {
         fprintf(stderr, "stillheart-render: %s: cannot create the folder: %s\n", out, strerror(errno));
+        free(poses);
         return 1;
     }
     if (!getenv("LP_NUM_THREADS")) {
@@ -371,7 +392,6 @@ int main(int argc, char **argv)
     p.sensor.seed = m.seed;
     FILE *csv = NULL;
     rd_scene *scene = NULL;
-    rd_board_pose *poses = NULL;
     rd_board_raster *raster[PHANTOM_MAX_CAMERAS] = {NULL};
     rd_texture drape[PHANTOM_MAX_CAMERAS];
     memset(drape, 0, sizeof drape);
@@ -417,12 +437,6 @@ int main(int argc, char **argv)
         p.sensor.background[c] = drape[c].rgb;
     }
     if (board_mode) {
-        poses = malloc(sizeof *poses * (size_t)m.frames);
-        if (!poses) {
-            fprintf(stderr, "stillheart-render: out of memory for %d poses\n", m.frames);
-            goto done;
-        }
-        if (rd_board_poses(&m, &board, m.frames, m.seed, poses) != SH_OK) FAIL();
         for (int c = 0; c < m.num_cameras; c++)
             if (rd_board_raster_create(&m, c, &raster[c]) != SH_OK) FAIL();
     } else if (rd_scene_create(&m, &scene) != SH_OK) {

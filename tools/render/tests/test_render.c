@@ -327,13 +327,18 @@ static void test_command_line(void **state)
     assert_int_equal(pclose(p), 0);
     static const char *opts[] = {"--preset", "--frames", "--cameras", "--width", "--height", "--seed",
                                  "--occlusions", "--bpm", "--markers", "--tag-size", "--out", "--family",
-                                 "--ids", "--fps", "--distortion", "--noise", "--exposure", "--quiet"};
+                                 "--ids", "--fps", "--distortion", "--noise", "--exposure", "--quiet",
+                                 "--calib-target"};
     for (size_t i = 0; i < sizeof opts / sizeof opts[0]; i++)
         if (!strstr(help, opts[i])) fail_msg("--help does not mention %s", opts[i]);
     static const char *bad[] = {"--preset nope --out /tmp/x", "--preset exvivo", "--cameras 4 --out /tmp/x",
                                 "--markers 64 --tag-size 30 --out /tmp/x", "--width 641 --out /tmp/x",
                                 "--ids 1,1 --out /tmp/x", "--distortion 1,2 --out /tmp/x",
-                                "--distortion -30,0,0,0,0 --out /tmp/x", "--seed -1 --out /tmp/x"};
+                                "--distortion -30,0,0,0,0 --out /tmp/x", "--seed -1 --out /tmp/x",
+                                /* the board: symmetric, misspelt, with a heart's option, too large */
+                                "--calib-target checkerboard:9x7:8 --out /tmp/x", "--calib-target chess:9x6:8 --out /tmp/x",
+                                "--calib-target checkerboard:9x6:8 --occlusions --out /tmp/x",
+                                "--calib-target checkerboard:9x6:80 --out /tmp/x"};
     for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
         snprintf(cmd, sizeof cmd, "'%s' %s 2>/dev/null", RENDER_BIN, bad[i]);
         int rc = system(cmd);
