@@ -413,11 +413,81 @@ static void test_bad_input(void **state)
     sh_interp_destroy(interp);
 }
 
+/* The row fill at every grid spacing, against the bilinear interpolation of the exact map at
+ * the grid's nodes computed here in double: whole cells, cells cut by the hull's edge and pixels
+ * on the last node column all get the nodes' values to within the 16.16 steps' rounding
+ * (and the float map's 2^-15 px at these coordinates). Gaussian takes the separable node sum,
+ * TPS the sparse rows. */
+static void test_fill_every_spacing(void **state)
+{
+    (void)state;
+    const int w = 330, h = 190, n = 12;
+    synth_motion mo = {w, h, 9};
+    double ref[2 * n], cur[2 * n], disp[2 * n];
+    synth_markers(&mo, n, 11, ref);
+    moved_markers(&mo, 0.4, ref, n, cur);
+    for (int i = 0; i < 2 * n; i++) disp[i] = cur[i] - ref[i];
+    float *map = malloc(sizeof(float) * 2 * (size_t)w * h);
+    const char *methods[] = {"gaussian", "tps"};
+    for (int mth = 0; mth < 2; mth++) {
+        for (int sp = 1; sp <= 32; sp *= 2) {
+            sh_warp_options opts;
+            sh_warp_options_default(&opts);
+            opts.grid_spacing = sp;
+            opts.max_error = 1e9; /* keep this spacing */
+            built b = build(methods[mth], ref, n, w, h, &opts);
+            assert_int_equal(sh_warp_model_update(b.model, cur), SH_OK);
+            assert_int_equal(sh_warp_model_grid_spacing(b.model), sp);
+            double coef[2 * 16];
+            assert_true(sh_interp_num_coefs(b.interp) <= 16);
+            assert_int_equal(sh_interp_fit(b.interp, disp, 2, coef), SH_OK);
+            assert_int_equal(sh_warp_model_map(b.model, map), SH_OK);
+            const sh_hull *hull = sh_warp_model_hull(b.model);
+            /* the grid's geometry as sh_warp_model documents it: nodes at multiples of the
+             * spacing, from the one at or left of / above the hull to the one at or past it */
+            int gx0 = (int)floor(hull->xmin / sp) * sp, gy0 = (int)floor(hull->ymin / sp) * sp;
+            int nx = ((int)ceil(hull->xmax / sp) * sp - gx0) / sp + 1;
+            int ny = ((int)ceil(hull->ymax / sp) * sp - gy0) / sp + 1;
+            double worst = 0;
+            for (int y = 0; y < h; y++) {
+                for (int x = 0; x < w; x++) {
+                    if (!sh_hull_contains(hull, x, y)) continue;
+                    int i = (x - gx0) / sp, j = (y - gy0) / sp;
+                    if (i > nx - 2) i = nx - 2;
+                    if (j > ny - 2) j = ny - 2;
+                    double tx = (double)(x - gx0 - i * sp) / sp, ty = (double)(y - gy0 - j * sp) / sp;
+                    double v[4][2];
+                    for (int c = 0; c < 4; c++) {
+                        double X = gx0 + (i + c % 2) * sp, Y = gy0 + (j + c / 2) * sp;
+                        assert_int_equal(sh_interp_eval(b.interp, coef, 2, X, Y, v[c]), SH_OK);
+                        v[c][0] += X;
+                        v[c][1] += Y;
+                    }
+                    const float *m = map + 2 * ((size_t)y * w + x);
+                    for (int c = 0; c < 2; c++) {
+                        double top = v[0][c] + tx * (v[1][c] - v[0][c]);
+                        double bottom = v[2][c] + tx * (v[3][c] - v[2][c]);
+                        worst = fmax(worst, fabs(m[c] - (top + ty * (bottom - top))));
+                    }
+                }
+            }
+            if (getenv("SH_TEST_VERBOSE"))
+                printf("  %-8s spacing %2d: fill vs bilinear of exact nodes %.2e px\n",
+                       methods[mth], sp, worst);
+            /* node value rounded to 2^-17, the step's rounding h 2^-17, float storage 2^-15 */
+            assert_true(worst <= (sp + 1) * 0x1p-17 + 0x1p-15);
+            unbuild(&b);
+        }
+    }
+    free(map);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_grid_map_within_tolerance),
         cmocka_unit_test(test_grid_refines_for_tight_tolerance),
+        cmocka_unit_test(test_fill_every_spacing),
         cmocka_unit_test(test_exact_methods),
         cmocka_unit_test(test_translation_every_format),
         cmocka_unit_test(test_bilinear_closed_form),
