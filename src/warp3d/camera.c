@@ -3,83 +3,28 @@
 #include <math.h>
 #include <string.h>
 
+#include "stillheart/camera.h"
 #include "warp3d_internal.h"
 
-void w3_distort(const double *k, double x, double y, double *xd, double *yd)
-{
-    double r2 = x * x + y * y, r4 = r2 * r2, r6 = r4 * r2;
-    double radial = (1 + k[0] * r2 + k[1] * r4 + k[4] * r6) / (1 + k[5] * r2 + k[6] * r4 + k[7] * r6);
-    *xd = x * radial + 2 * k[2] * x * y + k[3] * (r2 + 2 * x * x) + k[8] * r2 + k[9] * r4;
-    *yd = y * radial + k[2] * (r2 + 2 * y * y) + 2 * k[3] * x * y + k[10] * r2 + k[11] * r4;
-}
-
-int w3_has_distortion(const sh_calib_camera *cam)
-{
-    for (int i = 0; i < SH_CALIB_MAX_DIST; i++)
-        if (cam->dist[i] != 0) return 1;
-    return 0;
-}
-
+/* The projection and the undistortion are libstillheart's (include/stillheart/camera.h): one
+ * implementation of OpenCV's model for the tracker's triangulation and the 3D engine. */
 int sh_warp3d_project(const sh_calib_camera *c, const double X[3], double *x, double *y)
 {
-    double xc[3];
-    for (int r = 0; r < 3; r++)
-        xc[r] = c->R[3 * r] * X[0] + c->R[3 * r + 1] * X[1] + c->R[3 * r + 2] * X[2] + c->t[r];
-    if (!(xc[2] > 1e-9)) return 0;
-    double xn = xc[0] / xc[2], yn = xc[1] / xc[2], xd = xn, yd = yn;
-    if (w3_has_distortion(c)) w3_distort(c->dist, xn, yn, &xd, &yd);
-    *x = c->K[0] * xd + c->K[1] * yd + c->K[2];
-    *y = c->K[4] * yd + c->K[5];
+    double uv[2];
+    if (sh_camera_project(c, X, uv, NULL) != SH_OK) return 0;
+    *x = uv[0];
+    *y = uv[1];
     return 1;
-}
-
-/* Normalized undistorted coordinates of a distorted pixel: Newton on the distortion. */
-static int undistort(const sh_calib_camera *c, double x, double y, double *xn, double *yn)
-{
-    double yd = (y - c->K[5]) / c->K[4];
-    double xd = (x - c->K[2] - c->K[1] * yd) / c->K[0];
-    *xn = xd;
-    *yn = yd;
-    if (!w3_has_distortion(c)) return 1;
-    double px = xd, py = yd;
-    for (int it = 0; it < 50; it++) {
-        double fx, fy, ax, ay, bx, by;
-        const double e = 1e-7;
-        w3_distort(c->dist, px, py, &fx, &fy);
-        fx -= xd;
-        fy -= yd;
-        if (fabs(fx) < 1e-13 && fabs(fy) < 1e-13) {
-            *xn = px;
-            *yn = py;
-            return 1;
-        }
-        w3_distort(c->dist, px + e, py, &ax, &ay);
-        w3_distort(c->dist, px, py + e, &bx, &by);
-        double j00 = (ax - fx - xd) / e, j10 = (ay - fy - yd) / e;
-        double j01 = (bx - fx - xd) / e, j11 = (by - fy - yd) / e;
-        double det = j00 * j11 - j01 * j10;
-        if (!(fabs(det) > 1e-12)) return 0;
-        px -= (j11 * fx - j01 * fy) / det;
-        py -= (j00 * fy - j10 * fx) / det;
-        if (!isfinite(px) || !isfinite(py)) return 0;
-    }
-    return 0;
-}
-
-void w3_camera_center(const sh_calib_camera *c, double C[3])
-{
-    for (int i = 0; i < 3; i++)
-        C[i] = -(c->R[i] * c->t[0] + c->R[3 + i] * c->t[1] + c->R[6 + i] * c->t[2]);
 }
 
 int sh_warp3d_ray(const sh_calib_camera *c, double x, double y, double C[3], double d[3])
 {
-    double xn, yn;
-    if (!undistort(c, x, y, &xn, &yn)) return 0;
-    double dc[3] = {xn, yn, 1}, len = sqrt(xn * xn + yn * yn + 1);
+    double uv[2] = {x, y}, xn[2];
+    if (sh_camera_undistort(c, uv, xn) != SH_OK) return 0;
+    double dc[3] = {xn[0], xn[1], 1}, len = sqrt(xn[0] * xn[0] + xn[1] * xn[1] + 1);
     for (int i = 0; i < 3; i++)
         d[i] = (c->R[i] * dc[0] + c->R[3 + i] * dc[1] + c->R[6 + i] * dc[2]) / len;
-    w3_camera_center(c, C);
+    sh_camera_center(c, C);
     return 1;
 }
 

@@ -30,9 +30,6 @@ struct sh_warp3d_model {
     double *disp, *resid;     /* n x 3 */
 };
 
-void w3_distort(const double *k, double x, double y, double *xd, double *yd);
-int w3_has_distortion(const sh_calib_camera *cam);
-void w3_camera_center(const sh_calib_camera *cam, double C[3]);
 
 /* The displacement trend's basis at (u, v): h_terms values. */
 void w3_h_basis(const sh_warp3d_model *m, double u, double v, double *b);
