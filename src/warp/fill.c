@@ -1,6 +1,8 @@
 /* The row fill: source positions (16.16) of one output row's pixels, from the model's affine
  * map, its triangles or its grid (warp_model_row_fill). */
 #include <math.h>
+#include <stdlib.h>
+#include <string.h>
 
 #include "warp_internal.h"
 
@@ -74,13 +76,14 @@ int warp_model_row_extent(const sh_warp_model *m, const plane_geometry *g, int p
     return sh_hull_plane_row(&m->hull, py, g->width, g->scale, g->ox, g->oy, first, last);
 }
 
-static void fill_triangles(const sh_warp_model *m, const plane_geometry *g, double Y, int first,
-                           int last, int32_t *fx, int32_t *fy)
+/* The triangles' pixel intervals on a row: with spans == NULL fills them, else records them
+ * as (triangle, first pixel, last pixel) and returns how many. */
+static int triangle_spans(const sh_warp_model *m, const plane_geometry *g, double Y, int first,
+                          int last, int32_t *fx, int32_t *fy, int32_t *spans)
 {
-    /* Pixels the triangles miss by rounding at the hull's edge stay outside every frame. */
-    for (int k = 0; k <= last - first; k++) fx[k] = fy[k] = -WARP_COORD_LIMIT;
+    int count = 0;
     int b = (int)((Y - m->band_origin) / TRIANGLE_BAND);
-    if (b < 0 || b >= m->bands) return;
+    if (b < 0 || b >= m->bands) return 0;
     for (int k = m->band_start[b]; k < m->band_start[b + 1]; k++) {
         int t = m->band_tris[k];
         if (Y < m->tri_ybounds[2 * t] - 1e-7 || Y > m->tri_ybounds[2 * t + 1] + 1e-7) continue;
@@ -93,8 +96,94 @@ static void fill_triangles(const sh_warp_model *m, const plane_geometry *g, doub
         int e = (int)floor((hi - g->ox) / g->scale + 1e-7);
         if (s < first) s = first;
         if (e > last) e = last;
-        if (s <= e) fill_affine(g, Y, s, e, m->tri_map + 6 * t, fx + (s - first), fy + (s - first));
+        if (s > e) continue;
+        if (spans) {
+            spans[3 * count] = t, spans[3 * count + 1] = s, spans[3 * count + 2] = e;
+            count++;
+        } else {
+            fill_affine(g, Y, s, e, m->tri_map + 6 * t, fx + (s - first), fy + (s - first));
+        }
     }
+    return count;
+}
+
+static void fill_outside(int32_t *fx, int32_t *fy, int count)
+{
+    for (int k = 0; k < count; k++) fx[k] = fy[k] = -WARP_COORD_LIMIT;
+}
+
+static void fill_triangles(const sh_warp_model *m, const plane_geometry *g, int py, double Y,
+                           int first, int last, int32_t *fx, int32_t *fy)
+{
+    if (m->span_start && g->scale == 1 && g->ox == 0 && g->oy == 0 && py < m->height) {
+        /* the full-resolution plane: its spans were listed at create */
+        for (int k = m->span_start[py]; k < m->span_start[py + 1]; k++) {
+            const int32_t *sp = m->spans + 3 * k;
+            int s = sp[1] < first ? first : sp[1], e = sp[2] > last ? last : sp[2];
+            if (s > e) continue;
+            if (sp[0] < 0) fill_outside(fx + (s - first), fy + (s - first), e - s + 1);
+            else fill_affine(g, Y, s, e, m->tri_map + 6 * sp[0], fx + (s - first), fy + (s - first));
+        }
+        return;
+    }
+    /* Pixels the triangles miss by rounding at the hull's edge stay outside every frame. */
+    fill_outside(fx, fy, last - first + 1);
+    triangle_spans(m, g, Y, first, last, fx, fy, NULL);
+}
+
+sh_status warp_model_list_spans(sh_warp_model *m)
+{
+    const plane_geometry g = {.scale = 1, .ox = 0, .oy = 0, .width = m->width, .height = m->height};
+    int most = 0; /* triangles in the fullest band: a row's spans at most */
+    for (int b = 0; b < m->bands; b++)
+        if (m->band_start[b + 1] - m->band_start[b] > most) most = m->band_start[b + 1] - m->band_start[b];
+    /* a row's spans and the gaps between them: at most 2 most + 1 */
+    int32_t *row = malloc(sizeof(int32_t) * 3 * (2 * (size_t)most + 1));
+    uint8_t *covered = malloc((size_t)m->width);
+    m->span_start = malloc(sizeof(int) * ((size_t)m->height + 1));
+    size_t used = 0, cap = 0;
+    sh_status st = SH_OK;
+    if (!row || !covered || !m->span_start) {
+        st = sh_error_set(SH_ENOMEM, "warp: out of memory");
+        goto done;
+    }
+    for (int py = 0; py < m->height; py++) {
+        m->span_start[py] = (int)used;
+        int first, last;
+        if (!warp_model_row_extent(m, &g, py, &first, &last)) continue;
+        int count = triangle_spans(m, &g, py, first, last, NULL, NULL, row);
+        memset(covered + first, 0, (size_t)(last - first + 1));
+        for (int k = 0; k < count; k++) memset(covered + row[3 * k + 1], 1, (size_t)(row[3 * k + 2] - row[3 * k + 1] + 1));
+        /* runs no triangle covers (rounding at the hull's edge): outside every frame */
+        for (int x = first; x <= last; x++) {
+            if (covered[x]) continue;
+            int e = x;
+            while (e < last && !covered[e + 1]) e++;
+            row[3 * count] = -1, row[3 * count + 1] = x, row[3 * count + 2] = e;
+            count++;
+            x = e;
+        }
+        if (used + (size_t)count > cap) {
+            cap = 2 * (used + (size_t)count) + 64;
+            int32_t *grown = realloc(m->spans, sizeof(int32_t) * 3 * cap);
+            if (!grown) {
+                st = sh_error_set(SH_ENOMEM, "warp: out of memory");
+                goto done;
+            }
+            m->spans = grown;
+        }
+        memcpy(m->spans + 3 * used, row, sizeof(int32_t) * 3 * (size_t)count);
+        used += (size_t)count;
+    }
+    m->span_start[m->height] = (int)used;
+done:
+    free(row);
+    free(covered);
+    if (st != SH_OK) {
+        free(m->span_start);
+        m->span_start = NULL;
+    }
+    return st;
 }
 
 /* Nodes per chunk of the aligned fill (its stack arrays). */
@@ -316,7 +405,7 @@ void warp_model_row_fill(const sh_warp_model *m, const plane_geometry *g, int py
     double Y = g->scale * py + g->oy;
     switch (m->kind) {
     case MODEL_AFFINE: fill_affine(g, Y, first, last, m->affine, fx, fy); return;
-    case MODEL_TRIANGLES: fill_triangles(m, g, Y, first, last, fx, fy); return;
+    case MODEL_TRIANGLES: fill_triangles(m, g, py, Y, first, last, fx, fy); return;
     case MODEL_GRID: fill_grid(m, g, Y, first, last, fx, fy); return;
     }
 }

@@ -75,6 +75,8 @@ void sh_warp_model_destroy(sh_warp_model *m)
     free(m->tri_ybounds);
     free(m->band_start);
     free(m->band_tris);
+    free(m->span_start);
+    free(m->spans);
     free((void *)m->ref_xy);
     free(m->disp);
     free(m);
@@ -211,7 +213,7 @@ sh_status sh_warp_model_create(const sh_interp *interp, const double *ref_xy, in
             m->tri_ybounds[2 * t] = fmin(y0, fmin(y1, y2));
             m->tri_ybounds[2 * t + 1] = fmax(y0, fmax(y1, y2));
         }
-        if ((st = build_bands(m)) != SH_OK) goto fail;
+        if ((st = build_bands(m)) != SH_OK || (st = warp_model_list_spans(m)) != SH_OK) goto fail;
     } else if (sh_interp_method(interp) == SH_METHOD_AFFINE) {
         m->kind = MODEL_AFFINE;
     } else {

@@ -26,6 +26,8 @@ struct sh_warp_model {
     int bands;               /* triangles per band of rows: band b lists band_tris[band_start[b] */
     double band_origin;      /*   .. band_start[b + 1]), rows from band_origin + b * band */
     int *band_start, *band_tris;
+    int *span_start;         /* full-resolution row y: spans[3 span_start[y] .. 3 span_start[y + 1]) */
+    int32_t *spans;          /*   as (triangle or -1 for none, first pixel, last pixel) */
     const double *ref_xy;    /* copy, n x 2 */
     double *disp;            /* displacement of the last update, n x 2 */
 
@@ -52,6 +54,10 @@ typedef struct {
  * clamped to that, so the int32 never overflows. */
 #define WARP_FRAC_BITS 16
 #define WARP_COORD_LIMIT (1 << 30)
+
+/* Lists the triangles' spans of every full-resolution row (after the bands), so that a frame's
+ * row fill only evaluates the triangles' affine maps. */
+sh_status warp_model_list_spans(sh_warp_model *m);
 
 /* Pixels [*first, *last] of plane row py lie inside the hull; returns 0 when none do. */
 int warp_model_row_extent(const sh_warp_model *model, const plane_geometry *geom, int py,
