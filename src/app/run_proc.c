@@ -239,6 +239,7 @@ const sh_image *run_proc_frame(run_proc *p, const sh_image *img, const sh_image 
         return img;
     }
     p->model_err_once = 0;
+    if (got == 1) p->last = md; /* the model run_models keeps from eviction (pinned) */
     if (got == 0) {
         int n = fallback(p, nm, fb_xy, fb_xyz, fb_det);
         if (!n) {
@@ -276,7 +277,6 @@ const sh_image *run_proc_frame(run_proc *p, const sh_image *img, const sh_image 
         reason(info, "warp failed");
         return img;
     }
-    p->last = md;
     if (building) {
         info->status = SH_DISPLAY_DEGRADED;
         reason(info, "model for %d markers building", sel.n);
