@@ -6,6 +6,8 @@
 // YAML of include/stillheart/calib.h. OpenCV stays in this tool: the daemon never links it.
 #include <getopt.h>
 
+#include <algorithm>
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
