@@ -59,6 +59,21 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     sh_config_default(&d);
     sh_status st = sh_config_parse_string(&d, buf, "written", err);
     free(buf);
-    (void)st; /* leading/trailing blanks in strings are trimmed by INI: not checked further */
+    /* leading/trailing blanks in strings are trimmed by INI: strings not checked further; the
+     * cameras' and trigger's numbers must come back as they were */
+    if (st == SH_OK) {
+        for (int i = 0; i < SH_CONFIG_MAX_CAMERAS; i++) {
+            const sh_config_camera *a = &c.camera[i], *b = &d.camera[i];
+            if (i > 0 && !a->spec[0]) continue; /* an absent camera is not written */
+            check(a->width == b->width && a->height == b->height && a->fps_num == b->fps_num &&
+                  a->fps_den == b->fps_den && a->exposure == b->exposure && a->gain == b->gain &&
+                  a->white_balance == b->white_balance && !strcmp(a->format, b->format));
+        }
+        check(c.output_camera == d.output_camera && c.trigger == d.trigger && c.trigger_line == d.trigger_line &&
+              c.trigger_active_low == d.trigger_active_low && c.trigger_fps == d.trigger_fps &&
+              c.trigger_pulse_us == d.trigger_pulse_us && c.trigger_offset_us == d.trigger_offset_us &&
+              c.sync_tolerance_ms == d.sync_tolerance_ms && c.sync_wait_ms == d.sync_wait_ms &&
+              c.camera_timeout_ms == d.camera_timeout_ms);
+    }
     return 0;
 }
