@@ -240,7 +240,9 @@ sh_status sh_tracker_reacquire(sh_tracker *t, int cam, sh_window *out, int *coun
     double ext = 0;
     for (int i = 0; i < t->nm; i++)
         for (int c = 0; c < t->ncam; c++) ext = fmax(ext, t->m[i].extent[c]);
-    int overlap = (int)fmax(2 * ext + 8, 0.05 * t->o.height);
+    /* a tag spans at most 2 ext rows: bands overlapping by ext (plus its white border) hold every
+     * tag whole in one of them */
+    int overlap = (int)fmax(1.25 * ext + 4, 0.05 * t->o.height);
     int b = (t->band + cam) % nb;
     int y0 = (int)((long)t->o.height * b / nb) - overlap;
     int y1 = (int)((long)t->o.height * (b + 1) / nb) + overlap;
