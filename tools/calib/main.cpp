@@ -35,7 +35,7 @@ void usage(FILE *f)
 "Calibrates two or three synchronized cameras from views of a planar checkerboard: each camera's\n"
 "intrinsics and lens distortion (cv::calibrateCamera), then the rig's extrinsics against camera 0\n"
 "(cv::stereoCalibrate, intrinsics fixed). Camera 0 is the world frame: R_0 = I, t_0 = 0; t_i\n"
-"is in the units of SQUARE_MM (millimetres).\n"
+"is in the units of SQUARE_MM (millimetres). --world puts the world on the board instead.\n"
 "\n"
 "  CAMi               camera i's views: a Y4M video, or a folder of PNG / JPEG images taken\n"
 "                     in name order. Frame n of every camera must be taken at the same time\n"
@@ -52,6 +52,11 @@ void usage(FILE *f)
 "                     tell k3 from k1 and k2, and a free k3 costs focal-length accuracy)\n"
 "  --no-tangential    p1 = p2 = 0 (a narrow lens cannot tell a small decentring from a shift of\n"
 "                     the principal point: without them the principal point is better defined)\n"
+"  --world W          the world frame of the file: camera0 (default), or board:N, the board as\n"
+"                     camera 0 sees it in frame N (0-based input frame): origin at its first\n"
+"                     inner corner, x along the first row (corner 0 to 1), z out of the printed\n"
+"                     face towards the cameras, y = z cross x (a board lying on the table gives\n"
+"                     z up, as the renderer's world)\n"
 "  --corners-out FILE every corner found, as CSV frame,camera,corner,x,y (OpenCV pixels,\n"
 "                     corner r * COLS + c is board point (c, r) * SQUARE_MM)\n"
 "  --quiet            print only errors\n"
@@ -134,6 +139,7 @@ struct options {
     board_spec board;
     const char *out = nullptr, *corners_out = nullptr;
     int every = 1, min_views = 8, k3 = 0, no_tangential = 0, quiet = 0;
+    int world_frame = -1; // --world board:N; -1: camera 0
     std::vector<std::string> inputs;
 };
 
@@ -240,6 +246,21 @@ int run(const options &o)
                         "t %.3f %.3f %.3f\n", c, obj.size(), rms, cv::norm(T[c]), rotation_deg(R[c]),
                         T[c].at<double>(0), T[c].at<double>(1), T[c].at<double>(2));
     }
+    if (o.world_frame >= 0) {
+        // board -> camera 0 by solvePnP with the final intrinsics; F turns the board's z (into
+        // the board) round to point out of its face: X_board = F X_world
+        if ((size_t)o.world_frame >= views[0].pts.size() || views[0].pts[o.world_frame].empty())
+            throw std::runtime_error("--world board:" + std::to_string(o.world_frame) + ": camera 0 did not find the "
+                                     "board in that frame");
+        cv::Mat rv, tb, Rb;
+        cv::solvePnP(X, views[0].pts[o.world_frame], K[0], D[0], rv, tb);
+        cv::Rodrigues(rv, Rb);
+        cv::Mat F = cv::Mat::diag(cv::Mat(cv::Vec3d(1, -1, -1)));
+        for (size_t c = 0; c < n; c++) {
+            T[c] = R[c] * tb + T[c];
+            R[c] = R[c] * Rb * F;
+        }
+    }
     for (size_t c = 0; c < n; c++) {
         sh_calib_camera &k = cal.cam[c];
         std::memcpy(k.K, K[c].ptr<double>(), sizeof k.K);
@@ -269,11 +290,11 @@ bool parse_int(const char *s, int lo, int hi, int &out)
 int main(int argc, char **argv)
 {
     options o;
-    enum { O_BOARD = 256, O_OUT, O_EVERY, O_MIN, O_K3, O_CORNERS, O_QUIET, O_HELP, O_NOTAN };
+    enum { O_BOARD = 256, O_OUT, O_EVERY, O_MIN, O_K3, O_CORNERS, O_QUIET, O_HELP, O_NOTAN, O_WORLD };
     static const struct option opts[] = {
         {"board", 1, 0, O_BOARD}, {"out", 1, 0, O_OUT}, {"every", 1, 0, O_EVERY}, {"min-views", 1, 0, O_MIN},
         {"k3", 0, 0, O_K3}, {"corners-out", 1, 0, O_CORNERS}, {"quiet", 0, 0, O_QUIET}, {"help", 0, 0, O_HELP},
-        {"no-tangential", 0, 0, O_NOTAN}, {0, 0, 0, 0}};
+        {"no-tangential", 0, 0, O_NOTAN}, {"world", 1, 0, O_WORLD}, {0, 0, 0, 0}};
     int ch;
     const char *board = nullptr;
 #define BAD(...) do { std::fprintf(stderr, "stillheart-calib: " __VA_ARGS__); std::fputc('\n', stderr); return 2; } while (0)
@@ -290,6 +311,11 @@ int main(int argc, char **argv)
         case O_MIN: if (!parse_int(optarg, 3, 100000, o.min_views)) BAD("--min-views '%s': 3 or more", optarg); break;
         case O_K3: o.k3 = 1; break;
         case O_NOTAN: o.no_tangential = 1; break;
+        case O_WORLD:
+            if (!std::strcmp(optarg, "camera0")) o.world_frame = -1;
+            else if (std::strncmp(optarg, "board:", 6) || !parse_int(optarg + 6, 0, 1 << 30, o.world_frame))
+                BAD("--world '%s': camera0 or board:N (a frame index)", optarg);
+            break;
         case O_CORNERS: o.corners_out = optarg; break;
         case O_QUIET: o.quiet = 1; break;
         case O_HELP: usage(stdout); return 0;

@@ -215,6 +215,71 @@ static void test_recovers_the_rig(void **state)
     assert_true(sqrt(det2 / m) < 0.1);
 }
 
+static void unit(double a[3])
+{
+    double l = sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
+    for (int k = 0; k < 3; k++) a[k] /= l;
+}
+
+/* --world board:N: the frame the board defines in view N (origin at corner 0, x along the first
+ * row, z out of the printed face), built here from the truth's 3D corners; every recovered
+ * camera must sit and look where the true one does in that frame. */
+static void test_world_on_board(void **state)
+{
+    (void)state;
+    const char *dir = rig_dir();
+    assert_non_null(dir);
+    enum { VIEW = 4 };
+    char cmd[4096], out[8192], path[1024];
+    snprintf(cmd, sizeof cmd, "'%s' --board " BOARD " --world board:%d --out '%s/world.yaml' '%s/cam0.y4m' "
+             "'%s/cam1.y4m' '%s/cam2.y4m'", CALIB_BIN, VIEW, dir, dir, dir, dir);
+    assert_int_equal(run(cmd, out, sizeof out), 0);
+    static truth_row rows[FRAMES * 3 * CORNERS];
+    snprintf(path, sizeof path, "%s/board.csv", dir);
+    assert_int_equal(read_board_csv(path, rows, FRAMES * 3 * CORNERS), FRAMES * 3 * CORNERS);
+    const truth_row *r = &rows[VIEW * 3 * CORNERS]; /* camera 0's rows of the view */
+    assert_true(r[0].frame == VIEW && r[0].camera == 0 && r[0].corner == 0);
+    const double *O = r[0].X;
+    double x[3], yb[3], z[3], y[3];
+    for (int k = 0; k < 3; k++) x[k] = r[1].X[k] - O[k], yb[k] = r[9].X[k] - O[k];
+    unit(x);
+    unit(yb);
+    z[0] = -(x[1] * yb[2] - x[2] * yb[1]), z[1] = -(x[2] * yb[0] - x[0] * yb[2]), z[2] = -(x[0] * yb[1] - x[1] * yb[0]);
+    unit(z);
+    y[0] = z[1] * x[2] - z[2] * x[1], y[1] = z[2] * x[0] - z[0] * x[2], y[2] = z[0] * x[1] - z[1] * x[0];
+    sh_calib truth, est;
+    snprintf(path, sizeof path, "%s/calibration.yaml", dir);
+    assert_int_equal(sh_calib_read(path, &truth), SH_OK);
+    snprintf(path, sizeof path, "%s/world.yaml", dir);
+    assert_int_equal(sh_calib_read(path, &est), SH_OK);
+    for (int c = 0; c < 3; c++) {
+        double C[3], Ce[3], d[3], Rw[9];
+        sh_camera_center(&truth.cam[c], C);
+        sh_camera_center(&est.cam[c], Ce);
+        for (int k = 0; k < 3; k++) d[k] = C[k] - O[k];
+        double ct[3] = {x[0] * d[0] + x[1] * d[1] + x[2] * d[2], y[0] * d[0] + y[1] * d[1] + y[2] * d[2],
+                        z[0] * d[0] + z[1] * d[1] + z[2] * d[2]};
+        /* board world -> camera: R [x y z] */
+        const double *R = truth.cam[c].R;
+        for (int a = 0; a < 3; a++) {
+            Rw[3 * a] = R[3 * a] * x[0] + R[3 * a + 1] * x[1] + R[3 * a + 2] * x[2];
+            Rw[3 * a + 1] = R[3 * a] * y[0] + R[3 * a + 1] * y[1] + R[3 * a + 2] * y[2];
+            Rw[3 * a + 2] = R[3 * a] * z[0] + R[3 * a + 1] * z[1] + R[3 * a + 2] * z[2];
+        }
+        double dist = sqrt((ct[0] - Ce[0]) * (ct[0] - Ce[0]) + (ct[1] - Ce[1]) * (ct[1] - Ce[1]) +
+                           (ct[2] - Ce[2]) * (ct[2] - Ce[2]));
+        double ang = rot_angle_deg(Rw, est.cam[c].R);
+        printf("# --world board:%d: camera %d at (%.2f, %.2f, %.2f) mm, true (%.2f, %.2f, %.2f): %.3f mm, "
+               "%.4f deg\n", VIEW, c, Ce[0], Ce[1], Ce[2], ct[0], ct[1], ct[2], dist, ang);
+        assert_true(dist < 1.0);
+        assert_true(ang < 0.1);
+    }
+    snprintf(cmd, sizeof cmd, "'%s' --board " BOARD " --world board:99 --out '%s/x.yaml' '%s/cam0.y4m' "
+             "'%s/cam1.y4m' 2>&1", CALIB_BIN, dir, dir, dir);
+    assert_int_equal(run(cmd, out, sizeof out), 1);
+    assert_non_null(strstr(out, "--world board:99"));
+}
+
 /* Image folders give the same calibration as the videos they came from. */
 static void test_image_folders(void **state)
 {
@@ -312,6 +377,8 @@ static void test_errors(void **state)
         "--board " BOARD " --every 0 --out x.yaml a b",
         "--board " BOARD " --min-views 2 --out x.yaml a b",
         "--board " BOARD " --bogus --out x.yaml a b",
+        "--board " BOARD " --world board:x --out x.yaml a b",
+        "--board " BOARD " --world camera1 --out x.yaml a b",
     };
     for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
         snprintf(cmd, sizeof cmd, "'%s' %s 2>/dev/null", CALIB_BIN, bad[i]);
@@ -334,6 +401,7 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_recovers_the_rig),
+        cmocka_unit_test(test_world_on_board),
         cmocka_unit_test(test_image_folders),
         cmocka_unit_test(test_errors),
     };
