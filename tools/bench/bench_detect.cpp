@@ -18,30 +18,11 @@
 
 #include <unistd.h>
 
+#include "bench_detect_util.h"
+
 extern "C" {
 #include "stillheart/detect.h"
 #include "stillheart/y4m.h"
-}
-
-static double now_ms()
-{
-    timespec ts;
-    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-    return ts.tv_sec * 1e3 + ts.tv_nsec * 1e-6;
-}
-
-static double median(std::vector<double> v)
-{
-    std::sort(v.begin(), v.end());
-    return v[v.size() / 2];
-}
-
-static void check(sh_status st, const char *what)
-{
-    if (st != SH_OK) {
-        std::fprintf(stderr, "bench_detect: %s: %s\n", what, sh_error_message());
-        std::exit(1);
-    }
 }
 
 struct Truth {
@@ -98,11 +79,11 @@ int main()
     }
     std::vector<sh_image> frames(FRAMES);
     sh_y4m_reader *rd;
-    check(sh_y4m_reader_open((std::string(dir) + "/cam0.y4m").c_str(), &rd), "open");
+    bench_check("bench_detect", sh_y4m_reader_open((std::string(dir) + "/cam0.y4m").c_str(), &rd), "open");
     const sh_y4m_header *hd = sh_y4m_reader_header(rd);
     for (auto &f : frames) {
-        check(sh_image_create(&f, hd->format, hd->width, hd->height), "image");
-        check(sh_y4m_reader_read(rd, &f), "read");
+        bench_check("bench_detect", sh_image_create(&f, hd->format, hd->width, hd->height), "image");
+        bench_check("bench_detect", sh_y4m_reader_read(rd, &f), "read");
     }
     const int W = hd->width, H = hd->height;
     sh_y4m_reader_close(rd);
@@ -159,21 +140,21 @@ int main()
         o.window_decimate = m.wdec;
         o.merge_windows = m.merge;
         sh_detector *det;
-        check(sh_detector_create(&o, &det), "detector");
+        bench_check("bench_detect", sh_detector_create(&o, &det), "detector");
         std::vector<double> t;
         int found_min = 1 << 30, found_max = 0, calls = 0;
         double worst = 0;
         for (int r = 0; r < REPEAT; r++)
             for (int fr = 0; fr < FRAMES; fr++) {
                 int n = 0;
-                double t0 = now_ms();
+                double t0 = bench_now_ms();
                 if (m.windows)
-                    check(sh_detector_detect_windows(det, &frames[fr], wins[m.scale][fr].data(),
+                    bench_check("bench_detect", sh_detector_detect_windows(det, &frames[fr], wins[m.scale][fr].data(),
                                                      (int)wins[m.scale][fr].size(), dets, 1024, &n),
                           "detect");
                 else
-                    check(sh_detector_detect(det, &frames[fr], dets, 1024, &n), "detect");
-                t.push_back(now_ms() - t0);
+                    bench_check("bench_detect", sh_detector_detect(det, &frames[fr], dets, 1024, &n), "detect");
+                t.push_back(bench_now_ms() - t0);
                 if (m.windows) calls = sh_detector_last_windows(det, nullptr, 0);
                 int found = 0;
                 for (int i = 0; i < n; i++)
@@ -188,7 +169,7 @@ int main()
                 found_min = std::min(found_min, found);
                 found_max = std::max(found_max, n);
             }
-        double ms = median(t);
+        double ms = bench_median(t);
         if (!m.windows && m.fdec == 2.0) full_ms = ms;
         std::printf("  %-46s %7.2f ms/frame  found >= %d of %zu (reported <= %d), worst corner "
                     "%.2f px%s",

@@ -20,31 +20,12 @@
 
 #include <unistd.h>
 
+#include "bench_detect_util.h"
+
 extern "C" {
 #include "stillheart/detect.h"
 #include "stillheart/track.h"
 #include "stillheart/y4m.h"
-}
-
-static double now_ms()
-{
-    timespec ts;
-    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-    return ts.tv_sec * 1e3 + ts.tv_nsec * 1e-6;
-}
-
-static double median(std::vector<double> v)
-{
-    std::sort(v.begin(), v.end());
-    return v.empty() ? 0 : v[v.size() / 2];
-}
-
-static void check(sh_status st, const char *what)
-{
-    if (st != SH_OK) {
-        std::fprintf(stderr, "bench_detect_track: %s: %s\n", what, sh_error_message());
-        std::exit(1);
-    }
 }
 
 // Same id, same place (within 1 px): one tag seen by two overlapping windows (as cmd_track.c).
@@ -148,19 +129,19 @@ int main(int argc, char **argv)
     for (int mode = 0; mode < 3; mode++)
         for (int pass = 0; pass < PASSES; pass++) {
             sh_detector *fd, *wd;
-            check(sh_detector_create(nullptr, &fd), "detector"); // libapriltag's defaults
+            bench_check("bench_detect_track", sh_detector_create(nullptr, &fd), "detector"); // libapriltag's defaults
             sh_detector_options o;
             sh_detector_options_default(&o);
             o.window_decimate = wdec[mode];
-            check(sh_detector_create(&o, &wd), "detector");
+            bench_check("bench_detect_track", sh_detector_create(&o, &wd), "detector");
             sh_y4m_reader *rd;
-            check(sh_y4m_reader_open(video.c_str(), &rd), "open");
+            bench_check("bench_detect_track", sh_y4m_reader_open(video.c_str(), &rd), "open");
             const sh_y4m_header *hd = sh_y4m_reader_header(rd);
             W = hd->width;
             H = hd->height;
             fps = (double)hd->fps_num / hd->fps_den;
             sh_image img;
-            check(sh_image_create(&img, hd->format, W, H), "image");
+            bench_check("bench_detect_track", sh_image_create(&img, hd->format, W, H), "image");
             sh_track_options to;
             sh_track_options_default(&to);
             to.fps = fps;
@@ -171,35 +152,35 @@ int main(int argc, char **argv)
             to.ids = listed[mode] ? ids : nullptr;
             to.num_ids = listed[mode] ? 16 : 0;
             sh_tracker *t;
-            check(sh_tracker_create(&to, nullptr, &t), "tracker");
+            bench_check("bench_detect_track", sh_tracker_create(&to, nullptr, &t), "tracker");
             Result &r = res[mode];
             for (int f = 0; f < FRAMES; f++) {
-                check(sh_y4m_reader_read(rd, &img), "read");
+                bench_check("bench_detect_track", sh_y4m_reader_read(rd, &img), "read");
                 bool timed = f >= TIMED_FROM;
                 int nf = 0;
                 if (timed) {
-                    double t0 = now_ms();
-                    check(sh_detector_detect(fd, &img, full, 1024, &nf), "full frame");
-                    r.full.push_back(now_ms() - t0);
+                    double t0 = bench_now_ms();
+                    bench_check("bench_detect_track", sh_detector_detect(fd, &img, full, 1024, &nf), "full frame");
+                    r.full.push_back(bench_now_ms() - t0);
                 }
                 // the tracked pipeline, as cmd_track.c runs it
-                double t0 = now_ms();
-                check(sh_tracker_predict(t, f), "predict");
+                double t0 = bench_now_ms();
+                bench_check("bench_detect_track", sh_tracker_predict(t, f), "predict");
                 int nw = 0, nb = 0, n = 0;
-                check(sh_tracker_windows(t, 0, win, SH_TRACK_MAX_MARKERS, &nw), "windows");
-                check(sh_tracker_reacquire(t, 0, &win[nw], &nb), "reacquire");
-                double t1 = now_ms();
+                bench_check("bench_detect_track", sh_tracker_windows(t, 0, win, SH_TRACK_MAX_MARKERS, &nw), "windows");
+                bench_check("bench_detect_track", sh_tracker_reacquire(t, 0, &win[nw], &nb), "reacquire");
+                double t1 = bench_now_ms();
                 if (f == 0 || nw == 0)
-                    check(sh_detector_detect(wd, &img, dets, SH_TRACK_MAX_DETECTIONS, &n), "detect");
+                    bench_check("bench_detect_track", sh_detector_detect(wd, &img, dets, SH_TRACK_MAX_DETECTIONS, &n), "detect");
                 else
-                    check(sh_detector_detect_windows(wd, &img, win, nw + nb, dets, SH_TRACK_MAX_DETECTIONS, &n),
+                    bench_check("bench_detect_track", sh_detector_detect_windows(wd, &img, win, nw + nb, dets, SH_TRACK_MAX_DETECTIONS, &n),
                           "detect windows");
-                double t2 = now_ms();
+                double t2 = bench_now_ms();
                 if (n > SH_TRACK_MAX_DETECTIONS) n = SH_TRACK_MAX_DETECTIONS;
                 n = dedupe(dets, n);
                 const sh_detection *dp[1] = {dets};
-                check(sh_tracker_update(t, dp, &n, 1), "update");
-                double t3 = now_ms();
+                bench_check("bench_detect_track", sh_tracker_update(t, dp, &n, 1), "update");
+                double t3 = bench_now_ms();
                 if (!timed) continue;
                 r.track.push_back(t3 - t0);
                 r.detect_part.push_back(t2 - t1);
@@ -248,11 +229,11 @@ int main(int argc, char **argv)
     for (int mode = 0; mode < 3; mode++) {
         const Result &r = res[mode];
         if (!listed[mode]) std::printf("  no id list, a reacquisition band every frame:\n");
-        double fm = median(r.full), tm = median(r.track);
+        double fm = bench_median(r.full), tm = bench_median(r.track);
         std::printf("  windows at decimate %.0f: full-frame libapriltag (defaults) %6.2f ms, detect+track "
                     "%5.2f ms (detection %5.2f, tracker %4.2f), %4.1fx faster; %.1f windows, %.0f%% of the "
                     "frame scanned; every full-frame tag found in %d of %d frames (%d missed)\n",
-                    wdec[mode], fm, tm, median(r.detect_part), median(r.tracker_part), fm / tm,
+                    wdec[mode], fm, tm, bench_median(r.detect_part), bench_median(r.tracker_part), fm / tm,
                     (double)r.windows / r.frames, 100.0 * r.px / ((double)r.frames * W * H), r.found_all,
                     r.frames, r.missed);
         std::printf("    centres against the phantom's truth: windows mean %.3f px (max %.3f), full frame "
