@@ -225,6 +225,58 @@ static void test_check_across_keys(void **state)
     assert_string_equal(err, "command line: [run] threads: '-1' is not a whole number in 1..64");
 }
 
+/* The processing side's keys: record FILE.y4m or png:DIR, the control socket's path length (a
+ * sockaddr_un holds 107 bytes and the NUL), the tracker's 64 ids, calibration written back. */
+static void test_processing_keys(void **state)
+{
+    (void)state;
+    sh_config c;
+    char err[SH_CONFIG_ERR];
+    const char *ok_rec[] = {"shown.y4m", "png:frames", "png:/var/lib/stillheart/png"};
+    const char *bad_rec[] = {"png:", "shown.avi", "png"};
+    for (int i = 0; i < 3; i++) {
+        sh_config_default(&c);
+        assert_int_equal(sh_config_set(&c, "sink", "record", ok_rec[i], "x", 0, err), SH_OK);
+        assert_int_equal(sh_config_check(&c, err), SH_OK);
+        sh_config_default(&c);
+        assert_int_equal(sh_config_set(&c, "sink", "record", bad_rec[i], "x", 0, err), SH_OK);
+        assert_int_not_equal(sh_config_check(&c, err), SH_OK);
+        assert_non_null(strstr(err, "[sink] record"));
+    }
+    char path[130];
+    memset(path, 'a', sizeof path);
+    path[0] = '/';
+    path[107] = 0; /* 107 bytes: fits */
+    sh_config_default(&c);
+    assert_int_equal(sh_config_set(&c, "run", "control", path, "x", 0, err), SH_OK);
+    assert_int_equal(sh_config_check(&c, err), SH_OK);
+    path[107] = 'a';
+    path[108] = 0;
+    assert_int_equal(sh_config_set(&c, "run", "control", path, "x", 0, err), SH_OK);
+    assert_int_not_equal(sh_config_check(&c, err), SH_OK);
+    assert_non_null(strstr(err, "[run] control"));
+    sh_config_default(&c);
+    assert_int_equal(sh_config_set(&c, "detect", "ids", "0-64", "x", 0, err), SH_OK); /* 65 */
+    assert_int_not_equal(sh_config_check(&c, err), SH_OK);
+    assert_non_null(strstr(err, "at most 64"));
+    assert_int_equal(sh_config_set(&c, "detect", "ids", "0-63", "x", 0, err), SH_OK);
+    assert_int_equal(sh_config_check(&c, err), SH_OK);
+    const char *section, *key;
+    int flag;
+    assert_true(sh_config_option("control", &section, &key, &flag) && !strcmp(key, "control") && !flag);
+    assert_true(sh_config_option("calibration", &section, &key, &flag) && !strcmp(section, "method"));
+    assert_int_equal(sh_config_set(&c, "method", "calibration", "rig.yaml", "x", 0, err), SH_OK);
+    assert_int_equal(sh_config_set(&c, "run", "control", "/run/stillheart/control", "x", 0, err), SH_OK);
+    char *buf = NULL;
+    size_t len = 0;
+    FILE *f = open_memstream(&buf, &len);
+    sh_config_write(&c, f);
+    fclose(f);
+    assert_non_null(strstr(buf, "calibration = rig.yaml\n"));
+    assert_non_null(strstr(buf, "control = /run/stillheart/control\n"));
+    free(buf);
+}
+
 static void test_options_and_write_round_trip(void **state)
 {
     (void)state;
@@ -294,6 +346,7 @@ int main(int argc, char **argv)
         cmocka_unit_test(test_refusals),
         cmocka_unit_test(test_cameras_and_trigger),
         cmocka_unit_test(test_check_across_keys),
+        cmocka_unit_test(test_processing_keys),
         cmocka_unit_test(test_options_and_write_round_trip),
         cmocka_unit_test(test_files),
     };
