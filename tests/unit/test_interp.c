@@ -447,6 +447,42 @@ static void test_local_sparse(void **state)
     sh_interp_destroy(it);
 }
 
+/* The Gaussian's per-axis factors (the warp's separable grid): their product is the kernel
+ * exp(-r^2 / sigma^2) in closed form, which is also what the basis row holds; other methods
+ * have none. */
+static void test_gaussian_factors(void **state)
+{
+    (void)state;
+    enum { N = 30 };
+    double xy[2 * N], fx[N], fy[N], w[N + 3];
+    int idx[N + 3];
+    random_points(xy, N, 1920, 1080);
+    for (int v = 0; v < 2; v++) {
+        sh_interp *it = create_named(v ? "gaussian-pure" : "gaussian", xy, N);
+        for (int q = 0; q < 200; q++) {
+            double x = uniform(-100, 2000), y = uniform(-100, 1200);
+            assert_int_equal(sh_interp_kernel_factors(it, 0, x, fx), N);
+            assert_int_equal(sh_interp_kernel_factors(it, 1, y, fy), N);
+            int c = sh_interp_basis(it, x, y, idx, w);
+            assert_int_equal(c, N + (v ? 0 : 3));
+            for (int k = 0; k < N; k++) {
+                double r2 = pow(x - xy[2 * k], 2) + pow(y - xy[2 * k + 1], 2);
+                double exact = exp(-r2 / (100.0 * 100.0));
+                assert_true(fabs(fx[k] * fy[k] - exact) <= 1e-15 + 1e-14 * exact);
+                assert_int_equal(idx[k], k);
+                assert_true(fabs(w[k] - fx[k] * fy[k]) <= 1e-15 + 1e-14 * w[k]);
+            }
+        }
+        sh_interp_destroy(it);
+    }
+    const char *others[] = {"affine", "pwlinear", "bspline", "rbf-local", "tps"};
+    for (int m = 0; m < 5; m++) {
+        sh_interp *it = create_named(others[m], xy, N);
+        assert_int_equal(sh_interp_kernel_factors(it, 0, 10, fx), 0);
+        sh_interp_destroy(it);
+    }
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -459,6 +495,7 @@ int main(void)
         cmocka_unit_test(test_degenerate),
         cmocka_unit_test(test_params),
         cmocka_unit_test(test_local_sparse),
+        cmocka_unit_test(test_gaussian_factors),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
