@@ -87,6 +87,8 @@ void run_tracker_destroy(run_tracker *t);
 sh_status run_tracker_frame(run_tracker *t, const sh_image *const *cams, int index, run_marker *out, int *n);
 /* The frame rate the tracker assumes (ages in ms use it). */
 double run_tracker_fps(const run_tracker *t);
+/* One line of the tracker's counters (sh_tracker_stats), for the log at exit. */
+void run_tracker_summary(const run_tracker *t, char *out, size_t cap);
 
 typedef struct {
     int ids[RUN_MAX_MARKERS];

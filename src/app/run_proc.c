@@ -93,6 +93,11 @@ sh_status run_proc_create(const sh_config *cfg, const sh_y4m_header *hdr, double
 void run_proc_destroy(run_proc *p)
 {
     if (!p) return;
+    if (p->tracker) {
+        char line[320];
+        run_tracker_summary(p->tracker, line, sizeof line);
+        p->log("INFO", "main", "%s", line);
+    }
     run_models_destroy(p->models);
     run_tracker_destroy(p->tracker);
     sh_points_destroy(&p->points);

@@ -1,6 +1,7 @@
 /* The daemon's markers: detection in the Kalman tracker's windows (include/stillheart/track.h,
  * docs/tracking.md), the estimates as correspondences, and their match to the reference. */
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -69,6 +70,16 @@ void run_tracker_destroy(run_tracker *rt)
 }
 
 double run_tracker_fps(const run_tracker *rt) { return rt->opts.fps; }
+
+void run_tracker_summary(const run_tracker *rt, char *out, size_t cap)
+{
+    sh_track_stats s;
+    sh_tracker_stats(rt->t, &s);
+    snprintf(out, cap, "tracker: %ld frames, heart %.3f Hz%s, respiration %.3f Hz; detections used %ld, gated %ld, "
+             "duplicated ids %ld, unknown ids %ld, inconsistent 3D %ld; markers lost %ld",
+             s.frames, s.heart_hz, s.locked ? " (locked)" : "", s.resp_hz, s.accepted, s.gated, s.duplicates,
+             s.unknown, s.inconsistent, s.lost);
+}
 
 /* One tag seen by two overlapping windows comes back twice; the tracker would discard an id
  * detected twice as ambiguous, so copies within a pixel of each other are merged first. */
