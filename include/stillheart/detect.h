@@ -49,8 +49,9 @@ typedef struct {
     int threads;            /* libapriltag worker threads (default 1) */
     int max_hamming;        /* bits corrected at most (default 2, apriltag_detector_add_family's) */
     double window_decimate; /* quad decimation inside windows (default 1: full resolution).
-                             * 2 with refine_edges is ~2.4x cheaper and as accurate on the
-                             * phantom's ~100 px tags (make bench); small tags need 1 */
+                             * 2 with refine_edges is ~2.8x cheaper and as accurate on the
+                             * phantom's ~93 px tags (bench_detect_track: 0.052 vs 0.044 px
+                             * from the truth, docs/tracking.md); small tags need 1 */
     int merge_windows;      /* 1 (default): windows that overlap or lie close are merged into
                              * their bounding box when that costs fewer pixels than it saves in
                              * per-call overhead; tags seen by two windows are reported once */
