@@ -329,8 +329,11 @@ int cmd_run(int argc, char **argv)
         /* systemd: STATUS each second, WATCHDOG only while frames progress */
         if (done_ns - last_status >= 1000000000) {
             double fps = (double)(published - published_at_status) * 1e9 / (double)(done_ns - last_status);
-            sh_notifyf("STATUS=%.1f fps, %u markers, %s%s%s, %llu dropped", fps, info.markers_used,
-                       names[status], info.reason[0] ? " " : "", info.reason, (unsigned long long)run_source_dropped(src));
+            char cams[128];
+            run_source_online(src, cams, sizeof cams);
+            sh_notifyf("STATUS=%.1f fps, %u markers, %s%s%s, %llu dropped, %s", fps, info.markers_used,
+                       names[status], info.reason[0] ? " " : "", info.reason, (unsigned long long)run_source_dropped(src),
+                       cams);
             last_status = done_ns;
             published_at_status = published;
         }

@@ -254,6 +254,9 @@ static void *camera_thread(void *arg)
         if (ss.reopens != reopens) rs->log("INFO", k->thread_name, "%s is back", k->name);
         losses = ss.losses;
         reopens = ss.reopens;
+        pthread_mutex_lock(&rs->mu);
+        k->st.source = ss; /* also while the camera is down: online says so */
+        pthread_mutex_unlock(&rs->mu);
         if (st == SH_EEOF) {
             rs->log("INFO", k->thread_name, "%s: end of stream", k->name);
             camera_ended(rs, k);
@@ -283,7 +286,6 @@ static void *camera_thread(void *arg)
         sh_source_release(k->src, &f);
         if (b < 0) continue;
         pthread_mutex_lock(&rs->mu);
-        k->st.source = ss;
         if (cst != SH_OK) {
             k->st.bad++;
             k->state[b] = FREE;
@@ -526,6 +528,28 @@ void run_source_camera_stats(run_source *rs, int c, run_camera_stats *out)
     pthread_mutex_lock(&rs->mu);
     *out = rs->cam[c].st;
     pthread_mutex_unlock(&rs->mu);
+}
+
+int run_source_online(run_source *rs, char *text, size_t cap)
+{
+    int n = 0;
+    char down[96] = "";
+    pthread_mutex_lock(&rs->mu);
+    for (int c = 0; c < rs->ncam; c++) {
+        const camera *k = &rs->cam[c];
+        /* a replay is there until it ends; a camera while it streams */
+        const char *why = k->st.ended ? "ended" : !k->replay && !k->st.source.online ? "lost" : NULL;
+        if (!why) {
+            n++;
+            continue;
+        }
+        size_t used = strlen(down);
+        snprintf(down + used, sizeof down - used, "%scamera %d %s", used ? ", " : "", c, why);
+    }
+    int total = rs->ncam;
+    pthread_mutex_unlock(&rs->mu);
+    snprintf(text, cap, "%d/%d cameras%s%s%s", n, total, down[0] ? " (" : "", down, down[0] ? ")" : "");
+    return n;
 }
 
 void run_source_sync_stats(run_source *rs, sh_sync_stats *out)

@@ -11,6 +11,7 @@
 #ifndef STILLHEART_RUN_SOURCE_H
 #define STILLHEART_RUN_SOURCE_H
 
+#include <stddef.h>
 #include <stdint.h>
 
 #include "stillheart/config.h"
@@ -67,6 +68,9 @@ int run_source_config_changed(const sh_config *a, const sh_config *b);
 uint64_t run_source_dropped(run_source *rs);
 void run_source_camera_stats(run_source *rs, int camera, run_camera_stats *out);
 void run_source_sync_stats(run_source *rs, sh_sync_stats *out);
+/* Cameras delivering now, as text for STATUS ("2/2 cameras", "1/2 cameras (camera 1 lost)");
+ * returns their number. */
+int run_source_online(run_source *rs, char *text, size_t cap);
 /* Stops the threads (if started; then logs each camera's counters and the sets formed, INFO)
  * and frees everything. */
 void run_source_destroy(run_source *rs);

@@ -13,6 +13,8 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/socket.h>
+#include <sys/un.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -100,6 +102,7 @@ static int setup(void **state)
     write_y4m("cam0.y4m", 0, N);
     write_y4m("cam1.y4m", 1, N);
     write_y4m("short1.y4m", 1, SHORT);
+    write_y4m("long0.y4m", 0, 40);
     /* four markers drifting a little each frame: an affine map that is not the identity */
     char pts[4096] = "frame,id,x,y\n";
     for (int k = 0; k < N; k++)
@@ -235,6 +238,32 @@ static void test_camera_ends_others_go_on(void **state)
     ok(run("cmp %s/short.y4m %s/warp0.y4m", tmp, tmp));
 }
 
+/* systemd's STATUS names the cameras delivering: in real time, camera 0 runs 40 frames (1.6 s),
+ * camera 1 ends after SHORT; the STATUS sent after a second says so. */
+static void test_status_names_cameras(void **state)
+{
+    (void)state;
+    struct sockaddr_un a = {.sun_family = AF_UNIX};
+    snprintf(a.sun_path, sizeof a.sun_path, "%s/notify", tmp);
+    int fd = socket(AF_UNIX, SOCK_DGRAM, 0);
+    assert_true(fd >= 0);
+    assert_int_equal(bind(fd, (struct sockaddr *)&a, sizeof a), 0);
+    ok(run("NOTIFY_SOCKET=%s %s run --camera0-spec y4m:%s/long0.y4m --camera1-spec y4m:%s/short1.y4m --realtime "
+           "--no-loop " RUN_ARGS " --quiet",
+           a.sun_path, bin, tmp, tmp, tmp));
+    char msg[512], statuses[4096] = "";
+    ssize_t n;
+    while ((n = recv(fd, msg, sizeof msg - 1, MSG_DONTWAIT)) > 0) {
+        msg[n] = 0;
+        if (!strncmp(msg, "STATUS=", 7) && strlen(statuses) + (size_t)n + 2 < sizeof statuses) {
+            strcat(statuses, msg);
+            strcat(statuses, "\n");
+        }
+    }
+    close(fd);
+    if (!strstr(statuses, "1/2 cameras (camera 1 ended)")) fail_msg("STATUS lines:\n%s", statuses);
+}
+
 static void refused(const char *args, int want_rc, const char *want1, const char *want2)
 {
     int rc = run("%s run --group= --sink none %s", bin, args);
@@ -271,6 +300,7 @@ int main(void)
         cmocka_unit_test(test_two_cameras_loop),
         cmocka_unit_test(test_recording_cameras),
         cmocka_unit_test(test_camera_ends_others_go_on),
+        cmocka_unit_test(test_status_names_cameras),
         cmocka_unit_test(test_refusals),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
