@@ -4,7 +4,7 @@
 # sd_notify against a socket this test opens. Prints cmocka-style summary lines.
 B=${BUILD:-$(dirname "$0")/..}
 T=$(mktemp -d /tmp/sh-daemon-test.XXXXXX)
-trap 'rm -rf "$T"' EXIT
+trap 'rm -rf "$T"; rm -f "/dev/shm$SHM"' EXIT
 pass=0; fail=0
 ok()  { echo "[       OK ] $1"; pass=$((pass + 1)); }
 bad() { echo "[  FAILED  ] $1: $2"; fail=$((fail + 1)); }
