@@ -94,16 +94,21 @@ static sh_status build_separable(sh_warp_model *m)
         m->sep_y = NULL;
         return SH_OK;
     }
-    m->sep_x = malloc(sizeof(double) * 2 * (size_t)m->nx * n);
-    m->sep_row = malloc(sizeof(double) * 2 * (size_t)n);
-    if (!m->sep_x || !m->sep_row) return sh_error_set(SH_ENOMEM, "warp: out of memory");
+    const size_t pairs = ((size_t)m->nx + 1) / 2;
+    m->sep_x = calloc(2 * pairs * (size_t)n, sizeof(double));
+    m->sep_row = malloc(sizeof(double) * 4 * (size_t)n);
+    double *f = malloc(sizeof(double) * (size_t)n);
+    if (!m->sep_x || !m->sep_row || !f) {
+        free(f);
+        return sh_error_set(SH_ENOMEM, "warp: out of memory");
+    }
     for (int j = 1; j < m->ny; j++)
         sh_interp_kernel_factors(m->interp, 1, m->gy0 + (double)j * h, m->sep_y + (size_t)j * n);
-    for (int i = 0; i < m->nx; i++) {
-        double *f = m->sep_x + 2 * (size_t)i * n;
-        sh_interp_kernel_factors(m->interp, 0, m->gx0 + (double)i * h, f + n);
-        for (int k = 0; k < n; k++) f[2 * k] = f[2 * k + 1] = f[n + k];
+    for (int i = 0; i < m->nx; i++) { /* an odd grid's last pair keeps a zero column */
+        sh_interp_kernel_factors(m->interp, 0, m->gx0 + (double)i * h, f);
+        for (int k = 0; k < n; k++) m->sep_x[2 * ((size_t)(i / 2) * n + k) + i % 2] = f[k];
     }
+    free(f);
     m->sep_n = n;
     return SH_OK;
 }
@@ -245,35 +250,58 @@ static int triangle_map(const double *p0, const double *p1, const double *p2, co
     return 1;
 }
 
-/* The separable kernel part of a node's value: sum_k gx_k(x_i) (gy_k(y_j) coef_k), the
- * second factor once per grid row in m->sep_row; x and y side by side as everywhere here. */
-static inline void separable_sum(const sh_warp_model *m, size_t i, double *xy)
+/* The separable kernel part of grid row j's values, sum_k gx_k(x_i) (gy_k(y_j) c_k), into
+ * out (x, y per node): the bracket once per row, then two node columns at a time (their
+ * factors side by side in sep_x), so each factor pair is loaded once for x and y. */
+static void separable_row(sh_warp_model *m, size_t j, double *out)
 {
     const int n = m->sep_n;
-    const double *f = m->sep_x + 2 * i * (size_t)n, *a = m->sep_row;
-#if defined(__SSE2__)
-    __m128d even = _mm_setzero_pd(), odd = _mm_setzero_pd();
-    int k = 0;
-    for (; k + 2 <= n; k += 2) {
-        even = _mm_add_pd(even, _mm_mul_pd(_mm_loadu_pd(f + 2 * k), _mm_loadu_pd(a + 2 * k)));
-        odd = _mm_add_pd(odd, _mm_mul_pd(_mm_loadu_pd(f + 2 * k + 2), _mm_loadu_pd(a + 2 * k + 2)));
-    }
-    if (k < n) even = _mm_add_pd(even, _mm_mul_pd(_mm_loadu_pd(f + 2 * k), _mm_loadu_pd(a + 2 * k)));
-    _mm_storeu_pd(xy, _mm_add_pd(_mm_loadu_pd(xy), _mm_add_pd(even, odd)));
-#else
+    double *a = m->sep_row; /* per k: c_x gy, twice; c_y gy, twice */
     for (int k = 0; k < n; k++) {
-        xy[0] += f[2 * k] * a[2 * k];
-        xy[1] += f[2 * k + 1] * a[2 * k + 1];
+        double g = m->sep_y[j * (size_t)n + k];
+        a[4 * k] = a[4 * k + 1] = m->coef[2 * k] * g;
+        a[4 * k + 2] = a[4 * k + 3] = m->coef[2 * k + 1] * g;
     }
+    for (int i = 0; i < m->nx; i += 2) {
+        const double *f = m->sep_x + 2 * (size_t)(i / 2) * n;
+        double x[2], y[2]; /* columns i and i + 1 */
+#if defined(__SSE2__)
+        /* four chains to hide the adder's latency */
+        __m128d sx = _mm_setzero_pd(), sy = _mm_setzero_pd(), tx = sx, ty = sx;
+        int k = 0;
+        for (; k + 2 <= n; k += 2) {
+            __m128d g = _mm_loadu_pd(f + 2 * k), h = _mm_loadu_pd(f + 2 * k + 2);
+            sx = _mm_add_pd(sx, _mm_mul_pd(g, _mm_loadu_pd(a + 4 * k)));
+            sy = _mm_add_pd(sy, _mm_mul_pd(g, _mm_loadu_pd(a + 4 * k + 2)));
+            tx = _mm_add_pd(tx, _mm_mul_pd(h, _mm_loadu_pd(a + 4 * k + 4)));
+            ty = _mm_add_pd(ty, _mm_mul_pd(h, _mm_loadu_pd(a + 4 * k + 6)));
+        }
+        if (k < n) {
+            __m128d g = _mm_loadu_pd(f + 2 * k);
+            sx = _mm_add_pd(sx, _mm_mul_pd(g, _mm_loadu_pd(a + 4 * k)));
+            sy = _mm_add_pd(sy, _mm_mul_pd(g, _mm_loadu_pd(a + 4 * k + 2)));
+        }
+        _mm_storeu_pd(x, _mm_add_pd(sx, tx));
+        _mm_storeu_pd(y, _mm_add_pd(sy, ty));
+#else
+        x[0] = x[1] = y[0] = y[1] = 0;
+        for (int k = 0; k < n; k++) {
+            for (int c = 0; c < 2; c++) {
+                x[c] += f[2 * k + c] * a[4 * k + c];
+                y[c] += f[2 * k + c] * a[4 * k + 2 + c];
+            }
+        }
 #endif
+        out[2 * i] = x[0], out[2 * i + 1] = y[0];
+        if (i + 1 < m->nx) out[2 * i + 2] = x[1], out[2 * i + 3] = y[1];
+    }
 }
 
 static void grid_map(sh_warp_model *m)
 {
     for (size_t node = 0, j = 0; j < (size_t)m->ny; j++) {
-        if (m->sep_n)
-            for (size_t k = 0; k < 2 * (size_t)m->sep_n; k++)
-                m->sep_row[k] = m->coef[k] * m->sep_y[j * m->sep_n + k / 2];
+        double *row = m->map + 2 * node;
+        if (m->sep_n) separable_row(m, j, row);
         for (size_t i = 0; i < (size_t)m->nx; i++, node++) {
             const int *index = m->index + m->row_start[node];
             const double *weight = m->weight + m->row_start[node];
@@ -300,9 +328,10 @@ static void grid_map(sh_warp_model *m)
                 xy[1] += weight[k] * m->coef[2 * (size_t)index[k] + 1];
             }
 #endif
-            if (m->sep_n) separable_sum(m, i, xy);
-            m->map[2 * node] = m->gx0 + (double)i * m->h + xy[0];
-            m->map[2 * node + 1] = m->gy0 + (double)j * m->h + xy[1];
+            double sep[2] = {0, 0};
+            if (m->sep_n) sep[0] = row[2 * i], sep[1] = row[2 * i + 1];
+            m->map[2 * node] = m->gx0 + (double)i * m->h + (xy[0] + sep[0]);
+            m->map[2 * node + 1] = m->gy0 + (double)j * m->h + (xy[1] + sep[1]);
         }
     }
 }

@@ -35,10 +35,10 @@ struct sh_warp_model {
     int *row_start, *index;  /* CSR basis rows, one per node */
     double *weight;
     double *map;             /* per node: current x, y */
-    int sep_n;               /* > 0: the kernel terms factor per axis (Gaussian), n of them, */
-    double *sep_x;           /*   per node column: the n factors, each twice (x and y lanes), */
+    int sep_n;               /* > 0: the kernel terms factor per axis (Gaussian), n of them; */
+    double *sep_x;           /*   per pair of node columns, per k: their two factors; */
     double *sep_y;           /*   per node row: the n factors; the CSR rows hold only the rest */
-    double *sep_row;         /*   (affine terms). Scratch: 2n, coef times one row's factors */
+    double *sep_row;         /*   (affine terms). Scratch: 4n, coef times one row's factors */
     double *curvature;       /* per node: second differences (grid_error_bound's scratch) */
     double error_bound;
     int refinements;
