@@ -50,7 +50,8 @@ struct run_source {
     int have_waiting, have_held;
     int paced;             /* as fast as possible, nothing dropped: every camera a replay */
     int nended, eof, stop;
-    uint64_t dropped;
+    uint64_t dropped;      /* sets replaced while waiting: processing was behind */
+    uint64_t no_output;    /* sets without the output camera's frame */
     sh_y4m_header hdr;
     double fps;
     run_log_fn log;
@@ -160,7 +161,7 @@ static void deliver(run_source *rs, const sh_frame_set *set)
     }
     if (!f.cam[rs->out]) { /* nothing to show */
         free_buffers(rs, &f);
-        rs->dropped++;
+        rs->no_output++;
         return;
     }
     camera *o = &rs->cam[rs->out];
@@ -206,14 +207,17 @@ static void camera_ended(run_source *rs, camera *k)
 }
 
 /* Paced replay: wait while a set waits for processing or this camera's last frame has not yet
- * left the grouping, so the cameras go in step with processing and nothing is dropped. A set
- * that cannot complete (a frame refused as late) is flushed after a while rather than stalling. */
+ * left the grouping, so the cameras go in step with processing and nothing is dropped. When every
+ * camera still going has a frame in the grouping and no set is ready, no camera can add the frame
+ * that completes one (stamps too far apart for one set): the pending sets are flushed, incomplete,
+ * rather than stall. However slow a machine, a camera that is merely late is never flushed past. */
 static void pace(run_source *rs, camera *k)
 {
     pthread_mutex_lock(&rs->mu);
-    int64_t since = mono_ns();
     while (rs->paced && !rs->stop && (rs->have_waiting || k->inflight)) {
-        if (!rs->have_waiting && k->inflight && mono_ns() - since > 200000000) {
+        int stuck = !rs->have_waiting;
+        for (int c = 0; c < rs->ncam; c++) stuck &= rs->cam[c].st.ended || rs->cam[c].inflight > 0;
+        if (stuck) {
             flush(rs);
             continue;
         }
@@ -574,9 +578,12 @@ static void log_stats(run_source *rs)
     }
     sh_sync_stats ss;
     run_source_sync_stats(rs, &ss);
-    rs->log("INFO", "main", "sets: %llu (%llu incomplete), %llu dropped (processing behind or no output frame)",
-            (unsigned long long)ss.sets, (unsigned long long)ss.incomplete,
-            (unsigned long long)run_source_dropped(rs));
+    pthread_mutex_lock(&rs->mu);
+    uint64_t no_output = rs->no_output;
+    pthread_mutex_unlock(&rs->mu);
+    rs->log("INFO", "main", "sets: %llu (%llu incomplete), %llu dropped while processing was behind, %llu without "
+            "the output camera's frame", (unsigned long long)ss.sets, (unsigned long long)ss.incomplete,
+            (unsigned long long)run_source_dropped(rs), (unsigned long long)no_output);
 }
 
 void run_source_destroy(run_source *rs)

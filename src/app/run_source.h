@@ -64,7 +64,8 @@ int run_source_ended(run_source *rs);
 /* 1 when a and b differ in what the source was opened with ([cameraN], [source], [trigger]):
  * such a change takes a restart (a reload cannot reopen the cameras under the pipeline). */
 int run_source_config_changed(const sh_config *a, const sh_config *b);
-/* Sets dropped because processing was behind, or because they lacked the output camera. */
+/* Sets dropped because processing was behind (sets without the output camera's frame are
+ * counted apart, in the exit log). */
 uint64_t run_source_dropped(run_source *rs);
 void run_source_camera_stats(run_source *rs, int camera, run_camera_stats *out);
 void run_source_sync_stats(run_source *rs, sh_sync_stats *out);
