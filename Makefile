@@ -119,13 +119,20 @@ $(BUILD)/tests/%: $(BUILD)/tests/unit/%.o $(TEST_SUPPORT) $(LIB)
 tests: $(TEST_BIN) $(APP)
 
 # The suite: unit tests plain, then under ASan+UBSan, then the capture code against the kernel's
-# own drivers in a QEMU guest (make vmtest, about 20 s once its kernel is cached); one summary
-# line at the end counts all three.
+# own drivers in a QEMU guest (make vmtest, about 20 s once its kernel is cached), then the
+# aarch64 build's suite under qemu-aarch64 (make check-arm64, tools/cross/cross.mk); one summary
+# line at the end counts all four. CHECK_ARM64=0 leaves the aarch64 part out.
+CHECK_JOBS  ?= $(shell nproc)
+CHECK_ARM64 ?= 1
 check: deps
-	$(MAKE) --no-print-directory tests
-	$(MAKE) --no-print-directory BUILD=build-asan SAN=1 OPT=-O1 tests
+	$(MAKE) --no-print-directory -j$(CHECK_JOBS) tests
+	$(MAKE) --no-print-directory -j$(CHECK_JOBS) BUILD=build-asan SAN=1 OPT=-O1 tests
 	@$(MAKE) --no-print-directory vmtest > $(BUILD)/vmtest.out 2>&1; tail -n 25 $(BUILD)/vmtest.out
-	@VMTEST_OUT=$(BUILD)/vmtest.out sh tests/run-tests.sh build build-asan
+	@rm -f $(BUILD)/arm64.out; if [ "$(CHECK_ARM64)" = 1 ]; then \
+	  $(MAKE) --no-print-directory check-arm64 > $(BUILD)/arm64.out 2>&1; \
+	  grep -E '^(\[  (FAILED|ERROR) |crashed|[0-9]+ passed, )' $(BUILD)/arm64.out | sed 's/^/arm64: /'; fi
+	@VMTEST_OUT=$(BUILD)/vmtest.out ARM64_OUT=$(if $(filter 1,$(CHECK_ARM64)),$(BUILD)/arm64.out) \
+	  sh tests/run-tests.sh build build-asan
 
 check-asan:
 	$(MAKE) --no-print-directory BUILD=build-asan SAN=1 OPT=-O1 tests

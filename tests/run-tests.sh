@@ -28,6 +28,18 @@ if [ -n "${VMTEST_OUT:-}" ]; then
         failed=$((failed + 1)); crashed="$crashed vmtest(no summary: see $VMTEST_OUT)"
     fi
 fi
+# make check-arm64's closing line (the same suite on the aarch64 build under qemu-aarch64)
+if [ -n "${ARM64_OUT:-}" ]; then
+    line=$(grep -E '^[0-9]+ passed, [0-9]+ failed$' "$ARM64_OUT" 2>/dev/null | tail -1)
+    if [ -n "$line" ]; then
+        echo "arm64: $line"
+        p=$(echo "$line" | sed 's/^\([0-9]*\) passed.*/\1/')
+        f=$(echo "$line" | sed 's/.* \([0-9]*\) failed$/\1/')
+        passed=$((passed + p)); failed=$((failed + f))
+    else
+        failed=$((failed + 1)); crashed="$crashed check-arm64(no summary: see $ARM64_OUT)"
+    fi
+fi
 [ -n "$crashed" ] && echo "crashed or exited non-zero:$crashed"
 echo "$passed passed, $failed failed"
 [ "$failed" -eq 0 ] && [ "$passed" -gt 0 ]

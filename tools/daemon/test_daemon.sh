@@ -2,7 +2,8 @@
 # Daemon tests (run by make check as build/tests/test_daemon): end to end against
 # `stillheart warp`, gating on an occlusion sequence, bad configs refused, SIGTERM within 1 s,
 # sd_notify against a socket this test opens. Prints cmocka-style summary lines.
-B=${BUILD:-$(dirname "$0")/..}
+# links resolved: make check-arm64 runs the tests through links in lane folders
+B=${BUILD:-$(dirname "$(readlink -f "$0")")/..}
 T=$(mktemp -d /tmp/sh-daemon-test.XXXXXX)
 trap 'rm -rf "$T"; rm -f "/dev/shm$SHM"' EXIT
 pass=0; fail=0
