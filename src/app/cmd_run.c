@@ -165,6 +165,19 @@ static int cmp_float(const void *a, const void *b)
     return (x > y) - (x < y);
 }
 
+/* The frame shown while the output camera is lost: black in the display's format and range. */
+static sh_status black_frame(const sh_y4m_header *hdr, sh_image *img)
+{
+    sh_status st = sh_image_create(img, hdr->format, hdr->width, hdr->height);
+    if (st != SH_OK) return st;
+    uint8_t luma = strstr(hdr->extra, "XCOLORRANGE=FULL") || hdr->format == SH_PIX_RGB24 ? 0 : 16;
+    for (int p = 0; p < img->num_planes; p++)
+        for (int y = 0; y < img->plane[p].height; y++)
+            memset(img->plane[p].data + (size_t)y * img->plane[p].stride, p ? 128 : luma,
+                   (size_t)img->plane[p].width * (size_t)sh_pixfmt_channels(hdr->format));
+    return SH_OK;
+}
+
 static long rss_kb(void)
 {
     FILE *f = fopen("/proc/self/statm", "r");
@@ -198,6 +211,8 @@ int cmd_run(int argc, char **argv)
     sh_display_writer *disp = NULL;
     run_record *rec = NULL;
     FILE *trace = NULL;
+    sh_image black;
+    memset(&black, 0, sizeof black);
     float *lat = malloc(sizeof(float) * LAT_CAP);
     if (!lat) { fprintf(stderr, "stillheart run: out of memory\n"); goto done; }
 
@@ -220,6 +235,10 @@ int cmd_run(int argc, char **argv)
             fprintf(stderr, "stillheart run: [sink] display: %s\n", sh_error_message());
             goto done;
         }
+    }
+    if (black_frame(hdr, &black) != SH_OK) {
+        fprintf(stderr, "stillheart run: %s\n", sh_error_message());
+        goto done;
     }
     if (cfg.record[0] && run_record_open(cfg.record, &hcopy, &rec) != SH_OK) {
         fprintf(stderr, "stillheart run: [sink] record: %s\n", sh_error_message());
@@ -262,6 +281,16 @@ int cmd_run(int argc, char **argv)
     char last_reason[44] = "";
     char status_line[160] = "starting: no frame yet";
     static const char *names[] = {"raw", "stabilized", "degraded"};
+    /* The output camera lost: a black raw frame per frame period tells the display, and the
+     * watchdog is kept alive while every thread still goes round (a restart cannot bring a
+     * camera back; source.h is reopening it). */
+    int64_t period = run_source_fps(src) > 0 ? (int64_t)(1e9 / run_source_fps(src)) : 40000000;
+    int lost = 0, wd_held = 0;
+    int64_t lost_since = 0, last_black = 0;
+    uint64_t black_count = 0;
+    char lost_text[96] = "", stale[160] = "";
+    sh_display_frame_info shown_info; /* the last published frame's, for STATUS */
+    memset(&shown_info, 0, sizeof shown_info);
 
     while (!sig_stop) {
         if (sig_hup) {
@@ -292,66 +321,111 @@ int cmd_run(int argc, char **argv)
             sig_usr1 = 0;
             run_proc_request_reference(proc);
         }
-        const run_frame *s = run_source_take(src, 100);
+        int wait_ms = lost ? (int)(period / 1000000) : 100;
+        const run_frame *s = run_source_take(src, wait_ms < 1 ? 1 : wait_ms > 100 ? 100 : wait_ms);
         if (!s) {
             if (run_source_ended(src)) break;
-            continue;
+            int why = run_source_output_lost(src, lost_text, sizeof lost_text);
+            int64_t now = mono_ns();
+            if (why && !lost) {
+                lost = 1;
+                lost_since = now;
+                last_black = 0;
+                last_status_shown = 99; /* the first camera frame back is logged */
+                logm("WARN", "main", "%s: black raw frames shown until it returns", lost_text);
+            }
+            if (why && now - last_black >= period) {
+                memset(&shown_info, 0, sizeof shown_info);
+                shown_info.status = SH_DISPLAY_RAW;
+                shown_info.residual_px = -1; /* capture_ns 0: no camera frame */
+                snprintf(shown_info.reason, sizeof shown_info.reason, "%s",
+                         why == 1 ? "output camera lost" : "no sets with the output camera");
+                if (disp && sh_display_writer_publish(disp, &black, &shown_info) != SH_OK)
+                    logm("ERROR", "main", "publish: %s", sh_error_message());
+                if (rec && run_record_write(rec, &black) != SH_OK) { /* what was shown, PNGs numbered as the display */
+                    logm("ERROR", "main", "[sink] record: %s; recording stopped", sh_error_message());
+                    run_record_close(rec);
+                    rec = NULL;
+                }
+                black_count++;
+                last_black = now;
+                snprintf(status_line, sizeof status_line, "%s: black raw frames (%s), %llu published, %llu dropped",
+                         lost_text, shown_info.reason, (unsigned long long)published,
+                         (unsigned long long)run_source_dropped(src));
+            }
+        } else {
+            if (lost) {
+                logm("INFO", "main", "the output camera's frames are back after %.1f s (%llu black frames shown)",
+                     (double)(mono_ns() - lost_since) / 1e9, (unsigned long long)black_count);
+                lost = 0;
+            }
+            sh_display_frame_info info;
+            memset(&info, 0, sizeof info);
+            info.capture_ns = s->avail_ns;
+            const sh_image *shown = run_proc_frame(proc, &s->img, s->cam, s->index, &info);
+            uint32_t status = info.status;
+            if (status == SH_DISPLAY_RAW) raw_count++;
+            if (status == SH_DISPLAY_DEGRADED) degraded_count++;
+            if (status != last_status_shown || (status != SH_DISPLAY_STABILIZED && strncmp(last_reason, info.reason, 12))) {
+                logm(status == SH_DISPLAY_RAW && published ? "WARN" : "INFO", "main", "frame %d: %s%s%s", s->index,
+                     names[status], info.reason[0] ? ": " : "", info.reason);
+                last_status_shown = status;
+                memcpy(last_reason, info.reason, sizeof last_reason);
+            }
+            if (disp) {
+                info.publish_ns = mono_ns();
+                if (sh_display_writer_publish(disp, shown, &info) != SH_OK)
+                    logm("ERROR", "main", "publish: %s", sh_error_message());
+            }
+            if (rec && run_record_write(rec, shown) != SH_OK) {
+                logm("ERROR", "main", "[sink] record: %s; recording stopped", sh_error_message());
+                run_record_close(rec);
+                rec = NULL;
+            }
+            int64_t done_ns = mono_ns();
+            if (nlat < LAT_CAP) lat[nlat++] = (float)((double)(done_ns - s->avail_ns) / 1e6);
+            published++;
+            if (published == 30) rss_start = rss_kb();
+            if ((published & 63) == 0) { long r = rss_kb(); if (r > rss_max) rss_max = r; }
+            if (!rss_1min && done_ns - t_start >= 60000000000LL) rss_1min = rss_kb();
+            snprintf(status_line, sizeof status_line, "frame %d: %s%s%s, %u markers, residual %.2f px, %llu published, %llu dropped",
+                     s->index, names[status], info.reason[0] ? ": " : "", info.reason, info.markers_used,
+                     (double)info.residual_px, (unsigned long long)published, (unsigned long long)run_source_dropped(src));
+            if (trace) {
+                double tm, tmod, tw;
+                run_proc_times(proc, &tm, &tmod, &tw);
+                fprintf(trace, "%d,%s,%u,%.3f,\"%s\",%.3f,%.3f,%.3f,%.3f\n", s->index, names[status], info.markers_used,
+                        (double)info.residual_px, info.reason, tm, tmod, tw, (double)(done_ns - s->avail_ns) / 1e6);
+            }
+            shown_info = info;
         }
-        sh_display_frame_info info;
-        memset(&info, 0, sizeof info);
-        info.capture_ns = s->avail_ns;
-        const sh_image *shown = run_proc_frame(proc, &s->img, s->cam, s->index, &info);
-        uint32_t status = info.status;
-        if (status == SH_DISPLAY_RAW) raw_count++;
-        if (status == SH_DISPLAY_DEGRADED) degraded_count++;
-        if (status != last_status_shown || (status != SH_DISPLAY_STABILIZED && strncmp(last_reason, info.reason, 12))) {
-            logm(status == SH_DISPLAY_RAW && published ? "WARN" : "INFO", "main", "frame %d: %s%s%s", s->index,
-                 names[status], info.reason[0] ? ": " : "", info.reason);
-            last_status_shown = status;
-            memcpy(last_reason, info.reason, sizeof last_reason);
-        }
-        if (disp) {
-            info.publish_ns = mono_ns();
-            if (sh_display_writer_publish(disp, shown, &info) != SH_OK)
-                logm("ERROR", "main", "publish: %s", sh_error_message());
-        }
-        if (rec && run_record_write(rec, shown) != SH_OK) {
-            logm("ERROR", "main", "[sink] record: %s; recording stopped", sh_error_message());
-            run_record_close(rec);
-            rec = NULL;
-        }
-        int64_t done_ns = mono_ns();
-        if (nlat < LAT_CAP) lat[nlat++] = (float)((double)(done_ns - s->avail_ns) / 1e6);
-        published++;
-        if (published == 30) rss_start = rss_kb();
-        if ((published & 63) == 0) { long r = rss_kb(); if (r > rss_max) rss_max = r; }
-        if (!rss_1min && done_ns - t_start >= 60000000000LL) rss_1min = rss_kb();
-        /* systemd: STATUS each second, WATCHDOG only while frames progress */
-        if (done_ns - last_status >= 1000000000) {
-            double fps = (double)(published - published_at_status) * 1e9 / (double)(done_ns - last_status);
+        /* systemd: STATUS each second; WATCHDOG while frames progress, or while the output camera
+         * is lost and every thread still goes round. A hung processing loop sends neither. */
+        int64_t now = mono_ns();
+        if ((published || black_count) && now - last_status >= 1000000000) {
+            double fps = (double)(published - published_at_status) * 1e9 / (double)(now - last_status);
             char cams[128];
             run_source_online(src, cams, sizeof cams);
-            sh_notifyf("STATUS=%.1f fps, %u markers, %s%s%s, %llu dropped, %s", fps, info.markers_used,
-                       names[status], info.reason[0] ? " " : "", info.reason, (unsigned long long)run_source_dropped(src),
-                       cams);
-            last_status = done_ns;
+            sh_notifyf("STATUS=%s%s%.1f fps, %u markers, %s%s%s, %llu dropped, %s", lost ? lost_text : "",
+                       lost ? ": " : "", fps, shown_info.markers_used, names[shown_info.status],
+                       shown_info.reason[0] ? " " : "", shown_info.reason,
+                       (unsigned long long)run_source_dropped(src), cams);
+            last_status = now;
             published_at_status = published;
         }
-        if (wd_usec && done_ns - last_ping >= (int64_t)wd_usec * 500 && published > published_at_ping) {
-            sh_notify("WATCHDOG=1");
-            last_ping = done_ns;
-            published_at_ping = published;
+        if (wd_usec && now - last_ping >= (int64_t)wd_usec * 500) {
+            int progress = published > published_at_ping;
+            int alive = !progress && lost && run_source_alive(src, (int64_t)wd_usec * 500, stale, sizeof stale);
+            if (progress || alive) {
+                sh_notify("WATCHDOG=1");
+                last_ping = now;
+                published_at_ping = published;
+                wd_held = 0;
+            } else if (lost) {
+                LOG_ONCE(wd_held, "ERROR", "main", "watchdog held back: %s", stale);
+            }
         }
-        snprintf(status_line, sizeof status_line, "frame %d: %s%s%s, %u markers, residual %.2f px, %llu published, %llu dropped",
-                 s->index, names[status], info.reason[0] ? ": " : "", info.reason, info.markers_used,
-                 (double)info.residual_px, (unsigned long long)published, (unsigned long long)run_source_dropped(src));
-        if (trace) {
-            double tm, tmod, tw;
-            run_proc_times(proc, &tm, &tmod, &tw);
-            fprintf(trace, "%d,%s,%u,%.3f,\"%s\",%.3f,%.3f,%.3f,%.3f\n", s->index, names[status], info.markers_used,
-                    (double)info.residual_px, info.reason, tm, tmod, tw, (double)(done_ns - s->avail_ns) / 1e6);
-        }
-        if (ro.max_frames && published >= (uint64_t)ro.max_frames) break;
+        if (s && ro.max_frames && published >= (uint64_t)ro.max_frames) break;
     }
     sh_notify("STOPPING=1");
     sig_stop = 1;
@@ -364,10 +438,11 @@ int cmd_run(int argc, char **argv)
         if (r > rss_max) rss_max = r;
         fprintf(ro.stats ? stdout : stderr,
                 "stats: %llu published (%llu raw, %llu degraded), %llu dropped, latency ms median %.2f "
-                "p99 %.2f max %.2f, RSS kB start %ld at 1 min %ld max %ld end %ld, %d models built\n",
+                "p99 %.2f max %.2f, RSS kB start %ld at 1 min %ld max %ld end %ld, %d models built, "
+                "%llu black frames (output camera lost)\n",
                 (unsigned long long)published, (unsigned long long)raw_count,
                 (unsigned long long)degraded_count, (unsigned long long)run_source_dropped(src), med, p99, mx,
-                rss_start, rss_1min, rss_max, r, run_proc_builds(proc));
+                rss_start, rss_1min, rss_max, r, run_proc_builds(proc), (unsigned long long)black_count);
     }
 done:
     sig_stop = 1;
@@ -380,6 +455,7 @@ done:
     if (trace && fclose(trace)) { logm("ERROR", "main", "--trace: %s", strerror(errno)); rc = 1; }
     if (disp) sh_display_writer_destroy(disp, 0); /* marked closed; readers see the end */
     run_proc_destroy(proc);
+    sh_image_destroy(&black);
     free(lat);
     return rc;
 }

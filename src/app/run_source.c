@@ -33,6 +33,9 @@ typedef struct {
     int state[POOL];
     int inflight;          /* buffers PENDING */
     run_camera_stats st;
+    int64_t beat_ns;       /* the thread last went round its loop (run_source_alive) */
+    int64_t frame_ns;      /* the source last gave a frame (or the start) */
+    int64_t timeout_ns;    /* no frame for this long: lost (camera_timeout_ms, two periods at least) */
     pthread_t thread;
     int started;
 } camera;
@@ -46,6 +49,8 @@ struct run_source {
     sh_gpio_trigger *trig;
     pthread_t trig_thread;
     int trig_started;
+    int64_t trig_beat_ns;
+    int64_t output_ns;     /* a set with the output camera's frame was last delivered (or the start) */
     run_frame waiting, held;
     int have_waiting, have_held;
     int paced;             /* as fast as possible, nothing dropped: every camera a replay */
@@ -172,6 +177,7 @@ static void deliver(run_source *rs, const sh_frame_set *set)
     f.set = set->index;
     f.complete = set->complete;
     f.avail_ns = mono_ns();
+    rs->output_ns = f.avail_ns;
     if (rs->have_waiting) { /* behind: the waiting set is the oldest, drop it */
         free_buffers(rs, &rs->waiting);
         rs->dropped++;
@@ -221,6 +227,7 @@ static void pace(run_source *rs, camera *k)
             flush(rs);
             continue;
         }
+        k->beat_ns = mono_ns(); /* waiting for processing is not hanging */
         struct timespec ts;
         clock_gettime(CLOCK_REALTIME, &ts);
         ts.tv_nsec += 50000000;
@@ -260,6 +267,8 @@ static void *camera_thread(void *arg)
         reopens = ss.reopens;
         pthread_mutex_lock(&rs->mu);
         k->st.source = ss; /* also while the camera is down: online says so */
+        k->beat_ns = mono_ns();
+        if (got) k->frame_ns = k->beat_ns;
         pthread_mutex_unlock(&rs->mu);
         if (st == SH_EEOF) {
             rs->log("INFO", k->thread_name, "%s: end of stream", k->name);
@@ -329,10 +338,12 @@ static void *trigger_thread(void *arg)
             continue;
         }
         err_once = 0;
-        if (!got) continue;
         pthread_mutex_lock(&rs->mu);
-        sh_sync_trigger(rs->sync, edge);
-        drain(rs);
+        rs->trig_beat_ns = mono_ns();
+        if (got) {
+            sh_sync_trigger(rs->sync, edge);
+            drain(rs);
+        }
         pthread_mutex_unlock(&rs->mu);
     }
     return NULL;
@@ -418,6 +429,12 @@ sh_status run_source_open(const sh_config *cfg, run_log_fn log, run_source **out
         return st;
     }
     rs->paced = all_replay && !cfg->realtime;
+    for (int i = 0; i < n; i++) { /* a slow replay's frames are further apart than a camera's timeout */
+        camera *k = &rs->cam[i];
+        double t = 1e6 * (cfg->camera_timeout_ms > 0 ? cfg->camera_timeout_ms : 1000);
+        double p2 = 2 * period_ns(k->fps_num, k->fps_den);
+        k->timeout_ns = (int64_t)(t > p2 ? t : p2);
+    }
     camera *k0 = &rs->cam[0], *ko = &rs->cam[rs->out];
     sh_sync_options so;
     run_sync_options(cfg, n, k0->fps_num, k0->fps_den, &so);
@@ -455,6 +472,15 @@ sh_status run_source_start(run_source *rs)
     /* every camera's clock starts here, back to back, so replays' schedules line up in sets */
     for (int i = 0; i < rs->ncam; i++)
         if (sh_source_start(rs->cam[i].src) != SH_OK) return prefixed(SH_EIO, rs->cam[i].name);
+    int64_t now = mono_ns();
+    pthread_mutex_lock(&rs->mu);
+    rs->output_ns = rs->trig_beat_ns = now;
+    for (int i = 0; i < rs->ncam; i++) {
+        camera *k = &rs->cam[i];
+        k->beat_ns = k->frame_ns = now;
+        sh_source_get_stats(k->src, &k->st.source); /* online as started, before the first dequeue */
+    }
+    pthread_mutex_unlock(&rs->mu);
     if (rs->trig) {
         if (sh_gpio_trigger_start(rs->trig) != SH_OK) return prefixed(SH_EIO, "[trigger]");
         if (pthread_create(&rs->trig_thread, NULL, trigger_thread, rs))
@@ -534,15 +560,24 @@ void run_source_camera_stats(run_source *rs, int c, run_camera_stats *out)
     pthread_mutex_unlock(&rs->mu);
 }
 
+/* Under rs->mu: "ended", "lost" or NULL (delivering). A camera is lost while source.h reopens
+ * it, and any camera, a replay too, that gave no frame for camera_timeout_ms; as fast as
+ * possible the cameras wait for processing, so silence there is not a loss. */
+static const char *camera_down(const run_source *rs, const camera *k, int64_t now)
+{
+    if (k->st.ended) return "ended";
+    if (!k->replay && !k->st.source.online) return "lost";
+    return !rs->paced && now - k->frame_ns > k->timeout_ns ? "lost" : NULL;
+}
+
 int run_source_online(run_source *rs, char *text, size_t cap)
 {
     int n = 0;
     char down[96] = "";
+    int64_t now = mono_ns();
     pthread_mutex_lock(&rs->mu);
     for (int c = 0; c < rs->ncam; c++) {
-        const camera *k = &rs->cam[c];
-        /* a replay is there until it ends; a camera while it streams */
-        const char *why = k->st.ended ? "ended" : !k->replay && !k->st.source.online ? "lost" : NULL;
+        const char *why = camera_down(rs, &rs->cam[c], now);
         if (!why) {
             n++;
             continue;
@@ -554,6 +589,48 @@ int run_source_online(run_source *rs, char *text, size_t cap)
     pthread_mutex_unlock(&rs->mu);
     snprintf(text, cap, "%d/%d cameras%s%s%s", n, total, down[0] ? " (" : "", down, down[0] ? ")" : "");
     return n;
+}
+
+int run_source_output_lost(run_source *rs, char *text, size_t cap)
+{
+    int64_t now = mono_ns();
+    pthread_mutex_lock(&rs->mu);
+    const camera *k = &rs->cam[rs->out];
+    const char *why = camera_down(rs, k, now);
+    int lost = 0;
+    if (!rs->eof && !rs->have_waiting && !rs->have_held) {
+        if (why && !strcmp(why, "lost")) lost = 1;
+        else if (!rs->paced && now - rs->output_ns > k->timeout_ns) lost = 2;
+    }
+    if (lost == 1)
+        snprintf(text, cap, "camera %d lost, %s", k->index, k->replay ? "waiting for its frames" : "reopening");
+    else if (lost == 2)
+        snprintf(text, cap, "camera %d delivers, but no set with its frame for %lld ms", k->index,
+                 (long long)((now - rs->output_ns) / 1000000));
+    pthread_mutex_unlock(&rs->mu);
+    return lost;
+}
+
+int run_source_alive(run_source *rs, int64_t max_age_ns, char *who, size_t cap)
+{
+    int64_t now = mono_ns();
+    int alive = 1;
+    pthread_mutex_lock(&rs->mu);
+    for (int c = 0; c < rs->ncam && alive; c++) {
+        const camera *k = &rs->cam[c];
+        if (k->started && !k->st.ended && now - k->beat_ns > max_age_ns) {
+            snprintf(who, cap, "%s: its thread has not come round for %lld ms", k->name,
+                     (long long)((now - k->beat_ns) / 1000000));
+            alive = 0;
+        }
+    }
+    if (alive && rs->trig_started && now - rs->trig_beat_ns > max_age_ns) {
+        snprintf(who, cap, "the trigger thread has not come round for %lld ms",
+                 (long long)((now - rs->trig_beat_ns) / 1000000));
+        alive = 0;
+    }
+    pthread_mutex_unlock(&rs->mu);
+    return alive;
 }
 
 void run_source_sync_stats(run_source *rs, sh_sync_stats *out)

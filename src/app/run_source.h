@@ -72,6 +72,16 @@ void run_source_sync_stats(run_source *rs, sh_sync_stats *out);
 /* Cameras delivering now, as text for STATUS ("2/2 cameras", "1/2 cameras (camera 1 lost)");
  * returns their number. */
 int run_source_online(run_source *rs, char *text, size_t cap);
+/* Whether the output camera gives nothing to show, the source otherwise running (not ended, no
+ * set waiting): 1 when the camera is lost (source.h reopening it, or no frame from it for
+ * [source] camera_timeout_ms; never as fast as possible, where cameras wait for processing),
+ * 2 when it delivers but no set with its frame was formed for that long; 0 otherwise. text
+ * says it for STATUS ("camera 0 lost, reopening"). */
+int run_source_output_lost(run_source *rs, char *text, size_t cap);
+/* 1 when every camera thread still running, and the trigger's, went round its loop within
+ * max_age_ns (each does at least every 100 ms unless stuck in a driver or a file); else 0 and
+ * who names the first that did not. The daemon's watchdog relies on it while nothing is shown. */
+int run_source_alive(run_source *rs, int64_t max_age_ns, char *who, size_t cap);
 /* Stops the threads (if started; then logs each camera's counters and the sets formed, INFO)
  * and frees everything. */
 void run_source_destroy(run_source *rs);

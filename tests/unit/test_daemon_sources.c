@@ -2,9 +2,15 @@
  * two replayed cameras form complete sets and the configured output camera is the one warped (its
  * record equals `stillheart warp` of that camera's file, not of the other's), also looping and
  * from a `stillheart record` recording of the two (rec:DIR); a camera that ends
- * early leaves the other going with incomplete sets; a missing camera file or device, a gap in
- * the camera numbering, an output camera that is not configured and a missing GPIO chip are
- * refused at start, naming what is wrong. */
+ * early leaves the other going with incomplete sets; the output camera lost (a recording in which
+ * camera 0 falls silent for 2 s) keeps the watchdog alive, says so in STATUS and shows the display
+ * black raw frames until its frames return, while a processing loop that hangs stops the pings;
+ * a missing camera file or device, a gap in the camera numbering, an output camera that is not
+ * configured and a missing GPIO chip are refused at start, naming what is wrong. */
+#include <fcntl.h>
+#include <poll.h>
+#include <signal.h>
+#include <time.h>
 #include <limits.h>
 #include <setjmp.h>
 #include <stdarg.h>
@@ -14,12 +20,14 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/socket.h>
+#include <sys/stat.h>
 #include <sys/un.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <cmocka.h>
 
+#include "stillheart/record.h"
 #include "stillheart/y4m.h"
 
 enum { W = 64, H = 48, N = 8, SHORT = 4, FPS = 25 };
@@ -49,34 +57,36 @@ static void ok(int rc)
     if (rc != 0) fail_msg("exit %d: %s\n%s", rc, cmd, out);
 }
 
-/* A Y4M of n frames; camera c's frame k, pixel i = (k * 7 + i * (c + 1) + 40 * c) & 255, so the
- * two cameras differ everywhere. */
-static void write_y4m(const char *name, int c, int n, int fps)
+/* A Y4M of n frames of w x h; camera c's frame k, pixel i = (k * 7 + i * (c + 1) + 40 * c) & 255,
+ * so the two cameras differ everywhere. */
+static void write_y4m_size(const char *name, int c, int n, int fps, int width, int height)
 {
     sh_y4m_header h;
     memset(&h, 0, sizeof h);
-    h.width = W;
-    h.height = H;
+    h.width = width;
+    h.height = height;
     h.format = SH_PIX_I420;
     h.fps_num = fps;
     h.fps_den = 1;
     char path[128];
     snprintf(path, sizeof path, "%s/%s", tmp, name);
-    sh_y4m_writer *w;
-    assert_int_equal(sh_y4m_writer_open(path, &h, &w), SH_OK);
+    sh_y4m_writer *wr;
+    assert_int_equal(sh_y4m_writer_open(path, &h, &wr), SH_OK);
     sh_image img;
-    assert_int_equal(sh_image_create(&img, SH_PIX_I420, W, H), SH_OK);
+    assert_int_equal(sh_image_create(&img, SH_PIX_I420, width, height), SH_OK);
     for (int k = 0; k < n; k++) {
         for (int p = 0; p < 3; p++)
             for (int y = 0; y < img.plane[p].height; y++)
                 for (int x = 0; x < img.plane[p].width; x++)
                     img.plane[p].data[y * img.plane[p].stride + x] =
                         (uint8_t)((k * 7 + (y * img.plane[p].width + x) * (c + 1) + 40 * c) & 255);
-        assert_int_equal(sh_y4m_writer_write(w, &img), SH_OK);
+        assert_int_equal(sh_y4m_writer_write(wr, &img), SH_OK);
     }
     sh_image_destroy(&img);
-    assert_int_equal(sh_y4m_writer_close(w), SH_OK);
+    assert_int_equal(sh_y4m_writer_close(wr), SH_OK);
 }
+
+static void write_y4m(const char *name, int c, int n, int fps) { write_y4m_size(name, c, n, fps, W, H); }
 
 static void write_file(const char *name, const char *text)
 {
@@ -88,14 +98,18 @@ static void write_file(const char *name, const char *text)
     fclose(f);
 }
 
+static const char *argv0;
+
 static int setup(void **state)
 {
     (void)state;
+    /* argv[0], not /proc/self/exe: under qemu-aarch64 the latter is the emulated ELF beside which
+     * stillheart is an ELF too, not the wrapper the host can exec (tools/cross/qemu-wrap.sh) */
     char self[PATH_MAX];
-    ssize_t n = readlink("/proc/self/exe", self, sizeof self - 1);
-    assert_true(n > 0);
-    self[n] = 0;
-    *strrchr(self, '/') = 0; /* BUILD/tests */
+    snprintf(self, sizeof self, "%s", argv0);
+    char *slash = strrchr(self, '/');
+    if (slash) *slash = 0; /* BUILD/tests */
+    else snprintf(self, sizeof self, ".");
     snprintf(bin, sizeof bin, "%s/../stillheart", self);
     snprintf(tmp, sizeof tmp, "/tmp/sh-test-dsrc-%d", (int)getpid());
     run("rm -rf %s && mkdir -p %s", tmp, tmp);
@@ -281,6 +295,228 @@ static void test_status_names_cameras(void **state)
     if (!strstr(statuses, "1/2 cameras (camera 1 ended)")) fail_msg("STATUS lines:\n%s", statuses);
 }
 
+/* ---- the daemon in the background, its sd_notify datagrams timed as they come ---- */
+typedef struct {
+    int fd;                 /* the NOTIFY_SOCKET the test opened */
+    char path[108];
+    int n;
+    double t[512];          /* seconds since the socket was opened */
+    char msg[512][256];
+    double t0;
+} notify_log;
+
+static double now_s(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + ts.tv_nsec / 1e9;
+}
+
+static void notify_open(notify_log *nl, const char *name)
+{
+    memset(nl, 0, sizeof *nl);
+    struct sockaddr_un a = {.sun_family = AF_UNIX};
+    snprintf(a.sun_path, sizeof a.sun_path, "%s/%s", tmp, name);
+    snprintf(nl->path, sizeof nl->path, "%s", a.sun_path);
+    nl->fd = socket(AF_UNIX, SOCK_DGRAM | SOCK_CLOEXEC, 0);
+    assert_true(nl->fd >= 0);
+    assert_int_equal(bind(nl->fd, (struct sockaddr *)&a, sizeof a), 0);
+    nl->t0 = now_s();
+}
+
+/* Collects datagrams for up to ms milliseconds. */
+static void notify_pump(notify_log *nl, int ms)
+{
+    double end = now_s() + ms / 1e3;
+    for (double left; (left = end - now_s()) > 0;) {
+        struct pollfd p = {nl->fd, POLLIN, 0};
+        if (poll(&p, 1, (int)(left * 1e3) + 1) <= 0) continue;
+        char m[256];
+        ssize_t k = recv(nl->fd, m, sizeof m - 1, MSG_DONTWAIT);
+        if (k <= 0 || nl->n == 512) continue;
+        m[k] = 0;
+        nl->t[nl->n] = now_s() - nl->t0;
+        memcpy(nl->msg[nl->n++], m, (size_t)k + 1);
+    }
+}
+
+static int notify_seen(const notify_log *nl, const char *what)
+{
+    for (int i = 0; i < nl->n; i++)
+        if (strstr(nl->msg[i], what)) return 1;
+    return 0;
+}
+
+/* Every datagram, for a failure message. */
+static const char *notify_dump(const notify_log *nl)
+{
+    static char d[16384];
+    d[0] = 0;
+    for (int i = 0; i < nl->n && strlen(d) + 200 < sizeof d; i++)
+        snprintf(d + strlen(d), sizeof d - strlen(d), "%.3f %s\n", nl->t[i], nl->msg[i]);
+    return d;
+}
+
+static pid_t spawn(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
+static pid_t spawn(const char *fmt, ...)
+{
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(cmd, sizeof cmd, fmt, ap);
+    va_end(ap);
+    pid_t pid = fork();
+    assert_true(pid >= 0);
+    if (!pid) {
+        execl("/bin/sh", "sh", "-c", cmd, (char *)NULL);
+        _exit(127);
+    }
+    return pid;
+}
+
+static void slurp(const char *name, char *buf, size_t cap)
+{
+    char path[128];
+    snprintf(path, sizeof path, "%s/%s", tmp, name);
+    FILE *f = fopen(path, "r");
+    size_t n = f ? fread(buf, 1, cap - 1, f) : 0;
+    buf[n] = 0;
+    if (f) fclose(f);
+}
+
+/* A recording of two cameras at FPS, 4 s: camera 1 throughout, camera 0 silent from 1 s to 3 s
+ * (frames as a camera whose cable was pulled would have left them). */
+static void write_gap_recording(const char *name)
+{
+    char dir[128];
+    snprintf(dir, sizeof dir, "%s/%s", tmp, name);
+    sh_rec_writer *w;
+    assert_int_equal(sh_rec_writer_create(dir, &w), SH_OK);
+    for (int c = 0; c < 2; c++) {
+        sh_rec_stream st = {.camera = c, .format = SH_RAW_I420, .width = W, .height = H, .stride = W,
+                            .fps_num = FPS, .fps_den = 1};
+        snprintf(st.source, sizeof st.source, "test camera %d", c);
+        assert_int_equal(sh_rec_writer_stream(w, &st), SH_OK);
+    }
+    static uint8_t px[W * H * 3 / 2];
+    for (int k = 0; k < 4 * FPS; k++)
+        for (int c = 0; c < 2; c++) {
+            if (c == 0 && k >= FPS && k < 3 * FPS) continue;
+            for (size_t i = 0; i < sizeof px; i++) px[i] = (uint8_t)((k * 7 + i * (c + 1) + 40 * c) & 255);
+            sh_raw raw = {SH_RAW_I420, W, H, W, px, sizeof px};
+            assert_int_equal(sh_rec_writer_frame(w, c, (uint64_t)k, (int64_t)k * 1000000000 / FPS, &raw), SH_OK);
+        }
+    assert_int_equal(sh_rec_writer_close(w), SH_OK);
+}
+
+/* The output camera falls silent for 2 s (camera_timeout_ms 300): the display gets black raw
+ * frames with the reason "output camera lost" at the camera's rate, stillheart-cat (giving up
+ * after 1.5 s without a frame) reads on throughout, STATUS says "camera 0 lost", WATCHDOG=1 keeps
+ * coming (never more than 2 x WATCHDOG_USEC apart; without them a gap of 2 s) and the camera's
+ * frames are shown again by themselves when it returns. */
+static void test_output_camera_lost(void **state)
+{
+    (void)state;
+    write_gap_recording("gap");
+    notify_log *nl = calloc(1, sizeof *nl);
+    assert_non_null(nl);
+    notify_open(nl, "notify-lost");
+    char shm[64];
+    snprintf(shm, sizeof shm, "/sh-test-dsrc-%d", (int)getpid());
+    pid_t d = spawn("NOTIFY_SOCKET=%s WATCHDOG_USEC=600000 exec %s run --camera0-spec rec:%s/gap --camera1-spec "
+                    "rec:%s/gap --realtime --no-loop --camera-timeout-ms 300 --group= --sink shm:%s --method affine "
+                    "--threads 1 --stats > %s/lost.out 2> %s/lost.err",
+                    nl->path, bin, tmp, tmp, shm, tmp, tmp);
+    for (int i = 0; i < 100 && !notify_seen(nl, "READY=1"); i++) notify_pump(nl, 50);
+    assert_true(notify_seen(nl, "READY=1"));
+    pid_t c = spawn("exec %s-cat --name %s -v --timeout 1.5 > /dev/null 2> %s/lost.cat", bin, shm, tmp);
+    int st = 0, cst = 0;
+    for (int i = 0; i < 400 && waitpid(d, &st, WNOHANG) == 0; i++) notify_pump(nl, 50);
+    notify_pump(nl, 50);
+    assert_int_equal(waitpid(c, &cst, 0), c);
+    char shmpath[96];
+    snprintf(shmpath, sizeof shmpath, "/dev/shm%s", shm);
+    unlink(shmpath);
+    close(nl->fd);
+    char err[8192], cat[65536];
+    slurp("lost.err", err, sizeof err);
+    slurp("lost.out", out, sizeof out);
+    slurp("lost.cat", cat, sizeof cat);
+    if (!WIFEXITED(st) || WEXITSTATUS(st)) fail_msg("daemon exit %d:\n%s", st, err);
+    /* stillheart-cat never waited 1.5 s for a frame: it ended with the daemon's clean close */
+    if (!WIFEXITED(cst) || WEXITSTATUS(cst)) fail_msg("stillheart-cat exit %d:\n%.2000s", cst, cat);
+    if (!strstr(err, "camera 0 lost, waiting for its frames: black raw frames shown until it returns") ||
+        !strstr(err, "the output camera's frames are back after"))
+        fail_msg("daemon log:\n%s", err);
+    /* the display: camera frames (raw, no tags in them), then black ones, then camera frames again */
+    const char *first_black = strstr(cat, "raw: output camera lost"), *last_black = first_black;
+    int blacks = 0;
+    for (const char *q = first_black; q; q = strstr(q + 1, "raw: output camera lost")) last_black = q, blacks++;
+    if (!first_black || blacks < 10 || !strstr(cat, "raw: no reference yet") ||
+        strstr(cat, "raw: no reference yet") > first_black || !strstr(last_black, "raw: no reference yet"))
+        fail_msg("%d black frames; stillheart-cat -v:\n%.3000s", blacks, cat);
+    unsigned long long black_count = 0;
+    const char *bl = strstr(out, "models built, ");
+    if (!bl || sscanf(bl, "models built, %llu black frames", &black_count) != 1 || black_count < (unsigned)blacks)
+        fail_msg("stats: %s (stillheart-cat saw %d black frames)", out, blacks);
+    if (!notify_seen(nl, "STATUS=camera 0 lost, waiting for its frames") ||
+        !notify_seen(nl, "output camera lost") || !notify_seen(nl, "1/2 cameras (camera 0 lost)"))
+        fail_msg("notifications:\n%s", notify_dump(nl));
+    double prev = -1, gap = 0;
+    int pings = 0;
+    for (int i = 0; i < nl->n; i++) {
+        if (strcmp(nl->msg[i], "WATCHDOG=1")) continue;
+        if (prev >= 0 && nl->t[i] - prev > gap) gap = nl->t[i] - prev;
+        prev = nl->t[i];
+        pings++;
+    }
+    if (pings < 8 || gap > 1.2) fail_msg("%d pings, largest gap %.2f s:\n%s", pings, gap, notify_dump(nl));
+    free(nl);
+}
+
+/* A processing loop that hangs stops the pings even though the cameras go on: the daemon records
+ * what it shows into a FIFO nobody reads, so it blocks once the pipe and the writer's 1 MB buffer
+ * are full (frames of 320x240: about ten). WATCHDOG=1 stops
+ * (for 1.5 s while the daemon is alive), and comes back once the FIFO's reader closes (the
+ * record fails, "recording stopped", and frames are shown again). */
+static void test_hung_processing_stops_watchdog(void **state)
+{
+    (void)state;
+    char fifo[128];
+    snprintf(fifo, sizeof fifo, "%s/hang.y4m", tmp);
+    write_y4m_size("big0.y4m", 0, 25, FPS, 320, 240);
+    assert_int_equal(mkfifo(fifo, 0600), 0);
+    int rfd = open(fifo, O_RDONLY | O_NONBLOCK | O_CLOEXEC); /* the daemon must not hold it too */
+    assert_true(rfd >= 0);
+    notify_log *nl = calloc(1, sizeof *nl);
+    assert_non_null(nl);
+    notify_open(nl, "notify-hang");
+    pid_t d = spawn("NOTIFY_SOCKET=%s WATCHDOG_USEC=400000 exec %s run --camera0-spec y4m:%s/big0.y4m --realtime "
+                    "--loop --group= --sink none --record %s --method affine --threads 1 --quiet 2> %s/hang.err",
+                    nl->path, bin, tmp, fifo, tmp);
+    /* the loop blocks after about 0.4 s */
+    notify_pump(nl, 1500);
+    int before = nl->n;
+    notify_pump(nl, 2000);
+    int st;
+    assert_int_equal(waitpid(d, &st, WNOHANG), 0); /* alive, hung */
+    int pings_hung = 0;
+    for (int i = before; i < nl->n; i++) pings_hung += !strcmp(nl->msg[i], "WATCHDOG=1");
+    close(rfd); /* the record fails with EPIPE: the loop goes on */
+    int after = nl->n;
+    notify_pump(nl, 1500);
+    int pings_back = 0;
+    for (int i = after; i < nl->n; i++) pings_back += !strcmp(nl->msg[i], "WATCHDOG=1");
+    kill(d, SIGTERM);
+    assert_int_equal(waitpid(d, &st, 0), d);
+    char err[8192];
+    slurp("hang.err", err, sizeof err);
+    if (pings_hung || !pings_back || !WIFEXITED(st) || WEXITSTATUS(st) || !strstr(err, "recording stopped"))
+        fail_msg("%d pings in 2 s while hung, %d after, exit %d:\n%s\n%s", pings_hung, pings_back, st, err,
+                 notify_dump(nl));
+    close(nl->fd);
+    free(nl);
+}
+
 static void refused(const char *args, int want_rc, const char *want1, const char *want2)
 {
     int rc = run("%s run --group= --sink none %s", bin, args);
@@ -309,8 +545,10 @@ static void test_refusals(void **state)
     refused(a, -1, "[trigger]", "sh-no-such-chip");
 }
 
-int main(void)
+int main(int argc, char **argv)
 {
+    (void)argc;
+    argv0 = argv[0];
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_two_cameras_output_warped),
         cmocka_unit_test(test_two_cameras_realtime_cli),
@@ -319,6 +557,8 @@ int main(void)
         cmocka_unit_test(test_camera_ends_others_go_on),
         cmocka_unit_test(test_cameras_at_two_rates),
         cmocka_unit_test(test_status_names_cameras),
+        cmocka_unit_test(test_output_camera_lost),
+        cmocka_unit_test(test_hung_processing_stops_watchdog),
         cmocka_unit_test(test_refusals),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
