@@ -8,7 +8,13 @@
  * then announces the slot in header.latest. A reader copies a slot and keeps the copy only if
  * the counter was the same even value before and after; otherwise it tries the newest slot
  * again. With at least three slots the writer never waits for anyone, a reader never returns a
- * torn frame, and a reader that stalls or dies holds nothing. */
+ * torn frame, and a reader that stalls or dies holds nothing.
+ *
+ * The daemon (docs/daemon.md) publishes only frames it can vouch for, each with its status. While
+ * its output camera is lost it publishes a black frame per frame period with status raw and the
+ * reason "output camera lost" (capture_ns 0: no camera frame; markers_used 0, residual_px -1),
+ * so that readers keep getting frames and a display can show its "camera lost" notice; the
+ * camera's frames follow again by themselves when it returns. There is no header-only update. */
 #ifndef STILLHEART_DISPLAY_H
 #define STILLHEART_DISPLAY_H
 

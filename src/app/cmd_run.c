@@ -349,9 +349,9 @@ int cmd_run(int argc, char **argv)
                 }
                 black_count++;
                 last_black = now;
-                snprintf(status_line, sizeof status_line, "%s: black raw frames (%s), %llu published, %llu dropped",
-                         lost_text, shown_info.reason, (unsigned long long)published,
-                         (unsigned long long)run_source_dropped(src));
+                if (snprintf(status_line, sizeof status_line, "%s: black raw frames, %llu published, %llu dropped",
+                             lost_text, (unsigned long long)published, (unsigned long long)run_source_dropped(src)) < 0)
+                    status_line[0] = 0;
             }
         } else {
             if (lost) {

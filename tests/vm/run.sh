@@ -127,7 +127,8 @@ fi
 [ -d /usr/share/libcamera ] && mkdir -p "$R/usr/share" && cp -a /usr/share/libcamera "$R/usr/share/"
 cp "$PROBE" "$R/bin/stillheart-vmprobe"
 [ -x "$BUILD/stillheart" ] && cp "$BUILD/stillheart" "$R/bin/stillheart"
-for lib in $(ldd "$PROBE" "$BUILD/stillheart" 2>/dev/null | awk '/=>/ {print $3} /^\t\// {print $1}' | sort -u); do
+[ -x "$BUILD/stillheart-cat" ] && cp "$BUILD/stillheart-cat" "$R/bin/stillheart-cat"
+for lib in $(ldd "$PROBE" "$BUILD/stillheart" "$BUILD/stillheart-cat" 2>/dev/null | awk '/=>/ {print $3} /^\t\// {print $1}' | sort -u); do
     mkdir -p "$R$(dirname "$lib")"; cp -L "$lib" "$R$lib"
 done
 # ld.so may be asked for by its /lib64 name
@@ -174,6 +175,10 @@ if /bin/stillheart record --source v4l2:/dev/video0 --source v4l2:/dev/video1 --
 else
     echo "VMTEST FAIL record: $(tr '\n' ' ' < /tmp/rec.log)"
 fi
+# stillheart run itself on the two vivid cameras (trigger on gpio-sim line 3): camera 1 silenced,
+# then vivid (both cameras) unbound and bound again; its display segment lives in /dev/shm
+mkdir -p /dev/shm && mount -t tmpfs shm /dev/shm
+/bin/stillheart-vmprobe run /dev/video0 /dev/video1 vivid.0 "$CHIP" 3 300
 echo "VMTEST-DONE"
 poweroff -f
 INIT
