@@ -366,7 +366,8 @@ int cmd_run(int argc, char **argv)
             uint32_t status = info.status;
             if (status == SH_DISPLAY_RAW) raw_count++;
             if (status == SH_DISPLAY_DEGRADED) degraded_count++;
-            if (status != last_status_shown || (status != SH_DISPLAY_STABILIZED && strncmp(last_reason, info.reason, 12))) {
+            if (status != last_status_shown ||
+                (status != SH_DISPLAY_STABILIZED && strncmp(last_reason, info.reason, 12))) {
                 logm(status == SH_DISPLAY_RAW && published ? "WARN" : "INFO", "main", "frame %d: %s%s%s", s->index,
                      names[status], info.reason[0] ? ": " : "", info.reason);
                 last_status_shown = status;
@@ -388,9 +389,11 @@ int cmd_run(int argc, char **argv)
             if (published == 30) rss_start = rss_kb();
             if ((published & 63) == 0) { long r = rss_kb(); if (r > rss_max) rss_max = r; }
             if (!rss_1min && done_ns - t_start >= 60000000000LL) rss_1min = rss_kb();
-            snprintf(status_line, sizeof status_line, "frame %d: %s%s%s, %u markers, residual %.2f px, %llu published, %llu dropped",
-                     s->index, names[status], info.reason[0] ? ": " : "", info.reason, info.markers_used,
-                     (double)info.residual_px, (unsigned long long)published, (unsigned long long)run_source_dropped(src));
+            snprintf(status_line, sizeof status_line,
+                     "frame %d: %s%s%s, %u markers, residual %.2f px, %llu published, %llu dropped", s->index,
+                     names[status], info.reason[0] ? ": " : "", info.reason, info.markers_used,
+                     (double)info.residual_px, (unsigned long long)published,
+                     (unsigned long long)run_source_dropped(src));
             if (trace) {
                 double tm, tmod, tw;
                 run_proc_times(proc, &tm, &tmod, &tw);

@@ -203,13 +203,15 @@ void run_daemon_check(const char *dev0, const char *dev1, const char *plat, cons
     snprintf(back1, sizeof back1, "camera 1 (v4l2:%s) is back", dev1);
     snprintf(back0, sizeof back0, "camera 0 (v4l2:%s) is back", dev0);
     double t_lost0 = 0, t_back0 = 0;
-    if (!wait_for(cat_lines_at_least, &want, 20, d, &st)) ok = 0, snprintf(why, sizeof why, "stillheart-cat read < 5 frames");
+    if (!wait_for(cat_lines_at_least, &want, 20, d, &st))
+        ok = 0, snprintf(why, sizeof why, "stillheart-cat read < 5 frames");
     int from = nl.n;
     if (ok && !silence(dev1, why, sizeof why)) ok = 0;
     if (ok && !wait_for(all_back, &from, 15, d, &st))
         ok = 0, snprintf(why, sizeof why, "camera 1 not delivering again within 15 s");
     want = lines("/tmp/cat.log") + 5;
-    if (ok && !wait_for(cat_lines_at_least, &want, 20, d, &st)) ok = 0, snprintf(why, sizeof why, "no frames after camera 1 came back");
+    if (ok && !wait_for(cat_lines_at_least, &want, 20, d, &st))
+        ok = 0, snprintf(why, sizeof why, "no frames after camera 1 came back");
     if (ok) {
         t_lost0 = now_s();
         ok = unplug(plat, why, sizeof why);
