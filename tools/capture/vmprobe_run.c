@@ -2,7 +2,7 @@
  * NOTIFY_SOCKET and WATCHDOG_USEC of the unit's WatchdogSec) on two vivid cameras, YUYV 640x360 at
  * 30 fps, sets made by the trigger pulses it drives on a gpio-sim line, publishing to a display
  * segment that stillheart-cat -v reads all along. vivid's two instances are one platform device,
- * so one camera alone cannot be unbound: camera 1 first falls silent for 1.5 s (vivid's
+ * so one camera alone cannot be unbound: camera 1 first falls silent for 2.5 s (vivid's
  * "Percentage of Dropped Buffers" at 100: no buffer comes back, the source times out and reopens),
  * then the driver is unbound for 1.5 s and bound again, taking both nodes, the output camera's
  * among them (ENODEV, reopened once the nodes return). Judged:
@@ -126,7 +126,8 @@ static int all_back(const void *from)
 static int cat_lines_at_least(const void *n) { return lines("/tmp/cat.log") >= *(const int *)n; }
 static int notified(const void *what) { return seen(what); }
 
-/* Camera dev falls silent for 1.5 s: vivid drops every buffer. */
+/* Camera dev falls silent for 2.5 s: vivid drops every buffer. Lost after camera_timeout_ms,
+ * so STATUS (once a second, after a frame) names it for 2 s. */
 static int silence(const char *dev, char *why, size_t cap)
 {
     int fd = open(dev, O_RDWR);
@@ -137,7 +138,7 @@ static int silence(const char *dev, char *why, size_t cap)
         if (fd >= 0) close(fd);
         return 0;
     }
-    pump(1500);
+    pump(2500);
     c.value = 0;
     int ok = ioctl(fd, VIDIOC_S_CTRL, &c) == 0;
     if (!ok) snprintf(why, cap, "%s: cannot reset the dropped buffers: %s", dev, strerror(errno));
