@@ -336,10 +336,12 @@ static void grid_map(sh_warp_model *m)
     }
 }
 
+#if !defined(__SSE2__) /* the SSE2 path takes _mm_max_pd; clang warns of an unused inline */
 static inline double max2(double a, double b)
 {
     return a > b ? a : b; /* maxsd: fmax is a libm call, and the values are never NaN here */
 }
+#endif
 
 /* Per node, |second difference| of x and y along both axes (nodes on the grid's edge take
  * their inner neighbour's), then per cell the bilinear interpolation error bound
