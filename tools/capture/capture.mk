@@ -27,6 +27,14 @@ $(BUILD)/tests/unit/test_pixconv.o: CFLAGS_ALL += -DSH_HAVE_OPENCV_ORACLE -Itool
 $(BUILD)/tools/capture/cv_oracle.o: CXXFLAGS_ALL += $(OPENCV_CFLAGS)
 $(BUILD)/tests/test_pixconv: $(BUILD)/tools/capture/cv_oracle.o
 $(BUILD)/tests/test_pixconv: LDLIBS_ALL += $(BUILD)/tools/capture/cv_oracle.o $(OPENCV_LIBS) -lstdc++
+# make pixconv-ref: rewrites tests/ref/pixconv_ref.h, the same oracle's output stored for builds
+# without OpenCV (the aarch64 one); through a temporary file, so a failed run leaves the old one.
+$(BUILD)/tools/capture/make_pixconv_ref.o: CFLAGS_ALL += -Itools/capture
+$(BUILD)/make_pixconv_ref: $(BUILD)/tools/capture/make_pixconv_ref.o $(BUILD)/tools/capture/cv_oracle.o
+	$(CC) $(LDFLAGS) $^ $(OPENCV_LIBS) -lstdc++ -o $@
+.PHONY: pixconv-ref
+pixconv-ref: $(BUILD)/make_pixconv_ref
+	$< > tests/ref/pixconv_ref.h.tmp && mv tests/ref/pixconv_ref.h.tmp tests/ref/pixconv_ref.h
 endif
 
 # test_record_cli runs `stillheart record` of the same build (the ASan build tests the ASan one).

@@ -1,9 +1,11 @@
 /* OpenCV's cvtColor behind a C interface, for tests/unit/test_pixconv.c (the independent
- * reference the conversions are compared with). Test code only; never in the library. */
+ * reference the conversions are compared with) and make_pixconv_ref.c (the same reference stored
+ * in tests/ref/pixconv_ref.h for builds without OpenCV). Test code only; never in the library. */
 #include "cv_oracle.h"
 
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
+#include <string>
 
 extern "C" int cv_oracle_convert(cv_oracle_op op, const unsigned char *src, int width, int height,
                                  int stride, unsigned char *dst)
@@ -46,4 +48,10 @@ extern "C" int cv_oracle_convert(cv_oracle_op op, const unsigned char *src, int 
         return -1;
     }
     return -1;
+}
+
+extern "C" const char *cv_oracle_version(void)
+{
+    static const std::string v = cv::getVersionString(); /* the library loaded, not the headers */
+    return v.c_str();
 }

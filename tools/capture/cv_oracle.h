@@ -16,6 +16,8 @@ typedef enum {
 /* 0 on success. */
 int cv_oracle_convert(cv_oracle_op op, const unsigned char *src, int width, int height, int stride,
                       unsigned char *dst);
+/* The OpenCV library's version ("4.6.0"), named in the generated tests/ref/pixconv_ref.h. */
+const char *cv_oracle_version(void);
 #ifdef __cplusplus
 }
 #endif
