@@ -207,7 +207,14 @@ void trk_update_marker(sh_tracker *t, int i, const sh_detection *const *det, int
         }
         const sh_detection *d = &det[c][mk->det[c]];
         double z[2] = {d->cx, d->cy};
-        if (!trk_quad_check(t, mk, c, d)) {
+        /* Before the rates lock, a lost marker's constant-velocity prediction has drifted on for
+         * longer than it is worth (it is lost after 0.2 s), and neither it nor the offsets from it
+         * settle, so gating against it kept the marker lost for good: a start that drops frames
+         * (a busy box at 1080p) lost most markers that way and never stabilized. It starts
+         * afresh, as at its first sighting, from its next detection that passes the shape test. */
+        int well_shaped = trk_quad_check(t, mk, c, d);
+        if (!t->locked && mk->lost && t->dim == 2 && well_shaped) mk->init = 0;
+        if (!well_shaped) {
             t->stats.misshapen++;
             /* an occluder is cutting this tag: its next quads may be cut in ways the shape test
              * cannot see (a side moved along itself), so they need confirming for a while */
