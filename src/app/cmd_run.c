@@ -9,6 +9,9 @@
  * source thread and the mailbox are in run_source.c; one frame's processing in run_proc.c
  * (run_track.c: tracker and selection, run_model.c: models and residual). */
 #include <errno.h>
+#ifdef __GLIBC__
+#include <malloc.h>
+#endif
 #include <math.h>
 #include <pthread.h>
 #include <signal.h>
@@ -204,6 +207,13 @@ int cmd_run(int argc, char **argv)
     }
     if (ro.print_config) { sh_config_write(&cfg, stdout); return 0; }
 
+#ifdef __GLIBC__
+    /* Models (about 2 MB each at 1080p), frames and grids get mappings of their own and go back
+     * to the kernel when freed. Left to itself glibc raises its mmap threshold at the first such
+     * free and serves later blocks from the heaps of whichever thread allocates (the model
+     * builder, the processing thread), where a day of model rebuilds fragments and creeps. */
+    mallopt(M_MMAP_THRESHOLD, 256 * 1024);
+#endif
     int rc = 1;
     run_source *src = NULL;
     run_proc *proc = NULL;
