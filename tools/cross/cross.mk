@@ -11,7 +11,8 @@ deps-arm64:
 # truth, the warps) run side by side, each in a lane of its own (tools/cross/run-lanes.sh); the
 # rest one after another; ARM64_LANES= runs everything one after another.
 ARM64_JOBS  ?= $(shell nproc)
-ARM64_LANES ?= test_render test_track_phantom test_warp3d_phantom test_warp3d test_warp test_phantom_truth
+ARM64_LANES ?= test_render test_track_phantom test_warp3d_phantom test_warp3d test_warp test_phantom_truth \
+               test_daemon test_track_cli
 check-arm64: deps-arm64
 	$(MAKE) --no-print-directory -j$(ARM64_JOBS) CROSS_COMPILE=aarch64-linux-gnu- BUILD=$(ARM64_BUILD) tests
 	@sh tools/cross/qemu-wrap.sh $(ARM64_BUILD)
