@@ -494,12 +494,14 @@ static void test_hung_processing_stops_watchdog(void **state)
                     "--loop --group= --sink none --record %s --method affine --threads 1 --quiet 2> %s/hang.err",
                     nl->path, bin, tmp, fifo, tmp);
     /* the loop blocks once the pipe and the writer's buffer are full: about 0.4 s here, several
-     * seconds under qemu-aarch64 (make check-arm64), so wait for a second without pings first */
-    for (int waited = 0; waited < 30; waited++) {
+     * seconds under qemu-aarch64 (make check-arm64, where the daemon also takes a second to
+     * start), so wait for the pings to begin, then for a second without them */
+    for (int waited = 0, seen = 0; waited < 30; waited++) {
         int from = nl->n, pings = 0;
         notify_pump(nl, 1000);
         for (int i = from; i < nl->n; i++) pings += !strcmp(nl->msg[i], "WATCHDOG=1");
-        if (!pings) break;
+        if (!pings && seen) break;
+        seen += pings;
     }
     int before = nl->n;
     notify_pump(nl, 2000);
