@@ -187,7 +187,10 @@ need(p.returncode == 0 and not os.path.exists(ctl), "exit %s, socket left: %s" %
 rows = list(csv.DictReader(open(trace)))
 first = next(i for i, r in enumerate(rows) if r['status'] == 'stabilized')
 hitch = [r['index'] + ' ' + r['status'] + ' ' + r['reason'] for r in rows[first:] if r['status'] != 'stabilized']
-need(len(rows) >= 100 and not hitch, "%d frames; not stabilized after the first reference: %s" % (len(rows), hitch[:5]))
+# the whole file shown (a slow machine, such as qemu-aarch64, drops frames in real time: a count
+# of rows would judge its speed, not the hitch)
+need(int(rows[-1]['index']) >= 100 and len(rows) >= 40 and not hitch,
+     "%d frames up to %s; not stabilized after the first reference: %s" % (len(rows), rows[-1]['index'], hitch[:5]))
 sys.exit(0 if ok else 1)
 PY
 
