@@ -51,12 +51,12 @@ endif
 
 have = $(shell $(PKG_CONFIG) --exists $(1) 2>/dev/null && echo 1)
 
-# Required: qhull_r (Delaunay), Eigen (dense solves).
-REQ_PKGS := qhull_r eigen3
-CFLAGS_ALL   += $(shell $(PKG_CONFIG) --cflags qhull_r 2>/dev/null)
+# Required: qhull_r (Delaunay), Eigen (dense solves), kissfft (the tracker's periodogram).
+REQ_PKGS := qhull_r eigen3 kissfft-float
+CFLAGS_ALL   += $(shell $(PKG_CONFIG) --cflags qhull_r kissfft-float 2>/dev/null)
 # Eigen as a system header: its templates warn under -Werror with our flags.
 CXXFLAGS_ALL += $(patsubst -I%,-isystem %,$(shell $(PKG_CONFIG) --cflags eigen3 2>/dev/null))
-LDLIBS_ALL   += $(shell $(PKG_CONFIG) --libs qhull_r 2>/dev/null) -lstdc++
+LDLIBS_ALL   += $(shell $(PKG_CONFIG) --libs qhull_r kissfft-float 2>/dev/null) -lstdc++
 
 # Optional: libpng (PNG output).
 ifeq ($(call have,libpng),1)
@@ -159,7 +159,7 @@ build-fuzz/%: tests/fuzz/%.c $(LIB_C) $(LIB_CXX)
 	$(MAKE) --no-print-directory BUILD=build-fuzz/lib CC=clang CXX=clang++ SAN=0 \
 		CFLAGS="-fsanitize=fuzzer-no-link,address,undefined" \
 		CXXFLAGS="-fsanitize=fuzzer-no-link,address,undefined" build-fuzz/lib/libstillheart.a
-	clang $(FUZZ_FLAGS) $(shell $(PKG_CONFIG) --cflags qhull_r) $< build-fuzz/lib/libstillheart.a \
+	clang $(FUZZ_FLAGS) $(shell $(PKG_CONFIG) --cflags qhull_r kissfft-float) $< build-fuzz/lib/libstillheart.a \
 		$(filter-out -lstdc++,$(LDLIBS_ALL)) -lstdc++ -o $@
 
 fuzz: deps $(FUZZ_BIN)

@@ -11,7 +11,7 @@ set -eu
 arm64=0
 ARM64_CACHE="${ARM64_CACHE:-/var/cache/stillheart/arm64}"
 
-pkgs="build-essential pkg-config libcmocka-dev libqhull-dev libeigen3-dev libpng-dev
+pkgs="build-essential pkg-config libcmocka-dev libqhull-dev libeigen3-dev libkissfft-dev libpng-dev
       libopencv-core-dev libopencv-imgproc-dev clang llvm libclang-rt-14-dev
       libosmesa6-dev libapriltag-dev libopencv-calib3d-dev libturbojpeg0-dev libgpiod-dev libcamera-dev
       libinih-dev libsystemd-dev"
@@ -26,7 +26,7 @@ done
 # arm64: what the cross build links (libopencv-dev:arm64 cannot co-install: the daemon, its tests
 # and the tools built on arm64 need no OpenCV), the runtime of libapriltag (its -dev is unpacked
 # below), and the emulator that runs the tests.
-arm64_pkgs="crossbuild-essential-arm64 qemu-user libcmocka-dev:arm64 libqhull-dev:arm64
+arm64_pkgs="crossbuild-essential-arm64 qemu-user libcmocka-dev:arm64 libqhull-dev:arm64 libkissfft-dev:arm64
       libpng-dev:arm64 libturbojpeg0-dev:arm64 libapriltag3:arm64 libosmesa6-dev:arm64
       libinih-dev:arm64 libgpiod-dev:arm64 libcamera-dev:arm64
       dpkg-dev debhelper fakeroot lintian"

@@ -1,13 +1,16 @@
 #!/bin/sh
 # Runs every cmocka test binary in the given build folders and closes with one summary line
-# ("N passed, N failed") that counts test cases, not binaries.
+# ("N passed, N failed") that counts test cases, not binaries. Each binary's time follows its
+# output ("-- BINARY: S s").
 passed=0; failed=0; crashed=""
 for dir in "$@"; do
     for t in "$dir"/tests/test_*; do
         [ -x "$t" ] || continue
         echo "== $t"
+        t0=$(date +%s.%N)
         out=$("$t" 2>&1); rc=$?
         printf '%s\n' "$out"
+        echo "-- $t: $(echo "$t0 $(date +%s.%N)" | awk '{printf "%.1f", $2 - $1}') s"
         p=$(printf '%s\n' "$out" | sed -n 's/^\[  PASSED  \] \([0-9]*\) test.*/\1/p' | tail -1)
         f=$(printf '%s\n' "$out" | sed -n 's/^\[  FAILED  \] \([0-9]*\) test.*/\1/p' | tail -1)
         passed=$((passed + ${p:-0})); failed=$((failed + ${f:-0}))

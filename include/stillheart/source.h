@@ -46,7 +46,9 @@ typedef struct {
     int32_t white_balance; /* V4L2_CID_WHITE_BALANCE_TEMPERATURE / ColourTemperature (K) */
     /* Replay (y4m:, rec:): */
     int realtime;          /* 1: frame k is due at start + k/fps; 0: as fast as asked */
-    int loop;              /* 1: start again at the end (sequence and timestamps keep rising) */
+    int loop;              /* 1: start again at the end (sequence and timestamps keep rising; the
+                            * first frame of each new pass is flagged a discontinuity unless the
+                            * Y4M file is tagged XLOOP=SEAMLESS, y4m.h) */
 } sh_source_options;
 
 void sh_source_options_default(sh_source_options *opts);
@@ -55,6 +57,8 @@ typedef struct {
     int camera;
     uint64_t sequence;     /* per source, from 0, counting driver drops (gaps show them) */
     int64_t timestamp_ns;  /* CLOCK_MONOTONIC */
+    int discontinuity;     /* 1: the scene does not follow on from the previous frame (a replay
+                            * that started again), so motion history no longer applies */
     sh_raw raw;            /* borrowed until sh_source_release */
     int slot;              /* private: the buffer to give back */
 } sh_source_frame;

@@ -17,6 +17,12 @@ extern "C" {
 
 #define SH_Y4M_MAX_EXTRA 1024
 
+/* Our X tag for a stream whose last frame is followed by its first without a jump in the scene
+ * (a periodic phantom, stillheart-render --periodic): a looping replay (source.h) goes on across
+ * the loop instead of flagging a discontinuity. */
+#define SH_Y4M_LOOP_SEAMLESS "XLOOP=SEAMLESS"
+
+
 typedef struct {
     int width, height;
     sh_pixfmt format;          /* GRAY8, I420 or YUV444 */
@@ -26,6 +32,9 @@ typedef struct {
     char interlace;            /* 'p', 't', 'b', 'm' or 0 when absent */
     char extra[SH_Y4M_MAX_EXTRA]; /* X tags and unknown tags, space separated, verbatim */
 } sh_y4m_header;
+
+/* 1 when the header's X tags hold `tag` (e.g. SH_Y4M_LOOP_SEAMLESS) as a whole word. */
+int sh_y4m_header_has_tag(const sh_y4m_header *header, const char *tag);
 
 typedef struct sh_y4m_reader sh_y4m_reader;
 

@@ -372,7 +372,7 @@ int cmd_run(int argc, char **argv)
             sh_display_frame_info info;
             memset(&info, 0, sizeof info);
             info.capture_ns = s->avail_ns;
-            const sh_image *shown = run_proc_frame(proc, &s->img, s->cam, s->index, &info);
+            const sh_image *shown = run_proc_frame(proc, &s->img, s->cam, s->index, s->epoch, &info);
             uint32_t status = info.status;
             if (status == SH_DISPLAY_RAW) raw_count++;
             if (status == SH_DISPLAY_DEGRADED) degraded_count++;

@@ -82,9 +82,10 @@ void run_tracker_destroy(run_tracker *t);
 /* Detects in each camera's frame (cams[c], NULL when the set lacks it; 2D: cams[0] only) in the
  * tracker's windows plus a reacquisition band (the whole frame when nothing is tracked),
  * updates the filters and writes every confirmed, not lost marker in the output camera's view,
- * sorted by id. index: the frame's index in the stream; an index that does not advance (a replay that
- * looped, a restarted camera) restarts the tracker. */
-sh_status run_tracker_frame(run_tracker *t, const sh_image *const *cams, int index, run_marker *out, int *n);
+ * sorted by id. index: the frame's index in the stream; an index that does not advance (a restarted
+ * camera) or a new epoch (a discontinuity, run_frame) restarts the tracker. */
+sh_status run_tracker_frame(run_tracker *t, const sh_image *const *cams, int index, unsigned epoch, run_marker *out,
+                            int *n);
 /* The frame rate the tracker assumes (ages in ms use it). */
 double run_tracker_fps(const run_tracker *t);
 /* One line of the tracker's counters (sh_tracker_stats), for the log at exit. */

@@ -25,6 +25,7 @@ struct run_proc {
     sh_calib calib;
     run_model *last;      /* the last model used: the fallback while another set is built */
     int model_err_once, track_err_once;
+    unsigned epoch;       /* the last frame's (run_frame): a change restarts the tracker */
     double ms[3];         /* this frame: markers (detection + tracker), model update, warp */
 };
 
@@ -128,7 +129,7 @@ void run_proc_request_reference(run_proc *p) { p->want_ref = 1; }
 int run_proc_builds(const run_proc *p) { return run_models_builds(p->models); }
 
 /* The markers of this frame, sorted by id. */
-static int markers(run_proc *p, const sh_image *img, const sh_image *const *cams, int index)
+static int markers(run_proc *p, const sh_image *img, const sh_image *const *cams, int index, unsigned epoch)
 {
     int n = 0;
     if (!p->tracker) {
@@ -144,7 +145,11 @@ static int markers(run_proc *p, const sh_image *img, const sh_image *const *cams
         return n;
     }
     const sh_image *only[1] = {img};
-    if (run_tracker_frame(p->tracker, p->three_d ? cams : only, index, p->mk, &n) != SH_OK) {
+    if (epoch != p->epoch && !p->epoch)
+        p->log("INFO", "main", "frame %d: the replay started again and its scene jumps there (it is not tagged "
+               "XLOOP=SEAMLESS): tracking starts afresh at every loop", index);
+    p->epoch = epoch;
+    if (run_tracker_frame(p->tracker, p->three_d ? cams : only, index, epoch, p->mk, &n) != SH_OK) {
         if (!p->track_err_once++) p->log("ERROR", "main", "tracker: %s", sh_error_message());
         return 0;
     }
@@ -195,11 +200,11 @@ static int fallback(run_proc *p, int nm, double *xy, double *xyz, double *det)
 }
 
 const sh_image *run_proc_frame(run_proc *p, const sh_image *img, const sh_image *const *cams, int index,
-                               sh_display_frame_info *info)
+                               unsigned epoch, sh_display_frame_info *info)
 {
     double t0 = now_ms();
     p->ms[0] = p->ms[1] = p->ms[2] = 0;
-    int nm = markers(p, img, cams, index);
+    int nm = markers(p, img, cams, index, epoch);
     double t1 = now_ms();
     p->ms[0] = t1 - t0;
     take_reference(p, index, nm);

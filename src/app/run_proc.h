@@ -20,11 +20,11 @@ void run_proc_set_gating(run_proc *p, const sh_config *cfg);
  * are built beside the running ones and swapped in when ready). */
 void run_proc_request_reference(run_proc *p);
 /* Processes one frame (img: the output camera's; cams: every camera's frame of the set, NULL
- * where missing, read in 3D only): returns what to show (img itself when raw) and fills info's status,
+ * where missing, read in 3D only; index and epoch as in run_frame): returns what to show (img itself when raw) and fills info's status,
  * reason, markers_used and residual_px (-1 when not measured; never NaN). The returned image
  * stays valid until the next call. */
 const sh_image *run_proc_frame(run_proc *p, const sh_image *img, const sh_image *const *cams, int index,
-                               sh_display_frame_info *info);
+                               unsigned epoch, sh_display_frame_info *info);
 int run_proc_builds(const run_proc *p);
 /* The processing thread's CPU time in the last frame's stages, ms (the warp's helper threads
  * not counted): markers (detection and tracker), model (selection,

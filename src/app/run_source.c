@@ -30,6 +30,8 @@ typedef struct {
     int nframes;           /* y4m: frames in the file (points test mode), 0 = unknown */
     sh_image pool[POOL];
     uint64_t seq[POOL];
+    unsigned epoch[POOL];  /* the source's discontinuities up to the buffer's frame */
+    unsigned discontinuities;
     int state[POOL];
     int inflight;          /* buffers PENDING */
     run_camera_stats st;
@@ -173,6 +175,7 @@ static void deliver(run_source *rs, const sh_frame_set *set)
     uint64_t seq = set->member[rs->out].sequence;
     f.img = *f.cam[rs->out];
     f.index = o->nframes > 0 ? (int)(seq % (uint64_t)o->nframes) : (int)seq;
+    f.epoch = o->epoch[(int)(intptr_t)set->member[rs->out].user];
     f.capture_ns = set->time_ns;
     f.set = set->index;
     f.complete = set->complete;
@@ -296,6 +299,7 @@ static void *camera_thread(void *arg)
         }
         uint64_t seq = f.sequence;
         int64_t ts = f.timestamp_ns;
+        k->discontinuities += f.discontinuity != 0; /* counted even for a frame not kept */
         sh_source_release(k->src, &f);
         if (b < 0) continue;
         pthread_mutex_lock(&rs->mu);
@@ -305,6 +309,7 @@ static void *camera_thread(void *arg)
         } else {
             k->st.converted++;
             k->seq[b] = seq;
+            k->epoch[b] = k->discontinuities;
             sh_sync_disposition d = SH_SYNC_LATE;
             k->state[b] = PENDING;
             k->inflight++;

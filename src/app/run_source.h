@@ -27,6 +27,9 @@ typedef struct {
     sh_image img;         /* the output camera's frame (the one warped), in the header's format */
     int index;            /* its frame index: in the file for a replay (from 0 again after a loop),
                            * else the camera's sequence number */
+    unsigned epoch;       /* the output camera's discontinuities so far (source.h: a replay that
+                           * started again, its end not joining its start): motion history
+                           * from an earlier epoch does not apply */
     int64_t avail_ns;     /* CLOCK_MONOTONIC time the set became available to processing */
     int64_t capture_ns;   /* the set's time: trigger edge + offset, or its first frame's timestamp */
     uint64_t set;         /* the set's index (sync.h) */

@@ -18,6 +18,7 @@ struct run_tracker {
     sh_tracker *t;
     sh_detector *det;
     int last_index, frame, started;
+    unsigned epoch;
     sh_detection dets[SH_TRACK_MAX_CAMERAS][MAX_DET];
     sh_window win[SH_TRACK_MAX_MARKERS + 1];
     sh_track_estimate est[SH_TRACK_MAX_MARKERS];
@@ -94,11 +95,13 @@ static int merge_copies(sh_detection *d, int n)
     return kept;
 }
 
-sh_status run_tracker_frame(run_tracker *rt, const sh_image *const *cams, int index, run_marker *out, int *n)
+sh_status run_tracker_frame(run_tracker *rt, const sh_image *const *cams, int index, unsigned epoch, run_marker *out,
+                            int *n)
 {
     *n = 0;
-    if (rt->started && index <= rt->last_index) {
-        /* time went backwards (a replay looped): the filters' history no longer applies */
+    if (rt->started && (index <= rt->last_index || epoch != rt->epoch)) {
+        /* time went backwards or the scene jumped (a replay started again): the filters' history
+         * no longer applies */
         sh_tracker *fresh;
         sh_status st = sh_tracker_create(&rt->opts, rt->ncam > 1 ? &rt->calib : NULL, &fresh);
         if (st != SH_OK) return st;
@@ -109,6 +112,7 @@ sh_status run_tracker_frame(run_tracker *rt, const sh_image *const *cams, int in
     /* frames dropped by the mailbox still count as time for the filters */
     rt->frame = rt->started ? rt->frame + (index - rt->last_index) : 0;
     rt->last_index = index;
+    rt->epoch = epoch;
     sh_status st = sh_tracker_predict(rt->t, rt->frame);
     if (st != SH_OK) return st;
     const sh_detection *dp[SH_TRACK_MAX_CAMERAS];

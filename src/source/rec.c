@@ -35,6 +35,7 @@ typedef struct {
     uint8_t *next_mem; /* one of the slots' twin: a third buffer */
     uint64_t sequence_out;
     int at_end;
+    int restarted; /* the recording started again: a camera's recording never joins its start */
 } rec_source;
 
 static sh_status read_ahead(rec_source *r)
@@ -56,6 +57,7 @@ static sh_status read_ahead(rec_source *r)
             int64_t step = r->count_in_pass > 1 ? span / (int64_t)(r->count_in_pass - 1) : 40000000;
             r->offset += span + step;
             r->count_in_pass = 0;
+            r->restarted = 1;
             continue;
         }
         if (st != SH_OK) return st;
@@ -138,6 +140,8 @@ static sh_status r_dequeue(sh_source *s, int timeout_ms, sh_source_frame *f, int
     memset(f, 0, sizeof *f);
     f->camera = s->opts.camera;
     f->sequence = r->sequence_out++;
+    f->discontinuity = r->restarted; /* read ahead at the previous frame: this one opens a pass */
+    r->restarted = 0;
     f->timestamp_ns = due;
     f->raw.format = s->format;
     f->raw.width = s->width;

@@ -1,7 +1,8 @@
 /* y4m:FILE — a Y4M file replayed as a camera: frame k is due at start + k/fps (real time) or at
  * once (as fast as asked); its timestamp is always the schedule's, start + k/fps, so a replay
  * feeds the pipeline the same times however fast it runs. Looping starts the file again with
- * the sequence and the schedule going on. The pollable fd is a timerfd armed at the next due
+ * the sequence and the schedule going on; the first frame of the new pass is flagged a
+ * discontinuity unless the header says the end joins the start (XLOOP=SEAMLESS). The pollable fd is a timerfd armed at the next due
  * time. Two frame slots, allocated at open. */
 #include "source_internal.h"
 
@@ -29,6 +30,8 @@ typedef struct {
     int64_t t0;
     uint64_t k;
     int at_end;
+    int seamless;  /* the file's end joins its start (XLOOP=SEAMLESS) */
+    int restarted; /* the file started again and the scene jumps there */
 } y4m_source;
 
 static void arm(y4m_source *y, int64_t due)
@@ -105,6 +108,7 @@ static sh_status y_dequeue(sh_source *s, int timeout_ms, sh_source_frame *f, int
             return SH_EEOF;
         }
         if ((st = rewind_reader(y)) != SH_OK) return st;
+        y->restarted = !y->seamless;
         st = sh_y4m_reader_read(y->reader, &y->img[slot]);
     }
     if (st != SH_OK) return st == SH_EEOF ? sh_error_set(SH_EFORMAT, "%s: no frame to loop over", s->name) : st;
@@ -112,6 +116,8 @@ static sh_status y_dequeue(sh_source *s, int timeout_ms, sh_source_frame *f, int
     memset(f, 0, sizeof *f);
     f->camera = s->opts.camera;
     f->sequence = y->k;
+    f->discontinuity = y->restarted;
+    y->restarted = 0;
     f->timestamp_ns = due;
     f->raw.format = s->format;
     f->raw.width = s->width;
@@ -172,6 +178,7 @@ sh_status sh_source_open_y4m(const char *path, const sh_source_options *opts, sh
     }
     const sh_y4m_header *h = sh_y4m_reader_header(y->reader);
     y->pixfmt = h->format;
+    y->seamless = sh_y4m_header_has_tag(h, SH_Y4M_LOOP_SEAMLESS);
     y->base.format = h->format == SH_PIX_GRAY8 ? SH_RAW_GREY : h->format == SH_PIX_I420 ? SH_RAW_I420
                                                                                        : SH_RAW_YUV444;
     y->base.width = h->width;

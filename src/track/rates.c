@@ -4,6 +4,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include <kiss_fftr.h>
+
 #include "track_internal.h"
 
 typedef struct {
@@ -47,26 +49,35 @@ static double harmonic_sum(double *const *x, int ns, int n, double ts, double f,
     return total;
 }
 
-static double search_rate(double *const *x, int ns, int n, double ts, double lo, double hi, int K)
+sh_status trk_rates_init(sh_tracker *t)
 {
-    double nyq = 0.5 / ts;
-    if (hi > nyq * 0.95) hi = nyq * 0.95;
-    double span = n * ts;
-    double step = 1.0 / (4 * span);
-    double best = lo, bestv = -1;
-    for (double f = lo; f <= hi + 1e-12; f += step) {
-        double v = harmonic_sum(x, ns, n, ts, f, K, nyq);
-        if (v > bestv) {
-            bestv = v;
-            best = f;
-        }
-    }
-    /* golden section around the best grid point */
-    double a = fmax(lo, best - step), b = fmin(hi, best + step);
+    t->fft_in = malloc(sizeof(float) * RATE_FFT_MAX);
+    t->fft_out = malloc(sizeof(kiss_fft_cpx) * (RATE_FFT_MAX / 2 + 1));
+    t->fft_power = malloc(sizeof(double) * (RATE_FFT_MAX / 2 + 1));
+    t->basis = malloc(sizeof(double) * RATE_BASIS_TABLES * SH_TRACK_HISTORY * NC);
+    if (!t->fft_in || !t->fft_out || !t->fft_power || !t->basis) return SH_ENOMEM;
+    for (int i = 0, size = RATE_FFT_MIN; i < RATE_FFT_SIZES; i++, size *= 2)
+        if (!(t->fft_cfg[i] = kiss_fftr_alloc(size, 0, NULL, NULL))) return SH_ENOMEM;
+    return SH_OK;
+}
+
+void trk_rates_free(sh_tracker *t)
+{
+    for (int i = 0; i < RATE_FFT_SIZES; i++) kiss_fftr_free(t->fft_cfg[i]);
+    free(t->fft_in);
+    free(t->fft_out);
+    free(t->fft_power);
+    free(t->basis);
+}
+
+/* Golden-section search for the maximum of harmonic_sum in [a, b] (a bracket two grid bins wide):
+ * 16 steps shrink it to 0.001 bin (1e-5 Hz over 22 s of history), far finer than the fits use. */
+static double refine(double *const *x, int ns, int n, double ts, double a, double b, int K, double nyq)
+{
     const double g = 0.6180339887498949;
     double c = b - g * (b - a), d = a + g * (b - a);
     double fc = harmonic_sum(x, ns, n, ts, c, K, nyq), fd = harmonic_sum(x, ns, n, ts, d, K, nyq);
-    for (int it = 0; it < 30; it++) {
+    for (int it = 0; it < 16; it++) {
         if (fc > fd) {
             b = d;
             d = c;
@@ -82,6 +93,58 @@ static double search_rate(double *const *x, int ns, int n, double ts, double lo,
         }
     }
     return 0.5 * (a + b);
+}
+
+/* The rate in [lo, hi] that maximises harmonic_sum. The grid is the zero-padded FFT's bins, at
+ * most a quarter of 1 / span apart (the harmonic sum at bin b is the power at bins b, 2b, ...,
+ * summed over the series: all of them from one FFT per series, where evaluating each grid point
+ * directly costs O(n) per point and grows as the history squared), then a golden-section search
+ * on the exact sum between the best bin's neighbours. */
+static double search_rate(sh_tracker *t, double *const *x, int ns, int n, double ts, double lo, double hi, int K)
+{
+    double nyq = 0.5 / ts;
+    if (hi > nyq * 0.95) hi = nyq * 0.95;
+    int size = RATE_FFT_MIN, which = 0;
+    while (size < 4 * n && which < RATE_FFT_SIZES - 1) size *= 2, which++;
+    int bins = size / 2 + 1;
+    kiss_fft_cpx *spec = t->fft_out;
+    double *power = t->fft_power;
+    for (int b = 0; b < bins; b++) power[b] = 0;
+    for (int s = 0; s < ns; s++) {
+        for (int j = 0; j < size; j++) t->fft_in[j] = j < n && !isnan(x[s][j]) ? (float)x[s][j] : 0.0f;
+        kiss_fftr(t->fft_cfg[which], t->fft_in, spec);
+        for (int b = 0; b < bins; b++) power[b] += (double)spec[b].r * spec[b].r + (double)spec[b].i * spec[b].i;
+    }
+    double df = 1.0 / (size * ts); /* bin spacing, Hz */
+    int b0 = (int)ceil(lo / df), b1 = (int)floor(hi / df);
+    double best = 0.5 * (lo + hi), bestv = -1;
+    for (int b = b0 > 1 ? b0 : 1; b <= b1; b++) {
+        double v = 0;
+        for (int k = 1; k <= K && k * b < bins && k * b * df < nyq; k++) v += power[k * b];
+        if (v > bestv) {
+            bestv = v;
+            best = b * df;
+        }
+    }
+    double f = refine(x, ns, n, ts, fmax(lo, best - df), fmin(hi, best + df), K, nyq);
+    /* A harmonic sum peaks at a subharmonic too: at f0 / 2 it still holds f0's power as its second
+     * harmonic, and leakage at f0 / 2 and 3 f0 / 2 can outweigh f0's own higher harmonics (a
+     * nearly sinusoidal beat). A heartbeat's fundamental carries the most motion, so the rate is
+     * the lowest multiple d f whose own power is at least a quarter (half the amplitude) of the
+     * strongest multiple's. */
+    if (K >= 2) {
+        double p[HMAX + 1], top = 0;
+        int dmax = 1;
+        for (int d = 1; d <= K && d * f <= hi; d++) {
+            p[d] = harmonic_sum(x, ns, n, ts, d * f, 1, nyq);
+            if (p[d] > top) top = p[d];
+            dmax = d;
+        }
+        int d = 1;
+        while (d < dmax && p[d] < 0.25 * top) d++;
+        if (d > 1) f = refine(x, ns, n, ts, fmax(lo, d * f - df), fmin(hi, d * f + df), K, nyq);
+    }
+    return f;
 }
 
 /* Cholesky solve of the m x m SPD system A c = b (A overwritten); 0 on failure. */
@@ -119,21 +182,31 @@ static int chol_solve(double *A, double *b, int m, double *inv)
     return 1;
 }
 
-/* Basis of the LS fit at sample j: 1, trend, heart cos/sin pairs, resp cos/sin pairs. */
-static int fit_basis(double tj, double tmid, double fh, int nh, double fr, int nr, double *phi)
+/* The LS fit's basis at every sample j of the window (row j, NC apart): 1, trend, heart cos/sin
+ * pairs, resp cos/sin pairs. Built once per rate combination into one of the tracker's tables and
+ * shared by every series and pass of the fits (the trigonometry per sample was most of their
+ * cost). Returns the table; *m the number of basis functions. */
+static const double *basis_table(sh_tracker *t, int which, int n, double ts, double fh, int nh, double fr, int nr,
+                                 int *m)
 {
-    int m = 0;
-    phi[m++] = 1;
-    phi[m++] = tj - tmid;
-    for (int k = 1; k <= nh; k++) {
-        phi[m++] = cos(2 * PI * k * fh * tj);
-        phi[m++] = sin(2 * PI * k * fh * tj);
+    double *tab = t->basis + (size_t)which * SH_TRACK_HISTORY * NC;
+    double tmid = 0.5 * (n - 1) * ts;
+    for (int j = 0; j < n; j++) {
+        double tj = j * ts, *phi = tab + (size_t)j * NC;
+        int c = 0;
+        phi[c++] = 1;
+        phi[c++] = tj - tmid;
+        for (int k = 1; k <= nh; k++) {
+            phi[c++] = cos(2 * PI * k * fh * tj);
+            phi[c++] = sin(2 * PI * k * fh * tj);
+        }
+        for (int k = 1; k <= nr; k++) {
+            phi[c++] = cos(2 * PI * k * fr * tj);
+            phi[c++] = sin(2 * PI * k * fr * tj);
+        }
     }
-    for (int k = 1; k <= nr; k++) {
-        phi[m++] = cos(2 * PI * k * fr * tj);
-        phi[m++] = sin(2 * PI * k * fr * tj);
-    }
-    return m;
+    *m = 2 + 2 * nh + 2 * nr;
+    return tab;
 }
 
 #define FIT_PASSES 4
@@ -156,19 +229,17 @@ static double median_of(double *v, int n)
  * RMS of the inliers or -1 when the fit is impossible. Robust: refitted without the samples off by
  * more than 3 robust standard deviations (1.4826 x the median absolute residual, never less than
  * floor), so the wrong detections accepted before the rates were known do not bend the model. */
-static double fit_series(const double *x, int n, double ts, double fh, int nh, double fr, int nr,
-                         double *coef, double *cov, int *mout, double floor)
+static double fit_series(const double *x, int n, const double *tab, int m, double *coef, double *cov, double floor)
 {
     unsigned char out[SH_TRACK_HISTORY];
     memset(out, 0, sizeof out);
-    int m = 2 + 2 * nh + 2 * nr;
-    double tmid = 0.5 * (n - 1) * ts, rms = -1;
+    double rms = -1;
     for (int pass = 0; pass < FIT_PASSES; pass++) {
-        double A[NC * NC] = {0}, b[NC] = {0}, phi[NC];
+        double A[NC * NC] = {0}, b[NC] = {0};
         int cnt = 0;
         for (int j = 0; j < n; j++) {
             if (isnan(x[j]) || out[j]) continue;
-            fit_basis(j * ts, tmid, fh, nh, fr, nr, phi);
+            const double *phi = tab + (size_t)j * NC;
             for (int a = 0; a < m; a++) {
                 b[a] += phi[a] * x[j];
                 for (int c = 0; c <= a; c++) A[a * m + c] += phi[a] * phi[c];
@@ -183,7 +254,7 @@ static double fit_series(const double *x, int n, double ts, double fh, int nh, d
         double ss = 0;
         for (int j = 0; j < n; j++) {
             if (isnan(x[j]) || out[j]) continue;
-            fit_basis(j * ts, tmid, fh, nh, fr, nr, phi);
+            const double *phi = tab + (size_t)j * NC;
             double v = 0;
             for (int a = 0; a < m; a++) v += phi[a] * coef[a];
             ss += (x[j] - v) * (x[j] - v);
@@ -196,7 +267,7 @@ static double fit_series(const double *x, int n, double ts, double fh, int nh, d
         int nres = 0;
         for (int j = 0; j < n; j++) {
             if (isnan(x[j])) continue;
-            fit_basis(j * ts, tmid, fh, nh, fr, nr, phi);
+            const double *phi = tab + (size_t)j * NC;
             double v = 0;
             for (int a = 0; a < m; a++) v += phi[a] * coef[a];
             res[nres++] = fabs(x[j] - v);
@@ -213,7 +284,6 @@ static double fit_series(const double *x, int n, double ts, double fh, int nh, d
         }
         if (!changed) break;
     }
-    *mout = m;
     return rms;
 }
 
@@ -334,20 +404,21 @@ void trk_estimate_rates(sh_tracker *t)
     }
     double u = t->unit > 0 ? t->unit : 1;
     double noise2 = t->o.meas_sigma * t->o.meas_sigma * u * u, fl = sqrt(noise2);
-    double fh = search_rate(top, ntop, n, ts, t->o.heart_min_hz, t->o.heart_max_hz, t->o.heart_harmonics);
+    double fh = search_rate(t, top, ntop, n, ts, t->o.heart_min_hz, t->o.heart_max_hz, t->o.heart_harmonics);
     double coef[NC], cov[NC * NC];
-    int m;
+    int m, m_trend;
     double fr = 0;
     int nr = 0;
+    const double *trend = basis_table(t, 1, n, ts, 0, 0, 0, 0, &m_trend);
     if (t->o.resp_harmonics > 0 && n * ts >= 6.0) {
         /* respiration on the residual of the heart fit */
-        double tmid = 0.5 * (n - 1) * ts, phi[NC];
+        const double *heart = basis_table(t, 0, n, ts, fh, t->o.heart_harmonics, 0, 0, &m);
         for (int i = 0; i < ntop; i++) {
-            double r = fit_series(top[i], n, ts, fh, t->o.heart_harmonics, 0, 0, coef, cov, &m, -1);
+            double r = fit_series(top[i], n, heart, m, coef, cov, -1);
             if (r < 0) continue;
             for (int j = 0; j < n; j++) {
                 if (isnan(top[i][j])) continue;
-                fit_basis(j * ts, tmid, fh, t->o.heart_harmonics, 0, 0, phi);
+                const double *phi = heart + (size_t)j * NC;
                 double v = 0;
                 for (int k = 2; k < m; k++) v += phi[k] * coef[k];
                 top[i][j] -= v;
@@ -355,11 +426,13 @@ void trk_estimate_rates(sh_tracker *t)
         }
         double lo = fmax(t->o.resp_min_hz, 1.5 / (n * ts));
         if (lo < t->o.resp_max_hz) {
-            double f = search_rate(top, ntop, n, ts, lo, t->o.resp_max_hz, t->o.resp_harmonics);
+            double f = search_rate(t, top, ntop, n, ts, lo, t->o.resp_max_hz, t->o.resp_harmonics);
             double exr = 0, totr = 0;
+            int m_resp;
+            const double *resp = basis_table(t, 2, n, ts, 0, 0, f, t->o.resp_harmonics, &m_resp);
             for (int i = 0; i < ntop; i++) {
-                double r0 = fit_series(top[i], n, ts, fh, 0, 0, 0, coef, cov, &m, -1);
-                double r1 = fit_series(top[i], n, ts, fh, 0, f, t->o.resp_harmonics, coef, cov, &m, -1);
+                double r0 = fit_series(top[i], n, trend, m_trend, coef, cov, -1);
+                double r1 = fit_series(top[i], n, resp, m_resp, coef, cov, -1);
                 if (r0 < 0 || r1 < 0) continue;
                 exr += r0 * r0 - r1 * r1;
                 totr += r0 * r0;
@@ -373,14 +446,15 @@ void trk_estimate_rates(sh_tracker *t)
     /* is there a heartbeat at all? the heart harmonics must carry motion well above the noise, and
      * the whole model must explain most of the motion */
     double exh = 0, res = 0, tot = 0;
+    const double *full = basis_table(t, 3, n, ts, fh, t->o.heart_harmonics, fr, nr, &m);
     for (int mi = 0, q = 0; mi < t->nm && q < RATE_SERIES; mi++) {
         if (!t->m[mi].init) continue;
         for (int a = 0; a < t->dim && q < RATE_SERIES; a++) {
             double *x = t->scratch;
             int valid = gather(t, mi, a, x, n);
             if (valid < 0.6 * n) continue;
-            double r = fit_series(x, n, ts, fh, t->o.heart_harmonics, fr, nr, coef, cov, &m, fl);
-            double r0 = fit_series(x, n, ts, fh, 0, 0, 0, coef + NC / 2, cov, &m, -1);
+            double r = fit_series(x, n, full, m, coef, cov, fl);
+            double r0 = fit_series(x, n, trend, m_trend, coef + NC / 2, cov, -1);
             if (r < 0 || r0 < 0) continue;
             double v = 0;
             for (int k = 2; k < 2 + 2 * t->o.heart_harmonics; k++) v += 0.5 * coef[k] * coef[k];
@@ -416,7 +490,7 @@ void trk_estimate_rates(sh_tracker *t)
             axis_filter *f = &mk->f[a];
             int valid = gather(t, mi, a, x, n);
             double r = valid >= 2 * (2 + 2 * t->nh + 2 * t->nr)
-                           ? fit_series(x, n, ts, fh, t->nh, fr, t->nr, coef, cov, &m, fl)
+                           ? fit_series(x, n, full, m, coef, cov, fl)
                            : -1;
             if (r >= 0) {
                 double s2 = fmax(r * r, noise2);

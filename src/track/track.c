@@ -89,7 +89,7 @@ sh_status sh_tracker_create(const sh_track_options *opts, const sh_calib *calib,
     t->ring_x = malloc(sizeof(double) * (size_t)t->ring_len * MAXM * 3 * NS);
     t->ring_ok = calloc((size_t)t->ring_len * MAXM, 1);
     t->ring_frame = malloc(sizeof(int) * (size_t)t->ring_len);
-    if (!t->hist || !t->scratch || !t->ring_x || !t->ring_ok || !t->ring_frame) {
+    if (!t->hist || !t->scratch || !t->ring_x || !t->ring_ok || !t->ring_frame || trk_rates_init(t) != SH_OK) {
         sh_tracker_destroy(t);
         return sh_error_set(SH_ENOMEM, "tracker: out of memory");
     }
@@ -123,6 +123,7 @@ void sh_tracker_destroy(sh_tracker *t)
     free(t->ring_x);
     free(t->ring_ok);
     free(t->ring_frame);
+    trk_rates_free(t);
     free(t);
 }
 

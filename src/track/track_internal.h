@@ -16,6 +16,10 @@
 #define MAXM SH_TRACK_MAX_MARKERS
 #define MAXC SH_TRACK_MAX_CAMERAS
 #define RATE_SERIES 16            /* series used for the periodogram (largest variance) */
+#define RATE_FFT_MIN 128          /* 4 x the 32 samples a rate estimate needs at least */
+#define RATE_FFT_MAX (4 * SH_TRACK_HISTORY)
+#define RATE_FFT_SIZES 5          /* 128 .. 2048 */
+#define RATE_BASIS_TABLES 4       /* heart only, trend only, respiration only, heart and respiration */
 
 typedef struct {
     double x[NS];
@@ -75,6 +79,14 @@ struct sh_tracker {
     long hist_last;        /* last sample index cleared (-1 none) */
     float *hist;           /* [MAXM][3][SH_TRACK_HISTORY] */
     double *scratch;       /* [MAXM * 3][SH_TRACK_HISTORY] detrended series */
+    /* the periodogram's real FFTs (kissfft), one per power of two from 4 x 32 samples to 4 x
+     * SH_TRACK_HISTORY (zero padding to 4x gives the grid a quarter of the span's resolution),
+     * all set up at create so that no frame allocates */
+    void *fft_cfg[RATE_FFT_SIZES];
+    float *fft_in;         /* [RATE_FFT_MAX] */
+    void *fft_out;         /* kiss_fft_cpx [RATE_FFT_MAX / 2 + 1] */
+    double *fft_power;     /* [RATE_FFT_MAX / 2 + 1]: |X|^2 summed over the series */
+    double *basis;         /* [RATE_BASIS_TABLES][SH_TRACK_HISTORY][NC]: the fits' basis (rates.c) */
     int band;
     /* spatial model: every marker's filter state in each of the last ring_len frames */
     int ring_len;
@@ -92,6 +104,9 @@ void trk_predict_filter(const sh_tracker *t, axis_filter *f, const double *F, do
 void trk_update_filter(const sh_tracker *t, axis_filter *f, double z, double r);
 void trk_init_filter(axis_filter *f, double z, double r, double vvar);
 void trk_estimate_rates(sh_tracker *t);
+/* The periodogram's FFT set-up (rates.c), at create; freed by trk_rates_free. */
+sh_status trk_rates_init(sh_tracker *t);
+void trk_rates_free(sh_tracker *t);
 float *trk_hist_at(sh_tracker *t, int mi, int a);
 /* track.c */
 void trk_marker_pos(const sh_tracker *t, const marker *mk, double *p, double *var);

@@ -201,3 +201,15 @@ int y4m_header_format(const sh_y4m_header *h, char *out, size_t cap)
     n += snprintf(out + n, n < (int)cap ? cap - (size_t)n : 0, "\n");
     return n < (int)cap ? n : -1;
 }
+
+int sh_y4m_header_has_tag(const sh_y4m_header *h, const char *tag)
+{
+    size_t len = strlen(tag), n = strnlen(h->extra, sizeof h->extra);
+    if (!len) return 0;
+    for (size_t i = 0; i + len <= n; i++) {
+        int starts = i == 0 || h->extra[i - 1] == ' ';
+        int ends = i + len == n || h->extra[i + len] == ' ';
+        if (starts && ends && !memcmp(h->extra + i, tag, len)) return 1;
+    }
+    return 0;
+}

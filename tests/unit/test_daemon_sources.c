@@ -27,34 +27,18 @@
 
 #include <cmocka.h>
 
+#include "shell.h"
+
 #include "stillheart/record.h"
 #include "stillheart/y4m.h"
 
 enum { W = 64, H = 48, N = 8, SHORT = 4, FPS = 25 };
-static char tmp[64], bin[PATH_MAX + 16], cmd[4096], out[16384];
-
-static int run(const char *fmt, ...)
-    __attribute__((format(printf, 1, 2)));
-static int run(const char *fmt, ...)
-{
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(cmd, sizeof cmd, fmt, ap);
-    va_end(ap);
-    char full[4200];
-    snprintf(full, sizeof full, "%s 2>&1", cmd);
-    FILE *p = popen(full, "r");
-    assert_non_null(p);
-    size_t n = fread(out, 1, sizeof out - 1, p);
-    out[n] = 0;
-    int st = pclose(p);
-    return WIFEXITED(st) ? WEXITSTATUS(st) : -1;
-}
+static char tmp[64], bin[PATH_MAX + 16];
 
 /* Fails with the command and what it printed. */
 static void ok(int rc)
 {
-    if (rc != 0) fail_msg("exit %d: %s\n%s", rc, cmd, out);
+    if (rc != 0) fail_msg("exit %d: %s\n%s", rc, test_cmd, test_out);
 }
 
 /* A Y4M of n frames of w x h; camera c's frame k, pixel i = (k * 7 + i * (c + 1) + 40 * c) & 255,
@@ -112,7 +96,7 @@ static int setup(void **state)
     else snprintf(self, sizeof self, ".");
     snprintf(bin, sizeof bin, "%s/../stillheart", self);
     snprintf(tmp, sizeof tmp, "/tmp/sh-test-dsrc-%d", (int)getpid());
-    run("rm -rf %s && mkdir -p %s", tmp, tmp);
+    test_run("rm -rf %s && mkdir -p %s", tmp, tmp);
     write_y4m("cam0.y4m", 0, N, FPS);
     write_y4m("cam1.y4m", 1, N, FPS);
     write_y4m("short1.y4m", 1, SHORT, FPS);
@@ -134,7 +118,7 @@ static int setup(void **state)
 static int teardown(void **state)
 {
     (void)state;
-    run("rm -rf %s", tmp);
+    test_run("rm -rf %s", tmp);
     return 0;
 }
 
@@ -152,16 +136,16 @@ static void test_two_cameras_output_warped(void **state)
              tmp, tmp);
     write_file("two.ini", ini);
     for (int c = 0; c < 2; c++)
-        ok(run("%s warp --method affine --threads 1 --points %s/points.csv %s/cam%d.y4m "
+        ok(test_run("%s warp --method affine --threads 1 --points %s/points.csv %s/cam%d.y4m "
                              "%s/warp%d.y4m --quiet",
                              bin, tmp, tmp, c, tmp, c));
-    ok(run("%s run --config %s/two.ini " RUN_ARGS " --record %s/rec.y4m", bin, tmp, tmp, tmp));
+    ok(test_run("%s run --config %s/two.ini " RUN_ARGS " --record %s/rec.y4m", bin, tmp, tmp, tmp));
     char want[64];
     snprintf(want, sizeof want, "sets: %d (0 incomplete), 0 dropped while processing was behind", N);
-    if (!strstr(out, want)) fail_msg("no '%s' in:\n%s", want, out);
-    assert_non_null(strstr(out, "camera 1 (y4m:"));
-    ok(run("cmp %s/rec.y4m %s/warp1.y4m", tmp, tmp));
-    assert_int_not_equal(run("cmp %s/rec.y4m %s/warp0.y4m", tmp, tmp), 0);
+    if (!strstr(test_out, want)) fail_msg("no '%s' in:\n%s", want, test_out);
+    assert_non_null(strstr(test_out, "camera 1 (y4m:"));
+    ok(test_run("cmp %s/rec.y4m %s/warp1.y4m", tmp, tmp));
+    assert_int_not_equal(test_run("cmp %s/rec.y4m %s/warp0.y4m", tmp, tmp), 0);
 }
 
 /* The same from the command line only, in real time: the threads run freely and the sets still
@@ -169,12 +153,12 @@ static void test_two_cameras_output_warped(void **state)
 static void test_two_cameras_realtime_cli(void **state)
 {
     (void)state;
-    ok(run("%s run --camera0-spec y4m:%s/cam0.y4m --camera1-spec y4m:%s/cam1.y4m --output-camera 1 "
+    ok(test_run("%s run --camera0-spec y4m:%s/cam0.y4m --camera1-spec y4m:%s/cam1.y4m --output-camera 1 "
                          "--realtime --no-loop " RUN_ARGS " --record %s/rt.y4m",
                          bin, tmp, tmp, tmp, tmp));
     char want[64];
     snprintf(want, sizeof want, "sets: %d (0 incomplete)", N);
-    if (!strstr(out, want)) fail_msg("no '%s' in:\n%s", want, out);
+    if (!strstr(test_out, want)) fail_msg("no '%s' in:\n%s", want, test_out);
 }
 
 /* Frame k of a (the daemon's record) equals frame k % period of b (stillheart warp's); n frames. */
@@ -213,7 +197,7 @@ static void assert_frames_repeat(const char *a, const char *b, int n, int period
 static void test_two_cameras_loop(void **state)
 {
     (void)state;
-    ok(run("%s run --camera0-spec y4m:%s/cam0.y4m --camera1-spec y4m:%s/cam1.y4m --output-camera 1 "
+    ok(test_run("%s run --camera0-spec y4m:%s/cam0.y4m --camera1-spec y4m:%s/cam1.y4m --output-camera 1 "
            "--no-realtime --loop --max-frames %d " RUN_ARGS " --record %s/loop.y4m",
            bin, tmp, tmp, 2 * N + N / 2, tmp, tmp));
     assert_frames_repeat("loop.y4m", "warp1.y4m", 2 * N + N / 2, N);
@@ -226,15 +210,15 @@ static void test_two_cameras_loop(void **state)
 static void test_recording_cameras(void **state)
 {
     (void)state;
-    ok(run("%s record --source y4m:%s/cam0.y4m --source y4m:%s/cam1.y4m --fast --tolerance-ms 19 --max-wait-ms 1000 "
+    ok(test_run("%s record --source y4m:%s/cam0.y4m --source y4m:%s/cam1.y4m --fast --tolerance-ms 19 --max-wait-ms 1000 "
            "--frames %d %s/rig",
            bin, tmp, tmp, N, tmp));
-    ok(run("%s run --camera0-spec rec:%s/rig --camera1-spec rec:%s/rig --output-camera 1 --no-realtime --no-loop "
+    ok(test_run("%s run --camera0-spec rec:%s/rig --camera1-spec rec:%s/rig --output-camera 1 --no-realtime --no-loop "
            "--sync-tolerance-ms 19 " RUN_ARGS " --record %s/fromrec.y4m",
            bin, tmp, tmp, tmp, tmp));
     char want[64];
     snprintf(want, sizeof want, "sets: %d (0 incomplete)", N);
-    if (!strstr(out, want)) fail_msg("no '%s' in:\n%s", want, out);
+    if (!strstr(test_out, want)) fail_msg("no '%s' in:\n%s", want, test_out);
     assert_frames_repeat("fromrec.y4m", "warp1.y4m", N, N);
 }
 
@@ -242,15 +226,15 @@ static void test_recording_cameras(void **state)
 static void test_camera_ends_others_go_on(void **state)
 {
     (void)state;
-    ok(run("%s run --camera0-spec y4m:%s/cam0.y4m --camera1-spec y4m:%s/short1.y4m "
+    ok(test_run("%s run --camera0-spec y4m:%s/cam0.y4m --camera1-spec y4m:%s/short1.y4m "
                          "--no-realtime --no-loop " RUN_ARGS " --record %s/short.y4m --stats",
                          bin, tmp, tmp, tmp, tmp));
     char want[64];
     snprintf(want, sizeof want, "sets: %d (%d incomplete)", N, N - SHORT);
-    if (!strstr(out, want)) fail_msg("no '%s' in:\n%s", want, out);
+    if (!strstr(test_out, want)) fail_msg("no '%s' in:\n%s", want, test_out);
     snprintf(want, sizeof want, "stats: %d published", N);
-    assert_non_null(strstr(out, want));
-    ok(run("cmp %s/short.y4m %s/warp0.y4m", tmp, tmp));
+    assert_non_null(strstr(test_out, want));
+    ok(test_run("cmp %s/short.y4m %s/warp0.y4m", tmp, tmp));
 }
 
 /* Camera 1 at twice camera 0's rate: its odd frames fall between camera 0's and form sets of
@@ -260,12 +244,12 @@ static void test_camera_ends_others_go_on(void **state)
 static void test_cameras_at_two_rates(void **state)
 {
     (void)state;
-    ok(run("%s run --camera0-spec y4m:%s/cam0.y4m --camera1-spec y4m:%s/double1.y4m --no-realtime --no-loop "
+    ok(test_run("%s run --camera0-spec y4m:%s/cam0.y4m --camera1-spec y4m:%s/double1.y4m --no-realtime --no-loop "
            RUN_ARGS " --record %s/rates.y4m --stats",
            bin, tmp, tmp, tmp, tmp));
     char want[64];
     snprintf(want, sizeof want, "stats: %d published", N);
-    if (!strstr(out, want) || !strstr(out, "0 dropped while processing was behind")) fail_msg("in:\n%s", out);
+    if (!strstr(test_out, want) || !strstr(test_out, "0 dropped while processing was behind")) fail_msg("in:\n%s", test_out);
     assert_frames_repeat("rates.y4m", "warp0.y4m", N, N);
 }
 
@@ -279,7 +263,7 @@ static void test_status_names_cameras(void **state)
     int fd = socket(AF_UNIX, SOCK_DGRAM, 0);
     assert_true(fd >= 0);
     assert_int_equal(bind(fd, (struct sockaddr *)&a, sizeof a), 0);
-    ok(run("NOTIFY_SOCKET=%s %s run --camera0-spec y4m:%s/long0.y4m --camera1-spec y4m:%s/short1.y4m --realtime "
+    ok(test_run("NOTIFY_SOCKET=%s %s run --camera0-spec y4m:%s/long0.y4m --camera1-spec y4m:%s/short1.y4m --realtime "
            "--no-loop " RUN_ARGS " --quiet",
            a.sun_path, bin, tmp, tmp, tmp));
     char msg[512], statuses[4096] = "";
@@ -362,12 +346,12 @@ static pid_t spawn(const char *fmt, ...)
 {
     va_list ap;
     va_start(ap, fmt);
-    vsnprintf(cmd, sizeof cmd, fmt, ap);
+    vsnprintf(test_cmd, sizeof test_cmd, fmt, ap);
     va_end(ap);
     pid_t pid = fork();
     assert_true(pid >= 0);
     if (!pid) {
-        execl("/bin/sh", "sh", "-c", cmd, (char *)NULL);
+        execl("/bin/sh", "sh", "-c", test_cmd, (char *)NULL);
         _exit(127);
     }
     return pid;
@@ -439,7 +423,7 @@ static void test_output_camera_lost(void **state)
     close(nl->fd);
     char err[8192], cat[65536];
     slurp("lost.err", err, sizeof err);
-    slurp("lost.out", out, sizeof out);
+    slurp("lost.out", test_out, sizeof test_out);
     slurp("lost.cat", cat, sizeof cat);
     if (!WIFEXITED(st) || WEXITSTATUS(st)) fail_msg("daemon exit %d:\n%s", st, err);
     /* stillheart-cat never waited 1.5 s for a frame: it ended with the daemon's clean close */
@@ -455,9 +439,9 @@ static void test_output_camera_lost(void **state)
         strstr(cat, "raw: no reference yet") > first_black || !strstr(last_black, "raw: no reference yet"))
         fail_msg("%d black frames; stillheart-cat -v:\n%.3000s", blacks, cat);
     unsigned long long black_count = 0;
-    const char *bl = strstr(out, "models built, ");
+    const char *bl = strstr(test_out, "models built, ");
     if (!bl || sscanf(bl, "models built, %llu black frames", &black_count) != 1 || black_count < (unsigned)blacks)
-        fail_msg("stats: %s (stillheart-cat saw %d black frames)", out, blacks);
+        fail_msg("stats: %s (stillheart-cat saw %d black frames)", test_out, blacks);
     if (!notify_seen(nl, "STATUS=camera 0 lost, waiting for its frames") ||
         !notify_seen(nl, "output camera lost") || !notify_seen(nl, "1/2 cameras (camera 0 lost)"))
         fail_msg("notifications:\n%s", notify_dump(nl));
@@ -527,11 +511,11 @@ static void test_hung_processing_stops_watchdog(void **state)
 
 static void refused(const char *args, int want_rc, const char *want1, const char *want2)
 {
-    int rc = run("%s run --group= --sink none %s", bin, args);
+    int rc = test_run("%s run --group= --sink none %s", bin, args);
     if (want_rc >= 0) assert_int_equal(rc, want_rc);
     else assert_int_not_equal(rc, 0);
-    if (!strstr(out, want1) || (want2 && !strstr(out, want2)))
-        fail_msg("'%s' / '%s' not in:\n%s", want1, want2 ? want2 : "", out);
+    if (!strstr(test_out, want1) || (want2 && !strstr(test_out, want2)))
+        fail_msg("'%s' / '%s' not in:\n%s", want1, want2 ? want2 : "", test_out);
 }
 
 static void test_refusals(void **state)

@@ -30,12 +30,14 @@ static double nrand(void)
     return r * cos(2 * PI * urand());
 }
 
+static double second_harmonic = 1; /* 0: a purely sinusoidal beat */
+
 static void truth(int i, int f, double *x, double *y)
 {
-    double t = f / FPS, ph = 0.3 * i;
-    *x = 300 + 120 * i + 15 * cos(2 * PI * FH * t + ph) + 4 * sin(4 * PI * FH * t + ph) +
+    double t = f / FPS, ph = 0.3 * i, h2 = second_harmonic;
+    *x = 300 + 120 * i + 15 * cos(2 * PI * FH * t + ph) + 4 * h2 * sin(4 * PI * FH * t + ph) +
          6 * cos(2 * PI * FR * t);
-    *y = 400 + 40 * (i % 2) + 10 * sin(2 * PI * FH * t + ph) + 3 * cos(4 * PI * FH * t) +
+    *y = 400 + 40 * (i % 2) + 10 * sin(2 * PI * FH * t + ph) + 3 * h2 * cos(4 * PI * FH * t) +
          9 * sin(2 * PI * FR * t);
 }
 
@@ -133,6 +135,28 @@ static void test_rates_and_occlusion(void **state)
     assert_true(fabs(s.resp_hz - FR) < 0.05 * FR);
     assert_true(sum / cnt < 1.0);
     assert_true(worst < 3.0);
+    sh_tracker_destroy(t);
+}
+
+/* A beat with no second harmonic: the harmonic sum at FH / 2 holds FH's power too (as its second
+ * harmonic), so a periodogram alone can settle on half the rate. Every estimate over 40 s, from
+ * the lock on, must be FH. */
+static void test_sinusoidal_beat_not_halved(void **state)
+{
+    (void)state;
+    second_harmonic = 0;
+    sh_tracker *t = make(1);
+    int estimates = 0;
+    for (int f = 0; f < 40 * FPS; f++) {
+        step(t, f, NULL, NULL, 0);
+        sh_track_stats s;
+        sh_tracker_stats(t, &s);
+        if (!s.locked || f % 15) continue;
+        assert_true(fabs(s.heart_hz - FH) < 0.01 * FH);
+        estimates++;
+    }
+    assert_true(estimates > 60);
+    second_harmonic = 1;
     sh_tracker_destroy(t);
 }
 
@@ -398,6 +422,7 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_rates_and_occlusion),
+        cmocka_unit_test(test_sinusoidal_beat_not_halved),
         cmocka_unit_test(test_gating_duplicates_unknown),
         cmocka_unit_test(test_lost_and_reacquired),
         cmocka_unit_test(test_shape_refusals),

@@ -38,10 +38,11 @@ pixconv-ref: $(BUILD)/make_pixconv_ref
 endif
 
 # test_record_cli runs `stillheart record` of the same build (the ASan build tests the ASan one).
-$(BUILD)/tools/capture/tests/test_record_cli.o: CFLAGS_ALL += -DRECORD_BIN='"$(abspath $(BUILD))/stillheart"'
-$(BUILD)/tests/test_record_cli: $(BUILD)/tools/capture/tests/test_record_cli.o $(LIB) $(BUILD)/stillheart
+$(BUILD)/tools/capture/tests/test_record_cli.o: CFLAGS_ALL += -DRECORD_BIN='"$(abspath $(BUILD))/stillheart"' -Itests/unit
+$(BUILD)/tests/test_record_cli: $(BUILD)/tools/capture/tests/test_record_cli.o $(BUILD)/tests/unit/shell.o $(LIB) \
+		$(BUILD)/stillheart
 	@mkdir -p $(dir $@)
-	$(CC) $(LDFLAGS) $< $(LIB) $(shell $(PKG_CONFIG) --libs cmocka) $(LDLIBS_ALL) -o $@
+	$(CC) $(LDFLAGS) $< $(BUILD)/tests/unit/shell.o $(LIB) $(shell $(PKG_CONFIG) --libs cmocka) $(LDLIBS_ALL) -o $@
 TOOL_TESTS += $(BUILD)/tests/test_record_cli
 
 # stillheart-vmprobe: the capture checks run inside the QEMU guest of tests/vm/run.sh.

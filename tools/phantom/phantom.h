@@ -190,6 +190,8 @@ typedef struct {
     const double *dist;   /* NULL: no lens distortion; else k1 k2 p1 p2 k3 for every camera */
     double noise;         /* < 0: default */
     double exposure;      /* <= 0: 1 */
+    int periodic;         /* 1: heart and respiration rates rounded to whole cycles over the
+                           * sequence, so that it loops without a jump (frame `frames` = frame 0) */
 } phantom_options;
 
 void phantom_options_default(phantom_options *o);

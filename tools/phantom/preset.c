@@ -210,6 +210,20 @@ sh_status phantom_model_build(const phantom_options *o, phantom_model *m)
         m->pad_falloff = 20.0;
         m->pad_radius = 4.0;
     }
+    if (o->periodic) {
+        /* the instrument shaft already moves with the sequence's period (below); the heart and the
+         * breath each get the nearest whole number of cycles (at least one) */
+        double dur = m->frames / m->fps;
+        double heart = fmax(1.0, round(m->heart_hz * dur)) / dur;
+        double resp = m->resp_hz > 0 ? fmax(1.0, round(m->resp_hz * dur)) / dur : 0;
+        if (fabs(heart / m->heart_hz - 1) > 0.1 || (resp > 0 && fabs(resp / m->resp_hz - 1) > 0.1))
+            return sh_error_set(SH_EINVAL,
+                                "--periodic: %d frames at %g fps (%.2f s) hold no whole number of cycles "
+                                "within 10 %% of the heart's %.3g Hz%s; render more frames",
+                                m->frames, m->fps, dur, m->heart_hz, m->resp_hz > 0 ? " and the breath's" : "");
+        m->heart_hz = heart;
+        m->resp_hz = resp;
+    }
 
     snprintf(m->family, sizeof m->family, "%s", o->family ? o->family : "tag36h11");
     int codes = family_codes(m->family);

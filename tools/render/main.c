@@ -39,6 +39,10 @@ static void usage(FILE *f)
 "  --occlusions       an instrument shaft crossing the view, blood blobs covering markers for\n"
 "                     a while, and a decoy tag on a card beside the heart (not in markers.csv)\n"
 "  --bpm B            heart rate in beats per minute (default 42 exvivo, 80 invivo)\n"
+"  --periodic         a sequence that loops without a jump: the heart and respiration rates\n"
+"                     are rounded to whole cycles over it (refused beyond 10 %% of the asked\n"
+"                     rate) and the Y4M headers carry XLOOP=SEAMLESS, which tells a looping\n"
+"                     replay (stillheart run --loop) that the motion goes on across the loop\n"
 "  --markers N        number of markers (default 16 exvivo, 14 invivo)\n"
 "  --tag-size MM      edge of a tag's black border in mm (default 10 exvivo, 8 invivo)\n"
 "  --family NAME      tag36h11 (default), tag25h9, tag16h5 or tagStandard41h12\n"
@@ -275,7 +279,7 @@ int main(int argc, char **argv)
     int ids[PHANTOM_MAX_MARKERS];
     enum { O_PRESET = 256, O_FRAMES, O_CAMERAS, O_WIDTH, O_HEIGHT, O_SEED, O_OCC, O_BPM, O_MARKERS,
            O_TAG, O_FAMILY, O_IDS, O_FPS, O_DIST, O_NOISE, O_EXPOSURE, O_OUT, O_QUIET, O_HELP,
-           O_TARGET };
+           O_TARGET, O_PERIODIC };
     static const struct option opts[] = {
         {"preset", 1, 0, O_PRESET}, {"frames", 1, 0, O_FRAMES}, {"cameras", 1, 0, O_CAMERAS},
         {"width", 1, 0, O_WIDTH}, {"height", 1, 0, O_HEIGHT}, {"seed", 1, 0, O_SEED},
@@ -283,7 +287,8 @@ int main(int argc, char **argv)
         {"tag-size", 1, 0, O_TAG}, {"family", 1, 0, O_FAMILY}, {"ids", 1, 0, O_IDS},
         {"fps", 1, 0, O_FPS}, {"distortion", 1, 0, O_DIST}, {"noise", 1, 0, O_NOISE},
         {"exposure", 1, 0, O_EXPOSURE}, {"out", 1, 0, O_OUT}, {"quiet", 0, 0, O_QUIET},
-        {"help", 0, 0, O_HELP}, {"calib-target", 1, 0, O_TARGET}, {0, 0, 0, 0}};
+        {"help", 0, 0, O_HELP}, {"calib-target", 1, 0, O_TARGET},
+        {"periodic", 0, 0, O_PERIODIC}, {0, 0, 0, 0}};
     rd_board board;
     int board_mode = 0;
     const char *heart_option = NULL; /* the last option that only the heart uses */
@@ -294,7 +299,7 @@ int main(int argc, char **argv)
     int idx;
     while ((ch = getopt_long(argc, argv, "", opts, &idx)) != -1) {
         if (ch == O_PRESET || ch == O_OCC || ch == O_BPM || ch == O_MARKERS || ch == O_TAG || ch == O_FAMILY ||
-            ch == O_IDS)
+            ch == O_IDS || ch == O_PERIODIC)
             heart_option = opts[idx].name;
         switch (ch) {
         case O_PRESET: o.preset = optarg; break;
@@ -333,6 +338,7 @@ int main(int argc, char **argv)
         case O_EXPOSURE: if (!parse_double(optarg, &dv) || !(dv > 0 && dv <= 16)) BAD("--exposure '%s': a gain in (0, 16]", optarg); o.exposure = dv; break;
         case O_OUT: out = optarg; break;
         case O_QUIET: quiet = 1; break;
+        case O_PERIODIC: o.periodic = 1; break;
         case O_TARGET:
             if (rd_board_parse(optarg, &board) != SH_OK) BAD("%s", sh_error_message());
             board_mode = 1;
@@ -428,6 +434,7 @@ int main(int argc, char **argv)
     hdr.fps_den = m.fps == (int)m.fps ? 1 : 1000;
     hdr.aspect_num = hdr.aspect_den = 1;
     hdr.interlace = 'p';
+    if (o.periodic) snprintf(hdr.extra, sizeof hdr.extra, "%s", SH_Y4M_LOOP_SEAMLESS);
     for (int c = 0; c < m.num_cameras; c++) {
         snprintf(path, sizeof path, "%s/cam%d.y4m", out, c);
         if (sh_y4m_writer_open(path, &hdr, &p.writers[c]) != SH_OK) FAIL();

@@ -11,7 +11,6 @@
  * less than 99 ms apart, whatever the speed of the machine. Frames that arrive late are stamped
  * by the schedule, not by their arrival, and are waited for up to --max-wait-ms. */
 #include <setjmp.h>
-#include <stdarg.h>
 #include <stddef.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -21,33 +20,18 @@
 
 #include <cmocka.h>
 
+#include "shell.h"
+
 #include "stillheart/y4m.h"
 
 enum { W = 48, H = 32, N = 6, FPS = 5 };
-static char tmp[64], cmd[1024], out[4096];
-
-/* Runs a shell command; returns its exit status and its stderr+stdout in out. */
-static int run(const char *fmt, ...)
-{
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(cmd, sizeof cmd, fmt, ap);
-    va_end(ap);
-    char full[1200];
-    snprintf(full, sizeof full, "%s 2>&1", cmd);
-    FILE *p = popen(full, "r");
-    assert_non_null(p);
-    size_t n = fread(out, 1, sizeof out - 1, p);
-    out[n] = 0;
-    int st = pclose(p);
-    return WIFEXITED(st) ? WEXITSTATUS(st) : -1;
-}
+static char tmp[64];
 
 static int setup(void **state)
 {
     (void)state;
     snprintf(tmp, sizeof tmp, "/tmp/sh-test-reccli-%d", (int)getpid());
-    run("rm -rf %s && mkdir -p %s", tmp, tmp);
+    test_run("rm -rf %s && mkdir -p %s", tmp, tmp);
     /* an input Y4M: frame n, pixel i = n * 7 + i */
     sh_y4m_header h;
     memset(&h, 0, sizeof h);
@@ -77,19 +61,19 @@ static int setup(void **state)
 static int teardown(void **state)
 {
     (void)state;
-    run("rm -rf %s", tmp);
+    test_run("rm -rf %s", tmp);
     return 0;
 }
 
 static void test_record_and_convert(void **state)
 {
     (void)state;
-    assert_int_equal(run("%s record --source y4m:%s/in.y4m --source y4m:%s/in.y4m --tolerance-ms 99 --max-wait-ms 1000 "
+    assert_int_equal(test_run("%s record --source y4m:%s/in.y4m --source y4m:%s/in.y4m --tolerance-ms 99 --max-wait-ms 1000 "
                          "--frames %d %s/rec",
                          RECORD_BIN, tmp, tmp, N, tmp),
                      0);
-    assert_non_null(strstr(out, "6 sets (0 incomplete)"));
-    assert_int_equal(run("%s record --to-y4m %s/rec %s/cam1.y4m --camera 1", RECORD_BIN, tmp, tmp), 0);
+    assert_non_null(strstr(test_out, "6 sets (0 incomplete)"));
+    assert_int_equal(test_run("%s record --to-y4m %s/rec %s/cam1.y4m --camera 1", RECORD_BIN, tmp, tmp), 0);
     /* same frames as the input */
     char a[128], b[128];
     snprintf(a, sizeof a, "%s/in.y4m", tmp);
@@ -117,11 +101,11 @@ static void test_record_and_convert(void **state)
     sh_y4m_reader_close(ra);
     sh_y4m_reader_close(rb);
     /* and the recording replays as a source */
-    assert_int_equal(run("%s record --source rec:%s/rec --fast --frames 4 %s/rec2", RECORD_BIN, tmp, tmp), 0);
-    assert_non_null(strstr(out, "4 frames recorded"));
+    assert_int_equal(test_run("%s record --source rec:%s/rec --fast --frames 4 %s/rec2", RECORD_BIN, tmp, tmp), 0);
+    assert_non_null(strstr(test_out, "4 frames recorded"));
     /* an existing recording is not overwritten */
-    assert_int_equal(run("%s record --source y4m:%s/in.y4m --frames 1 %s/rec", RECORD_BIN, tmp, tmp), 1);
-    assert_non_null(strstr(out, "already"));
+    assert_int_equal(test_run("%s record --source y4m:%s/in.y4m --frames 1 %s/rec", RECORD_BIN, tmp, tmp), 1);
+    assert_non_null(strstr(test_out, "already"));
 }
 
 /* The cameras of a config file, as the daemon reads them: the same sets and frames as the
@@ -137,49 +121,49 @@ static void test_record_config(void **state)
                "[camera1]\nspec = y4m:%s/in.y4m\n[trigger]\nmode = off\n",
             tmp, tmp);
     fclose(f);
-    assert_int_equal(run("%s record --config %s --frames %d %s/rec_cfg", RECORD_BIN, path, N, tmp), 0);
-    assert_non_null(strstr(out, "6 sets (0 incomplete)"));
-    assert_non_null(strstr(out, "camera 1: y4m:"));
+    assert_int_equal(test_run("%s record --config %s --frames %d %s/rec_cfg", RECORD_BIN, path, N, tmp), 0);
+    assert_non_null(strstr(test_out, "6 sets (0 incomplete)"));
+    assert_non_null(strstr(test_out, "camera 1: y4m:"));
     for (int c = 0; c < 2; c++) {
-        assert_int_equal(run("%s record --to-y4m %s/rec_cfg %s/cfg%d.y4m --camera %d", RECORD_BIN, tmp, tmp, c, c), 0);
-        assert_int_equal(run("%s record --to-y4m %s/rec %s/src%d.y4m --camera %d", RECORD_BIN, tmp, tmp, c, c), 0);
-        assert_int_equal(run("cmp %s/cfg%d.y4m %s/src%d.y4m", tmp, c, tmp, c), 0);
+        assert_int_equal(test_run("%s record --to-y4m %s/rec_cfg %s/cfg%d.y4m --camera %d", RECORD_BIN, tmp, tmp, c, c), 0);
+        assert_int_equal(test_run("%s record --to-y4m %s/rec %s/src%d.y4m --camera %d", RECORD_BIN, tmp, tmp, c, c), 0);
+        assert_int_equal(test_run("cmp %s/cfg%d.y4m %s/src%d.y4m", tmp, c, tmp, c), 0);
     }
     /* refusals: camera options beside --config, a missing file, a bad key, a missing camera */
-    assert_int_equal(run("%s record --config %s --source y4m:%s/in.y4m --frames 1 %s/r", RECORD_BIN, path, tmp, tmp), 2);
-    assert_non_null(strstr(out, "--config gives the cameras"));
-    assert_int_equal(run("%s record --config %s/none.ini --frames 1 %s/r", RECORD_BIN, tmp, tmp), 2);
-    assert_non_null(strstr(out, "none.ini: cannot open"));
+    assert_int_equal(test_run("%s record --config %s --source y4m:%s/in.y4m --frames 1 %s/r", RECORD_BIN, path, tmp, tmp), 2);
+    assert_non_null(strstr(test_out, "--config gives the cameras"));
+    assert_int_equal(test_run("%s record --config %s/none.ini --frames 1 %s/r", RECORD_BIN, tmp, tmp), 2);
+    assert_non_null(strstr(test_out, "none.ini: cannot open"));
     f = fopen(path, "w");
     assert_non_null(f);
     fprintf(f, "[camera0]\nspec = y4m:%s/in.y4m\nfps = fast\n", tmp);
     fclose(f);
-    assert_int_equal(run("%s record --config %s --frames 1 %s/r", RECORD_BIN, path, tmp), 2);
-    assert_non_null(strstr(out, "rig.ini:3: [camera0] fps: 'fast'"));
+    assert_int_equal(test_run("%s record --config %s --frames 1 %s/r", RECORD_BIN, path, tmp), 2);
+    assert_non_null(strstr(test_out, "rig.ini:3: [camera0] fps: 'fast'"));
     f = fopen(path, "w");
     assert_non_null(f);
     fprintf(f, "[camera0]\nspec = y4m:%s/in.y4m\n[camera1]\nspec = y4m:%s/gone.y4m\n", tmp, tmp);
     fclose(f);
-    assert_int_equal(run("%s record --config %s --frames 1 %s/r", RECORD_BIN, path, tmp), 1);
-    assert_non_null(strstr(out, "[camera1] spec: "));
-    assert_non_null(strstr(out, "gone.y4m"));
+    assert_int_equal(test_run("%s record --config %s --frames 1 %s/r", RECORD_BIN, path, tmp), 1);
+    assert_non_null(strstr(test_out, "[camera1] spec: "));
+    assert_non_null(strstr(test_out, "gone.y4m"));
 }
 
 static void test_refusals(void **state)
 {
     (void)state;
-    assert_int_equal(run("%s record --source v4l2:/dev/video-missing --frames 1 %s/r", RECORD_BIN, tmp), 1);
-    assert_non_null(strstr(out, "/dev/video-missing"));
-    assert_int_equal(run("%s record --source webcam --frames 1 %s/r", RECORD_BIN, tmp), 1);
-    assert_int_equal(run("%s record --to-y4m %s/nothing %s/x.y4m", RECORD_BIN, tmp, tmp), 1);
-    assert_non_null(strstr(out, "nothing"));
-    assert_int_equal(run("%s record --source y4m:%s/in.y4m %s/r", RECORD_BIN, tmp, tmp), 2); /* no --frames */
+    assert_int_equal(test_run("%s record --source v4l2:/dev/video-missing --frames 1 %s/r", RECORD_BIN, tmp), 1);
+    assert_non_null(strstr(test_out, "/dev/video-missing"));
+    assert_int_equal(test_run("%s record --source webcam --frames 1 %s/r", RECORD_BIN, tmp), 1);
+    assert_int_equal(test_run("%s record --to-y4m %s/nothing %s/x.y4m", RECORD_BIN, tmp, tmp), 1);
+    assert_non_null(strstr(test_out, "nothing"));
+    assert_int_equal(test_run("%s record --source y4m:%s/in.y4m %s/r", RECORD_BIN, tmp, tmp), 2); /* no --frames */
     /* a trigger line on a chip that is not there, with or without libgpiod in the build */
-    assert_int_equal(run("%s record --source y4m:%s/in.y4m --trigger-out gpiochip-missing:1 --fps 25 --frames 1 %s/t",
+    assert_int_equal(test_run("%s record --source y4m:%s/in.y4m --trigger-out gpiochip-missing:1 --fps 25 --frames 1 %s/t",
                          RECORD_BIN, tmp, tmp),
                      1);
-    assert_non_null(strstr(out, "gpiochip-missing"));
-    assert_int_equal(run("%s record --source y4m:%s/in.y4m --trigger-out gpiochip0 --frames 1 %s/t", RECORD_BIN,
+    assert_non_null(strstr(test_out, "gpiochip-missing"));
+    assert_int_equal(test_run("%s record --source y4m:%s/in.y4m --trigger-out gpiochip0 --frames 1 %s/t", RECORD_BIN,
                          tmp, tmp),
                      2);
 }

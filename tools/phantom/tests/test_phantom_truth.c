@@ -1,6 +1,7 @@
 /* The ground-truth library: the parameter file round-trips bit for bit, locate inverts project,
  * where(ref -> ref) is the identity, marker truth equals the renderer's CSV, the calibration file
- * reads back as the model's cameras, the motion is non-affine, and the readers refuse garbage. */
+ * reads back as the model's cameras, the motion is non-affine, --periodic loops without a jump,
+ * and the readers refuse garbage. */
 #include <math.h>
 #include <setjmp.h>
 #include <stdarg.h>
@@ -220,6 +221,48 @@ static void test_motion_is_not_affine(void **state)
     assert_true(worst > 3.0);
 }
 
+/* --periodic: the surface at t = frames / fps is the surface at t = 0 for both presets (heart and
+ * respiration in whole cycles), the rates moved by less than 10 %; a sequence too short to hold
+ * whole cycles near the asked rate is refused. */
+static void test_periodic_loops_without_a_jump(void **state)
+{
+    (void)state;
+    const char *presets[] = {"exvivo", "invivo"};
+    for (int p = 0; p < 2; p++) {
+        phantom_options o;
+        phantom_options_default(&o);
+        o.preset = presets[p];
+        o.frames = 129;
+        o.periodic = 1;
+        phantom_model m, plain;
+        assert_int_equal(phantom_model_build(&o, &m), SH_OK);
+        o.periodic = 0;
+        assert_int_equal(phantom_model_build(&o, &plain), SH_OK);
+        double dur = m.frames / m.fps;
+        assert_true(fabs(m.heart_hz / plain.heart_hz - 1) <= 0.1);
+        assert_true(fabs(m.heart_hz * dur - round(m.heart_hz * dur)) < 1e-9);
+        if (plain.resp_hz > 0) assert_true(fabs(m.resp_hz * dur - round(m.resp_hz * dur)) < 1e-9);
+        double worst = 0, moved = 0;
+        for (double u = -40; u <= 40; u += 20)
+            for (double v = -30; v <= 30; v += 15) {
+                double a[3], b[3], c[3];
+                phantom_surface(&m, u, v, 0, a);
+                phantom_surface(&m, u, v, dur, b);
+                phantom_surface(&m, u, v, 0.3 * dur, c);
+                worst = fmax(worst, hypot(hypot(a[0] - b[0], a[1] - b[1]), a[2] - b[2]));
+                moved = fmax(moved, hypot(hypot(a[0] - c[0], a[1] - c[1]), a[2] - c[2]));
+            }
+        assert_true(worst < 1e-9);
+        assert_true(moved > 0.5); /* mm: the heart does move in between */
+    }
+    phantom_options o;
+    phantom_options_default(&o);
+    o.frames = 10; /* 0.43 s: 0.3 beats at 0.7 Hz */
+    o.periodic = 1;
+    phantom_model m;
+    assert_int_not_equal(phantom_model_build(&o, &m), SH_OK);
+}
+
 static void test_readers_refuse_garbage(void **state)
 {
     (void)state;
@@ -281,6 +324,7 @@ int main(void)
         cmocka_unit_test(test_markers_match_csv),
         cmocka_unit_test(test_calibration_reads_back),
         cmocka_unit_test(test_motion_is_not_affine),
+        cmocka_unit_test(test_periodic_loops_without_a_jump),
         cmocka_unit_test(test_readers_refuse_garbage),
     };
     return cmocka_run_group_tests(tests, NULL, teardown);
