@@ -5,9 +5,10 @@
  * thread), gates, warps and publishes to the shared-memory display buffer with status, reason,
  * markers used and residual.
  *
- * Here: options, start-up, signals, the control socket, sinks, systemd and statistics. The
- * source thread and the mailbox are in run_source.c; one frame's processing in run_proc.c
- * (run_track.c: tracker and selection, run_model.c: models and residual). */
+ * Here: options, the loop, signals, systemd and statistics. Opening, closing and, on SIGHUP,
+ * swapping the pipeline's pieces (source, processing, display, record, control socket) is in
+ * run_pipeline.c; the source thread and the mailbox in run_source.c; one frame's processing in
+ * run_proc.c (run_track.c: tracker and selection, run_model.c: models and residual). */
 #include <errno.h>
 #ifdef __GLIBC__
 #include <malloc.h>
@@ -25,8 +26,7 @@
 
 #include "app.h"
 #include "run.h"
-#include "run_proc.h"
-#include "run_source.h"
+#include "run_pipeline.h"
 #include "stillheart/config.h"
 #include "stillheart/detect.h"
 #include "stillheart/display.h"
@@ -91,8 +91,11 @@ static void usage(FILE *out)
         "                     stage CPU times (markers, model, warp) and latency in ms\n"
         "  --print-config     print the resulting config as INI and exit\n"
         "  --quiet            errors and warnings only\n"
-        "signals: SIGTERM/SIGINT stop (segment marked closed), SIGHUP reloads the config file,\n"
-        "SIGUSR1 takes a new reference frame.\n");
+        "signals: SIGTERM/SIGINT stop (segment marked closed). SIGHUP reloads the config file and\n"
+        "applies every key in place: changed cameras are closed and the new ones opened, changed\n"
+        "processing starts again with a new reference, the display segment is kept unless its name,\n"
+        "size, format or slots change; a config that cannot run is refused and the running one kept\n"
+        "(the previous cameras reopened). SIGUSR1 takes a new reference frame.\n");
 }
 
 typedef struct {
@@ -168,17 +171,10 @@ static int cmp_float(const void *a, const void *b)
     return (x > y) - (x < y);
 }
 
-/* The frame shown while the output camera is lost: black in the display's format and range. */
-static sh_status black_frame(const sh_y4m_header *hdr, sh_image *img)
+/* The output camera's frame period, ns (25 fps when the source does not say). */
+static int64_t frame_period(run_source *src)
 {
-    sh_status st = sh_image_create(img, hdr->format, hdr->width, hdr->height);
-    if (st != SH_OK) return st;
-    uint8_t luma = strstr(hdr->extra, "XCOLORRANGE=FULL") || hdr->format == SH_PIX_RGB24 ? 0 : 16;
-    for (int p = 0; p < img->num_planes; p++)
-        for (int y = 0; y < img->plane[p].height; y++)
-            memset(img->plane[p].data + (size_t)y * img->plane[p].stride, p ? 128 : luma,
-                   (size_t)img->plane[p].width * (size_t)sh_pixfmt_channels(hdr->format));
-    return SH_OK;
+    return run_source_fps(src) > 0 ? (int64_t)(1e9 / run_source_fps(src)) : 40000000;
 }
 
 static long rss_kb(void)
@@ -190,6 +186,38 @@ static long rss_kb(void)
         fclose(f);
     }
     return res * (sysconf(_SC_PAGESIZE) / 1024);
+}
+
+/* SIGHUP: the config file and the command line again, applied to every piece of the pipeline.
+ * systemd hears RELOADING=1 and READY=1 around it, and a watchdog ping on either side: opening
+ * cameras can take a second. Returns -1 when the pipeline cannot run on (the previous cameras
+ * did not come back: the daemon exits non-zero and systemd restarts it), 1 when the cameras were
+ * closed and opened (the new ones or the previous ones again), else 0. */
+static int reload(run_pipeline *pl, const run_opts *ro, int argc, char **argv, uint64_t wd_usec)
+{
+    char err[SH_CONFIG_ERR], what[640];
+    sh_notifyf("RELOADING=1\nMONOTONIC_USEC=%llu\nSTATUS=reloading the config", (unsigned long long)(mono_ns() / 1000));
+    if (wd_usec) sh_notify("WATCHDOG=1");
+    sh_config fresh;
+    run_reload r = RUN_RELOAD_REFUSED;
+    int cams = 0;
+    if (load_config(&fresh, ro->config_path, argc, argv, err) != SH_OK) {
+        snprintf(what, sizeof what, "reload refused, keeping the running config: %s", err);
+    } else {
+        cams = run_source_config_changed(&fresh, &pl->cfg);
+        r = run_pipeline_reload(pl, &fresh, what, sizeof what);
+    }
+    if (r == RUN_RELOAD_FATAL) {
+        logm("ERROR", "main", "%s; exiting for systemd to restart the service", what);
+        sh_notifyf("STATUS=%s", what);
+        return -1;
+    }
+    if (r == RUN_RELOAD_REFUSED) logm("ERROR", "main", "%s", what);
+    else if (what[0]) logm("INFO", "main", "config reloaded: %s", what);
+    else logm("INFO", "main", "config reloaded (gating)");
+    sh_notifyf("READY=1\nSTATUS=%s", r == RUN_RELOAD_APPLIED ? "config reloaded" : what);
+    if (wd_usec) sh_notify("WATCHDOG=1");
+    return cams;
 }
 
 int cmd_run(int argc, char **argv)
@@ -214,44 +242,15 @@ int cmd_run(int argc, char **argv)
      * builder, the processing thread), where a day of model rebuilds fragments and creeps. */
     mallopt(M_MMAP_THRESHOLD, 256 * 1024);
 #endif
-    int rc = 1;
-    run_source *src = NULL;
-    run_proc *proc = NULL;
-    run_ctl *ctl = NULL;
-    sh_display_writer *disp = NULL;
-    run_record *rec = NULL;
+    int rc = 1, fatal = 0;
+    run_pipeline pl;
+    memset(&pl, 0, sizeof pl);
     FILE *trace = NULL;
-    sh_image black;
-    memset(&black, 0, sizeof black);
     float *lat = malloc(sizeof(float) * LAT_CAP);
     if (!lat) { fprintf(stderr, "stillheart run: out of memory\n"); goto done; }
 
-    if (run_source_open(&cfg, logm, &src) != SH_OK) {
+    if (run_pipeline_open(&pl, &cfg, logm) != SH_OK) {
         fprintf(stderr, "stillheart run: %s\n", sh_error_message());
-        goto done;
-    }
-    const sh_y4m_header *hdr = run_source_header(src);
-    sh_y4m_header hcopy = *hdr;
-    if (run_proc_create(&cfg, hdr, run_source_fps(src), run_source_cameras(src), logm, &proc) != SH_OK) {
-        fprintf(stderr, "stillheart run: %s\n", sh_error_message());
-        goto done;
-    }
-    const char *shm_name = NULL;
-    if (!strncmp(cfg.sink, "shm:", 4)) {
-        shm_name = cfg.sink + 4;
-        if (sh_display_writer_create(shm_name, hdr->format, hdr->width, hdr->height, cfg.slots,
-                                     strstr(hdr->extra, "XCOLORRANGE=FULL") != NULL,
-                                     cfg.group[0] ? cfg.group : NULL, &disp) != SH_OK) {
-            fprintf(stderr, "stillheart run: [sink] display: %s\n", sh_error_message());
-            goto done;
-        }
-    }
-    if (black_frame(hdr, &black) != SH_OK) {
-        fprintf(stderr, "stillheart run: %s\n", sh_error_message());
-        goto done;
-    }
-    if (cfg.record[0] && run_record_open(cfg.record, &hcopy, &rec) != SH_OK) {
-        fprintf(stderr, "stillheart run: [sink] record: %s\n", sh_error_message());
         goto done;
     }
     if (ro.trace_path && !(trace = fopen(ro.trace_path, "w"))) {
@@ -259,10 +258,6 @@ int cmd_run(int argc, char **argv)
         goto done;
     }
     if (trace) fprintf(trace, "index,status,markers,residual,reason,markers_ms,model_ms,warp_ms,latency_ms\n");
-    if (cfg.control[0] && run_ctl_open(cfg.control, &ctl) != SH_OK) {
-        fprintf(stderr, "stillheart run: [run] control: %s\n", sh_error_message());
-        goto done;
-    }
 
     struct sigaction sa;
     memset(&sa, 0, sizeof sa);
@@ -274,9 +269,9 @@ int cmd_run(int argc, char **argv)
     sigaction(SIGUSR1, &sa, NULL);
     signal(SIGPIPE, SIG_IGN);
 
-    if (run_source_start(src) != SH_OK) { fprintf(stderr, "stillheart run: %s\n", sh_error_message()); goto done; }
+    if (run_pipeline_start(&pl) != SH_OK) { fprintf(stderr, "stillheart run: %s\n", sh_error_message()); goto done; }
     logm("INFO", "main", "source %s %dx%d %s %.3f fps (%s%s), sink %s, method %s, %s",
-         cfg.source, hdr->width, hdr->height, sh_pixfmt_name(hdr->format), run_source_fps(src),
+         cfg.source, pl.hdr.width, pl.hdr.height, sh_pixfmt_name(pl.hdr.format), run_source_fps(pl.src),
          cfg.realtime ? "real time" : "as fast as possible", cfg.loop ? ", looping" : "", cfg.sink,
          cfg.method_name, cfg.points[0] ? "markers from the points file (test mode)" : "markers detected");
     sh_notify("READY=1\nSTATUS=started, waiting for the reference frame");
@@ -294,7 +289,7 @@ int cmd_run(int argc, char **argv)
     /* The output camera lost: a black raw frame per frame period tells the display, and the
      * watchdog is kept alive while every thread still goes round (a restart cannot bring a
      * camera back; source.h is reopening it). */
-    int64_t period = run_source_fps(src) > 0 ? (int64_t)(1e9 / run_source_fps(src)) : 40000000;
+    int64_t period = frame_period(pl.src);
     int lost = 0, wd_held = 0;
     int64_t lost_since = 0, last_black = 0;
     uint64_t black_count = 0;
@@ -305,37 +300,28 @@ int cmd_run(int argc, char **argv)
     while (!sig_stop) {
         if (sig_hup) {
             sig_hup = 0;
-            sh_config fresh;
-            if (load_config(&fresh, ro.config_path, argc, argv, err) != SH_OK) {
-                logm("ERROR", "main", "reload refused, keeping the running config: %s", err);
-            } else {
-                /* live: gating; the rest needs a restart */
-                int restart = run_source_config_changed(&fresh, &cfg) || strcmp(fresh.sink, cfg.sink) ||
-                              strcmp(fresh.method_name, cfg.method_name) || fresh.threads != cfg.threads ||
-                              strcmp(fresh.points, cfg.points) || fresh.slots != cfg.slots ||
-                              memcmp(&fresh.method, &cfg.method, sizeof cfg.method) ||
-                              strcmp(fresh.family, cfg.family) || strcmp(fresh.record, cfg.record);
-                cfg.min_markers = fresh.min_markers;
-                cfg.max_residual_px = fresh.max_residual_px;
-                cfg.max_sigma_px = fresh.max_sigma_px;
-                cfg.dropout_ms = fresh.dropout_ms;
-                run_proc_set_gating(proc, &cfg);
-                restart |= memcmp(fresh.ids, cfg.ids, sizeof cfg.ids) || strcmp(fresh.control, cfg.control);
-                logm("INFO", "main", "config reloaded (gating)%s",
-                     restart ? "; source/sink/method/ids/threads/control changes take effect at restart" : "");
+            int cams = reload(&pl, &ro, argc, argv, wd_usec);
+            if (cams < 0) { fatal = 1; break; }
+            wd_usec = pl.cfg.watchdog ? sh_notify_watchdog_usec() : 0;
+            last_ping = mono_ns();
+            published_at_ping = published;
+            if (cams) { /* a new stream: its rate, and nothing lost yet; its first frame is logged */
+                period = frame_period(pl.src);
+                lost = wd_held = 0;
+                last_status_shown = 99;
             }
         }
-        int refs = ctl ? run_ctl_poll(ctl, status_line) : 0;
+        int refs = pl.ctl ? run_ctl_poll(pl.ctl, status_line) : 0;
         if (sig_usr1 || refs) {
             logm("INFO", "main", "new reference requested (%s)", sig_usr1 ? "SIGUSR1" : "control socket");
             sig_usr1 = 0;
-            run_proc_request_reference(proc);
+            run_proc_request_reference(pl.proc);
         }
         int wait_ms = lost ? (int)(period / 1000000) : 100;
-        const run_frame *s = run_source_take(src, wait_ms < 1 ? 1 : wait_ms > 100 ? 100 : wait_ms);
+        const run_frame *s = run_source_take(pl.src, wait_ms < 1 ? 1 : wait_ms > 100 ? 100 : wait_ms);
         if (!s) {
-            if (run_source_ended(src)) break;
-            int why = run_source_output_lost(src, lost_text, sizeof lost_text);
+            if (run_source_ended(pl.src)) break;
+            int why = run_source_output_lost(pl.src, lost_text, sizeof lost_text);
             int64_t now = mono_ns();
             if (why && !lost) {
                 lost = 1;
@@ -350,17 +336,17 @@ int cmd_run(int argc, char **argv)
                 shown_info.residual_px = -1; /* capture_ns 0: no camera frame */
                 snprintf(shown_info.reason, sizeof shown_info.reason, "%s",
                          why == 1 ? "output camera lost" : "no sets with the output camera");
-                if (disp && sh_display_writer_publish(disp, &black, &shown_info) != SH_OK)
+                if (pl.disp && sh_display_writer_publish(pl.disp, &pl.black, &shown_info) != SH_OK)
                     logm("ERROR", "main", "publish: %s", sh_error_message());
-                if (rec && run_record_write(rec, &black) != SH_OK) { /* what was shown, PNGs numbered as the display */
+                if (pl.rec && run_record_write(pl.rec, &pl.black) != SH_OK) { /* what was shown, PNGs numbered as the display */
                     logm("ERROR", "main", "[sink] record: %s; recording stopped", sh_error_message());
-                    run_record_close(rec);
-                    rec = NULL;
+                    run_record_close(pl.rec);
+                    pl.rec = NULL;
                 }
                 black_count++;
                 last_black = now;
                 if (snprintf(status_line, sizeof status_line, "%s: black raw frames, %llu published, %llu dropped",
-                             lost_text, (unsigned long long)published, (unsigned long long)run_source_dropped(src)) < 0)
+                             lost_text, (unsigned long long)published, (unsigned long long)run_pipeline_dropped(&pl)) < 0)
                     status_line[0] = 0;
             }
         } else {
@@ -372,7 +358,7 @@ int cmd_run(int argc, char **argv)
             sh_display_frame_info info;
             memset(&info, 0, sizeof info);
             info.capture_ns = s->avail_ns;
-            const sh_image *shown = run_proc_frame(proc, &s->img, s->cam, s->index, s->epoch, &info);
+            const sh_image *shown = run_proc_frame(pl.proc, &s->img, s->cam, s->index, s->epoch, &info);
             uint32_t status = info.status;
             if (status == SH_DISPLAY_RAW) raw_count++;
             if (status == SH_DISPLAY_DEGRADED) degraded_count++;
@@ -383,15 +369,15 @@ int cmd_run(int argc, char **argv)
                 last_status_shown = status;
                 memcpy(last_reason, info.reason, sizeof last_reason);
             }
-            if (disp) {
+            if (pl.disp) {
                 info.publish_ns = mono_ns();
-                if (sh_display_writer_publish(disp, shown, &info) != SH_OK)
+                if (sh_display_writer_publish(pl.disp, shown, &info) != SH_OK)
                     logm("ERROR", "main", "publish: %s", sh_error_message());
             }
-            if (rec && run_record_write(rec, shown) != SH_OK) {
+            if (pl.rec && run_record_write(pl.rec, shown) != SH_OK) {
                 logm("ERROR", "main", "[sink] record: %s; recording stopped", sh_error_message());
-                run_record_close(rec);
-                rec = NULL;
+                run_record_close(pl.rec);
+                pl.rec = NULL;
             }
             int64_t done_ns = mono_ns();
             if (nlat < LAT_CAP) lat[nlat++] = (float)((double)(done_ns - s->avail_ns) / 1e6);
@@ -403,10 +389,10 @@ int cmd_run(int argc, char **argv)
                      "frame %d: %s%s%s, %u markers, residual %.2f px, %llu published, %llu dropped", s->index,
                      names[status], info.reason[0] ? ": " : "", info.reason, info.markers_used,
                      (double)info.residual_px, (unsigned long long)published,
-                     (unsigned long long)run_source_dropped(src));
+                     (unsigned long long)run_pipeline_dropped(&pl));
             if (trace) {
                 double tm, tmod, tw;
-                run_proc_times(proc, &tm, &tmod, &tw);
+                run_proc_times(pl.proc, &tm, &tmod, &tw);
                 fprintf(trace, "%d,%s,%u,%.3f,\"%s\",%.3f,%.3f,%.3f,%.3f\n", s->index, names[status], info.markers_used,
                         (double)info.residual_px, info.reason, tm, tmod, tw, (double)(done_ns - s->avail_ns) / 1e6);
             }
@@ -418,17 +404,17 @@ int cmd_run(int argc, char **argv)
         if ((published || black_count) && now - last_status >= 1000000000) {
             double fps = (double)(published - published_at_status) * 1e9 / (double)(now - last_status);
             char cams[128];
-            run_source_online(src, cams, sizeof cams);
+            run_source_online(pl.src, cams, sizeof cams);
             sh_notifyf("STATUS=%s%s%.1f fps, %u markers, %s%s%s, %llu dropped, %s", lost ? lost_text : "",
                        lost ? ": " : "", fps, shown_info.markers_used, names[shown_info.status],
                        shown_info.reason[0] ? " " : "", shown_info.reason,
-                       (unsigned long long)run_source_dropped(src), cams);
+                       (unsigned long long)run_pipeline_dropped(&pl), cams);
             last_status = now;
             published_at_status = published;
         }
         if (wd_usec && now - last_ping >= (int64_t)wd_usec * 500) {
             int progress = published > published_at_ping;
-            int alive = !progress && lost && run_source_alive(src, (int64_t)wd_usec * 500, stale, sizeof stale);
+            int alive = !progress && lost && run_source_alive(pl.src, (int64_t)wd_usec * 500, stale, sizeof stale);
             if (progress || alive) {
                 sh_notify("WATCHDOG=1");
                 last_ping = now;
@@ -442,7 +428,7 @@ int cmd_run(int argc, char **argv)
     }
     sh_notify("STOPPING=1");
     sig_stop = 1;
-    rc = 0;
+    rc = fatal; /* non-zero: systemd's Restart=on-failure starts the service again */
     if (ro.stats || !log_quiet) {
         qsort(lat, nlat, sizeof *lat, cmp_float);
         double med = nlat ? lat[nlat / 2] : 0, p99 = nlat ? lat[(size_t)((double)(nlat - 1) * 0.99)] : 0,
@@ -454,21 +440,13 @@ int cmd_run(int argc, char **argv)
                 "p99 %.2f max %.2f, RSS kB start %ld at 1 min %ld max %ld end %ld, %d models built, "
                 "%llu black frames (output camera lost)\n",
                 (unsigned long long)published, (unsigned long long)raw_count,
-                (unsigned long long)degraded_count, (unsigned long long)run_source_dropped(src), med, p99, mx,
-                rss_start, rss_1min, rss_max, r, run_proc_builds(proc), (unsigned long long)black_count);
+                (unsigned long long)degraded_count, (unsigned long long)run_pipeline_dropped(&pl), med, p99, mx,
+                rss_start, rss_1min, rss_max, r, run_pipeline_builds(&pl), (unsigned long long)black_count);
     }
 done:
     sig_stop = 1;
-    run_source_destroy(src);
-    if (rec && run_record_skipped(rec))
-        logm("WARN", "main", "[sink] record: %llu frames not recorded (the PNG writer fell behind)",
-             (unsigned long long)run_record_skipped(rec));
-    if (rec && run_record_close(rec) != SH_OK) { logm("ERROR", "main", "[sink] record: %s", sh_error_message()); rc = 1; }
-    run_ctl_close(ctl);
+    if (run_pipeline_close(&pl) != SH_OK) rc = 1;
     if (trace && fclose(trace)) { logm("ERROR", "main", "--trace: %s", strerror(errno)); rc = 1; }
-    if (disp) sh_display_writer_destroy(disp, 0); /* marked closed; readers see the end */
-    run_proc_destroy(proc);
-    sh_image_destroy(&black);
     free(lat);
     return rc;
 }

@@ -1,0 +1,326 @@
+/* The daemon's pipeline pieces, opened from one config, and their swap when SIGHUP brings a new
+ * config.
+ *
+ * A reload opens the new pieces beside the running ones and swaps them in only once every one of
+ * them opened, so a config that cannot run leaves the running pipeline as it was. Two pieces
+ * cannot be opened beside their predecessor: the cameras (a V4L2 device opens once, so the old
+ * ones close first and are reopened when the new ones fail) and a display segment that keeps its
+ * name with another geometry (the name is the segment: it is replaced last, when nothing else can
+ * fail). */
+#include <stdarg.h>
+#include <stdio.h>
+#include <string.h>
+#include <sys/stat.h>
+
+#include "run_pipeline.h"
+
+/* The last error again, with what it concerns in front (a copy: sh_error_set writes the buffer
+ * sh_error_message returns). */
+static sh_status prefixed(sh_status st, const char *prefix)
+{
+    char m[512];
+    snprintf(m, sizeof m, "%s", sh_error_message());
+    return sh_error_set(st, "%s: %s", prefix, m);
+}
+
+static const char *shm_name(const sh_config *c) { return strncmp(c->sink, "shm:", 4) ? NULL : c->sink + 4; }
+static int full_range(const sh_y4m_header *h) { return strstr(h->extra, "XCOLORRANGE=FULL") != NULL; }
+static const char *or_none(const char *s) { return s[0] ? s : "none"; }
+
+static sh_status display_create(const sh_config *cfg, const sh_y4m_header *h, sh_display_writer **out)
+{
+    sh_status st = sh_display_writer_create(shm_name(cfg), h->format, h->width, h->height, cfg->slots,
+                                            full_range(h), cfg->group[0] ? cfg->group : NULL, out);
+    return st == SH_OK ? SH_OK : prefixed(st, "[sink] display");
+}
+
+/* The frame shown while the output camera is lost: black in the display's format and range. */
+static sh_status black_frame(const sh_y4m_header *hdr, sh_image *img)
+{
+    sh_status st = sh_image_create(img, hdr->format, hdr->width, hdr->height);
+    if (st != SH_OK) return st;
+    uint8_t luma = full_range(hdr) || hdr->format == SH_PIX_RGB24 ? 0 : 16;
+    for (int p = 0; p < img->num_planes; p++)
+        for (int y = 0; y < img->plane[p].height; y++)
+            memset(img->plane[p].data + (size_t)y * img->plane[p].stride, p ? 128 : luma,
+                   (size_t)img->plane[p].width * (size_t)sh_pixfmt_channels(hdr->format));
+    return SH_OK;
+}
+
+/* Opens the cameras and, with start, starts them; nothing stays open on error. */
+static sh_status source_open(const sh_config *cfg, run_log_fn log, int start, run_source **out)
+{
+    sh_status st = run_source_open(cfg, log, out);
+    if (st != SH_OK || !start || (st = run_source_start(*out)) == SH_OK) return st;
+    char m[512];
+    snprintf(m, sizeof m, "%s", sh_error_message()); /* destroying logs, and may set errors */
+    run_source_destroy(*out);
+    *out = NULL;
+    return sh_error_set(st, "%s", m);
+}
+
+static sh_status record_close(run_log_fn log, run_record *rec)
+{
+    if (!rec) return SH_OK;
+    if (run_record_skipped(rec))
+        log("WARN", "main", "[sink] record: %llu frames not recorded (the PNG writer fell behind)",
+            (unsigned long long)run_record_skipped(rec));
+    if (run_record_close(rec) == SH_OK) return SH_OK;
+    log("ERROR", "main", "[sink] record: %s", sh_error_message());
+    return SH_EIO;
+}
+
+/* The files processing reads at start, as stat sees them: an operator who rewrites the
+ * calibration or the points file in place and reloads means the new one. */
+static void stamp(const char *path, run_file_stamp *s)
+{
+    struct stat sb;
+    memset(s, 0, sizeof *s);
+    if (path[0] && stat(path, &sb) == 0) {
+        s->ino = (int64_t)sb.st_ino;
+        s->size = (int64_t)sb.st_size;
+        s->mtime_ns = (int64_t)sb.st_mtim.tv_sec * 1000000000 + sb.st_mtim.tv_nsec;
+    }
+}
+
+static void stamps(run_pipeline *p)
+{
+    stamp(p->cfg.calibration, &p->calib_file);
+    stamp(p->cfg.points, &p->points_file);
+}
+
+sh_status run_pipeline_open(run_pipeline *p, const sh_config *cfg, run_log_fn log)
+{
+    memset(p, 0, sizeof *p);
+    p->cfg = *cfg;
+    p->log = log;
+    stamps(p); /* before the files are read: one rewritten meanwhile is read again at a reload */
+    sh_status st = run_source_open(cfg, log, &p->src);
+    if (st == SH_OK) {
+        p->hdr = *run_source_header(p->src);
+        st = run_proc_create(cfg, &p->hdr, run_source_fps(p->src), run_source_cameras(p->src), log, &p->proc);
+    }
+    if (st == SH_OK && shm_name(cfg)) st = display_create(cfg, &p->hdr, &p->disp);
+    if (st == SH_OK) st = black_frame(&p->hdr, &p->black);
+    if (st == SH_OK && cfg->record[0] && (st = run_record_open(cfg->record, &p->hdr, &p->rec)) != SH_OK)
+        st = prefixed(st, "[sink] record");
+    if (st == SH_OK && cfg->control[0] && (st = run_ctl_open(cfg->control, &p->ctl)) != SH_OK)
+        st = prefixed(st, "[run] control");
+    if (st != SH_OK) {
+        char m[512];
+        snprintf(m, sizeof m, "%s", sh_error_message());
+        run_pipeline_close(p);
+        return sh_error_set(st, "%s", m);
+    }
+    return SH_OK;
+}
+
+sh_status run_pipeline_start(run_pipeline *p) { return run_source_start(p->src); }
+
+uint64_t run_pipeline_dropped(run_pipeline *p) { return p->dropped_before + (p->src ? run_source_dropped(p->src) : 0); }
+
+int run_pipeline_builds(const run_pipeline *p) { return p->builds_before + (p->proc ? run_proc_builds(p->proc) : 0); }
+
+/* Appends ", text" (the first without the comma) to out. */
+static __attribute__((format(printf, 3, 4))) void add(char *out, size_t cap, const char *fmt, ...)
+{
+    size_t len = strlen(out);
+    if (len && len + 2 < cap) {
+        memcpy(out + len, ", ", 3);
+        len += 2;
+    }
+    va_list ap;
+    va_start(ap, fmt);
+    if (len < cap) vsnprintf(out + len, cap - len, fmt, ap);
+    va_end(ap);
+}
+
+/* The processing keys that differ between p's config and n's (what a run_proc is created with,
+ * gating aside), and the files it reads rewritten, as text for the log; 0 when none does. */
+static int proc_changes(const run_pipeline *p, const run_pipeline *n, char *out, size_t cap)
+{
+    const sh_config *a = &p->cfg, *b = &n->cfg;
+    out[0] = 0;
+    if (strcmp(a->method_name, b->method_name)) add(out, cap, "method %s -> %s", a->method_name, b->method_name);
+    else if (memcmp(&a->method, &b->method, sizeof a->method) || a->sigma != b->sigma || a->levels != b->levels ||
+             a->smoothing != b->smoothing)
+        add(out, cap, "method parameters"); /* (another method has other parameters anyway) */
+    if (a->grid != b->grid) add(out, cap, "grid %g -> %g px", a->grid, b->grid);
+    if (strcmp(a->family, b->family)) add(out, cap, "family %s -> %s", a->family, b->family);
+    if (memcmp(a->ids, b->ids, sizeof a->ids)) add(out, cap, "ids %s -> %s", a->ids_text, b->ids_text);
+    if (a->threads != b->threads) add(out, cap, "threads %d -> %d", a->threads, b->threads);
+    if (strcmp(a->points, b->points)) add(out, cap, "points %s -> %s", or_none(a->points), or_none(b->points));
+    else if (memcmp(&p->points_file, &n->points_file, sizeof p->points_file)) add(out, cap, "points file rewritten");
+    if (strcmp(a->calibration, b->calibration))
+        add(out, cap, "calibration %s -> %s", or_none(a->calibration), or_none(b->calibration));
+    else if (memcmp(&p->calib_file, &n->calib_file, sizeof p->calib_file)) add(out, cap, "calibration rewritten");
+    if (a->reference_frame != b->reference_frame)
+        add(out, cap, "reference frame %d -> %d", a->reference_frame, b->reference_frame);
+    return out[0] != 0;
+}
+
+static int gating_changed(const sh_config *a, const sh_config *b)
+{
+    return a->min_markers != b->min_markers || a->max_residual_px != b->max_residual_px ||
+           a->max_sigma_px != b->max_sigma_px || a->dropout_ms != b->dropout_ms;
+}
+
+static int same_frames(const sh_y4m_header *a, const sh_y4m_header *b)
+{
+    return a->width == b->width && a->height == b->height && a->format == b->format && full_range(a) == full_range(b);
+}
+
+/* What a reload changes, decided before anything is opened. */
+typedef struct {
+    int cameras;         /* [cameraN], [source], [trigger]: the cameras are closed and opened */
+    int processing;      /* a new run_proc (processing keys, or new cameras: a new stream) */
+    char proc_text[384]; /* the processing keys that changed, for the log */
+    int record, control; /* their keys changed */
+    int same_name;       /* the display segment keeps its name ... */
+    int keep_disp;       /* ... and its geometry, format, slots and group: kept as it is */
+    int new_frames;      /* the output camera's geometry or format changed */
+    int black_made;      /* n's black frame is new */
+    char again[512];     /* why the previous display could not be made again ("" when it could) */
+} changes;
+
+/* A piece of n failed to open: closes what n opened and puts back what was closed (the
+ * previous cameras; the previous display). what says why. */
+static run_reload refuse(run_pipeline *p, run_pipeline *n, const changes *c, char *what, size_t cap)
+{
+    char why[512], back[640] = "";
+    snprintf(why, sizeof why, "%s", sh_error_message());
+    if (n->proc != p->proc) run_proc_destroy(n->proc);
+    if (n->rec != p->rec) run_record_close(n->rec); /* nothing was written to it */
+    if (n->ctl != p->ctl) run_ctl_close(n->ctl);
+    if (n->disp != p->disp && n->disp) sh_display_writer_destroy(n->disp, 1); /* it never showed a frame */
+    if (c->black_made) sh_image_destroy(&n->black);
+    if (c->cameras) {
+        run_source_destroy(n->src);
+        sh_status st = source_open(&p->cfg, p->log, 1, &p->src);
+        if (st == SH_OK && !same_frames(run_source_header(p->src), &p->hdr)) {
+            /* processing and display are sized for the frames the cameras gave before */
+            run_source_destroy(p->src);
+            p->src = NULL;
+            st = sh_error_set(SH_EIO, "they came back with other frames than before");
+        }
+        snprintf(back, sizeof back, "; the previous cameras %s%s", st == SH_OK ? "are back" : "cannot be reopened either: ",
+                 st == SH_OK ? "" : sh_error_message());
+    }
+    int fatal = !p->src || c->again[0];
+    size_t len = strlen(back);
+    if (c->again[0]) snprintf(back + len, sizeof back - len, "; the previous display cannot be made again: %s", c->again);
+    snprintf(what, cap, "reload refused%s: %s%s", fatal ? "" : ", keeping the running config", why, back);
+    return fatal ? RUN_RELOAD_FATAL : RUN_RELOAD_REFUSED;
+}
+
+/* What an applied reload changed, for the log; "" when only gating did (or nothing at all). */
+static void describe(const run_pipeline *p, const run_pipeline *n, const changes *c, char *what, size_t cap)
+{
+    const sh_config *old = &p->cfg, *fresh = &n->cfg;
+    what[0] = 0;
+    if (c->cameras && c->new_frames)
+        add(what, cap, "cameras reopened (%dx%d %s -> %dx%d %s)", p->hdr.width, p->hdr.height,
+            sh_pixfmt_name(p->hdr.format), n->hdr.width, n->hdr.height, sh_pixfmt_name(n->hdr.format));
+    else if (c->cameras)
+        add(what, cap, "cameras reopened");
+    if (c->proc_text[0]) add(what, cap, "%s", c->proc_text);
+    if (c->same_name && !c->keep_disp)
+        add(what, cap, "sink %s made again for %dx%d frames", fresh->sink, n->hdr.width, n->hdr.height);
+    else if (strcmp(old->sink, fresh->sink))
+        add(what, cap, "sink %s -> %s", old->sink, fresh->sink);
+    if (c->record) add(what, cap, "record %s -> %s", or_none(old->record), or_none(fresh->record));
+    if (c->control) add(what, cap, "control %s -> %s", or_none(old->control), or_none(fresh->control));
+    if (fresh->watchdog != old->watchdog) add(what, cap, "watchdog %s", fresh->watchdog ? "on" : "off");
+    if (what[0] && c->keep_disp) add(what, cap, "sink kept");
+    if (what[0] && gating_changed(old, fresh)) add(what, cap, "gating");
+}
+
+run_reload run_pipeline_reload(run_pipeline *p, const sh_config *fresh, char *what, size_t cap)
+{
+    const sh_config *old = &p->cfg;
+    run_pipeline n = *p; /* the pieces to run with: p's until replaced */
+    n.cfg = *fresh;
+    stamps(&n);
+    changes c;
+    memset(&c, 0, sizeof c);
+    c.cameras = run_source_config_changed(fresh, old);
+    c.processing = proc_changes(p, &n, c.proc_text, sizeof c.proc_text) || c.cameras;
+    c.record = strcmp(fresh->record, old->record) != 0;
+    c.control = strcmp(fresh->control, old->control) != 0;
+    const char *oname = shm_name(old), *nname = shm_name(fresh);
+    c.same_name = oname && nname && !strcmp(oname, nname);
+    sh_status st = SH_OK;
+
+    if (c.cameras) {
+        p->dropped_before += run_source_dropped(p->src);
+        run_source_destroy(p->src); /* before the new cameras open: a V4L2 device opens once */
+        p->src = n.src = NULL;
+        st = run_source_open(fresh, p->log, &n.src);
+        if (st == SH_OK) n.hdr = *run_source_header(n.src);
+    }
+    c.new_frames = !same_frames(&n.hdr, &p->hdr);
+    c.keep_disp = c.same_name && !c.new_frames && fresh->slots == old->slots && !strcmp(fresh->group, old->group);
+    if (st == SH_OK && c.processing)
+        st = run_proc_create(fresh, &n.hdr, run_source_fps(n.src), run_source_cameras(n.src), p->log, &n.proc);
+    if (st == SH_OK && c.cameras && (st = black_frame(&n.hdr, &n.black)) == SH_OK) c.black_made = 1;
+    if (st == SH_OK && !c.record && p->rec && c.new_frames)
+        /* reopening the file or folder would write over what it holds */
+        st = sh_error_set(SH_EINVAL, "[sink] record %s: the frames change from %dx%d to %dx%d and a record keeps "
+                          "one size (give [sink] record a new name)", fresh->record, p->hdr.width, p->hdr.height,
+                          n.hdr.width, n.hdr.height);
+    if (st == SH_OK && c.record) {
+        n.rec = NULL;
+        if (fresh->record[0] && (st = run_record_open(fresh->record, &n.hdr, &n.rec)) != SH_OK)
+            st = prefixed(st, "[sink] record");
+    }
+    if (st == SH_OK && c.control) {
+        n.ctl = NULL;
+        if (fresh->control[0] && (st = run_ctl_open(fresh->control, &n.ctl)) != SH_OK) st = prefixed(st, "[run] control");
+    }
+    if (st == SH_OK && !c.same_name) {
+        n.disp = NULL;
+        if (nname) st = display_create(fresh, &n.hdr, &n.disp);
+    }
+    if (st == SH_OK && c.cameras) st = run_source_start(n.src);
+    if (st == SH_OK && c.same_name && !c.keep_disp) {
+        /* Unlinked, not only marked closed: the new segment is a new object, so a reader still
+         * mapping the old one never touches pages a smaller segment would have cut off. */
+        sh_display_writer_destroy(p->disp, 1);
+        p->disp = n.disp = NULL;
+        if ((st = display_create(fresh, &n.hdr, &n.disp)) != SH_OK) {
+            char m[512];
+            snprintf(m, sizeof m, "%s", sh_error_message());
+            if (display_create(old, &p->hdr, &p->disp) != SH_OK) snprintf(c.again, sizeof c.again, "%s", sh_error_message());
+            st = sh_error_set(st, "%s", m);
+        }
+    }
+    if (st != SH_OK) return refuse(p, &n, &c, what, cap);
+
+    describe(p, &n, &c, what, cap);
+    if (n.proc != p->proc) {
+        p->builds_before += run_proc_builds(p->proc);
+        run_proc_destroy(p->proc);
+    } else {
+        run_proc_set_gating(p->proc, fresh);
+    }
+    if (n.rec != p->rec) record_close(p->log, p->rec);
+    if (n.ctl != p->ctl) run_ctl_close(p->ctl);
+    if (n.disp != p->disp && p->disp) sh_display_writer_destroy(p->disp, 0); /* marked closed, as at exit */
+    if (c.black_made) sh_image_destroy(&p->black);
+    n.dropped_before = p->dropped_before;
+    n.builds_before = p->builds_before;
+    *p = n;
+    return RUN_RELOAD_APPLIED;
+}
+
+sh_status run_pipeline_close(run_pipeline *p)
+{
+    run_source_destroy(p->src);
+    sh_status st = record_close(p->log, p->rec);
+    run_ctl_close(p->ctl);
+    if (p->disp) sh_display_writer_destroy(p->disp, 0); /* marked closed; readers see the end */
+    run_proc_destroy(p->proc);
+    sh_image_destroy(&p->black);
+    memset(p, 0, sizeof *p);
+    return st;
+}
