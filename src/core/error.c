@@ -2,15 +2,21 @@
 
 #include <stdarg.h>
 #include <stdio.h>
+#include <string.h>
 
 static _Thread_local char last_message[512];
 
 sh_status sh_error_set(sh_status code, const char *fmt, ...)
 {
+    /* formatted aside first: callers prefix the current message with its own text
+     * (sh_error_set(st, "context: %s", sh_error_message())), which vsnprintf into the same
+     * buffer would overwrite while reading it */
+    char text[sizeof last_message];
     va_list ap;
     va_start(ap, fmt);
-    vsnprintf(last_message, sizeof last_message, fmt, ap);
+    vsnprintf(text, sizeof text, fmt, ap);
     va_end(ap);
+    memcpy(last_message, text, sizeof last_message);
     return code;
 }
 

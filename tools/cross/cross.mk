@@ -13,10 +13,13 @@ deps-arm64:
 ARM64_JOBS  ?= $(shell nproc)
 ARM64_LANES ?= test_render test_track_phantom test_warp3d_phantom test_warp3d test_warp test_phantom_truth \
                test_daemon test_track_cli
-check-arm64: deps-arm64
+# The phantom fixtures of the other tests come from the host build's renderer (SH_TEST_RENDER,
+# tools/cross/qemu-wrap.sh); test_render tests the aarch64 renderer itself.
+check-arm64: deps-arm64 $(BUILD)/stillheart-render
 	$(MAKE) --no-print-directory -j$(ARM64_JOBS) CROSS_COMPILE=aarch64-linux-gnu- BUILD=$(ARM64_BUILD) tests
 	@sh tools/cross/qemu-wrap.sh $(ARM64_BUILD)
-	@QEMU_LD_PREFIX=/ sh tools/cross/run-lanes.sh $(ARM64_BUILD) $(ARM64_LANES)
+	@QEMU_LD_PREFIX=/ SH_TEST_RENDER=$(abspath $(BUILD))/stillheart-render \
+		sh tools/cross/run-lanes.sh $(ARM64_BUILD) $(ARM64_LANES)
 
 # ---- Debian packages (debian/): make deb [DEB_ARCHS="amd64 arm64"] -> build-deb/*.deb ----
 # Built from a copy of the working tree (dpkg-buildpackage writes beside the source folder).

@@ -17,8 +17,13 @@ for f in "$build"/stillheart* "$build"/tests/test_*; do
         mv -f "$f" "$build/.qemu/$rel"
     fi
     [ -f "$build/.qemu/$rel" ] || continue
-    # argv[0]: the wrapper's own path, links resolved (tools/cross/run-lanes.sh runs links)
-    printf '#!/bin/sh\nexec %s -L "${QEMU_LD_PREFIX:-/}" -0 "$(readlink -f "$0")" "%s" "$@"\n' \
+    # argv[0]: the wrapper's own path, links resolved (tools/cross/run-lanes.sh runs links).
+    # The phantom renderer makes the other tests' fixtures: with SH_TEST_RENDER set (to the host
+    # build's renderer, tools/cross/run-lanes.sh) they come from it, 25x faster than OSMesa under
+    # emulation; test_render's lane leaves it unset and tests the aarch64 renderer itself.
+    fixture=""
+    [ "$rel" = stillheart-render ] && fixture='[ -n "${SH_TEST_RENDER:-}" ] && exec "$SH_TEST_RENDER" "$@"\n'
+    printf "#!/bin/sh\n$fixture"'exec %s -L "${QEMU_LD_PREFIX:-/}" -0 "$(readlink -f "$0")" "%s" "$@"\n' \
         "$qemu" "$build/.qemu/$rel" > "$f"
     chmod 0755 "$f"
 done

@@ -26,7 +26,7 @@ $RUN --source "y4m:$T/ph/cam0.y4m" --no-loop --realtime --sink "shm:$SHM" --poin
 for i in 1 2 3 4 5 6 7 8 9 10; do [ -e "/dev/shm$SHM" ] && break; sleep 0.1; done
 "$B/stillheart-cat" --name "$SHM" --count 20 --timeout 5 > "$T/cat.y4m" 2>/dev/null
 wait $pid
-python3 - "$T/cat.y4m" "$T/warp.y4m" <<'PY' && ok "shm frames equal stillheart warp" || bad "shm frames equal stillheart warp" "see above"
+python3 - "$T/cat.y4m" "$T/warp.y4m" "$T/ph/cam0.y4m" <<'PY' && ok "shm frames equal stillheart warp" || bad "shm frames equal stillheart warp" "see above"
 import sys
 def frames(p):
     d = open(p, 'rb').read()
@@ -38,11 +38,18 @@ def frames(p):
         line, rest = rest.split(b'\n', 1)
         out.append(rest[:n]); rest = rest[n:]
     return out
-a, b = frames(sys.argv[1]), frames(sys.argv[2])
+a, b, raw = frames(sys.argv[1]), frames(sys.argv[2]), frames(sys.argv[3])
 if len(a) < 15: print("only", len(a), "frames read back"); sys.exit(1)
+# a frame shown before the reference's models are ready is the camera's own (raw): on a slow
+# machine (qemu-aarch64 under load) that can be several; every other one is warp's
+warped = 0
 for f in a:
     best = min(max(abs(x - y) for x, y in zip(f[::97], g[::97])) for g in b)
-    if best > 1: print("a frame read back matches no warp frame (max diff", best, ")"); sys.exit(1)
+    if best <= 1:
+        warped += 1
+    elif not any(f == g for g in raw):
+        print("a frame read back matches no warp frame (max diff", best, ") and no camera frame"); sys.exit(1)
+if warped < 5: print("only", warped, "of", len(a), "frames read back were warp's"); sys.exit(1)
 PY
 
 # 2. gating on the phantom's occlusions against its ground truth (markers.csv: a tag counts as
@@ -112,6 +119,10 @@ msg=$($RUN --config "$T/bad.ini" --min-markers 5 --print-config 2>&1); rc=$?
 printf '[gating]\nmin_markers = 9\n' > "$T/good.ini"
 msg=$($RUN --config "$T/good.ini" --min-markers 7 --print-config 2>&1)
 echo "$msg" | grep -q "^min_markers = 7" && ok "command line wins" || bad "command line wins" "$msg"
+# a message prefixed with its context keeps the cause (the prefix used to overwrite it)
+msg=$($RUN --source "y4m:$T/ph/cam0.y4m" --points "$T/none.csv" --sink none 2>&1); rc=$?
+[ $rc -ne 0 ] && echo "$msg" | grep -q "\[run\] points: $T/none.csv: No such file" && ok "missing points file named" \
+    || bad "missing points file named" "$msg"
 
 # 4. SIGTERM stops within a second, segment closed; sd_notify READY/STATUS/WATCHDOG; SIGHUP bad reload kept
 python3 - "$B/stillheart" "$T/ph/cam0.y4m" "$T/good.ini" "$SHM" <<'PY' && ok "notify, reload, SIGUSR1 reference, SIGTERM < 1 s" || bad "notify, reload, SIGUSR1 reference, SIGTERM < 1 s" "see above"
@@ -150,13 +161,23 @@ PY
 
 # 5. a new reference without a hitch, asked for on the control socket and by SIGUSR1: frames keep
 #    being stabilized with the old reference while the new one's models are built; status and
-#    unknown commands answered
+#    unknown commands answered. The markers are the phantom's true centres (a points file): what
+#    is under test is the swap, not whether detection keeps up in real time (under qemu-aarch64
+#    it does not, and markers dropped that way would read as a hitch).
 "$B/stillheart-render" --preset exvivo --frames 120 --cameras 1 --width 640 --height 360 --out "$T/clean" >/dev/null 2>&1
-python3 - "$B/stillheart" "$T/clean/cam0.y4m" "$T/ctl" "$T/ref.csv" <<'PY' && ok "control socket and SIGUSR1: new reference without a hitch" || bad "control socket and SIGUSR1: new reference without a hitch" "see above"
+python3 - "$T/clean/markers.csv" "$T/clean.csv" <<'PY'
+import csv, sys
+out = open(sys.argv[2], 'w')
+out.write("frame,id,x,y\n")
+for r in csv.DictReader(open(sys.argv[1])):
+    if r['camera'] == '0' and r['point'] == 'c' and r['visible'] == '1':
+        out.write("%s,%s,%s,%s\n" % (r['frame'], r['id'], r['x'], r['y']))
+PY
+python3 - "$B/stillheart" "$T/clean/cam0.y4m" "$T/ctl" "$T/ref.csv" "$T/clean.csv" <<'PY' && ok "control socket and SIGUSR1: new reference without a hitch" || bad "control socket and SIGUSR1: new reference without a hitch" "see above"
 import csv, os, signal, socket, subprocess, sys, time
-exe, video, ctl, trace = sys.argv[1:5]
+exe, video, ctl, trace, points = sys.argv[1:6]
 p = subprocess.Popen([exe, "run", "--group=", "--source", "y4m:" + video, "--realtime", "--no-loop", "--sink", "none",
-                      "--control", ctl, "--trace", trace], stderr=subprocess.PIPE)
+                      "--points", points, "--control", ctl, "--trace", trace], stderr=subprocess.PIPE)
 def ask(cmd):
     s = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM); s.settimeout(3); s.connect(ctl)
     s.sendall(cmd.encode() + b"\n"); out = b""
