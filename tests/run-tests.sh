@@ -1,10 +1,15 @@
 #!/bin/sh
 # Runs every cmocka test binary in the given build folders and closes with one summary line
 # ("N passed, N failed") that counts test cases, not binaries. Each binary's time follows its
-# output ("-- BINARY: S s").
-passed=0; failed=0; crashed=""
-for dir in "$@"; do
-    for t in "$dir"/tests/test_*; do
+# output ("-- BINARY: S s"). The folders run side by side (the plain and the ASan build: each
+# runs its binaries one after another, so on 2 cores the two together take about as long as the
+# ASan one); their output is printed folder by folder once all are done.
+work=$(mktemp -d /tmp/sh-run-tests.XXXXXX)
+trap 'rm -rf "$work"' EXIT
+# run_folder DIR N: DIR's binaries one after another, output in $work/N.log, counts in $work/N.sum
+run_folder() {
+    p_sum=0; f_sum=0; c_list=""
+    for t in "$1"/tests/test_*; do
         [ -x "$t" ] || continue
         echo "== $t"
         t0=$(date +%s.%N)
@@ -13,9 +18,24 @@ for dir in "$@"; do
         echo "-- $t: $(echo "$t0 $(date +%s.%N)" | awk '{printf "%.1f", $2 - $1}') s"
         p=$(printf '%s\n' "$out" | sed -n 's/^\[  PASSED  \] \([0-9]*\) test.*/\1/p' | tail -1)
         f=$(printf '%s\n' "$out" | sed -n 's/^\[  FAILED  \] \([0-9]*\) test.*/\1/p' | tail -1)
-        passed=$((passed + ${p:-0})); failed=$((failed + ${f:-0}))
-        if [ "$rc" -ne 0 ] && [ -z "$f" ]; then failed=$((failed + 1)); crashed="$crashed $t"; fi
-    done
+        p_sum=$((p_sum + ${p:-0})); f_sum=$((f_sum + ${f:-0}))
+        if [ "$rc" -ne 0 ] && [ -z "$f" ]; then f_sum=$((f_sum + 1)); c_list="$c_list $t"; fi
+    done > "$work/$2.log" 2>&1
+    echo "$p_sum $f_sum$c_list" > "$work/$2.sum"
+}
+n=0
+for dir in "$@"; do
+    n=$((n + 1))
+    run_folder "$dir" $n &
+done
+wait
+passed=0; failed=0; crashed=""
+i=0
+while [ $i -lt $n ]; do
+    i=$((i + 1))
+    cat "$work/$i.log"
+    read -r p f c < "$work/$i.sum" || { p=0; f=1; c="(folder $i: no summary)"; }
+    passed=$((passed + p)); failed=$((failed + f)); [ -n "${c:-}" ] && crashed="$crashed $c"
 done
 # make vmtest's own closing line ("vmtest: N passed, N failed"), when the suite ran it
 if [ -n "${VMTEST_OUT:-}" ]; then
