@@ -194,6 +194,9 @@ static void *helper_main(void *arg)
     run_models *m = arg;
     pthread_mutex_lock(&m->mu);
     for (;;) {
+        /* stopping: builds still queued are not started (run_models_destroy frees them and the
+         * trash), so a stop waits for one build at most, not for the queue */
+        if (m->stop) break;
         generation *trash = NULL;
         for (int i = 0; i < 4 && !trash; i++)
             if (m->trash[i]) { trash = m->trash[i]; m->trash[i] = NULL; }
@@ -209,7 +212,6 @@ static void *helper_main(void *arg)
         generation *job_gen = job ? m->next : NULL;
         if (!job) { job = find_building(m->cur); job_gen = job ? m->cur : NULL; }
         if (!trash && !have_evicted && !job) {
-            if (m->stop) break;
             pthread_cond_wait(&m->cv, &m->mu);
             continue;
         }
