@@ -1,5 +1,5 @@
 /* Sources: Y4M replay timing (closed form: frame k due at start + k/fps, timestamped so),
- * as-fast-as-possible replay, looping, the pollable fd, held-frame limits, and the errors of a
+ * as-fast-as-possible replay, looping (and the discontinuity it flags), the pollable fd, held-frame limits, and the errors of a
  * missing file or device. V4L2 capture itself is tested against real drivers in tests/vm/. */
 #include <poll.h>
 #include <setjmp.h>
@@ -20,11 +20,12 @@ enum { W = 32, H = 16, N = 6 };
 
 static char path[64], spec[80];
 
-/* A Y4M file of N I420 frames at num/den fps; frame n's luma is all n. */
-static void write_y4m(int num, int den)
+/* A Y4M file of N I420 frames at num/den fps; frame n's luma is all n. X tags: extra. */
+static void write_y4m_tagged(int num, int den, const char *extra)
 {
     sh_y4m_header h;
     memset(&h, 0, sizeof h);
+    snprintf(h.extra, sizeof h.extra, "%s", extra);
     h.width = W;
     h.height = H;
     h.format = SH_PIX_I420;
@@ -41,6 +42,8 @@ static void write_y4m(int num, int den)
     sh_image_destroy(&img);
     assert_int_equal(sh_y4m_writer_close(w), SH_OK);
 }
+
+static void write_y4m(int num, int den) { write_y4m_tagged(num, den, ""); }
 
 static int setup(void **state)
 {
@@ -174,6 +177,34 @@ static void test_fast_replay(void **state)
     sh_source_close(s);
 }
 
+/* A loop flags the first frame of each new pass a discontinuity (the scene jumps there), and
+ * only it; a file tagged XLOOP=SEAMLESS (its end joins its start) flags none, and the tag counts
+ * only as a whole word (XLOOP=SEAMLESSLY is another tag). */
+static void test_loop_discontinuity(void **state)
+{
+    (void)state;
+    for (int seamless = 0; seamless < 2; seamless++) {
+        write_y4m_tagged(25, 1, seamless ? "XCOLORRANGE=LIMITED " SH_Y4M_LOOP_SEAMLESS : "XLOOP=SEAMLESSLY");
+        sh_source_options o;
+        sh_source_options_default(&o);
+        o.realtime = 0;
+        o.loop = 1;
+        sh_source *s;
+        assert_int_equal(sh_source_open(spec, &o, &s), SH_OK);
+        assert_int_equal(sh_source_start(s), SH_OK);
+        for (int k = 0; k < 3 * N; k++) {
+            int got;
+            sh_source_frame fr;
+            assert_int_equal(sh_source_dequeue(s, 0, &fr, &got), SH_OK);
+            assert_int_equal(got, 1);
+            assert_int_equal(fr.raw.data[0], k % N);
+            assert_int_equal(fr.discontinuity, !seamless && k > 0 && k % N == 0);
+            assert_int_equal(sh_source_release(s, &fr), SH_OK);
+        }
+        sh_source_close(s);
+    }
+}
+
 static void test_errors(void **state)
 {
     (void)state;
@@ -200,6 +231,7 @@ int main(void)
         cmocka_unit_test(test_realtime_schedule),
         cmocka_unit_test(test_ntsc_rate_and_poll),
         cmocka_unit_test(test_fast_replay),
+        cmocka_unit_test(test_loop_discontinuity),
         cmocka_unit_test(test_errors),
     };
     return cmocka_run_group_tests(tests, setup, teardown);

@@ -133,6 +133,14 @@ s = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM); s.bind(sp); s.settimeout(5
 env = dict(os.environ, NOTIFY_SOCKET=sp, WATCHDOG_USEC="400000")
 p = subprocess.Popen([exe, "run", "--group=", "--config", ini, "--source", "y4m:" + video, "--realtime",
                       "--loop", "--points", "", "--sink", "shm:" + shm], env=env, stderr=subprocess.PIPE)
+# stderr read as it comes (a thread): the test waits for the new reference's line, whose models
+# are built beside the frames and take a while under qemu-aarch64 on a busy machine
+import threading
+lines = []
+def drain():
+    for l in p.stderr: lines.append(l.decode())
+reader = threading.Thread(target=drain, daemon=True)
+reader.start()
 got = []
 t0 = time.time()
 while time.time() - t0 < 3:
@@ -140,10 +148,13 @@ while time.time() - t0 < 3:
     except socket.timeout: break
 open(ini, "w").write("[gating]\nmin_markers = nope\n")
 p.send_signal(signal.SIGHUP); time.sleep(0.5)
-p.send_signal(signal.SIGUSR1); time.sleep(0.5)
+p.send_signal(signal.SIGUSR1)
+t2 = time.time()
+while time.time() - t2 < 30 and sum(l.count("reference: frame") for l in lines) < 2: time.sleep(0.1)
 alive = p.poll() is None
 t1 = time.time(); p.send_signal(signal.SIGTERM); p.wait(timeout=5); dt = time.time() - t1
-err = p.stderr.read().decode()
+reader.join(timeout=5) # the rest, up to the end of the pipe
+err = "".join(lines)
 os.unlink(sp)
 ok = True
 def need(c, m):
@@ -290,14 +301,18 @@ PY
 CAMS="--source y4m:$T/s3/cam0.y4m --camera1-spec y4m:$T/s3/cam1.y4m --camera2-spec y4m:$T/s3/cam2.y4m --calibration $T/s3/calibration.yaml"
 $RUN $CAMS --no-loop --no-realtime --sink none --points "$T/p3.csv" --method tps --threads 2 --record "$T/r3.y4m" \
     && cmp -s "$T/r3.y4m" "$T/w3.y4m" && ok "3D: record equals stillheart warp3d" || bad "3D: record equals stillheart warp3d" "differs"
-$RUN $CAMS --no-loop --no-realtime --sink none --method tps --trace "$T/t3.csv"
+# Frames are shown raw while the reference's 3D models are built beside them (no frame waits for
+# a build); under qemu-aarch64 on a busy machine that build can outlast a 40-frame pass, so the
+# replay loops (the tracker starting afresh at each loop) for 160 frames: the first stabilized
+# frame comes when the build is done, and every frame after it must be stabilized.
+$RUN $CAMS --loop --max-frames 160 --no-realtime --sink none --method tps --trace "$T/t3.csv"
 python3 - "$T/t3.csv" <<'PY' && ok "3D: tracked in 3D, every frame stabilized, residual < 0.5 px" || bad "3D: tracked in 3D, every frame stabilized, residual < 0.5 px" "see above"
 import csv, sys
 rows = list(csv.DictReader(open(sys.argv[1])))
-first = next((i for i, r in enumerate(rows) if r['status'] == 'stabilized'), 99)  # the reference builds meanwhile
+first = next((i for i, r in enumerate(rows) if r['status'] == 'stabilized'), 999)
 bad = [(r['index'], r['status'], r['residual'], r['reason']) for r in rows[first:] if r['status'] != 'stabilized' or not 0 <= float(r['residual']) < 0.5]
-if bad or len(rows) != 40 or first > 3: print(len(rows), "frames, first stabilized", first, "; off:", bad[:5])
-sys.exit(1 if bad or len(rows) != 40 or first > 3 else 0)
+if bad or len(rows) != 160 or first > 120: print(len(rows), "frames, first stabilized", first, "; off:", bad[:5])
+sys.exit(1 if bad or len(rows) != 160 or first > 120 else 0)
 PY
 msg=$($RUN --source "y4m:$T/s3/cam0.y4m" --calibration "$T/s3/calibration.yaml" --sink none 2>&1); rc=$?
 [ $rc -ne 0 ] && echo "$msg" | grep -q "calibration.*3 cameras, 1 configured" && ok "3D: calibration for other cameras refused" || bad "3D: calibration for other cameras refused" "$msg"
