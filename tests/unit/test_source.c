@@ -142,10 +142,9 @@ static void test_ntsc_rate_and_poll(void **state)
     sh_source_close(s);
 }
 
-static void test_fast_replay(void **state)
+/* The file replayed as fast as asked, looping; started. */
+static sh_source *start_fast_loop(void)
 {
-    (void)state;
-    write_y4m(1, 1); /* one frame a second: real time would take N s */
     sh_source_options o;
     sh_source_options_default(&o);
     o.realtime = 0;
@@ -153,6 +152,14 @@ static void test_fast_replay(void **state)
     sh_source *s;
     assert_int_equal(sh_source_open(spec, &o, &s), SH_OK);
     assert_int_equal(sh_source_start(s), SH_OK);
+    return s;
+}
+
+static void test_fast_replay(void **state)
+{
+    (void)state;
+    write_y4m(1, 1); /* one frame a second: real time would take N s */
+    sh_source *s = start_fast_loop();
     int64_t begin = sh_monotonic_ns(), t0 = 0;
     sh_source_frame held[2];
     for (int k = 0; k < 3 * N; k++) {
@@ -185,13 +192,7 @@ static void test_loop_discontinuity(void **state)
     (void)state;
     for (int seamless = 0; seamless < 2; seamless++) {
         write_y4m_tagged(25, 1, seamless ? "XCOLORRANGE=LIMITED " SH_Y4M_LOOP_SEAMLESS : "XLOOP=SEAMLESSLY");
-        sh_source_options o;
-        sh_source_options_default(&o);
-        o.realtime = 0;
-        o.loop = 1;
-        sh_source *s;
-        assert_int_equal(sh_source_open(spec, &o, &s), SH_OK);
-        assert_int_equal(sh_source_start(s), SH_OK);
+        sh_source *s = start_fast_loop();
         for (int k = 0; k < 3 * N; k++) {
             int got;
             sh_source_frame fr;
