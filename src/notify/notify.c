@@ -8,6 +8,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/socket.h>
+#include <sys/time.h>
 #include <sys/un.h>
 #include <unistd.h>
 
@@ -29,6 +30,12 @@ sh_status sh_notify(const char *text)
     int fd = socket(AF_UNIX, SOCK_DGRAM | SOCK_CLOEXEC, 0);
     if (fd < 0)
         return sh_error_set(SH_EIO, "NOTIFY_SOCKET: socket: %s", strerror(errno));
+    /* A datagram to a listener whose queue is full (net.unix.max_dgram_qlen, 10 by the kernel's
+     * default) blocks the sender: a manager that stops reading would hold the processing loop,
+     * and after a signal has broken the wait, the loop's exit too. So a message waits at most
+     * 200 ms and is then dropped with an error (STATUS and WATCHDOG come again anyway). */
+    struct timeval limit = {0, 200000};
+    setsockopt(fd, SOL_SOCKET, SO_SNDTIMEO, &limit, sizeof limit);
     ssize_t r = sendto(fd, text, strlen(text), MSG_NOSIGNAL, (struct sockaddr *)&addr, len);
     int e = errno;
     close(fd);

@@ -1,5 +1,5 @@
-/* sd_notify against a NOTIFY_SOCKET the test opens (a path and an abstract name), the watchdog
- * interval from the environment, and silence outside systemd. */
+/* sd_notify against a NOTIFY_SOCKET the test opens (a path and an abstract name), a listener that
+ * stops reading, the watchdog interval from the environment, and silence outside systemd. */
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -61,6 +61,33 @@ static void test_path_socket(void **state)
     unsetenv("NOTIFY_SOCKET");
 }
 
+/* A listener that stops reading: once its queue is full, each message waits its 200 ms and is
+ * dropped with an error; none blocks for good (the daemon's loop and its exit call this). */
+static void test_listener_not_reading(void **state)
+{
+    (void)state;
+    char path[64];
+    snprintf(path, sizeof path, "/tmp/sh-notify-full-%d", (int)getpid());
+    unlink(path);
+    int fd = open_socket(path, 0);
+    setenv("NOTIFY_SOCKET", path, 1);
+    int qlen = 10;
+    FILE *f = fopen("/proc/sys/net/unix/max_dgram_qlen", "r");
+    if (f) {
+        if (fscanf(f, "%d", &qlen) != 1) qlen = 10;
+        fclose(f);
+    }
+    if (qlen > 4096) qlen = 4096;
+    int failed = 0;
+    for (int i = 0; i < qlen + 3; i++) failed += sh_notify("WATCHDOG=1") != SH_OK;
+    assert_true(failed >= 1 && failed <= 3); /* the queue held qlen (+1: the kernel counts > qlen) */
+    expect(fd, "WATCHDOG=1");                /* one read: room for one more */
+    assert_int_equal(sh_notify("STOPPING=1"), SH_OK);
+    close(fd);
+    unlink(path);
+    unsetenv("NOTIFY_SOCKET");
+}
+
 static void test_abstract_socket(void **state)
 {
     (void)state;
@@ -109,6 +136,7 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_path_socket),
+        cmocka_unit_test(test_listener_not_reading),
         cmocka_unit_test(test_abstract_socket),
         cmocka_unit_test(test_outside_systemd),
         cmocka_unit_test(test_watchdog_env),

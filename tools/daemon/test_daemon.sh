@@ -141,11 +141,16 @@ def drain():
     for l in p.stderr: lines.append(l.decode())
 reader = threading.Thread(target=drain, daemon=True)
 reader.start()
+# the notify socket read throughout, as systemd does (the daemon drops a message its listener
+# leaves queued for 200 ms, src/notify)
 got = []
-t0 = time.time()
-while time.time() - t0 < 3:
-    try: got.append(s.recv(4096).decode())
-    except socket.timeout: break
+def listen():
+    while True:
+        try: got.append(s.recv(4096).decode())
+        except socket.timeout: continue
+        except OSError: return
+threading.Thread(target=listen, daemon=True).start()
+time.sleep(3)
 open(ini, "w").write("[gating]\nmin_markers = nope\n")
 p.send_signal(signal.SIGHUP); time.sleep(0.5)
 p.send_signal(signal.SIGUSR1)
