@@ -22,7 +22,6 @@ extern "C" {
  * the loop instead of flagging a discontinuity. */
 #define SH_Y4M_LOOP_SEAMLESS "XLOOP=SEAMLESS"
 
-
 typedef struct {
     int width, height;
     sh_pixfmt format;          /* GRAY8, I420 or YUV444 */

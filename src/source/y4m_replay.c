@@ -2,8 +2,8 @@
  * once (as fast as asked); its timestamp is always the schedule's, start + k/fps, so a replay
  * feeds the pipeline the same times however fast it runs. Looping starts the file again with
  * the sequence and the schedule going on; the first frame of the new pass is flagged a
- * discontinuity unless the header says the end joins the start (XLOOP=SEAMLESS). The pollable fd is a timerfd armed at the next due
- * time. Two frame slots, allocated at open. */
+ * discontinuity unless the header says the end joins the start (XLOOP=SEAMLESS). The pollable
+ * fd is a timerfd armed at the next due time. Two frame slots, allocated at open. */
 #include "source_internal.h"
 
 #include <errno.h>
