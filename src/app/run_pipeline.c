@@ -14,15 +14,6 @@
 
 #include "run_pipeline.h"
 
-/* The last error again, with what it concerns in front (a copy: sh_error_set writes the buffer
- * sh_error_message returns). */
-static sh_status prefixed(sh_status st, const char *prefix)
-{
-    char m[512];
-    snprintf(m, sizeof m, "%s", sh_error_message());
-    return sh_error_set(st, "%s: %s", prefix, m);
-}
-
 static const char *shm_name(const sh_config *c) { return strncmp(c->sink, "shm:", 4) ? NULL : c->sink + 4; }
 static int full_range(const sh_y4m_header *h) { return strstr(h->extra, "XCOLORRANGE=FULL") != NULL; }
 static const char *or_none(const char *s) { return s[0] ? s : "none"; }
@@ -31,7 +22,7 @@ static sh_status display_create(const sh_config *cfg, const sh_y4m_header *h, sh
 {
     sh_status st = sh_display_writer_create(shm_name(cfg), h->format, h->width, h->height, cfg->slots,
                                             full_range(h), cfg->group[0] ? cfg->group : NULL, out);
-    return st == SH_OK ? SH_OK : prefixed(st, "[sink] display");
+    return st == SH_OK ? SH_OK : sh_error_set(st, "[sink] display: %s", sh_error_message());
 }
 
 /* The frame shown while the output camera is lost: black in the display's format and range. */
@@ -103,9 +94,9 @@ sh_status run_pipeline_open(run_pipeline *p, const sh_config *cfg, run_log_fn lo
     if (st == SH_OK && shm_name(cfg)) st = display_create(cfg, &p->hdr, &p->disp);
     if (st == SH_OK) st = black_frame(&p->hdr, &p->black);
     if (st == SH_OK && cfg->record[0] && (st = run_record_open(cfg->record, &p->hdr, &p->rec)) != SH_OK)
-        st = prefixed(st, "[sink] record");
+        st = sh_error_set(st, "[sink] record: %s", sh_error_message());
     if (st == SH_OK && cfg->control[0] && (st = run_ctl_open(cfg->control, &p->ctl)) != SH_OK)
-        st = prefixed(st, "[run] control");
+        st = sh_error_set(st, "[run] control: %s", sh_error_message());
     if (st != SH_OK) {
         char m[512];
         snprintf(m, sizeof m, "%s", sh_error_message());
@@ -271,11 +262,12 @@ run_reload run_pipeline_reload(run_pipeline *p, const sh_config *fresh, char *wh
     if (st == SH_OK && c.record) {
         n.rec = NULL;
         if (fresh->record[0] && (st = run_record_open(fresh->record, &n.hdr, &n.rec)) != SH_OK)
-            st = prefixed(st, "[sink] record");
+            st = sh_error_set(st, "[sink] record: %s", sh_error_message());
     }
     if (st == SH_OK && c.control) {
         n.ctl = NULL;
-        if (fresh->control[0] && (st = run_ctl_open(fresh->control, &n.ctl)) != SH_OK) st = prefixed(st, "[run] control");
+        if (fresh->control[0] && (st = run_ctl_open(fresh->control, &n.ctl)) != SH_OK)
+            st = sh_error_set(st, "[run] control: %s", sh_error_message());
     }
     if (st == SH_OK && !c.same_name) {
         n.disp = NULL;

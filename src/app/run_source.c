@@ -71,15 +71,6 @@ static int64_t mono_ns(void)
     return (int64_t)ts.tv_sec * 1000000000 + ts.tv_nsec;
 }
 
-/* The last error again, with what it concerns in front (a copy: sh_error_set writes the buffer
- * sh_error_message returns). */
-static sh_status prefixed(sh_status st, const char *prefix)
-{
-    char m[512];
-    snprintf(m, sizeof m, "%s", sh_error_message());
-    return sh_error_set(st, "%s: %s", prefix, m);
-}
-
 static int is_replay(const char *spec) { return !strncmp(spec, "y4m:", 4) || !strncmp(spec, "rec:", 4); }
 
 _Static_assert(SH_CONFIG_CTRL_UNSET == SH_SOURCE_CTRL_UNSET, "config's unset control is source.h's");
@@ -400,7 +391,7 @@ static sh_status open_camera(run_source *rs, const sh_config *cfg, int i)
     sh_status st = sh_source_open(spec, &o, &k->src);
     char what[32];
     snprintf(what, sizeof what, "[camera%d] spec", i);
-    if (st != SH_OK) return prefixed(st, what);
+    if (st != SH_OK) return sh_error_set(st, "%s: %s", what, sh_error_message());
     sh_source_format(k->src, &k->format, &k->width, &k->height, &k->fps_num, &k->fps_den);
     if (k->format == SH_RAW_MJPEG && (st = sh_pixconv_create(k->width, k->height, &k->conv)) != SH_OK) return st;
     sh_pixfmt pf = k->format == SH_RAW_GREY ? SH_PIX_GRAY8 : SH_PIX_I420;
@@ -446,7 +437,7 @@ sh_status run_source_open(const sh_config *cfg, run_log_fn log, run_source **out
     sh_gpio_options go;
     if ((st = sh_sync_create(&so, &rs->sync)) != SH_OK ||
         (run_gpio_options(cfg, k0->fps_num, k0->fps_den, &go) && (st = sh_gpio_trigger_open(&go, &rs->trig)) != SH_OK)) {
-        if (rs->sync && !rs->trig) st = prefixed(st, "[trigger]");
+        if (rs->sync && !rs->trig) st = sh_error_set(st, "[trigger]: %s", sh_error_message());
         run_source_destroy(rs);
         return st;
     }
@@ -476,7 +467,8 @@ sh_status run_source_start(run_source *rs)
 {
     /* every camera's clock starts here, back to back, so replays' schedules line up in sets */
     for (int i = 0; i < rs->ncam; i++)
-        if (sh_source_start(rs->cam[i].src) != SH_OK) return prefixed(SH_EIO, rs->cam[i].name);
+        if (sh_source_start(rs->cam[i].src) != SH_OK)
+            return sh_error_set(SH_EIO, "%s: %s", rs->cam[i].name, sh_error_message());
     int64_t now = mono_ns();
     pthread_mutex_lock(&rs->mu);
     rs->output_ns = rs->trig_beat_ns = now;
@@ -487,7 +479,8 @@ sh_status run_source_start(run_source *rs)
     }
     pthread_mutex_unlock(&rs->mu);
     if (rs->trig) {
-        if (sh_gpio_trigger_start(rs->trig) != SH_OK) return prefixed(SH_EIO, "[trigger]");
+        if (sh_gpio_trigger_start(rs->trig) != SH_OK)
+            return sh_error_set(SH_EIO, "[trigger]: %s", sh_error_message());
         if (pthread_create(&rs->trig_thread, NULL, trigger_thread, rs))
             return sh_error_set(SH_ENOMEM, "trigger: cannot start its thread");
         rs->trig_started = 1;

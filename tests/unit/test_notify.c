@@ -40,14 +40,21 @@ static void expect(int fd, const char *want)
     assert_string_equal(buf, want);
 }
 
+/* A listener at /tmp/NAME-PID (its path in path, for unlink), named by NOTIFY_SOCKET. */
+static int listen_at(const char *name, char *path, size_t cap)
+{
+    snprintf(path, cap, "/tmp/%s-%d", name, (int)getpid());
+    unlink(path);
+    int fd = open_socket(path, 0);
+    setenv("NOTIFY_SOCKET", path, 1);
+    return fd;
+}
+
 static void test_path_socket(void **state)
 {
     (void)state;
     char path[64];
-    snprintf(path, sizeof path, "/tmp/sh-notify-%d", (int)getpid());
-    unlink(path);
-    int fd = open_socket(path, 0);
-    setenv("NOTIFY_SOCKET", path, 1);
+    int fd = listen_at("sh-notify", path, sizeof path);
     assert_int_equal(sh_notify("READY=1"), SH_OK);
     expect(fd, "READY=1");
     assert_int_equal(sh_notifyf("STATUS=%.1f fps, %d markers, %s", 59.94, 16, "stabilized"), SH_OK);
@@ -67,10 +74,7 @@ static void test_listener_not_reading(void **state)
 {
     (void)state;
     char path[64];
-    snprintf(path, sizeof path, "/tmp/sh-notify-full-%d", (int)getpid());
-    unlink(path);
-    int fd = open_socket(path, 0);
-    setenv("NOTIFY_SOCKET", path, 1);
+    int fd = listen_at("sh-notify-full", path, sizeof path);
     int qlen = 10;
     FILE *f = fopen("/proc/sys/net/unix/max_dgram_qlen", "r");
     if (f) {
