@@ -3,13 +3,16 @@
  * The deformation is built from pieces that an affine map cannot follow: a contraction whose
  * rotation grows with the radius (twist), a contraction wave travelling along u (delay), a
  * Gaussian out-of-plane bulge and a Gaussian in-plane push with its own phase. Respiration moves
- * the whole patch rigidly, and stabilizer pads scale the motion down near them. Everything is a
- * closed form in (u, v, t), so the truth is exact and cheap to evaluate anywhere. */
+ * the whole patch rigidly, and stabilizer pads scale the motion down near them. A moved endoscope
+ * translates everything seen (tissue, pads, shaft, decoy) alike, and a sudden first beat warps
+ * the heart's clock. Everything is a closed form in (u, v, t), so the truth is exact and cheap to
+ * evaluate anywhere. */
 #include <math.h>
 #include <string.h>
 
 #include "phantom.h"
 
+#define PI 3.14159265358979323846
 #define TWO_PI 6.28318530717958647692
 
 /* Cardiac activation: a fast rise and slower fall, like a pressure curve. */
@@ -17,6 +20,46 @@ static double activation(double hz, double phase, double t)
 {
     double phi = TWO_PI * hz * t + phase;
     return 0.5 * (1.0 - cos(phi)) + 0.12 * sin(2.0 * phi);
+}
+
+void phantom_camera_motion(const phantom_model *m, double t, double d[3])
+{
+    double s = 0.0;
+    if (m->cam_motion == PHANTOM_CAM_PAN && m->cam_motion_dur > 0) {
+        double e = (t - m->cam_motion_t0) / m->cam_motion_dur;
+        s = e <= 0 ? 0.0 : e >= 1 ? 1.0 : 0.5 * (1.0 - cos(PI * e));
+    } else if (m->cam_motion != PHANTOM_CAM_NONE) {
+        /* a bump, or a pan of no length: a step. t0 is a frame's time computed as frame / fps,
+         * the same expression every caller uses, so the comparison puts the step exactly
+         * between two frames. */
+        s = t >= m->cam_motion_t0 ? 1.0 : 0.0;
+    }
+    for (int i = 0; i < 3; i++) d[i] = s * m->cam_motion_shift[i];
+}
+
+/* X += d(t). Skipped without a motion: adding a zero would turn -0.0 into 0.0 and change the
+ * text of markers.csv for sequences rendered before the motion existed. */
+static void add_camera_motion(const phantom_model *m, double t, double X[3])
+{
+    if (m->cam_motion == PHANTOM_CAM_NONE) return;
+    double d[3];
+    phantom_camera_motion(m, t, d);
+    for (int i = 0; i < 3; i++) X[i] += d[i];
+}
+
+double phantom_heart_time(const phantom_model *m, double tl)
+{
+    if (!m->first_beat) return tl;
+    /* Resting at phase 0 (c = 0, where a contraction starts) rather than at the curve's true
+     * minimum (-0.04, just before it) makes the rest a state the normal beat passes through, so
+     * that after the first beat the motion is the normal one, shifted in time. */
+    double k = PHANTOM_FIRST_BEAT_SPEEDUP;
+    double rest = -m->heart_phase / (TWO_PI * m->heart_hz); /* a time of phase 0 */
+    double fast = 0.5 / (k * m->heart_hz);                  /* phase 0 -> pi at k times the rate */
+    double e = tl - m->first_beat_at;
+    if (e <= 0) return rest;
+    if (e < fast) return rest + k * e;
+    return rest + e + (k - 1.0) * fast; /* continuous at e = fast: rest + k fast */
 }
 
 static double seg_dist2(double pu, double pv, const phantom_pad *p)
@@ -39,7 +82,8 @@ static double rest_height(const phantom_model *m, double u, double v)
 void phantom_surface(const phantom_model *m, double u, double v, double t, double X[3])
 {
     double z0 = rest_height(m, u, v);
-    double tl = t - m->delay * (u + 0.5 * m->size_u) / m->size_u;
+    /* the first beat warps the lagged time, so the contraction wave runs through it too */
+    double tl = phantom_heart_time(m, t - m->delay * (u + 0.5 * m->size_u) / m->size_u);
     double c = activation(m->heart_hz, m->heart_phase, tl);
 
     /* twist + contraction about the dome centre */
@@ -82,7 +126,9 @@ void phantom_surface(const phantom_model *m, double u, double v, double t, doubl
     X[0] = u + hold * (pu - u);
     X[1] = v + hold * (pv - v);
     X[2] = z0 + hold * (pz - z0);
+    add_camera_motion(m, t, X);
 }
+
 
 void phantom_surface_normal(const phantom_model *m, double u, double v, double t, double n[3])
 {
@@ -166,6 +212,8 @@ void phantom_shaft_axis(const phantom_model *m, double t, double tip[3], double 
         tip[i] = m->shaft_p0[i] + s * (m->shaft_p1[i] - m->shaft_p0[i]);
         end[i] = tip[i] + m->shaft_length * m->shaft_dir[i] / l;
     }
+    add_camera_motion(m, t, tip);
+    add_camera_motion(m, t, end);
 }
 
 double phantom_blob_radius(const phantom_model *m, int b, double t)
@@ -179,7 +227,7 @@ double phantom_blob_radius(const phantom_model *m, int b, double t)
     return bl->radius * e;
 }
 
-void phantom_decoy_point(const phantom_model *m, int k, double X[3])
+void phantom_decoy_point(const phantom_model *m, int k, double t, double X[3])
 {
     static const double su[5] = {-0.5, 0.5, 0.5, -0.5, 0}, sv[5] = {-0.5, -0.5, 0.5, 0.5, 0};
     double c = cos(m->decoy_yaw), s = sin(m->decoy_yaw);
@@ -187,6 +235,7 @@ void phantom_decoy_point(const phantom_model *m, int k, double X[3])
     X[0] = m->decoy_center[0] + c * a - s * b;
     X[1] = m->decoy_center[1] + s * a + c * b;
     X[2] = m->decoy_center[2];
+    add_camera_motion(m, t, X);
 }
 
 /* Squared distance between segments p0-p1 and q0-q1 (the classic clamped closest points). */
@@ -228,7 +277,7 @@ static double segseg_dist2(const double p0[3], const double p1[3], const double 
 
 /* World endpoints of pad i's axis: on the rest surface, lifted by its radius minus how deep the
  * pad presses (a third of the radius), as the renderer draws it. */
-static void pad_axis(const phantom_model *m, int i, double a[3], double b[3])
+static void pad_axis(const phantom_model *m, int i, double t, double a[3], double b[3])
 {
     const phantom_pad *p = &m->pad[i];
     double sink = m->pad_radius * (2.0 / 3.0);
@@ -238,11 +287,13 @@ static void pad_axis(const phantom_model *m, int i, double a[3], double b[3])
     b[0] = p->u1;
     b[1] = p->v1;
     b[2] = rest_height(m, p->u1, p->v1) + sink;
+    add_camera_motion(m, t, a);
+    add_camera_motion(m, t, b);
 }
 
-void phantom_pad_axis(const phantom_model *m, int i, double a[3], double b[3])
+void phantom_pad_axis(const phantom_model *m, int i, double t, double a[3], double b[3])
 {
-    pad_axis(m, i, a, b);
+    pad_axis(m, i, t, a, b);
 }
 
 int phantom_point_visible(const phantom_model *m, int c, double t, const double X[3])
@@ -259,17 +310,20 @@ int phantom_point_visible(const phantom_model *m, int c, double t, const double 
     }
     for (int i = 0; i < m->num_pads; i++) {
         double a[3], b[3];
-        pad_axis(m, i, a, b);
+        pad_axis(m, i, t, a, b);
         if (segseg_dist2(C, X, a, b) < m->pad_radius * m->pad_radius) return 0;
     }
     if (m->decoy) {
-        /* the card is a flat square (tag plus a white margin) at height decoy_center[2] */
+        /* the card is a flat square (tag plus a white margin) at height decoy_center[2], moved
+         * with the scene by a camera motion */
+        double D[3] = {m->decoy_center[0], m->decoy_center[1], m->decoy_center[2]};
+        add_camera_motion(m, t, D);
         double dz = X[2] - C[2];
         if (fabs(dz) > 1e-12) {
-            double s = (m->decoy_center[2] - C[2]) / dz;
+            double s = (D[2] - C[2]) / dz;
             if (s > 0 && s < 1 - 1e-9) {
-                double px = C[0] + s * (X[0] - C[0]) - m->decoy_center[0];
-                double py = C[1] + s * (X[1] - C[1]) - m->decoy_center[1];
+                double px = C[0] + s * (X[0] - C[0]) - D[0];
+                double py = C[1] + s * (X[1] - C[1]) - D[1];
                 double cy = cos(m->decoy_yaw), sy = sin(m->decoy_yaw);
                 double a = cy * px + sy * py, b = -sy * px + cy * py;
                 double half = 0.5 * phantom_decoy_card(m);

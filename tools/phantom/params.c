@@ -16,14 +16,18 @@ typedef struct {
     const char *key;
     size_t offset;
     int count;
-    char type; /* 'd' double, 'i' int, 'u' uint64 */
+    char type;  /* 'd' double, 'i' int, 'u' uint64 */
+    char group; /* 0: always there; 'c' camera motion, 'f' first beat: written only when the
+                 * feature is on, so files from before it (and without it) read as without */
 } field;
 
-#define D(name, n) {#name, offsetof(phantom_model, name), n, 'd'}
-#define I(name) {#name, offsetof(phantom_model, name), 1, 'i'}
+#define D(name, n) {#name, offsetof(phantom_model, name), n, 'd', 0}
+#define I(name) {#name, offsetof(phantom_model, name), 1, 'i', 0}
+#define OD(name, n, g) {#name, offsetof(phantom_model, name), n, 'd', g}
+#define OI(name, g) {#name, offsetof(phantom_model, name), 1, 'i', g}
 
 static const field fields[] = {
-    D(fps, 1), I(frames), I(width), I(height), {"seed", offsetof(phantom_model, seed), 1, 'u'},
+    D(fps, 1), I(frames), I(width), I(height), {"seed", offsetof(phantom_model, seed), 1, 'u', 0},
     D(size_u, 1), D(size_v, 1), D(dome_height, 1), D(dome_su, 1), D(dome_sv, 1), D(dome_u, 1),
     D(dome_v, 1), D(heart_hz, 1), D(heart_phase, 1), D(delay, 1), D(contraction, 1), D(twist, 1),
     D(twist_radius, 1), D(lift, 1), D(lift_u, 1), D(lift_v, 1), D(lift_sigma, 1), D(push, 1),
@@ -32,8 +36,15 @@ static const field fields[] = {
     D(tag_size, 1), I(num_markers), I(num_cameras), I(shaft), D(shaft_p0, 3), D(shaft_p1, 3),
     D(shaft_dir, 3), D(shaft_length, 1), D(shaft_radius, 1), D(shaft_period, 1), I(num_blobs),
     I(decoy), I(decoy_id), D(decoy_center, 3), D(decoy_yaw, 1), D(noise, 1), D(exposure, 1),
+    OI(cam_motion, 'c'), OD(cam_motion_t0, 1, 'c'), OD(cam_motion_dur, 1, 'c'),
+    OD(cam_motion_shift, 3, 'c'), OI(first_beat, 'f'), OD(first_beat_at, 1, 'f'),
 };
 #define NFIELDS (sizeof fields / sizeof fields[0])
+
+static int group_on(const phantom_model *m, char group)
+{
+    return group == 0 || (group == 'c' && m->cam_motion != 0) || (group == 'f' && m->first_beat != 0);
+}
 
 static void put_doubles(FILE *f, const double *d, int n)
 {
@@ -49,6 +60,7 @@ sh_status phantom_model_write(const phantom_model *m, const char *path)
     fprintf(f, "family %s\n", m->family);
     for (size_t k = 0; k < NFIELDS; k++) {
         const field *fd = &fields[k];
+        if (!group_on(m, fd->group)) continue;
         const char *p = (const char *)m + fd->offset;
         fprintf(f, "%s", fd->key);
         if (fd->type == 'd') put_doubles(f, (const double *)(const void *)p, fd->count);
@@ -121,6 +133,13 @@ static sh_status validate(const phantom_model *m, const char *name, unsigned see
     for (int i = 0; i < m->num_cameras; i++)
         if (!(m->cam[i].fx > 0 && m->cam[i].fy > 0)) return BAD("%s: camera %d focal <= 0", name, i);
     if (m->family[0] == '\0') return BAD("%s: no family line", name);
+    if (m->cam_motion < 0 || m->cam_motion > 2) return BAD("%s: cam_motion %d: 0, 1 or 2", name, m->cam_motion);
+    if (m->cam_motion == 1 && !(m->cam_motion_dur > 0))
+        return BAD("%s: a pan (cam_motion 1) needs cam_motion_dur > 0", name);
+    if (m->first_beat < 0 || m->first_beat > 1) return BAD("%s: first_beat %d: 0 or 1", name, m->first_beat);
+    /* the first beat's warp divides by the heart rate */
+    if (m->first_beat && !(m->heart_hz > 0 && m->first_beat_at >= 0))
+        return BAD("%s: first_beat needs heart_hz > 0 and first_beat_at >= 0", name);
     return SH_OK;
 #undef BAD
 }
@@ -222,7 +241,8 @@ sh_status phantom_model_parse(const char *text, size_t len, const char *name, ph
     }
     if (lineno == 0) return sh_error_set(SH_EFORMAT, "%s: empty", name);
     for (size_t k = 0; k < NFIELDS; k++)
-        if (!seen_field[k]) return sh_error_set(SH_EFORMAT, "%s: missing '%s'", name, fields[k].key);
+        if (!seen_field[k] && group_on(m, fields[k].group))
+            return sh_error_set(SH_EFORMAT, "%s: missing '%s'", name, fields[k].key);
     return validate(m, name, seen_pad, seen_marker, seen_blob, seen_cam);
 }
 

@@ -116,13 +116,37 @@ typedef struct {
     double decoy_center[3], decoy_yaw; /* flat on a card, normal +Z */
     /* appearance (renderer only; kept so a sequence can be re-rendered from its file) */
     double noise, exposure;
+    /* a moved or bumped endoscope: everything the cameras see (surface, pads, shaft, decoy) is
+     * translated by d(t) = s(t) cam_motion_shift, world mm, parallel to camera 0's image plane.
+     * PHANTOM_CAM_PAN: s = (1 - cos(pi (t - t0) / dur)) / 2 over [t0, t0 + dur], 0 before and 1
+     * after; PHANTOM_CAM_BUMP: s = 0 before t0, 1 from t0 on (t0 is a frame's time, so the step
+     * falls between two frames). phantom.txt carries these keys only when cam_motion is set. */
+    int cam_motion;
+    double cam_motion_t0, cam_motion_dur, cam_motion_shift[3];
+    /* a sudden first beat: the heart's (lagged) time tl is warped so that the heart rests at
+     * phase 0 (c = 0) while tl < first_beat_at, then rises from phase 0 to pi four times faster
+     * than normal, then beats at heart_hz, phase continuous. Respiration keeps the clock. */
+    int first_beat;
+    double first_beat_at;
 } phantom_model;
+
+enum { PHANTOM_CAM_NONE = 0, PHANTOM_CAM_PAN = 1, PHANTOM_CAM_BUMP = 2 };
+/* The pan's length and how far each motion moves the image of the patch centre in camera 0. */
+#define PHANTOM_PAN_SECONDS 0.25
+#define PHANTOM_PAN_FRACTION 0.06
+#define PHANTOM_BUMP_FRACTION 0.03
+/* How much faster than heart_hz the first contraction runs. */
+#define PHANTOM_FIRST_BEAT_SPEEDUP 4.0
 
 /* ---- the model (model.c, camera.c) ---- */
 
 /* World position of material point (u, v) at time t (seconds). Defined for every (u, v), so
- * Newton iterations may step outside the patch. */
+ * Newton iterations may step outside the patch. Includes the camera motion below. */
 void phantom_surface(const phantom_model *m, double u, double v, double t, double X[3]);
+/* The camera motion's translation d(t) of the whole scene, world mm (0 without one). */
+void phantom_camera_motion(const phantom_model *m, double t, double d[3]);
+/* The heart's warped time: tl itself unless first_beat is set (see phantom_model). */
+double phantom_heart_time(const phantom_model *m, double tl);
 /* Unit normal (pointing up, toward the cameras) at (u, v, t). */
 void phantom_surface_normal(const phantom_model *m, double u, double v, double t, double n[3]);
 /* 1 when (u, v) lies on the patch. */
@@ -160,10 +184,11 @@ int phantom_sticker_bits(const char *family, int *border_bits);
 /* Edge of a marker's sticker (mm, material) and of the decoy's card. */
 double phantom_sticker_size(const phantom_model *m);
 double phantom_decoy_card(const phantom_model *m);
-/* World endpoints of stabilizer pad i's axis (a capsule of radius pad_radius). */
-void phantom_pad_axis(const phantom_model *m, int i, double a[3], double b[3]);
-/* World positions of the decoy's corners (0..3, libapriltag order) and centre (4). */
-void phantom_decoy_point(const phantom_model *m, int k, double X[3]);
+/* World endpoints of stabilizer pad i's axis (a capsule of radius pad_radius) at time t (the
+ * pads are fixed to the tissue's rest shape; only a camera motion moves them). */
+void phantom_pad_axis(const phantom_model *m, int i, double t, double a[3], double b[3]);
+/* World positions of the decoy's corners (0..3, libapriltag order) and centre (4) at time t. */
+void phantom_decoy_point(const phantom_model *m, int k, double t, double X[3]);
 
 /* Visibility of the surface point (u, v) in camera c at time t: in the image, facing the camera,
  * not under a blood blob, not behind the shaft, a stabilizer pad or the decoy card. */
@@ -192,6 +217,12 @@ typedef struct {
     double exposure;      /* <= 0: 1 */
     int periodic;         /* 1: heart and respiration rates rounded to whole cycles over the
                            * sequence, so that it loops without a jump (frame `frames` = frame 0) */
+    int camera_motion;    /* PHANTOM_CAM_NONE, _PAN (6 % of the width over 0.25 s) or _BUMP (3 %
+                           * of the width between two frames); not with periodic */
+    double camera_motion_at; /* seconds; <= 0: 40 % into the sequence. A bump moves the first
+                              * frame at or after it */
+    int first_beat;       /* 1: rest, then a first contraction 4x faster; not with periodic */
+    double first_beat_at; /* seconds of rest from frame 0; <= 0: 0.5 s */
 } phantom_options;
 
 void phantom_options_default(phantom_options *o);

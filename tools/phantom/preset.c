@@ -154,6 +154,53 @@ static sh_status layout_markers(phantom_model *m, const phantom_options *o, uint
     return SH_OK;
 }
 
+/* The camera motion's start and its translation: along camera 0's x axis, so the scene slides
+ * parallel to that camera's image plane (its depth unchanged) and the image of the patch centre,
+ * where it is when the motion starts, moves by the asked fraction of the width. Camera 0 alone
+ * sets it; the others see the same rigid move from where they stand. */
+static sh_status camera_motion(phantom_model *m, const phantom_options *o, double seconds)
+{
+    int pan = o->camera_motion == PHANTOM_CAM_PAN;
+    if (!pan && o->camera_motion != PHANTOM_CAM_BUMP)
+        return sh_error_set(SH_EINVAL, "camera motion %d: none (0), pan (1) or bump (2)", o->camera_motion);
+    double at = o->camera_motion_at > 0 ? o->camera_motion_at : 0.4 * seconds;
+    double t0 = at;
+    if (!pan) {
+        /* the first frame at or after `at`, its time written as every caller writes a frame's
+         * (frame / fps), so the step lies exactly between that frame and the one before; the
+         * 1e-9 keeps a time given as frame / fps on its own frame */
+        double f0 = ceil(at * m->fps - 1e-9);
+        t0 = f0 / m->fps;
+        if (f0 < 1 || f0 >= m->frames)
+            return sh_error_set(SH_EINVAL, "--camera-motion-at %g s: the bump must fall between frame 0 and "
+                                           "frame %d (%.3g s)", at, m->frames - 1, (m->frames - 1) / m->fps);
+    } else if (at >= seconds) {
+        return sh_error_set(SH_EINVAL, "--camera-motion-at %g s: the sequence lasts %.3g s", at, seconds);
+    }
+    const phantom_camera *c = &m->cam[0];
+    double P[3], x0, y0, x, y;
+    phantom_surface(m, 0, 0, t0, P); /* no motion set yet: where the centre is without it */
+    double zc = c->R[6] * P[0] + c->R[7] * P[1] + c->R[8] * P[2] + c->t[2];
+    if (!phantom_project(c, P, &x0, &y0))
+        return sh_error_set(SH_EINVAL, "camera motion: the patch centre is behind camera 0");
+    double target = (pan ? PHANTOM_PAN_FRACTION : PHANTOM_BUMP_FRACTION) * m->width;
+    /* exact for a pinhole (a move of L along the camera's x moves the image by fx L / depth);
+     * lens distortion bends that a little, so rescale until the distorted move is the target */
+    double L = target * zc / c->fx;
+    for (int it = 0; it < 50; it++) {
+        double Q[3] = {P[0] + L * c->R[0], P[1] + L * c->R[1], P[2] + L * c->R[2]};
+        if (!phantom_project(c, Q, &x, &y)) break;
+        double moved = hypot(x - x0, y - y0);
+        if (!(moved > 0) || fabs(moved - target) < 1e-9) break;
+        L *= target / moved;
+    }
+    m->cam_motion = o->camera_motion;
+    m->cam_motion_t0 = t0;
+    m->cam_motion_dur = pan ? PHANTOM_PAN_SECONDS : 0.0;
+    for (int i = 0; i < 3; i++) m->cam_motion_shift[i] = L * c->R[i];
+    return SH_OK;
+}
+
 sh_status phantom_model_build(const phantom_options *o, phantom_model *m)
 {
     memset(m, 0, sizeof *m);
@@ -210,6 +257,11 @@ sh_status phantom_model_build(const phantom_options *o, phantom_model *m)
         m->pad_falloff = 20.0;
         m->pad_radius = 4.0;
     }
+    if (o->periodic && (o->camera_motion || o->first_beat))
+        return sh_error_set(SH_EINVAL, "--periodic cannot go with --%s: a sequence that loops must end as it "
+                                       "began, and %s happens once",
+                            o->camera_motion ? "camera-motion" : "first-beat",
+                            o->camera_motion ? "the camera's move" : "the first beat");
     if (o->periodic) {
         /* the instrument shaft already moves with the sequence's period (below); the heart and the
          * breath each get the nearest whole number of cycles (at least one) */
@@ -267,6 +319,19 @@ sh_status phantom_model_build(const phantom_options *o, phantom_model *m)
         if (!distortion_monotonic(c, o->width, o->height))
             return sh_error_set(SH_EINVAL, "--distortion folds the image (radial part not monotonic "
                                            "over the view, or |p1|, |p2| >= 0.05)");
+    }
+
+    double seconds = m->frames / m->fps;
+    if (o->first_beat) {
+        m->first_beat = 1;
+        m->first_beat_at = o->first_beat_at > 0 ? o->first_beat_at : 0.5;
+        if (m->first_beat_at >= seconds)
+            return sh_error_set(SH_EINVAL, "--first-beat-at %g s: the sequence lasts %.3g s", m->first_beat_at,
+                                seconds);
+    }
+    if (o->camera_motion != PHANTOM_CAM_NONE) {
+        st = camera_motion(m, o, seconds);
+        if (st != SH_OK) return st;
     }
 
     m->noise = o->noise >= 0 ? o->noise : 1.5;

@@ -89,6 +89,11 @@ sh_status phantom_truth_locate(const phantom_truth *truth, int c, int frame, dou
     for (int i = 0; i < 3; i++) d[i] = cam->R[i] * xn + cam->R[3 + i] * yn + cam->R[6 + i];
     double s = fabs(d[2]) > 1e-12 ? (0.5 * m->dome_height - C[2]) / d[2] : 0.0;
     double a = C[0] + s * d[0], b = C[1] + s * d[1];
+    /* a camera motion has slid the patch under the ray: slide the start back */
+    double mv[3];
+    phantom_camera_motion(m, t, mv);
+    a -= mv[0];
+    b -= mv[1];
     /* Newton with a finite-difference Jacobian (the map is smooth; h is far below a pixel) and
      * step halving, so that a start outside the patch cannot run away */
     const double h = 1e-4;
@@ -256,12 +261,12 @@ sh_status phantom_truth_decoy(const phantom_truth *truth, int c, int frame, int 
     if (st != SH_OK) return st;
     if (!m->decoy) return sh_error_set(SH_EINVAL, "this sequence has no decoy (render with --occlusions)");
     if (k < 0 || k >= PHANTOM_POINTS) return sh_error_set(SH_EINVAL, "decoy point %d: 0..4", k);
-    double P[3], px = NAN, py = NAN;
-    phantom_decoy_point(m, k, P);
+    double P[3], px = NAN, py = NAN, t = frame_time(m, frame);
+    phantom_decoy_point(m, k, t, P);
     int front = phantom_project(&m->cam[c], P, &px, &py);
     if (id) *id = m->decoy_id;
     if (x) *x = px;
     if (y) *y = py;
-    if (visible) *visible = front && phantom_point_visible(m, c, frame_time(m, frame), P);
+    if (visible) *visible = front && phantom_point_visible(m, c, t, P);
     return SH_OK;
 }

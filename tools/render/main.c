@@ -43,6 +43,21 @@ static void usage(FILE *f)
 "                     are rounded to whole cycles over it (refused beyond 10 %% of the asked\n"
 "                     rate) and the Y4M headers carry XLOOP=SEAMLESS, which tells a looping\n"
 "                     replay (stillheart run --loop) that the motion goes on across the loop\n"
+"  --camera-motion pan|bump\n"
+"                     the endoscope moves: the whole scene (heart, pads, shaft, decoy) slides\n"
+"                     along camera 0's image x axis, parallel to its image plane, so that the\n"
+"                     patch centre's image moves right by 6 %% of the width over 0.25 s on a\n"
+"                     smooth (1-cos)/2 ramp (pan), or by 3 %% of the width between two frames\n"
+"                     (bump: the first frame at or after the start is moved); the view stays\n"
+"                     moved afterwards. In phantom.txt, so the truth follows it\n"
+"  --camera-motion-at SECONDS\n"
+"                     when the motion starts (default: 40 %% into the sequence)\n"
+"  --first-beat       the heart rests (activation 0) from frame 0, then its first contraction\n"
+"                     (phase 0 to pi) runs 4 times faster than the beats after it, which\n"
+"                     follow at the normal rate; respiration is not affected\n"
+"  --first-beat-at SECONDS\n"
+"                     how long the heart rests first (default 0.5)\n"
+"                     (--camera-motion and --first-beat happen once: not with --periodic)\n"
 "  --markers N        number of markers (default 16 exvivo, 14 invivo)\n"
 "  --tag-size MM      edge of a tag's black border in mm (default 10 exvivo, 8 invivo)\n"
 "  --family NAME      tag36h11 (default), tag25h9, tag16h5 or tagStandard41h12\n"
@@ -279,7 +294,7 @@ int main(int argc, char **argv)
     int ids[PHANTOM_MAX_MARKERS];
     enum { O_PRESET = 256, O_FRAMES, O_CAMERAS, O_WIDTH, O_HEIGHT, O_SEED, O_OCC, O_BPM, O_MARKERS,
            O_TAG, O_FAMILY, O_IDS, O_FPS, O_DIST, O_NOISE, O_EXPOSURE, O_OUT, O_QUIET, O_HELP,
-           O_TARGET, O_PERIODIC };
+           O_TARGET, O_PERIODIC, O_CAM_MOTION, O_CAM_MOTION_AT, O_FIRST_BEAT, O_FIRST_BEAT_AT };
     static const struct option opts[] = {
         {"preset", 1, 0, O_PRESET}, {"frames", 1, 0, O_FRAMES}, {"cameras", 1, 0, O_CAMERAS},
         {"width", 1, 0, O_WIDTH}, {"height", 1, 0, O_HEIGHT}, {"seed", 1, 0, O_SEED},
@@ -288,7 +303,9 @@ int main(int argc, char **argv)
         {"fps", 1, 0, O_FPS}, {"distortion", 1, 0, O_DIST}, {"noise", 1, 0, O_NOISE},
         {"exposure", 1, 0, O_EXPOSURE}, {"out", 1, 0, O_OUT}, {"quiet", 0, 0, O_QUIET},
         {"help", 0, 0, O_HELP}, {"calib-target", 1, 0, O_TARGET},
-        {"periodic", 0, 0, O_PERIODIC}, {0, 0, 0, 0}};
+        {"periodic", 0, 0, O_PERIODIC}, {"camera-motion", 1, 0, O_CAM_MOTION},
+        {"camera-motion-at", 1, 0, O_CAM_MOTION_AT}, {"first-beat", 0, 0, O_FIRST_BEAT},
+        {"first-beat-at", 1, 0, O_FIRST_BEAT_AT}, {0, 0, 0, 0}};
     rd_board board;
     int board_mode = 0;
     const char *heart_option = NULL; /* the last option that only the heart uses */
@@ -299,7 +316,8 @@ int main(int argc, char **argv)
     int idx;
     while ((ch = getopt_long(argc, argv, "", opts, &idx)) != -1) {
         if (ch == O_PRESET || ch == O_OCC || ch == O_BPM || ch == O_MARKERS || ch == O_TAG || ch == O_FAMILY ||
-            ch == O_IDS || ch == O_PERIODIC)
+            ch == O_IDS || ch == O_PERIODIC || ch == O_CAM_MOTION || ch == O_CAM_MOTION_AT || ch == O_FIRST_BEAT ||
+            ch == O_FIRST_BEAT_AT)
             heart_option = opts[idx].name;
         switch (ch) {
         case O_PRESET: o.preset = optarg; break;
@@ -339,6 +357,14 @@ int main(int argc, char **argv)
         case O_OUT: out = optarg; break;
         case O_QUIET: quiet = 1; break;
         case O_PERIODIC: o.periodic = 1; break;
+        case O_CAM_MOTION:
+            if (!strcmp(optarg, "pan")) o.camera_motion = PHANTOM_CAM_PAN;
+            else if (!strcmp(optarg, "bump")) o.camera_motion = PHANTOM_CAM_BUMP;
+            else BAD("--camera-motion '%s': pan or bump", optarg);
+            break;
+        case O_CAM_MOTION_AT: if (!parse_double(optarg, &dv) || !(dv > 0 && dv < 1e6)) BAD("--camera-motion-at '%s': seconds > 0", optarg); o.camera_motion_at = dv; break;
+        case O_FIRST_BEAT: o.first_beat = 1; break;
+        case O_FIRST_BEAT_AT: if (!parse_double(optarg, &dv) || !(dv > 0 && dv < 1e6)) BAD("--first-beat-at '%s': seconds > 0", optarg); o.first_beat_at = dv; break;
         case O_TARGET:
             if (rd_board_parse(optarg, &board) != SH_OK) BAD("%s", sh_error_message());
             board_mode = 1;
@@ -350,6 +376,8 @@ int main(int argc, char **argv)
     if (optind < argc) BAD("unexpected argument '%s' (see --help)", argv[optind]);
     if (!out) BAD("--out DIR is required (see --help)");
     if (board_mode && heart_option) BAD("--%s: the heart's option, not the board's (--calib-target)", heart_option);
+    if (o.camera_motion_at > 0 && !o.camera_motion) BAD("--camera-motion-at: with --camera-motion pan|bump only");
+    if (o.first_beat_at > 0 && !o.first_beat) BAD("--first-beat-at: with --first-beat only");
 #undef BAD
     if (board_mode && o.frames <= 0) o.frames = 20;
 

@@ -52,6 +52,8 @@ struct rd_scene {
     mesh shaft, card, decoy;
     GLuint tissue_tex, decoy_tex;
     GLuint tag_tex[PHANTOM_MAX_MARKERS];
+    double card_rest[12], decoy_rest[12]; /* the card's and its tag's corners without camera motion */
+    double pad_len[PHANTOM_MAX_PADS];     /* fixes each capsule's ring count (see capsule_alloc) */
     double rlim[PHANTOM_MAX_CAMERAS]; /* normalised radius beyond which distortion is frozen */
     double tag_half_extent; /* half the edge of a tag's image, white ring included, mm */
     vtx *buf;
@@ -281,8 +283,9 @@ sh_status rd_scene_create(const phantom_model *m, rd_scene **out)
     for (int p = 0; p < m->num_pads; p++) {
         double a[3], b[3];
         int rings;
-        phantom_pad_axis(m, p, a, b);
+        phantom_pad_axis(m, p, 0.0, a, b); /* rd_scene_update moves them with a camera motion */
         double len = sqrt((b[0] - a[0]) * (b[0] - a[0]) + (b[1] - a[1]) * (b[1] - a[1]) + (b[2] - a[2]) * (b[2] - a[2]));
+        s->pad_len[p] = len;
         if ((st = capsule_alloc(&s->pads[p], len, &rings)) != SH_OK) goto fail;
         capsule_place(&s->pads[p], a, b, m->pad_radius, len);
         material(&s->pads[p], 0.55f, 0.57f, 0.6f, 0.3f, 0.7f, 0.8f, 30);
@@ -316,6 +319,8 @@ sh_status rd_scene_create(const phantom_model *m, rd_scene **out)
                 me2[q]->st[2 * k + 1] = sv[k] > 0 ? 0.0f : 1.0f;
             }
         }
+        memcpy(s->card_rest, card->P, sizeof s->card_rest);
+        memcpy(s->decoy_rest, tag->P, sizeof s->decoy_rest);
         static const uint32_t quad[6] = {0, 1, 2, 0, 2, 3};
         memcpy(card->idx, quad, sizeof quad);
         memcpy(tag->idx, quad, sizeof quad);
@@ -443,6 +448,24 @@ void rd_scene_update(rd_scene *s, double t)
         double tip[3], end[3];
         phantom_shaft_axis(m, t, tip, end);
         capsule_place(&s->shaft, tip, end, m->shaft_radius, m->shaft_length);
+    }
+    /* the rigid things off the tissue move only with the camera */
+    if (m->cam_motion != PHANTOM_CAM_NONE) {
+        for (int p = 0; p < m->num_pads; p++) {
+            double a[3], b[3];
+            phantom_pad_axis(m, p, t, a, b);
+            /* the length from creation: recomputed from the moved ends it could round across a
+             * ring boundary and overrun the mesh */
+            capsule_place(&s->pads[p], a, b, m->pad_radius, s->pad_len[p]);
+        }
+        if (m->decoy) {
+            double d[3];
+            phantom_camera_motion(m, t, d);
+            for (int k = 0; k < 12; k++) {
+                s->card.P[k] = s->card_rest[k] + d[k % 3];
+                s->decoy.P[k] = s->decoy_rest[k] + d[k % 3];
+            }
+        }
     }
 }
 

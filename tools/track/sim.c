@@ -103,6 +103,10 @@ sh_status track_sim_run(const track_sim_config *c, const sh_track_options *topts
     po.frames = c->frames;
     po.seed = c->seed;
     po.occlusions = c->occlusions;
+    po.camera_motion = c->camera_motion;
+    po.camera_motion_at = c->camera_motion_at;
+    po.first_beat = c->first_beat;
+    po.first_beat_at = c->first_beat_at;
     sh_status st = phantom_model_build(&po, &m);
     if (st) return st;
     memset(r, 0, sizeof *r);
@@ -198,7 +202,7 @@ sh_status track_sim_run(const track_sim_config *c, const sh_track_options *topts
             /* the decoy: a real tag of the family off the heart */
             if (m.decoy) {
                 double X[3], x, y;
-                phantom_decoy_point(&m, 4, X);
+                phantom_decoy_point(&m, 4, tt, X);
                 if (phantom_point_visible(&m, cam, tt, X) && phantom_project(&m.cam[cam], X, &x, &y)) {
                     sh_detection *d = &dets[cam][count[cam]++];
                     memset(d, 0, sizeof *d);
@@ -206,7 +210,7 @@ sh_status track_sim_run(const track_sim_config *c, const sh_track_options *topts
                     d->cx = x + c->noise_px * nrand(&rng);
                     d->cy = y + c->noise_px * nrand(&rng);
                     for (int k = 0; k < 4; k++) {
-                        phantom_decoy_point(&m, k, X);
+                        phantom_decoy_point(&m, k, tt, X);
                         phantom_project(&m.cam[cam], X, &d->corner[k][0], &d->corner[k][1]);
                     }
                     d->margin = 50;
@@ -230,7 +234,20 @@ sh_status track_sim_run(const track_sim_config *c, const sh_track_options *topts
         sh_track_stats ts;
         sh_tracker_stats(t, &ts);
         if (ts.locked && r->lock_frame < 0) r->lock_frame = f;
+        int counted = ts.locked || c->all_frames; /* this frame's errors and counts are kept */
         int n = sh_tracker_estimates(t, est, SH_TRACK_MAX_MARKERS);
+        if (counted) {
+            /* the detection rate: every visible marker, whether the tracker reports it or not */
+            for (int i = 0; i < m.num_markers; i++) {
+                if ((hiding && hide[i]) || !phantom_marker_visible(&m, 0, tt, i, 4)) continue;
+                r->visible++;
+                for (int q = 0; q < n; q++)
+                    if (est[q].id == m.marker[i].id && est[q].confirmed && est[q].status == SH_TRACK_MEASURED) {
+                        r->found++;
+                        break;
+                    }
+            }
+        }
         for (int q = 0; q < n; q++) {
             const sh_track_estimate *e = &est[q];
             int i = -1;
@@ -252,7 +269,7 @@ sh_status track_sim_run(const track_sim_config *c, const sh_track_options *topts
                 if (hidden_now) r->hid_lost++;
                 continue;
             }
-            if (!e->confirmed || !ts.locked) continue;
+            if (!e->confirmed || !counted) continue;
             double X[3], x, y;
             phantom_marker_point(&m, i, 4, tt, X);
             if (!phantom_project(&m.cam[0], X, &x, &y) || !e->in_view[0]) continue;

@@ -27,10 +27,17 @@ typedef struct {
     int auto_ids;           /* tracker learns ids (no whitelist) */
     sh_spatial_mode spatial;
     const char *trace_path; /* per frame CSV of hidden markers' errors (NULL: none) */
+    int camera_motion;      /* the phantom's moved endoscope: 0 none, 1 pan, 2 bump (phantom.h) */
+    double camera_motion_at; /* seconds; <= 0: 40 % into the sequence */
+    int first_beat;         /* 1: the heart rests, then a first contraction 4x faster */
+    double first_beat_at;   /* seconds of rest; <= 0: 0.5 s */
+    int all_frames;         /* 1: errors and found/visible counted from frame 0, not only once the
+                             * rates lock (to measure tracking before the lock) */
 } track_sim_config;
 
 typedef struct {
-    /* errors of every confirmed, not lost estimate after the rates locked, camera 0 pixels */
+    /* errors of every confirmed, not lost estimate after the rates locked (every frame with
+     * all_frames), camera 0 pixels */
     double vis_mean_px, vis_max_px;   /* frames where the marker was detected (measured) */
     double vis_mean_mm, vis_max_mm;   /* 3D: the same in world units */
     long vis_count;
@@ -43,6 +50,11 @@ typedef struct {
                                        * corrupted detection, plus reported decoys */
     long decoy_reported;
     long corrupted_fed;               /* corrupted detections given to the tracker */
+    long visible;                     /* (marker, frame) pairs, over the same frames as the
+                                       * errors, where the marker's centre is visible in camera 0
+                                       * (truth) and not forcibly hidden */
+    long found;                       /* ... of which the tracker reported the marker confirmed
+                                       * and MEASURED: found / visible is the detection rate */
     int lock_frame;                   /* first frame with rates locked (-1 never) */
     double heart_hz, resp_hz, true_heart_hz, true_resp_hz;
     sh_track_stats stats;

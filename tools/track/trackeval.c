@@ -12,7 +12,11 @@ static void usage(void)
             "usage: stillheart-trackeval [--preset exvivo|invivo] [--cameras N] [--frames N] [--seed S]\n"
             "       [--noise PX] [--dropout P] [--partial PX] [--duplicates P] [--occlusions]\n"
             "       [--hide FRACTION --start S --duration S] [--spatial off|fuse] [--auto-ids]\n"
-            "       [--harmonics H] [--resp R] [--q-base Q] [--q-harm Q] [--trace FILE.csv]\n");
+            "       [--harmonics H] [--resp R] [--q-base Q] [--q-harm Q] [--trace FILE.csv]\n"
+            "       [--camera-motion pan|bump] [--camera-motion-at S] [--first-beat] [--first-beat-at S]\n"
+            "       [--all-frames]\n"
+            "  --camera-motion, --first-beat: the phantom's moved endoscope and sudden first beat\n"
+            "  (stillheart-render --help); --all-frames: figures from frame 0, not from the lock\n");
 }
 
 int main(int argc, char **argv)
@@ -43,6 +47,12 @@ int main(int argc, char **argv)
         else if (ARG("--q-base")) o.q_base = atof(v);
         else if (ARG("--q-harm")) o.q_harm = atof(v);
         else if (ARG("--trace")) c.trace_path = v;
+        else if (ARG("--camera-motion") && (!strcmp(v, "pan") || !strcmp(v, "bump")))
+            c.camera_motion = !strcmp(v, "pan") ? PHANTOM_CAM_PAN : PHANTOM_CAM_BUMP;
+        else if (ARG("--camera-motion-at")) c.camera_motion_at = atof(v);
+        else if (!strcmp(a, "--first-beat")) c.first_beat = 1;
+        else if (ARG("--first-beat-at")) c.first_beat_at = atof(v);
+        else if (!strcmp(a, "--all-frames")) c.all_frames = 1;
         else {
             usage();
             return 2;
@@ -56,12 +66,13 @@ int main(int argc, char **argv)
         return 1;
     }
     printf("%s cams=%d hide=%.2f/%.2fs spatial=%s: lock@%d f_h=%.4f (true %.4f) f_r=%.4f (true %.4f)\n"
-           "  visible: mean %.3f px max %.3f px (raw detections %.3f px)  3D mean %.3f mm max %.3f mm  n=%ld\n"
+           "  visible: mean %.3f px max %.3f px (raw detections %.3f px)  3D mean %.3f mm max %.3f mm  n=%ld"
+           "  found %ld/%ld\n"
            "  hidden:  mean %.3f px max %.3f px  3D mean %.3f mm  n=%ld lost=%ld\n"
            "  gated %ld misshapen %ld held %ld duplicates %ld unknown %ld inconsistent %ld corrupted-fed %ld false %ld decoy %ld\n",
            c.preset, c.cameras, c.hide_fraction, c.hide_duration, c.spatial ? "fuse" : "off",
            r.lock_frame, r.heart_hz, r.true_heart_hz, r.resp_hz, r.true_resp_hz, r.vis_mean_px,
-           r.vis_max_px, r.raw_mean_px, r.vis_mean_mm, r.vis_max_mm, r.vis_count, r.hid_mean_px,
+           r.vis_max_px, r.raw_mean_px, r.vis_mean_mm, r.vis_max_mm, r.vis_count, r.found, r.visible, r.hid_mean_px,
            r.hid_max_px, r.hid_mean_mm, r.hid_count, r.hid_lost, r.stats.gated, r.stats.misshapen, r.stats.held, r.stats.duplicates,
            r.stats.unknown, r.stats.inconsistent, r.corrupted_fed, r.false_corr, r.decoy_reported);
     return 0;

@@ -1,7 +1,8 @@
 /* The ground-truth library: the parameter file round-trips bit for bit, locate inverts project,
  * where(ref -> ref) is the identity, marker truth equals the renderer's CSV, the calibration file
  * reads back as the model's cameras, the motion is non-affine, --periodic loops without a jump,
- * and the readers refuse garbage. */
+ * a moved endoscope (pan, bump) and a sudden first beat follow their closed forms, and the
+ * readers refuse garbage. */
 #include <math.h>
 #include <setjmp.h>
 #include <stdarg.h>
@@ -9,6 +10,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include <cmocka.h>
 
@@ -263,6 +265,324 @@ static void test_periodic_loops_without_a_jump(void **state)
     assert_int_not_equal(phantom_model_build(&o, &m), SH_OK);
 }
 
+/* Camera 0's depth of a world point: how far along its optical axis (mm). */
+static double depth0(const phantom_model *m, const double X[3])
+{
+    const phantom_camera *c = &m->cam[0];
+    return c->R[6] * X[0] + c->R[7] * X[1] + c->R[8] * X[2] + c->t[2];
+}
+
+/* Pixel of marker i's centre in camera 0 at time t. */
+static void centre_px(const phantom_model *m, int i, double t, double *x, double *y)
+{
+    double X[3];
+    phantom_marker_point(m, i, 4, t, X);
+    assert_true(phantom_project(&m->cam[0], X, x, y));
+}
+
+/* A pair of models from the same options, with and without the camera motion. */
+static void motion_pair(int kind, double at, const double *dist, int width, int height,
+                        phantom_model *mv, phantom_model *still)
+{
+    phantom_options o;
+    phantom_options_default(&o);
+    o.cameras = 1;
+    o.width = width;
+    o.height = height;
+    o.dist = dist;
+    o.occlusions = 1;
+    assert_int_equal(phantom_model_build(&o, still), SH_OK);
+    o.camera_motion = kind;
+    o.camera_motion_at = at;
+    assert_int_equal(phantom_model_build(&o, mv), SH_OK);
+    /* the motion changes nothing else about the sequence */
+    phantom_model tmp = *still;
+    tmp.cam_motion = mv->cam_motion;
+    tmp.cam_motion_t0 = mv->cam_motion_t0;
+    tmp.cam_motion_dur = mv->cam_motion_dur;
+    memcpy(tmp.cam_motion_shift, mv->cam_motion_shift, sizeof tmp.cam_motion_shift);
+    assert_memory_equal(&tmp, mv, sizeof tmp);
+}
+
+/* A bump: a translation parallel to camera 0's image plane along its x axis moves a point's
+ * undistorted pixel by fx L / depth along x and not at all along y (pinhole projection). So:
+ * the patch centre's image moves by 3 % of the width from the frame before the bump to the one
+ * at it, beyond what the heart itself does; every marker centre by that times the centre's depth
+ * over its own (~2 % apart on the dome), within 0.5 px of 3 % at 640 px; nothing moves before
+ * the bump and the shift holds after it. With lens distortion the centre still moves by 3 %. */
+static void test_camera_bump_closed_form(void **state)
+{
+    (void)state;
+    static phantom_model mv, still;
+    const int W = 640;
+    motion_pair(PHANTOM_CAM_BUMP, 0.5, NULL, W, 360, &mv, &still);
+    double fps = mv.fps;
+    int f0 = (int)ceil(0.5 * fps); /* the first frame at or after 0.5 s (0.5 * 23 is not whole) */
+    assert_true(mv.cam_motion_t0 == f0 / fps);
+    double target = 0.03 * W, worst_closed = 0, worst_plain = 0;
+    /* the patch centre, where the heart has it at the bump */
+    double P[3], Q[3], x0, y0, x1, y1;
+    phantom_surface(&still, 0, 0, f0 / fps, P);
+    phantom_surface(&mv, 0, 0, f0 / fps, Q);
+    assert_true(phantom_project(&mv.cam[0], P, &x0, &y0) && phantom_project(&mv.cam[0], Q, &x1, &y1));
+    printf("# bump: patch centre moved by %.9f px (3%% of %d = %.3f)\n", x1 - x0, W, target);
+    assert_true(fabs((x1 - x0) - target) < 1e-6 && fabs(y1 - y0) < 1e-6);
+    double zc = depth0(&mv, P);
+    for (int f = 0; f < mv.frames; f += f < f0 + 3 ? 1 : 37) {
+        double t = f / fps;
+        for (int i = 0; i < mv.num_markers; i++) {
+            double xm, ym, xs, ys, X[3];
+            centre_px(&mv, i, t, &xm, &ym);
+            centre_px(&still, i, t, &xs, &ys);
+            if (f < f0) {
+                assert_true(xm == xs && ym == ys); /* nothing before the bump */
+                continue;
+            }
+            phantom_marker_point(&still, i, 4, t, X);
+            double want = target * zc / depth0(&mv, X);
+            worst_closed = fmax(worst_closed, hypot(xm - xs - want, ym - ys));
+            worst_plain = fmax(worst_plain, hypot(xm - xs - target, ym - ys));
+        }
+    }
+    /* between the two frames around the bump: (with motion) - (without) displacement */
+    double worst_step = 0;
+    for (int i = 0; i < mv.num_markers; i++) {
+        double a[2], b[2], c[2], d[2];
+        centre_px(&mv, i, (f0 - 1) / fps, &a[0], &a[1]);
+        centre_px(&mv, i, f0 / fps, &b[0], &b[1]);
+        centre_px(&still, i, (f0 - 1) / fps, &c[0], &c[1]);
+        centre_px(&still, i, f0 / fps, &d[0], &d[1]);
+        double dx = (b[0] - a[0]) - (d[0] - c[0]), dy = (b[1] - a[1]) - (d[1] - c[1]);
+        worst_step = fmax(worst_step, hypot(dx - target, dy));
+    }
+    printf("# bump: markers off fx L / depth by %.3g px, off 3%% by %.3f px (held), step off 3%% by %.3f px\n",
+           worst_closed, worst_plain, worst_step);
+    assert_true(worst_closed < 1e-6);
+    assert_true(worst_plain < 0.5);
+    assert_true(worst_step < 0.5);
+    /* the rigid things move alike: the decoy's centre by fx L / its depth */
+    double D0[3], D1[3], dx0, dy0, dx1, dy1;
+    phantom_decoy_point(&still, 4, f0 / fps, D0);
+    phantom_decoy_point(&mv, 4, f0 / fps, D1);
+    assert_true(phantom_project(&mv.cam[0], D0, &dx0, &dy0) && phantom_project(&mv.cam[0], D1, &dx1, &dy1));
+    assert_true(fabs(dx1 - dx0 - target * zc / depth0(&mv, D0)) < 1e-6 && fabs(dy1 - dy0) < 1e-6);
+    double T0[3], E0[3], T1[3], E1[3];
+    phantom_shaft_axis(&still, f0 / fps, T0, E0);
+    phantom_shaft_axis(&mv, f0 / fps, T1, E1);
+    for (int k = 0; k < 3; k++) assert_true(fabs(T1[k] - T0[k] - mv.cam_motion_shift[k]) < 1e-9);
+
+    /* the truth's inverse follows the moved scene: locate inverts project after the bump */
+    {
+        char path[] = "/tmp/phantom-bump-XXXXXX";
+        assert_non_null(mkdtemp(path));
+        char file[64];
+        snprintf(file, sizeof file, "%s/%s", path, PHANTOM_PARAMS_FILE);
+        assert_int_equal(phantom_model_write(&mv, file), SH_OK);
+        phantom_truth *t;
+        assert_int_equal(phantom_truth_open(path, &t), SH_OK);
+        double worst_locate = 0;
+        for (double u = -45; u <= 45; u += 15)
+            for (double v = -35; v <= 35; v += 14) {
+                double x, y, u2, v2;
+                assert_int_equal(phantom_truth_project(t, 0, f0 + 2, u, v, &x, &y), SH_OK);
+                assert_int_equal(phantom_truth_locate(t, 0, f0 + 2, x, y, &u2, &v2), SH_OK);
+                worst_locate = fmax(worst_locate, hypot(u2 - u, v2 - v));
+            }
+        assert_true(worst_locate < 1e-6);
+        phantom_truth_close(t);
+        remove(file);
+        rmdir(path);
+    }
+
+    /* lens distortion: the centre's distorted image still moves by 3 % of the width */
+    static const double dist[5] = {-0.2, 0.3, 0.001, 0.0005, -0.1};
+    motion_pair(PHANTOM_CAM_BUMP, 0.5, dist, W, 360, &mv, &still);
+    phantom_surface(&still, 0, 0, f0 / fps, P);
+    phantom_surface(&mv, 0, 0, f0 / fps, Q);
+    assert_true(phantom_project(&mv.cam[0], P, &x0, &y0) && phantom_project(&mv.cam[0], Q, &x1, &y1));
+    assert_true(fabs(hypot(x1 - x0, y1 - y0) - target) < 1e-6);
+}
+
+/* A pan: the same translation, 6 % of the width, on the ramp s = (1 - cos(pi (t - t0) / 0.25)) / 2:
+ * the patch centre's image is off its still position by 6 % s(t) (times the depth at t0 over the
+ * depth at t), every marker's by that with its own depth (within 0.5 px of 6 % s(t) at 320 px),
+ * nothing before t0, all of it after t0 + 0.25 s, and no frame-to-frame step larger than the
+ * ramp's steepest, pi / 2 of 6 % per 0.25 s. */
+static void test_camera_pan_closed_form(void **state)
+{
+    (void)state;
+    static phantom_model mv, still;
+    const int W = 320;
+    const double t0 = 1.1;
+    motion_pair(PHANTOM_CAM_PAN, t0, NULL, W, 360, &mv, &still);
+    double fps = mv.fps, full = 0.06 * W;
+    double P0[3];
+    phantom_surface(&still, 0, 0, t0, P0);
+    double z0 = depth0(&mv, P0), worst = 0, worst_closed = 0, worst_markers = 0, prev = 0, max_step = 0;
+    int moving = 0;
+    for (int f = 0; f < (int)((t0 + 0.6) * fps); f++) {
+        double t = f / fps, e = (t - t0) / 0.25;
+        double s = e <= 0 ? 0 : e >= 1 ? 1 : 0.5 * (1 - cos(M_PI * e));
+        double P[3], Q[3], xs, ys, xm, ym;
+        phantom_surface(&still, 0, 0, t, P);
+        phantom_surface(&mv, 0, 0, t, Q);
+        assert_true(phantom_project(&mv.cam[0], P, &xs, &ys) && phantom_project(&mv.cam[0], Q, &xm, &ym));
+        double off = xm - xs;
+        worst = fmax(worst, hypot(off - full * s * z0 / depth0(&mv, P), ym - ys));
+        if (e <= 0) assert_true(off == 0 && ym == ys);
+        if (e > 0 && e < 1) moving++;
+        max_step = fmax(max_step, off - prev);
+        prev = off;
+        for (int i = 0; i < mv.num_markers; i++) {
+            double a, b, c, d, X[3];
+            centre_px(&mv, i, t, &a, &b);
+            centre_px(&still, i, t, &c, &d);
+            phantom_marker_point(&still, i, 4, t, X);
+            worst_closed = fmax(worst_closed, hypot(a - c - full * s * z0 / depth0(&mv, X), b - d));
+            worst_markers = fmax(worst_markers, hypot(a - c - full * s, b - d));
+        }
+    }
+    double steepest = full * (M_PI / 2) / (0.25 * fps);
+    printf("# pan: centre off the ramp by %.3g px, markers by %.3g px (%.3f px from 6 %% alone); %d frames "
+           "in the pan, largest step %.2f px (ramp's steepest %.2f)\n", worst, worst_closed, worst_markers,
+           moving, max_step, steepest);
+    assert_true(worst < 1e-6);
+    assert_true(worst_closed < 1e-6);
+    assert_true(worst_markers < 0.5);
+    assert_true(fabs(prev - full * z0 / depth0(&mv, P0)) < 0.5); /* all of it, held */
+    assert_true(moving >= (int)(0.25 * fps) - 1);                /* spread over 0.25 s */
+    assert_true(max_step <= steepest + 0.1);
+}
+
+/* The first beat, from its definition: the heart rests at phase 0 (activation 0) until
+ * first_beat_at, rises from phase 0 to pi in an eighth of a period (4x the rate), then beats at
+ * the normal rate from phase pi on. Where the contraction wave has no lag (u = -size_u/2) the
+ * surface is the plain model's at the time of that phase; everywhere after the first beat it is
+ * the plain model's shifted by a constant. Exvivo: no respiration, so the tissue is still. */
+static void test_first_beat(void **state)
+{
+    (void)state;
+    phantom_options o;
+    phantom_options_default(&o);
+    o.cameras = 1;
+    static phantom_model m, plain;
+    assert_int_equal(phantom_model_build(&o, &plain), SH_OK);
+    o.first_beat = 1;
+    assert_int_equal(phantom_model_build(&o, &m), SH_OK);
+    assert_true(m.first_beat == 1 && m.first_beat_at == 0.5);
+    double hz = m.heart_hz, fps = m.fps, T0 = m.first_beat_at;
+    double rest = -m.heart_phase / (2 * M_PI * hz), fast = 1.0 / (8 * hz);
+    /* rest: every marker still until T0, whatever its lag */
+    double moved_rest = 0;
+    for (int f = 1; f / fps < T0; f++)
+        for (int i = 0; i < m.num_markers; i++) {
+            double A[3], B[3];
+            phantom_marker_point(&m, i, 4, 0, A);
+            phantom_marker_point(&m, i, 4, f / fps, B);
+            moved_rest = fmax(moved_rest, hypot(hypot(A[0] - B[0], A[1] - B[1]), A[2] - B[2]));
+        }
+    assert_true(moved_rest < 1e-9);
+    double worst = 0;
+    for (double v = -30; v <= 30; v += 15) {
+        /* the fast rise at the unlagged edge, sub-frame times included */
+        for (double t = T0; t <= T0 + fast; t += fast / 7) {
+            double A[3], B[3];
+            phantom_surface(&m, -0.5 * m.size_u, v, t, A);
+            phantom_surface(&plain, -0.5 * m.size_u, v, rest + 4 * (t - T0), B);
+            worst = fmax(worst, hypot(hypot(A[0] - B[0], A[1] - B[1]), A[2] - B[2]));
+        }
+        /* after it, everywhere: the normal beat, phase continuous */
+        for (double u = -40; u <= 40; u += 20)
+            for (double t = T0 + fast + m.delay; t < 12; t += 0.37) {
+                double A[3], B[3];
+                phantom_surface(&m, u, v, t, A);
+                phantom_surface(&plain, u, v, t + rest - T0 + 3 * fast, B);
+                worst = fmax(worst, hypot(hypot(A[0] - B[0], A[1] - B[1]), A[2] - B[2]));
+            }
+    }
+    assert_true(worst < 1e-9);
+    /* The first contraction is the fastest motion: per frame, camera 0 pixels. The phase runs 4x
+     * faster in it, but it is a rise, and the activation (1 - cos phi) / 2 + 0.12 sin 2 phi rises
+     * at most at 0.370 per radian (phi = 0.55) while it falls at up to 0.74 (phi = 3 pi / 2): so
+     * about 2x the steepest normal motion, not 4x. */
+    double first = 0, later = 0;
+    double end = T0 + fast + m.delay; /* the lagged side finishes its fast rise by then */
+    for (int f = 1; f < m.frames; f++) {
+        double t = f / fps;
+        if (t <= T0) continue;
+        for (int i = 0; i < m.num_markers; i++) {
+            double a, b, c, d;
+            centre_px(&m, i, (f - 1) / fps, &a, &b);
+            centre_px(&m, i, t, &c, &d);
+            double step = hypot(c - a, d - b);
+            if ((f - 1) / fps < end) first = fmax(first, step);
+            else later = fmax(later, step);
+        }
+    }
+    printf("# first beat: rest still to %.2g mm; largest step %.2f px in the first contraction, %.2f px "
+           "after (x%.2f)\n", moved_rest, first, later, first / later);
+    assert_true(first > 1.5 * later);
+}
+
+/* The new keys round-trip, appear only when used (files rendered before them read unchanged), are
+ * checked, and --periodic refuses motions that happen once. */
+static void test_motion_params(void **state)
+{
+    (void)state;
+    phantom_options o;
+    phantom_options_default(&o);
+    o.preset = "invivo";
+    o.occlusions = 1;
+    o.camera_motion = PHANTOM_CAM_PAN;
+    o.first_beat = 1;
+    o.first_beat_at = 0.7;
+    phantom_model a, b;
+    assert_int_equal(phantom_model_build(&o, &a), SH_OK);
+    assert_true(a.cam_motion == PHANTOM_CAM_PAN && a.cam_motion_dur == 0.25);
+    assert_true(a.cam_motion_t0 == 0.4 * a.frames / a.fps); /* the default start */
+    char path[] = "/tmp/phantom-params-XXXXXX";
+    int fd = mkstemp(path);
+    assert_true(fd >= 0);
+    assert_int_equal(phantom_model_write(&a, path), SH_OK);
+    assert_int_equal(phantom_model_read(path, &b), SH_OK);
+    assert_memory_equal(&a, &b, sizeof a);
+    o.camera_motion = 0;
+    o.first_beat = 0;
+    assert_int_equal(phantom_model_build(&o, &a), SH_OK);
+    assert_int_equal(phantom_model_write(&a, path), SH_OK);
+    FILE *f = fopen(path, "r");
+    assert_non_null(f);
+    static char text[65536];
+    size_t n = fread(text, 1, sizeof text - 1, f);
+    text[n] = '\0';
+    fclose(f);
+    remove(path);
+    assert_null(strstr(text, "cam_motion"));
+    assert_null(strstr(text, "first_beat"));
+    /* a pan without its length, an unknown motion, a first beat without a rate */
+    static const char *extra[] = {"cam_motion 1\ncam_motion_t0 1\ncam_motion_shift 1 0 0\n",
+                                  "cam_motion 3\ncam_motion_t0 1\ncam_motion_dur 0\ncam_motion_shift 1 0 0\n",
+                                  "cam_motion 1\ncam_motion_t0 1\ncam_motion_dur 0\ncam_motion_shift 1 0 0\n",
+                                  "first_beat 1\n", "first_beat 2\nfirst_beat_at 1\n"};
+    for (size_t i = 0; i < sizeof extra / sizeof extra[0]; i++) {
+        char buf[sizeof text + 256];
+        snprintf(buf, sizeof buf, "%s%s", text, extra[i]);
+        if (phantom_model_parse(buf, strlen(buf), "p.txt", &b) != SH_EFORMAT) fail_msg("accepted: %s", extra[i]);
+    }
+    char buf[sizeof text + 256];
+    snprintf(buf, sizeof buf, "%sfirst_beat 1\nfirst_beat_at 0.25\n", text);
+    assert_int_equal(phantom_model_parse(buf, strlen(buf), "p.txt", &b), SH_OK);
+    assert_true(b.first_beat == 1 && b.first_beat_at == 0.25 && b.cam_motion == 0);
+    o.frames = 129;
+    o.periodic = 1;
+    for (int k = 0; k < 2; k++) {
+        o.camera_motion = k ? 0 : PHANTOM_CAM_BUMP;
+        o.first_beat = k;
+        assert_int_equal(phantom_model_build(&o, &a), SH_EINVAL);
+        assert_non_null(strstr(sh_error_message(), "--periodic"));
+    }
+}
+
 static void test_readers_refuse_garbage(void **state)
 {
     (void)state;
@@ -325,6 +645,10 @@ int main(void)
         cmocka_unit_test(test_calibration_reads_back),
         cmocka_unit_test(test_motion_is_not_affine),
         cmocka_unit_test(test_periodic_loops_without_a_jump),
+        cmocka_unit_test(test_camera_bump_closed_form),
+        cmocka_unit_test(test_camera_pan_closed_form),
+        cmocka_unit_test(test_first_beat),
+        cmocka_unit_test(test_motion_params),
         cmocka_unit_test(test_readers_refuse_garbage),
     };
     return cmocka_run_group_tests(tests, NULL, teardown);

@@ -1,6 +1,7 @@
 /* stillheart-render end to end: libapriltag (an independent detector) finds the rendered tags
  * where markers.csv says they are; occluded markers are marked so; the same seed gives the same
- * bytes; the command line refuses bad input. */
+ * bytes; a bumped camera moves the pictures as the truth says; the command line refuses bad
+ * input. */
 #include <math.h>
 #include <setjmp.h>
 #include <stdarg.h>
@@ -314,6 +315,99 @@ static void test_same_seed_same_bytes(void **state)
     assert_false(pt_same_file(pa, pb));
 }
 
+/* Sum of absolute differences between a box of frame a and the same box of frame b shifted by
+ * (dx, dy): the shift that minimises it is how far the picture moved. */
+static double sad(const sh_plane *a, const sh_plane *b, int x0, int y0, int w, int h, int dx, int dy)
+{
+    double sum = 0;
+    for (int y = y0; y < y0 + h; y++)
+        for (int x = x0; x < x0 + w; x++)
+            sum += fabs((double)a->data[(size_t)y * a->stride + x] -
+                        (double)b->data[(size_t)(y + dy) * b->stride + x + dx]);
+    return sum;
+}
+
+/* A bumped camera with a first beat, rendered small: phantom.txt reads back as the model the same
+ * options build (so the truth follows the motion), markers.csv is that truth, and the pictures
+ * move across the bump as the truth's patch centre does (3 % of 320 px plus the heart's own
+ * step), which the CSV alone cannot show: the meshes, not only the numbers, moved. */
+static void test_camera_bump_render(void **state)
+{
+    (void)state;
+    const char *dir = pt_render(0, "--preset exvivo --frames 20 --cameras 1 --width 320 --height 180 "
+                                   "--seed 9 --noise 0 --occlusions --camera-motion bump --first-beat "
+                                   "--first-beat-at 0.2");
+    assert_non_null(dir);
+    phantom_options o;
+    phantom_options_default(&o);
+    o.frames = 20;
+    o.cameras = 1;
+    o.width = 320;
+    o.height = 180;
+    o.seed = 9;
+    o.noise = 0;
+    o.occlusions = 1;
+    o.camera_motion = PHANTOM_CAM_BUMP;
+    o.first_beat = 1;
+    o.first_beat_at = 0.2;
+    static phantom_model built;
+    assert_int_equal(phantom_model_build(&o, &built), SH_OK);
+    phantom_truth *t;
+    assert_int_equal(phantom_truth_open(dir, &t), SH_OK);
+    const phantom_model *m = phantom_truth_model(t);
+    assert_memory_equal(m, &built, sizeof built);
+    int f0 = (int)ceil(0.4 * 20 - 1e-9); /* the default start, 40 % in: frame 8 */
+    assert_true(m->cam_motion == PHANTOM_CAM_BUMP && m->cam_motion_t0 == f0 / m->fps);
+
+    char path[512];
+    snprintf(path, sizeof path, "%s/markers.csv", dir);
+    phantom_csv csv;
+    assert_int_equal(phantom_csv_read(path, &csv), SH_OK);
+    assert_int_equal(csv.count, 20 * m->num_markers * PHANTOM_POINTS);
+    double worst = 0;
+    for (int i = 0; i < csv.count; i++) {
+        const phantom_csv_row *r = &csv.rows[i];
+        int idx = -1, vis;
+        for (int k = 0; k < m->num_markers; k++)
+            if (m->marker[k].id == r->id) idx = k;
+        assert_true(idx >= 0);
+        double x, y, X[3];
+        assert_int_equal(phantom_truth_marker(t, 0, r->frame, idx, r->point, NULL, &x, &y, X, &vis), SH_OK);
+        assert_int_equal(vis, r->visible);
+        worst = fmax(worst, fmax(hypot(x - r->x, y - r->y), fabs(X[0] - r->X)));
+    }
+    phantom_csv_free(&csv);
+    assert_true(worst < 2e-6); /* the CSV prints 6 decimals */
+
+    /* the pictures across the bump */
+    snprintf(path, sizeof path, "%s/cam0.y4m", dir);
+    sh_y4m_reader *rd;
+    assert_int_equal(sh_y4m_reader_open(path, &rd), SH_OK);
+    const sh_y4m_header *h = sh_y4m_reader_header(rd);
+    sh_image im[2];
+    assert_int_equal(sh_image_create(&im[0], h->format, h->width, h->height), SH_OK);
+    assert_int_equal(sh_image_create(&im[1], h->format, h->width, h->height), SH_OK);
+    for (int f = 0; f <= f0; f++) assert_int_equal(sh_y4m_reader_read(rd, &im[f == f0]), SH_OK);
+    sh_y4m_reader_close(rd);
+    double xa, ya, xb, yb;
+    assert_int_equal(phantom_truth_project(t, 0, f0 - 1, 0, 0, &xa, &ya), SH_OK);
+    assert_int_equal(phantom_truth_project(t, 0, f0, 0, 0, &xb, &yb), SH_OK);
+    int bx = 0, by = 0;
+    double best = INFINITY;
+    int x0 = (int)xa - 50, y0 = (int)ya - 35; /* 100 x 70 px of the ~160 px patch, round its centre */
+    for (int dy = -4; dy <= 4; dy++)
+        for (int dx = -4; dx <= 18; dx++) {
+            double v = sad(&im[0].plane[0], &im[1].plane[0], x0, y0, 100, 70, dx, dy);
+            if (v < best) best = v, bx = dx, by = dy;
+        }
+    printf("# bump render: picture moved (%d, %d) px, the truth's patch centre (%.2f, %.2f) px (3%% of 320 = "
+           "9.6); truth vs CSV %.2g px\n", bx, by, xb - xa, yb - ya, worst);
+    assert_true(fabs(bx - (xb - xa)) <= 1.0 && fabs(by - (yb - ya)) <= 1.0);
+    sh_image_destroy(&im[0]);
+    sh_image_destroy(&im[1]);
+    phantom_truth_close(t);
+}
+
 static void test_command_line(void **state)
 {
     (void)state;
@@ -328,7 +422,8 @@ static void test_command_line(void **state)
     static const char *opts[] = {"--preset", "--frames", "--cameras", "--width", "--height", "--seed",
                                  "--occlusions", "--bpm", "--markers", "--tag-size", "--out", "--family",
                                  "--ids", "--fps", "--distortion", "--noise", "--exposure", "--quiet",
-                                 "--calib-target"};
+                                 "--calib-target", "--periodic", "--camera-motion", "--camera-motion-at",
+                                 "--first-beat", "--first-beat-at"};
     for (size_t i = 0; i < sizeof opts / sizeof opts[0]; i++)
         if (!strstr(help, opts[i])) fail_msg("--help does not mention %s", opts[i]);
     static const char *bad[] = {"--preset nope --out /tmp/x", "--preset exvivo", "--cameras 4 --out /tmp/x",
@@ -338,7 +433,14 @@ static void test_command_line(void **state)
                                 /* the board: symmetric, misspelt, with a heart's option, too large */
                                 "--calib-target checkerboard:9x7:8 --out /tmp/x", "--calib-target chess:9x6:8 --out /tmp/x",
                                 "--calib-target checkerboard:9x6:8 --occlusions --out /tmp/x",
-                                "--calib-target checkerboard:9x6:80 --out /tmp/x"};
+                                "--calib-target checkerboard:9x6:80 --out /tmp/x",
+                                /* motions: unknown, once-only ones in a loop, a start without the
+                                 * motion, a start past the end, no rest */
+                                "--camera-motion spin --out /tmp/x", "--periodic --camera-motion pan --out /tmp/x",
+                                "--periodic --first-beat --out /tmp/x", "--camera-motion-at 2 --out /tmp/x",
+                                "--camera-motion bump --camera-motion-at 100 --frames 10 --out /tmp/x",
+                                "--first-beat --first-beat-at 0 --out /tmp/x",
+                                "--calib-target checkerboard:9x6:8 --camera-motion pan --out /tmp/x"};
     for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
         snprintf(cmd, sizeof cmd, "'%s' %s 2>/dev/null", RENDER_BIN, bad[i]);
         int rc = system(cmd);
@@ -362,6 +464,7 @@ int main(void)
         cmocka_unit_test_teardown(test_occlusions, teardown),
         cmocka_unit_test_teardown(test_dense_truth_matches_pixels, teardown),
         cmocka_unit_test_teardown(test_same_seed_same_bytes, teardown),
+        cmocka_unit_test_teardown(test_camera_bump_render, teardown),
         cmocka_unit_test(test_command_line),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
