@@ -18,6 +18,7 @@
  *   sh_tracker_predict(t, frame)              advance every filter to `frame`
  *   sh_tracker_windows(t, cam, ...)           where the detector should look in camera cam
  *   sh_tracker_reacquire(t, cam, ...)         the strip of the frame to scan for lost markers
+ *   sh_tracker_rescan(t, cam, ...)            whether the windows missed most markers
  *   sh_tracker_update(t, detections...)       gate, flag duplicates, update, report
  *   sh_tracker_estimates(t, ...)              positions with covariance, age and status
  * Nothing allocates after sh_tracker_create. */
@@ -65,6 +66,9 @@ typedef struct {
     int min_window;          /* smallest window side, px (default 48) */
     int reacquire_bands;     /* full frame scanned in this many bands, one per frame (default 4) */
     sh_spatial_mode spatial; /* default SH_SPATIAL_FUSE */
+    double camera_px;        /* a motion the model did not expect, rigid in the image and at least
+                              * this large in one frame, is the camera's (sh_track_motion.camera);
+                              * 0 (default): 0.4 % of the image diagonal, at least 2 px */
 } sh_track_options;
 
 void sh_track_options_default(sh_track_options *o);
@@ -88,7 +92,23 @@ typedef struct {
     int age;                   /* frames since the last accepted detection */
     int seen;                  /* frames with an accepted detection in all */
     int spatial;               /* this frame's estimate used the neighbours (spatial model) */
+    /* this frame's detection of it in camera c when it is evidence: a single well-shaped quad
+     * that was used, or that agrees with the other markers' detections (what a safety gate
+     * compares the estimates with, even when the tracker did not use it) */
+    int det_ok[SH_TRACK_MAX_CAMERAS];
+    double det_xy[SH_TRACK_MAX_CAMERAS][2];
 } sh_track_estimate;
+
+/* What the detections of this frame said that the motion model did not expect
+ * (sh_tracker_motion; docs/tracking.md). */
+typedef struct {
+    int agreed;           /* markers whose detections agree with each other (0: not judged) */
+    int jumped;           /* of them, outside their own gate: moved onto their detection */
+    int surface;          /* at least half of those that agree jumped: the whole surface moved */
+    int camera;           /* ... by one similarity of the image: the camera moved, not the heart */
+    double shift_px;      /* RMS of that motion over the agreeing markers, output camera pixels */
+    double rigid_left_px; /* RMS left after the best similarity */
+} sh_track_motion;
 
 typedef struct {
     long frames;
@@ -104,6 +124,9 @@ typedef struct {
                          * corners an occluder moved: docs/tracking.md) */
     long held;          /* detections of a lost or suspect marker held back until two more agree
                          * with them (docs/tracking.md) */
+    long jumped;        /* detections outside their own gate taken because the other markers'
+                         * detections agree with them (a motion the model did not expect) */
+    long camera_moves;  /* frames whose unexpected motion was a rigid motion of the image */
 } sh_track_stats;
 
 typedef struct sh_tracker sh_tracker;
@@ -128,6 +151,11 @@ sh_status sh_tracker_windows(const sh_tracker *t, int cam, sh_window *out, int m
  * one per frame in turn. *count = 0 or 1. */
 sh_status sh_tracker_reacquire(sh_tracker *t, int cam, sh_window *out, int *count);
 
+/* 1 when camera cam's detections in the windows (det, n) hold fewer than half of the tracked
+ * markers the windows were for (at least 3 of them): the scene moved further than the windows
+ * reach (a bumped endoscope), and the caller should detect in the whole frame instead. */
+int sh_tracker_rescan(const sh_tracker *t, int cam, const sh_detection *det, int n);
+
 /* Updates with this frame's detections: det[c] (count[c] entries) for camera c < num_cameras.
  * Must follow sh_tracker_predict for the same frame. */
 sh_status sh_tracker_update(sh_tracker *t, const sh_detection *const *det, const int *count,
@@ -137,6 +165,9 @@ sh_status sh_tracker_update(sh_tracker *t, const sh_detection *const *det, const
 int sh_tracker_estimates(const sh_tracker *t, sh_track_estimate *out, int max);
 
 void sh_tracker_stats(const sh_tracker *t, sh_track_stats *stats);
+
+/* The unexpected motion of the last updated frame (all zero when there was none). */
+void sh_tracker_motion(const sh_tracker *t, sh_track_motion *out);
 
 #ifdef __cplusplus
 }

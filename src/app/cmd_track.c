@@ -161,6 +161,8 @@ static int run_pass(track_job *job, int max_frames, FILE *out, int *confirmed, i
             sh_status st;
             if (f == 0 || nw == 0) st = sh_detector_detect(job->det, &img[c], dets[c], MAX_DET, &n);
             else st = sh_detector_detect_windows(job->det, &img[c], win[c], nw + nb, dets[c], MAX_DET, &n);
+            if (st == SH_OK && f > 0 && nw > 0 && sh_tracker_rescan(t, c, dets[c], n < MAX_DET ? n : MAX_DET))
+                st = sh_detector_detect(job->det, &img[c], dets[c], MAX_DET, &n);
             if (st != SH_OK) {
                 fprintf(stderr, "stillheart track: %s: frame %d: %s\n", job->in[c], f, sh_error_message());
                 goto done;
@@ -206,9 +208,10 @@ static int run_pass(track_job *job, int max_frames, FILE *out, int *confirmed, i
         sh_tracker_stats(t, &s);
         fprintf(stderr,
                 "stillheart track: %ld frames, heart %.3f Hz, respiration %.3f Hz; detections used %ld, "
-                "gated %ld, duplicated ids %ld, unknown ids %ld, inconsistent 3D %ld; markers lost %ld\n",
+                "gated %ld, duplicated ids %ld, unknown ids %ld, inconsistent 3D %ld, taken on their "
+                "neighbours' agreement %ld; markers lost %ld; camera moved in %ld frames\n",
                 s.frames, s.heart_hz, s.resp_hz, s.accepted, s.gated, s.duplicates, s.unknown,
-                s.inconsistent, s.lost);
+                s.inconsistent, s.jumped, s.lost, s.camera_moves);
     }
     rc = 0;
     goto done;

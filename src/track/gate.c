@@ -57,7 +57,8 @@ int trk_spatial_estimate(const sh_tracker *t, const marker *mk, int self, double
     double ref_self[3];
     for (int a = 0; a < t->dim; a++) ref_self[a] = trk_hx(t, (const axis_filter *)(rx + ((size_t)self * 3 + a) * NS));
     int nn = 0;
-    double d2[MAXM], ref[MAXM][2], err[MAXM][3];
+    double ref[MAXM][2], err[MAXM][3];
+    unsigned char use[MAXM];
     for (int j = 0; j < t->nm; j++) {
         if (j == self || !t->m[j].measured || !rok[j]) continue;
         for (int a = 0; a < t->dim; a++) {
@@ -69,50 +70,16 @@ int trk_spatial_estimate(const sh_tracker *t, const marker *mk, int self, double
                 for (int k = 0; k < NS; k++) pred += h[i] * F[i * NS + k] * x0[k];
             }
             err[nn][a] = t->m[j].pos[a] - pred;
-            if (a < 2) ref[nn][a] = r0 - ref_self[a];
+            if (a < 2) ref[nn][a] = r0;
         }
-        d2[nn] = ref[nn][0] * ref[nn][0] + ref[nn][1] * ref[nn][1];
-        nn++;
+        use[nn++] = 1;
     }
-    if (nn < 1) return 0;
-    /* bandwidth: distance to the 4th nearest neighbour */
-    double best[4] = {INFINITY, INFINITY, INFINITY, INFINITY};
-    for (int k = 0; k < nn; k++) {
-        double v = d2[k];
-        for (int q = 0; q < 4; q++)
-            if (v < best[q]) {
-                double tmp = best[q];
-                best[q] = v;
-                v = tmp;
-            }
-    }
-    double h2 = best[nn < 4 ? nn - 1 : 3];
-    if (!(h2 > 0)) h2 = 1;
-    double A[9] = {0}, B[3][3] = {{0}}, wsum = 0, w[MAXM];
-    for (int k = 0; k < nn; k++) {
-        w[k] = exp(-d2[k] / (2 * h2));
-        double phi[3] = {1, ref[k][0], ref[k][1]};
-        for (int a = 0; a < 3; a++)
-            for (int b = 0; b < 3; b++) A[3 * a + b] += w[k] * phi[a] * phi[b];
-        for (int a = 0; a < t->dim; a++)
-            for (int b = 0; b < 3; b++) B[a][b] += w[k] * phi[b] * err[k][a];
-        wsum += w[k];
-    }
-    /* ridge on the slopes keeps 1-2 neighbours or a line of them usable (a translation) */
-    A[4] += 1e-2 * h2 * wsum;
-    A[8] += 1e-2 * h2 * wsum;
-    double c00 = A[4] * A[8] - A[5] * A[7], c01 = A[5] * A[6] - A[3] * A[8], c02 = A[3] * A[7] - A[4] * A[6];
-    double det = A[0] * c00 + A[1] * c01 + A[2] * c02;
-    if (!(fabs(det) > 0)) return 0;
-    double r0 = c00 / det, r1 = (A[2] * A[7] - A[1] * A[8]) / det, r2 = (A[1] * A[5] - A[2] * A[4]) / det;
+    if (nn < 1 || !trk_field_at((const double(*)[2])ref, (const double(*)[3])err, use, nn, -1, t->dim, ref_self,
+                                corr, var))
+        return 0;
+    /* the weighted scatter of the neighbours' errors about the correction, plus detection noise */
     double u = t->unit > 0 ? t->unit : 1;
-    for (int a = 0; a < t->dim; a++) {
-        corr[a] = r0 * B[a][0] + r1 * B[a][1] + r2 * B[a][2];
-        /* the weighted scatter of the neighbours' errors about the correction, plus detection noise */
-        double ss = 0;
-        for (int k = 0; k < nn; k++) ss += w[k] * (err[k][a] - corr[a]) * (err[k][a] - corr[a]);
-        var[a] = ss / wsum + t->o.meas_sigma * t->o.meas_sigma * u * u;
-    }
+    for (int a = 0; a < t->dim; a++) var[a] += t->o.meas_sigma * t->o.meas_sigma * u * u;
     return 1;
 }
 
@@ -188,7 +155,9 @@ void trk_update_marker(sh_tracker *t, int i, const sh_detection *const *det, int
     int cam_of[MAXC], nv = 0, gated_now = 0;
     /* a marker unseen for a while: its prediction corrected by its neighbours, as reported */
     double shift[3] = {0, 0, 0}, fvar[3] = {0, 0, 0}, corr[3], vs[3];
-    int fused = (!t->locked || t->frame < mk->cut_until) && t->o.spatial == SH_SPATIAL_FUSE &&
+    /* (not when its detection agrees with the other markers' detections: that is the better
+     * evidence, consensus.c) */
+    int fused = mk->cons != 1 && (!t->locked || t->frame < mk->cut_until) && t->o.spatial == SH_SPATIAL_FUSE &&
                 mk->init && mk->age > 1 &&
                 trk_spatial_estimate(t, mk, i, corr, vs);
     if (fused) {
@@ -286,39 +255,12 @@ void trk_update_marker(sh_tracker *t, int i, const sh_detection *const *det, int
     } else {
         if (nv < 2) return; /* one view does not fix a point in space */
         sh_triangulation tr;
-        sh_status st = sh_camera_triangulate(vc, uv, nv, t->o.meas_sigma, 5, &tr);
-        if ((st || tr.max_err > t->o.max_reproj) && nv == 3) {
-            /* one bad view among three: the best consistent pair */
-            double best = INFINITY;
-            sh_triangulation bt;
-            for (int drop = 0; drop < 3; drop++) {
-                const sh_calib_camera *pc[2];
-                double puv[4];
-                int q = 0;
-                for (int v = 0; v < 3; v++)
-                    if (v != drop) {
-                        pc[q] = vc[v];
-                        puv[2 * q] = uv[2 * v];
-                        puv[2 * q + 1] = uv[2 * v + 1];
-                        q++;
-                    }
-                sh_triangulation pt;
-                if (sh_camera_triangulate(pc, puv, 2, t->o.meas_sigma, 5, &pt) == SH_OK &&
-                    pt.max_err < best) {
-                    best = pt.max_err;
-                    bt = pt;
-                }
-            }
-            if (best <= t->o.max_reproj) {
-                tr = bt;
-                st = SH_OK;
-                t->stats.inconsistent++;
-            }
-        }
-        if (st || tr.max_err > t->o.max_reproj) {
+        int pair;
+        if (!trk_triangulate(t, vc, uv, nv, &tr, &pair)) {
             t->stats.inconsistent++;
             return;
         }
+        t->stats.inconsistent += pair; /* one view of three dropped */
         if (t->unit == 0) {
             /* mm per pixel at this depth in camera 0: the scale of the pixel-valued options */
             double C[3];
@@ -335,6 +277,7 @@ void trk_update_marker(sh_tracker *t, int i, const sh_detection *const *det, int
     t->stats.accepted += nv;
     mk->rejects = 0;
     apply_measurement(t, i, zm, rm);
+    for (int v = 0; v < nv; v++) mk->used[cam_of[v]] = 1;
     for (int v = 0; v < nv; v++) trk_quad_learn(t, mk, cam_of[v], &det[cam_of[v]][mk->det[cam_of[v]]]);
 }
 

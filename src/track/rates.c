@@ -475,6 +475,7 @@ void trk_estimate_rates(sh_tracker *t)
     t->stats.heart_hz = fh;
     t->stats.resp_hz = fr;
     if (!restructure) return;
+    t->fresh_fit = 1;
     /* (re)initialise every marker's filters from a fit of its own history */
     int was_locked = t->locked;
     t->locked = 1;

@@ -60,7 +60,7 @@ sh_status sh_tracker_create(const sh_track_options *opts, const sh_calib *calib,
     if (!(o->meas_sigma > 0) || !(o->q_base >= 0) || !(o->q_harm >= 0) || !(o->accel > 0) ||
         !(o->gate > 0) || !(o->lost_after > 0) || !(o->max_reproj > 0) || !(o->window_sigmas > 0) ||
         o->min_window < 8 || o->reacquire_bands < 1 || o->reacquire_bands > 64 ||
-        !(o->min_motion >= 0))
+        !(o->min_motion >= 0) || !(o->camera_px >= 0))
         return sh_error_set(SH_EINVAL, "tracker: a noise, gate, window or timing option is out of range");
     if (o->num_ids < 0 || o->num_ids > MAXM || (o->num_ids > 0 && !o->ids))
         return sh_error_set(SH_ERANGE, "tracker: %d marker ids (at most %d)", o->num_ids, MAXM);
@@ -97,6 +97,7 @@ sh_status sh_tracker_create(const sh_track_options *opts, const sh_calib *calib,
     for (int i = 0; i < t->ring_len; i++) t->ring_frame[i] = -1;
     t->o = *o;
     t->o.ids = NULL;
+    if (t->o.camera_px == 0) t->o.camera_px = fmax(2.0, 0.004 * hypot(o->width, o->height));
     t->num_ids = o->num_ids;
     for (int i = 0; i < o->num_ids; i++) t->ids[i] = o->ids[i];
     t->dim = dim;
@@ -108,6 +109,7 @@ sh_status sh_tracker_create(const sh_track_options *opts, const sh_calib *calib,
     t->decim = (int)ceil(o->fps * 8.0 / SH_TRACK_HISTORY);
     if (t->decim < 1) t->decim = 1;
     t->hist_last = -1;
+    t->prev_frame = -1;
     /* whitelisted markers have their slots from the start */
     for (int i = 0; i < t->num_ids; i++) t->m[i].id = t->ids[i];
     t->nm = t->num_ids;
@@ -254,6 +256,25 @@ sh_status sh_tracker_reacquire(sh_tracker *t, int cam, sh_window *out, int *coun
     return SH_OK;
 }
 
+int sh_tracker_rescan(const sh_tracker *t, int cam, const sh_detection *det, int n)
+{
+    if (!t || cam < 0 || cam >= t->ncam || (n > 0 && !det)) return 0;
+    int expected = 0, found = 0;
+    for (int i = 0; i < t->nm; i++) {
+        const marker *mk = &t->m[i];
+        double xy[2], S[4];
+        if (!mk->init || mk->lost || !trk_predicted_xy(t, mk, cam, NULL, NULL, xy, S)) continue;
+        if (!(xy[0] >= 0 && xy[1] >= 0 && xy[0] < t->o.width && xy[1] < t->o.height)) continue;
+        expected++;
+        for (int k = 0; k < n; k++)
+            if (det[k].id == mk->id) {
+                found++;
+                break;
+            }
+    }
+    return expected >= 3 && 2 * found < expected;
+}
+
 sh_status sh_tracker_update(sh_tracker *t, const sh_detection *const *det, const int *count,
                             int num_cameras)
 {
@@ -292,6 +313,9 @@ sh_status sh_tracker_update(sh_tracker *t, const sh_detection *const *det, const
             }
             if (t->m[s].ndet[c]++ == 0) t->m[s].det[c] = k;
         }
+    for (int i = 0; i < t->nm; i++) memset(t->m[i].used, 0, sizeof t->m[i].used);
+    /* the detections against each other first: a motion they agree on is taken at once */
+    trk_consensus(t, det, num_cameras);
     /* markers the spatial model can vouch for are gated against it: first every marker whose own
      * prediction is sure (seen last frame, or rates not locked yet), then the others against
      * their prediction corrected by those neighbours (a marker unseen for a while has a wide
@@ -305,6 +329,19 @@ sh_status sh_tracker_update(sh_tracker *t, const sh_detection *const *det, const
             trk_update_marker(t, i, det, num_cameras);
             if (pass == 0 && mk->measured) trk_marker_pos(t, mk, mk->pos, NULL);
         }
+    /* the detections that are evidence, for a safety gate downstream */
+    for (int i = 0; i < t->nm; i++) {
+        marker *mk = &t->m[i];
+        for (int c = 0; c < t->ncam; c++) {
+            mk->det_ok[c] = mk->ndet[c] == 1 &&
+                            ((mk->measured && mk->used[c]) || (mk->cons == 1 && mk->cons_well[c]));
+            if (mk->det_ok[c]) {
+                const sh_detection *d = &det[c][mk->det[c]];
+                mk->det_xy[c][0] = d->cx;
+                mk->det_xy[c][1] = d->cy;
+            }
+        }
+    }
     /* this frame's states for the spatial model */
     {
         int q = t->frame % t->ring_len;
@@ -369,6 +406,12 @@ sh_status sh_tracker_update(sh_tracker *t, const sh_detection *const *det, const
         trk_estimate_rates(t);
         t->next_rates = t->frame + (int)ceil(t->o.fps * 0.5);
     }
+    for (int i = 0; i < t->nm; i++) {
+        marker *mk = &t->m[i];
+        mk->prev_frame = mk->measured ? t->frame : -1;
+        if (mk->measured) memcpy(mk->prev_pos, mk->pos, sizeof mk->prev_pos);
+    }
+    t->prev_frame = t->frame;
     t->band = (t->band + 1) % t->o.reacquire_bands;
     return SH_OK;
 }
@@ -398,6 +441,11 @@ int sh_tracker_estimates(const sh_tracker *t, sh_track_estimate *out, int max)
         e->seen = mk->seen;
         e->spatial = mk->spatial;
         e->status = mk->lost ? SH_TRACK_LOST : mk->measured ? SH_TRACK_MEASURED : SH_TRACK_PREDICTED;
+        for (int c = 0; c < t->ncam; c++) {
+            e->det_ok[c] = mk->det_ok[c];
+            e->det_xy[c][0] = mk->det_ok[c] ? mk->det_xy[c][0] : NAN;
+            e->det_xy[c][1] = mk->det_ok[c] ? mk->det_xy[c][1] : NAN;
+        }
         if (mk->lost) {
             for (int a = 0; a < 3; a++) e->pos[a] = NAN;
             for (int a = 0; a < 9; a++) e->cov[a] = NAN;
@@ -421,4 +469,9 @@ int sh_tracker_estimates(const sh_tracker *t, sh_track_estimate *out, int max)
 void sh_tracker_stats(const sh_tracker *t, sh_track_stats *stats)
 {
     if (t && stats) *stats = t->stats;
+}
+
+void sh_tracker_motion(const sh_tracker *t, sh_track_motion *out)
+{
+    if (t && out) *out = t->motion;
 }

@@ -51,6 +51,16 @@ typedef struct {
                             * refused for its shape: an occluder is at it) */
     int cut_until;         /* frame until which it is gated against its neighbours' motion too (a
                             * quad of it was refused for its shape) */
+    /* consensus.c: this frame's agreement with the other markers' detections (0 not judged,
+     * 1 agrees, 2 disagrees), a jump onto the detection pending, and per camera a single
+     * well-shaped detection */
+    int cons, cons_jump;
+    unsigned char cons_well[MAXC];
+    double prev_pos[3];    /* its estimate in frame prev_frame, when measured there */
+    int prev_frame;
+    unsigned char used[MAXC];  /* gate.c: camera c's detection went into this frame's update */
+    unsigned char det_ok[MAXC];/* sh_track_estimate.det_ok, and det_xy */
+    double det_xy[MAXC][2];
     /* reported (possibly fused) estimate */
     double pos[3], cov[9];
     /* this frame's per-camera detection bookkeeping */
@@ -74,6 +84,8 @@ struct sh_tracker {
     int locked, nh, nr;    /* nh, nr: active heart / resp harmonics */
     double fh, fr;
     int next_rates;        /* frame of the next rate estimate */
+    int prev_frame;        /* the last updated frame before this one (-1 none) */
+    int fresh_fit;         /* the last update (re)initialised every filter from its history */
     /* history: one sample every decim frames, ring of SH_TRACK_HISTORY */
     int decim;
     long hist_last;        /* last sample index cleared (-1 none) */
@@ -93,6 +105,7 @@ struct sh_tracker {
     double *ring_x;        /* [ring_len][MAXM][3][NS] */
     unsigned char *ring_ok;/* [ring_len][MAXM]: measured in that frame */
     int *ring_frame;       /* [ring_len] */
+    sh_track_motion motion; /* this frame's (consensus.c) */
     sh_track_stats stats;
 };
 
@@ -115,6 +128,19 @@ int trk_predicted_xy(const sh_tracker *t, const marker *mk, int c, const double 
                      const double *fvar, double xy[2], double S[4]);
 int trk_spatial_estimate(const sh_tracker *t, const marker *mk, int self, double *corr, double *var);
 void trk_update_marker(sh_tracker *t, int i, const sh_detection *const *det, int num_cameras);
+/* consensus.c: distance-weighted affine fit (moving least squares) of the values val[j] (dim each)
+ * at positions pos[j], over the j < n with use[j] and j != self, evaluated at at[]: the value and
+ * its variance (the weighted scatter about the fit). Bandwidth: the 4th nearest contributor; a
+ * ridge on the slopes keeps one or two contributors, or a line of them, usable (a translation).
+ * 0 when none contributes. Shared by the spatial model (gate.c) and the consensus. */
+int trk_field_at(const double (*pos)[2], const double (*val)[3], const unsigned char *use, int n, int self,
+                 int dim, const double at[2], double *out, double *var);
+/* consensus.c: the detections judged against each other, before the per-marker gate; jumps */
+void trk_consensus(sh_tracker *t, const sh_detection *const *det, int num_cameras);
+/* Triangulates nv views (three: the best consistent pair when all three are not); 0 when none
+ * is consistent within max_reproj; *pair = 1 when a view was dropped. */
+int trk_triangulate(const sh_tracker *t, const sh_calib_camera *const *vc, const double *uv, int nv,
+                    sh_triangulation *tr, int *pair);
 /* quad.c: 1 when detection d of marker mk in camera c has the shape of a whole tag (quad.c) */
 int trk_quad_check(sh_tracker *t, marker *mk, int c, const sh_detection *d);
 /* 1 when d's quad is the quad ref (centred corners) of `age` frames ago, up to the tag's motion */

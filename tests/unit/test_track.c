@@ -261,6 +261,172 @@ static void test_lost_and_reacquired(void **state)
     sh_tracker_destroy(t);
 }
 
+/* Motions the rhythm model has never seen (issue 13). Detections are taken at the truth plus a
+ * displacement dsp(i, f) written out in each test; the tracker must follow them at once when the
+ * markers agree, and still refuse one that disagrees with the others. */
+typedef void (*displacement)(int i, int f, double *dx, double *dy);
+
+static double step_moved(sh_tracker *t, int f, const int *hidden, displacement dsp, int liar,
+                         sh_track_estimate *e, int *n)
+{
+    sh_detection d[NM];
+    int nd = 0;
+    assert_int_equal(sh_tracker_predict(t, f), SH_OK);
+    for (int i = 0; i < NM; i++) {
+        if (hidden && hidden[i]) continue;
+        double x, y, dx, dy;
+        truth(i, f, &x, &y);
+        dsp(i, f, &dx, &dy);
+        double ny = 0.2 * nrand(), nx = 0.2 * nrand();
+        /* the liar is seen where it was before the motion (a tag on an instrument left behind) */
+        if (i == liar) dx = dy = 0;
+        detection(10 + i, x + dx + nx, y + dy + ny, &d[nd++]);
+    }
+    const sh_detection *dp[1] = {d};
+    assert_int_equal(sh_tracker_update(t, dp, &nd, 1), SH_OK);
+    *n = sh_tracker_estimates(t, e, SH_TRACK_MAX_MARKERS);
+    /* the largest error of the reported estimates against the moved truth */
+    double worst = 0;
+    for (int i = 0; i < NM; i++) {
+        const sh_track_estimate *q = find(e, *n, 10 + i);
+        if (!q || q->status == SH_TRACK_LOST) continue;
+        double x, y, dx, dy;
+        truth(i, f, &x, &y);
+        dsp(i, f, &dx, &dy);
+        worst = fmax(worst, hypot(q->pos[0] - x - dx, q->pos[1] - y - dy));
+    }
+    return worst;
+}
+
+#define BUMP_F (8 * (int)FPS)
+static void bump(int i, int f, double *dx, double *dy)
+{
+    (void)i;
+    *dx = f >= BUMP_F ? 35 : 0; /* the endoscope knocked sideways between two frames */
+    *dy = f >= BUMP_F ? -12 : 0;
+}
+
+/* A bumped endoscope after the rates locked: every marker 37 px off its prediction in one frame.
+ * Before issue 13 each was gated away and extrapolated for 6 frames, then lost. */
+static void test_camera_bump_followed(void **state)
+{
+    (void)state;
+    sh_tracker *t = make(1);
+    sh_track_estimate e[SH_TRACK_MAX_MARKERS];
+    int n, hidden[NM] = {0};
+    double worst_after = 0;
+    sh_track_stats s0, s;
+    sh_track_motion mo;
+    for (int f = 0; f < 20 * FPS; f++) {
+        /* marker 2 is hidden across the bump: it must move with its neighbours */
+        hidden[2] = f >= BUMP_F - 10 && f < BUMP_F + 15;
+        if (f == BUMP_F) sh_tracker_stats(t, &s0);
+        double w = step_moved(t, f, hidden, bump, -1, e, &n);
+        sh_tracker_motion(t, &mo);
+        if (f == BUMP_F) {
+            assert_true(mo.camera);
+            assert_int_equal(mo.agreed, NM - 1);
+            assert_true(fabs(mo.shift_px - hypot(35, 12)) < 1.0);
+            for (int i = 0; i < NM; i++)
+                if (i != 2) assert_int_equal(find(e, n, 10 + i)->status, SH_TRACK_MEASURED);
+        } else {
+            assert_false(mo.camera);
+        }
+        if (f >= BUMP_F) worst_after = fmax(worst_after, w);
+    }
+    sh_tracker_stats(t, &s);
+    assert_int_equal(s.camera_moves, 1);
+    assert_int_equal(s.gated, s0.gated);
+    assert_int_equal(s.lost, 0);
+    assert_true(worst_after < 1.5);
+    /* the history moved with the view: the rates are still the heart's */
+    assert_true(s.locked && fabs(s.heart_hz - FH) < 0.01 * FH && fabs(s.resp_hz - FR) < 0.05 * FR);
+    sh_tracker_destroy(t);
+}
+
+/* A sudden first beat before the rates lock: at rest, then each marker moves 5-10 px per frame
+ * for three frames in its own direction (the heart deforms: no similarity explains it). */
+static void first_beat(int i, int f, double *dx, double *dy)
+{
+    double s = f < 30 ? 0 : f < 33 ? (f - 29) / 3.0 : f < 45 ? 1 - (f - 32) / 12.0 : 0;
+    double amp = 18 + 10 * (i % 3), a = 1.9 * i;
+    *dx = s * amp * cos(a);
+    *dy = s * amp * sin(a);
+}
+static void rest(int i, int f, double *x, double *y)
+{
+    /* at rest before the beat: truth() at frame 0 */
+    (void)f;
+    truth(i, 0, x, y);
+}
+
+static void test_first_beat_followed(void **state)
+{
+    (void)state;
+    sh_tracker *t = make(1);
+    sh_track_estimate e[SH_TRACK_MAX_MARKERS];
+    sh_track_motion mo;
+    int n, jumps = 0;
+    for (int f = 0; f < 60; f++) {
+        /* the markers rest, then beat once; truth() is frozen at frame 0 so only the beat moves */
+        sh_detection d[NM];
+        int nd = 0;
+        assert_int_equal(sh_tracker_predict(t, f), SH_OK);
+        for (int i = 0; i < NM; i++) {
+            double x, y, dx, dy;
+            rest(i, f, &x, &y);
+            first_beat(i, f, &dx, &dy);
+            double ny = 0.2 * nrand(), nx = 0.2 * nrand();
+            detection(10 + i, x + dx + nx, y + dy + ny, &d[nd++]);
+        }
+        const sh_detection *dp[1] = {d};
+        assert_int_equal(sh_tracker_update(t, dp, &nd, 1), SH_OK);
+        n = sh_tracker_estimates(t, e, SH_TRACK_MAX_MARKERS);
+        sh_tracker_motion(t, &mo);
+        assert_false(mo.camera);
+        jumps += mo.jumped;
+        for (int i = 0; i < NM; i++) {
+            const sh_track_estimate *q = find(e, n, 10 + i);
+            double x, y, dx, dy;
+            rest(i, f, &x, &y);
+            first_beat(i, f, &dx, &dy);
+            assert_int_equal(q->status, SH_TRACK_MEASURED);
+            assert_true(hypot(q->pos[0] - x - dx, q->pos[1] - y - dy) < 1.0);
+        }
+    }
+    sh_track_stats s;
+    sh_tracker_stats(t, &s);
+    assert_false(s.locked);
+    assert_int_equal(s.gated, 0);
+    assert_true(jumps > 0); /* the model alone would not have followed */
+    sh_tracker_destroy(t);
+}
+
+/* One marker seen where everything was before the bump, the others moved: it disagrees with its
+ * neighbours and is refused; its estimate moves with them. Its detections keep disagreeing, so
+ * it never comes back on them. */
+static void test_lone_liar_refused_in_motion(void **state)
+{
+    (void)state;
+    sh_tracker *t = make(1);
+    sh_track_estimate e[SH_TRACK_MAX_MARKERS];
+    int n;
+    sh_track_motion mo;
+    for (int f = 0; f < BUMP_F + 5; f++) {
+        double w = step_moved(t, f, NULL, bump, f >= BUMP_F ? 3 : -1, e, &n);
+        sh_tracker_motion(t, &mo);
+        if (f == BUMP_F) assert_true(mo.camera && mo.agreed == NM - 1);
+        if (f >= BUMP_F) {
+            const sh_track_estimate *q = find(e, n, 13);
+            assert_int_equal(q->status, SH_TRACK_PREDICTED);
+            assert_false(q->det_ok[0]);
+            assert_true(find(e, n, 14)->det_ok[0]);
+            assert_true(w < 1.5);
+        }
+    }
+    sh_tracker_destroy(t);
+}
+
 /* the crossing of a quad's diagonals: where libapriltag puts the centre of any quad */
 static void crossing(sh_detection *d)
 {
@@ -301,6 +467,24 @@ static void test_shape_refusals(void **state)
         assert_int_equal(s1.misshapen, s0.misshapen + 1);
         int n = sh_tracker_estimates(t, e, SH_TRACK_MAX_MARKERS);
         assert_int_equal(find(e, n, 12 + k)->status, SH_TRACK_PREDICTED);
+        assert_false(find(e, n, 12 + k)->det_ok[0]); /* a cut quad is no evidence */
+    }
+    /* their next whole quads are held until two more agree with them (an occluder is at them),
+     * but they agree with the other markers: a safety gate must see them (det_ok) */
+    {
+        sh_tracker_stats(t, &s0);
+        step(t, f, NULL, NULL, 0);
+        sh_tracker_stats(t, &s1);
+        assert_int_equal(s1.held, s0.held + 3);
+        int n = sh_tracker_estimates(t, e, SH_TRACK_MAX_MARKERS);
+        for (int k = 0; k < 3; k++) {
+            const sh_track_estimate *q = find(e, n, 12 + k);
+            double x, y;
+            truth(2 + k, f, &x, &y);
+            assert_int_equal(q->status, SH_TRACK_PREDICTED);
+            assert_true(q->det_ok[0] && hypot(q->det_xy[0][0] - x, q->det_xy[0][1] - y) < 1.5);
+        }
+        f++;
     }
     sh_tracker_destroy(t);
     /* a 10 mm tag 250 mm away, turned 50 deg about a diagonal axis, f = 1200 px: its corners
@@ -425,6 +609,9 @@ int main(void)
         cmocka_unit_test(test_sinusoidal_beat_not_halved),
         cmocka_unit_test(test_gating_duplicates_unknown),
         cmocka_unit_test(test_lost_and_reacquired),
+        cmocka_unit_test(test_camera_bump_followed),
+        cmocka_unit_test(test_first_beat_followed),
+        cmocka_unit_test(test_lone_liar_refused_in_motion),
         cmocka_unit_test(test_shape_refusals),
         cmocka_unit_test(test_windows_hold_truth),
         cmocka_unit_test(test_auto_ids_refuse_still_tag),
