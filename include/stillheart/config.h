@@ -70,6 +70,7 @@ typedef struct {
     char calibration[SH_CONFIG_STR]; /* the cameras' calibration YAML: 3D tracking and warp ("" = 2D) */
     /* [reference] */
     int reference_frame;             /* 0: first good frame; N: the N-th frame (1-based) */
+    int on_camera_motion;            /* SH_CAMERA_MOTION_NEW (0) or _KEEP (1) */
     /* [gating] */
     int min_markers;                 /* fewer -> raw ("too few markers") */
     double max_residual_px;          /* larger -> raw ("residual") */
@@ -86,6 +87,10 @@ typedef struct {
     char record[SH_CONFIG_STR];      /* "", FILE.y4m or png:DIR: what is shown, also to files */
     int watchdog;                    /* 1: WATCHDOG=1 pings when systemd asks for them */
 } sh_config;
+
+/* [reference] on_camera_motion: once a moved endoscope has settled, a new reference is taken
+ * (new, the default) or the old one is kept (keep). */
+enum { SH_CAMERA_MOTION_NEW = 0, SH_CAMERA_MOTION_KEEP = 1 };
 
 /* The embedded defaults (the run demo's config): y4m:out/run-demo/cam0.y4m, tps, shm:/stillheart. */
 void sh_config_default(sh_config *cfg);

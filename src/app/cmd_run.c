@@ -89,6 +89,8 @@ static void usage(FILE *out)
         "  --stats            print a summary line at exit (fps, latency, drops, RSS)\n"
         "  --trace FILE       one CSV line per published frame: index, status, markers, residual, reason,\n"
         "                     stage CPU times (markers, model, warp) and latency in ms\n"
+        "  --trace-points FILE  the markers each warped frame's map was made from, as a points file\n"
+        "                     (frame,id,x,y: the output camera's pixels; raw frames have no rows)\n"
         "  --print-config     print the resulting config as INI and exit\n"
         "  --quiet            errors and warnings only\n"
         "signals: SIGTERM/SIGINT stop (segment marked closed). SIGHUP reloads the config file and\n"
@@ -101,7 +103,7 @@ static void usage(FILE *out)
 typedef struct {
     const char *config_path;
     int max_frames, stats, print_config;
-    const char *trace_path;
+    const char *trace_path, *trace_points_path;
 } run_opts;
 
 /* Applies argv over cfg; run-only options go to ro. Returns 0 ok, 2 usage error, 1 help. */
@@ -131,7 +133,8 @@ static int apply_cli(sh_config *cfg, run_opts *ro, int argc, char **argv, char *
         int negated = 0;
         if (!is_cfg && !strncmp(name, "no-", 3) && sh_config_option(name + 3, &section, &key, &flag) && flag)
             is_cfg = negated = 1;
-        if (!is_cfg && strcmp(name, "config") && strcmp(name, "max-frames") && strcmp(name, "trace")) {
+        if (!is_cfg && strcmp(name, "config") && strcmp(name, "max-frames") && strcmp(name, "trace") &&
+            strcmp(name, "trace-points")) {
             snprintf(err, SH_CONFIG_ERR, "command line: --%s: unknown option (stillheart run --help)", name);
             return 2;
         }
@@ -142,6 +145,7 @@ static int apply_cli(sh_config *cfg, run_opts *ro, int argc, char **argv, char *
         }
         if (!strcmp(name, "config")) { if (ro) ro->config_path = val; continue; }
         if (!strcmp(name, "trace")) { if (ro) ro->trace_path = val; continue; }
+        if (!strcmp(name, "trace-points")) { if (ro) ro->trace_points_path = val; continue; }
         if (!strcmp(name, "max-frames")) {
             char *end;
             long v = strtol(val, &end, 10);
@@ -245,7 +249,7 @@ int cmd_run(int argc, char **argv)
     int rc = 1, fatal = 0;
     run_pipeline pl;
     memset(&pl, 0, sizeof pl);
-    FILE *trace = NULL;
+    FILE *trace = NULL, *trace_points = NULL;
     float *lat = malloc(sizeof(float) * LAT_CAP);
     if (!lat) { fprintf(stderr, "stillheart run: out of memory\n"); goto done; }
 
@@ -258,6 +262,11 @@ int cmd_run(int argc, char **argv)
         goto done;
     }
     if (trace) fprintf(trace, "index,status,markers,residual,reason,markers_ms,model_ms,warp_ms,latency_ms\n");
+    if (ro.trace_points_path && !(trace_points = fopen(ro.trace_points_path, "w"))) {
+        fprintf(stderr, "stillheart run: --trace-points: %s: %s\n", ro.trace_points_path, strerror(errno));
+        goto done;
+    }
+    if (trace_points) fprintf(trace_points, "frame,id,x,y\n");
 
     struct sigaction sa;
     memset(&sa, 0, sizeof sa);
@@ -396,6 +405,13 @@ int cmd_run(int argc, char **argv)
                 fprintf(trace, "%d,%s,%u,%.3f,\"%s\",%.3f,%.3f,%.3f,%.3f\n", s->index, names[status], info.markers_used,
                         (double)info.residual_px, info.reason, tm, tmod, tw, (double)(done_ns - s->avail_ns) / 1e6);
             }
+            if (trace_points) {
+                const int *ids;
+                const double *xy;
+                int n = run_proc_markers(pl.proc, &ids, &xy);
+                for (int k = 0; k < n; k++)
+                    fprintf(trace_points, "%d,%d,%.4f,%.4f\n", s->index, ids[k], xy[2 * k], xy[2 * k + 1]);
+            }
             shown_info = info;
         }
         /* systemd: STATUS each second; WATCHDOG while frames progress, or while the output camera
@@ -447,6 +463,7 @@ done:
     sig_stop = 1;
     if (run_pipeline_close(&pl) != SH_OK) rc = 1;
     if (trace && fclose(trace)) { logm("ERROR", "main", "--trace: %s", strerror(errno)); rc = 1; }
+    if (trace_points && fclose(trace_points)) { logm("ERROR", "main", "--trace-points: %s", strerror(errno)); rc = 1; }
     free(lat);
     return rc;
 }

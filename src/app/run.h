@@ -14,6 +14,7 @@
 #include "stillheart/image.h"
 #include "stillheart/interp.h"
 #include "stillheart/points.h"
+#include "stillheart/track.h"
 #include "stillheart/warp.h"
 #include "stillheart/y4m.h"
 
@@ -86,6 +87,8 @@ void run_tracker_destroy(run_tracker *t);
  * camera) or a new epoch (a discontinuity, run_frame) restarts the tracker. */
 sh_status run_tracker_frame(run_tracker *t, const sh_image *const *cams, int index, unsigned epoch, run_marker *out,
                             int *n);
+/* What the last frame's detections said that the motion model did not expect (a moved camera). */
+void run_tracker_motion(const run_tracker *t, sh_track_motion *out);
 /* The frame rate the tracker assumes (ages in ms use it). */
 double run_tracker_fps(const run_tracker *t);
 /* One line of the tracker's counters (sh_tracker_stats), for the log at exit. */

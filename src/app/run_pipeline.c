@@ -153,7 +153,8 @@ static int proc_changes(const run_pipeline *p, const run_pipeline *n, char *out,
 static int gating_changed(const sh_config *a, const sh_config *b)
 {
     return a->min_markers != b->min_markers || a->max_residual_px != b->max_residual_px ||
-           a->max_sigma_px != b->max_sigma_px || a->dropout_ms != b->dropout_ms;
+           a->max_sigma_px != b->max_sigma_px || a->dropout_ms != b->dropout_ms ||
+           a->on_camera_motion != b->on_camera_motion;
 }
 
 static int same_frames(const sh_y4m_header *a, const sh_y4m_header *b)

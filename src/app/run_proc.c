@@ -27,7 +27,16 @@ struct run_proc {
     int model_err_once, track_err_once;
     unsigned epoch;       /* the last frame's (run_frame): a change restarts the tracker */
     double ms[3];         /* this frame: markers (detection + tracker), model update, warp */
+    /* a moved camera (docs/daemon.md, "A moved endoscope"): raw while it moves, then a new
+     * reference (or the old one) once it has been still for RUN_SETTLE_FRAMES frames */
+    int moving, still, await_ref;
+    double moved_px;      /* largest one-frame motion of this episode */
+    /* the markers the last warped frame's map was made from (run_proc_markers) */
+    int used_n, used_ids[RUN_MAX_MARKERS];
+    double used_xy[2 * RUN_MAX_MARKERS];
 };
+
+#define RUN_SETTLE_FRAMES 2
 
 /* This thread's CPU time: on a shared machine wall time mostly measures the neighbours. */
 static double now_ms(void)
@@ -113,6 +122,7 @@ void run_proc_set_gating(run_proc *p, const sh_config *cfg)
     p->cfg.max_residual_px = cfg->max_residual_px;
     p->cfg.max_sigma_px = cfg->max_sigma_px;
     p->cfg.dropout_ms = cfg->dropout_ms;
+    p->cfg.on_camera_motion = cfg->on_camera_motion;
 }
 
 /* The reason field holds 43 characters: longer reasons are cut (the counts come first). */
@@ -127,6 +137,13 @@ static __attribute__((format(printf, 2, 3))) void reason(sh_display_frame_info *
 void run_proc_request_reference(run_proc *p) { p->want_ref = 1; }
 
 int run_proc_builds(const run_proc *p) { return run_models_builds(p->models); }
+
+int run_proc_markers(const run_proc *p, const int **ids, const double **xy)
+{
+    *ids = p->used_ids;
+    *xy = p->used_xy;
+    return p->used_n;
+}
 
 /* The markers of this frame, sorted by id. */
 static int markers(run_proc *p, const sh_image *img, const sh_image *const *cams, int index, unsigned epoch)
@@ -199,6 +216,39 @@ static int fallback(run_proc *p, int nm, double *xy, double *xyz, double *det)
     return n;
 }
 
+/* Follows the tracker's word on a moved camera; 1 while this frame must be shown raw for it. */
+static int camera_motion(run_proc *p, int index, sh_display_frame_info *info)
+{
+    if (!p->tracker) return 0;
+    sh_track_motion mo;
+    run_tracker_motion(p->tracker, &mo);
+    if (mo.camera) {
+        if (!p->moving)
+            p->log("INFO", "main", "frame %d: the camera is moving (%.1f px in one frame): raw frames until it settles",
+                   index, mo.shift_px);
+        p->moving = 1;
+        p->still = 0;
+        p->moved_px = fmax(p->moved_px, mo.shift_px);
+        p->await_ref = 0;
+    } else if (p->moving && ++p->still >= RUN_SETTLE_FRAMES) {
+        p->moving = 0;
+        if (p->cfg.on_camera_motion == SH_CAMERA_MOTION_NEW) {
+            p->want_ref = p->await_ref = 1;
+            p->log("INFO", "main", "frame %d: the camera has settled (it moved up to %.1f px a frame): a new "
+                   "reference is taken ([reference] on_camera_motion = new)", index, p->moved_px);
+        } else {
+            p->log("INFO", "main", "frame %d: the camera has settled (it moved up to %.1f px a frame): the "
+                   "reference is kept ([reference] on_camera_motion = keep)", index, p->moved_px);
+        }
+        p->moved_px = 0;
+    }
+    if (p->moving) {
+        reason(info, "camera moving");
+        return 1;
+    }
+    return 0;
+}
+
 const sh_image *run_proc_frame(run_proc *p, const sh_image *img, const sh_image *const *cams, int index,
                                unsigned epoch, sh_display_frame_info *info)
 {
@@ -207,15 +257,23 @@ const sh_image *run_proc_frame(run_proc *p, const sh_image *img, const sh_image 
     int nm = markers(p, img, cams, index, epoch);
     double t1 = now_ms();
     p->ms[0] = t1 - t0;
+    info->status = SH_DISPLAY_RAW;
+    info->residual_px = -1; /* not measured */
+    info->markers_used = 0;
+    p->used_n = 0;
+    if (camera_motion(p, index, info)) return img;
     take_reference(p, index, nm);
     int ref_frame, ref_n;
     if (run_models_poll(p->models, &ref_frame, &ref_n)) {
         p->last = NULL; /* it belonged to the old reference, now freed */
+        p->await_ref = 0;
         p->log("INFO", "main", "reference: frame %d, %d markers", ref_frame, ref_n);
     }
-    info->status = SH_DISPLAY_RAW;
-    info->residual_px = -1; /* not measured */
-    info->markers_used = 0;
+    if (p->await_ref) {
+        /* the old reference is a view the camera has left: the live picture until the new one */
+        reason(info, "camera moved: new reference (%d markers)", nm);
+        return img;
+    }
     int nref;
     const sh_point *ref = run_models_reference(p->models, &nref);
     if (!ref) {
@@ -287,6 +345,11 @@ const sh_image *run_proc_frame(run_proc *p, const sh_image *img, const sh_image 
         reason(info, "warp failed");
         return img;
     }
+    int mn;
+    const int *mids = run_model_ids(md, &mn);
+    p->used_n = mn;
+    memcpy(p->used_ids, mids, sizeof(int) * (size_t)mn);
+    memcpy(p->used_xy, xy, sizeof(double) * 2 * (size_t)mn);
     if (building) {
         info->status = SH_DISPLAY_DEGRADED;
         reason(info, "model for %d markers building", sel.n);

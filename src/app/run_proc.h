@@ -26,6 +26,9 @@ void run_proc_request_reference(run_proc *p);
 const sh_image *run_proc_frame(run_proc *p, const sh_image *img, const sh_image *const *cams, int index,
                                unsigned epoch, sh_display_frame_info *info);
 int run_proc_builds(const run_proc *p);
+/* The markers (ids and output-camera positions) the last frame's map was made from: their count,
+ * 0 when that frame was shown raw. Valid until the next run_proc_frame. */
+int run_proc_markers(const run_proc *p, const int **ids, const double **xy);
 /* The processing thread's CPU time in the last frame's stages, ms (the warp's helper threads
  * not counted): markers (detection and tracker), model (selection,
  * model lookup, map update, residual), warp (0 when not warped). */

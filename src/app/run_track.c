@@ -72,14 +72,17 @@ void run_tracker_destroy(run_tracker *rt)
 
 double run_tracker_fps(const run_tracker *rt) { return rt->opts.fps; }
 
+void run_tracker_motion(const run_tracker *rt, sh_track_motion *out) { sh_tracker_motion(rt->t, out); }
+
 void run_tracker_summary(const run_tracker *rt, char *out, size_t cap)
 {
     sh_track_stats s;
     sh_tracker_stats(rt->t, &s);
     snprintf(out, cap, "tracker: %ld frames, heart %.3f Hz%s, respiration %.3f Hz; detections used %ld, gated %ld, "
-             "duplicated ids %ld, unknown ids %ld, inconsistent 3D %ld; markers lost %ld",
+             "duplicated ids %ld, unknown ids %ld, inconsistent 3D %ld, taken on their neighbours' agreement %ld; "
+             "markers lost %ld; camera moved in %ld frames",
              s.frames, s.heart_hz, s.locked ? " (locked)" : "", s.resp_hz, s.accepted, s.gated, s.duplicates,
-             s.unknown, s.inconsistent, s.lost);
+             s.unknown, s.inconsistent, s.jumped, s.lost, s.camera_moves);
 }
 
 /* One tag seen by two overlapping windows comes back twice; the tracker would discard an id
@@ -128,6 +131,8 @@ sh_status run_tracker_frame(run_tracker *rt, const sh_image *const *cams, int in
         st = !rt->started || nw == 0
                  ? sh_detector_detect(rt->det, cams[c], rt->dets[c], MAX_DET, &nd)
                  : sh_detector_detect_windows(rt->det, cams[c], rt->win, nw + nb, rt->dets[c], MAX_DET, &nd);
+        if (st == SH_OK && rt->started && nw > 0 && sh_tracker_rescan(rt->t, c, rt->dets[c], nd < MAX_DET ? nd : MAX_DET))
+            st = sh_detector_detect(rt->det, cams[c], rt->dets[c], MAX_DET, &nd);
         if (st != SH_OK) nd = 0; /* a detector failure is a frame without detections */
         count[c] = merge_copies(rt->dets[c], nd < MAX_DET ? nd : MAX_DET);
     }
@@ -159,13 +164,11 @@ sh_status run_tracker_frame(run_tracker *rt, const sh_image *const *cams, int in
             m->sigma = z > 0 ? sqrt(tr > 0 ? tr : 0) * k->K[0] / z : INFINITY;
         }
         m->age = e->age;
-        m->dx = m->dy = NAN;
-        for (int j = 0; j < count[oc] && e->status == SH_TRACK_MEASURED; j++)
-            if (rt->dets[oc][j].id == e->id) {
-                m->dx = rt->dets[oc][j].cx;
-                m->dy = rt->dets[oc][j].cy;
-                break;
-            }
+        /* the safety gate compares the estimate with this frame's detection whenever it is
+         * evidence (well shaped, agreeing with the other markers'), used by the tracker or not:
+         * an estimate the tracker held against a plain detection must not pass as stabilized */
+        m->dx = e->det_ok[oc] ? e->det_xy[oc][0] : NAN;
+        m->dy = e->det_ok[oc] ? e->det_xy[oc][1] : NAN;
     }
     return st;
 }

@@ -72,6 +72,8 @@ static const keydef keys[] = {
     {"method", "grid", "grid", K_DOUBLE, F(grid), 0, 0, 256, "warp grid spacing in px (0: from the error bound)"},
     {"method", "calibration", "calibration", K_STR, F(calibration), S(calibration), 0, 0, "cameras' calibration YAML: 3D tracking and warp (\"\": 2D)"},
     {"reference", "frame", "reference", K_INT, F(reference_frame), 0, 0, 1e9, "0: first good frame; N: the N-th frame"},
+    {"reference", "on_camera_motion", "on-camera-motion", K_ENUM, F(on_camera_motion), 0, 0, 0,
+     "a moved camera, once settled: new (a new reference) | keep (the old one)", "new|keep"},
     {"gating", "min_markers", "min-markers", K_INT, F(min_markers), 0, 1, SH_CONFIG_MAX_IDS, "fewer markers -> raw"},
     {"gating", "max_residual_px", "max-residual", K_DOUBLE, F(max_residual_px), 0, 0, 1e4, "residual over this -> raw"},
     {"gating", "max_sigma_px", "max-sigma", K_DOUBLE, F(max_sigma_px), 0, 0, 1e4, "position uncertainty (1 sigma) over this -> raw"},
