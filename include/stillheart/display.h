@@ -3,12 +3,19 @@
  * take the newest one.
  *
  * Layout (all fields fixed width, little endian as the host; see sh_display_header below):
- *   [ header, 256 bytes ][ slot 0: slot header 64 bytes, pixels ][ slot 1 ] ... [ slot N-1 ]
+ *   [ header, 256 bytes ][ slot 0: slot header 128 bytes, pixels ][ slot 1 ] ... [ slot N-1 ]
+ * A slot header starts with the slot's 64-bit lock count, then 8 bytes of padding and the
+ * frame's sh_display_frame_info; the pixels follow with the header's strides and offsets.
  * Each slot has a sequence lock: the writer makes its counter odd, writes, makes it even and
  * then announces the slot in header.latest. A reader copies a slot and keeps the copy only if
  * the counter was the same even value before and after; otherwise it tries the newest slot
  * again. With at least three slots the writer never waits for anyone, a reader never returns a
- * torn frame, and a reader that stalls or dies holds nothing.
+ * torn frame, and a reader that stalls or dies holds nothing. The memory ordering this relies
+ * on (C11 acquire/release, and why it holds on aarch64) is written next to the code, display.c.
+ *
+ * A segment is never rebuilt in place: a writer created under a name already taken marks the old
+ * segment replaced (magic 0) and unlinks it, then makes a new one. Readers still mapping the old
+ * one keep whole frames from it and then get SH_EEOF; they open the name again to follow.
  *
  * The daemon (docs/daemon.md) publishes only frames it can vouch for, each with its status. While
  * its output camera is lost it publishes a black frame per frame period with status raw and the
@@ -78,7 +85,7 @@ sh_status sh_display_writer_create(const char *name, sh_pixfmt format, int width
                                    int slots, int full_range, const char *group,
                                    sh_display_writer **out);
 /* Copies the frame into the next slot and announces it. Never blocks on readers. info->sequence
- * and publish_ns are filled in by the writer. */
+ * and publish_ns are filled in by the writer. One thread at a time per writer. */
 sh_status sh_display_writer_publish(sh_display_writer *w, const sh_image *frame,
                                     const sh_display_frame_info *info);
 /* Marks the segment closed and unmaps it; unlink removes the name as well. */
@@ -86,6 +93,9 @@ void sh_display_writer_destroy(sh_display_writer *w, int unlink_segment);
 
 typedef struct sh_display_reader sh_display_reader;
 
+/* SH_EIO when no segment has the name; SH_EFORMAT when it is not a valid segment, which is also
+ * what a segment still being created looks like for a moment (a reader that starts beside the
+ * daemon tries again). */
 sh_status sh_display_reader_open(const char *name, sh_display_reader **out);
 /* Reads from a buffer already in memory (the fuzz harness, tests): validates the header
  * against size like a segment. The buffer must outlive the reader. */
@@ -93,7 +103,9 @@ sh_status sh_display_reader_attach(const void *buffer, size_t size, sh_display_r
 const sh_display_header *sh_display_reader_header(const sh_display_reader *r);
 /* Waits up to timeout_ms (-1: forever) for a frame newer than the last one this reader
  * returned, and copies it into frame (created by the caller with the header's format and
- * size). SH_EEOF when the writer closed the segment; SH_EIO on timeout. */
+ * size). SH_EEOF when the writer closed the segment or another writer replaced it; SH_EIO on
+ * timeout. frame and info are written only with SH_OK, and then hold one whole published frame;
+ * on any other status they hold what they held before the call (a display may keep showing it). */
 sh_status sh_display_reader_next(sh_display_reader *r, sh_image *frame,
                                  sh_display_frame_info *info, int timeout_ms);
 void sh_display_reader_close(sh_display_reader *r);

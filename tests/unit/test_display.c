@@ -1,11 +1,13 @@
-/* The shared-memory display buffer: round trip, no torn frame under a racing reader, a stalled
- * or late reader, closing, and hostile segments. */
+/* The shared-memory display buffer: round trip, no torn frame under a racing reader or a reader
+ * held mid-copy while the writer laps it or a new writer takes the name, a stalled or late
+ * reader, closing, hostile segments, and stillheart-cat writing whole frames only. */
 #include <libgen.h>
 #include <pthread.h>
 #include <time.h>
 #include <setjmp.h>
 #include <signal.h>
 #include <stdarg.h>
+#include <stdatomic.h>
 #include <stddef.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -13,6 +15,7 @@
 #include <string.h>
 #include <fcntl.h>
 #include <sys/mman.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -294,6 +297,454 @@ static void test_cat_writes_y4m(void **state)
     sh_image_destroy(&got);
 }
 
+/* Frames that prove their own wholeness: the frame number in the first 4 bytes, bytes of an
+ * xorshift32 stream seeded by it, and in the last 4 bytes an FNV-1a hash of all the others.
+ * Any mix of two frames, or of a frame and anything else, fails the hash. */
+enum { CW = 256, CH = 64, SLOT_HEADER = 128 };
+
+static uint32_t fnv1a(const uint8_t *p, size_t n)
+{
+    uint32_t h = 2166136261u;
+    for (size_t i = 0; i < n; i++) h = (h ^ p[i]) * 16777619u;
+    return h;
+}
+
+static void seal(sh_image *img, uint32_t n)
+{
+    uint8_t b[CW * CH];
+    uint32_t x = n * 2654435761u | 1u;
+    memcpy(b, &n, 4);
+    for (size_t i = 4; i < sizeof b - 4; i++) {
+        x ^= x << 13, x ^= x >> 17, x ^= x << 5;
+        b[i] = (uint8_t)x;
+    }
+    uint32_t h = fnv1a(b, sizeof b - 4);
+    memcpy(b + sizeof b - 4, &h, 4);
+    for (int y = 0; y < CH; y++) memcpy(img->plane[0].data + (size_t)y * img->plane[0].stride, b + y * CW, CW);
+}
+
+/* 1 with *n the frame's number when the hash holds */
+static int sealed(const sh_image *img, uint32_t *n)
+{
+    uint8_t b[CW * CH];
+    for (int y = 0; y < CH; y++) memcpy(b + y * CW, img->plane[0].data + (size_t)y * img->plane[0].stride, CW);
+    uint32_t h;
+    memcpy(&h, b + sizeof b - 4, 4);
+    memcpy(n, b, 4);
+    return h == fnv1a(b, sizeof b - 4);
+}
+
+/* A reader slowed inside its copy: the test maps the segment itself, attaches a reader to that
+ * mapping, and takes read access away from one page in the middle of every slot's pixels. The
+ * reader's copy faults there, halfway through a frame; the handler holds it while something
+ * happens to the segment (stall_mode), gives the pages back and lets the copy go on. */
+enum { STALL_LAP, STALL_REPLACE, STALL_WRITER_DIES };
+static volatile int stall_mode;
+static uint8_t *stall_base, *stall_rw; /* the reader's mapping; a writable one of the same object */
+static size_t stall_len, stall_page_bytes;
+static uint8_t *stall_page[SH_DISPLAY_MAX_SLOTS];
+static int stall_pages, stall_slots, stall_dying_slot;
+static uint32_t stall_slot_bytes;
+static atomic_uint published;              /* frames the writer thread has published */
+static atomic_int stalls, laps, stalled, resume;
+
+static void pause_us(long us)
+{
+    struct timespec t = {us / 1000000, (us % 1000000) * 1000};
+    nanosleep(&t, NULL);
+}
+
+static int64_t mono_ms(void)
+{
+    struct timespec t;
+    clock_gettime(CLOCK_MONOTONIC, &t);
+    return (int64_t)t.tv_sec * 1000 + t.tv_nsec / 1000000;
+}
+
+static void on_segv(int sig, siginfo_t *si, void *ctx)
+{
+    (void)ctx;
+    uint8_t *a = si->si_addr;
+    if (!stall_base || a < stall_base || a >= stall_base + stall_len) {
+        signal(sig, SIG_DFL); /* not ours: fault again, and die of it */
+        return;
+    }
+    if (stall_mode == STALL_LAP) {
+        /* the writer goes round all the slots and one more: the slot being copied is rewritten */
+        unsigned start = atomic_load(&published);
+        int64_t t0 = mono_ms();
+        while (atomic_load(&published) < start + (unsigned)stall_slots + 1 && mono_ms() - t0 < 5000) pause_us(100);
+        if (atomic_load(&published) >= start + (unsigned)stall_slots + 1) atomic_fetch_add(&laps, 1);
+    } else if (stall_mode == STALL_REPLACE) {
+        atomic_store(&stalled, 1);
+        while (!atomic_load(&resume)) pause_us(100);
+    } else { /* a writer process that died in the middle of publishing into the slot */
+        uint8_t *slot = stall_rw + sizeof(sh_display_header) + (size_t)stall_dying_slot * stall_slot_bytes;
+        uint64_t lock;
+        memcpy(&lock, slot, 8);
+        lock += 1;
+        __atomic_store_n((uint64_t *)(void *)slot, lock, __ATOMIC_RELEASE);
+        memset(slot + SLOT_HEADER + (stall_slot_bytes - SLOT_HEADER) / 2, 0x55, (stall_slot_bytes - SLOT_HEADER) / 4);
+    }
+    for (int k = 0; k < stall_pages; k++) mprotect(stall_page[k], stall_page_bytes, PROT_READ);
+    atomic_fetch_add(&stalls, 1);
+}
+
+/* Maps the segment `name` for a reader to attach to, and for the handler. */
+static void stall_map(sh_display_reader **r)
+{
+    int fd = shm_open(name, O_RDWR, 0);
+    assert_true(fd >= 0);
+    struct stat sb;
+    assert_int_equal(fstat(fd, &sb), 0);
+    stall_len = (size_t)sb.st_size;
+    stall_base = mmap(NULL, stall_len, PROT_READ, MAP_SHARED, fd, 0);
+    stall_rw = mmap(NULL, stall_len, PROT_READ | PROT_WRITE, MAP_SHARED, fd, 0);
+    close(fd);
+    assert_true(stall_base != MAP_FAILED && stall_rw != MAP_FAILED);
+    assert_int_equal(sh_display_reader_attach(stall_base, stall_len, r), SH_OK);
+    const sh_display_header *h = sh_display_reader_header(*r);
+    stall_slots = (int)h->slot_count;
+    stall_slot_bytes = h->slot_bytes;
+    stall_page_bytes = (size_t)sysconf(_SC_PAGESIZE);
+    assert_true(h->frame_bytes >= 3 * stall_page_bytes); /* a whole page inside the pixels */
+    stall_pages = 0;
+    for (uint32_t s = 0; s < h->slot_count; s++) {
+        uintptr_t mid = (uintptr_t)stall_base + sizeof *h + (size_t)s * h->slot_bytes + SLOT_HEADER + h->frame_bytes / 2;
+        stall_page[stall_pages++] = (uint8_t *)(mid & ~(uintptr_t)(stall_page_bytes - 1));
+    }
+    struct sigaction sa;
+    memset(&sa, 0, sizeof sa);
+    sa.sa_sigaction = on_segv;
+    sa.sa_flags = SA_SIGINFO;
+    sigemptyset(&sa.sa_mask);
+    assert_int_equal(sigaction(SIGSEGV, &sa, NULL), 0);
+    atomic_store(&stalls, 0);
+    atomic_store(&laps, 0);
+    atomic_store(&stalled, 0);
+    atomic_store(&resume, 0);
+}
+
+static void stall_arm(void)
+{
+    for (int k = 0; k < stall_pages; k++) assert_int_equal(mprotect(stall_page[k], stall_page_bytes, PROT_NONE), 0);
+}
+
+static void stall_unmap(sh_display_reader *r)
+{
+    signal(SIGSEGV, SIG_DFL);
+    sh_display_reader_close(r);
+    munmap(stall_base, stall_len);
+    munmap(stall_rw, stall_len);
+    stall_base = stall_rw = NULL;
+}
+
+typedef struct {
+    sh_display_writer *w;
+    atomic_int stop;
+} lapping_job;
+
+static void *lapping_writer(void *arg)
+{
+    lapping_job *job = arg;
+    sh_image img;
+    sh_image_create(&img, SH_PIX_GRAY8, CW, CH);
+    for (uint32_t n = 1; !atomic_load(&job->stop); n++) {
+        seal(&img, n);
+        sh_display_frame_info info = {.capture_ns = n};
+        sh_display_writer_publish(job->w, &img, &info);
+        atomic_store(&published, n);
+    }
+    sh_image_destroy(&img);
+    return NULL;
+}
+
+/* Every read is held halfway through its copy until the writer has gone round all the slots:
+ * the copy that was held is a mix of two frames each time, and none may be returned. */
+static void test_lapped_slow_reader_sees_no_torn_frame(void **state)
+{
+    (void)state;
+    enum { READS = 200 };
+    lapping_job job = {0};
+    assert_int_equal(sh_display_writer_create(name, SH_PIX_GRAY8, CW, CH, 3, 0, NULL, &job.w), SH_OK);
+    sh_display_reader *r;
+    stall_map(&r);
+    stall_mode = STALL_LAP;
+    atomic_store(&published, 0);
+    pthread_t t;
+    assert_int_equal(pthread_create(&t, NULL, lapping_writer, &job), 0);
+    sh_image got;
+    assert_int_equal(sh_image_create(&got, SH_PIX_GRAY8, CW, CH), SH_OK);
+    int torn = 0, whole = 0;
+    uint64_t last = 0;
+    for (int k = 0; k < READS; k++) {
+        stall_arm();
+        sh_display_frame_info info;
+        sh_status st = sh_display_reader_next(r, &got, &info, 5000);
+        if (st != SH_OK) fail_msg("read %d: %s", k, sh_error_message());
+        uint32_t n;
+        if (!sealed(&got, &n) || (int64_t)n != info.capture_ns) {
+            if (torn++ < 5) printf("  read %d: sequence %llu returned torn (hash %s, number %u)\n", k,
+                                   (unsigned long long)info.sequence, sealed(&got, &n) ? "ok" : "broken", n);
+        } else {
+            whole++;
+        }
+        assert_true(info.sequence > last);
+        last = info.sequence;
+    }
+    atomic_store(&job.stop, 1);
+    pthread_join(t, NULL);
+    printf("  %d reads, each held mid-copy (%d stalls) while the writer lapped it (%d laps, %u frames "
+           "written): %d whole, %d torn\n", READS, atomic_load(&stalls), atomic_load(&laps),
+           atomic_load(&published), whole, torn);
+    assert_int_equal(torn, 0);
+    assert_int_equal(atomic_load(&stalls), READS);
+    assert_int_equal(atomic_load(&laps), READS);
+    stall_unmap(r);
+    sh_display_writer_destroy(job.w, 1);
+    sh_image_destroy(&got);
+}
+
+static void *replacing_writer(void *arg)
+{
+    sh_display_writer **b = arg;
+    while (!atomic_load(&stalled)) pause_us(100);
+    sh_image img;
+    sh_image_create(&img, SH_PIX_GRAY8, CW, CH);
+    seal(&img, 1000);
+    sh_display_frame_info info = {.capture_ns = 1000};
+    if (sh_display_writer_create(name, SH_PIX_GRAY8, CW, CH, 3, 0, NULL, b) == SH_OK)
+        sh_display_writer_publish(*b, &img, &info);
+    sh_image_destroy(&img);
+    atomic_store(&resume, 1);
+    return NULL;
+}
+
+/* A new writer (a restarted daemon) takes the name while a reader is halfway through copying
+ * the old writer's frame: the reader returns the old frame whole or nothing, then "replaced";
+ * a reader opened afterwards gets the new writer's frame. */
+static void test_new_writer_under_a_stalled_reader(void **state)
+{
+    (void)state;
+    sh_display_writer *a, *b = NULL;
+    assert_int_equal(sh_display_writer_create(name, SH_PIX_GRAY8, CW, CH, 3, 0, NULL, &a), SH_OK);
+    sh_image img, got;
+    assert_int_equal(sh_image_create(&img, SH_PIX_GRAY8, CW, CH), SH_OK);
+    assert_int_equal(sh_image_create(&got, SH_PIX_GRAY8, CW, CH), SH_OK);
+    seal(&img, 1);
+    sh_display_frame_info info = {.capture_ns = 1};
+    assert_int_equal(sh_display_writer_publish(a, &img, &info), SH_OK);
+    sh_display_reader *r;
+    stall_map(&r);
+    stall_mode = STALL_REPLACE;
+    pthread_t t;
+    assert_int_equal(pthread_create(&t, NULL, replacing_writer, &b), 0);
+    stall_arm();
+    sh_status st = sh_display_reader_next(r, &got, &info, 1000);
+    pthread_join(t, NULL);
+    assert_non_null(b);
+    assert_int_equal(atomic_load(&stalls), 1);
+    uint32_t n;
+    if (st == SH_OK && (!sealed(&got, &n) || n != 1))
+        fail_msg("the reader returned sequence %llu torn: the old writer's frame 1 mixed with the new writer's",
+                 (unsigned long long)info.sequence);
+    if (st == SH_OK) st = sh_display_reader_next(r, &got, &info, 1000);
+    assert_int_equal(st, SH_EEOF);
+    stall_unmap(r);
+    sh_display_writer_destroy(a, 1); /* the name is b's now: a must leave it */
+    sh_display_reader *late;
+    assert_int_equal(sh_display_reader_open(name, &late), SH_OK);
+    assert_int_equal(sh_display_reader_next(late, &got, &info, 100), SH_OK);
+    assert_true(sealed(&got, &n));
+    assert_int_equal(n, 1000);
+    sh_display_reader_close(late);
+    sh_display_writer_destroy(b, 1);
+    sh_image_destroy(&img);
+    sh_image_destroy(&got);
+}
+
+/* The writer dies halfway through publishing into the slot being copied (its count stays odd):
+ * the read times out, and the caller's frame still holds the last whole frame it returned, so
+ * a display that keeps showing it on a timeout shows a whole picture. */
+static void test_timeout_leaves_the_last_whole_frame(void **state)
+{
+    (void)state;
+    sh_display_writer *w;
+    assert_int_equal(sh_display_writer_create(name, SH_PIX_GRAY8, CW, CH, 3, 0, NULL, &w), SH_OK);
+    sh_image img, got;
+    assert_int_equal(sh_image_create(&img, SH_PIX_GRAY8, CW, CH), SH_OK);
+    assert_int_equal(sh_image_create(&got, SH_PIX_GRAY8, CW, CH), SH_OK);
+    sh_display_reader *r;
+    stall_map(&r);
+    seal(&img, 1);
+    assert_int_equal(sh_display_writer_publish(w, &img, &(sh_display_frame_info){.capture_ns = 1}), SH_OK);
+    sh_display_frame_info info;
+    assert_int_equal(sh_display_reader_next(r, &got, &info, 100), SH_OK);
+    seal(&img, 2);
+    assert_int_equal(sh_display_writer_publish(w, &img, &(sh_display_frame_info){.capture_ns = 2}), SH_OK);
+    stall_mode = STALL_WRITER_DIES;
+    stall_dying_slot = 1; /* frame 2's */
+    stall_arm();
+    info.capture_ns = -7;
+    assert_int_equal(sh_display_reader_next(r, &got, &info, 50), SH_EIO);
+    assert_int_equal(atomic_load(&stalls), 1);
+    uint32_t n;
+    if (!sealed(&got, &n)) fail_msg("after the timeout the caller's frame holds a torn copy (number %u)", n);
+    assert_int_equal(n, 1);
+    assert_int_equal(info.capture_ns, -7); /* info untouched as well */
+    stall_unmap(r);
+    sh_display_writer_destroy(w, 1);
+    sh_image_destroy(&img);
+    sh_image_destroy(&got);
+}
+
+typedef struct {
+    sh_display_writer *w;
+    atomic_int stop;
+    int period_us;
+} paint_job;
+
+static void *painting_writer(void *arg)
+{
+    paint_job *job = arg;
+    sh_image img;
+    sh_image_create(&img, SH_PIX_I420, W, H);
+    for (uint32_t n = 1; !atomic_load(&job->stop); n++) {
+        paint(&img, n);
+        sh_display_writer_publish(job->w, &img, NULL);
+        pause_us(job->period_us);
+    }
+    sh_image_destroy(&img);
+    return NULL;
+}
+
+/* A Y4M stream as stillheart-cat writes it: the header line, then "FRAME\n" and exactly one
+ * frame's bytes, again and again, and nothing else; each frame one the writer painted. */
+static int whole_frames(const uint8_t *d, size_t len, int *frames)
+{
+    const uint8_t *nl = memchr(d, '\n', len);
+    if (!nl || memcmp(d, "YUV4MPEG2 ", 10)) return 0;
+    size_t pos = (size_t)(nl - d) + 1, fb = (size_t)W * H * 3 / 2;
+    sh_image img;
+    sh_image_create(&img, SH_PIX_I420, W, H);
+    *frames = 0;
+    int ok = 1;
+    while (ok && pos < len) {
+        if (len - pos < 6 + fb || memcmp(d + pos, "FRAME\n", 6)) {
+            printf("  after %d whole frames: %zu bytes that are not a whole frame\n", *frames, len - pos);
+            ok = 0;
+            break;
+        }
+        pos += 6;
+        for (int p = 0, off = 0; p < img.num_planes; p++)
+            for (int y = 0; y < img.plane[p].height; off += img.plane[p].width, y++)
+                memcpy(img.plane[p].data + (size_t)y * img.plane[p].stride, d + pos + off, (size_t)img.plane[p].width);
+        int found = 0;
+        for (uint32_t k = 0; k < 256 && !found; k++) found = painted_as(&img, k); /* paint() is periodic in n mod 256 */
+        if (!found) {
+            printf("  frame %d is no painted frame\n", *frames);
+            ok = 0;
+        }
+        pos += fb;
+        (*frames)++;
+    }
+    sh_image_destroy(&img);
+    return ok;
+}
+
+/* stillheart-cat stopped by SIGTERM or SIGINT in the middle of writing a frame into a full
+ * pipe: it finishes that frame, begins no other, and ends by the signal. */
+static void cat_stopped_mid_frame(int sig)
+{
+    paint_job job = {.period_us = 2000};
+    assert_int_equal(sh_display_writer_create(name, SH_PIX_I420, W, H, 3, 0, NULL, &job.w), SH_OK);
+    pthread_t t;
+    assert_int_equal(pthread_create(&t, NULL, painting_writer, &job), 0);
+    int fds[2];
+    assert_int_equal(pipe(fds), 0);
+    pid_t child = fork();
+    assert_true(child >= 0);
+    if (child == 0) {
+        dup2(fds[1], 1);
+        close(fds[0]);
+        close(fds[1]);
+        execl(cat_binary, cat_binary, "--name", name, "--timeout", "10", (char *)NULL);
+        _exit(127);
+    }
+    close(fds[1]);
+    size_t cap = 64u << 20, len = 0;
+    uint8_t *d = malloc(cap);
+    assert_non_null(d);
+    /* into the first frame: past the header and 8 KB of it. Its remaining ~100 KB do not fit in
+     * a 64 KB pipe, so cat is inside that frame's write when the signal comes. */
+    while (len < 200 + 8192) {
+        ssize_t k = read(fds[0], d + len, 200 + 8192 - len);
+        assert_true(k > 0);
+        len += (size_t)k;
+    }
+    pause_us(300000); /* the pipe fills and cat blocks in the middle of the frame */
+    kill(child, sig);
+    for (ssize_t k; (k = read(fds[0], d + len, cap - len)) > 0;) len += (size_t)k;
+    close(fds[0]);
+    int status;
+    waitpid(child, &status, 0);
+    atomic_store(&job.stop, 1);
+    pthread_join(t, NULL);
+    int frames = 0;
+    if (!whole_frames(d, len, &frames)) fail_msg("signal %d: stillheart-cat's %zu bytes are not whole frames", sig, len);
+    printf("  signal %d mid-frame: %d whole frames, %zu bytes\n", sig, frames, len);
+    assert_true(frames >= 1);
+    assert_true(WIFSIGNALED(status) && WTERMSIG(status) == sig);
+    free(d);
+    sh_display_writer_destroy(job.w, 1);
+}
+
+static void test_cat_stopped_mid_frame_writes_whole_frames(void **state)
+{
+    (void)state;
+    cat_stopped_mid_frame(SIGTERM);
+    cat_stopped_mid_frame(SIGINT);
+}
+
+/* stillheart-cat started before the daemon has made its segment (as a test or a display
+ * started beside it does) waits for it within its timeout, rather than writing nothing. */
+static void test_cat_waits_for_the_segment(void **state)
+{
+    (void)state;
+    char out[] = "/tmp/stillheart-cat-XXXXXX";
+    int fd = mkstemp(out);
+    assert_true(fd >= 0);
+    shm_unlink(name);
+    pid_t child = fork();
+    assert_true(child >= 0);
+    if (child == 0) {
+        dup2(fd, 1);
+        execl(cat_binary, cat_binary, "--name", name, "--count", "2", "--timeout", "5", (char *)NULL);
+        _exit(127);
+    }
+    close(fd);
+    pause_us(300000);
+    paint_job job = {.period_us = 50000};
+    assert_int_equal(sh_display_writer_create(name, SH_PIX_I420, W, H, 3, 0, NULL, &job.w), SH_OK);
+    pthread_t t;
+    assert_int_equal(pthread_create(&t, NULL, painting_writer, &job), 0);
+    int status;
+    waitpid(child, &status, 0);
+    atomic_store(&job.stop, 1);
+    pthread_join(t, NULL);
+    FILE *f = fopen(out, "rb");
+    assert_non_null(f);
+    static uint8_t d[1 << 20];
+    size_t len = fread(d, 1, sizeof d, f);
+    fclose(f);
+    unlink(out);
+    if (!WIFEXITED(status) || WEXITSTATUS(status)) fail_msg("stillheart-cat status %d, %zu bytes written", status, len);
+    int frames = 0;
+    assert_true(whole_frames(d, len, &frames));
+    assert_int_equal(frames, 2);
+    sh_display_writer_destroy(job.w, 1);
+}
+
 static void test_bad_arguments(void **state)
 {
     (void)state;
@@ -319,6 +770,11 @@ int main(int argc, char **argv)
         cmocka_unit_test(test_stalled_and_late_readers),
         cmocka_unit_test(test_hostile_segments),
         cmocka_unit_test(test_cat_writes_y4m),
+        cmocka_unit_test(test_lapped_slow_reader_sees_no_torn_frame),
+        cmocka_unit_test(test_new_writer_under_a_stalled_reader),
+        cmocka_unit_test(test_timeout_leaves_the_last_whole_frame),
+        cmocka_unit_test(test_cat_stopped_mid_frame_writes_whole_frames),
+        cmocka_unit_test(test_cat_waits_for_the_segment),
         cmocka_unit_test(test_bad_arguments),
     };
     return cmocka_run_group_tests(tests, setup, NULL);

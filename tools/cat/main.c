@@ -1,5 +1,11 @@
 /* stillheart-cat: the display buffer as a Y4M stream on stdout, so that
- * `stillheart-cat | ffplay -` shows the live view and `| ffmpeg ...` records it. */
+ * `stillheart-cat | ffplay -` shows the live view and `| ffmpeg ...` records it.
+ *
+ * The stream holds whole frames only. Each frame (its FRAME line and its bytes) is formatted
+ * into one buffer and handed to write() until all of it is out; stdio is not used for the
+ * stream, because a buffered stream flushes in pieces and a process that dies between two
+ * pieces leaves half a frame. SIGINT and SIGTERM only set a flag, looked at between frames: the
+ * frame being written is finished, the next one is not begun. */
 #include <errno.h>
 #include <getopt.h>
 #include <math.h>
@@ -7,6 +13,8 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
+#include <unistd.h>
 
 #include "stillheart/display.h"
 #include "stillheart/y4m.h"
@@ -22,10 +30,44 @@ static void usage(FILE *out)
         "options:\n"
         "  --name NAME     shared-memory segment (default %s)\n"
         "  --count N       stop after N frames (default: until the daemon stops)\n"
-        "  --timeout S     give up when no new frame arrives for S seconds (default 5)\n"
+        "  --timeout S     give up when no new frame arrives for S seconds (default 5); a segment\n"
+        "                  that is not there yet (the daemon starting) is waited for as long\n"
         "  -v, --verbose   each frame's status (stabilized / degraded / raw and why) on stderr\n"
         "  --help          this text\n",
         SH_DISPLAY_DEFAULT_NAME);
+}
+
+static volatile sig_atomic_t stop_signal;
+
+static void on_stop(int sig) { stop_signal = sig; }
+
+static double now_s(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + (double)ts.tv_nsec / 1e9;
+}
+
+/* All of buf to stdout: a write cut short by a signal goes on where it stopped. */
+static int write_all(const unsigned char *buf, size_t n)
+{
+    while (n > 0) {
+        ssize_t k = write(STDOUT_FILENO, buf, n);
+        if (k < 0 && errno == EINTR) continue;
+        if (k <= 0) return -1;
+        buf += k;
+        n -= (size_t)k;
+    }
+    return 0;
+}
+
+/* What the Y4M writer put into the memory stream since the last call, out in one piece. */
+static int flush_stream(FILE *mem, const unsigned char *buf)
+{
+    long n = ftell(mem);
+    if (n < 0 || write_all(buf, (size_t)n) != 0) return -1;
+    rewind(mem);
+    return 0;
 }
 
 /* BT.601 full range: Y4M carries no RGB. */
@@ -85,36 +127,74 @@ int main(int argc, char **argv)
         return 2;
     }
     signal(SIGPIPE, SIG_IGN); /* a closed player shows as a write error, handled below */
-    sh_display_reader *r;
-    if (sh_display_reader_open(name, &r) != SH_OK) {
-        fprintf(stderr, "stillheart-cat: %s\n", sh_error_message());
-        return 1;
+    struct sigaction sa;
+    memset(&sa, 0, sizeof sa);
+    sa.sa_handler = on_stop;
+    sigemptyset(&sa.sa_mask);
+    sigaction(SIGINT, &sa, NULL);
+    sigaction(SIGTERM, &sa, NULL);
+    /* the daemon may be starting: its segment appears, then becomes valid, within the timeout */
+    sh_display_reader *r = NULL;
+    double give_up = now_s() + timeout;
+    while (sh_display_reader_open(name, &r) != SH_OK) {
+        if (stop_signal || now_s() >= give_up) {
+            fprintf(stderr, "stillheart-cat: %s\n", sh_error_message());
+            return stop_signal ? 128 + stop_signal : 1;
+        }
+        struct timespec pause = {0, 20 * 1000000};
+        nanosleep(&pause, NULL);
     }
     const sh_display_header *h = sh_display_reader_header(r);
     sh_pixfmt format = (sh_pixfmt)h->format;
     sh_image frame = {0}, converted = {0};
     sh_y4m_writer *w = NULL;
+    FILE *mem = NULL;
+    unsigned char *buf = NULL;
     int rc = 1;
     sh_y4m_header yh = {.width = (int)h->width, .height = (int)h->height,
                         .format = format == SH_PIX_RGB24 ? SH_PIX_YUV444 : format,
                         .siting = (sh_chroma_siting)h->siting, .interlace = 'p',
                         .aspect_num = 1, .aspect_den = 1};
     if (h->full_range || format == SH_PIX_RGB24) strcpy(yh.extra, "XCOLORRANGE=FULL");
+    /* room for the stream header (its tags are at most SH_Y4M_MAX_EXTRA bytes) or for one
+     * frame: its FRAME line and at most three full planes */
+    size_t cap = SH_Y4M_MAX_EXTRA + 512 + (size_t)h->width * (size_t)h->height * 3;
     if (sh_image_create(&frame, format, (int)h->width, (int)h->height) != SH_OK ||
         (format == SH_PIX_RGB24 &&
-         sh_image_create(&converted, SH_PIX_YUV444, (int)h->width, (int)h->height) != SH_OK) ||
-        sh_y4m_writer_open("-", &yh, &w) != SH_OK) {
+         sh_image_create(&converted, SH_PIX_YUV444, (int)h->width, (int)h->height) != SH_OK)) {
         fprintf(stderr, "stillheart-cat: %s\n", sh_error_message());
         goto done;
     }
-    for (long n = 0; count == 0 || n < count; n++) {
+    if (!(buf = malloc(cap)) || !(mem = fmemopen(buf, cap, "w")) || setvbuf(mem, NULL, _IONBF, 0) != 0) {
+        fprintf(stderr, "stillheart-cat: cannot make a frame buffer: %s\n", strerror(errno));
+        goto done;
+    }
+    if (sh_y4m_writer_open_file(mem, "<stdout>", &yh, &w) != SH_OK) {
+        fprintf(stderr, "stillheart-cat: %s\n", sh_error_message());
+        goto done;
+    }
+    if (flush_stream(mem, buf) != 0) {
+        fprintf(stderr, "stillheart-cat: <stdout>: write error: %s\n", strerror(errno));
+        goto done;
+    }
+    double last_frame = now_s();
+    for (long n = 0; (count == 0 || n < count) && !stop_signal;) {
         sh_display_frame_info info;
-        sh_status st = sh_display_reader_next(r, &frame, &info, (int)(timeout * 1000));
+        /* short waits, so that a signal ends the wait at once; the timeout counts from the
+         * last frame */
+        sh_status st = sh_display_reader_next(r, &frame, &info, 100);
+        if (st == SH_EIO && !stop_signal && now_s() - last_frame < timeout) continue;
+        if (stop_signal) break;
         if (st == SH_EEOF && count == 0) break; /* the daemon stopped cleanly */
+        if (st == SH_EIO) {
+            fprintf(stderr, "stillheart-cat: %s: no new frame in %g s\n", name, timeout);
+            goto done;
+        }
         if (st != SH_OK) {
             fprintf(stderr, "stillheart-cat: %s: %s\n", name, sh_error_message());
             goto done;
         }
+        last_frame = now_s();
         if (verbose)
             fprintf(stderr, "frame %llu %s%s%s markers %u residual %.3f\n", (unsigned long long)info.sequence,
                     info.status == SH_DISPLAY_STABILIZED ? "stabilized"
@@ -125,15 +205,24 @@ int main(int argc, char **argv)
             fprintf(stderr, "stillheart-cat: %s\n", sh_error_message());
             goto done;
         }
+        if (flush_stream(mem, buf) != 0) {
+            fprintf(stderr, "stillheart-cat: <stdout>: write error: %s\n", strerror(errno));
+            goto done;
+        }
+        n++;
     }
     rc = 0;
 done:
-    if (w && sh_y4m_writer_close(w) != SH_OK && rc == 0) {
-        fprintf(stderr, "stillheart-cat: %s\n", sh_error_message());
-        rc = 1;
-    }
+    sh_y4m_writer_close(w); /* its stream is the memory buffer: nothing of it is left unwritten */
+    if (mem) fclose(mem);
+    free(buf);
     sh_image_destroy(&frame);
     sh_image_destroy(&converted);
     sh_display_reader_close(r);
+    if (rc == 0 && stop_signal) {
+        /* end as the signal would have ended it, for the shell and the process that sent it */
+        signal(stop_signal, SIG_DFL);
+        raise(stop_signal);
+    }
     return rc;
 }

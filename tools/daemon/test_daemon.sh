@@ -24,32 +24,48 @@ $RUN --source "y4m:$T/ph/cam0.y4m" --no-loop --no-realtime --sink none --points 
 $RUN --source "y4m:$T/ph/cam0.y4m" --no-loop --realtime --sink "shm:$SHM" --points "$T/points.csv" \
     --method tps --threads 2 --min-markers 3 & pid=$!
 for i in 1 2 3 4 5 6 7 8 9 10; do [ -e "/dev/shm$SHM" ] && break; sleep 0.1; done
-"$B/stillheart-cat" --name "$SHM" --count 20 --timeout 5 > "$T/cat.y4m" 2>/dev/null
+"$B/stillheart-cat" --name "$SHM" --count 20 --timeout 5 -v > "$T/cat.y4m" 2> "$T/cat.log"
 wait $pid
-python3 - "$T/cat.y4m" "$T/warp.y4m" "$T/ph/cam0.y4m" <<'PY' && ok "shm frames equal stillheart warp" || bad "shm frames equal stillheart warp" "see above"
-import sys
+python3 - "$T/cat.y4m" "$T/warp.y4m" "$T/ph/cam0.y4m" "$T/cat.log" <<'PY' && ok "shm frames equal stillheart warp" || bad "shm frames equal stillheart warp" "see above"
+import re, sys
+log = open(sys.argv[4]).read()
 def frames(p):
     d = open(p, 'rb').read()
+    if b'\n' not in d: print(p, "holds no Y4M header (%d bytes); stillheart-cat said:" % len(d), log[-500:]); sys.exit(1)
     hdr, rest = d.split(b'\n', 1)
     w = int([t for t in hdr.split() if t.startswith(b'W')][0][1:]); h = int([t for t in hdr.split() if t.startswith(b'H')][0][1:])
     n = w * h * 3 // 2
     out = []
     while rest:
-        line, rest = rest.split(b'\n', 1)
+        line, rest = rest.split(b'\n', 1) if b'\n' in rest else (rest, b'')
+        if line != b'FRAME' or len(rest) < n:
+            print(p, "frame", len(out), "is not whole: line %r, %d of %d bytes" % (line[:20], min(len(rest), n), n)); sys.exit(1)
         out.append(rest[:n]); rest = rest[n:]
-    return out
-a, b, raw = frames(sys.argv[1]), frames(sys.argv[2]), frames(sys.argv[3])
-if len(a) < 15: print("only", len(a), "frames read back"); sys.exit(1)
+    return out, w, h
+(a, w, h), (b, _, _), (raw, _, _) = frames(sys.argv[1]), frames(sys.argv[2]), frames(sys.argv[3])
+shown = re.findall(r'^frame (\d+) (.*)$', log, re.M)  # stillheart-cat -v: sequence, status and why
+if len(a) < 15: print("only", len(a), "frames read back; stillheart-cat said:", log[-500:]); sys.exit(1)
+def where(f, g):  # the largest difference over the whole frame, and its place
+    d, i = max((abs(x - y), i) for i, (x, y) in enumerate(zip(f, g)))
+    plane, k = ('Y', i) if i < w * h else ('U', i - w * h) if i < w * h * 5 // 4 else ('V', i - w * h * 5 // 4)
+    pw = w if plane == 'Y' else w // 2
+    return "%d at %s x=%d y=%d" % (d, plane, k % pw, k // pw)
 # a frame shown before the reference's models are ready is the camera's own (raw): on a slow
 # machine (qemu-aarch64 under load) that can be several; every other one is warp's
 warped = 0
-for f in a:
-    best = min(max(abs(x - y) for x, y in zip(f[::97], g[::97])) for g in b)
+for i, f in enumerate(a):
+    diffs = [max(abs(x - y) for x, y in zip(f[::97], g[::97])) for g in b]
+    best = min(diffs)
     if best <= 1:
         warped += 1
     elif not any(f == g for g in raw):
-        print("a frame read back matches no warp frame (max diff", best, ") and no camera frame"); sys.exit(1)
-if warped < 5: print("only", warped, "of", len(a), "frames read back were warp's"); sys.exit(1)
+        seq, status = shown[i] if i < len(shown) else ("?", "? (no -v line)")
+        j = diffs.index(best)
+        k = min(range(len(raw)), key=lambda k: max(abs(x - y) for x, y in zip(f[::97], raw[k][::97])))
+        print("frame %d read back (sequence %s, %s) matches no warp frame and no camera frame: nearest warp "
+              "frame %d, max diff %s; nearest camera frame %d, max diff %s" % (i, seq, status, j, where(f, b[j]), k, where(f, raw[k])))
+        sys.exit(1)
+if warped < 5: print("only", warped, "of", len(a), "frames read back were warp's; statuses:", [s for _, s in shown]); sys.exit(1)
 PY
 
 # 2. gating on the phantom's occlusions against its ground truth (markers.csv: a tag counts as
@@ -260,12 +276,17 @@ def png(path):
                 cur[i] = (cur[i] + (a if pa <= pb and pa <= pc else b if pb <= pc else c)) & 255
         rows.append(bytes(cur)); prev = cur
     return w, h, bpp, rows
-d = open(sys.argv[1], 'rb').read(); hdr, rest = d.split(b'\n', 1)
+d = open(sys.argv[1], 'rb').read()
+if b'\n' not in d: print("stillheart-cat wrote no Y4M header (%d bytes); it said:" % len(d), open(sys.argv[2]).read()[-500:]); sys.exit(1)
+hdr, rest = d.split(b'\n', 1)
 w = int(re.search(rb' W(\d+)', hdr).group(1)); h = int(re.search(rb' H(\d+)', hdr).group(1))
 full = b'XCOLORRANGE=FULL' in hdr
 frames = []
 while rest:
-    line, rest = rest.split(b'\n', 1); frames.append(rest[:w * h * 3 // 2]); rest = rest[w * h * 3 // 2:]
+    line, rest = rest.split(b'\n', 1) if b'\n' in rest else (rest, b'')
+    if line != b'FRAME' or len(rest) < w * h * 3 // 2:
+        print("frame", len(frames), "of stillheart-cat's stream is not whole: line %r, %d of %d bytes" % (line[:20], min(len(rest), w * h * 3 // 2), w * h * 3 // 2)); sys.exit(1)
+    frames.append(rest[:w * h * 3 // 2]); rest = rest[w * h * 3 // 2:]
 seqs = [int(m.group(1)) for m in re.finditer(r'^frame (\d+) ', open(sys.argv[2]).read(), re.M)]
 ys, yo, cs = (1, 0, 1) if full else (255 / 219, 16, 255 / 224)
 kr, kb = 0.299, 0.114; kg = 1 - kr - kb
@@ -273,7 +294,7 @@ def tap(x, n):
     q = 2 * x - 1; a = q // 4; fr = q - 4 * a
     return min(max(a, 0), n - 1), min(max(a + 1, 0), n - 1), (4 - fr) / 4, fr / 4
 cw, ch = (w + 1) // 2, (h + 1) // 2
-matched = 0; worst = 0
+matched = 0; worst = 0; at = ""
 for seq, f in zip(seqs, frames):
     path = os.path.join(sys.argv[3], '%06d.png' % seq)
     if not os.path.exists(path): continue
@@ -290,9 +311,10 @@ for seq, f in zip(seqs, frames):
             rgb = (Y + 2 * (1 - kr) * cr, Y - (2 * kb * (1 - kb) * cb + 2 * kr * (1 - kr) * cr) / kg, Y + 2 * (1 - kb) * cb)
             for k in range(3):
                 want = min(max(int(rgb[k] + 0.5 if rgb[k] >= 0 else 0), 0), 255)
-                worst = max(worst, abs(rows[y][3 * x + k] - want))
+                if abs(rows[y][3 * x + k] - want) > worst:
+                    worst = abs(rows[y][3 * x + k] - want); at = "sequence %d, %s x=%d y=%d: PNG %d, shm %d" % (seq, "RGB"[k], x, y, rows[y][3 * x + k], want)
     matched += 1
-print("matched", matched, "of", len(frames), "frames, largest difference", worst)
+print("matched", matched, "of", len(frames), "frames, largest difference", worst, "(%s)" % at if worst > 1 else "")
 sys.exit(0 if matched >= 5 and worst <= 1 else 1)  # under load the writer skips some
 PY
 
