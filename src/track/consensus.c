@@ -3,17 +3,18 @@
  *
  * The motion model is fitted to a few seconds of history; a unique-id AprilTag in a well-shaped
  * quad is much stronger evidence. When the heart makes a motion the model has not seen (a first
- * beat faster than any before it) or the endoscope is moved or bumped, every marker is detected
- * far outside its own gate, and gating each against its own prediction throws away exactly the
- * evidence that tells what happened. So before the per-marker gate, every marker detected once,
- * well shaped, is compared with what its neighbours' detections say: its innovation (detection
- * minus prediction) against a smooth field interpolated from the others' innovations
- * (leave-one-out, distance-weighted affine fit, as the spatial model). A lone outlier (a cut
- * quad, a tag moved by an instrument) disagrees with its neighbours and is still refused. When
- * the agreeing markers all moved by one translation of the image (the camera moved, not the
- * heart), every marker, seen or not, and its history follow the view, and the frame is flagged
- * (sh_tracker_motion). An agreeing marker still outside its own gate has its covariance widened
- * (a fading memory) so that the ordinary update takes its detection and the model learns. */
+ * beat faster than any before it, a beat early or late) or the endoscope is moved or bumped,
+ * markers are detected outside their own gates, and gating each against its own prediction
+ * throws away exactly the evidence that tells what happened. So before the per-marker gate,
+ * every marker detected once, well shaped, is compared with what its neighbours' detections say:
+ * its innovation (detection minus prediction) against a smooth field interpolated from the
+ * others' (leave-one-out, distance-weighted affine fit, as the spatial model); or, when its own
+ * prediction has drifted, its displacement since it was last accepted against theirs. A lone
+ * outlier (a cut quad, a tag moved by an instrument) disagrees with its neighbours both ways and
+ * is still refused. When the agreeing markers all moved by one translation of the image (the
+ * camera moved, not the heart), every marker, seen or not, and its history follow the view, and
+ * the frame is flagged (sh_tracker_motion). An agreeing marker still outside its own gate has the
+ * variance of its baseline raised so that the ordinary update takes its detection. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -22,7 +23,7 @@
 
 #define CONS_MIN 3      /* markers needed for a consensus (an affine field has 3 unknowns/axis) */
 #define CONS_MAD_K 3.0  /* a marker agrees within this many robust sigmas of the others */
-#define RIGID_FRAC 0.25 /* a similarity leaving less than this fraction of the motion: rigid */
+#define RIGID_FRAC 0.25 /* a translation leaving less than this fraction of the motion: the camera's */
 
 /* Triangulates nv views; with three, falls back to the best consistent pair. 0 when no
  * consistent point; *pair = 1 when one view was dropped. */
@@ -231,6 +232,59 @@ static double noise_floor(const sh_tracker *t, const frame_set *fs, int i)
     return sqrt(t->o.gate * 2 * rr / t->dim);
 }
 
+/* Whether what the consensus motion leaves of candidate i's innovation is within its own gate,
+ * widened by how far the others' motion is from one smooth field (the field's scatter): the
+ * marker moved with its neighbours, as far as the heart's deformation lets one tell. A lone
+ * outlier keeps its whole deviation; a corner marker on a heart that bulges keeps only what the
+ * bulge adds, which the others' scatter shows. */
+static int explained(const sh_tracker *t, const frame_set *fs, int i)
+{
+    double f[3], fv[3], m2 = 0;
+    if (!trk_field_at(fs->pos, fs->e, fs->use, t->nm, i, t->dim, fs->pos[i], f, fv)) return 0;
+    for (int a = 0; a < t->dim; a++) {
+        double r = fs->e[i][a] - f[a];
+        m2 += r * r / (trk_hph(t, &t->m[i].f[a]) + fs->r[i][a] + fv[a]);
+    }
+    return m2 <= t->o.gate;
+}
+
+/* For a candidate whose innovation disagrees, its own prediction may have drifted (cut or missed
+ * for a few frames, refitted badly, a beat its rhythm did not expect): then the innovation says
+ * more about its model than about its detection. Does its detection agree with its neighbours' by
+ * how far each moved since its last accepted detection, at t0? Its displacement against the
+ * field of the agreeing neighbours' displacements over the same time (their states at t0 are kept
+ * for the spatial model), within the detection noise and tol (the innovations' bound). A tag left
+ * behind on an instrument when the camera moved stays where it was while its neighbours moved:
+ * refused however long it stays. Not for a marker an occluder is at (a quad of it was refused
+ * for its shape lately): its next quads may be cut in ways the shape test cannot see, and they
+ * are confirmed one after another instead (gate.c). */
+static int displacement_agrees(const sh_tracker *t, const frame_set *fs, int i, double tol)
+{
+    const marker *mk = &t->m[i];
+    const double *rx;
+    const unsigned char *rok;
+    if (t->frame < mk->suspect_until || !trk_ring_at(t, mk->last_frame, &rx, &rok)) return 0;
+    double p0[MAXM][2], d[MAXM][3];
+    unsigned char use[MAXM] = {0};
+    int n = 0;
+    for (int j = 0; j < t->nm; j++) {
+        if ((j != i && !fs->use[j]) || !rok[j]) continue;
+        for (int a = 0; a < t->dim; a++) {
+            double x0 = trk_hx(t, (const axis_filter *)(rx + ((size_t)j * 3 + a) * NS));
+            d[j][a] = fs->z[j][a] - x0;
+            if (a < 2) p0[j][a] = x0;
+        }
+        use[j] = j != i;
+        n += j != i;
+    }
+    double f[3], var[3], dev = 0;
+    if (n < CONS_MIN || !rok[i] ||
+        !trk_field_at((const double(*)[2])p0, (const double(*)[3])d, use, t->nm, i, t->dim, p0[i], f, var))
+        return 0;
+    for (int a = 0; a < t->dim; a++) dev += (d[i][a] - f[a]) * (d[i][a] - f[a]);
+    return sqrt(dev) <= fmax(noise_floor(t, fs, i), tol);
+}
+
 /* Leave-one-out agreement: sets fs->use and fs->inliers; 0 when no majority of at least CONS_MIN
  * agrees on anything. The worst marker is left out of the others' fits one at a time (an outlier
  * pulls its neighbours' fits toward it, so judging all at once with its pull in them can make it
@@ -267,7 +321,9 @@ static int agree(const sh_tracker *t, frame_set *fs)
     }
     unsigned char back[MAXM] = {0};
     for (int i = 0; i < t->nm; i++)
-        back[i] = fs->cand[i] && !fs->use[i] && deviation(t, fs, i) <= fmax(tol, noise_floor(t, fs, i));
+        back[i] = fs->cand[i] && !fs->use[i] &&
+                  (deviation(t, fs, i) <= fmax(tol, noise_floor(t, fs, i)) || explained(t, fs, i) ||
+                   displacement_agrees(t, fs, i, tol));
     for (int i = 0; i < t->nm; i++)
         if (back[i]) {
             fs->use[i] = 1;
@@ -328,24 +384,22 @@ static void camera(sh_tracker *t, frame_set *fs, int fresh)
 }
 
 /* Agreeing markers still outside their own gate: the heart moved as the model did not expect.
- * Their covariance is widened (a fading memory) until the detection is a typical innovation, and
- * the update then spreads the correction over baseline and rhythm as their covariance says, so
- * the model learns it. */
+ * The variance of their baseline grows by what the innovation exceeds (adaptive process noise),
+ * so that the ordinary update takes the detection and moves the baseline most; the rhythm keeps
+ * its covariance and learns from the updates that follow. Widening the whole covariance (a
+ * fading memory) was tried first: one detection then threw the harmonics about, and on irregular
+ * beats the next predictions were off by hundreds of pixels. */
 static void fade(sh_tracker *t, const frame_set *fs)
 {
     int jumped = 0;
     for (int i = 0; i < t->nm; i++) {
         if (!fs->use[i]) continue;
         marker *mk = &t->m[i];
-        double m2 = 0, lam = 1;
-        for (int a = 0; a < t->dim; a++) {
-            double v = trk_hph(t, &mk->f[a]);
-            m2 += fs->e[i][a] * fs->e[i][a] / (v + fs->r[i][a]);
-            lam = fmax(lam, (fs->e[i][a] * fs->e[i][a] - fs->r[i][a]) / v);
-        }
+        double m2 = 0;
+        for (int a = 0; a < t->dim; a++) m2 += fs->e[i][a] * fs->e[i][a] / (trk_hph(t, &mk->f[a]) + fs->r[i][a]);
         if (m2 <= t->o.gate) continue;
         for (int a = 0; a < t->dim; a++)
-            for (int k = 0; k < NS * NS; k++) mk->f[a].P[k] *= lam;
+            mk->f[a].P[0] += fmax(0, fs->e[i][a] * fs->e[i][a] - trk_hph(t, &mk->f[a]) - fs->r[i][a]);
         jumped++;
     }
     t->motion.jumped = jumped;

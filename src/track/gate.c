@@ -44,14 +44,22 @@ int trk_predicted_xy(const sh_tracker *t, const marker *mk, int c, const double 
  * interpolated at `self` by a distance-weighted affine fit (moving least squares over the first
  * two coordinates: the surface is a graph over them) and added to its own prediction. Writes the
  * correction and its variance; 0 when no neighbour qualifies. */
-int trk_spatial_estimate(const sh_tracker *t, const marker *mk, int self, double *corr, double *var)
+int trk_ring_at(const sh_tracker *t, int frame, const double **rx, const unsigned char **rok)
 {
     int slot = -1;
     for (int q = 0; q < t->ring_len; q++)
-        if (t->ring_frame[q] == mk->last_frame) slot = q;
-    if (slot < 0 || mk->last_frame >= t->frame) return 0;
-    const double *rx = t->ring_x + (size_t)slot * MAXM * 3 * NS;
-    const unsigned char *rok = t->ring_ok + (size_t)slot * MAXM;
+        if (t->ring_frame[q] == frame) slot = q;
+    if (slot < 0 || frame >= t->frame) return 0;
+    *rx = t->ring_x + (size_t)slot * MAXM * 3 * NS;
+    *rok = t->ring_ok + (size_t)slot * MAXM;
+    return 1;
+}
+
+int trk_spatial_estimate(const sh_tracker *t, const marker *mk, int self, double *corr, double *var)
+{
+    const double *rx;
+    const unsigned char *rok;
+    if (!trk_ring_at(t, mk->last_frame, &rx, &rok)) return 0;
     double F[NS * NS];
     trk_transition(t, (t->frame - mk->last_frame) / t->o.fps, F);
     double ref_self[3];

@@ -126,6 +126,9 @@ void trk_marker_pos(const sh_tracker *t, const marker *mk, double *p, double *va
 /* gate.c */
 int trk_predicted_xy(const sh_tracker *t, const marker *mk, int c, const double *shift,
                      const double *fvar, double xy[2], double S[4]);
+/* The filter states of every marker kept for frame (the last ring_len frames, older than now) and
+ * which were measured then; 0 when not kept. */
+int trk_ring_at(const sh_tracker *t, int frame, const double **rx, const unsigned char **rok);
 int trk_spatial_estimate(const sh_tracker *t, const marker *mk, int self, double *corr, double *var);
 void trk_update_marker(sh_tracker *t, int i, const sh_detection *const *det, int num_cameras);
 /* consensus.c: distance-weighted affine fit (moving least squares) of the values val[j] (dim each)

@@ -2,6 +2,7 @@
  * with respiration, detections with Gaussian noise. Rates, occlusion prediction, gating,
  * duplicates, unknown ids, loss and reacquisition, windows and reacquisition bands, bad input. */
 #include <math.h>
+#include <stdio.h>
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -56,23 +57,24 @@ static void detection(int id, double x, double y, sh_detection *d)
     d->margin = 60;
 }
 
-static sh_tracker *make(int whitelist)
+/* A tracker for n markers with ids first..first+n-1 listed (n = 0: ids learnt). */
+static sh_tracker *make_ids(int first, int n)
 {
     sh_track_options o;
     sh_track_options_default(&o);
     o.fps = FPS;
     o.width = 1280;
     o.height = 720;
-    int ids[NM];
-    for (int i = 0; i < NM; i++) ids[i] = 10 + i;
-    if (whitelist) {
-        o.ids = ids;
-        o.num_ids = NM;
-    }
+    int ids[SH_TRACK_MAX_MARKERS];
+    for (int i = 0; i < n; i++) ids[i] = first + i;
+    o.ids = n ? ids : NULL;
+    o.num_ids = n;
     sh_tracker *t = NULL;
     assert_int_equal(sh_tracker_create(&o, NULL, &t), SH_OK);
     return t;
 }
+
+static sh_tracker *make(int whitelist) { return make_ids(10, whitelist ? NM : 0); }
 
 /* one frame: markers visible unless hidden[i]; extra detections appended */
 static void step(sh_tracker *t, int f, const int *hidden, const sh_detection *extra, int nextra)
@@ -427,6 +429,97 @@ static void test_lone_liar_refused_in_motion(void **state)
     sh_tracker_destroy(t);
 }
 
+/* Irregular rhythms (issue 13's first two rows must keep working): every beat's length drawn
+ * within +-35 % of the mean, or the rate rising by 70 % halfway. As in a heart (and the phantom's
+ * activation curve), each beat is a contraction and a relaxation, and what varies from beat to
+ * beat is mostly the rest between them: the contraction and relaxation take 40 % of a mean beat,
+ * or of the beat when it is shorter; the markers rest at end-diastole. Nine markers on a 3 x 3
+ * grid as on a heart, which deforms as it beats: it contracts toward its middle, twists, and
+ * swings, each marker by its own amount. Every frame's estimates are compared with the truth. */
+#define RN 9
+static double beat_phase[40 * (int)FPS]; /* beats: k + how far into beat k's active part */
+
+static void warped(int i, int f, double *x, double *y)
+{
+    double t = f / FPS, k = floor(beat_phase[f]), u = beat_phase[f] - k;
+    double c = 0.5 * (1 - cos(2 * PI * u)) + 0.12 * sin(4 * PI * u); /* activation */
+    double x0 = 400 + 150 * (i % 3), y0 = 250 + 150 * (i / 3), dx = x0 - 550, dy = y0 - 400;
+    double bulge = 6 * exp(-(dx * dx + dy * dy) / (2 * 120.0 * 120.0));
+    *x = x0 + c * (9 - 0.08 * dx - 0.05 * dy + bulge) + 6 * cos(2 * PI * FR * t);
+    *y = y0 + c * (5 - 0.08 * dy + 0.05 * dx + 0.5 * bulge) + 9 * sin(2 * PI * FR * t);
+}
+
+static void run_rhythm(int rising, double *worst, double *mean, double *measured, long *camera)
+{
+    uint64_t saved = rng;
+    double start = 0, len = 1 / FH;
+    int beat = 0;
+    for (int f = 0; f < 40 * FPS; f++) {
+        double t = f / FPS;
+        while (t >= start + len) { /* the next beat, its own length */
+            start += len;
+            len = rising ? (start < 20 ? 1 / FH : 1 / (1.7 * FH)) : (0.65 + 0.7 * urand()) / FH;
+            beat++;
+        }
+        double active = 0.4 * fmin(len, 1 / FH);
+        beat_phase[f] = beat + fmin((t - start) / active, 0.999999);
+    }
+    sh_tracker *t = make_ids(20, RN);
+    long cnt = 0, used = 0;
+    double sum = 0;
+    *worst = 0;
+    for (int f = 0; f < 40 * FPS; f++) {
+        sh_detection d[RN];
+        int nd = 0;
+        assert_int_equal(sh_tracker_predict(t, f), SH_OK);
+        for (int i = 0; i < RN; i++) {
+            double x, y;
+            warped(i, f, &x, &y);
+            double ny = 0.2 * nrand(), nx = 0.2 * nrand();
+            detection(20 + i, x + nx, y + ny, &d[nd++]);
+        }
+        const sh_detection *dp[1] = {d};
+        assert_int_equal(sh_tracker_update(t, dp, &nd, 1), SH_OK);
+        sh_track_estimate e[SH_TRACK_MAX_MARKERS];
+        int n = sh_tracker_estimates(t, e, SH_TRACK_MAX_MARKERS);
+        for (int i = 0; i < RN; i++) {
+            const sh_track_estimate *q = find(e, n, 20 + i);
+            cnt++;
+            if (!q || q->status == SH_TRACK_LOST) continue; /* no estimate: counted as not used */
+            double x, y;
+            warped(i, f, &x, &y);
+            double err = hypot(q->pos[0] - x, q->pos[1] - y);
+            *worst = fmax(*worst, err);
+            sum += err;
+            used += q->status == SH_TRACK_MEASURED;
+        }
+    }
+    *mean = sum / cnt;
+    *measured = (double)used / cnt;
+    sh_track_stats s;
+    sh_tracker_stats(t, &s);
+    *camera = s.camera_moves;
+    sh_tracker_destroy(t);
+    rng = saved; /* the other tests' noise stays as it was */
+}
+
+static void test_irregular_rhythms(void **state)
+{
+    (void)state;
+    for (int rising = 0; rising < 2; rising++) {
+        double worst, mean, measured;
+        long camera;
+        run_rhythm(rising, &worst, &mean, &measured, &camera);
+        fprintf(stderr, "  %s: detections used in %.1f %% of the marker frames, error mean %.3f / max %.2f px, "
+                "camera moved in %ld frames\n", rising ? "rate rising 70 % halfway" : "beats +-35 %",
+                100 * measured, mean, worst, camera);
+        assert_true(measured >= 0.98);
+        assert_true(mean <= 0.3);
+        assert_true(worst <= 2.0);
+        assert_int_equal(camera, 0);
+    }
+}
+
 /* the crossing of a quad's diagonals: where libapriltag puts the centre of any quad */
 static void crossing(sh_detection *d)
 {
@@ -612,6 +705,7 @@ int main(void)
         cmocka_unit_test(test_camera_bump_followed),
         cmocka_unit_test(test_first_beat_followed),
         cmocka_unit_test(test_lone_liar_refused_in_motion),
+        cmocka_unit_test(test_irregular_rhythms),
         cmocka_unit_test(test_shape_refusals),
         cmocka_unit_test(test_windows_hold_truth),
         cmocka_unit_test(test_auto_ids_refuse_still_tag),
