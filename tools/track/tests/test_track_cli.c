@@ -25,8 +25,10 @@
 static char tmp[64];
 static int rendered; /* 1: tmp/one (1 camera) and tmp/three (3 cameras) hold phantom renders */
 
-/* The motion sequences: exvivo (23 frames/s, rates lock after about 4.2 s), one camera, 960x540
- * (the size the issue measured); short ones move before the lock, long ones after it. */
+/* The motion sequences: exvivo (23 frames/s, rates lock after about 4.2 s), one camera, 640x360
+ * (the figures in docs/tracking.md are the same cases at 960x540, the size the issue measured:
+ * the warps of the e check take 2.25 times as long there, for the same verdicts); short ones
+ * move before the lock, long ones after it. */
 typedef struct {
     const char *name, *render; /* tmp/NAME, stillheart-render's motion options */
     int frames;
@@ -104,7 +106,7 @@ static int setup(void **state)
     rendered = system(cmd) == 0;
     for (int k = 0; k < NMOTIONS && rendered; k++) {
         snprintf(cmd, sizeof cmd,
-                 "'%s' --preset exvivo --cameras 1 --frames %d --width 960 --height 540 %s --quiet --out '%s/%s' "
+                 "'%s' --preset exvivo --cameras 1 --frames %d --width 640 --height 360 %s --quiet --out '%s/%s' "
                  "&& '%s' --truth '%s/%s' --export-points '%s/%s/truth.csv'",
                  RENDER_BIN, motions[k].frames, motions[k].render, tmp, motions[k].name, EVAL_BIN, tmp,
                  motions[k].name, tmp, motions[k].name);
@@ -368,7 +370,12 @@ static void track_case(const motion_case *mc)
     assert_true(mx <= 2.0);
     free(r);
     free(t);
-    if (getenv("SH_TEST_EMULATED")) return; /* the warp's arithmetic has arm64 tests of its own */
+    /* the e check runs this build's stillheart warp and stillheart-eval, whose arithmetic has
+     * tests of its own on arm64 and under ASan; here their minutes would say nothing more */
+#if defined(__SANITIZE_ADDRESS__)
+    return;
+#endif
+    if (getenv("SH_TEST_EMULATED")) return;
     double e_tr, g_tr, e_gt, g_gt;
     stabilize(mc->name, "tps", p, &e_tr, &g_tr);
     stabilize(mc->name, "tps", q, &e_gt, &g_gt);
