@@ -6,6 +6,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include <stdio.h>
+#include <stdlib.h>
 
 #include <cmocka.h>
 
@@ -132,9 +133,14 @@ static void test_sudden_motions(void **state)
         {0, 1, 70, 0}, {1, 0, 70, 1.3}, {2, 0, 70, 1.3}, {1, 0, 280, 7.5}, {2, 0, 280, 7.5},
     };
     static const char *names[] = {"first beat", "pan", "bump"};
-    for (int p = 0; p < 2; p++)
+    /* under qemu-aarch64 (SH_TEST_EMULATED, tools/cross/run-lanes.sh) a run costs ten times as
+     * long: the exvivo preset's first beat and bump after the lock, 2D and 3D, there; the host
+     * suite runs every case */
+    int emulated = getenv("SH_TEST_EMULATED") != NULL;
+    for (int p = emulated; p < 2; p++)
         for (int cams = 1; cams <= 3; cams += 2)
             for (int k = 0; k < (int)(sizeof cases / sizeof cases[0]); k++) {
+                if (emulated && k != 0 && k != 4) continue;
                 track_sim_config c;
                 track_sim_default(&c);
                 c.preset = presets[p];
