@@ -38,12 +38,6 @@ int trk_predicted_xy(const sh_tracker *t, const marker *mk, int c, const double 
     return 1;
 }
 
-/* Spatial estimate for marker `self`, unseen since frame t0: every neighbour measured now and at
- * t0 is predicted open loop from its state at t0 (as `self` is); the neighbours' errors of those
- * predictions (what the temporal model got wrong: a rate change, an irregular beat, a drift) are
- * interpolated at `self` by a distance-weighted affine fit (moving least squares over the first
- * two coordinates: the surface is a graph over them) and added to its own prediction. Writes the
- * correction and its variance; 0 when no neighbour qualifies. */
 int trk_ring_at(const sh_tracker *t, int frame, const double **rx, const unsigned char **rok)
 {
     int slot = -1;
@@ -55,6 +49,12 @@ int trk_ring_at(const sh_tracker *t, int frame, const double **rx, const unsigne
     return 1;
 }
 
+/* Spatial estimate for marker `self`, unseen since frame t0: every neighbour measured now and at
+ * t0 is predicted open loop from its state at t0 (as `self` is); the neighbours' errors of those
+ * predictions (what the temporal model got wrong: a rate change, an irregular beat, a drift) are
+ * interpolated at `self` by a distance-weighted affine fit (moving least squares over the first
+ * two coordinates: the surface is a graph over them) and added to its own prediction. Writes the
+ * correction and its variance; 0 when no neighbour qualifies. */
 int trk_spatial_estimate(const sh_tracker *t, const marker *mk, int self, double *corr, double *var)
 {
     const double *rx;
