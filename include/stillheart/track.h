@@ -103,11 +103,13 @@ typedef struct {
  * (sh_tracker_motion; docs/tracking.md). */
 typedef struct {
     int agreed;           /* markers whose detections agree with each other (0: not judged) */
-    int jumped;           /* of them, outside their own gate: moved onto their detection */
+    int jumped;           /* of them, outside their own gate: taken all the same (their
+                           * baseline's variance raised) */
     int surface;          /* at least half of those that agree jumped: the whole surface moved */
-    int camera;           /* ... by one similarity of the image: the camera moved, not the heart */
-    double shift_px;      /* RMS of that motion over the agreeing markers, output camera pixels */
-    double rigid_left_px; /* RMS left after the best similarity */
+    int camera;           /* they moved by one translation of the image: the camera moved, not
+                           * the heart */
+    double shift_px;      /* that translation's length, output camera pixels (camera = 1) */
+    double rigid_left_px; /* RMS of what the translation leaves of their motion, px */
 } sh_track_motion;
 
 typedef struct {

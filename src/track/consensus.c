@@ -16,7 +16,6 @@
  * the frame is flagged (sh_tracker_motion). An agreeing marker still outside its own gate has the
  * variance of its baseline raised so that the ordinary update takes its detection. */
 #include <math.h>
-#include <stdlib.h>
 #include <string.h>
 
 #include "track_internal.h"
@@ -107,17 +106,6 @@ int trk_field_at(const double (*pos)[2], const double (*val)[3], const unsigned 
         var[a] = ss / wsum;
     }
     return 1;
-}
-
-static double median(double *v, int n)
-{
-    for (int i = 1; i < n; i++)
-        for (int j = i; j > 0 && v[j - 1] > v[j]; j--) {
-            double tmp = v[j];
-            v[j] = v[j - 1];
-            v[j - 1] = tmp;
-        }
-    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
 /* Moves marker i's baseline (and its states kept for the spatial model) by d, with var added to
@@ -311,7 +299,7 @@ static int agree(const sh_tracker *t, frame_set *fs)
                 double d = deviation(t, fs, i);
                 if (isfinite(d)) others[no++] = d;
             }
-        tol = fmax(noise_floor(t, fs, worst), no ? CONS_MAD_K * 1.4826 * median(others, no) : 0);
+        tol = fmax(noise_floor(t, fs, worst), no ? CONS_MAD_K * 1.4826 * trk_median(others, no) : 0);
         if (!(dev[worst] > tol)) {
             fs->use[worst] = 1;
             break;
@@ -389,7 +377,7 @@ static void camera(sh_tracker *t, frame_set *fs, int fresh)
  * its covariance and learns from the updates that follow. Widening the whole covariance (a
  * fading memory) was tried first: one detection then threw the harmonics about, and on irregular
  * beats the next predictions were off by hundreds of pixels. */
-static void fade(sh_tracker *t, const frame_set *fs)
+static void widen_baselines(sh_tracker *t, const frame_set *fs)
 {
     int jumped = 0;
     for (int i = 0; i < t->nm; i++) {
@@ -421,7 +409,6 @@ void trk_consensus(sh_tracker *t, const sh_detection *const *det, int num_camera
         mk->cons = 0;
         memset(mk->cons_well, 0, sizeof mk->cons_well);
         if (!mk->init || mk->lost) continue;
-        trk_marker_pos(t, mk, mk->pos, NULL);
         fs.pos[i][0] = mk->pos[0];
         fs.pos[i][1] = mk->pos[1];
         if (!candidate(t, mk, det, num_cameras, fs.z[i], fs.r[i])) continue;
@@ -434,5 +421,5 @@ void trk_consensus(sh_tracker *t, const sh_detection *const *det, int num_camera
         if (fs.cand[i]) t->m[i].cons = fs.use[i] ? 1 : 2;
     t->motion.agreed = fs.inliers;
     camera(t, &fs, fresh);
-    fade(t, &fs);
+    widen_baselines(t, &fs);
 }

@@ -217,8 +217,7 @@ static int cmp_double(const void *a, const void *b)
     return (x > y) - (x < y);
 }
 
-/* median of v[0..n-1] (sorts v; at most SH_TRACK_HISTORY values, only when the rates change) */
-static double median_of(double *v, int n)
+double trk_median(double *v, int n)
 {
     if (n <= 0) return 0;
     qsort(v, (size_t)n, sizeof *v, cmp_double);
@@ -274,7 +273,7 @@ static double fit_series(const double *x, int n, const double *tab, int m, doubl
         }
         double sorted[SH_TRACK_HISTORY];
         memcpy(sorted, res, sizeof(double) * nres);
-        double lim = 3 * fmax(1.4826 * median_of(sorted, nres), floor);
+        double lim = 3 * fmax(1.4826 * trk_median(sorted, nres), floor);
         int changed = 0;
         for (int j = 0, q = 0; j < n; j++) {
             if (isnan(x[j])) continue;

@@ -292,7 +292,7 @@ sh_status sh_tracker_update(sh_tracker *t, const sh_detection *const *det, const
     t->updated = 1;
     t->stats.frames++;
     for (int i = 0; i < t->nm; i++)
-        for (int c = 0; c < MAXC; c++) t->m[i].ndet[c] = 0;
+        for (int c = 0; c < MAXC; c++) t->m[i].ndet[c] = t->m[i].used[c] = 0;
     /* ids: count per camera, new slots for unseen ids in auto mode */
     for (int c = 0; c < num_cameras; c++)
         for (int k = 0; k < count[c]; k++) {
@@ -313,7 +313,6 @@ sh_status sh_tracker_update(sh_tracker *t, const sh_detection *const *det, const
             }
             if (t->m[s].ndet[c]++ == 0) t->m[s].det[c] = k;
         }
-    for (int i = 0; i < t->nm; i++) memset(t->m[i].used, 0, sizeof t->m[i].used);
     /* the detections against each other first: a motion they agree on is taken at once */
     trk_consensus(t, det, num_cameras);
     /* markers the spatial model can vouch for are gated against it: first every marker whose own

@@ -52,9 +52,8 @@ typedef struct {
     int cut_until;         /* frame until which it is gated against its neighbours' motion too (a
                             * quad of it was refused for its shape) */
     /* consensus.c: this frame's agreement with the other markers' detections (0 not judged,
-     * 1 agrees, 2 disagrees), a jump onto the detection pending, and per camera a single
-     * well-shaped detection */
-    int cons, cons_jump;
+     * 1 agrees, 2 disagrees), and per camera a single well-shaped detection */
+    int cons;
     unsigned char cons_well[MAXC];
     double prev_pos[3];    /* its estimate in frame prev_frame, when measured there */
     int prev_frame;
@@ -117,6 +116,8 @@ void trk_predict_filter(const sh_tracker *t, axis_filter *f, const double *F, do
 void trk_update_filter(const sh_tracker *t, axis_filter *f, double z, double r);
 void trk_init_filter(axis_filter *f, double z, double r, double vvar);
 void trk_estimate_rates(sh_tracker *t);
+/* The median of v[0..n) (sorts v in place); 0 when n = 0. */
+double trk_median(double *v, int n);
 /* The periodogram's FFT set-up (rates.c), at create; freed by trk_rates_free. */
 sh_status trk_rates_init(sh_tracker *t);
 void trk_rates_free(sh_tracker *t);
