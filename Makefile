@@ -4,7 +4,8 @@
 #   make bench        benchmarks beside their peers (OpenCV cv::remap, ...)
 #   make fuzz         every libFuzzer harness for FUZZ_SECONDS each
 #   make install      PREFIX=/usr/local DESTDIR=
-# Optional backends are built only when pkg-config (or the header) finds their library.
+# Optional backends are built only when pkg-config (or the header) finds their library: every
+# library feature flag (SH_HAVE_*) is set in "library feature flags" below, and nowhere else.
 
 # Cross build (docs/arm64.md, tools/cross/cross.mk): make CROSS_COMPILE=aarch64-linux-gnu- takes
 # the cross toolchain, the target's pkg-config folders only (+ libapriltag-dev unpacked by
@@ -58,10 +59,42 @@ CFLAGS_ALL   += $(shell $(PKG_CONFIG) --cflags qhull_r kissfft-float 2>/dev/null
 CXXFLAGS_ALL += $(patsubst -I%,-isystem %,$(shell $(PKG_CONFIG) --cflags eigen3 2>/dev/null))
 LDLIBS_ALL   += $(shell $(PKG_CONFIG) --libs qhull_r kissfft-float 2>/dev/null) -lstdc++
 
-# Optional: libpng (PNG output).
+# ---- library feature flags: an optional library found by pkg-config adds its SH_HAVE_* to the
+# compile lines and its libraries to every link line; the code without it refuses clearly ----
+# libpng: PNG output (src/png, src/imageio).
 ifeq ($(call have,libpng),1)
 CFLAGS_ALL += -DSH_HAVE_PNG $(shell $(PKG_CONFIG) --cflags libpng)
 LDLIBS_ALL += $(shell $(PKG_CONFIG) --libs libpng)
+endif
+# libturbojpeg: MJPEG decoding (src/pixconv), JPEG files (src/imageio), the bench's peer.
+ifeq ($(call have,libturbojpeg),1)
+CFLAGS_ALL   += -DSH_HAVE_TURBOJPEG $(shell $(PKG_CONFIG) --cflags libturbojpeg)
+CXXFLAGS_ALL += -DSH_HAVE_TURBOJPEG
+LDLIBS_ALL   += $(shell $(PKG_CONFIG) --libs libturbojpeg)
+endif
+# libgpiod 1.6: GPIO trigger lines (src/sync/gpio.c), the v1 API (2.x is a different API).
+ifeq ($(call have,libgpiod),1)
+ifneq ($(shell $(PKG_CONFIG) --atleast-version=2 libgpiod && echo 2),2)
+CFLAGS_ALL   += -DSH_HAVE_GPIOD
+LDLIBS_ALL   += $(shell $(PKG_CONFIG) --libs libgpiod)
+endif
+endif
+# libcamera (src/source/libcamera.cpp): its headers as system headers (they warn under -Werror).
+ifeq ($(call have,libcamera),1)
+CXXFLAGS_ALL += -DSH_HAVE_LIBCAMERA $(patsubst -I%,-isystem %,$(shell $(PKG_CONFIG) --cflags libcamera))
+LDLIBS_ALL   += $(shell $(PKG_CONFIG) --libs libcamera)
+endif
+# inih: the daemon's config files (src/config/ini.c).
+ifeq ($(call have,inih),1)
+CFLAGS_ALL += -DSH_HAVE_INIH $(shell $(PKG_CONFIG) --cflags inih)
+LDLIBS_ALL += $(shell $(PKG_CONFIG) --libs inih)
+endif
+# libapriltag: the detect stage (src/detect). Debian's apriltag.pc omits -lapriltag-utils, which
+# holds the image_u8_* helpers.
+ifeq ($(call have,apriltag),1)
+CFLAGS_ALL   += -DSH_HAVE_APRILTAG
+CXXFLAGS_ALL += -DSH_HAVE_APRILTAG
+LDLIBS_ALL   += $(shell $(PKG_CONFIG) --libs apriltag) -lapriltag-utils
 endif
 
 # OpenCV, for benchmarks and test oracles only (Debian's -core/-imgproc packages ship no .pc).
@@ -91,8 +124,11 @@ all: $(LIB) $(APP)
 deps:
 	@sh scripts/install-deps.sh
 
-# The per-pixel loops: -O3 lets gcc vectorize the position fill (measured in make bench).
-$(BUILD)/src/warp/%.o: CFLAGS_ALL += -O3
+# ---- per-module optimisation: $(OPT) everywhere but in this table. -O3 lets gcc vectorize the
+# per-pixel loops, each measured in make bench: src/warp the position fill (bench_warp),
+# src/pixconv the pixel-format loops (bench_pixconv) ----
+$(BUILD)/src/warp/%.o:    CFLAGS_ALL += -O3
+$(BUILD)/src/pixconv/%.o: CFLAGS_ALL += -O3
 
 $(BUILD)/%.o: %.c
 	@mkdir -p $(dir $@)
@@ -194,7 +230,9 @@ install: all
 	install -m 0644 include/stillheart/*.h $(DESTDIR)$(PREFIX)/include/stillheart/
 	install -m 0644 $(LIB) $(DESTDIR)$(PREFIX)/lib/
 
+# Every build folder the rules make: the default and the ASan build, the fuzzers', the aarch64
+# build (tools/cross/cross.mk), the Debian packages' copy, and a BUILD= given on the command line.
 clean:
-	rm -rf build build-asan build-fuzz
+	rm -rf build build-asan build-fuzz $(ARM64_BUILD) $(DEB_OUT) $(BUILD)
 
 -include $(shell find $(BUILD) -name '*.d' 2>/dev/null)

@@ -1,8 +1,5 @@
-# The daemon (stillheart run): config (inih), sd_notify, run demo, daemon tests and bench.
-ifeq ($(call have,inih),1)
-CFLAGS_ALL += -DSH_HAVE_INIH $(shell $(PKG_CONFIG) --cflags inih)
-LDLIBS_ALL += $(shell $(PKG_CONFIG) --libs inih)
-endif
+# The daemon (stillheart run): run demo, daemon tests and bench, install. Its config files' library
+# (inih) is set at the top of the Makefile.
 
 # The daemon's tests: a script run by the suite like a cmocka binary (needs the renderer).
 $(BUILD)/tests/test_daemon: tools/daemon/test_daemon.sh $(APP) $(BUILD)/stillheart-cat $(BUILD)/stillheart-render
