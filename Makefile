@@ -1,6 +1,7 @@
 # stillheart — build, test, benchmark, install.
 #   make              library, the `stillheart` command and tools
-#   make check        installs Debian deps if missing, runs the unit suite, then again under ASan+UBSan
+#   make check        installs Debian deps if missing, checks the include rules (docs/architecture.md),
+#                     runs the unit suite, then again under ASan+UBSan
 #   make bench        benchmarks beside their peers (OpenCV cv::remap, ...)
 #   make fuzz         every libFuzzer harness for FUZZ_SECONDS each
 #   make install      PREFIX=/usr/local DESTDIR=
@@ -154,7 +155,8 @@ $(BUILD)/tests/%: $(BUILD)/tests/unit/%.o $(TEST_SUPPORT) $(LIB)
 
 tests: $(TEST_BIN) $(APP)
 
-# The suite: unit tests plain, then under ASan+UBSan, then the capture code against the kernel's
+# The suite: the include and link rules of docs/architecture.md (scripts/check-includes.sh, which
+# first shows on planted violations that it catches them), unit tests plain, then under ASan+UBSan, then the capture code against the kernel's
 # own drivers in a QEMU guest (make vmtest, about 20 s once its kernel is cached), then the
 # aarch64 build's suite under qemu-aarch64 (make check-arm64, tools/cross/cross.mk); one summary
 # line at the end counts all four. CHECK_ARM64=0 leaves the aarch64 part out.
@@ -162,6 +164,7 @@ CHECK_JOBS  ?= $(shell nproc)
 CHECK_ARM64 ?= 1
 check: deps
 	$(MAKE) --no-print-directory -j$(CHECK_JOBS) tests
+	$(MAKE) --no-print-directory check-includes
 	$(MAKE) --no-print-directory -j$(CHECK_JOBS) BUILD=build-asan SAN=1 OPT=-O1 tests
 	@$(MAKE) --no-print-directory vmtest > $(BUILD)/vmtest.out 2>&1; tail -n 25 $(BUILD)/vmtest.out
 	@rm -f $(BUILD)/arm64.out; if [ "$(CHECK_ARM64)" = 1 ]; then \
@@ -169,6 +172,11 @@ check: deps
 	  grep -E '^(\[  (FAILED|ERROR) |crashed|[0-9]+ passed, )' $(BUILD)/arm64.out | sed 's/^/arm64: /'; fi
 	@VMTEST_OUT=$(BUILD)/vmtest.out ARM64_OUT=$(if $(filter 1,$(CHECK_ARM64)),$(BUILD)/arm64.out) \
 	  sh tests/run-tests.sh build build-asan
+
+.PHONY: check-includes
+check-includes: $(APP)
+	@sh scripts/check-includes.sh --self-test --build $(BUILD)
+	@sh scripts/check-includes.sh --build $(BUILD)
 
 check-asan:
 	$(MAKE) --no-print-directory BUILD=build-asan SAN=1 OPT=-O1 tests
