@@ -52,17 +52,6 @@ install-daemon: all
 	[ -e $(DESTDIR)$(SYSCONF_DIR)/stillheart.ini ] || install -m 0644 firmware-config/stillheart.ini $(DESTDIR)$(SYSCONF_DIR)/
 	install -m 0644 docs/daemon.md $(DESTDIR)$(PREFIX)/share/doc/stillheart/
 
-# fuzz_config reaches the interpolation code (method names), whose Eigen object needs the C++
-# sanitizer runtime: the same build as the top rule, linked by clang++.
-build-fuzz/fuzz_config: tests/fuzz/fuzz_config.c $(LIB_C) $(LIB_CXX)
-	@mkdir -p build-fuzz
-	$(MAKE) --no-print-directory BUILD=build-fuzz/lib CC=clang CXX=clang++ SAN=0 \
-		CFLAGS="-fsanitize=fuzzer-no-link,address,undefined" \
-		CXXFLAGS="-fsanitize=fuzzer-no-link,address,undefined" build-fuzz/lib/libstillheart.a
-	clang $(FUZZ_FLAGS) -c $< -o build-fuzz/fuzz_config.o
-	clang++ -fsanitize=fuzzer,address,undefined build-fuzz/fuzz_config.o build-fuzz/lib/libstillheart.a \
-		$(filter-out -lstdc++,$(LDLIBS_ALL)) -o $@
-
 # test_daemon_proc (tests/unit) also links the daemon's processing objects, which live in the
 # stillheart command (src/app), not in the library.
 DAEMON_PROC_OBJ := $(BUILD)/src/app/run_model.o $(BUILD)/src/app/run_track.o
