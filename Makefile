@@ -1,10 +1,12 @@
 # stillheart — build, test, benchmark, install.
 #   make              library, the `stillheart` command and tools
-#   make check        installs Debian deps if missing, runs the unit suite, then again under ASan+UBSan
+#   make check        installs Debian deps if missing, checks the include rules (docs/architecture.md),
+#                     runs the unit suite, then again under ASan+UBSan
 #   make bench        benchmarks beside their peers (OpenCV cv::remap, ...)
 #   make fuzz         every libFuzzer harness for FUZZ_SECONDS each
 #   make install      PREFIX=/usr/local DESTDIR=
-# Optional backends are built only when pkg-config (or the header) finds their library.
+# Optional backends are built only when pkg-config (or the header) finds their library: every
+# library feature flag (SH_HAVE_*) is set in "library feature flags" below, and nowhere else.
 
 # Cross build (docs/arm64.md, tools/cross/cross.mk): make CROSS_COMPILE=aarch64-linux-gnu- takes
 # the cross toolchain, the target's pkg-config folders only (+ libapriltag-dev unpacked by
@@ -58,10 +60,42 @@ CFLAGS_ALL   += $(shell $(PKG_CONFIG) --cflags qhull_r kissfft-float 2>/dev/null
 CXXFLAGS_ALL += $(patsubst -I%,-isystem %,$(shell $(PKG_CONFIG) --cflags eigen3 2>/dev/null))
 LDLIBS_ALL   += $(shell $(PKG_CONFIG) --libs qhull_r kissfft-float 2>/dev/null) -lstdc++
 
-# Optional: libpng (PNG output).
+# ---- library feature flags: an optional library found by pkg-config adds its SH_HAVE_* to the
+# compile lines and its libraries to every link line; the code without it refuses clearly ----
+# libpng: PNG output (src/png, src/imageio).
 ifeq ($(call have,libpng),1)
 CFLAGS_ALL += -DSH_HAVE_PNG $(shell $(PKG_CONFIG) --cflags libpng)
 LDLIBS_ALL += $(shell $(PKG_CONFIG) --libs libpng)
+endif
+# libturbojpeg: MJPEG decoding (src/pixconv), JPEG files (src/imageio), the bench's peer.
+ifeq ($(call have,libturbojpeg),1)
+CFLAGS_ALL   += -DSH_HAVE_TURBOJPEG $(shell $(PKG_CONFIG) --cflags libturbojpeg)
+CXXFLAGS_ALL += -DSH_HAVE_TURBOJPEG
+LDLIBS_ALL   += $(shell $(PKG_CONFIG) --libs libturbojpeg)
+endif
+# libgpiod 1.6: GPIO trigger lines (src/sync/gpio.c), the v1 API (2.x is a different API).
+ifeq ($(call have,libgpiod),1)
+ifneq ($(shell $(PKG_CONFIG) --atleast-version=2 libgpiod && echo 2),2)
+CFLAGS_ALL   += -DSH_HAVE_GPIOD
+LDLIBS_ALL   += $(shell $(PKG_CONFIG) --libs libgpiod)
+endif
+endif
+# libcamera (src/source/libcamera.cpp): its headers as system headers (they warn under -Werror).
+ifeq ($(call have,libcamera),1)
+CXXFLAGS_ALL += -DSH_HAVE_LIBCAMERA $(patsubst -I%,-isystem %,$(shell $(PKG_CONFIG) --cflags libcamera))
+LDLIBS_ALL   += $(shell $(PKG_CONFIG) --libs libcamera)
+endif
+# inih: the daemon's config files (src/config/ini.c).
+ifeq ($(call have,inih),1)
+CFLAGS_ALL += -DSH_HAVE_INIH $(shell $(PKG_CONFIG) --cflags inih)
+LDLIBS_ALL += $(shell $(PKG_CONFIG) --libs inih)
+endif
+# libapriltag: the detect stage (src/detect). Debian's apriltag.pc omits -lapriltag-utils, which
+# holds the image_u8_* helpers.
+ifeq ($(call have,apriltag),1)
+CFLAGS_ALL   += -DSH_HAVE_APRILTAG
+CXXFLAGS_ALL += -DSH_HAVE_APRILTAG
+LDLIBS_ALL   += $(shell $(PKG_CONFIG) --libs apriltag) -lapriltag-utils
 endif
 
 # OpenCV, for benchmarks and test oracles only (Debian's -core/-imgproc packages ship no .pc).
@@ -91,8 +125,11 @@ all: $(LIB) $(APP)
 deps:
 	@sh scripts/install-deps.sh
 
-# The per-pixel loops: -O3 lets gcc vectorize the position fill (measured in make bench).
-$(BUILD)/src/warp/%.o: CFLAGS_ALL += -O3
+# ---- per-module optimisation: $(OPT) everywhere but in this table. -O3 lets gcc vectorize the
+# per-pixel loops, each measured in make bench: src/warp the position fill (bench_warp),
+# src/pixconv the pixel-format loops (bench_pixconv) ----
+$(BUILD)/src/warp/%.o:    CFLAGS_ALL += -O3
+$(BUILD)/src/pixconv/%.o: CFLAGS_ALL += -O3
 
 $(BUILD)/%.o: %.c
 	@mkdir -p $(dir $@)
@@ -118,7 +155,8 @@ $(BUILD)/tests/%: $(BUILD)/tests/unit/%.o $(TEST_SUPPORT) $(LIB)
 
 tests: $(TEST_BIN) $(APP)
 
-# The suite: unit tests plain, then under ASan+UBSan, then the capture code against the kernel's
+# The suite: the include and link rules of docs/architecture.md (scripts/check-includes.sh, which
+# first shows on planted violations that it catches them), unit tests plain, then under ASan+UBSan, then the capture code against the kernel's
 # own drivers in a QEMU guest (make vmtest, about 20 s once its kernel is cached), then the
 # aarch64 build's suite under qemu-aarch64 (make check-arm64, tools/cross/cross.mk); one summary
 # line at the end counts all four. CHECK_ARM64=0 leaves the aarch64 part out.
@@ -126,6 +164,7 @@ CHECK_JOBS  ?= $(shell nproc)
 CHECK_ARM64 ?= 1
 check: deps
 	$(MAKE) --no-print-directory -j$(CHECK_JOBS) tests
+	$(MAKE) --no-print-directory check-includes
 	$(MAKE) --no-print-directory -j$(CHECK_JOBS) BUILD=build-asan SAN=1 OPT=-O1 tests
 	@$(MAKE) --no-print-directory vmtest > $(BUILD)/vmtest.out 2>&1; tail -n 25 $(BUILD)/vmtest.out
 	@rm -f $(BUILD)/arm64.out; if [ "$(CHECK_ARM64)" = 1 ]; then \
@@ -133,6 +172,11 @@ check: deps
 	  grep -E '^(\[  (FAILED|ERROR) |crashed|[0-9]+ passed, )' $(BUILD)/arm64.out | sed 's/^/arm64: /'; fi
 	@VMTEST_OUT=$(BUILD)/vmtest.out ARM64_OUT=$(if $(filter 1,$(CHECK_ARM64)),$(BUILD)/arm64.out) \
 	  sh tests/run-tests.sh build build-asan
+
+.PHONY: check-includes
+check-includes: $(APP)
+	@sh scripts/check-includes.sh --self-test --build $(BUILD)
+	@sh scripts/check-includes.sh --build $(BUILD)
 
 check-asan:
 	$(MAKE) --no-print-directory BUILD=build-asan SAN=1 OPT=-O1 tests
@@ -154,13 +198,17 @@ FUZZ_SRC := $(wildcard tests/fuzz/fuzz_*.c)
 FUZZ_BIN := $(FUZZ_SRC:tests/fuzz/%.c=build-fuzz/%)
 FUZZ_FLAGS := -std=c11 -D_POSIX_C_SOURCE=200809L -D_DEFAULT_SOURCE -g -O1 -Iinclude \
 	-fsanitize=fuzzer,address,undefined -fno-sanitize-recover=all
+# Linked by clang++: a harness that reaches the library's C++ objects (src/linalg's Eigen, through
+# the interpolation methods; src/source's libcamera, through the clock) needs the C++ sanitizer
+# runtime, and it costs the others nothing.
 build-fuzz/%: tests/fuzz/%.c $(LIB_C) $(LIB_CXX)
 	@mkdir -p build-fuzz
 	$(MAKE) --no-print-directory BUILD=build-fuzz/lib CC=clang CXX=clang++ SAN=0 \
 		CFLAGS="-fsanitize=fuzzer-no-link,address,undefined" \
 		CXXFLAGS="-fsanitize=fuzzer-no-link,address,undefined" build-fuzz/lib/libstillheart.a
-	clang $(FUZZ_FLAGS) $(shell $(PKG_CONFIG) --cflags qhull_r kissfft-float) $< build-fuzz/lib/libstillheart.a \
-		$(filter-out -lstdc++,$(LDLIBS_ALL)) -lstdc++ -o $@
+	clang $(FUZZ_FLAGS) $(shell $(PKG_CONFIG) --cflags qhull_r kissfft-float) -c $< -o build-fuzz/$*.o
+	clang++ -fsanitize=fuzzer,address,undefined build-fuzz/$*.o build-fuzz/lib/libstillheart.a \
+		$(filter-out -lstdc++,$(LDLIBS_ALL)) -o $@
 
 fuzz: deps $(FUZZ_BIN)
 	@for f in $(FUZZ_BIN); do n=$$(basename $$f); echo "== $$n ($(FUZZ_SECONDS) s)"; \
@@ -194,7 +242,9 @@ install: all
 	install -m 0644 include/stillheart/*.h $(DESTDIR)$(PREFIX)/include/stillheart/
 	install -m 0644 $(LIB) $(DESTDIR)$(PREFIX)/lib/
 
+# Every build folder the rules make: the default and the ASan build, the fuzzers', the aarch64
+# build (tools/cross/cross.mk), the Debian packages' copy, and a BUILD= given on the command line.
 clean:
-	rm -rf build build-asan build-fuzz
+	rm -rf build build-asan build-fuzz $(ARM64_BUILD) $(DEB_OUT) $(BUILD)
 
 -include $(shell find $(BUILD) -name '*.d' 2>/dev/null)

@@ -1,4 +1,5 @@
-/* The 2D warp (paper Algorithm 1), split as DESIGN.md explains:
+/* The 2D warp (paper Algorithm 1), split as docs/architecture.md explains ("Once per reference,
+ * once per frame"):
  *
  *  - sh_warp_model: everything that depends on the reference positions of one marker set
  *    (the convex hull, the interpolant's basis cached on a grid, or the Delaunay triangles).

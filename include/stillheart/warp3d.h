@@ -1,5 +1,5 @@
-/* 3D stabilization (paper section IV, Algorithm 2), split like the 2D warp (DESIGN.md, "Why it
- * can be fast"):
+/* 3D stabilization (paper section IV, Algorithm 2), split like the 2D warp (docs/architecture.md,
+ * "Once per reference, once per frame"):
  *
  *  - sh_warp3d_model: one reference marker set. A surface frame (origin at the markers'
  *    centroid, axes from their PCA: X', Y' in the fitted plane, Z' along its normal) in which

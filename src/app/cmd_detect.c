@@ -7,6 +7,7 @@
 #include "app.h"
 #include "stillheart/detect.h"
 #include "stillheart/imageio.h"
+#include "stillheart/log.h"
 #include "stillheart/y4m.h"
 
 #define MAX_DETECTIONS 4096
@@ -82,6 +83,7 @@ static int windows_from(const sh_detection *d, int n, double scale, sh_window *w
 
 int cmd_detect(int argc, char **argv)
 {
+    sh_log_setup(SH_LOG_TOOL, "stillheart detect", SH_LOG_INFO);
     static const struct option options[] = {
         {"family", required_argument, 0, 'f'},     {"full-frame", no_argument, 0, 'F'},
         {"windows", no_argument, 0, 'w'},          {"window-scale", required_argument, 0, 'W'},
@@ -112,14 +114,14 @@ int cmd_detect(int argc, char **argv)
         }
     }
     if (optind != argc - 1) {
-        fprintf(stderr, "stillheart detect: expected one input file\n");
+        sh_log_error("expected one input file");
         usage(stderr);
         return 2;
     }
     const char *in = argv[optind];
     sh_detector *det = NULL;
     if (sh_detector_create(&o, &det) != SH_OK) {
-        fprintf(stderr, "stillheart detect: %s\n", sh_error_message());
+        sh_log_error("%s", sh_error_message());
         return 1;
     }
     sh_detection *found = malloc(MAX_DETECTIONS * sizeof *found);
@@ -127,7 +129,7 @@ int cmd_detect(int argc, char **argv)
     sh_window *win = malloc(SH_DETECT_MAX_WINDOWS * sizeof *win);
     int rc = 0;
     if (!found || !prev || !win) {
-        fprintf(stderr, "stillheart detect: out of memory\n");
+        sh_log_error("out of memory");
         rc = 1;
         goto done;
     }
@@ -147,7 +149,7 @@ int cmd_detect(int argc, char **argv)
         int n = 0;
         if (sh_imageio_read_gray(in, &img) != SH_OK ||
             sh_detector_detect(det, &img, found, MAX_DETECTIONS, &n) != SH_OK) {
-            fprintf(stderr, "stillheart detect: %s\n", sh_error_message());
+            sh_log_error("%s", sh_error_message());
             rc = 1;
         } else {
             print_detections(0, found, n < MAX_DETECTIONS ? n : MAX_DETECTIONS);
@@ -158,14 +160,14 @@ int cmd_detect(int argc, char **argv)
 
     sh_y4m_reader *reader = NULL;
     if (sh_y4m_reader_open(in, &reader) != SH_OK) {
-        fprintf(stderr, "stillheart detect: %s\n", sh_error_message());
+        sh_log_error("%s", sh_error_message());
         rc = 1;
         goto done;
     }
     const sh_y4m_header *hdr = sh_y4m_reader_header(reader);
     sh_image frame;
     if (sh_image_create(&frame, hdr->format, hdr->width, hdr->height) != SH_OK) {
-        fprintf(stderr, "stillheart detect: %s\n", sh_error_message());
+        sh_log_error("%s", sh_error_message());
         sh_y4m_reader_close(reader);
         rc = 1;
         goto done;
@@ -175,7 +177,7 @@ int cmd_detect(int argc, char **argv)
         sh_status st = sh_y4m_reader_read(reader, &frame);
         if (st == SH_EEOF) break;
         if (st != SH_OK) {
-            fprintf(stderr, "stillheart detect: %s\n", sh_error_message());
+            sh_log_error("%s", sh_error_message());
             rc = 1;
             break;
         }
@@ -190,8 +192,8 @@ int cmd_detect(int argc, char **argv)
             full_count = n;
         }
         if (st != SH_OK) {
-            fprintf(stderr, "stillheart detect: %s: frame %d: %s\n", in, index,
-                    sh_error_message());
+            sh_log_error("%s: frame %d: %s", in, index,
+                         sh_error_message());
             rc = 1;
             break;
         }
@@ -204,7 +206,7 @@ int cmd_detect(int argc, char **argv)
     sh_y4m_reader_close(reader);
 done:
     if (fflush(stdout) != 0) {
-        fprintf(stderr, "stillheart detect: cannot write the output\n");
+        sh_log_error("cannot write the output");
         rc = 1;
     }
     free(found);

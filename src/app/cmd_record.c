@@ -9,6 +9,7 @@
 #include "app.h"
 #include "run_source.h"
 #include "stillheart/config.h"
+#include "stillheart/log.h"
 #include "stillheart/pixconv.h"
 #include "stillheart/record.h"
 #include "stillheart/source.h"
@@ -64,12 +65,12 @@ static int to_y4m(const char *rec_path, const char *out_path, int camera)
 {
     sh_rec_reader *r;
     if (sh_rec_reader_open(rec_path, &r) != SH_OK) {
-        fprintf(stderr, "stillheart record: %s\n", sh_error_message());
+        sh_log_error("%s", sh_error_message());
         return 1;
     }
     const sh_rec_stream *s = sh_rec_reader_stream(r, camera);
     if (!s) {
-        fprintf(stderr, "stillheart record: %s: no camera %d\n", rec_path, camera);
+        sh_log_error("%s: no camera %d", rec_path, camera);
         sh_rec_reader_close(r);
         return 1;
     }
@@ -81,7 +82,7 @@ static int to_y4m(const char *rec_path, const char *out_path, int camera)
     sh_y4m_writer *w = NULL;
     if (sh_image_create(&img, h.format, h.width, h.height) != SH_OK ||
         sh_pixconv_create(h.width, h.height, &conv) != SH_OK || sh_y4m_writer_open(out_path, &h, &w) != SH_OK) {
-        fprintf(stderr, "stillheart record: %s\n", sh_error_message());
+        sh_log_error("%s", sh_error_message());
         goto out;
     }
     sh_rec_record rec;
@@ -89,29 +90,29 @@ static int to_y4m(const char *rec_path, const char *out_path, int camera)
     while (sh_rec_reader_next(r, &rec) == SH_OK) {
         if (rec.type != SH_REC_FRAME || rec.camera != camera) continue;
         if (sh_pixconv_convert(conv, &rec.raw, &img) != SH_OK) {
-            fprintf(stderr, "stillheart record: %s: frame %llu skipped: %s\n", rec_path,
-                    (unsigned long long)rec.sequence, sh_error_message());
+            sh_log_warn("%s: frame %llu skipped: %s", rec_path,
+                        (unsigned long long)rec.sequence, sh_error_message());
             bad++;
             continue;
         }
         if (sh_y4m_writer_write(w, &img) != SH_OK) {
-            fprintf(stderr, "stillheart record: %s\n", sh_error_message());
+            sh_log_error("%s", sh_error_message());
             goto out;
         }
         frames++;
     }
     if (sh_rec_reader_truncated(r))
-        fprintf(stderr, "stillheart record: %s: the recording ends in a torn record (kept what precedes it)\n",
-                rec_path);
+        sh_log_warn("%s: the recording ends in a torn record (kept what precedes it)",
+                    rec_path);
     if (sh_rec_reader_skipped(r))
-        fprintf(stderr, "stillheart record: %s: %llu damaged record(s) skipped\n", rec_path,
-                (unsigned long long)sh_rec_reader_skipped(r));
-    fprintf(stderr, "stillheart record: %ld frames of camera %d written to %s (%ld not convertible)\n", frames,
-            camera, out_path, bad);
+        sh_log_warn("%s: %llu damaged record(s) skipped", rec_path,
+                    (unsigned long long)sh_rec_reader_skipped(r));
+    sh_log_info("%ld frames of camera %d written to %s (%ld not convertible)", frames,
+                camera, out_path, bad);
     rc = 0;
 out:
     if (w && sh_y4m_writer_close(w) != SH_OK) {
-        fprintf(stderr, "stillheart record: %s\n", sh_error_message());
+        sh_log_error("%s", sh_error_message());
         rc = 1;
     }
     sh_pixconv_destroy(conv);
@@ -122,6 +123,7 @@ out:
 
 int cmd_record(int argc, char **argv)
 {
+    sh_log_setup(SH_LOG_TOOL, "stillheart record", SH_LOG_INFO);
     static const struct option longopts[] = {
         {"source", required_argument, 0, 's'},   {"frames", required_argument, 0, 'n'},
         {"config", required_argument, 0, 'c'},   {"format", required_argument, 0, 'f'},
@@ -198,8 +200,8 @@ int cmd_record(int argc, char **argv)
         return to_y4m(to_y4m_rec, argv[optind], camera);
     }
     if (config_path && camera_opts) {
-        fprintf(stderr, "stillheart record: --config gives the cameras, their formats and controls, the sets and the "
-                        "trigger ([cameraN], [source], [trigger]); set them there, not with --source, --format, ...\n");
+        sh_log_error("--config gives the cameras, their formats and controls, the sets and the "
+                        "trigger ([cameraN], [source], [trigger]); set them there, not with --source, --format, ...");
         return 2;
     }
     static sh_config cfg; /* the specs and the trigger chip point into it */
@@ -207,7 +209,7 @@ int cmd_record(int argc, char **argv)
         char err[SH_CONFIG_ERR];
         sh_config_default(&cfg);
         if (sh_config_load_file(&cfg, config_path, err) != SH_OK || sh_config_check(&cfg, err) != SH_OK) {
-            fprintf(stderr, "stillheart record: %s\n", err);
+            sh_log_error("%s", err);
             return 2;
         }
         nspec = sh_config_cameras(&cfg);
@@ -258,8 +260,8 @@ int cmd_record(int argc, char **argv)
         if (!strncmp(specs[i], "rec:", 4)) oi.camera = 0;
         if (config_path) run_camera_options(&cfg, i, &oi); /* rec:DIR: its camera i */
         if (sh_source_open(specs[i], &oi, &src[i]) != SH_OK) {
-            fprintf(stderr, "stillheart record: %s%d%s: %s\n", config_path ? "[camera" : "camera ", i,
-                    config_path ? "] spec" : "", sh_error_message());
+            sh_log_error("%s%d%s: %s", config_path ? "[camera" : "camera ", i,
+                         config_path ? "] spec" : "", sh_error_message());
             goto out;
         }
     }
@@ -272,11 +274,11 @@ int cmd_record(int argc, char **argv)
         trigger_out = go.output;
     }
     if (have_trigger && sh_gpio_trigger_open(&go, &trig) != SH_OK) {
-        fprintf(stderr, "stillheart record: %s\n", sh_error_message());
+        sh_log_error("%s", sh_error_message());
         goto out;
     }
     if (sh_sync_create(&so, &sync) != SH_OK || sh_rec_writer_create(out_dir, &w) != SH_OK) {
-        fprintf(stderr, "stillheart record: %s\n", sh_error_message());
+        sh_log_error("%s", sh_error_message());
         goto out;
     }
     for (int i = 0; i < nspec; i++) {
@@ -287,21 +289,21 @@ int cmd_record(int argc, char **argv)
         s.stride = sh_source_stride(src[i]);
         snprintf(s.source, sizeof s.source, "%s", specs[i]);
         if (sh_rec_writer_stream(w, &s) != SH_OK) {
-            fprintf(stderr, "stillheart record: %s\n", sh_error_message());
+            sh_log_error("%s", sh_error_message());
             goto out;
         }
-        fprintf(stderr, "stillheart record: camera %d: %s, %dx%d %s at %d/%d fps\n", i, specs[i], s.width, s.height,
-                sh_rawfmt_name(s.format), s.fps_num, s.fps_den);
+        sh_log_info("camera %d: %s, %dx%d %s at %d/%d fps", i, specs[i], s.width, s.height,
+                    sh_rawfmt_name(s.format), s.fps_num, s.fps_den);
     }
     /* started back to back, after the stream records are written: a replay's schedule starts at
      * its start, so the gap between two starts would offset the cameras' stamps */
     for (int i = 0; i < nspec; i++)
         if (sh_source_start(src[i]) != SH_OK) {
-            fprintf(stderr, "stillheart record: %s\n", sh_error_message());
+            sh_log_error("%s", sh_error_message());
             goto out;
         }
     if (trig && sh_gpio_trigger_start(trig) != SH_OK) {
-        fprintf(stderr, "stillheart record: %s\n", sh_error_message());
+        sh_log_error("%s", sh_error_message());
         goto out;
     }
     struct sigaction sa;
@@ -327,7 +329,7 @@ int cmd_record(int argc, char **argv)
             int64_t edge;
             int got;
             if (sh_gpio_trigger_service(trig, &edge, &got) != SH_OK) {
-                fprintf(stderr, "stillheart record: %s\n", sh_error_message());
+                sh_log_error("%s", sh_error_message());
                 goto out;
             }
             if (got) sh_sync_trigger(sync, edge);
@@ -342,7 +344,7 @@ int cmd_record(int argc, char **argv)
                 continue;
             }
             if (st != SH_OK) {
-                fprintf(stderr, "stillheart record: %s\n", sh_error_message());
+                sh_log_error("%s", sh_error_message());
                 goto out;
             }
             if (!got) continue;
@@ -366,25 +368,24 @@ int cmd_record(int argc, char **argv)
     for (int i = 0; i < nspec; i++) {
         sh_source_stats st;
         sh_source_get_stats(src[i], &st);
-        fprintf(stderr,
-                "stillheart record: camera %d: %ld frames recorded; %llu skipped as damaged, %llu dropped by the "
-                "driver, %llu losses, %llu reopens\n",
-                i, done[i], (unsigned long long)st.errors, (unsigned long long)st.drops,
-                (unsigned long long)st.losses, (unsigned long long)st.reopens);
+        sh_log_info("camera %d: %ld frames recorded; %llu skipped as damaged, %llu dropped by the "
+                    "driver, %llu losses, %llu reopens",
+                    i, done[i], (unsigned long long)st.errors, (unsigned long long)st.drops,
+                    (unsigned long long)st.losses, (unsigned long long)st.reopens);
     }
-    fprintf(stderr, "stillheart record: %llu sets (%llu incomplete), %llu late and %llu duplicate frames\n",
-            (unsigned long long)ss.sets, (unsigned long long)ss.incomplete, (unsigned long long)ss.late,
-            (unsigned long long)ss.duplicates);
+    sh_log_info("%llu sets (%llu incomplete), %llu late and %llu duplicate frames",
+                (unsigned long long)ss.sets, (unsigned long long)ss.incomplete, (unsigned long long)ss.late,
+                (unsigned long long)ss.duplicates);
     if (trig)
-        fprintf(stderr, "stillheart record: %llu trigger edges %s %s line %u\n",
-                (unsigned long long)sh_gpio_trigger_edges(trig), trigger_out ? "driven on" : "read from", go.chip, go.line);
+        sh_log_info("%llu trigger edges %s %s line %u", (unsigned long long)sh_gpio_trigger_edges(trig),
+                    trigger_out ? "driven on" : "read from", go.chip, go.line);
     rc = stop_requested ? 130 : 0;
     goto out;
 write_failed:
-    fprintf(stderr, "stillheart record: %s\n", sh_error_message());
+    sh_log_error("%s", sh_error_message());
 out:
     if (w && sh_rec_writer_close(w) != SH_OK) {
-        fprintf(stderr, "stillheart record: %s\n", sh_error_message());
+        sh_log_error("%s", sh_error_message());
         rc = 1;
     }
     sh_gpio_trigger_close(trig);

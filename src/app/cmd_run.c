@@ -14,9 +14,7 @@
 #include <malloc.h>
 #endif
 #include <math.h>
-#include <pthread.h>
 #include <signal.h>
-#include <stdarg.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -30,6 +28,7 @@
 #include "stillheart/config.h"
 #include "stillheart/detect.h"
 #include "stillheart/display.h"
+#include "stillheart/log.h"
 #include "stillheart/notify.h"
 #include "stillheart/points.h"
 #include "stillheart/warp.h"
@@ -37,32 +36,12 @@
 
 #define LAT_CAP (1 << 20)
 
-/* ---- logging: "-- LEVEL [monotonic thread] -- message", as ustreamer does ---- */
 static int64_t mono_ns(void)
 {
     struct timespec ts;
     clock_gettime(CLOCK_MONOTONIC, &ts);
     return (int64_t)ts.tv_sec * 1000000000 + ts.tv_nsec;
 }
-
-static int log_quiet;
-static pthread_mutex_t log_mu = PTHREAD_MUTEX_INITIALIZER;
-static __attribute__((format(printf, 3, 4))) void logm(const char *level, const char *thread,
-                                                        const char *fmt, ...)
-{
-    if (log_quiet && strcmp(level, "ERROR") && strcmp(level, "WARN"))
-        return;
-    char msg[768];
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(msg, sizeof msg, fmt, ap);
-    va_end(ap);
-    pthread_mutex_lock(&log_mu);
-    fprintf(stderr, "-- %-5s [%.3f %-7s] -- %s\n", level, (double)mono_ns() / 1e9, thread, msg);
-    pthread_mutex_unlock(&log_mu);
-}
-/* A repeating error is logged once until `ok` clears its guard. */
-#define LOG_ONCE(guard, ...) do { if (!(guard)) { logm(__VA_ARGS__); (guard) = 1; } } while (0)
 
 /* ---- signals ---- */
 static volatile sig_atomic_t sig_stop, sig_hup, sig_usr1;
@@ -124,7 +103,7 @@ static int apply_cli(sh_config *cfg, run_opts *ro, int argc, char **argv, char *
         name[n] = 0;
         if (eq) val = eq + 1;
         if (!strcmp(name, "help")) return 1;
-        if (!strcmp(name, "quiet")) { log_quiet = 1; continue; }
+        if (!strcmp(name, "quiet")) { sh_log_set_level(SH_LOG_WARN); continue; }
         if (!strcmp(name, "stats")) { if (ro) ro->stats = 1; continue; }
         if (!strcmp(name, "print-config")) { if (ro) ro->print_config = 1; continue; }
         const char *section, *key;
@@ -212,13 +191,13 @@ static int reload(run_pipeline *pl, const run_opts *ro, int argc, char **argv, u
         r = run_pipeline_reload(pl, &fresh, what, sizeof what);
     }
     if (r == RUN_RELOAD_FATAL) {
-        logm("ERROR", "main", "%s; exiting for systemd to restart the service", what);
+        sh_log_error("%s; exiting for systemd to restart the service", what);
         sh_notifyf("STATUS=%s", what);
         return -1;
     }
-    if (r == RUN_RELOAD_REFUSED) logm("ERROR", "main", "%s", what);
-    else if (what[0]) logm("INFO", "main", "config reloaded: %s", what);
-    else logm("INFO", "main", "config reloaded (gating)");
+    if (r == RUN_RELOAD_REFUSED) sh_log_error("%s", what);
+    else if (what[0]) sh_log_info("config reloaded: %s", what);
+    else sh_log_info("config reloaded (gating)");
     sh_notifyf("READY=1\nSTATUS=%s", r == RUN_RELOAD_APPLIED ? "config reloaded" : what);
     if (wd_usec) sh_notify("WATCHDOG=1");
     return cams;
@@ -229,12 +208,15 @@ int cmd_run(int argc, char **argv)
     char err[SH_CONFIG_ERR];
     sh_config cfg;
     run_opts ro = {0};
+    /* Refusals of the command line and the config are worded as every command's
+     * ("stillheart run: ..."); once the daemon runs, its lines are log lines (docs/daemon.md). */
+    sh_log_setup(SH_LOG_TOOL, "stillheart run", SH_LOG_INFO);
     sh_config_default(&cfg);
     int a = apply_cli(&cfg, &ro, argc, argv, err); /* first pass: --config and run-only options */
     if (a == 1) { usage(stdout); return 0; }
-    if (a == 2) { fprintf(stderr, "stillheart run: %s\n", err); return 2; }
+    if (a == 2) { sh_log_error("%s", err); return 2; }
     if (load_config(&cfg, ro.config_path, argc, argv, err) != SH_OK) {
-        fprintf(stderr, "stillheart run: %s\n", err);
+        sh_log_error("%s", err);
         return 2;
     }
     if (ro.print_config) { sh_config_write(&cfg, stdout); return 0; }
@@ -253,7 +235,9 @@ int cmd_run(int argc, char **argv)
     float *lat = malloc(sizeof(float) * LAT_CAP);
     if (!lat) { fprintf(stderr, "stillheart run: out of memory\n"); goto done; }
 
-    if (run_pipeline_open(&pl, &cfg, logm) != SH_OK) {
+    sh_log_setup(SH_LOG_DAEMON, "stillheart run", sh_log_get_level());
+    sh_log_set_thread("main");
+    if (run_pipeline_open(&pl, &cfg) != SH_OK) {
         fprintf(stderr, "stillheart run: %s\n", sh_error_message());
         goto done;
     }
@@ -279,7 +263,7 @@ int cmd_run(int argc, char **argv)
     signal(SIGPIPE, SIG_IGN);
 
     if (run_pipeline_start(&pl) != SH_OK) { fprintf(stderr, "stillheart run: %s\n", sh_error_message()); goto done; }
-    logm("INFO", "main", "source %s %dx%d %s %.3f fps (%s%s), sink %s, method %s, %s",
+    sh_log_info("source %s %dx%d %s %.3f fps (%s%s), sink %s, method %s, %s",
          cfg.source, pl.hdr.width, pl.hdr.height, sh_pixfmt_name(pl.hdr.format), run_source_fps(pl.src),
          cfg.realtime ? "real time" : "as fast as possible", cfg.loop ? ", looping" : "", cfg.sink,
          cfg.method_name, cfg.points[0] ? "markers from the points file (test mode)" : "markers detected");
@@ -299,7 +283,8 @@ int cmd_run(int argc, char **argv)
      * watchdog is kept alive while every thread still goes round (a restart cannot bring a
      * camera back; source.h is reopening it). */
     int64_t period = frame_period(pl.src);
-    int lost = 0, wd_held = 0;
+    int lost = 0;
+    sh_log_limit wd_held = {0}; /* logged once until the pings resume */
     int64_t lost_since = 0, last_black = 0;
     uint64_t black_count = 0;
     char lost_text[96] = "", stale[160] = "";
@@ -316,13 +301,14 @@ int cmd_run(int argc, char **argv)
             published_at_ping = published;
             if (cams) { /* a new stream: its rate, and nothing lost yet; its first frame is logged */
                 period = frame_period(pl.src);
-                lost = wd_held = 0;
+                lost = 0;
+                sh_log_limit_clear(&wd_held);
                 last_status_shown = 99;
             }
         }
         int refs = pl.ctl ? run_ctl_poll(pl.ctl, status_line) : 0;
         if (sig_usr1 || refs) {
-            logm("INFO", "main", "new reference requested (%s)", sig_usr1 ? "SIGUSR1" : "control socket");
+            sh_log_info("new reference requested (%s)", sig_usr1 ? "SIGUSR1" : "control socket");
             sig_usr1 = 0;
             run_proc_request_reference(pl.proc);
         }
@@ -337,7 +323,7 @@ int cmd_run(int argc, char **argv)
                 lost_since = now;
                 last_black = 0;
                 last_status_shown = 99; /* the first camera frame back is logged */
-                logm("WARN", "main", "%s: black raw frames shown until it returns", lost_text);
+                sh_log_warn("%s: black raw frames shown until it returns", lost_text);
             }
             if (why && now - last_black >= period) {
                 memset(&shown_info, 0, sizeof shown_info);
@@ -346,9 +332,9 @@ int cmd_run(int argc, char **argv)
                 snprintf(shown_info.reason, sizeof shown_info.reason, "%s",
                          why == 1 ? "output camera lost" : "no sets with the output camera");
                 if (pl.disp && sh_display_writer_publish(pl.disp, &pl.black, &shown_info) != SH_OK)
-                    logm("ERROR", "main", "publish: %s", sh_error_message());
+                    sh_log_error("publish: %s", sh_error_message());
                 if (pl.rec && run_record_write(pl.rec, &pl.black) != SH_OK) { /* what was shown, PNGs numbered as the display */
-                    logm("ERROR", "main", "[sink] record: %s; recording stopped", sh_error_message());
+                    sh_log_error("[sink] record: %s; recording stopped", sh_error_message());
                     run_record_close(pl.rec);
                     pl.rec = NULL;
                 }
@@ -360,7 +346,7 @@ int cmd_run(int argc, char **argv)
             }
         } else {
             if (lost) {
-                logm("INFO", "main", "the output camera's frames are back after %.1f s (%llu black frames shown)",
+                sh_log_info("the output camera's frames are back after %.1f s (%llu black frames shown)",
                      (double)(mono_ns() - lost_since) / 1e9, (unsigned long long)black_count);
                 lost = 0;
             }
@@ -373,7 +359,7 @@ int cmd_run(int argc, char **argv)
             if (status == SH_DISPLAY_DEGRADED) degraded_count++;
             if (status != last_status_shown ||
                 (status != SH_DISPLAY_STABILIZED && strncmp(last_reason, info.reason, 12))) {
-                logm(status == SH_DISPLAY_RAW && published ? "WARN" : "INFO", "main", "frame %d: %s%s%s", s->index,
+                sh_log_msg(status == SH_DISPLAY_RAW && published ? SH_LOG_WARN : SH_LOG_INFO, "frame %d: %s%s%s", s->index,
                      names[status], info.reason[0] ? ": " : "", info.reason);
                 last_status_shown = status;
                 memcpy(last_reason, info.reason, sizeof last_reason);
@@ -381,10 +367,10 @@ int cmd_run(int argc, char **argv)
             if (pl.disp) {
                 info.publish_ns = mono_ns();
                 if (sh_display_writer_publish(pl.disp, shown, &info) != SH_OK)
-                    logm("ERROR", "main", "publish: %s", sh_error_message());
+                    sh_log_error("publish: %s", sh_error_message());
             }
             if (pl.rec && run_record_write(pl.rec, shown) != SH_OK) {
-                logm("ERROR", "main", "[sink] record: %s; recording stopped", sh_error_message());
+                sh_log_error("[sink] record: %s; recording stopped", sh_error_message());
                 run_record_close(pl.rec);
                 pl.rec = NULL;
             }
@@ -435,9 +421,9 @@ int cmd_run(int argc, char **argv)
                 sh_notify("WATCHDOG=1");
                 last_ping = now;
                 published_at_ping = published;
-                wd_held = 0;
+                sh_log_limit_clear(&wd_held);
             } else if (lost) {
-                LOG_ONCE(wd_held, "ERROR", "main", "watchdog held back: %s", stale);
+                sh_log_limited(&wd_held, SH_LOG_ERROR, "watchdog held back: %s", stale);
             }
         }
         if (s && ro.max_frames && published >= (uint64_t)ro.max_frames) break;
@@ -445,7 +431,7 @@ int cmd_run(int argc, char **argv)
     sh_notify("STOPPING=1");
     sig_stop = 1;
     rc = fatal; /* non-zero: systemd's Restart=on-failure starts the service again */
-    if (ro.stats || !log_quiet) {
+    if (ro.stats || sh_log_get_level() >= SH_LOG_INFO) {
         qsort(lat, nlat, sizeof *lat, cmp_float);
         double med = nlat ? lat[nlat / 2] : 0, p99 = nlat ? lat[(size_t)((double)(nlat - 1) * 0.99)] : 0,
                mx = nlat ? lat[nlat - 1] : 0;
@@ -462,8 +448,8 @@ int cmd_run(int argc, char **argv)
 done:
     sig_stop = 1;
     if (run_pipeline_close(&pl) != SH_OK) rc = 1;
-    if (trace && fclose(trace)) { logm("ERROR", "main", "--trace: %s", strerror(errno)); rc = 1; }
-    if (trace_points && fclose(trace_points)) { logm("ERROR", "main", "--trace-points: %s", strerror(errno)); rc = 1; }
+    if (trace && fclose(trace)) { sh_log_error("--trace: %s", strerror(errno)); rc = 1; }
+    if (trace_points && fclose(trace_points)) { sh_log_error("--trace-points: %s", strerror(errno)); rc = 1; }
     free(lat);
     return rc;
 }

@@ -8,6 +8,7 @@
 #include "app.h"
 #include "stillheart/calib.h"
 #include "stillheart/detect.h"
+#include "stillheart/log.h"
 #include "stillheart/points.h"
 #include "stillheart/track.h"
 #include "stillheart/y4m.h"
@@ -106,7 +107,7 @@ static int run_pass(track_job *job, int max_frames, FILE *out, int *confirmed, i
     double fps = 0;
     for (int c = 0; c < job->ncam; c++) {
         if (sh_y4m_reader_open(job->in[c], &rd[c]) != SH_OK) {
-            fprintf(stderr, "stillheart track: %s\n", sh_error_message());
+            sh_log_error("%s", sh_error_message());
             goto done;
         }
         const sh_y4m_header *h = sh_y4m_reader_header(rd[c]);
@@ -115,25 +116,25 @@ static int run_pass(track_job *job, int max_frames, FILE *out, int *confirmed, i
             height = h->height;
             if (h->fps_num > 0 && h->fps_den > 0) fps = (double)h->fps_num / h->fps_den;
         } else if (h->width != width || h->height != height) {
-            fprintf(stderr, "stillheart track: %s is %dx%d, %s is %dx%d: the cameras must match\n",
-                    job->in[c], h->width, h->height, job->in[0], width, height);
+            sh_log_error("%s is %dx%d, %s is %dx%d: the cameras must match",
+                         job->in[c], h->width, h->height, job->in[0], width, height);
             goto done;
         }
         if (sh_image_create(&img[c], h->format, h->width, h->height) != SH_OK) {
-            fprintf(stderr, "stillheart track: %s\n", sh_error_message());
+            sh_log_error("%s", sh_error_message());
             goto done;
         }
     }
     if (job->have_calib && (job->calib.width != width || job->calib.height != height))
-        fprintf(stderr, "stillheart track: warning: calibration is for %dx%d, video is %dx%d\n",
-                job->calib.width, job->calib.height, width, height);
+        sh_log_warn("warning: calibration is for %dx%d, video is %dx%d",
+                    job->calib.width, job->calib.height, width, height);
     sh_track_options o = job->topts;
     if (fps > 0 && o.fps <= 0) o.fps = fps;
     if (o.fps <= 0) o.fps = 30;
     o.width = width;
     o.height = height;
     if (sh_tracker_create(&o, job->have_calib ? &job->calib : NULL, &t) != SH_OK) {
-        fprintf(stderr, "stillheart track: %s\n", sh_error_message());
+        sh_log_error("%s", sh_error_message());
         goto done;
     }
     for (int f = 0; max_frames < 0 || f < max_frames; f++) {
@@ -142,11 +143,11 @@ static int run_pass(track_job *job, int max_frames, FILE *out, int *confirmed, i
             sh_status st = sh_y4m_reader_read(rd[c], &img[c]);
             if (st == SH_EEOF) {
                 if (c > 0 && !eof)
-                    fprintf(stderr, "stillheart track: warning: %s ends at frame %d before %s\n",
-                            job->in[c], f, job->in[0]);
+                    sh_log_warn("warning: %s ends at frame %d before %s",
+                                job->in[c], f, job->in[0]);
                 eof = 1;
             } else if (st != SH_OK) {
-                fprintf(stderr, "stillheart track: %s\n", sh_error_message());
+                sh_log_error("%s", sh_error_message());
                 goto done;
             }
         }
@@ -164,7 +165,7 @@ static int run_pass(track_job *job, int max_frames, FILE *out, int *confirmed, i
             if (st == SH_OK && f > 0 && nw > 0 && sh_tracker_rescan(t, c, dets[c], n < MAX_DET ? n : MAX_DET))
                 st = sh_detector_detect(job->det, &img[c], dets[c], MAX_DET, &n);
             if (st != SH_OK) {
-                fprintf(stderr, "stillheart track: %s: frame %d: %s\n", job->in[c], f, sh_error_message());
+                sh_log_error("%s: frame %d: %s", job->in[c], f, sh_error_message());
                 goto done;
             }
             if (n > MAX_DET) n = MAX_DET;
@@ -206,20 +207,19 @@ static int run_pass(track_job *job, int max_frames, FILE *out, int *confirmed, i
     if (job->stats && out) {
         sh_track_stats s;
         sh_tracker_stats(t, &s);
-        fprintf(stderr,
-                "stillheart track: %ld frames, heart %.3f Hz, respiration %.3f Hz; detections used %ld, "
-                "gated %ld, duplicated ids %ld, unknown ids %ld, inconsistent 3D %ld, taken on their "
-                "neighbours' agreement %ld; markers lost %ld; camera moved in %ld frames\n",
-                s.frames, s.heart_hz, s.resp_hz, s.accepted, s.gated, s.duplicates, s.unknown,
-                s.inconsistent, s.jumped, s.lost, s.camera_moves);
+        sh_log_info("%ld frames, heart %.3f Hz, respiration %.3f Hz; detections used %ld, "
+                    "gated %ld, duplicated ids %ld, unknown ids %ld, inconsistent 3D %ld, taken on their "
+                    "neighbours' agreement %ld; markers lost %ld; camera moved in %ld frames",
+                    s.frames, s.heart_hz, s.resp_hz, s.accepted, s.gated, s.duplicates, s.unknown,
+                    s.inconsistent, s.jumped, s.lost, s.camera_moves);
     }
     rc = 0;
     goto done;
 wfail:
-    fprintf(stderr, "stillheart track: writing the points: write error\n");
+    sh_log_error("writing the points: write error");
     goto done;
 fail:
-    fprintf(stderr, "stillheart track: %s\n", sh_error_message());
+    sh_log_error("%s", sh_error_message());
 done:
     sh_tracker_destroy(t);
     for (int c = 0; c < job->ncam; c++) {
@@ -231,6 +231,7 @@ done:
 
 int cmd_track(int argc, char **argv)
 {
+    sh_log_setup(SH_LOG_TOOL, "stillheart track", SH_LOG_INFO);
     static const struct option longopts[] = {
         {"cameras", required_argument, 0, 'c'}, {"ids", required_argument, 0, 'i'},
         {"family", required_argument, 0, 'f'},  {"fps", required_argument, 0, 'r'},
@@ -282,20 +283,20 @@ int cmd_track(int argc, char **argv)
     for (int c = 0; c < job.ncam; c++) job.in[c] = argv[optind + c];
     if (calib_path) {
         if (sh_calib_read(calib_path, &job.calib) != SH_OK) {
-            fprintf(stderr, "stillheart track: %s\n", sh_error_message());
+            sh_log_error("%s", sh_error_message());
             return 1;
         }
         if (job.calib.num_cameras != job.ncam) {
-            fprintf(stderr, "stillheart track: %s has %d cameras, %d videos given\n", calib_path,
-                    job.calib.num_cameras, job.ncam);
+            sh_log_error("%s has %d cameras, %d videos given", calib_path,
+                         job.calib.num_cameras, job.ncam);
             return 2;
         }
         job.have_calib = job.ncam > 1;
         if (job.ncam == 1)
-            fprintf(stderr, "stillheart track: one camera: tracking in pixels (the calibration's "
-                            "3D needs two or more)\n");
+            sh_log_info("one camera: tracking in pixels (the calibration's "
+                            "3D needs two or more)");
     } else if (job.ncam > 1) {
-        fprintf(stderr, "stillheart track: %d videos need --cameras (their calibration)\n", job.ncam);
+        sh_log_error("%d videos need --cameras (their calibration)", job.ncam);
         return 2;
     }
     job.topts.fps = fps;
@@ -303,15 +304,15 @@ int cmd_track(int argc, char **argv)
     sh_detector_options_default(&dopts);
     if (family) dopts.family = family;
     if (sh_detector_create(&dopts, &job.det) != SH_OK) {
-        fprintf(stderr, "stillheart track: %s\n", sh_error_message());
+        sh_log_error("%s", sh_error_message());
         return 1;
     }
     int rc = 0;
     if (nids == 0) {
         for (int c = 0; c < job.ncam; c++)
             if (!strcmp(job.in[c], "-")) {
-                fprintf(stderr, "stillheart track: standard input needs --ids (the markers are found "
-                                "in a first pass over the file)\n");
+                sh_log_error("standard input needs --ids (the markers are found "
+                                "in a first pass over the file)");
                 sh_detector_destroy(job.det);
                 return 2;
             }
@@ -319,8 +320,8 @@ int cmd_track(int argc, char **argv)
         double f0 = fps > 0 ? fps : 30;
         if (run_pass(&job, (int)(f0 * 10), NULL, ids, &nids) != 0) rc = 1;
         else if (nids == 0) {
-            fprintf(stderr, "stillheart track: no tag moves with a heartbeat in the first 10 s of %s "
-                            "(give the markers with --ids)\n", job.in[0]);
+            sh_log_error("no tag moves with a heartbeat in the first 10 s of %s "
+                            "(give the markers with --ids)", job.in[0]);
             rc = 1;
         }
     }
@@ -329,7 +330,7 @@ int cmd_track(int argc, char **argv)
         job.topts.num_ids = nids;
         rc = run_pass(&job, -1, stdout, NULL, NULL);
         if (rc == 0 && fflush(stdout) != 0) {
-            fprintf(stderr, "stillheart track: writing the points: write error\n");
+            sh_log_error("writing the points: write error");
             rc = 1;
         }
     }

@@ -4,6 +4,7 @@
 #include <string.h>
 
 #include "app.h"
+#include "stillheart/log.h"
 #include "stillheart/metrics.h"
 #include "stillheart/points.h"
 #include "stillheart/warp.h"
@@ -131,8 +132,8 @@ static int start_metrics(sh_warp_model *model, const double *ref_xy, sh_warp *wa
 
 static int fail(const char *what)
 {
-    fprintf(stderr, "stillheart warp: %s%s%s\n", what, *sh_error_message() ? ": " : "",
-            sh_error_message());
+    sh_log_error("%s%s%s", what, *sh_error_message() ? ": " : "",
+                 sh_error_message());
     return 1;
 }
 
@@ -151,6 +152,7 @@ static int read_frame_at(const char *path, int index, sh_image *img)
 
 int cmd_warp(int argc, char **argv)
 {
+    sh_log_setup(SH_LOG_TOOL, "stillheart warp", SH_LOG_INFO);
     static const struct option options[] = {
         {"points", required_argument, 0, 'p'}, {"method", required_argument, 0, 'm'},
         {"sigma", required_argument, 0, 's'},  {"levels", required_argument, 0, 'l'},
@@ -181,14 +183,14 @@ int cmd_warp(int argc, char **argv)
         }
     }
     if (argc - optind != 2 || !points_path) {
-        fprintf(stderr, "stillheart warp: need --points and the input and output videos\n");
+        sh_log_error("need --points and the input and output videos");
         usage(stderr);
         return 2;
     }
     const char *in_path = argv[optind], *out_path = argv[optind + 1];
     if (reference > 0 && !strcmp(in_path, "-")) {
-        fprintf(stderr, "stillheart warp: --reference %d needs a file, not standard input\n",
-                reference);
+        sh_log_error("--reference %d needs a file, not standard input",
+                     reference);
         return 2;
     }
 
@@ -219,8 +221,8 @@ int cmd_warp(int argc, char **argv)
     cache.height = hdr->height;
     cache.ref_rows = sh_points_frame(&points, reference, &cache.ref_count);
     if (cache.ref_count < 3) {
-        fprintf(stderr, "stillheart warp: %s: the reference frame %d has %d markers, need 3\n",
-                points_path, reference, cache.ref_count);
+        sh_log_error("%s: the reference frame %d has %d markers, need 3",
+                     points_path, reference, cache.ref_count);
         goto done;
     }
     ids = malloc(sizeof(int) * (size_t)cache.ref_count);
@@ -296,7 +298,7 @@ int cmd_warp(int argc, char **argv)
 
     if (map_out) {
         if (!last_model) {
-            fprintf(stderr, "stillheart warp: --map-out: no frame was stabilized\n");
+            sh_log_error("--map-out: no frame was stabilized");
             goto done;
         }
         map = malloc(sizeof(float) * 2 * (size_t)cache.width * cache.height);

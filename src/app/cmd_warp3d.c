@@ -9,6 +9,7 @@
 
 #include "app.h"
 #include "stillheart/calib.h"
+#include "stillheart/log.h"
 #include "stillheart/metrics.h"
 #include "stillheart/points.h"
 #include "stillheart/warp3d.h"
@@ -167,8 +168,8 @@ static int common_markers(const sh_point *ref, int nref, const sh_point *cur, in
 
 static int fail(const char *what)
 {
-    fprintf(stderr, "stillheart warp3d: %s%s%s\n", what, *sh_error_message() ? ": " : "",
-            sh_error_message());
+    sh_log_error("%s%s%s", what, *sh_error_message() ? ": " : "",
+                 sh_error_message());
     return 1;
 }
 
@@ -243,6 +244,7 @@ static sh_status render(sh_warp *warp, const slot3d *s, int nviews, int tb, int 
 
 int cmd_warp3d(int argc, char **argv)
 {
+    sh_log_setup(SH_LOG_TOOL, "stillheart warp3d", SH_LOG_INFO);
     static const struct option options[] = {
         {"cameras", required_argument, 0, 'C'}, {"points", required_argument, 0, 'p'},
         {"camera", required_argument, 0, 'k'}, {"method", required_argument, 0, 'm'},
@@ -288,13 +290,13 @@ int cmd_warp3d(int argc, char **argv)
         }
     }
     if (argc - optind != 2 || !calib_path || !points_path) {
-        fprintf(stderr, "stillheart warp3d: need --cameras, --points and the input and output videos\n");
+        sh_log_error("need --cameras, --points and the input and output videos");
         usage(stderr);
         return 2;
     }
     const char *in_path = argv[optind], *out_path = argv[optind + 1];
     if (!strcmp(in_path, "-") && reference > 0) {
-        fprintf(stderr, "stillheart warp3d: --reference %d needs a file, not standard input\n", reference);
+        sh_log_error("--reference %d needs a file, not standard input", reference);
         return 2;
     }
     int stereo = 0, tb = 0, half = 0, pose = 0;
@@ -302,18 +304,18 @@ int cmd_warp3d(int argc, char **argv)
     if (!strcmp(view, "stereo")) stereo = 1;
     else if (!strncmp(view, "pose:", 5)) {
         if (!parse_pose(view + 5, rvec, tvec)) {
-            fprintf(stderr, "stillheart warp3d: --view %s: want pose:RX,RY,RZ[,TX,TY,TZ]\n", view);
+            sh_log_error("--view %s: want pose:RX,RY,RZ[,TX,TY,TZ]", view);
             return 2;
         }
         pose = 1;
     } else if (strcmp(view, "reference")) {
-        fprintf(stderr, "stillheart warp3d: --view %s: reference, stereo or pose:...\n", view);
+        sh_log_error("--view %s: reference, stereo or pose:...", view);
         return 2;
     }
     if (!strcmp(layout, "tb") || !strcmp(layout, "tb-half")) tb = 1;
     half = !strcmp(layout, "sbs-half") || !strcmp(layout, "tb-half");
     if (!tb && !half && strcmp(layout, "sbs")) {
-        fprintf(stderr, "stillheart warp3d: --layout %s: sbs, tb, sbs-half or tb-half\n", layout);
+        sh_log_error("--layout %s: sbs, tb, sbs-half or tb-half", layout);
         return 2;
     }
 
@@ -342,20 +344,20 @@ int cmd_warp3d(int argc, char **argv)
 
     if (sh_calib_read(calib_path, &calib) != SH_OK) { fail("cameras"); goto done; }
     if (camera >= calib.num_cameras) {
-        fprintf(stderr, "stillheart warp3d: --camera %d: %s has %d cameras\n", camera, calib_path,
-                calib.num_cameras);
+        sh_log_error("--camera %d: %s has %d cameras", camera, calib_path,
+                     calib.num_cameras);
         goto done;
     }
     if (sh_points_read(points_path, &points) != SH_OK) { fail("points"); goto done; }
     if (!points.has_3d) {
-        fprintf(stderr, "stillheart warp3d: %s has no X,Y,Z columns\n", points_path);
+        sh_log_error("%s has no X,Y,Z columns", points_path);
         goto done;
     }
     if (sh_y4m_reader_open(in_path, &reader) != SH_OK) { fail("input"); goto done; }
     const sh_y4m_header *hdr = sh_y4m_reader_header(reader);
     if (calib.width != hdr->width || calib.height != hdr->height) {
-        fprintf(stderr, "stillheart warp3d: %s is %dx%d, the calibration %s is for %dx%d\n", in_path,
-                hdr->width, hdr->height, calib_path, calib.width, calib.height);
+        sh_log_error("%s is %dx%d, the calibration %s is for %dx%d", in_path,
+                     hdr->width, hdr->height, calib_path, calib.width, calib.height);
         goto done;
     }
     cache.width = hdr->width;
@@ -369,8 +371,8 @@ int cmd_warp3d(int argc, char **argv)
     int nref = common_markers(cache.ref_rows, cache.ref_count, cache.ref_rows, cache.ref_count, ids,
                               cur_xyz);
     if (nref < 4) {
-        fprintf(stderr, "stillheart warp3d: %s: the reference frame %d has %d markers with X,Y,Z, need 4\n",
-                points_path, reference, nref);
+        sh_log_error("%s: the reference frame %d has %d markers with X,Y,Z, need 4",
+                     points_path, reference, nref);
         goto done;
     }
     double *ref_xyz = malloc(sizeof(double) * 3 * (size_t)nref);
@@ -397,13 +399,13 @@ int cmd_warp3d(int argc, char **argv)
         else out_hdr.width *= 2;
     }
     if (stereo && half && (tb ? hdr->height : hdr->width) % (hdr->format == SH_PIX_I420 ? 4 : 2)) {
-        fprintf(stderr, "stillheart warp3d: --layout %s: the frame's %s (%d) must be a multiple of %d\n", layout,
-                tb ? "height" : "width", tb ? hdr->height : hdr->width, hdr->format == SH_PIX_I420 ? 4 : 2);
+        sh_log_error("--layout %s: the frame's %s (%d) must be a multiple of %d", layout,
+                     tb ? "height" : "width", tb ? hdr->height : hdr->width, hdr->format == SH_PIX_I420 ? 4 : 2);
         goto done;
     }
     if (out_hdr.width > SH_IMAGE_MAX_SIZE || out_hdr.height > SH_IMAGE_MAX_SIZE) {
-        fprintf(stderr, "stillheart warp3d: the stereo frame %dx%d is too large\n", out_hdr.width,
-                out_hdr.height);
+        sh_log_error("the stereo frame %dx%d is too large", out_hdr.width,
+                     out_hdr.height);
         goto done;
     }
     if (sh_image_create(&in, hdr->format, hdr->width, hdr->height) != SH_OK ||
@@ -417,7 +419,7 @@ int cmd_warp3d(int argc, char **argv)
     if (sh_warp_create(threads, &warp) != SH_OK) { fail("threads"); goto done; }
     if (ply_dir) {
         if (mkdir(ply_dir, 0777) != 0 && errno != EEXIST) {
-            fprintf(stderr, "stillheart warp3d: --export-ply %s: cannot create the folder\n", ply_dir);
+            sh_log_error("--export-ply %s: cannot create the folder", ply_dir);
             goto done;
         }
         cache.ply_spacing = ply_spacing;

@@ -3,6 +3,7 @@
 #include <string.h>
 
 #include "app.h"
+#include "stillheart/log.h"
 
 static const struct {
     const char *name;
@@ -29,6 +30,7 @@ static void usage(FILE *out)
 
 int main(int argc, char **argv)
 {
+    sh_log_setup(SH_LOG_TOOL, "stillheart", SH_LOG_INFO);
     if (argc < 2) {
         usage(stderr);
         return 2;
@@ -43,7 +45,7 @@ int main(int argc, char **argv)
     }
     for (size_t i = 0; i < sizeof commands / sizeof commands[0]; i++)
         if (!strcmp(argv[1], commands[i].name)) return commands[i].run(argc - 1, argv + 1);
-    fprintf(stderr, "stillheart: unknown command '%s'\n", argv[1]);
+    sh_log_error("unknown command '%s'", argv[1]);
     usage(stderr);
     return 2;
 }

@@ -13,6 +13,7 @@
 #include <sys/stat.h>
 
 #include "run_pipeline.h"
+#include "stillheart/log.h"
 
 static const char *shm_name(const sh_config *c) { return strncmp(c->sink, "shm:", 4) ? NULL : c->sink + 4; }
 static int full_range(const sh_y4m_header *h) { return strstr(h->extra, "XCOLORRANGE=FULL") != NULL; }
@@ -39,9 +40,9 @@ static sh_status black_frame(const sh_y4m_header *hdr, sh_image *img)
 }
 
 /* Opens the cameras and, with start, starts them; nothing stays open on error. */
-static sh_status source_open(const sh_config *cfg, run_log_fn log, int start, run_source **out)
+static sh_status source_open(const sh_config *cfg, int start, run_source **out)
 {
-    sh_status st = run_source_open(cfg, log, out);
+    sh_status st = run_source_open(cfg, out);
     if (st != SH_OK || !start || (st = run_source_start(*out)) == SH_OK) return st;
     char m[512];
     snprintf(m, sizeof m, "%s", sh_error_message()); /* destroying logs, and may set errors */
@@ -50,14 +51,14 @@ static sh_status source_open(const sh_config *cfg, run_log_fn log, int start, ru
     return sh_error_set(st, "%s", m);
 }
 
-static sh_status record_close(run_log_fn log, run_record *rec)
+static sh_status record_close(run_record *rec)
 {
     if (!rec) return SH_OK;
     if (run_record_skipped(rec))
-        log("WARN", "main", "[sink] record: %llu frames not recorded (the PNG writer fell behind)",
+        sh_log_warn("[sink] record: %llu frames not recorded (the PNG writer fell behind)",
             (unsigned long long)run_record_skipped(rec));
     if (run_record_close(rec) == SH_OK) return SH_OK;
-    log("ERROR", "main", "[sink] record: %s", sh_error_message());
+    sh_log_error("[sink] record: %s", sh_error_message());
     return SH_EIO;
 }
 
@@ -80,16 +81,15 @@ static void stamps(run_pipeline *p)
     stamp(p->cfg.points, &p->points_file);
 }
 
-sh_status run_pipeline_open(run_pipeline *p, const sh_config *cfg, run_log_fn log)
+sh_status run_pipeline_open(run_pipeline *p, const sh_config *cfg)
 {
     memset(p, 0, sizeof *p);
     p->cfg = *cfg;
-    p->log = log;
     stamps(p); /* before the files are read: one rewritten meanwhile is read again at a reload */
-    sh_status st = run_source_open(cfg, log, &p->src);
+    sh_status st = run_source_open(cfg, &p->src);
     if (st == SH_OK) {
         p->hdr = *run_source_header(p->src);
-        st = run_proc_create(cfg, &p->hdr, run_source_fps(p->src), run_source_cameras(p->src), log, &p->proc);
+        st = run_proc_create(cfg, &p->hdr, run_source_fps(p->src), run_source_cameras(p->src), &p->proc);
     }
     if (st == SH_OK && shm_name(cfg)) st = display_create(cfg, &p->hdr, &p->disp);
     if (st == SH_OK) st = black_frame(&p->hdr, &p->black);
@@ -188,7 +188,7 @@ static run_reload refuse(run_pipeline *p, run_pipeline *n, const changes *c, cha
     if (c->black_made) sh_image_destroy(&n->black);
     if (c->cameras) {
         run_source_destroy(n->src);
-        sh_status st = source_open(&p->cfg, p->log, 1, &p->src);
+        sh_status st = source_open(&p->cfg, 1, &p->src);
         if (st == SH_OK && !same_frames(run_source_header(p->src), &p->hdr)) {
             /* processing and display are sized for the frames the cameras gave before */
             run_source_destroy(p->src);
@@ -247,13 +247,13 @@ run_reload run_pipeline_reload(run_pipeline *p, const sh_config *fresh, char *wh
         p->dropped_before += run_source_dropped(p->src);
         run_source_destroy(p->src); /* before the new cameras open: a V4L2 device opens once */
         p->src = n.src = NULL;
-        st = run_source_open(fresh, p->log, &n.src);
+        st = run_source_open(fresh, &n.src);
         if (st == SH_OK) n.hdr = *run_source_header(n.src);
     }
     c.new_frames = !same_frames(&n.hdr, &p->hdr);
     c.keep_disp = c.same_name && !c.new_frames && fresh->slots == old->slots && !strcmp(fresh->group, old->group);
     if (st == SH_OK && c.processing)
-        st = run_proc_create(fresh, &n.hdr, run_source_fps(n.src), run_source_cameras(n.src), p->log, &n.proc);
+        st = run_proc_create(fresh, &n.hdr, run_source_fps(n.src), run_source_cameras(n.src), &n.proc);
     if (st == SH_OK && c.cameras && (st = black_frame(&n.hdr, &n.black)) == SH_OK) c.black_made = 1;
     if (st == SH_OK && !c.record && p->rec && c.new_frames)
         /* reopening the file or folder would write over what it holds */
@@ -296,7 +296,7 @@ run_reload run_pipeline_reload(run_pipeline *p, const sh_config *fresh, char *wh
     } else {
         run_proc_set_gating(p->proc, fresh);
     }
-    if (n.rec != p->rec) record_close(p->log, p->rec);
+    if (n.rec != p->rec) record_close(p->rec);
     if (n.ctl != p->ctl) run_ctl_close(p->ctl);
     if (n.disp != p->disp && p->disp) sh_display_writer_destroy(p->disp, 0); /* marked closed, as at exit */
     if (c.black_made) sh_image_destroy(&p->black);
@@ -309,7 +309,7 @@ run_reload run_pipeline_reload(run_pipeline *p, const sh_config *fresh, char *wh
 sh_status run_pipeline_close(run_pipeline *p)
 {
     run_source_destroy(p->src);
-    sh_status st = record_close(p->log, p->rec);
+    sh_status st = record_close(p->rec);
     run_ctl_close(p->ctl);
     if (p->disp) sh_display_writer_destroy(p->disp, 0); /* marked closed; readers see the end */
     run_proc_destroy(p->proc);

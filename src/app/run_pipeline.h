@@ -22,7 +22,6 @@ typedef struct {
 
 typedef struct {
     sh_config cfg;            /* what every piece below was opened with */
-    run_log_fn log;
     run_source *src;          /* NULL only after a reload that could not bring any camera back */
     run_proc *proc;
     sh_display_writer *disp;  /* NULL: [sink] display = none */
@@ -37,7 +36,7 @@ typedef struct {
 
 /* Opens every piece from cfg (sh_config_check passed), the source not yet started. On error
  * nothing stays open and sh_error_message names the piece ("[sink] display: ..."). */
-sh_status run_pipeline_open(run_pipeline *p, const sh_config *cfg, run_log_fn log);
+sh_status run_pipeline_open(run_pipeline *p, const sh_config *cfg);
 sh_status run_pipeline_start(run_pipeline *p);
 
 typedef enum {

@@ -9,10 +9,10 @@
 
 #include "run.h"
 #include "run_proc.h"
+#include "stillheart/log.h"
 
 struct run_proc {
     sh_config cfg;
-    run_log_fn log;
     run_models *models;
     run_tracker *tracker; /* NULL in test mode (points file) */
     sh_points points;
@@ -24,7 +24,7 @@ struct run_proc {
     int three_d, out_cam;
     sh_calib calib;
     run_model *last;      /* the last model used: the fallback while another set is built */
-    int model_err_once, track_err_once;
+    sh_log_limit model_err, track_err; /* an error logged once until a frame goes through */
     unsigned epoch;       /* the last frame's (run_frame): a change restarts the tracker */
     double ms[3];         /* this frame: markers (detection + tracker), model update, warp */
     /* a moved camera (docs/daemon.md, "A moved endoscope"): raw while it moves, then a new
@@ -53,7 +53,7 @@ void run_proc_times(const run_proc *p, double *markers_ms, double *model_ms, dou
     *warp_ms = p->ms[2];
 }
 
-sh_status run_proc_create(const sh_config *cfg, const sh_y4m_header *hdr, double fps, int cameras, run_log_fn log,
+sh_status run_proc_create(const sh_config *cfg, const sh_y4m_header *hdr, double fps, int cameras,
                           run_proc **out)
 {
     run_proc *p = calloc(1, sizeof *p);
@@ -75,7 +75,6 @@ sh_status run_proc_create(const sh_config *cfg, const sh_y4m_header *hdr, double
         }
         p->three_d = 1;
     }
-    p->log = log;
     p->fps = fps > 0 ? fps : 30;
     sh_warp_options wopts;
     sh_warp_options_default(&wopts);
@@ -106,7 +105,7 @@ void run_proc_destroy(run_proc *p)
     if (p->tracker) {
         char line[320];
         run_tracker_summary(p->tracker, line, sizeof line);
-        p->log("INFO", "main", "%s", line);
+        sh_log_info("%s", line);
     }
     run_models_destroy(p->models);
     run_tracker_destroy(p->tracker);
@@ -163,14 +162,14 @@ static int markers(run_proc *p, const sh_image *img, const sh_image *const *cams
     }
     const sh_image *only[1] = {img};
     if (epoch != p->epoch && !p->epoch)
-        p->log("INFO", "main", "frame %d: the replay started again and its scene jumps there (it is not tagged "
+        sh_log_info("frame %d: the replay started again and its scene jumps there (it is not tagged "
                "XLOOP=SEAMLESS): tracking starts afresh at every loop", index);
     p->epoch = epoch;
     if (run_tracker_frame(p->tracker, p->three_d ? cams : only, index, epoch, p->mk, &n) != SH_OK) {
-        if (!p->track_err_once++) p->log("ERROR", "main", "tracker: %s", sh_error_message());
+        sh_log_limited(&p->track_err, SH_LOG_ERROR, "tracker: %s", sh_error_message());
         return 0;
     }
-    p->track_err_once = 0;
+    sh_log_limit_clear(&p->track_err);
     return n;
 }
 
@@ -188,11 +187,11 @@ static void take_reference(run_proc *p, int index, int nm)
             : n >= p->cfg.min_markers;
     if (!due || n < 3) return;
     if (run_models_set_reference(p->models, ref, n, index) != SH_OK) {
-        p->log("ERROR", "main", "reference: %s", sh_error_message());
+        sh_log_error("reference: %s", sh_error_message());
         return;
     }
     p->want_ref = 0;
-    p->log("INFO", "main", "frame %d: %d markers taken as the new reference; its models are being built", index, n);
+    sh_log_info("frame %d: %d markers taken as the new reference; its models are being built", index, n);
 }
 
 /* Falls back on the last model while sel's is built: usable when every one of its markers still
@@ -224,7 +223,7 @@ static int camera_motion(run_proc *p, int index, sh_display_frame_info *info)
     run_tracker_motion(p->tracker, &mo);
     if (mo.camera) {
         if (!p->moving)
-            p->log("INFO", "main", "frame %d: the camera is moving (%.1f px in one frame): raw frames until it settles",
+            sh_log_info("frame %d: the camera is moving (%.1f px in one frame): raw frames until it settles",
                    index, mo.shift_px);
         p->moving = 1;
         p->still = 0;
@@ -234,10 +233,10 @@ static int camera_motion(run_proc *p, int index, sh_display_frame_info *info)
         p->moving = 0;
         if (p->cfg.on_camera_motion == SH_CAMERA_MOTION_NEW) {
             p->want_ref = p->await_ref = 1;
-            p->log("INFO", "main", "frame %d: the camera has settled (it moved up to %.1f px a frame): a new "
+            sh_log_info("frame %d: the camera has settled (it moved up to %.1f px a frame): a new "
                    "reference is taken ([reference] on_camera_motion = new)", index, p->moved_px);
         } else {
-            p->log("INFO", "main", "frame %d: the camera has settled (it moved up to %.1f px a frame): the "
+            sh_log_info("frame %d: the camera has settled (it moved up to %.1f px a frame): the "
                    "reference is kept ([reference] on_camera_motion = keep)", index, p->moved_px);
         }
         p->moved_px = 0;
@@ -267,7 +266,7 @@ const sh_image *run_proc_frame(run_proc *p, const sh_image *img, const sh_image 
     if (run_models_poll(p->models, &ref_frame, &ref_n)) {
         p->last = NULL; /* it belonged to the old reference, now freed */
         p->await_ref = 0;
-        p->log("INFO", "main", "reference: frame %d, %d markers", ref_frame, ref_n);
+        sh_log_info("reference: frame %d, %d markers", ref_frame, ref_n);
     }
     if (p->await_ref) {
         /* the old reference is a view the camera has left: the live picture until the new one */
@@ -302,11 +301,11 @@ const sh_image *run_proc_frame(run_proc *p, const sh_image *img, const sh_image 
     int building = 0;
     int got = run_models_get(p->models, sel.ids, sel.n, &md);
     if (got < 0) {
-        if (!p->model_err_once++) p->log("ERROR", "main", "%s", sh_error_message());
+        sh_log_limited(&p->model_err, SH_LOG_ERROR, "%s", sh_error_message());
         reason(info, "model failed (%d markers)", sel.n);
         return img;
     }
-    p->model_err_once = 0;
+    sh_log_limit_clear(&p->model_err);
     if (got == 1) p->last = md; /* the model run_models keeps from eviction (pinned) */
     if (got == 0) {
         int n = fallback(p, nm, fb_xy, fb_xyz, fb_det);
@@ -341,7 +340,7 @@ const sh_image *run_proc_frame(run_proc *p, const sh_image *img, const sh_image 
     sh_status wst = sh_warp_apply(p->warp, run_model_warp(md), img, &p->out);
     p->ms[2] = now_ms() - t2;
     if (wst != SH_OK) {
-        if (!p->model_err_once++) p->log("ERROR", "main", "warp: %s", sh_error_message());
+        sh_log_limited(&p->model_err, SH_LOG_ERROR, "warp: %s", sh_error_message());
         reason(info, "warp failed");
         return img;
     }

@@ -11,8 +11,7 @@ typedef struct run_proc run_proc;
 /* Tracker and detector from [detect], models from [method] (built on a helper thread), markers
  * from [run] points in test mode. fps: the stream's (0: 30). With [method] calibration (as many
  * cameras as configured, 2+): tracking in 3D over every camera's frames and warp3d. */
-sh_status run_proc_create(const sh_config *cfg, const sh_y4m_header *hdr, double fps, int cameras, run_log_fn log,
-                          run_proc **out);
+sh_status run_proc_create(const sh_config *cfg, const sh_y4m_header *hdr, double fps, int cameras, run_proc **out);
 void run_proc_destroy(run_proc *p);
 /* SIGHUP: [gating] takes effect from the next frame. */
 void run_proc_set_gating(run_proc *p, const sh_config *cfg);

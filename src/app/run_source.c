@@ -12,6 +12,8 @@
 #include <string.h>
 #include <time.h>
 
+#include "stillheart/log.h"
+
 #define POOL 8 /* per camera: filling + pending sets (a few frame periods) + waiting + held */
 #define DEQUEUE_MS 100
 
@@ -61,7 +63,6 @@ struct run_source {
     uint64_t no_output;    /* sets without the output camera's frame */
     sh_y4m_header hdr;
     double fps;
-    run_log_fn log;
 };
 
 static int64_t mono_ns(void)
@@ -244,8 +245,9 @@ static void *camera_thread(void *arg)
 {
     camera *k = arg;
     run_source *rs = k->rs;
-    int bad_once = 0;
+    sh_log_limit bad = {0};
     uint64_t losses = 0, reopens = 0;
+    sh_log_set_thread(k->thread_name);
     while (!stopping(rs)) {
         pace(rs, k);
         sh_source_frame f;
@@ -254,9 +256,9 @@ static void *camera_thread(void *arg)
         sh_source_stats ss;
         sh_source_get_stats(k->src, &ss);
         if (ss.losses != losses)
-            rs->log("WARN", k->thread_name, "%s lost (%llu times so far), reopening with back-off; the other cameras go on",
+            sh_log_warn("%s lost (%llu times so far), reopening with back-off; the other cameras go on",
                     k->name, (unsigned long long)ss.losses);
-        if (ss.reopens != reopens) rs->log("INFO", k->thread_name, "%s is back", k->name);
+        if (ss.reopens != reopens) sh_log_info("%s is back", k->name);
         losses = ss.losses;
         reopens = ss.reopens;
         pthread_mutex_lock(&rs->mu);
@@ -265,12 +267,12 @@ static void *camera_thread(void *arg)
         if (got) k->frame_ns = k->beat_ns;
         pthread_mutex_unlock(&rs->mu);
         if (st == SH_EEOF) {
-            rs->log("INFO", k->thread_name, "%s: end of stream", k->name);
+            sh_log_info("%s: end of stream", k->name);
             camera_ended(rs, k);
             break;
         }
         if (st != SH_OK) {
-            rs->log("ERROR", k->thread_name, "%s: %s", k->name, sh_error_message());
+            sh_log_error("%s: %s", k->name, sh_error_message());
             camera_ended(rs, k);
             break;
         }
@@ -283,11 +285,9 @@ static void *camera_thread(void *arg)
         else k->st.no_buffer++;
         pthread_mutex_unlock(&rs->mu);
         sh_status cst = b >= 0 ? sh_pixconv_convert(k->conv, &f.raw, &k->pool[b]) : SH_OK;
-        if (cst != SH_OK && !bad_once) {
-            rs->log("ERROR", k->thread_name, "%s: frame %llu: %s (further bad frames counted only)", k->name,
-                    (unsigned long long)f.sequence, sh_error_message());
-            bad_once = 1;
-        }
+        if (cst != SH_OK)
+            sh_log_limited(&bad, SH_LOG_ERROR, "%s: frame %llu: %s (further bad frames counted only)", k->name,
+                           (unsigned long long)f.sequence, sh_error_message());
         uint64_t seq = f.sequence;
         int64_t ts = f.timestamp_ns;
         k->discontinuities += f.discontinuity != 0; /* counted even for a frame not kept */
@@ -322,18 +322,18 @@ static void *camera_thread(void *arg)
 static void *trigger_thread(void *arg)
 {
     run_source *rs = arg;
-    int err_once = 0;
+    sh_log_limit err = {0};
+    sh_log_set_thread("trigger");
     while (!stopping(rs)) {
         struct pollfd p = {sh_gpio_trigger_fd(rs->trig), POLLIN, 0};
         poll(&p, 1, DEQUEUE_MS);
         int64_t edge;
         int got = 0;
         if (sh_gpio_trigger_service(rs->trig, &edge, &got) != SH_OK) {
-            if (!err_once) rs->log("ERROR", "trigger", "%s", sh_error_message());
-            err_once = 1;
+            sh_log_limited(&err, SH_LOG_ERROR, "%s", sh_error_message());
             continue;
         }
-        err_once = 0;
+        sh_log_limit_clear(&err);
         pthread_mutex_lock(&rs->mu);
         rs->trig_beat_ns = mono_ns();
         if (got) {
@@ -401,14 +401,13 @@ static sh_status open_camera(run_source *rs, const sh_config *cfg, int i)
     return SH_OK;
 }
 
-sh_status run_source_open(const sh_config *cfg, run_log_fn log, run_source **out)
+sh_status run_source_open(const sh_config *cfg, run_source **out)
 {
     *out = NULL;
     run_source *rs = calloc(1, sizeof *rs);
     if (!rs) return sh_error_set(SH_ENOMEM, "source: out of memory");
     pthread_mutex_init(&rs->mu, NULL);
     pthread_cond_init(&rs->cv, NULL);
-    rs->log = log;
     rs->out = cfg->output_camera;
     int n = sh_config_cameras(cfg);
     int all_replay = 1;
@@ -487,7 +486,7 @@ sh_status run_source_start(run_source *rs)
     }
     for (int i = 0; i < rs->ncam; i++) {
         camera *k = &rs->cam[i];
-        rs->log("INFO", "main", "%s: %dx%d %s at %d/%d fps%s%s", k->name, k->width, k->height,
+        sh_log_info("%s: %dx%d %s at %d/%d fps%s%s", k->name, k->width, k->height,
                 sh_rawfmt_name(k->format), k->fps_num, k->fps_den, i == rs->out ? ", shown" : "",
                 k->replay ? (rs->paced ? ", replayed as fast as processing goes" : ", replayed in real time") : "");
         if (pthread_create(&rs->cam[i].thread, NULL, camera_thread, &rs->cam[i]))
@@ -643,7 +642,7 @@ static void log_stats(run_source *rs)
     for (int c = 0; c < rs->ncam; c++) {
         run_camera_stats st;
         run_source_camera_stats(rs, c, &st);
-        rs->log("INFO", "main",
+        sh_log_info(
                 "%s: %llu frames, %llu damaged, %llu dropped by the driver, %llu without a buffer, %llu bad, %llu late, "
                 "%llu duplicate, %llu losses, %llu reopens",
                 rs->cam[c].name, (unsigned long long)st.converted, (unsigned long long)st.source.errors,
@@ -656,7 +655,7 @@ static void log_stats(run_source *rs)
     pthread_mutex_lock(&rs->mu);
     uint64_t no_output = rs->no_output;
     pthread_mutex_unlock(&rs->mu);
-    rs->log("INFO", "main", "sets: %llu (%llu incomplete), %llu dropped while processing was behind, %llu without "
+    sh_log_info("sets: %llu (%llu incomplete), %llu dropped while processing was behind, %llu without "
             "the output camera's frame", (unsigned long long)ss.sets, (unsigned long long)ss.incomplete,
             (unsigned long long)run_source_dropped(rs), (unsigned long long)no_output);
 }

@@ -20,9 +20,6 @@
 #include "stillheart/sync.h"
 #include "stillheart/y4m.h"
 
-/* The daemon's logger ("-- LEVEL [time thread] -- message"). */
-typedef void (*run_log_fn)(const char *level, const char *thread, const char *fmt, ...);
-
 typedef struct {
     sh_image img;         /* the output camera's frame (the one warped), in the header's format */
     int index;            /* its frame index: in the file for a replay (from 0 again after a loop),
@@ -51,7 +48,7 @@ typedef struct run_source run_source;
 
 /* Opens every configured camera (a missing device or file fails here, sh_error_message naming
  * it), the trigger line when [trigger] mode is not off, and allocates all buffers. */
-sh_status run_source_open(const sh_config *cfg, run_log_fn log, run_source **out);
+sh_status run_source_open(const sh_config *cfg, run_source **out);
 /* The output camera's frames: geometry, working format, rate (also what a Y4M record gets). */
 const sh_y4m_header *run_source_header(const run_source *rs);
 /* Frames per second of the output camera (0: unknown). */

@@ -1,25 +1,5 @@
-# Capture (src/source, src/pixconv, src/sync, src/record; docs/capture.md).
-# The pixel-format loops: -O3 lets gcc vectorize them (measured by make bench, bench_pixconv).
-$(BUILD)/src/pixconv/%.o: CFLAGS_ALL += -O3
-# MJPEG decoding (src/pixconv) and the bench's peer: libturbojpeg when pkg-config finds it (the
-# detect fragment adds the same flags; repeating them is harmless and keeps this one standalone).
-ifeq ($(call have,libturbojpeg),1)
-CFLAGS_ALL   += -DSH_HAVE_TURBOJPEG
-CXXFLAGS_ALL += -DSH_HAVE_TURBOJPEG
-LDLIBS_ALL   += $(shell $(PKG_CONFIG) --libs libturbojpeg)
-endif
-# GPIO trigger lines (src/sync/gpio.c): libgpiod 1.6, the v1 API (2.x is a different API).
-ifeq ($(call have,libgpiod),1)
-ifneq ($(shell $(PKG_CONFIG) --atleast-version=2 libgpiod && echo 2),2)
-CFLAGS_ALL   += -DSH_HAVE_GPIOD
-LDLIBS_ALL   += $(shell $(PKG_CONFIG) --libs libgpiod)
-endif
-endif
-# libcamera (src/source/libcamera.cpp): its headers as system headers (they warn under -Werror).
-ifeq ($(call have,libcamera),1)
-CXXFLAGS_ALL += -DSH_HAVE_LIBCAMERA $(patsubst -I%,-isystem %,$(shell $(PKG_CONFIG) --cflags libcamera))
-LDLIBS_ALL   += $(shell $(PKG_CONFIG) --libs libcamera)
-endif
+# Capture's tests and tools (src/source, src/pixconv, src/sync, src/record; docs/capture.md). Its
+# libraries (libturbojpeg, libgpiod, libcamera) and pixconv's -O3 are set at the top of the Makefile.
 # test_pixconv compares with OpenCV's cvtColor (tools/capture/cv_oracle.cpp) when it is there;
 # the top rule links $< only, so the oracle object rides in LDLIBS_ALL of that one binary.
 ifneq ($(OPENCV_INC),)

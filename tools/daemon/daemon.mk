@@ -1,8 +1,5 @@
-# The daemon (stillheart run): config (inih), sd_notify, run demo, daemon tests and bench.
-ifeq ($(call have,inih),1)
-CFLAGS_ALL += -DSH_HAVE_INIH $(shell $(PKG_CONFIG) --cflags inih)
-LDLIBS_ALL += $(shell $(PKG_CONFIG) --libs inih)
-endif
+# The daemon (stillheart run): run demo, daemon tests and bench, install. Its config files' library
+# (inih) is set at the top of the Makefile.
 
 # The daemon's tests: a script run by the suite like a cmocka binary (needs the renderer).
 $(BUILD)/tests/test_daemon: tools/daemon/test_daemon.sh $(APP) $(BUILD)/stillheart-cat $(BUILD)/stillheart-render
@@ -54,17 +51,6 @@ install-daemon: all
 	install -m 0644 firmware-config/99-stillheart.rules $(DESTDIR)$(UDEV_RULES_DIR)/
 	[ -e $(DESTDIR)$(SYSCONF_DIR)/stillheart.ini ] || install -m 0644 firmware-config/stillheart.ini $(DESTDIR)$(SYSCONF_DIR)/
 	install -m 0644 docs/daemon.md $(DESTDIR)$(PREFIX)/share/doc/stillheart/
-
-# fuzz_config reaches the interpolation code (method names), whose Eigen object needs the C++
-# sanitizer runtime: the same build as the top rule, linked by clang++.
-build-fuzz/fuzz_config: tests/fuzz/fuzz_config.c $(LIB_C) $(LIB_CXX)
-	@mkdir -p build-fuzz
-	$(MAKE) --no-print-directory BUILD=build-fuzz/lib CC=clang CXX=clang++ SAN=0 \
-		CFLAGS="-fsanitize=fuzzer-no-link,address,undefined" \
-		CXXFLAGS="-fsanitize=fuzzer-no-link,address,undefined" build-fuzz/lib/libstillheart.a
-	clang $(FUZZ_FLAGS) -c $< -o build-fuzz/fuzz_config.o
-	clang++ -fsanitize=fuzzer,address,undefined build-fuzz/fuzz_config.o build-fuzz/lib/libstillheart.a \
-		$(filter-out -lstdc++,$(LDLIBS_ALL)) -o $@
 
 # test_daemon_proc (tests/unit) also links the daemon's processing objects, which live in the
 # stillheart command (src/app), not in the library.

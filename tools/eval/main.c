@@ -10,6 +10,7 @@
 #include <unistd.h>
 
 #include "eval.h"
+#include "stillheart/log.h"
 #include "stillheart/y4m.h"
 
 #define PROG "stillheart-eval"
@@ -80,7 +81,7 @@ static int parse_int(const char *opt, const char *s, int min, int max, int *out)
     errno = 0;
     long v = strtol(s, &end, 10);
     if (errno || end == s || *end || v < min || v > max) {
-        fprintf(stderr, PROG ": %s: '%s' is not a whole number in %d..%d\n", opt, s, min, max);
+        sh_log_error("%s: '%s' is not a whole number in %d..%d", opt, s, min, max);
         return 0;
     }
     *out = (int)v;
@@ -93,7 +94,7 @@ static int parse_double(const char *opt, const char *s, double min, double max, 
     errno = 0;
     double v = strtod(s, &end);
     if (errno || end == s || *end || !isfinite(v) || v < min || v > max) {
-        fprintf(stderr, PROG ": %s: '%s' is not a number in %g..%g\n", opt, s, min, max);
+        sh_log_error("%s: '%s' is not a number in %g..%g", opt, s, min, max);
         return 0;
     }
     *out = v;
@@ -103,7 +104,7 @@ static int parse_double(const char *opt, const char *s, double min, double max, 
 static int fail(const char *what)
 {
     const char *m = sh_error_message();
-    fprintf(stderr, PROG ": %s%s%s\n", what, *m ? ": " : "", m);
+    sh_log_error("%s%s%s", what, *m ? ": " : "", m);
     return 1;
 }
 
@@ -282,16 +283,16 @@ static int evaluate(options *o, const char *stab_path, const char *orig_path)
     int nref;
     const sh_point *ref = sh_points_frame(&points, o->reference, &nref);
     if (nref < 3) {
-        fprintf(stderr, PROG ": %s: the reference frame %d has %d markers, need 3\n",
-                o->points_path, o->reference, nref);
+        sh_log_error("%s: the reference frame %d has %d markers, need 3",
+                     o->points_path, o->reference, nref);
         goto done;
     }
     xy = malloc(sizeof(double) * 2 * (size_t)nref);
     if (!xy) { fail("out of memory"); goto done; }
     for (int i = 0; i < nref; i++) xy[2 * i] = ref[i].x, xy[2 * i + 1] = ref[i].y;
     if (sh_hull_compute(xy, nref, &hull) != SH_OK) {
-        fprintf(stderr, PROG ": %s: frame %d's markers: %s\n", o->points_path, o->reference,
-                sh_error_message());
+        sh_log_error("%s: frame %d's markers: %s", o->points_path, o->reference,
+                     sh_error_message());
         goto done;
     }
     if (video_open(&stab, stab_path, o->reference, &hull) != SH_OK) { fail("stabilized video"); goto done; }
@@ -299,8 +300,8 @@ static int evaluate(options *o, const char *stab_path, const char *orig_path)
     if (orig_path) {
         if (video_open(&orig, orig_path, o->reference, &hull) != SH_OK) { fail("original video"); goto done; }
         if (orig.frame.width != f->width || orig.frame.height != f->height) {
-            fprintf(stderr, PROG ": %s is %dx%d, %s is %dx%d\n", orig_path, orig.frame.width,
-                    orig.frame.height, stab_path, f->width, f->height);
+            sh_log_error("%s is %dx%d, %s is %dx%d", orig_path, orig.frame.width,
+                         orig.frame.height, stab_path, f->width, f->height);
             goto done;
         }
     }
@@ -308,7 +309,7 @@ static int evaluate(options *o, const char *stab_path, const char *orig_path)
         if (phantom_truth_open(o->truth_dir, &truth) != SH_OK) { fail("--truth"); goto done; }
         o->geo.truth = truth;
         if (eval_geo_create(&o->geo, &points, &hull, f->width, f->height, &geo) != SH_OK) {
-            fprintf(stderr, PROG ": %s: %s\n", o->truth_dir, sh_error_message());
+            sh_log_error("%s: %s", o->truth_dir, sh_error_message());
             goto done;
         }
     }
@@ -335,11 +336,11 @@ static int evaluate(options *o, const char *stab_path, const char *orig_path)
     if (show) fputc('\n', stderr);
     if (st != SH_EEOF) { fail("stabilized video"); goto done; }
     if (orig_path && video_next(&orig, &hull, t) != SH_EEOF) {
-        fprintf(stderr, PROG ": %s has more frames than %s (%d)\n", orig_path, stab_path, t);
+        sh_log_error("%s has more frames than %s (%d)", orig_path, stab_path, t);
         goto done;
     }
     if (t <= o->reference) {
-        fprintf(stderr, PROG ": %s has no frame %d\n", stab_path, o->reference);
+        sh_log_error("%s has no frame %d", stab_path, o->reference);
         goto done;
     }
 
@@ -370,6 +371,7 @@ done:
 
 int main(int argc, char **argv)
 {
+    sh_log_setup(SH_LOG_TOOL, PROG, SH_LOG_INFO);
     static const struct option long_opts[] = {
         {"points", required_argument, 0, 'p'},   {"reference", required_argument, 0, 'r'},
         {"truth", required_argument, 0, 'T'},    {"camera", required_argument, 0, 'c'},
@@ -409,13 +411,13 @@ int main(int argc, char **argv)
 
     if (o.export_out) {
         if (!o.truth_dir || optind != argc) {
-            fprintf(stderr, PROG ": --export-points needs --truth DIR and no videos\n");
+            sh_log_error("--export-points needs --truth DIR and no videos");
             return 2;
         }
         int to_stdout = !strcmp(o.export_out, "-");
         FILE *out = to_stdout ? stdout : fopen(o.export_out, "w");
         if (!out) {
-            fprintf(stderr, PROG ": %s: cannot create: %s\n", o.export_out, strerror(errno));
+            sh_log_error("%s: cannot create: %s", o.export_out, strerror(errno));
             return 1;
         }
         sh_status st = eval_export_points(o.truth_dir, o.camera, out, o.export_out);
@@ -424,7 +426,7 @@ int main(int argc, char **argv)
         return st == SH_OK ? 0 : fail("--export-points");
     }
     if (!o.points_path || argc - optind < 1 || argc - optind > 2) {
-        fprintf(stderr, PROG ": need --points and the stabilized video (and optionally the original)\n");
+        sh_log_error("need --points and the stabilized video (and optionally the original)");
         usage(stderr);
         return 2;
     }

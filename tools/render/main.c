@@ -17,6 +17,7 @@
 
 #include "render.h"
 #include "stillheart/calib.h"
+#include "stillheart/log.h"
 #include "stillheart/y4m.h"
 
 static void usage(FILE *f)
@@ -286,6 +287,7 @@ const char *__lsan_default_options(void)
 
 int main(int argc, char **argv)
 {
+    sh_log_setup(SH_LOG_TOOL, "stillheart-render", SH_LOG_INFO);
     phantom_options o;
     phantom_options_default(&o);
     const char *out = NULL;
@@ -312,7 +314,7 @@ int main(int argc, char **argv)
     int ch;
     long lv;
     double dv;
-#define BAD(...) do { fprintf(stderr, "stillheart-render: " __VA_ARGS__); fputc('\n', stderr); return 2; } while (0)
+#define BAD(...) do { sh_log_error(__VA_ARGS__); return 2; } while (0)
     int idx;
     while ((ch = getopt_long(argc, argv, "", opts, &idx)) != -1) {
         if (ch == O_PRESET || ch == O_OCC || ch == O_BPM || ch == O_MARKERS || ch == O_TAG || ch == O_FAMILY ||
@@ -383,7 +385,7 @@ int main(int argc, char **argv)
 
     static phantom_model m;
     if (phantom_model_build(&o, &m) != SH_OK) {
-        fprintf(stderr, "stillheart-render: %s\n", sh_error_message());
+        sh_log_error("%s", sh_error_message());
         return 2;
     }
     /* the board's poses before anything is written: a board too large for the view is refused */
@@ -391,17 +393,17 @@ int main(int argc, char **argv)
     if (board_mode) {
         poses = malloc(sizeof *poses * (size_t)m.frames);
         if (!poses) {
-            fprintf(stderr, "stillheart-render: out of memory for %d poses\n", m.frames);
+            sh_log_error("out of memory for %d poses", m.frames);
             return 1;
         }
         if (rd_board_poses(&m, &board, m.frames, m.seed, poses) != SH_OK) {
-            fprintf(stderr, "stillheart-render: %s\n", sh_error_message());
+            sh_log_error("%s", sh_error_message());
             free(poses);
             return 2;
         }
     }
     if (make_dir(out) != 0) {
-        fprintf(stderr, "stillheart-render: %s: cannot create the folder: %s\n", out, strerror(errno));
+        sh_log_error("%s: cannot create the folder: %s", out, strerror(errno));
         free(poses);
         return 1;
     }
@@ -437,10 +439,10 @@ int main(int argc, char **argv)
     p.i420 = malloc(sh_image_packed_size(SH_PIX_I420, m.width, m.height));
     p.scratch = malloc((size_t)m.width * m.height);
     if (!p.slots[0].rgba || !p.slots[1].rgba || !p.i420 || !p.scratch) {
-        fprintf(stderr, "stillheart-render: out of memory for %dx%d frames\n", m.width, m.height);
+        sh_log_error("out of memory for %dx%d frames", m.width, m.height);
         goto done;
     }
-#define FAIL() do { fprintf(stderr, "stillheart-render: %s\n", sh_error_message()); goto done; } while (0)
+#define FAIL() do { sh_log_error("%s", sh_error_message()); goto done; } while (0)
     snprintf(path, sizeof path, "%s/%s", out, PHANTOM_PARAMS_FILE);
     if (!board_mode && phantom_model_write(&m, path) != SH_OK) FAIL();
     snprintf(path, sizeof path, "%s/calibration.yaml", out);
@@ -448,7 +450,7 @@ int main(int argc, char **argv)
     snprintf(path, sizeof path, "%s/%s", out, board_mode ? "board.csv" : "markers.csv");
     csv = fopen(path, "w");
     if (!csv) {
-        fprintf(stderr, "stillheart-render: %s: %s\n", path, strerror(errno));
+        sh_log_error("%s: %s", path, strerror(errno));
         goto done;
     }
     fprintf(csv, "%s\n", board_mode ? "frame,camera,corner,x,y,X,Y,Z" : PHANTOM_CSV_HEADER);
@@ -478,7 +480,7 @@ int main(int argc, char **argv)
         FAIL();
     }
     if (pthread_create(&thread, NULL, writer_main, &p) != 0) {
-        fprintf(stderr, "stillheart-render: cannot start the writer thread\n");
+        sh_log_error("cannot start the writer thread");
         goto done;
     }
     thread_ok = 1;
@@ -493,7 +495,7 @@ int main(int argc, char **argv)
             sh_status wst = p.status;
             pthread_mutex_unlock(&p.mu);
             if (wst != SH_OK) {
-                fprintf(stderr, "stillheart-render: %s\n", p.error);
+                sh_log_error("%s", p.error);
                 goto done;
             }
             sh_status dst = board_mode ? rd_board_draw(raster[c], &m.cam[c], &board, &poses[f], drape[c].rgb,
@@ -509,8 +511,8 @@ int main(int argc, char **argv)
             cur ^= 1;
         }
         if ((board_mode ? write_board_corners(csv, &m, &board, &poses[f], f) : write_markers(csv, &m, f)) != 0) {
-            fprintf(stderr, "stillheart-render: %s: write error: %s\n", board_mode ? "board.csv" : "markers.csv",
-                    strerror(errno));
+            sh_log_error("%s: write error: %s", board_mode ? "board.csv" : "markers.csv",
+                         strerror(errno));
             goto done;
         }
         if (show) progress(f + 1, m.frames, t0);
@@ -524,23 +526,23 @@ done:
         pthread_mutex_unlock(&p.mu);
         pthread_join(thread, NULL);
         if (rc == 0 && p.status != SH_OK) {
-            fprintf(stderr, "stillheart-render: %s\n", p.error);
+            sh_log_error("%s", p.error);
             rc = 1;
         }
     }
     if (rc == 0 && !quiet) {
         double el = now() - t_start;
-        fprintf(stderr, "stillheart-render: %d frames x %d cameras, %dx%d, in %.1f s (%.1f frames/s, %.1f "
-                "images/s, setup included)\n", m.frames, m.num_cameras, m.width, m.height, el,
-                m.frames / el, m.frames * m.num_cameras / el);
+        sh_log_info("%d frames x %d cameras, %dx%d, in %.1f s (%.1f frames/s, %.1f "
+                    "images/s, setup included)", m.frames, m.num_cameras, m.width, m.height, el,
+                    m.frames / el, m.frames * m.num_cameras / el);
     }
     for (int c = 0; c < m.num_cameras; c++)
         if (p.writers[c] && sh_y4m_writer_close(p.writers[c]) != SH_OK && rc == 0) {
-            fprintf(stderr, "stillheart-render: %s\n", sh_error_message());
+            sh_log_error("%s", sh_error_message());
             rc = 1;
         }
     if (csv && (ferror(csv) | fclose(csv)) && rc == 0) {
-        fprintf(stderr, "stillheart-render: %s: write error\n", board_mode ? "board.csv" : "markers.csv");
+        sh_log_error("%s: write error", board_mode ? "board.csv" : "markers.csv");
         rc = 1;
     }
     rd_scene_destroy(scene);

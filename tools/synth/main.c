@@ -9,6 +9,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include "stillheart/log.h"
 #include "stillheart/points.h"
 #include "stillheart/y4m.h"
 #include "synth.h"
@@ -38,7 +39,7 @@ static int parse_int(const char *opt, const char *text, int lo, int hi, int *out
     errno = 0;
     long v = strtol(text, &end, 10);
     if (errno || *end || end == text || v < lo || v > hi) {
-        fprintf(stderr, "stillheart-synth: %s: '%s' is not a whole number in %d..%d\n", opt, text, lo, hi);
+        sh_log_error("%s: '%s' is not a whole number in %d..%d", opt, text, lo, hi);
         return 0;
     }
     *out = (int)v;
@@ -64,6 +65,7 @@ static int make_dirs(const char *path)
 
 int main(int argc, char **argv)
 {
+    sh_log_setup(SH_LOG_TOOL, "stillheart-synth", SH_LOG_INFO);
     static const struct option options[] = {
         {"width", required_argument, 0, 'w'}, {"height", required_argument, 0, 'h'},
         {"frames", required_argument, 0, 'n'}, {"markers", required_argument, 0, 'm'},
@@ -86,7 +88,7 @@ int main(int argc, char **argv)
             else if (!strcmp(optarg, "gray8")) format = SH_PIX_GRAY8;
             else if (!strcmp(optarg, "yuv444")) format = SH_PIX_YUV444;
             else {
-                fprintf(stderr, "stillheart-synth: --format: '%s' is not i420, gray8 or yuv444\n", optarg);
+                sh_log_error("--format: '%s' is not i420, gray8 or yuv444", optarg);
                 return 2;
             }
             break;
@@ -100,7 +102,7 @@ int main(int argc, char **argv)
         return 2;
     }
     if (!make_dirs(out_dir)) {
-        fprintf(stderr, "stillheart-synth: %s: %s\n", out_dir, strerror(errno));
+        sh_log_error("%s: %s", out_dir, strerror(errno));
         return 1;
     }
     char video[4096], points[4096];
@@ -118,7 +120,7 @@ int main(int argc, char **argv)
     int rc = 1;
     if (!ref || !rows || sh_image_create(&img, format, width, height) != SH_OK ||
         sh_y4m_writer_open(video, &h, &w) != SH_OK) {
-        fprintf(stderr, "stillheart-synth: %s\n", sh_error_message());
+        sh_log_error("%s", sh_error_message());
         goto done;
     }
     synth_markers(&motion, markers, (unsigned)seed, ref);
@@ -126,7 +128,7 @@ int main(int argc, char **argv)
         double phase = (double)t / frames;
         synth_render(&motion, phase, &img);
         if (sh_y4m_writer_write(w, &img) != SH_OK) {
-            fprintf(stderr, "stillheart-synth: %s\n", sh_error_message());
+            sh_log_error("%s", sh_error_message());
             goto done;
         }
         for (int i = 0; i < markers; i++) {
@@ -141,7 +143,7 @@ int main(int argc, char **argv)
     w = NULL;
     FILE *f = fopen(points, "w");
     if (st != SH_OK || !f || sh_points_write(f, rows, markers * frames, 0) != SH_OK || fclose(f) != 0) {
-        fprintf(stderr, "stillheart-synth: %s: %s\n", points, st != SH_OK ? sh_error_message() : strerror(errno));
+        sh_log_error("%s: %s", points, st != SH_OK ? sh_error_message() : strerror(errno));
         goto done;
     }
     printf("%s\n%s\n", video, points);

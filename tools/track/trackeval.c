@@ -5,6 +5,7 @@
 #include <string.h>
 
 #include "sim.h"
+#include "stillheart/log.h"
 
 static void usage(void)
 {
@@ -21,6 +22,7 @@ static void usage(void)
 
 int main(int argc, char **argv)
 {
+    sh_log_setup(SH_LOG_TOOL, "stillheart-trackeval", SH_LOG_INFO);
     track_sim_config c;
     track_sim_default(&c);
     sh_track_options o;
@@ -62,7 +64,7 @@ int main(int argc, char **argv)
     track_sim_result r;
     sh_status st = track_sim_run(&c, &o, &r);
     if (st) {
-        fprintf(stderr, "stillheart-trackeval: %s\n", sh_error_message());
+        sh_log_error("%s", sh_error_message());
         return 1;
     }
     printf("%s cams=%d hide=%.2f/%.2fs spatial=%s: lock@%d f_h=%.4f (true %.4f) f_r=%.4f (true %.4f)\n"
