@@ -76,6 +76,7 @@ typedef struct {
     double max_residual_px;          /* larger -> raw ("residual") */
     double max_sigma_px;             /* position uncertainty (1 sigma) over this -> raw */
     int dropout_ms;                  /* stale up to this -> degraded; longer -> raw */
+    double max_calibration_px;       /* 3D: the calibration's median reprojection error over this -> raw */
     /* [run] */
     int threads;
     char points[SH_CONFIG_STR];      /* test mode: markers from a points file, no detection */

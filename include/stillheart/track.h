@@ -171,6 +171,22 @@ void sh_tracker_stats(const sh_tracker *t, sh_track_stats *stats);
 /* The unexpected motion of the last updated frame (all zero when there was none). */
 void sh_tracker_motion(const sh_tracker *t, sh_track_motion *out);
 
+/* 3D: how well the calibration fits what the cameras see, over the last 256 markers detected
+ * once by two or more cameras in a frame, each triangulated from all of its views before any gate
+ * (src/track/calcheck.c says why before). A correct calibration leaves the detector's noise; a
+ * wrong one (swapped cameras, a moved camera, another rig's file) leaves pixels. All zero, and
+ * worst_camera -1, in 2D or before the first such marker. */
+typedef struct {
+    int samples;        /* markers in the window */
+    double median_px;   /* median of their RMS reprojection errors (INFINITY when most of them
+                         * triangulate behind a camera or not at all) */
+    int worst_camera;   /* the camera whose views' median reprojection error is largest (its
+                         * own median, over the markers it saw) */
+    double worst_px;    /* that median */
+    double failed;      /* fraction of them with no point in front of every camera */
+} sh_track_calibration;
+void sh_tracker_calibration(const sh_tracker *t, sh_track_calibration *out);
+
 #ifdef __cplusplus
 }
 #endif

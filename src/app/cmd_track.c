@@ -212,6 +212,12 @@ static int run_pass(track_job *job, int max_frames, FILE *out, int *confirmed, i
                     "neighbours' agreement %ld; markers lost %ld; camera moved in %ld frames",
                     s.frames, s.heart_hz, s.resp_hz, s.accepted, s.gated, s.duplicates, s.unknown,
                     s.inconsistent, s.jumped, s.lost, s.camera_moves);
+        sh_track_calibration cc;
+        sh_tracker_calibration(t, &cc);
+        if (cc.samples)
+            sh_log_info("calibration: reprojection median %.3f px over the last %d markers seen by two or more "
+                        "cameras, camera %d's views %.3f px, %.0f %% behind a camera",
+                        cc.median_px, cc.samples, cc.worst_camera, cc.worst_px, 100 * cc.failed);
     }
     rc = 0;
     goto done;

@@ -89,6 +89,8 @@ sh_status run_tracker_frame(run_tracker *t, const sh_image *const *cams, int ind
                             int *n);
 /* What the last frame's detections said that the motion model did not expect (a moved camera). */
 void run_tracker_motion(const run_tracker *t, sh_track_motion *out);
+/* 3D: how well the calibration fits what the cameras see (sh_tracker_calibration). */
+void run_tracker_calibration(const run_tracker *rt, sh_track_calibration *out);
 /* The frame rate the tracker assumes (ages in ms use it). */
 double run_tracker_fps(const run_tracker *t);
 /* One line of the tracker's counters (sh_tracker_stats), for the log at exit. */

@@ -154,6 +154,7 @@ static int gating_changed(const sh_config *a, const sh_config *b)
 {
     return a->min_markers != b->min_markers || a->max_residual_px != b->max_residual_px ||
            a->max_sigma_px != b->max_sigma_px || a->dropout_ms != b->dropout_ms ||
+           a->max_calibration_px != b->max_calibration_px ||
            a->on_camera_motion != b->on_camera_motion;
 }
 

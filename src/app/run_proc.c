@@ -30,6 +30,7 @@ struct run_proc {
     /* a moved camera (docs/daemon.md, "A moved endoscope"): raw while it moves, then a new
      * reference (or the old one) once it has been still for RUN_SETTLE_FRAMES frames */
     int moving, still, await_ref;
+    int calib_off;        /* the calibration does not fit what the cameras see (logged once) */
     double moved_px;      /* largest one-frame motion of this episode */
     /* the markers the last warped frame's map was made from (run_proc_markers) */
     int used_n, used_ids[RUN_MAX_MARKERS];
@@ -121,6 +122,7 @@ void run_proc_set_gating(run_proc *p, const sh_config *cfg)
     p->cfg.max_residual_px = cfg->max_residual_px;
     p->cfg.max_sigma_px = cfg->max_sigma_px;
     p->cfg.dropout_ms = cfg->dropout_ms;
+    p->cfg.max_calibration_px = cfg->max_calibration_px;
     p->cfg.on_camera_motion = cfg->on_camera_motion;
 }
 
@@ -215,6 +217,35 @@ static int fallback(run_proc *p, int nm, double *xy, double *xyz, double *det)
     return n;
 }
 
+/* 3D: frames stay raw until enough markers seen by every camera say the calibration fits, and
+ * whenever the recent ones say it does not (docs/3d.md, "Is the calibration right?"): a wrong
+ * calibration (swapped cameras, a moved camera, another rig's file) bends the surface and still
+ * passes the residual gate. 1 while this frame must be shown raw for it. */
+#define RUN_CALIB_MIN_MARKERS 8
+static int calibration_off(run_proc *p, int index, sh_display_frame_info *info)
+{
+    if (!p->tracker || !p->three_d) return 0;
+    sh_track_calibration cc;
+    run_tracker_calibration(p->tracker, &cc);
+    if (cc.samples < RUN_CALIB_MIN_MARKERS) {
+        reason(info, "checking the calibration (%d markers)", cc.samples);
+        return 1;
+    }
+    int off = !(cc.median_px <= p->cfg.max_calibration_px);
+    if (off && !p->calib_off)
+        sh_log_error("frame %d: the calibration does not match the cameras: median reprojection error %.2f px "
+                     "over the last %d markers seen by two or more cameras ([gating] max_calibration_px = "
+                     "%.2f), camera %d's views %.2f px, %.0f %% behind a camera: raw frames", index,
+                     cc.median_px, cc.samples, p->cfg.max_calibration_px, cc.worst_camera, cc.worst_px,
+                     100 * cc.failed);
+    else if (!off && p->calib_off)
+        sh_log_info("frame %d: the calibration fits the cameras again (median reprojection error %.2f px)", index,
+                    cc.median_px);
+    p->calib_off = off;
+    if (off) reason(info, "calibration mismatch: camera %d %.1f px", cc.worst_camera, cc.worst_px);
+    return off;
+}
+
 /* Follows the tracker's word on a moved camera; 1 while this frame must be shown raw for it. */
 static int camera_motion(run_proc *p, int index, sh_display_frame_info *info)
 {
@@ -260,7 +291,7 @@ const sh_image *run_proc_frame(run_proc *p, const sh_image *img, const sh_image 
     info->residual_px = -1; /* not measured */
     info->markers_used = 0;
     p->used_n = 0;
-    if (camera_motion(p, index, info)) return img;
+    if (camera_motion(p, index, info) || calibration_off(p, index, info)) return img;
     take_reference(p, index, nm);
     int ref_frame, ref_n;
     if (run_models_poll(p->models, &ref_frame, &ref_n)) {

@@ -74,6 +74,8 @@ double run_tracker_fps(const run_tracker *rt) { return rt->opts.fps; }
 
 void run_tracker_motion(const run_tracker *rt, sh_track_motion *out) { sh_tracker_motion(rt->t, out); }
 
+void run_tracker_calibration(const run_tracker *rt, sh_track_calibration *out) { sh_tracker_calibration(rt->t, out); }
+
 void run_tracker_summary(const run_tracker *rt, char *out, size_t cap)
 {
     sh_track_stats s;

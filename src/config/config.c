@@ -78,6 +78,8 @@ static const keydef keys[] = {
     {"gating", "max_residual_px", "max-residual", K_DOUBLE, F(max_residual_px), 0, 0, 1e4, "residual over this -> raw"},
     {"gating", "max_sigma_px", "max-sigma", K_DOUBLE, F(max_sigma_px), 0, 0, 1e4, "position uncertainty (1 sigma) over this -> raw"},
     {"gating", "dropout_ms", "dropout-ms", K_INT, F(dropout_ms), 0, 0, 60000, "stale estimates up to this -> degraded, longer -> raw"},
+    {"gating", "max_calibration_px", "max-calibration", K_DOUBLE, F(max_calibration_px), 0, 0.01, 100,
+     "3D: median reprojection error of the markers every camera sees over this -> raw (the calibration does not fit)"},
     {"run", "threads", "threads", K_INT, F(threads), 0, 1, 64, "warp threads"},
     {"run", "control", "control", K_STR, F(control), S(control), 0, 0, "control socket path (\"\": none)"},
     {"run", "points", "points", K_STR, F(points), S(points), 0, 0, "test mode: markers from a points file instead of detection"},
@@ -116,6 +118,7 @@ void sh_config_default(sh_config *cfg)
     cfg->max_residual_px = 3.0;
     cfg->max_sigma_px = 4.0;
     cfg->dropout_ms = 200;
+    cfg->max_calibration_px = 0.5;
     cfg->threads = 2;
     snprintf(cfg->sink, sizeof cfg->sink, "shm:/stillheart");
     cfg->slots = 4;

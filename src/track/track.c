@@ -313,6 +313,7 @@ sh_status sh_tracker_update(sh_tracker *t, const sh_detection *const *det, const
             }
             if (t->m[s].ndet[c]++ == 0) t->m[s].det[c] = k;
         }
+    trk_calib_observe(t, det, num_cameras);
     /* the detections against each other first: a motion they agree on is taken at once */
     trk_consensus(t, det, num_cameras);
     /* markers the spatial model can vouch for are gated against it: first every marker whose own

@@ -1,7 +1,9 @@
 /* Private to src/track: the tracker's state and the pieces its files share
  * (track.c: create and the per-frame steps; gate.c: one marker's update and the predictions it
  * is gated against; quad.c: the shape test of a detection; filter.c: the Kalman filter of one
- * coordinate; rates.c: the heartbeat and respiration rates from all markers' recent tracks). */
+ * coordinate; rates.c: the heartbeat and respiration rates from all markers' recent tracks;
+ * consensus.c: the detections judged against each other; calcheck.c: whether the calibration fits
+ * what the cameras see). */
 #ifndef STILLHEART_TRACK_INTERNAL_H
 #define STILLHEART_TRACK_INTERNAL_H
 
@@ -19,7 +21,8 @@
 #define RATE_FFT_MIN 128          /* 4 x the 32 samples a rate estimate needs at least */
 #define RATE_FFT_MAX (4 * SH_TRACK_HISTORY)
 #define RATE_FFT_SIZES 5          /* 128 .. 2048 */
-#define RATE_BASIS_TABLES 4       /* heart only, trend only, respiration only, heart and respiration */
+#define RATE_BASIS_TABLES 4
+#define CAL_WINDOW 256            /* calcheck.c: markers seen by every camera, the last so many */       /* heart only, trend only, respiration only, heart and respiration */
 
 typedef struct {
     double x[NS];
@@ -106,6 +109,10 @@ struct sh_tracker {
     int *ring_frame;       /* [ring_len] */
     sh_track_motion motion; /* this frame's (consensus.c) */
     sh_track_stats stats;
+    /* calcheck.c: RMS and per-view reprojection errors (INFINITY: no point in front of every
+     * camera) of the last cal_count <= CAL_WINDOW markers seen once by every camera */
+    double cal_rms[CAL_WINDOW], cal_view[MAXC][CAL_WINDOW];
+    int cal_next, cal_count;
 };
 
 double trk_hx(const sh_tracker *t, const axis_filter *f);
@@ -124,6 +131,8 @@ void trk_rates_free(sh_tracker *t);
 float *trk_hist_at(sh_tracker *t, int mi, int a);
 /* track.c */
 void trk_marker_pos(const sh_tracker *t, const marker *mk, double *p, double *var);
+/* calcheck.c: this frame's detections (ndet / det counted) into the calibration window */
+void trk_calib_observe(sh_tracker *t, const sh_detection *const *det, int num_cameras);
 /* gate.c */
 int trk_predicted_xy(const sh_tracker *t, const marker *mk, int c, const double *shift,
                      const double *fvar, double xy[2], double S[4]);

@@ -390,6 +390,21 @@ bad = [(r['index'], r['status'], r['residual'], r['reason']) for r in rows[first
 if bad or len(rows) != 160 or first > 120: print(len(rows), "frames, first stabilized", first, "; off:", bad[:5])
 sys.exit(1 if bad or len(rows) != 160 or first > 120 else 0)
 PY
+# two cameras' calibrations swapped (issue 16): triangulation still finds points, and the residual
+# stays under its gate, but the markers every camera sees do not reproject: never shown stabilized
+python3 -c 'import re, sys; s = open(sys.argv[1]).read(); open(sys.argv[2], "w").write(re.sub(r"^(K|dist|R|t|P)_([01]):", lambda m: "%s_%d:" % (m.group(1), 1 - int(m.group(2))), s, flags=re.M))' \
+    "$T/s3/calibration.yaml" "$T/s3/swapped.yaml"
+"$B/stillheart" run --group= ${CAMS%--calibration*} --calibration "$T/s3/swapped.yaml" --no-loop --no-realtime --sink none \
+    --method tps --trace "$T/swap.csv" 2> "$T/swap.log"
+python3 - "$T/swap.csv" "$T/swap.log" <<'PY' && ok "3D: swapped calibrations caught, never shown stabilized" || bad "3D: swapped calibrations caught, never shown stabilized" "see above"
+import csv, re, sys
+rows = list(csv.DictReader(open(sys.argv[1]))); log = open(sys.argv[2]).read()
+shown = [r['index'] for r in rows if r['status'] != 'raw']
+caught = [r for r in rows if r['reason'].startswith('calibration mismatch')]
+m = re.search(r'median reprojection error ([0-9.]+) px', log)
+print("swapped cameras 0 and 1: %d frames, %d raw for the calibration; the log: %s" % (len(rows), len(caught), m.group(0) if m else "no line"))
+sys.exit(1 if shown or len(caught) < len(rows) - 1 or not m or float(m.group(1)) <= 0.5 else 0)
+PY
 msg=$($RUN --source "y4m:$T/s3/cam0.y4m" --calibration "$T/s3/calibration.yaml" --sink none 2>&1); rc=$?
 [ $rc -ne 0 ] && echo "$msg" | grep -q "calibration.*3 cameras, 1 configured" && ok "3D: calibration for other cameras refused" || bad "3D: calibration for other cameras refused" "$msg"
 

@@ -107,6 +107,7 @@ sh_status track_sim_run(const track_sim_config *c, const sh_track_options *topts
     po.camera_motion_at = c->camera_motion_at;
     po.first_beat = c->first_beat;
     po.first_beat_at = c->first_beat_at;
+    po.dist = c->distortion;
     sh_status st = phantom_model_build(&po, &m);
     if (st) return st;
     memset(r, 0, sizeof *r);
@@ -116,6 +117,15 @@ sh_status track_sim_run(const track_sim_config *c, const sh_track_options *topts
 
     sh_calib calib;
     to_calib(&m, &calib);
+    if (c->swap_a != c->swap_b && c->swap_a < calib.num_cameras && c->swap_b < calib.num_cameras) {
+        sh_calib_camera k = calib.cam[c->swap_a];
+        calib.cam[c->swap_a] = calib.cam[c->swap_b];
+        calib.cam[c->swap_b] = k;
+    }
+    if (c->t1_scale > 0 && calib.num_cameras > 1) {
+        for (int a = 0; a < 3; a++) calib.cam[1].t[a] *= c->t1_scale;
+        sh_calib_compute_p(&calib);
+    }
     sh_track_options o = *topts;
     o.fps = m.fps;
     o.width = m.width;
@@ -318,6 +328,7 @@ sh_status track_sim_run(const track_sim_config *c, const sh_track_options *topts
     }
     r->raw_mean_px = raw_n ? raw / raw_n : 0;
     sh_tracker_stats(t, &r->stats);
+    sh_tracker_calibration(t, &r->calibration);
     r->heart_hz = r->stats.heart_hz;
     r->resp_hz = r->stats.resp_hz;
     sh_tracker_destroy(t);

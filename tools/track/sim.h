@@ -33,6 +33,11 @@ typedef struct {
     double first_beat_at;   /* seconds of rest; <= 0: 0.5 s */
     int all_frames;         /* 1: errors and found/visible counted from frame 0, not only once the
                              * rates lock (to measure tracking before the lock) */
+    const double *distortion; /* k1 k2 p1 p2 k3 of every camera (NULL: none) */
+    /* the tracker given a wrong calibration: cameras swap_a and swap_b swapped (equal: not), and
+     * camera 1's translation scaled by t1_scale (0: 1) */
+    int swap_a, swap_b;
+    double t1_scale;
 } track_sim_config;
 
 typedef struct {
@@ -58,6 +63,7 @@ typedef struct {
     int lock_frame;                   /* first frame with rates locked (-1 never) */
     double heart_hz, resp_hz, true_heart_hz, true_resp_hz;
     sh_track_stats stats;
+    sh_track_calibration calibration; /* 3D: the tracker's calibration check at the end */
 } track_sim_result;
 
 void track_sim_default(track_sim_config *c);
