@@ -64,6 +64,28 @@ static __attribute__((format(printf, 3, 4))) void logm(const char *level, const 
 /* A repeating error is logged once until `ok` clears its guard. */
 #define LOG_ONCE(guard, ...) do { if (!(guard)) { logm(__VA_ARGS__); (guard) = 1; } } while (0)
 
+/* One frame to the display. The writer makes its segment anew when it finds it shrunk, unlinked
+ * or replaced under it (display.h); that is logged at most once a second (someone meddling could
+ * otherwise fill the log), as is a publish that fails (the name taken by another user). */
+static void display_publish(sh_display_writer *d, const sh_image *img, const sh_display_frame_info *info)
+{
+    static uint64_t remade_logged;
+    static int64_t last_log;
+    sh_status st = sh_display_writer_publish(d, img, info);
+    uint64_t remade = sh_display_writer_remade(d);
+    int64_t now = mono_ns();
+    if ((st != SH_OK || remade != remade_logged) && now - last_log >= 1000000000) {
+        if (st != SH_OK)
+            logm("ERROR", "main", "publish: %s", sh_error_message());
+        else
+            logm("WARN", "main", "display: the segment was shrunk, changed, unlinked or replaced under the daemon and "
+                 "made anew (generation %016llx; %llu times so far)",
+                 (unsigned long long)sh_display_writer_generation(d), (unsigned long long)remade);
+        remade_logged = remade;
+        last_log = now;
+    }
+}
+
 /* ---- signals ---- */
 static volatile sig_atomic_t sig_stop, sig_hup, sig_usr1;
 static void on_signal(int s)
@@ -345,8 +367,7 @@ int cmd_run(int argc, char **argv)
                 shown_info.residual_px = -1; /* capture_ns 0: no camera frame */
                 snprintf(shown_info.reason, sizeof shown_info.reason, "%s",
                          why == 1 ? "output camera lost" : "no sets with the output camera");
-                if (pl.disp && sh_display_writer_publish(pl.disp, &pl.black, &shown_info) != SH_OK)
-                    logm("ERROR", "main", "publish: %s", sh_error_message());
+                if (pl.disp) display_publish(pl.disp, &pl.black, &shown_info);
                 if (pl.rec && run_record_write(pl.rec, &pl.black) != SH_OK) { /* what was shown, PNGs numbered as the display */
                     logm("ERROR", "main", "[sink] record: %s; recording stopped", sh_error_message());
                     run_record_close(pl.rec);
@@ -380,8 +401,7 @@ int cmd_run(int argc, char **argv)
             }
             if (pl.disp) {
                 info.publish_ns = mono_ns();
-                if (sh_display_writer_publish(pl.disp, shown, &info) != SH_OK)
-                    logm("ERROR", "main", "publish: %s", sh_error_message());
+                display_publish(pl.disp, shown, &info);
             }
             if (pl.rec && run_record_write(pl.rec, shown) != SH_OK) {
                 logm("ERROR", "main", "[sink] record: %s; recording stopped", sh_error_message());
