@@ -65,26 +65,29 @@ static sh_status validate(const sh_display_header *h, size_t size)
     return SH_OK;
 }
 
-/* The header copied aside (under the guard: the object may be cut short meanwhile) and checked. */
+/* The header copied aside (under the guard: the object may be cut short meanwhile) and checked;
+ * r->geometry changes only to a valid header (a caller may look at it between two objects). */
 static sh_status reader_init(sh_display_reader *r)
 {
+    sh_display_header h;
     display_guard g;
     if (sigsetjmp(g.jump, 1)) return sh_error_set(SH_EFORMAT, "display: the segment was cut short while opening it");
     display_guard_enter(&g, r->base, r->size);
     /* Acquire, paired with the writer's release store of the magic: the fields copied next are
      * the ones written before it (a segment still being built shows magic 0 and is refused). */
     uint64_t magic = __atomic_load_n(&((const sh_display_header *)r->base)->magic, __ATOMIC_ACQUIRE);
-    memcpy(&r->geometry, r->base, sizeof r->geometry);
+    memcpy(&h, r->base, sizeof h);
     display_guard_leave();
-    r->geometry.magic = magic;
-    sh_status st = validate(&r->geometry, r->size);
+    h.magic = magic;
+    sh_status st = validate(&h, r->size);
     if (st != SH_OK) return st;
-    if (r->geometry.frame_bytes > r->stage_cap) {
+    if (h.frame_bytes > r->stage_cap) {
         free(r->stage);
         r->stage_cap = 0;
-        if (!(r->stage = malloc(r->geometry.frame_bytes))) return sh_error_set(SH_ENOMEM, "display: out of memory");
-        r->stage_cap = r->geometry.frame_bytes;
+        if (!(r->stage = malloc(h.frame_bytes))) return sh_error_set(SH_ENOMEM, "display: out of memory");
+        r->stage_cap = h.frame_bytes;
     }
+    r->geometry = h;
     return SH_OK;
 }
 

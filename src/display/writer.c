@@ -26,6 +26,7 @@
 
 struct sh_display_writer {
     char name[256];
+    char group[64];
     int has_group;
     gid_t gid;
     int fd;
@@ -147,8 +148,8 @@ static sh_status make_segment(sh_display_writer *w)
     } else if (fchmod(w->fd, SEGMENT_MODE) != 0) { /* 0640 regardless of the umask */
         st = sh_error_set(SH_EIO, "display: chmod %s: %s", name, strerror(errno));
     } else if (w->has_group && fchown(w->fd, (uid_t)-1, w->gid) != 0) {
-        st = sh_error_set(SH_EIO, "display: %s: cannot give the segment to group %u: %s", name,
-                          (unsigned)w->gid, strerror(errno));
+        st = sh_error_set(SH_EIO, "display: %s: cannot give the segment to group '%s': %s (the service must "
+                          "be a member of it)", name, w->group, strerror(errno));
     } else if (ftruncate(w->fd, (off_t)w->size) != 0) {
         st = sh_error_set(SH_EIO, "display: resize %s to %zu bytes: %s", name, w->size, strerror(errno));
     } else if (fstat(w->fd, &sb) != 0) {
@@ -208,6 +209,7 @@ sh_status sh_display_writer_create(const char *name, sh_pixfmt format, int width
         }
         w->has_group = 1;
         w->gid = g->gr_gid;
+        snprintf(w->group, sizeof w->group, "%s", group);
     }
     w->size = sizeof h + (size_t)h.slot_bytes * (size_t)slots;
     h.magic = SH_DISPLAY_MAGIC;

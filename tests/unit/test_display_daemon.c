@@ -350,12 +350,14 @@ static void test_hostile_writer(void **state)
     waitpid(d, &status, 0);
     double stop_s = now_s() - tk;
     note_stop();
-    const char *log = slurp("hostile.log"), *stats = strstr(log, "stats: ");
+    const char *log = slurp("hostile.log"), *stats = strstr(log, "stats: "), *remade = NULL;
+    for (const char *p = log; (p = strstr(p, "; ")) != NULL; p += 2)
+        if (strstr(p, " times so far") == strchr(p + 2, ' ')) remade = p + 2;
     long total = stats ? atol(stats + 7) : -1;
     printf("  %d hostile acts in %.1f s (%d fields flipped, %d truncations, %d replacements, %d unlinks): the daemon "
            "published about %.0f frames meanwhile (STATUS frame rates; %ld in all in its %.1f s), %d watchdog pings, "
-           "at most %.2f s apart; exit %d %.2f s after SIGTERM\n", acts, t1 - t0, count[0], count[1], count[2],
-           count[3], during, total, tk - note.t[ready], pings, worst, WIFEXITED(status) ? WEXITSTATUS(status) : -1, stop_s);
+           "at most %.2f s apart; segment made anew %ld times (the daemon's last WARN); exit %d %.2f s after SIGTERM\n", acts, t1 - t0, count[0], count[1], count[2],
+           count[3], during, total, tk - note.t[ready], pings, worst, remade ? atol(remade) : 0L, WIFEXITED(status) ? WEXITSTATUS(status) : -1, stop_s);
     if (during < (t1 - t0) * HOSTILE_FPS / 2)
         fail_msg("only %.0f frames in %.1f s at %d fps: %s", during, t1 - t0, HOSTILE_FPS, log);
     if (worst >= 1.0) fail_msg("the watchdog pings were %.2f s apart (WatchdogSec 1 s)", worst);
