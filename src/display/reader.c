@@ -27,7 +27,7 @@ struct sh_display_reader {
     const uint8_t *base;        /* NULL between two objects */
     size_t size;
     int mapped;
-    int have_object, left_closed; /* the object last mapped, and whether it was left closed */
+    int have_object;            /* the object last mapped (kept after it is left) */
     dev_t dev;
     ino_t ino;
     sh_display_header geometry; /* validated copy: the segment's own fields are not trusted again */
@@ -123,10 +123,6 @@ static sh_status map_name(sh_display_reader *r)
                             r->name, (unsigned)(sb.st_mode & 07777), owner);
     }
     int same = r->have_object && sb.st_dev == r->dev && sb.st_ino == r->ino;
-    if (same && r->left_closed) {
-        close(fd);
-        return sh_error_set(SH_EIO, "display: %s: the daemon stopped (waiting for the next one)", r->name);
-    }
     if (sb.st_size < (off_t)sizeof(sh_display_header)) {
         close(fd);
         return sh_error_set(SH_EFORMAT, "display: %s: not a stillheart display segment", r->name);
@@ -150,7 +146,6 @@ static sh_status map_name(sh_display_reader *r)
      * a scribbled magic): only frames newer than the last one returned */
     if (!same) r->last_sequence = 0;
     r->have_object = 1;
-    r->left_closed = 0;
     r->dev = sb.st_dev;
     r->ino = sb.st_ino;
     r->next_name_check = display_now_ns() + NAME_CHECK_NS;
@@ -282,7 +277,7 @@ sh_status sh_display_reader_next(sh_display_reader *r, sh_image *frame,
     const sh_display_header *g = &r->geometry;
     int64_t deadline = timeout_ms < 0 ? INT64_MAX : display_now_ns() + (int64_t)timeout_ms * 1000000;
     for (;;) {
-        int left = 0;
+        int left = 0, closed = 0;
         if (!r->base) {
             sh_status st = map_name(r);
             if (st == SH_EINVAL) return st;
@@ -313,19 +308,24 @@ sh_status sh_display_reader_next(sh_display_reader *r, sh_image *frame,
             if (!r->name[0] && what == POLL_CUT_SHORT) return sh_error_set(SH_EIO, "display: the segment was cut short");
             if (what == POLL_CLOSED && !r->follow)
                 return sh_error_set(SH_EEOF, "display: the writer closed the segment");
+            /* Closed, following: the segment stays mapped (a new daemon retires it, magic 0, or
+             * the name is found to stand for another object; the writer, if it was not really
+             * gone, clears the flag with its next publish) and the name is looked at each time. */
+            closed = what == POLL_CLOSED;
             int64_t now = display_now_ns();
-            if (r->name[0] && (what == POLL_RETIRED || what == POLL_CUT_SHORT || what == POLL_CLOSED ||
-                               (now >= r->next_name_check && !name_holds_ours(r)))) {
-                r->left_closed = what == POLL_CLOSED;
+            if (r->name[0] && (what == POLL_RETIRED || what == POLL_CUT_SHORT ||
+                               ((closed || now >= r->next_name_check) && !name_holds_ours(r)))) {
                 unmap(r);
                 left = 1; /* the name again at once: a new daemon's segment may be there */
+            } else if (now >= r->next_name_check) {
+                r->next_name_check = now + NAME_CHECK_NS;
             }
-            if (now >= r->next_name_check) r->next_name_check = now + NAME_CHECK_NS;
         }
         if (display_now_ns() >= deadline)
             return sh_error_set(SH_EIO, "display: no new frame in %d ms%s", timeout_ms, r->base ? "" : " (no segment)");
-        /* 0.5 ms: a frame period is 16 ms or more; 2 ms between two opens of the name */
-        if (!left) display_sleep_us(r->base ? 500 : 2000);
+        /* 0.5 ms: a frame period is 16 ms or more; 2 ms between two opens of the name, 5 ms
+         * between two looks at the name of a closed segment */
+        if (!left) display_sleep_us(!r->base ? 2000 : closed ? 5000 : 500);
     }
 }
 

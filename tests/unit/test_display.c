@@ -809,6 +809,45 @@ static void test_truncated_under_reader_and_writer(void **state)
     sh_image_destroy(&got);
 }
 
+/* A reader that follows: the writer closes its segment (a daemon stopped cleanly) and a new one
+ * starts under the name: the reader waits through the close and returns the new writer's frames,
+ * of its generation; a reader that does not follow ends at the close. */
+static void test_follow_through_a_clean_stop(void **state)
+{
+    (void)state;
+    sh_display_writer *a, *b;
+    assert_int_equal(sh_display_writer_create(name, SH_PIX_GRAY8, CW, CH, 3, 0, NULL, &a), SH_OK);
+    sh_image img, got;
+    assert_int_equal(sh_image_create(&img, SH_PIX_GRAY8, CW, CH), SH_OK);
+    assert_int_equal(sh_image_create(&got, SH_PIX_GRAY8, CW, CH), SH_OK);
+    seal(&img, 1);
+    assert_int_equal(sh_display_writer_publish(a, &img, &(sh_display_frame_info){.capture_ns = 1}), SH_OK);
+    sh_display_reader_options follow = {.owner_uid = SH_DISPLAY_OWNER_SELF, .follow = 1};
+    sh_display_reader *rf, *rn;
+    assert_int_equal(sh_display_reader_open(name, &follow, 0, &rf), SH_OK);
+    assert_int_equal(sh_display_reader_open(name, NULL, 0, &rn), SH_OK);
+    sh_display_frame_info info;
+    assert_int_equal(sh_display_reader_next(rf, &got, &info, 100), SH_OK);
+    assert_int_equal(sh_display_reader_next(rn, &got, &info, 100), SH_OK);
+    sh_display_writer_destroy(a, 0);
+    assert_int_equal(sh_display_reader_next(rn, &got, &info, 100), SH_EEOF);
+    assert_int_equal(sh_display_reader_next(rf, &got, &info, 50), SH_EIO); /* waiting for the next */
+    assert_int_equal(sh_display_writer_create(name, SH_PIX_GRAY8, CW, CH, 3, 0, NULL, &b), SH_OK);
+    seal(&img, 7);
+    assert_int_equal(sh_display_writer_publish(b, &img, &(sh_display_frame_info){.capture_ns = 7}), SH_OK);
+    assert_int_equal(sh_display_reader_next(rf, &got, &info, 1000), SH_OK);
+    uint32_t n;
+    assert_true(sealed(&got, &n));
+    assert_int_equal(n, 7);
+    assert_int_equal(info.sequence, 1); /* the new writer's first, though lower than the last seen */
+    assert_int_equal(sh_display_reader_header(rf)->generation, sh_display_writer_generation(b));
+    sh_display_reader_close(rf);
+    sh_display_reader_close(rn);
+    sh_display_writer_destroy(b, 1);
+    sh_image_destroy(&img);
+    sh_image_destroy(&got);
+}
+
 /* Two writers on one name: the second is refused while the first runs (it holds its segment), so
  * two daemons never take the name from each other frame after frame. */
 static void test_second_writer_refused(void **state)
@@ -861,6 +900,7 @@ int main(int argc, char **argv)
         cmocka_unit_test(test_cat_waits_for_the_segment),
         cmocka_unit_test(test_truncated_under_reader_and_writer),
         cmocka_unit_test(test_second_writer_refused),
+        cmocka_unit_test(test_follow_through_a_clean_stop),
         cmocka_unit_test(test_bad_arguments),
     };
     return cmocka_run_group_tests(tests, setup, NULL);
