@@ -43,6 +43,26 @@ static int64_t mono_ns(void)
     return (int64_t)ts.tv_sec * 1000000000 + ts.tv_nsec;
 }
 
+/* One frame to the display. The writer makes its segment anew when it finds it shrunk, unlinked
+ * or replaced under it (display.h); that is logged at most once a second (someone meddling could
+ * otherwise fill the log), as is a publish that fails (the name taken by another user). */
+static void display_publish(sh_display_writer *d, const sh_image *img, const sh_display_frame_info *info)
+{
+    static sh_log_limit failed = {.period_s = 1}, remade_lim = {.period_s = 1};
+    static uint64_t remade_logged;
+    if (sh_display_writer_publish(d, img, info) != SH_OK) {
+        sh_log_limited(&failed, SH_LOG_ERROR, "publish: %s", sh_error_message());
+        return;
+    }
+    uint64_t remade = sh_display_writer_remade(d);
+    if (remade != remade_logged) {
+        sh_log_limited(&remade_lim, SH_LOG_WARN, "display: the segment was shrunk, changed, unlinked or replaced "
+                       "under the daemon and made anew (generation %016llx; %llu times so far)",
+                       (unsigned long long)sh_display_writer_generation(d), (unsigned long long)remade);
+        remade_logged = remade;
+    }
+}
+
 /* ---- signals ---- */
 static volatile sig_atomic_t sig_stop, sig_hup, sig_usr1;
 static void on_signal(int s)
@@ -331,8 +351,7 @@ int cmd_run(int argc, char **argv)
                 shown_info.residual_px = -1; /* capture_ns 0: no camera frame */
                 snprintf(shown_info.reason, sizeof shown_info.reason, "%s",
                          why == 1 ? "output camera lost" : "no sets with the output camera");
-                if (pl.disp && sh_display_writer_publish(pl.disp, &pl.black, &shown_info) != SH_OK)
-                    sh_log_error("publish: %s", sh_error_message());
+                if (pl.disp) display_publish(pl.disp, &pl.black, &shown_info);
                 if (pl.rec && run_record_write(pl.rec, &pl.black) != SH_OK) { /* what was shown, PNGs numbered as the display */
                     sh_log_error("[sink] record: %s; recording stopped", sh_error_message());
                     run_record_close(pl.rec);
@@ -366,8 +385,7 @@ int cmd_run(int argc, char **argv)
             }
             if (pl.disp) {
                 info.publish_ns = mono_ns();
-                if (sh_display_writer_publish(pl.disp, shown, &info) != SH_OK)
-                    sh_log_error("publish: %s", sh_error_message());
+                display_publish(pl.disp, shown, &info);
             }
             if (pl.rec && run_record_write(pl.rec, shown) != SH_OK) {
                 sh_log_error("[sink] record: %s; recording stopped", sh_error_message());

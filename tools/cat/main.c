@@ -13,6 +13,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <pwd.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -22,18 +23,29 @@
 static void usage(FILE *out)
 {
     fprintf(out,
-        "usage: stillheart-cat [--name NAME] [--count N] [--timeout S] > OUT.y4m\n\n"
+        "usage: stillheart-cat [--name NAME] [--owner USER] [--count N] [--timeout S] [--follow] > OUT.y4m\n\n"
         "Reads the frames the stillheart daemon publishes to its shared-memory display buffer\n"
         "and writes them to standard output as YUV4MPEG2 (mono, 4:2:0 or 4:4:4 as published;\n"
         "RGB frames are converted to 4:4:4, BT.601 full range). Starts with the newest frame;\n"
-        "a frame the reader could not keep up with is skipped, never repeated.\n\n"
+        "a frame the reader could not keep up with is skipped, never repeated. A daemon that is\n"
+        "restarted (killed, crashed, or replaced by a new one) is followed: its new segment is\n"
+        "opened and its frames written on, never one of the old daemon's after them.\n\n"
         "options:\n"
         "  --name NAME     shared-memory segment (default %s)\n"
+        "  --owner USER    user name or uid the segment must belong to (default: the user running\n"
+        "                  stillheart-cat); a segment of anyone else is refused, naming its owner\n"
         "  --count N       stop after N frames (default: until the daemon stops)\n"
-        "  --timeout S     give up when no new frame arrives for S seconds (default 5); a segment\n"
-        "                  that is not there yet (the daemon starting) is waited for as long\n"
-        "  -v, --verbose   each frame's status (stabilized / degraded / raw and why) on stderr\n"
-        "  --help          this text\n",
+        "  --timeout S     give up when no new frame arrives for S seconds (default 5; 0: wait\n"
+        "                  forever); a segment that is not there yet (the daemon starting, or\n"
+        "                  restarting) is waited for as long\n"
+        "  --follow        when the daemon stops cleanly, wait for the next one (within the\n"
+        "                  timeout) instead of ending the stream\n"
+        "  -v, --verbose   each frame's status (stabilized / degraded / raw and why) and the\n"
+        "                  segment's generation on stderr\n"
+        "  --help          this text\n\n"
+        "Exit status: 0 at --count or the daemon's clean stop (or a signal: SIGINT, SIGTERM end\n"
+        "the frame in hand first), 1 an error or the timeout, 2 bad usage, 3 the daemon came back\n"
+        "with another frame size (a Y4M stream has one size: start stillheart-cat again).\n",
         SH_DISPLAY_DEFAULT_NAME);
 }
 
@@ -94,7 +106,9 @@ int main(int argc, char **argv)
     static const struct option options[] = {
         {"name", required_argument, 0, 'n'}, {"count", required_argument, 0, 'c'},
         {"timeout", required_argument, 0, 't'}, {"verbose", no_argument, 0, 'v'},
+        {"owner", required_argument, 0, 'o'}, {"follow", no_argument, 0, 'f'},
         {"help", no_argument, 0, 'h'}, {0, 0, 0, 0}};
+    sh_display_reader_options ropt = {.owner_uid = SH_DISPLAY_OWNER_SELF, .follow = 0};
     const char *name = SH_DISPLAY_DEFAULT_NAME;
     long count = 0;
     double timeout = 5;
@@ -112,12 +126,26 @@ int main(int argc, char **argv)
             break;
         case 't':
             timeout = strtod(optarg, &end);
-            if (*end || !(timeout > 0) || timeout > 86400) {
-                fprintf(stderr, "stillheart-cat: --timeout: '%s' is not a number of seconds in (0, 86400]\n", optarg);
+            if (*end || !(timeout >= 0) || timeout > 86400) {
+                fprintf(stderr, "stillheart-cat: --timeout: '%s' is not a number of seconds in [0, 86400]\n", optarg);
                 return 2;
             }
             break;
         case 'v': verbose = 1; break;
+        case 'f': ropt.follow = 1; break;
+        case 'o': {
+            long uid = strtol(optarg, &end, 10);
+            struct passwd *pw = getpwnam(optarg);
+            if (pw) {
+                ropt.owner_uid = pw->pw_uid;
+            } else if (*optarg && !*end && uid >= 0 && uid < 0x7fffffffL) {
+                ropt.owner_uid = uid;
+            } else {
+                fprintf(stderr, "stillheart-cat: --owner: no user '%s'\n", optarg);
+                return 2;
+            }
+            break;
+        }
         case 'h': usage(stdout); return 0;
         default: usage(stderr); return 2;
         }
@@ -133,16 +161,16 @@ int main(int argc, char **argv)
     sigemptyset(&sa.sa_mask);
     sigaction(SIGINT, &sa, NULL);
     sigaction(SIGTERM, &sa, NULL);
-    /* the daemon may be starting: its segment appears, then becomes valid, within the timeout */
+    /* the daemon may be starting: its segment appears, then becomes valid, within the timeout
+     * (waited for in short steps, so that a signal ends the wait at once) */
     sh_display_reader *r = NULL;
-    double give_up = now_s() + timeout;
-    while (sh_display_reader_open(name, &r) != SH_OK) {
-        if (stop_signal || now_s() >= give_up) {
+    double give_up = timeout > 0 ? now_s() + timeout : INFINITY;
+    sh_status ost;
+    while ((ost = sh_display_reader_open(name, &ropt, 100, &r)) != SH_OK) {
+        if (ost == SH_EINVAL || stop_signal || now_s() >= give_up) {
             fprintf(stderr, "stillheart-cat: %s\n", sh_error_message());
             return stop_signal ? 128 + stop_signal : 1;
         }
-        struct timespec pause = {0, 20 * 1000000};
-        nanosleep(&pause, NULL);
     }
     const sh_display_header *h = sh_display_reader_header(r);
     sh_pixfmt format = (sh_pixfmt)h->format;
@@ -183,9 +211,17 @@ int main(int argc, char **argv)
         /* short waits, so that a signal ends the wait at once; the timeout counts from the
          * last frame */
         sh_status st = sh_display_reader_next(r, &frame, &info, 100);
-        if (st == SH_EIO && !stop_signal && now_s() - last_frame < timeout) continue;
+        if (st == SH_EIO && !stop_signal && (timeout == 0 || now_s() - last_frame < timeout)) continue;
         if (stop_signal) break;
         if (st == SH_EEOF && count == 0) break; /* the daemon stopped cleanly */
+        if (st == SH_ERANGE) {
+            const sh_display_header *now = sh_display_reader_header(r);
+            fprintf(stderr, "stillheart-cat: %s: the daemon came back with %ux%u %s frames, this stream is %ux%u %s: "
+                    "ending it (start stillheart-cat again)\n", name, now->width, now->height,
+                    sh_pixfmt_name((sh_pixfmt)now->format), yh.width, yh.height, sh_pixfmt_name(format));
+            rc = 3;
+            goto done;
+        }
         if (st == SH_EIO) {
             fprintf(stderr, "stillheart-cat: %s: no new frame in %g s\n", name, timeout);
             goto done;
@@ -196,10 +232,12 @@ int main(int argc, char **argv)
         }
         last_frame = now_s();
         if (verbose)
-            fprintf(stderr, "frame %llu %s%s%s markers %u residual %.3f\n", (unsigned long long)info.sequence,
+            fprintf(stderr, "frame %llu %s%s%s markers %u residual %.3f generation %016llx\n",
+                    (unsigned long long)info.sequence,
                     info.status == SH_DISPLAY_STABILIZED ? "stabilized"
                     : info.status == SH_DISPLAY_DEGRADED ? "degraded" : "raw",
-                    info.reason[0] ? ": " : "", info.reason, info.markers_used, (double)info.residual_px);
+                    info.reason[0] ? ": " : "", info.reason, info.markers_used, (double)info.residual_px,
+                    (unsigned long long)sh_display_reader_header(r)->generation);
         if (format == SH_PIX_RGB24) rgb_to_yuv444(&frame, &converted);
         if (sh_y4m_writer_write(w, format == SH_PIX_RGB24 ? &converted : &frame) != SH_OK) {
             fprintf(stderr, "stillheart-cat: %s\n", sh_error_message());

@@ -1,0 +1,52 @@
+/* Helpers of the display's writer and reader (display_internal.h). */
+#include <pwd.h>
+#include <stdio.h>
+#include <time.h>
+
+#include "display_internal.h"
+
+_Static_assert(sizeof(sh_display_header) == 256, "the header's size is part of the format");
+_Static_assert(sizeof(sh_display_frame_info) == 80, "frame info is part of the format");
+_Static_assert(sizeof(display_slot_header) == SLOT_HEADER_BYTES, "slot header is part of the format");
+_Static_assert(SH_DISPLAY_SLOT_HEADER_BYTES == SLOT_HEADER_BYTES, "display.h says the slot header's size");
+
+int64_t display_now_ns(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (int64_t)ts.tv_sec * 1000000000 + ts.tv_nsec;
+}
+
+void display_sleep_us(long us)
+{
+    struct timespec t = {us / 1000000, (us % 1000000) * 1000};
+    nanosleep(&t, NULL);
+}
+
+sh_status display_layout(sh_display_header *h, sh_pixfmt format, int width, int height)
+{
+    sh_image probe;
+    uint8_t dummy;
+    if (sh_image_wrap(&probe, format, width, height, &dummy) != SH_OK) return SH_EINVAL;
+    uint32_t offset = 0;
+    h->num_planes = (uint32_t)probe.num_planes;
+    for (int p = 0; p < probe.num_planes; p++) {
+        uint32_t row = (uint32_t)probe.plane[p].width * (uint32_t)sh_pixfmt_channels(format);
+        h->stride[p] = (row + 15u) & ~15u;
+        h->plane_offset[p] = offset;
+        offset += h->stride[p] * (uint32_t)probe.plane[p].height;
+    }
+    h->frame_bytes = offset;
+    h->slot_bytes = (SLOT_HEADER_BYTES + offset + 63u) & ~63u;
+    return SH_OK;
+}
+
+void display_describe_uid(uid_t uid, char *out, size_t cap)
+{
+    struct passwd pw, *found = NULL;
+    char buf[1024];
+    if (getpwuid_r(uid, &pw, buf, sizeof buf, &found) == 0 && found)
+        snprintf(out, cap, "user %s (uid %u)", found->pw_name, (unsigned)uid);
+    else
+        snprintf(out, cap, "uid %u", (unsigned)uid);
+}
