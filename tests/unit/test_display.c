@@ -713,13 +713,17 @@ static void test_cat_stopped_mid_frame_writes_whole_frames(void **state)
 
 /* stillheart-cat started before the daemon has made its segment (as a test or a display
  * started beside it does) waits for it within its timeout, rather than writing nothing. */
-static void test_cat_waits_for_the_segment(void **state)
+static void cat_waits(int empty_first)
 {
-    (void)state;
     char out[] = "/tmp/stillheart-cat-XXXXXX";
     int fd = mkstemp(out);
     assert_true(fd >= 0);
     shm_unlink(name);
+    if (empty_first) { /* the name made, nothing in it yet */
+        int e = shm_open(name, O_RDWR | O_CREAT | O_EXCL, 0640);
+        assert_true(e >= 0);
+        close(e);
+    }
     pid_t child = fork();
     assert_true(child >= 0);
     if (child == 0) {
@@ -748,6 +752,23 @@ static void test_cat_waits_for_the_segment(void **state)
     assert_true(whole_frames(d, len, &frames));
     assert_int_equal(frames, 2);
     sh_display_writer_destroy(job.w, 1);
+}
+
+static void test_cat_waits_for_the_segment(void **state)
+{
+    (void)state;
+    cat_waits(0);
+}
+
+/* Issue 21's second symptom, forced: stillheart-cat finds the name while the daemon is between
+ * making the segment and writing its header (a test's "wait until the name exists" loop lets it
+ * in exactly then; under qemu-aarch64 the window is long). Before a72d68c it refused at once,
+ * "not a stillheart display segment", and wrote nothing (the empty Y4M the test's parser choked
+ * on); it must wait for the header within its timeout and write whole frames. */
+static void test_cat_waits_through_an_empty_segment(void **state)
+{
+    (void)state;
+    cat_waits(1);
 }
 
 /* The segment truncated under a reader opened by name, and then under the writer: neither dies
@@ -898,6 +919,7 @@ int main(int argc, char **argv)
         cmocka_unit_test(test_timeout_leaves_the_last_whole_frame),
         cmocka_unit_test(test_cat_stopped_mid_frame_writes_whole_frames),
         cmocka_unit_test(test_cat_waits_for_the_segment),
+        cmocka_unit_test(test_cat_waits_through_an_empty_segment),
         cmocka_unit_test(test_truncated_under_reader_and_writer),
         cmocka_unit_test(test_second_writer_refused),
         cmocka_unit_test(test_follow_through_a_clean_stop),
