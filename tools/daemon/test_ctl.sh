@@ -1,8 +1,9 @@
 #!/bin/sh
 # Control socket tests (run by make check as build/tests/test_ctl): who may do what, judged from
 # the peer's credentials, every command logged with uid and pid; idle clients cannot lock others
-# out (100 idle connections, from another uid and from the same one, and `stillheart ctl status`
-# still answers within 100 ms, the issue's bound); a silent client is dropped. Another user is
+# out (100 idle connections, from another uid and from the same one, and the daemon still answers
+# status within 100 ms, the issue's bound, on the socket and through `stillheart ctl status`); a
+# silent client is dropped. Another user is
 # played with setpriv (uid 65534), so the tests need root; without it they say so and pass none.
 # Prints cmocka-style summary lines.
 B=${BUILD:-$(dirname "$(readlink -f "$0")")/..}
@@ -90,8 +91,10 @@ time.sleep(0.3)
 if daemon_log().count("new reference requested (control socket)") != refs0 + 1: f.append("no reference taken: " + daemon_log()[-300:])
 result("uid 65534 in [run] control_group: reference accepted and logged", f)
 
-# 100 idle connections held by a child (another uid, then root as the asking client), then
-# `stillheart ctl status` timed from spawn to exit
+# 100 idle connections held by a child (another uid, then root as the asking client). Timed twice:
+# the daemon's answer on the socket (connect to reply, as stillheart ctl speaks), and `stillheart
+# ctl status` from spawn to exit less the program's own start-up (`stillheart ctl --help`, the
+# least of three, just before: under ASan and on a loaded machine start-up alone takes 0.1 s)
 HOLD = r'''
 import socket, sys, time
 s = []
@@ -99,16 +102,36 @@ for i in range(100):
     c = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM); c.settimeout(5); c.connect(sys.argv[1]); s.append(c)
 print("held", flush=True); time.sleep(30)
 '''
+def answer_ms():
+    t0 = time.monotonic()
+    c = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM); c.settimeout(5); c.connect(ctl); c.sendall(b"status\n")
+    out = b""
+    while True:
+        b = c.recv(256)
+        if not b: break
+        out += b
+    c.close()
+    return (time.monotonic() - t0) * 1000, out.decode().strip()
+def startup_ms():
+    best = None
+    for i in range(3):
+        t0 = time.monotonic(); subprocess.run([exe, "ctl", "--help"], capture_output=True); dt = (time.monotonic() - t0) * 1000
+        best = dt if best is None or dt < best else best
+    return best
 for who, name in ((as_user([]), "uid 65534"), ([], "root, the asking uid itself")):
     f = []
     holder = subprocess.Popen(who + [sys.executable, "-c", HOLD, ctl], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     if holder.stdout.readline().strip() != "held": f.append("the holder could not open 100 connections: " + holder.stderr.read()[-300:])
+    sock_ms, out = answer_ms()
+    if sock_ms >= 100 or not out.startswith("frame "): f.append("socket answer %r after %.1f ms" % (out, sock_ms))
+    start = startup_ms()
     t0 = time.monotonic(); rc, out, err = ask("status"); dt = (time.monotonic() - t0) * 1000
-    print("status with 100 idle connections from %s: %.1f ms (rc %d)" % (name, dt, rc))
-    if rc or not out: f.append("rc %d %r %r" % (rc, out, err))
-    if dt >= 100: f.append("answered after %.1f ms, over 100 ms" % dt)
+    print("100 idle connections from %s: the daemon answered in %.1f ms; stillheart ctl status took %.1f ms, "
+          "%.1f ms of them its start-up" % (name, sock_ms, dt, start))
+    if rc or not out.startswith("frame "): f.append("stillheart ctl status: rc %d %r %r" % (rc, out, err))
+    if dt - start >= 100: f.append("stillheart ctl status answered %.1f ms after its start-up, over 100 ms" % (dt - start))
     holder.kill(); holder.wait()
-    result("100 idle connections from %s: stillheart ctl status within 100 ms" % name, f)
+    result("100 idle connections from %s: status answered within 100 ms" % name, f)
 
 f = []
 c = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM); c.settimeout(5); c.connect(ctl); c.sendall(b"stat")
