@@ -323,11 +323,11 @@ sh_status run_ctl_open(const char *path, const char *control_group, const char *
     struct stat sb;
     if (c->fd >= 0 && lstat(path, &sb) == 0 && S_ISSOCK(sb.st_mode)) unlink(path);
     /* 0666: rights come from the peer's credentials (above), and every group given one must
-     * reach the socket; the directory around it decides who can reach it at all */
-    mode_t old = umask(0111);
-    int ok = c->fd >= 0 && bind(c->fd, (struct sockaddr *)&a, sizeof a) == 0 && listen(c->fd, 128) == 0 &&
-             lstat(path, &sb) == 0 && pipe2(c->wake, O_CLOEXEC | O_NONBLOCK) == 0;
-    umask(old);
+     * reach the socket; the directory around it decides who can reach it at all. chmod after
+     * bind, not umask around it: the umask is the whole process's, and other threads create
+     * files (recordings) meanwhile. */
+    int ok = c->fd >= 0 && bind(c->fd, (struct sockaddr *)&a, sizeof a) == 0 && chmod(path, 0666) == 0 &&
+             listen(c->fd, 128) == 0 && lstat(path, &sb) == 0 && pipe2(c->wake, O_CLOEXEC | O_NONBLOCK) == 0;
     if (ok) {
         c->dev = sb.st_dev;
         c->ino = sb.st_ino;
