@@ -319,9 +319,21 @@ sh_status run_ctl_open(const char *path, const char *control_group, const char *
         return st;
     }
     c->fd = socket(AF_UNIX, SOCK_STREAM | SOCK_NONBLOCK | SOCK_CLOEXEC, 0);
-    /* a socket left by a crashed daemon is replaced; anything else at that path is not */
+    /* a socket left by a crashed daemon is replaced; one a running daemon serves, or anything
+     * else at that path, is not */
     struct stat sb;
-    if (c->fd >= 0 && lstat(path, &sb) == 0 && S_ISSOCK(sb.st_mode)) unlink(path);
+    if (c->fd >= 0 && lstat(path, &sb) == 0 && S_ISSOCK(sb.st_mode)) {
+        int probe = socket(AF_UNIX, SOCK_STREAM | SOCK_NONBLOCK | SOCK_CLOEXEC, 0);
+        int live = probe >= 0 && (connect(probe, (struct sockaddr *)&a, sizeof a) == 0 || errno == EAGAIN);
+        if (probe >= 0) close(probe);
+        if (live) {
+            close(c->fd);
+            pthread_mutex_destroy(&c->mu);
+            free(c);
+            return sh_error_set(SH_EIO, "%s: in use by a running daemon", path);
+        }
+        unlink(path);
+    }
     /* 0666: rights come from the peer's credentials (above), and every group given one must
      * reach the socket; the directory around it decides who can reach it at all. chmod after
      * bind, not umask around it: the umask is the whole process's, and other threads create

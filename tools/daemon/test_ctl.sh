@@ -36,6 +36,8 @@ w, h = 160, 120
 with open(T + "/in.y4m", "wb") as f:
     f.write(b"YUV4MPEG2 W%d H%d F30:1 Ip A1:1 C420jpeg\n" % (w, h))
     for i in range(10): f.write(b"FRAME\n" + bytes([100 + i]) * (w * h) + b"\x80" * (w * h // 2))
+# a socket left at the path by a crashed daemon (bound, nobody listening): replaced at start
+stale = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM); stale.bind(ctl); stale.close()
 log = open(T + "/daemon.log", "w")
 d = subprocess.Popen([exe, "run", "--source", "y4m:" + T + "/in.y4m", "--loop", "--realtime", "--sink", "none",
                       "--control", ctl, "--control-group", cg.gr_name, "--group", dg.gr_name], stderr=log)
@@ -143,6 +145,14 @@ if got != b"" or dt > 3: f.append("a client that never finished its line was not
 time.sleep(1.1)
 if "sent no command within 1000 ms" not in daemon_log(): f.append("the drops were not logged: " + daemon_log()[-300:])
 result("a silent client is dropped (%.2f s) and the drops logged" % dt, f)
+
+f = []
+p = subprocess.run([exe, "run", "--source", "y4m:" + T + "/in.y4m", "--sink", "none", "--control", ctl, "--quiet"],
+                   capture_output=True, text=True, timeout=20)
+if p.returncode == 0 or "in use by a running daemon" not in p.stderr: f.append("second daemon: rc %d %r" % (p.returncode, p.stderr[-200:]))
+rc, out, err = ask("status")
+if rc or not out.startswith("frame "): f.append("the first no longer answers: rc %d %r %r" % (rc, out, err))
+result("a second daemon on the same socket path is refused, the first answers on", f)
 
 d.terminate()
 try: rc = d.wait(timeout=5)
