@@ -278,7 +278,6 @@ run_reload run_pipeline_reload(run_pipeline *p, const sh_config *fresh, char *wh
     } else if (st == SH_OK && p->ctl &&
                (strcmp(fresh->control_group, old->control_group) || strcmp(fresh->group, old->group))) {
         if ((st = run_ctl_groups(p->ctl, fresh->control_group, fresh->group)) == SH_OK) c.ctl_groups = 1;
-        else st = sh_error_set(st, "[run] control: %s", sh_error_message());
     }
     if (st == SH_OK && !c.same_name) {
         n.disp = NULL;

@@ -39,8 +39,11 @@ with open(T + "/in.y4m", "wb") as f:
 # a socket left at the path by a crashed daemon (bound, nobody listening): replaced at start
 stale = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM); stale.bind(ctl); stale.close()
 log = open(T + "/daemon.log", "w")
-d = subprocess.Popen([exe, "run", "--source", "y4m:" + T + "/in.y4m", "--loop", "--realtime", "--sink", "none",
-                      "--control", ctl, "--control-group", cg.gr_name, "--group", dg.gr_name], stderr=log)
+def write_ini(control_group, group):
+    with open(T + "/ctl.ini", "w") as f: f.write("[run]\ncontrol_group = %s\n[sink]\ngroup = %s\n" % (control_group, group))
+write_ini(cg.gr_name, dg.gr_name)
+d = subprocess.Popen([exe, "run", "--config", T + "/ctl.ini", "--source", "y4m:" + T + "/in.y4m", "--loop", "--realtime",
+                      "--sink", "none", "--control", ctl], stderr=log)
 for i in range(100):
     if os.path.exists(ctl): break
     time.sleep(0.05)
@@ -145,6 +148,29 @@ if got != b"" or dt > 3: f.append("a client that never finished its line was not
 time.sleep(1.1)
 if "sent no command within 1000 ms" not in daemon_log(): f.append("the drops were not logged: " + daemon_log()[-300:])
 result("a silent client is dropped (%.2f s) and the drops logged" % dt, f)
+
+# a reload applies new groups to the running socket; a group that does not exist is refused
+def reload(mark):
+    d.send_signal(1)  # SIGHUP
+    for i in range(100):
+        text = daemon_log()[mark:]
+        if "config reloaded" in text or "reload refused" in text: return text
+        time.sleep(0.05)
+    return daemon_log()[mark:]
+f = []
+write_ini(dg.gr_name, dg.gr_name)
+text = reload(len(daemon_log()))
+if "control groups" not in text: f.append("reload: " + text[-300:])
+rc, out, err, lines = ask_logged("reference", as_user([dg.gr_gid]))
+if rc or out != "ok: new reference requested": f.append("new control group's reference: rc %d %r %r" % (rc, out, err))
+rc, out, err, lines = ask_logged("reference", as_user([cg.gr_gid]))
+if rc != 1 or "not permitted" not in err: f.append("old control group's reference: rc %d %r %r" % (rc, out, err))
+write_ini("no-such-group-sh", dg.gr_name)
+text = reload(len(daemon_log()))
+if "reload refused" not in text or "no group 'no-such-group-sh'" not in text: f.append("unknown group reload: " + text[-300:])
+rc, out, err, lines = ask_logged("reference", as_user([dg.gr_gid]))
+if rc or out != "ok: new reference requested": f.append("after the refused reload: rc %d %r %r" % (rc, out, err))
+result("reload: new groups applied to the running socket, an unknown group refused and the running ones kept", f)
 
 f = []
 p = subprocess.run([exe, "run", "--source", "y4m:" + T + "/in.y4m", "--sink", "none", "--control", ctl, "--quiet"],
