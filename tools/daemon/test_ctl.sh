@@ -98,8 +98,8 @@ result("uid 65534 in [run] control_group: reference accepted and logged", f)
 
 # 100 idle connections held by a child (another uid, then root as the asking client). Timed twice:
 # the daemon's answer on the socket (connect to reply, as stillheart ctl speaks), and `stillheart
-# ctl status` from spawn to exit less the program's own start-up (`stillheart ctl --help`, the
-# least of three, just before: under ASan and on a loaded machine start-up alone takes 0.1 s)
+# ctl status` from spawn to exit less the program's own start-up (`stillheart ctl --help`), each
+# the least of three (under ASan on a loaded machine the start-up alone takes 0.1 s)
 HOLD = r'''
 import socket, sys, time
 s = []
@@ -130,10 +130,13 @@ for who, name in ((as_user([]), "uid 65534"), ([], "root, the asking uid itself"
     sock_ms, out = answer_ms()
     if sock_ms >= 100 or not out.startswith("frame "): f.append("socket answer %r after %.1f ms" % (out, sock_ms))
     start = startup_ms()
-    t0 = time.monotonic(); rc, out, err = ask("status"); dt = (time.monotonic() - t0) * 1000
+    dt = None
+    for i in range(3):  # the least of three, as the start-up: a load spike on a shared machine is not the daemon's
+        t0 = time.monotonic(); rc, out, err = ask("status"); t = (time.monotonic() - t0) * 1000
+        dt = t if dt is None or t < dt else dt
+        if rc or not out.startswith("frame "): f.append("stillheart ctl status: rc %d %r %r" % (rc, out, err))
     print("100 idle connections from %s: the daemon answered in %.1f ms; stillheart ctl status took %.1f ms, "
           "%.1f ms of them its start-up" % (name, sock_ms, dt, start))
-    if rc or not out.startswith("frame "): f.append("stillheart ctl status: rc %d %r %r" % (rc, out, err))
     if dt - start >= 100: f.append("stillheart ctl status answered %.1f ms after its start-up, over 100 ms" % (dt - start))
     holder.kill(); holder.wait()
     result("100 idle connections from %s: status answered within 100 ms" % name, f)
