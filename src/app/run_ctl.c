@@ -239,9 +239,10 @@ static client *make_room(run_ctl *c, uid_t uid)
     return &c->c[victim];
 }
 
-static void accept_all(run_ctl *c, int64_t now)
+/* At most CLIENTS a round: a flood of connections cannot keep the thread from answering. */
+static void accept_some(run_ctl *c, int64_t now)
 {
-    for (;;) {
+    for (int i = 0; i < CLIENTS; i++) {
         int fd = accept4(c->fd, NULL, NULL, SOCK_NONBLOCK | SOCK_CLOEXEC);
         if (fd < 0) return; /* EAGAIN, or a connection gone before we took it */
         uid_t uid;
@@ -275,7 +276,11 @@ static void *serve(void *arg)
             p[n++] = (struct pollfd){.fd = c->c[i].fd, .events = POLLIN};
         }
         if (c->dropped && (wait < 0 || wait > 1000)) wait = 1000;
-        if (poll(p, (nfds_t)n, (int)wait) < 0 && errno != EINTR) break;
+        if (poll(p, (nfds_t)n, (int)wait) < 0 && errno != EINTR) {
+            c->log("ERROR", "ctl", "control: poll: %s; the control socket answers no more until a restart",
+                   strerror(errno));
+            break;
+        }
         if (p[0].revents) break; /* run_ctl_close */
         now = now_ms();
         /* those who sent their line first: a flood of new connections cannot push them out */
@@ -290,7 +295,7 @@ static void *serve(void *arg)
         }
         for (int i = 0; i < CLIENTS; i++)
             if (c->c[i].fd >= 0 && now - c->c[i].since >= CTL_TIMEOUT_MS) count_drop(c, &c->c[i]);
-        if (p[1].revents) accept_all(c, now);
+        if (p[1].revents) accept_some(c, now);
         log_drops(c, now);
     }
     return NULL;
@@ -339,7 +344,7 @@ sh_status run_ctl_open(const char *path, const char *control_group, const char *
      * bind, not umask around it: the umask is the whole process's, and other threads create
      * files (recordings) meanwhile. */
     int ok = c->fd >= 0 && bind(c->fd, (struct sockaddr *)&a, sizeof a) == 0 && chmod(path, 0666) == 0 &&
-             listen(c->fd, 128) == 0 && lstat(path, &sb) == 0 && pipe2(c->wake, O_CLOEXEC | O_NONBLOCK) == 0;
+             listen(c->fd, SOMAXCONN) == 0 && lstat(path, &sb) == 0 && pipe2(c->wake, O_CLOEXEC | O_NONBLOCK) == 0;
     if (ok) {
         c->dev = sb.st_dev;
         c->ino = sb.st_ino;
