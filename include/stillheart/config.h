@@ -81,6 +81,7 @@ typedef struct {
     int threads;
     char points[SH_CONFIG_STR];      /* test mode: markers from a points file, no detection */
     char control[SH_CONFIG_STR];     /* control socket path ("" = none): reference, status */
+    char control_group[64];          /* may request a reference there ("" = the service's user and root only) */
     /* [sink] */
     char sink[SH_CONFIG_STR];        /* shm:NAME or none */
     int slots;

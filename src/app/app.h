@@ -12,6 +12,7 @@ int cmd_warp3d(int argc, char **argv);
 int cmd_track(int argc, char **argv);
 int cmd_record(int argc, char **argv);
 int cmd_run(int argc, char **argv);
+int cmd_ctl(int argc, char **argv);
 
 /* Parses a whole decimal number / a finite real; on failure prints "OPTION: reason" and
  * returns 0. */

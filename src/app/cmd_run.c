@@ -35,6 +35,9 @@
 #include "stillheart/y4m.h"
 
 #define LAT_CAP (1 << 20)
+/* LSB's "program is not configured" (systemd shows 6/NOTCONFIGURED); the unit's
+ * RestartPreventExitStatus names it, and 2 (a config refused), beside it. */
+#define RUN_EXIT_NOT_CONFIGURED 6
 
 static int64_t mono_ns(void)
 {
@@ -96,7 +99,10 @@ static void usage(FILE *out)
         "applies every key in place: changed cameras are closed and the new ones opened, changed\n"
         "processing starts again with a new reference, the display segment is kept unless its name,\n"
         "size, format or slots change; a config that cannot run is refused and the running one kept\n"
-        "(the previous cameras reopened). SIGUSR1 takes a new reference frame.\n");
+        "(the previous cameras reopened). SIGUSR1 takes a new reference frame (so does `stillheart ctl\n"
+        "reference` on the [run] control socket).\n"
+        "exit status: 0 stopped by a signal or --max-frames, 1 a failure at run time (systemd restarts\n"
+        "the service), 2 a bad config or command line, 6 not configured: no camera named.\n");
 }
 
 typedef struct {
@@ -160,11 +166,14 @@ static int apply_cli(sh_config *cfg, run_opts *ro, int argc, char **argv, char *
     return 0;
 }
 
-static sh_status load_config(sh_config *cfg, const char *path, int argc, char **argv, char *err)
+/* Defaults, file, command line, checks. *unconfigured (when not NULL) is set when everything
+ * parsed but no camera is named: the state of an unedited install. */
+static sh_status load_config(sh_config *cfg, const char *path, int argc, char **argv, char *err, int *unconfigured)
 {
     sh_config_default(cfg);
     if (path && sh_config_load_file(cfg, path, err) != SH_OK) return SH_EINVAL;
     if (apply_cli(cfg, NULL, argc, argv, err)) return SH_EINVAL;
+    if (unconfigured) *unconfigured = sh_config_cameras(cfg) == 0;
     return sh_config_check(cfg, err);
 }
 
@@ -204,7 +213,7 @@ static int reload(run_pipeline *pl, const run_opts *ro, int argc, char **argv, u
     sh_config fresh;
     run_reload r = RUN_RELOAD_REFUSED;
     int cams = 0;
-    if (load_config(&fresh, ro->config_path, argc, argv, err) != SH_OK) {
+    if (load_config(&fresh, ro->config_path, argc, argv, err, NULL) != SH_OK) {
         snprintf(what, sizeof what, "reload refused, keeping the running config: %s", err);
     } else {
         cams = run_source_config_changed(&fresh, &pl->cfg);
@@ -235,7 +244,13 @@ int cmd_run(int argc, char **argv)
     int a = apply_cli(&cfg, &ro, argc, argv, err); /* first pass: --config and run-only options */
     if (a == 1) { usage(stdout); return 0; }
     if (a == 2) { sh_log_error("%s", err); return 2; }
-    if (load_config(&cfg, ro.config_path, argc, argv, err) != SH_OK) {
+    int unconfigured = 0;
+    if (load_config(&cfg, ro.config_path, argc, argv, err, &unconfigured) != SH_OK) {
+        if (unconfigured) { /* an unedited install: one line, and an exit status the unit does not restart on */
+            sh_log_error("not configured: no camera named (%s%s[camera0] spec: v4l2:/dev/videoN, libcamera:NAME, "
+                         "y4m:FILE or rec:DIR)", ro.config_path ? ro.config_path : "", ro.config_path ? ": " : "");
+            return RUN_EXIT_NOT_CONFIGURED;
+        }
         sh_log_error("%s", err);
         return 2;
     }
@@ -326,7 +341,7 @@ int cmd_run(int argc, char **argv)
                 last_status_shown = 99;
             }
         }
-        int refs = pl.ctl ? run_ctl_poll(pl.ctl, status_line) : 0;
+        int refs = pl.ctl ? run_ctl_references(pl.ctl) : 0;
         if (sig_usr1 || refs) {
             sh_log_info("new reference requested (%s)", sig_usr1 ? "SIGUSR1" : "control socket");
             sig_usr1 = 0;
@@ -418,6 +433,7 @@ int cmd_run(int argc, char **argv)
             }
             shown_info = info;
         }
+        if (pl.ctl) run_ctl_set_status(pl.ctl, status_line);
         /* systemd: STATUS each second; WATCHDOG while frames progress, or while the output camera
          * is lost and every thread still goes round. A hung processing loop sends neither. */
         int64_t now = mono_ns();

@@ -16,6 +16,7 @@ static const struct {
     {"track", cmd_track, "track the markers of a video (Kalman, 2D or 3D) into a points file"},
     {"record", cmd_record, "record cameras as delivered (frames, timestamps, sets); recording to Y4M"},
     {"run", cmd_run, "the daemon: live stabilization into the shared-memory display buffer"},
+    {"ctl", cmd_ctl, "ask the running daemon for its status or a new reference (control socket)"},
 };
 
 static void usage(FILE *out)

@@ -17,6 +17,7 @@
 #include "stillheart/track.h"
 #include "stillheart/warp.h"
 #include "stillheart/y4m.h"
+#include "run_source.h" /* run_log_fn */
 
 #define RUN_MAX_MARKERS 64 /* the tracker's limit (SH_TRACK_MAX_MARKERS) */
 
@@ -114,17 +115,26 @@ void run_select(const sh_config *cfg, double fps, const sh_point *ref, int nref,
                 int nm, run_selection *sel);
 
 /* ---- control socket (run_ctl.c) ----
- * A local SOCK_DGRAM UNIX socket: one command per datagram ("reference", "status"), one reply
- * datagram to the sender's address. */
+ * A local UNIX stream socket served by a thread of its own: one command line per connection
+ * ("reference", "status"), one reply line. Rights come from the peer's credentials: root and the
+ * service's uid may do anything, control_group members "reference" and "status", display_group
+ * members "status" ("" control group: none; "" display group: the process's group). Every
+ * answered or refused command is logged with the peer's uid and pid. */
 typedef struct run_ctl run_ctl;
-sh_status run_ctl_open(const char *path, run_ctl **out);
+enum { RUN_CTL_BAD = 0, RUN_CTL_STATUS = 1, RUN_CTL_REFERENCE = 2, RUN_CTL_REFUSED = 4 };
+sh_status run_ctl_open(const char *path, const char *control_group, const char *display_group, run_ctl **out);
 void run_ctl_close(run_ctl *c);
-/* Non-blocking: reads every waiting command; returns the number of "reference" requests seen.
- * "status" is answered with status_line. Unknown commands get "error: ..." */
-int run_ctl_poll(run_ctl *c, const char *status_line);
-/* One command (data: len bytes, up to the first newline) -> reply (one line, NUL-terminated);
- * 1 for "reference", else 0. */
-int run_ctl_command(const char *data, size_t len, const char *status_line, char *reply, size_t cap);
+/* New groups for a running socket (a reload); an unknown group is refused, the old ones kept. */
+sh_status run_ctl_groups(run_ctl *c, const char *control_group, const char *display_group);
+/* The line "status" is answered with from now on. */
+void run_ctl_set_status(run_ctl *c, const char *status_line);
+/* "reference" requests accepted since the last call. */
+int run_ctl_references(run_ctl *c);
+/* One command (data: len bytes, up to the first newline) from a peer with rights (RUN_CTL_STATUS |
+ * RUN_CTL_REFERENCE) -> reply (one printable line, NUL-terminated). Returns RUN_CTL_REFERENCE or
+ * RUN_CTL_STATUS for a command carried out, RUN_CTL_REFUSED for one the rights do not allow,
+ * RUN_CTL_BAD for anything else. */
+int run_ctl_command(const char *data, size_t len, int rights, const char *status_line, char *reply, size_t cap);
 
 /* ---- recording what was shown (run_sink.c): y4m FILE, FILE.y4m or png:DIR ---- */
 typedef struct run_record run_record;

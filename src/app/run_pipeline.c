@@ -95,7 +95,8 @@ sh_status run_pipeline_open(run_pipeline *p, const sh_config *cfg)
     if (st == SH_OK) st = black_frame(&p->hdr, &p->black);
     if (st == SH_OK && cfg->record[0] && (st = run_record_open(cfg->record, &p->hdr, &p->rec)) != SH_OK)
         st = sh_error_set(st, "[sink] record: %s", sh_error_message());
-    if (st == SH_OK && cfg->control[0] && (st = run_ctl_open(cfg->control, &p->ctl)) != SH_OK)
+    if (st == SH_OK && cfg->control[0] &&
+        (st = run_ctl_open(cfg->control, cfg->control_group, cfg->group, &p->ctl)) != SH_OK)
         st = sh_error_set(st, "[run] control: %s", sh_error_message());
     if (st != SH_OK) {
         char m[512];
@@ -169,6 +170,7 @@ typedef struct {
     int processing;      /* a new run_proc (processing keys, or new cameras: a new stream) */
     char proc_text[384]; /* the processing keys that changed, for the log */
     int record, control; /* their keys changed */
+    int ctl_groups;      /* the control socket is kept with other groups */
     int same_name;       /* the display segment keeps its name ... */
     int keep_disp;       /* ... and its geometry, format, slots and group: kept as it is */
     int new_frames;      /* the output camera's geometry or format changed */
@@ -185,6 +187,7 @@ static run_reload refuse(run_pipeline *p, run_pipeline *n, const changes *c, cha
     if (n->proc != p->proc) run_proc_destroy(n->proc);
     if (n->rec != p->rec) run_record_close(n->rec); /* nothing was written to it */
     if (n->ctl != p->ctl) run_ctl_close(n->ctl);
+    else if (c->ctl_groups) run_ctl_groups(p->ctl, p->cfg.control_group, p->cfg.group); /* they resolved before */
     if (n->disp != p->disp && n->disp) sh_display_writer_destroy(n->disp, 1); /* it never showed a frame */
     if (c->black_made) sh_image_destroy(&n->black);
     if (c->cameras) {
@@ -223,6 +226,8 @@ static void describe(const run_pipeline *p, const run_pipeline *n, const changes
         add(what, cap, "sink %s -> %s", old->sink, fresh->sink);
     if (c->record) add(what, cap, "record %s -> %s", or_none(old->record), or_none(fresh->record));
     if (c->control) add(what, cap, "control %s -> %s", or_none(old->control), or_none(fresh->control));
+    if (c->ctl_groups) add(what, cap, "control groups '%s' '%s' -> '%s' '%s'", old->control_group, old->group,
+                           fresh->control_group, fresh->group);
     if (fresh->watchdog != old->watchdog) add(what, cap, "watchdog %s", fresh->watchdog ? "on" : "off");
     if (what[0] && c->keep_disp) add(what, cap, "sink kept");
     if (what[0] && gating_changed(old, fresh)) add(what, cap, "gating");
@@ -268,8 +273,12 @@ run_reload run_pipeline_reload(run_pipeline *p, const sh_config *fresh, char *wh
     }
     if (st == SH_OK && c.control) {
         n.ctl = NULL;
-        if (fresh->control[0] && (st = run_ctl_open(fresh->control, &n.ctl)) != SH_OK)
+        if (fresh->control[0] &&
+            (st = run_ctl_open(fresh->control, fresh->control_group, fresh->group, &n.ctl)) != SH_OK)
             st = sh_error_set(st, "[run] control: %s", sh_error_message());
+    } else if (st == SH_OK && p->ctl &&
+               (strcmp(fresh->control_group, old->control_group) || strcmp(fresh->group, old->group))) {
+        if ((st = run_ctl_groups(p->ctl, fresh->control_group, fresh->group)) == SH_OK) c.ctl_groups = 1;
     }
     if (st == SH_OK && !c.same_name) {
         n.disp = NULL;

@@ -82,6 +82,8 @@ static const keydef keys[] = {
      "3D: median reprojection error of the markers every camera sees over this -> raw (the calibration does not fit)"},
     {"run", "threads", "threads", K_INT, F(threads), 0, 1, 64, "warp threads"},
     {"run", "control", "control", K_STR, F(control), S(control), 0, 0, "control socket path (\"\": none)"},
+    {"run", "control_group", "control-group", K_STR, F(control_group), S(control_group), 0, 0,
+     "group that may request a new reference on the control socket (\"\": the service's user and root only)"},
     {"run", "points", "points", K_STR, F(points), S(points), 0, 0, "test mode: markers from a points file instead of detection"},
     {"sink", "display", "sink", K_STR, F(sink), S(sink), 0, 0, "shm:NAME | none"},
     {"sink", "slots", "slots", K_INT, F(slots), 0, 3, 16, "frame slots of the segment"},
@@ -407,8 +409,9 @@ static int method_min_markers(sh_method m)
 
 sh_status sh_config_check(const sh_config *cfg, char *err)
 {
-    if (!cfg->source[0]) {
-        snprintf(err, SH_CONFIG_ERR, "[source] spec: empty");
+    if (!sh_config_cameras(cfg)) {
+        snprintf(err, SH_CONFIG_ERR, "[camera0] spec: empty, no camera configured (v4l2:/dev/videoN, "
+                 "libcamera:NAME, y4m:FILE or rec:DIR)");
         return SH_EINVAL;
     }
     if (strncmp(cfg->sink, "shm:", 4) != 0 && strcmp(cfg->sink, "none") != 0) {

@@ -1,6 +1,10 @@
 /* libFuzzer: arbitrary bytes as one command on the daemon's control socket (src/app/run_ctl.c,
- * compiled in here: it lives in the stillheart command, not in the library). The reply is one
- * printable line that never overflows; only "reference" asks for a new reference. */
+ * compiled in here: it lives in the stillheart command, not in the library). The first byte is
+ * the peer's rights (bit 0: status, bit 1: reference, as the daemon derives them from
+ * SO_PEERCRED), the rest the command. The reply is one printable line that never overflows;
+ * only "reference" with the reference right asks for a new reference, "status" without the
+ * status right is refused and never shows the status line. */
+#define _GNU_SOURCE /* before any header: run_ctl.c needs struct ucred, accept4, pipe2 */
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
@@ -12,25 +16,30 @@ static void check(int ok)
     if (!ok) abort();
 }
 
-int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
+int LLVMFuzzerTestOneInput(const uint8_t *in, size_t insize)
 {
     static const char status[] = "frame 7: stabilized, 16 markers, residual 0.21 px, 8 published, 0 dropped";
+    if (insize < 1) return 0;
+    int rights = (in[0] & 1 ? RUN_CTL_STATUS : 0) | (in[0] & 2 ? RUN_CTL_REFERENCE : 0);
+    const uint8_t *data = in + 1;
+    size_t size = insize - 1;
     char reply[192];
     memset(reply, 'x', sizeof reply);
-    int ref = run_ctl_command((const char *)data, size, status, reply, sizeof reply);
+    int r = run_ctl_command((const char *)data, size, rights, status, reply, sizeof reply);
     check(memchr(reply, 0, sizeof reply) != NULL);
     check(strchr(reply, '\n') == NULL);
     for (const char *p = reply; *p; p++) check(*p >= 0x20 && *p <= 0x7e);
     size_t n = 0;
     while (n < size && data[n] != '\n') n++;
     if (n > 127) {
-        check(ref == 0 && !strncmp(reply, "error: command longer", 21));
+        check(r == RUN_CTL_BAD && !strncmp(reply, "error: command longer", 21));
         return 0;
     }
     while (n && (data[n - 1] == '\r' || data[n - 1] == ' ')) n--;
-    int is_ref = n == 9 && !memcmp(data, "reference", 9);
-    check(ref == is_ref);
-    check(is_ref ? !strcmp(reply, "ok: new reference requested")
-                 : (n == 6 && !memcmp(data, "status", 6)) ? !strcmp(reply, status) : !strncmp(reply, "error: '", 8));
+    int is_ref = n == 9 && !memcmp(data, "reference", 9), is_status = n == 6 && !memcmp(data, "status", 6);
+    if (is_ref && (rights & RUN_CTL_REFERENCE)) check(r == RUN_CTL_REFERENCE && !strcmp(reply, "ok: new reference requested"));
+    else if (is_status && (rights & RUN_CTL_STATUS)) check(r == RUN_CTL_STATUS && !strcmp(reply, status));
+    else if (is_ref || is_status) check(r == RUN_CTL_REFUSED && strstr(reply, "not permitted") && !strstr(reply, "frame 7"));
+    else check(r == RUN_CTL_BAD && !strncmp(reply, "error: '", 8));
     return 0;
 }

@@ -317,9 +317,23 @@ static void test_files(void **state)
     sh_config_default(&c);
     assert_int_equal(sh_config_load_file(&c, "/nonexistent/stillheart.ini", err), SH_EIO);
     assert_non_null(strstr(err, "/nonexistent/stillheart.ini: cannot open"));
-    /* the shipped example: every key, every value valid */
+    /* the shipped example: every key, every value valid; it names no camera (an unedited install
+     * names no file that is not there), and with one it runs */
     assert_int_equal(sh_config_load_file(&c, "firmware-config/stillheart.ini", err), SH_OK);
+    assert_int_equal(sh_config_cameras(&c), 0);
+    assert_int_equal(sh_config_check(&c, err), SH_EINVAL);
+    assert_non_null(strstr(err, "[camera0] spec: empty, no camera configured"));
+    assert_string_equal(c.control, "/run/stillheart/control");
+    assert_string_equal(c.control_group, "");
+    assert_int_equal(sh_config_set(&c, "camera0", "spec", "v4l2:/dev/video0", "x", 0, err), SH_OK);
     assert_int_equal(sh_config_check(&c, err), SH_OK);
+    /* [run] control_group: a group name, also --control-group */
+    const char *section, *key;
+    int flag;
+    assert_true(sh_config_option("control-group", &section, &key, &flag) && !strcmp(section, "run") &&
+                !strcmp(key, "control_group") && !flag);
+    assert_int_equal(sh_config_set(&c, "run", "control_group", "surgeons", "x", 0, err), SH_OK);
+    assert_string_equal(c.control_group, "surgeons");
 }
 
 int main(int argc, char **argv)

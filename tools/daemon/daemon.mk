@@ -8,6 +8,13 @@ $(BUILD)/tests/test_daemon: tools/daemon/test_daemon.sh $(APP) $(BUILD)/stillhea
 	chmod +x $@
 TOOL_TESTS += $(BUILD)/tests/test_daemon
 
+# The control socket's tests: rights by peer credentials, idle clients (needs root for setpriv).
+$(BUILD)/tests/test_ctl: tools/daemon/test_ctl.sh $(APP)
+	@mkdir -p $(dir $@)
+	cp $< $@
+	chmod +x $@
+TOOL_TESTS += $(BUILD)/tests/test_ctl
+
 # make run-demo: a short phantom, the daemon on it in real time for a few seconds, and
 # stillheart-cat showing that frames arrive (docs/daemon.md). 960x540 (as make demo): at 1080p a
 # busy 2-core machine drops frames before the tracker has locked the heart rate, and the demo

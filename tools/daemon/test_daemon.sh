@@ -179,6 +179,12 @@ msg=$($RUN --config "$T/none.ini" 2>&1); rc=$?
 [ $rc -eq 2 ] && echo "$msg" | grep -q "none.ini: cannot open" && ok "missing file refused" || bad "missing file refused" "$msg"
 msg=$($RUN --frobnicate 3 2>&1); rc=$?
 [ $rc -eq 2 ] && echo "$msg" | grep -q -- "--frobnicate: unknown option" && ok "unknown option refused" || bad "unknown option refused" "$msg"
+# an unedited install names no camera: one line and exit 6 (not configured), which the unit does
+# not restart on (RestartPreventExitStatus; make deb-test checks the two agree)
+printf '[camera0]\nspec =\n' > "$T/empty.ini"
+msg=$($RUN --config "$T/empty.ini" 2>&1); rc=$?
+[ $rc -eq 6 ] && [ "$(echo "$msg" | wc -l)" -eq 1 ] && echo "$msg" | grep -q "not configured: no camera named" \
+    && ok "no camera: one line, exit 6" || bad "no camera: one line, exit 6" "rc $rc: $msg"
 msg=$($RUN --config "$T/bad.ini" --min-markers 5 --print-config 2>&1); rc=$?
 [ $rc -eq 2 ] && ok "command line does not hide a bad file" || bad "command line does not hide a bad file" "$msg"
 printf '[gating]\nmin_markers = 9\n' > "$T/good.ini"
