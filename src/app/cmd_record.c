@@ -50,6 +50,8 @@ static void usage(FILE *out)
         "  --pulse-ms T       trigger pulse width (default 1)\n"
         "  --trigger-offset-ms T  a frame's timestamp minus its trigger edge, expected (default 0)\n"
         "  --to-y4m REC OUT.y4m  convert camera --camera C (default 0) of recording REC to Y4M\n"
+        "                     (a damaged recording: every good record converted, then what was\n"
+        "                     lost said and exit status 1)\n"
         "  --help             this text\n");
 }
 
@@ -100,15 +102,18 @@ static int to_y4m(const char *rec_path, const char *out_path, int camera)
         }
         frames++;
     }
-    if (sh_rec_reader_truncated(r))
-        fprintf(stderr, "stillheart record: %s: the recording ends in a torn record (kept what precedes it)\n",
-                rec_path);
-    if (sh_rec_reader_skipped(r))
-        fprintf(stderr, "stillheart record: %s: %llu damaged record(s) skipped\n", rec_path,
-                (unsigned long long)sh_rec_reader_skipped(r));
     fprintf(stderr, "stillheart record: %ld frames of camera %d written to %s (%ld not convertible)\n", frames,
             camera, out_path, bad);
     rc = 0;
+    if (sh_rec_reader_lost_bytes(r)) { /* every good record is converted; the loss is still an error */
+        fprintf(stderr,
+                "stillheart record: WARNING: %s is damaged: %llu record(s) skipped%s, %llu bytes lost; the records "
+                "around the damage were converted\n",
+                rec_path, (unsigned long long)sh_rec_reader_skipped(r),
+                sh_rec_reader_truncated(r) ? " and a torn last record" : "",
+                (unsigned long long)sh_rec_reader_lost_bytes(r));
+        rc = 1;
+    }
 out:
     if (w && sh_y4m_writer_close(w) != SH_OK) {
         fprintf(stderr, "stillheart record: %s\n", sh_error_message());
