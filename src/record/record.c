@@ -372,7 +372,7 @@ sh_status sh_rec_reader_open_file(FILE *file, const char *name, sh_rec_reader **
     }
     r->version = (int)get32(h + 8);
     long long at = (long long)ftello(file);
-    if (at != FILE_HEADER) { /* resync seeks: a pipe cannot be read */
+    if (at < 0) { /* resync seeks: a pipe cannot be read */
         free(r);
         return sh_error_set(SH_EINVAL, "%s: a recording is read from a file that can seek", name);
     }

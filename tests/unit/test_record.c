@@ -457,6 +457,15 @@ static void test_refusals(void **state)
     assert_int_equal(sh_rec_reader_open_file(f, "x.y4m", &r), SH_EFORMAT);
     assert_non_null(strstr(sh_error_message(), "x.y4m"));
     fclose(f);
+    /* a pipe: resync seeks, so it is refused by name */
+    int fds[2];
+    assert_int_equal(pipe(fds), 0);
+    assert_int_equal(write(fds[1], "SHREC\r\n\x1a\x02\0\0\0\x10\0\0\0", 16), 16);
+    close(fds[1]);
+    f = fdopen(fds[0], "rb");
+    assert_int_equal(sh_rec_reader_open_file(f, "pipe.shrec", &r), SH_EINVAL);
+    assert_non_null(strstr(sh_error_message(), "pipe.shrec: a recording is read from a file that can seek"));
+    fclose(f);
     sh_rec_writer *w;
     rm_rec();
     assert_int_equal(sh_rec_writer_create(dir, &w), SH_OK);
