@@ -257,6 +257,7 @@ int cmd_record(int argc, char **argv)
     int rc = 1;
     long done[MAX_SOURCES] = {0};
     int ended[MAX_SOURCES] = {0};
+    uint64_t damaged[MAX_SOURCES] = {0}; /* replays: damage already reported */
     for (int i = 0; i < nspec; i++) {
         sh_source_options oi = o;
         oi.camera = i;
@@ -342,6 +343,12 @@ int cmd_record(int argc, char **argv)
             sh_source_frame f;
             int got;
             sh_status st = sh_source_dequeue(src[i], 0, &f, &got);
+            sh_source_stats ss;
+            sh_source_get_stats(src[i], &ss);
+            if (ss.damaged != damaged[i]) { /* a replay went past damage (or ends at it: then the error follows) */
+                damaged[i] = ss.damaged;
+                fprintf(stderr, "stillheart record: WARNING: %s\n", sh_source_damage(src[i]));
+            }
             if (st == SH_EEOF) {
                 ended[i] = 1;
                 continue;

@@ -179,6 +179,10 @@ static void test_convert_damaged(void **state)
     }
     /* the flip is in one record: a frame of either camera, or a set */
     assert_true(frames == 2 * N || frames == 2 * N - 1);
+    /* replayed as a source, the damage is said at WARNING when met and the end is an error */
+    assert_int_equal(test_run("%s record --source rec:%s/dmg --fast --frames 100 %s/again", RECORD_BIN, tmp, tmp), 1);
+    assert_non_null(strstr(test_out, "WARNING: rec:"));
+    assert_non_null(strstr(test_out, "/dmg: damaged recording: 1 record(s) skipped"));
 }
 
 static void test_refusals(void **state)
