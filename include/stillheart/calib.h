@@ -36,11 +36,50 @@ typedef struct {
 /* Fills P = K [R | t] for every camera. */
 void sh_calib_compute_p(sh_calib *calib);
 
+/* What a calibration must satisfy to be loaded: bounds on what a real rig can be, so that a
+ * typo, a unit slip or a copied block is refused before it is used (docs/3d.md, "Calibration
+ * files"). Defaults (sh_calib_limits_default) in brackets. */
+typedef struct {
+    double fov_min_deg, fov_max_deg; /* each axis' field of view, 2 atan(size / 2f) [1, 170] */
+    double rig_scale;       /* |t| at most this, world units (mm in ours) [10000: 10 m] */
+    double rotation_tol;    /* max |(R R^T - I)_ij| and |det R - 1| [1e-5: a float file passes] */
+    double same_pose;       /* two camera centres closer than this fraction of the farther one's
+                             * distance from the world origin are one pose [1e-4] */
+    double dist_factor_min, dist_factor_max; /* radial distortion factor over the image [0.2, 5] */
+} sh_calib_limits;
+
+/* How far a calibration is from the limits (sh_calib_check fills it; for tests and tools). */
+typedef struct {
+    double fov_deg[2];       /* smallest and largest field of view over cameras and axes */
+    double pp_edge_px;       /* smallest distance from a principal point to the image's edge */
+    double t_max;            /* largest |t| */
+    double rotation_err;     /* largest rotation error (as rotation_tol) */
+    double separation;       /* smallest distance between two centres over the farther's distance
+                              * from the origin (INFINITY for one camera) */
+    double dist_factor[2];   /* smallest / largest radial factor over the image */
+    double dist_slope;       /* smallest d(r_distorted)/dr over the image (> 0: no fold) */
+} sh_calib_margins;
+
+void sh_calib_limits_default(sh_calib_limits *limits);
+/* Checks a calibration against the limits (NULL: the defaults): every camera's focal lengths
+ * give a field of view within bounds, its principal point lies inside the image, K's last row
+ * is 0 0 1, its radial distortion neither folds the image (r_distorted rises with r out to the
+ * image's corners) nor scales it beyond the factor bounds, its tangential terms are at most 0.5,
+ * R is a rotation within rotation_tol, |t| is within rig_scale, and no two cameras share a
+ * pose. A refusal (SH_EFORMAT) names `name` (the file), the camera and the field. margins may
+ * be NULL. */
+sh_status sh_calib_check(const sh_calib *calib, const char *name, const sh_calib_limits *limits,
+                         sh_calib_margins *margins);
+
 /* Writes the file (doubles with 17 significant digits, so reading gives back the same bits). */
 sh_status sh_calib_write(const char *path, const sh_calib *calib);
-/* Reads a file; errors name the file and line. */
+/* Reads a file and checks it against the limits (NULL: the defaults); errors name the file and
+ * the line, or the camera and field. */
+sh_status sh_calib_load(const char *path, const sh_calib_limits *limits, sh_calib *calib);
+/* sh_calib_load with the default limits. */
 sh_status sh_calib_read(const char *path, sh_calib *calib);
-/* Parses a file already in memory (name used in messages). Exposed for fuzzing. */
+/* Parses a file already in memory (name used in messages), without sh_calib_check. Exposed for
+ * fuzzing. */
 sh_status sh_calib_parse(const char *text, size_t len, const char *name, sh_calib *calib);
 
 #ifdef __cplusplus

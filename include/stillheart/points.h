@@ -32,7 +32,9 @@ typedef struct {
 } sh_points;
 
 /* Reads a whole points file ("-" = stdin). A bad header or row fails with the file name and
- * line number; a duplicated (frame, id) pair is an error too. */
+ * line number; a duplicated (frame, id) pair is an error too, and so is a last line without its
+ * newline (a file cut inside a number would otherwise give a wrong, well-formed value). Every
+ * number is a whole field: "2.5x" or "2 3" is refused, not read as 2.5 or 2. */
 sh_status sh_points_read(const char *path, sh_points *points);
 /* Parses a file already in memory (name used in messages). */
 sh_status sh_points_parse(const char *text, size_t len, const char *name, sh_points *points);

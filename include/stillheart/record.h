@@ -2,17 +2,21 @@
  * sequence numbers, the frame sets), for replay (source spec rec:DIR) and conversion to Y4M.
  *
  * A recording is a folder holding one append-only file, recording.shrec (docs/capture.md):
- *   file header (16 bytes): "SHREC\r\n\x1a" magic, u32 version (1), u32 header size (16)
- *   records, each: u32 magic "SHRR", u32 type, u32 payload length, u32 CRC-32 of the payload,
- *   then the payload. Little endian throughout.
+ *   file header (16 bytes): "SHREC\r\n\x1a" magic, u32 version (2), u32 header size (16)
+ *   records, each: u32 magic "SHRR", u32 type, u32 payload length, u32 CRC-32 of the type, the
+ *   length and the payload (version 1: of the payload only), then the payload. Little endian.
  *   type 1 STREAM: u32 camera, format (sh_rawfmt), width, height, stride, fps_num, fps_den,
  *                  char source[64] (NUL padded)
  *   type 2 FRAME:  u32 camera, u32 flags (0), u64 sequence, i64 timestamp_ns, then the bytes
  *   type 3 SET:    u64 index, i64 time_ns, u32 flags (1 triggered, 2 complete), u32 present,
  *                  u64 sequence[SH_SYNC_MAX_CAMERAS] (0 where absent)
  * Each record goes out in one write(2), so a killed process or a full disk loses at most the
- * record being written: the reader stops at the first record whose header or length does not
- * fit the file (a torn tail), and skips, counting them, records whose CRC does not match. */
+ * record being written. The reader reads versions 1 and 2 and refuses a later one by its number.
+ * Past damage (a wrong magic, length or CRC) it resyncs on the next record whose CRC holds,
+ * counting the records (the damaged one and every record magic in the bytes skipped) and the
+ * bytes it skipped; a record cut by the end of the file with nothing good after it is a torn
+ * tail (a writer stopped mid-record), reported apart. Records whose CRC holds but whose content
+ * cannot be used (a frame of a camera without its stream) are skipped and counted too. */
 #ifndef STILLHEART_RECORD_H
 #define STILLHEART_RECORD_H
 
@@ -69,7 +73,8 @@ typedef struct sh_rec_reader sh_rec_reader;
 /* path: the recording folder or the file itself. Reads the file header and the stream records
  * at its start (a recording whose header is damaged is refused naming the file). */
 sh_status sh_rec_reader_open(const char *path, sh_rec_reader **out);
-/* Reads from a stream the caller opened and closes after the reader (fuzzing, pipes). */
+/* Reads from a stream the caller opened and closes after the reader (fuzzing); it must seek
+ * (resync does), so a pipe is refused. */
 sh_status sh_rec_reader_open_file(FILE *file, const char *name, sh_rec_reader **out);
 int sh_rec_reader_streams(const sh_rec_reader *r, const sh_rec_stream **streams);
 /* The stream of a camera, or NULL. */
@@ -77,8 +82,11 @@ const sh_rec_stream *sh_rec_reader_stream(const sh_rec_reader *r, int camera);
 /* The next record (STREAM records after the first frame are returned too). SH_EEOF at the end
  * of the file or at a torn tail (sh_rec_reader_truncated tells which). */
 sh_status sh_rec_reader_next(sh_rec_reader *r, sh_rec_record *rec);
-int sh_rec_reader_truncated(const sh_rec_reader *r);
-uint64_t sh_rec_reader_skipped(const sh_rec_reader *r); /* records with a bad CRC or content */
+int sh_rec_reader_truncated(const sh_rec_reader *r);    /* the file ends in a torn record */
+uint64_t sh_rec_reader_skipped(const sh_rec_reader *r); /* damaged records, or bad content */
+/* Every byte not read as a good record so far: damage skipped, bad content, a torn tail. */
+uint64_t sh_rec_reader_lost_bytes(const sh_rec_reader *r);
+int sh_rec_reader_version(const sh_rec_reader *r);
 void sh_rec_reader_close(sh_rec_reader *r);
 
 /* CRC-32 (IEEE 802.3, as zlib's crc32) of n bytes, continuing from crc (0 to start). */

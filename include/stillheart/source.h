@@ -48,7 +48,8 @@ typedef struct {
     int realtime;          /* 1: frame k is due at start + k/fps; 0: as fast as asked */
     int loop;              /* 1: start again at the end (sequence and timestamps keep rising; the
                             * first frame of each new pass is flagged a discontinuity unless the
-                            * Y4M file is tagged XLOOP=SEAMLESS, y4m.h) */
+                            * Y4M file is tagged XLOOP=SEAMLESS, y4m.h). A file damaged where
+                            * good frames lie behind the damage is not looped (sh_source_damage) */
 } sh_source_options;
 
 void sh_source_options_default(sh_source_options *opts);
@@ -69,6 +70,9 @@ typedef struct {
     uint64_t drops;        /* gaps in the driver's sequence numbers */
     uint64_t reopens;      /* successful reopens after a loss */
     uint64_t losses;       /* times the device was lost (error or timeout) */
+    uint64_t damaged;      /* replays: damaged places met in the file (each once, not again on
+                            * every loop pass); sh_source_damage describes the last */
+    uint64_t lost_bytes;   /* replays: bytes of the file those places cost */
     int online;            /* 1 while streaming */
 } sh_source_stats;
 
@@ -94,6 +98,13 @@ sh_status sh_source_stop(sh_source *src);
 void sh_source_close(sh_source *src);
 void sh_source_get_stats(const sh_source *src, sh_source_stats *stats);
 const char *sh_source_name(const sh_source *src);
+/* Replays: the last damage met in the file, one line naming the file, where, and how much was
+ * lost ("" when none). A replay goes on past damage only where nothing is lost beyond the
+ * damaged part (a torn last frame, a damaged record skipped); the caller logs the line at
+ * WARNING when stats.damaged changes. Damage that would make a replay drop or loop over part of
+ * the file is instead an error from sh_source_dequeue, with the same line: a non-looping replay
+ * of a damaged file ends in that error, never in SH_EEOF. */
+const char *sh_source_damage(const sh_source *src);
 
 /* CLOCK_MONOTONIC now, in nanoseconds. */
 int64_t sh_monotonic_ns(void);

@@ -37,7 +37,10 @@ int sh_y4m_header_has_tag(const sh_y4m_header *header, const char *tag);
 
 typedef struct sh_y4m_reader sh_y4m_reader;
 
-/* path "-" reads stdin. A bad header fails here with a message naming the file. */
+/* path "-" reads stdin. A bad header fails here with a message naming the file, and so does,
+ * for a regular file, a header whose frame size is more than the file holds after it (a header
+ * only, no frame, is a clean empty stream). Width and height are at most SH_IMAGE_MAX_SIZE, so
+ * a frame's byte count never overflows. */
 sh_status sh_y4m_reader_open(const char *path, sh_y4m_reader **out);
 const sh_y4m_header *sh_y4m_reader_header(const sh_y4m_reader *reader);
 /* Reads the next frame into img (created by the caller with the header's format and size).
@@ -45,6 +48,19 @@ const sh_y4m_header *sh_y4m_reader_header(const sh_y4m_reader *reader);
  * naming the file and the 0-based frame index; frames before it were already delivered. */
 sh_status sh_y4m_reader_read(sh_y4m_reader *reader, sh_image *img);
 int sh_y4m_reader_frame_index(const sh_y4m_reader *reader); /* frames delivered so far */
+/* Whole frames (of "FRAME\n" plus the planes) the rest of a regular file can hold; -1 for a
+ * pipe or another stream of unknown size. */
+long long sh_y4m_reader_whole_frames(const sh_y4m_reader *reader);
+
+/* Where a stream is damaged, after sh_y4m_reader_read returned SH_EFORMAT. */
+typedef struct {
+    int frame;              /* 0-based index of the frame that could not be read */
+    long long offset;       /* byte offset of its FRAME line */
+    long long lost;         /* bytes from there to the end of the file (-1: not a regular file) */
+    long long frames_lost;  /* lost in frames, rounded up (1 for a torn last frame); -1 unknown */
+} sh_y4m_damage;
+/* 1 and *damage filled when the stream stopped at damage (SH_EFORMAT), else 0. */
+int sh_y4m_reader_damage(const sh_y4m_reader *reader, sh_y4m_damage *damage);
 void sh_y4m_reader_close(sh_y4m_reader *reader);
 /* Reads from a stream the caller opened (a pipe, fmemopen); name is used in messages. The
  * caller keeps the FILE and closes it after sh_y4m_reader_close. */

@@ -51,6 +51,8 @@ static void usage(FILE *out)
         "  --pulse-ms T       trigger pulse width (default 1)\n"
         "  --trigger-offset-ms T  a frame's timestamp minus its trigger edge, expected (default 0)\n"
         "  --to-y4m REC OUT.y4m  convert camera --camera C (default 0) of recording REC to Y4M\n"
+        "                     (a damaged recording: every good record converted, then what was\n"
+        "                     lost said and exit status 1)\n"
         "  --help             this text\n");
 }
 
@@ -101,15 +103,16 @@ static int to_y4m(const char *rec_path, const char *out_path, int camera)
         }
         frames++;
     }
-    if (sh_rec_reader_truncated(r))
-        sh_log_warn("%s: the recording ends in a torn record (kept what precedes it)",
-                    rec_path);
-    if (sh_rec_reader_skipped(r))
-        sh_log_warn("%s: %llu damaged record(s) skipped", rec_path,
-                    (unsigned long long)sh_rec_reader_skipped(r));
-    sh_log_info("%ld frames of camera %d written to %s (%ld not convertible)", frames,
-                camera, out_path, bad);
+    sh_log_info("%ld frames of camera %d written to %s (%ld not convertible)", frames, camera, out_path, bad);
     rc = 0;
+    if (sh_rec_reader_lost_bytes(r)) { /* every good record is converted; the loss is still an error */
+        sh_log_warn("WARNING: %s is damaged: %llu record(s) skipped%s, %llu bytes lost; the records around the "
+                    "damage were converted",
+                rec_path, (unsigned long long)sh_rec_reader_skipped(r),
+                sh_rec_reader_truncated(r) ? " and a torn last record" : "",
+                (unsigned long long)sh_rec_reader_lost_bytes(r));
+        rc = 1;
+    }
 out:
     if (w && sh_y4m_writer_close(w) != SH_OK) {
         sh_log_error("%s", sh_error_message());
@@ -254,6 +257,7 @@ int cmd_record(int argc, char **argv)
     int rc = 1;
     long done[MAX_SOURCES] = {0};
     int ended[MAX_SOURCES] = {0};
+    uint64_t damaged[MAX_SOURCES] = {0}; /* replays: damage already reported */
     for (int i = 0; i < nspec; i++) {
         sh_source_options oi = o;
         oi.camera = i;
@@ -339,6 +343,12 @@ int cmd_record(int argc, char **argv)
             sh_source_frame f;
             int got;
             sh_status st = sh_source_dequeue(src[i], 0, &f, &got);
+            sh_source_stats ss;
+            sh_source_get_stats(src[i], &ss);
+            if (ss.damaged != damaged[i]) { /* a replay went past damage (or ends at it: then the error follows) */
+                damaged[i] = ss.damaged;
+                sh_log_warn("WARNING: %s", sh_source_damage(src[i]));
+            }
             if (st == SH_EEOF) {
                 ended[i] = 1;
                 continue;

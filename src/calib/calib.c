@@ -1,5 +1,6 @@
 /* The OpenCV FileStorage YAML subset of include/stillheart/calib.h: top-level `key: scalar` and
- * `key: !!opencv-matrix` maps with rows, cols, dt and a bracketed data list that may span lines. */
+ * `key: !!opencv-matrix` maps with rows, cols, dt and a bracketed data list that may span lines;
+ * and the physical checks a calibration passes before it is used (check.c). */
 #include "stillheart/calib.h"
 
 #include <errno.h>
@@ -233,7 +234,9 @@ sh_status sh_calib_parse(const char *text, size_t len, const char *name, sh_cali
     return SH_OK;
 }
 
-sh_status sh_calib_read(const char *path, sh_calib *calib)
+sh_status sh_calib_read(const char *path, sh_calib *calib) { return sh_calib_load(path, NULL, calib); }
+
+sh_status sh_calib_load(const char *path, const sh_calib_limits *limits, sh_calib *calib)
 {
     FILE *f = fopen(path, "rb");
     if (!f) return sh_error_set(SH_EIO, "%s: cannot open: %s", path, strerror(errno));
@@ -261,5 +264,6 @@ sh_status sh_calib_read(const char *path, sh_calib *calib)
     fclose(f);
     sh_status st = err ? sh_error_set(SH_EIO, "%s: read error", path) : sh_calib_parse(buf, len, path, calib);
     free(buf);
+    if (st == SH_OK) st = sh_calib_check(calib, path, limits, NULL);
     return st;
 }

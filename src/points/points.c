@@ -1,6 +1,8 @@
 /* The points CSV: `frame,id,x,y[,X,Y,Z]`. Parsing is strict about content (every bad row is
  * refused with its line number: a wrong marker position would give a wrong picture) and lenient
- * about layout (CRLF, blank lines, spaces around fields, a UTF-8 BOM, no final newline). */
+ * about layout (CRLF, blank lines, spaces around fields, a UTF-8 BOM). The last line must end in
+ * a newline: a file cut inside "24.31" reads "2", a number that parses and is wrong, so a
+ * missing final newline is taken for a cut file, not for a careless editor. */
 #include "stillheart/points.h"
 
 #include <errno.h>
@@ -196,6 +198,11 @@ sh_status sh_points_parse(const char *text, size_t len, const char *name, sh_poi
         if (llen && s[llen - 1] == '\r') llen--;
         span whole = trim(s, llen);
         if (whole.len == 0) continue;
+        if (!nl) {
+            free(rows);
+            return sh_error_set(SH_EFORMAT, "%s:%d: the last line does not end in a newline (is the file cut?)",
+                                name, line);
+        }
         int n = split(whole.s, whole.len, fields);
 
         if (!expect) {

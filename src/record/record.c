@@ -11,7 +11,7 @@
 
 #define FILE_MAGIC "SHREC\r\n\x1a"
 #define REC_MAGIC 0x52524853u /* "SHRR" little endian */
-#define VERSION 1
+#define VERSION 2 /* 1: the CRC covered the payload only (still read) */
 #define FILE_HEADER 16
 #define REC_HEADER 16
 #define STREAM_PAYLOAD (7 * 4 + 64)
@@ -108,7 +108,7 @@ static sh_status put_record(sh_rec_writer *w, uint32_t type, const uint8_t *fixe
     put32(h, REC_MAGIC);
     put32(h + 4, type);
     put32(h + 8, (uint32_t)(nfixed + ndata));
-    uint32_t crc = sh_crc32(0, fixed, nfixed);
+    uint32_t crc = sh_crc32(sh_crc32(0, h + 4, 8), fixed, nfixed);
     if (ndata) crc = sh_crc32(crc, data, ndata);
     put32(h + 12, crc);
     struct iovec iov[3] = {{h, sizeof h}, {(void *)fixed, nfixed}, {(void *)data, ndata}};
@@ -196,20 +196,33 @@ struct sh_rec_reader {
     FILE *file;
     int own;
     char name[4096];
+    int version;
     sh_rec_stream streams[SH_REC_MAX_STREAMS];
     int have[SH_REC_MAX_STREAMS];
     int nstreams;
     uint8_t *buf;
     size_t cap;
+    long long pos;     /* where the file is, as we moved it */
+    long long rec_at;  /* where the record last read begins */
     int truncated;
     uint64_t skipped;
-    long first_other; /* offset of the first record after the leading streams */
+    uint64_t lost_bytes;
 };
 
 static size_t stream_bound(const sh_rec_stream *s)
 {
     if (s->format == SH_RAW_MJPEG) return (size_t)s->width * (size_t)s->height * 3 + MJPEG_SLACK;
     return sh_raw_frame_size(s->format, s->width, s->height, s->stride) + MJPEG_SLACK;
+}
+
+/* The longest payload any known stream can have: a length above it is damage. */
+static size_t len_bound(const sh_rec_reader *r)
+{
+    size_t bound = 4096;
+    for (int c = 0; c < SH_REC_MAX_STREAMS; c++)
+        if (r->have[c] && stream_bound(&r->streams[c]) + FRAME_META > bound)
+            bound = stream_bound(&r->streams[c]) + FRAME_META;
+    return bound;
 }
 
 static sh_status grow(sh_rec_reader *r, size_t need)
@@ -242,37 +255,91 @@ static int parse_stream(const uint8_t *p, sh_rec_stream *s)
     return 1;
 }
 
-/* Reads one record into r->buf; 1 ok, 0 end/torn, -1 bad CRC or oversize (skipped). */
-static int read_record(sh_rec_reader *r, uint32_t *type, uint32_t *len)
+enum { AT_RECORD = 1, AT_END = 0, AT_DAMAGE = -1, AT_SHORT = -2 };
+
+/* The record at offset p into r->buf, the file left after it: AT_RECORD; AT_END when the file
+ * ends at p; AT_SHORT when the file ends inside what the header promises (a torn record, if
+ * nothing good follows); AT_DAMAGE when the magic, the length or the CRC is wrong. */
+static int record_at(sh_rec_reader *r, long long p, uint32_t *type, uint32_t *len)
 {
+    if (p != r->pos) {
+        if (fseeko(r->file, (off_t)p, SEEK_SET) != 0) return AT_DAMAGE;
+        r->pos = p;
+    }
     uint8_t h[REC_HEADER];
     size_t got = fread(h, 1, sizeof h, r->file);
-    if (got == 0 && feof(r->file)) return 0;
-    if (got != sizeof h || get32(h) != REC_MAGIC) {
-        r->truncated = 1;
-        return 0;
+    r->pos += (long long)got;
+    if (got == 0) return AT_END;
+    if (got < 4 ? memcmp(h, "SHRR", got) == 0 : get32(h) == REC_MAGIC) {
+        if (got != sizeof h) return AT_SHORT;
+    } else {
+        return AT_DAMAGE;
     }
     *type = get32(h + 4);
     *len = get32(h + 8);
-    size_t bound = 4096;
-    for (int c = 0; c < SH_REC_MAX_STREAMS; c++)
-        if (r->have[c] && stream_bound(&r->streams[c]) + FRAME_META > bound)
-            bound = stream_bound(&r->streams[c]) + FRAME_META;
-    if (*len > bound) {
-        /* not a length any stream can have: the framing is not trustworthy */
+    if (*len > len_bound(r) || grow(r, *len ? *len : 1) != SH_OK) return AT_DAMAGE;
+    got = fread(r->buf, 1, *len, r->file);
+    r->pos += (long long)got;
+    if (got != *len) return AT_SHORT;
+    uint32_t crc = r->version >= 2 ? sh_crc32(0, h + 4, 8) : 0;
+    return sh_crc32(crc, r->buf, *len) == get32(h + 12) ? AT_RECORD : AT_DAMAGE;
+}
+
+/* Resync: the first offset from `from` on where a record whose CRC holds begins (read into
+ * r->buf), or -1. *magics counts the record magics passed over that did not hold: each was
+ * the start of a record, damaged or cut. */
+static long long next_record(sh_rec_reader *r, long long from, uint32_t *type, uint32_t *len, uint64_t *magics)
+{
+    uint8_t chunk[8192];
+    for (long long p = from;;) {
+        if (fseeko(r->file, (off_t)p, SEEK_SET) != 0) return -1;
+        size_t n = fread(chunk, 1, sizeof chunk, r->file);
+        r->pos = p + (long long)n;
+        for (size_t i = 0; i + 4 <= n; i++) {
+            if (get32(chunk + i) != REC_MAGIC) continue;
+            if (record_at(r, p + (long long)i, type, len) == AT_RECORD) return p + (long long)i;
+            (*magics)++;
+        }
+        if (n < sizeof chunk) return -1;
+        p += (long long)n - 3; /* a magic across the chunk's end is seen in the next one */
+    }
+}
+
+/* The next record whose CRC holds, into r->buf (1), or 0 at the end. Damage is skipped up to
+ * the next record whose CRC holds and counted (the damaged record and every record magic in
+ * the bytes skipped; the bytes); a record cut by the end of the file with nothing good after it
+ * is the torn tail of a writer that was stopped. */
+static int read_record(sh_rec_reader *r, uint32_t *type, uint32_t *len)
+{
+    long long at = r->pos;
+    int k = record_at(r, at, type, len);
+    if (k == AT_RECORD || k == AT_END) {
+        r->rec_at = at;
+        return k;
+    }
+    uint64_t magics = 0;
+    long long next = next_record(r, at + 1, type, len, &magics);
+    long long end = next;
+    if (end < 0) {
+        end = fseeko(r->file, 0, SEEK_END) == 0 ? (long long)ftello(r->file) : at;
+        r->pos = end;
+    }
+    r->lost_bytes += end > at ? (uint64_t)(end - at) : 0;
+    if (next < 0 && k == AT_SHORT && !magics) {
         r->truncated = 1;
         return 0;
     }
-    if (grow(r, *len ? *len : 1) != SH_OK) return 0;
-    if (fread(r->buf, 1, *len, r->file) != *len) {
-        r->truncated = 1;
-        return 0;
-    }
-    if (sh_crc32(0, r->buf, *len) != get32(h + 12)) {
-        r->skipped++;
-        return -1;
-    }
+    r->skipped += 1 + magics;
+    if (next < 0) return 0;
+    r->rec_at = next;
     return 1;
+}
+
+/* A record whose CRC holds but whose content cannot be used. */
+static void skip_content(sh_rec_reader *r, uint32_t len)
+{
+    r->skipped++;
+    r->lost_bytes += REC_HEADER + (uint64_t)len;
 }
 
 static int add_stream(sh_rec_reader *r, const uint8_t *p, uint32_t len, sh_rec_stream *out)
@@ -294,25 +361,33 @@ sh_status sh_rec_reader_open_file(FILE *file, const char *name, sh_rec_reader **
     r->file = file;
     snprintf(r->name, sizeof r->name, "%s", name ? name : "recording");
     uint8_t h[FILE_HEADER];
-    if (fread(h, 1, sizeof h, file) != sizeof h || memcmp(h, FILE_MAGIC, 8) || get32(h + 8) != VERSION ||
-        get32(h + 12) != FILE_HEADER) {
-        sh_status st = sh_error_set(SH_EFORMAT, "%s: not a stillheart recording (version %d)", r->name, VERSION);
+    if (fread(h, 1, sizeof h, file) != sizeof h || memcmp(h, FILE_MAGIC, 8) || get32(h + 12) != FILE_HEADER ||
+        get32(h + 8) < 1 || get32(h + 8) > VERSION) {
+        int known = !memcmp(h, FILE_MAGIC, 8) && get32(h + 12) == FILE_HEADER;
+        sh_status st = known ? sh_error_set(SH_EFORMAT, "%s: recording version %u, this reader knows 1 to %d", r->name,
+                                            (unsigned)get32(h + 8), VERSION)
+                             : sh_error_set(SH_EFORMAT, "%s: not a stillheart recording (damaged header?)", r->name);
         free(r);
         return st;
     }
-    /* the leading stream records */
+    r->version = (int)get32(h + 8);
+    long long at = (long long)ftello(file);
+    if (at < 0) { /* resync seeks: a pipe cannot be read */
+        free(r);
+        return sh_error_set(SH_EINVAL, "%s: a recording is read from a file that can seek", name);
+    }
+    r->pos = at;
+    /* the leading stream records; the first other record is read again by the first next() */
     for (;;) {
-        long at = ftell(file);
         uint32_t type, len;
         int k = read_record(r, &type, &len);
         if (k == 1 && type == SH_REC_STREAM && add_stream(r, r->buf, len, NULL)) continue;
-        r->truncated = 0;
-        r->skipped = 0;
-        if (at < 0 || fseek(file, at, SEEK_SET) != 0) {
+        if (k == 0) break;
+        if (fseeko(file, (off_t)r->rec_at, SEEK_SET) != 0) {
             sh_rec_reader_close(r);
             return sh_error_set(SH_EIO, "%s: cannot seek", name);
         }
-        r->first_other = at;
+        r->pos = r->rec_at;
         break;
     }
     *out = r;
@@ -359,14 +434,12 @@ sh_status sh_rec_reader_next(sh_rec_reader *r, sh_rec_record *rec)
     if (!r || !rec) return sh_error_set(SH_EINVAL, "recording: NULL argument");
     for (;;) {
         uint32_t type, len;
-        int k = read_record(r, &type, &len);
-        if (k == 0) return SH_EEOF;
-        if (k < 0) continue;
+        if (!read_record(r, &type, &len)) return SH_EEOF;
         memset(rec, 0, sizeof *rec);
         const uint8_t *p = r->buf;
         if (type == SH_REC_STREAM) {
             if (!add_stream(r, p, len, &rec->stream)) {
-                r->skipped++;
+                skip_content(r, len);
                 continue;
             }
             rec->type = SH_REC_STREAM;
@@ -375,7 +448,7 @@ sh_status sh_rec_reader_next(sh_rec_reader *r, sh_rec_record *rec)
         if (type == SH_REC_FRAME) {
             uint32_t cam = len >= FRAME_META ? get32(p) : SH_REC_MAX_STREAMS;
             if (cam >= SH_REC_MAX_STREAMS || !r->have[cam]) {
-                r->skipped++;
+                skip_content(r, len);
                 continue;
             }
             const sh_rec_stream *s = &r->streams[cam];
@@ -390,7 +463,7 @@ sh_status sh_rec_reader_next(sh_rec_reader *r, sh_rec_record *rec)
             rec->raw.data = p + FRAME_META;
             rec->raw.bytes = len - FRAME_META;
             if (sh_raw_check(&rec->raw) != SH_OK) {
-                r->skipped++;
+                skip_content(r, len);
                 continue;
             }
             return SH_OK;
@@ -411,12 +484,14 @@ sh_status sh_rec_reader_next(sh_rec_reader *r, sh_rec_record *rec)
                 }
             return SH_OK;
         }
-        r->skipped++; /* unknown type or bad length: skipped (a later version's record) */
+        skip_content(r, len); /* unknown type or bad length: skipped (a later version's record) */
     }
 }
 
 int sh_rec_reader_truncated(const sh_rec_reader *r) { return r ? r->truncated : 0; }
 uint64_t sh_rec_reader_skipped(const sh_rec_reader *r) { return r ? r->skipped : 0; }
+uint64_t sh_rec_reader_lost_bytes(const sh_rec_reader *r) { return r ? r->lost_bytes : 0; }
+int sh_rec_reader_version(const sh_rec_reader *r) { return r ? r->version : 0; }
 
 void sh_rec_reader_close(sh_rec_reader *r)
 {

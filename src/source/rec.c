@@ -1,7 +1,9 @@
 /* rec:DIR — one camera of a stillheart recording replayed as a source. Frames come with the
  * recorded spacing: frame i is due at start + (t_i - t_0) in real time (or at once), and is
  * timestamped so, on today's monotonic clock. Looping starts again one mean frame interval after
- * the last frame. The frames are copied out of the reader into two slots allocated at open. */
+ * the last frame. The frames are copied out of the reader into two slots allocated at open.
+ * Damage: the reader resyncs past it, so the replay (and a loop) covers every good record; the
+ * damage is counted and described (note_damage) and, without loop, the end is an error. */
 #include "source_internal.h"
 
 #include <errno.h>
@@ -36,20 +38,44 @@ typedef struct {
     uint64_t sequence_out;
     int at_end;
     int restarted; /* the recording started again: a camera's recording never joins its start */
+    int passes;    /* completed: damage is counted in the first pass only */
+    uint64_t seen_skipped, seen_lost; /* the reader's damage counters already reported */
+    int end_damaged; /* a replay without loop that met damage ends in the error, once */
 } rec_source;
+
+/* Reports new damage the reader skipped (resync goes on past it, so the replay does too):
+ * counted in the stats and described for the caller's WARNING, in the first pass only. */
+static void note_damage(rec_source *r)
+{
+    uint64_t sk = sh_rec_reader_skipped(r->reader), lost = sh_rec_reader_lost_bytes(r->reader);
+    if (r->passes || lost == r->seen_lost) return;
+    sh_source *s = &r->base;
+    s->stats.damaged++;
+    s->stats.errors += sk - r->seen_skipped;
+    s->stats.lost_bytes = lost;
+    snprintf(s->damage, sizeof s->damage,
+             "rec:%s: damaged recording: %llu record(s) skipped%s, %llu bytes lost so far; the replay goes on "
+             "with the good records",
+             r->path, (unsigned long long)sk, sh_rec_reader_truncated(r->reader) ? " and a torn last record" : "",
+             (unsigned long long)lost);
+    r->seen_skipped = sk;
+    r->seen_lost = lost;
+}
 
 static sh_status read_ahead(rec_source *r)
 {
     sh_rec_record rec;
     for (;;) {
         sh_status st = sh_rec_reader_next(r->reader, &rec);
+        note_damage(r);
         if (st == SH_EEOF) {
-            r->base.stats.errors = sh_rec_reader_skipped(r->reader);
             if (!r->base.opts.loop || !r->count_in_pass) {
                 r->have_next = 0;
                 r->at_end = 1;
+                r->end_damaged = r->base.stats.damaged != 0;
                 return SH_OK;
             }
+            r->passes++;
             sh_rec_reader_close(r->reader);
             r->reader = NULL;
             if ((st = sh_rec_reader_open(r->path, &r->reader)) != SH_OK) return st;
@@ -116,6 +142,10 @@ static sh_status r_dequeue(sh_source *s, int timeout_ms, sh_source_frame *f, int
             break;
         }
     if (slot < 0) return sh_error_set(SH_EINVAL, "%s: every frame slot is held (release frames)", s->name);
+    if (!r->have_next && r->end_damaged) { /* the end of a damaged recording is an error: a caller's exit says so */
+        r->end_damaged = 0;
+        return sh_error_set(SH_EFORMAT, "%s", s->damage);
+    }
     if (!r->have_next) return SH_EEOF;
     int64_t due = due_of(r);
     if (s->opts.realtime) {

@@ -120,3 +120,5 @@ void sh_source_get_stats(const sh_source *s, sh_source_stats *st)
 }
 
 const char *sh_source_name(const sh_source *s) { return s ? s->name : ""; }
+
+const char *sh_source_damage(const sh_source *s) { return s ? s->damage : ""; }

@@ -27,6 +27,7 @@ struct sh_source {
     int width, height, stride;
     int fps_num, fps_den;
     int started;
+    char damage[640];        /* sh_source_damage */
 };
 
 sh_status sh_source_open_y4m(const char *path, const sh_source_options *opts, sh_source **out);

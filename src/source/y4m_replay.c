@@ -3,7 +3,8 @@
  * feeds the pipeline the same times however fast it runs. Looping starts the file again with
  * the sequence and the schedule going on; the first frame of the new pass is flagged a
  * discontinuity unless the header says the end joins the start (XLOOP=SEAMLESS). The pollable
- * fd is a timerfd armed at the next due time. Two frame slots, allocated at open. */
+ * fd is a timerfd armed at the next due time. Two frame slots, allocated at open, after the
+ * reader checked the header's frame size against the file's. Damage: met_damage. */
 #include "source_internal.h"
 
 #include <errno.h>
@@ -32,6 +33,7 @@ typedef struct {
     int at_end;
     int seamless;  /* the file's end joins its start (XLOOP=SEAMLESS) */
     int restarted; /* the file started again and the scene jumps there */
+    int damage_seen; /* met once: counted once, not on every pass */
 } y4m_source;
 
 static void arm(y4m_source *y, int64_t due)
@@ -72,6 +74,32 @@ static sh_status rewind_reader(y4m_source *y)
     return SH_OK;
 }
 
+/* The reader stopped at damage. Where nothing good lies behind it (a torn last frame: the
+ * recorder was killed) the good part is everything before it, so the replay ends or loops
+ * there, counted and described once for a WARNING; where frames lie behind it, looping would
+ * show a prefix as if it were the file, so the replay stops with the error. Returns SH_EEOF to
+ * end the pass, or the error. */
+static sh_status met_damage(y4m_source *y)
+{
+    sh_source *s = &y->base;
+    sh_y4m_damage d;
+    if (!sh_y4m_reader_damage(y->reader, &d)) return SH_EFORMAT;
+    int tail = d.frames_lost >= 0 && d.frames_lost <= 1 && d.frame > 0;
+    if (!y->damage_seen) {
+        y->damage_seen = 1;
+        s->stats.errors++;
+        s->stats.damaged++;
+        if (d.lost > 0) s->stats.lost_bytes += (uint64_t)d.lost;
+        snprintf(s->damage, sizeof s->damage, "%s%s", sh_error_message(),
+                 !tail ? " (the replay stops there)" : s->opts.loop ? " (the frames before it are looped)" : "");
+    }
+    if (!tail) {
+        y->at_end = 1;
+        return sh_error_set(SH_EFORMAT, "%s", s->damage);
+    }
+    return SH_EEOF;
+}
+
 static sh_status y_dequeue(sh_source *s, int timeout_ms, sh_source_frame *f, int *got)
 {
     y4m_source *y = (y4m_source *)s;
@@ -101,10 +129,12 @@ static sh_status y_dequeue(sh_source *s, int timeout_ms, sh_source_frame *f, int
     }
     sh_status st = sh_y4m_reader_read(y->reader, &y->img[slot]);
     for (int attempt = 0; st != SH_OK && attempt < 2; attempt++) {
-        if (st == SH_EFORMAT) s->stats.errors++; /* a damaged tail: skipped, counted */
-        else if (st != SH_EEOF) return st;
+        if (st == SH_EFORMAT) st = met_damage(y);
+        if (st != SH_EEOF) return st;
         if (!s->opts.loop) {
             y->at_end = 1;
+            if (y->damage_seen) /* the end came early: a caller's exit says so, not only a log line */
+                return sh_error_set(SH_EFORMAT, "%s", s->damage);
             return SH_EEOF;
         }
         if ((st = rewind_reader(y)) != SH_OK) return st;
@@ -187,6 +217,10 @@ sh_status sh_source_open_y4m(const char *path, const sh_source_options *opts, sh
     y->base.fps_num = h->fps_num > 0 && h->fps_den > 0 ? h->fps_num : opts->fps_num;
     y->base.fps_den = h->fps_num > 0 && h->fps_den > 0 ? h->fps_den : opts->fps_den;
     if (y->base.fps_num <= 0 || y->base.fps_den <= 0) y->base.fps_num = 25, y->base.fps_den = 1;
+    if (sh_y4m_reader_whole_frames(y->reader) == 0) { /* before its frame size is allocated */
+        y_close(&y->base);
+        return sh_error_set(SH_EFORMAT, "y4m:%s: no frame in the file", path);
+    }
     y->frame_bytes = sh_image_packed_size(h->format, h->width, h->height);
     if (h->format == SH_PIX_I420 && ((h->width | h->height) & 1)) {
         y_close(&y->base);

@@ -1,10 +1,13 @@
 /* Y4M reader. Works on pipes: nothing here seeks, and a frame is read with fread straight into
- * the caller's planes, so a frame costs a few large reads and no copy. */
+ * the caller's planes, so a frame costs a few large reads and no copy. On a regular file the
+ * header's frame size is checked against the file's size at open, before a caller allocates a
+ * frame: a 184 KB file cannot make anyone allocate 16384x16384 frames. */
 #include "y4m_internal.h"
 
 #include <errno.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 
 /* A larger stdio buffer keeps the syscall count per frame low when rows are padded (one fread
  * per row then, served from this buffer). */
@@ -18,6 +21,10 @@ struct sh_y4m_reader {
     sh_y4m_header header;
     int frames;         /* delivered so far */
     sh_status failed;   /* sticky: after a damaged frame the stream position is unknown */
+    long long pos;      /* bytes consumed (header, FRAME lines, planes) */
+    long long size;     /* of a regular file at open from where we began, -1 otherwise */
+    long long base;     /* the file offset where we began (stdin may be redirected mid-file) */
+    sh_y4m_damage damage; /* valid when failed == SH_EFORMAT */
     char line[Y4M_MAX_HEADER + 1];
 };
 
@@ -62,6 +69,23 @@ static sh_status open_common(FILE *f, const char *name, int owns, char *vbuf,
     else if (n == -3) st = sh_error_set(SH_EFORMAT, "%s: Y4M header not terminated", name);
     else if (n == -4) st = sh_error_set(SH_EIO, "%s: read error: %s", name, strerror(errno));
     else st = y4m_header_parse_named(r->line, (size_t)n, name, &r->header);
+    r->pos = n + 1;
+    r->size = -1;
+    struct stat sb;
+    int fd = st == SH_OK ? fileno(f) : -1;
+    if (fd >= 0 && fstat(fd, &sb) == 0 && S_ISREG(sb.st_mode)) {
+        long long at = (long long)ftello(f);
+        r->base = at >= r->pos ? at - r->pos : 0;
+        r->size = (long long)sb.st_size - r->base;
+        long long rest = r->size - r->pos;
+        const sh_y4m_header *h = &r->header;
+        long long frame = (long long)sh_image_packed_size(h->format, h->width, h->height) + 6;
+        if (rest > 0 && rest < frame)
+            st = sh_error_set(SH_EFORMAT,
+                              "%s: the header promises %dx%d %s frames of %lld bytes, the file holds %lld "
+                              "after its header: not one whole frame (a damaged header or a cut file)",
+                              name, h->width, h->height, sh_pixfmt_name(h->format), frame - 6, rest);
+    }
     if (st != SH_OK) {
         sh_y4m_reader_close(r);
         return st;
@@ -103,10 +127,27 @@ int sh_y4m_reader_frame_index(const sh_y4m_reader *reader)
     return reader ? reader->frames : 0;
 }
 
+long long sh_y4m_reader_whole_frames(const sh_y4m_reader *r)
+{
+    if (!r || r->size < 0) return -1;
+    const sh_y4m_header *h = &r->header;
+    long long frame = (long long)sh_image_packed_size(h->format, h->width, h->height) + 6;
+    long long rest = r->size - r->pos;
+    return rest > 0 ? rest / frame : 0;
+}
+
+int sh_y4m_reader_damage(const sh_y4m_reader *r, sh_y4m_damage *d)
+{
+    if (!r || r->failed != SH_EFORMAT) return 0;
+    if (d) *d = r->damage;
+    return 1;
+}
+
 /* The FRAME line: "FRAME" then nothing or a space and parameters we skip. */
 static sh_status read_frame_line(sh_y4m_reader *r)
 {
     long n = read_line(r->file, r->line, Y4M_MAX_HEADER);
+    if (n >= 0) r->pos += n + 1;
     if (n == -1) return SH_EEOF;
     if (n == -4)
         return sh_error_set(SH_EIO, "%s: frame %d: read error: %s", r->name, r->frames,
@@ -129,11 +170,13 @@ static sh_status read_planes(sh_y4m_reader *r, sh_image *img)
             size_t bytes = row * (size_t)pl->height;
             size_t n = fread(pl->data, 1, bytes, r->file);
             got += n;
+            r->pos += (long long)n;
             if (n != bytes) goto short_read;
         } else {
             for (int y = 0; y < pl->height; y++) {
                 size_t n = fread(pl->data + (size_t)y * (size_t)pl->stride, 1, row, r->file);
                 got += n;
+                r->pos += (long long)n;
                 if (n != row) goto short_read;
             }
         }
@@ -145,6 +188,34 @@ short_read:
                             strerror(errno));
     return sh_error_set(SH_EFORMAT, "%s: frame %d truncated (%zu of %zu bytes)", r->name,
                         r->frames, got, want);
+}
+
+/* Fills r->damage for a frame that could not be read from byte `at`, and says in the message
+ * how much of the file lies beyond it: the caller must know whether it lost a torn tail or the
+ * rest of a recording. */
+static void note_damage(sh_y4m_reader *r, long long at)
+{
+    const sh_y4m_header *h = &r->header;
+    long long frame = (long long)sh_image_packed_size(h->format, h->width, h->height) + 6;
+    sh_y4m_damage *d = &r->damage;
+    d->frame = r->frames;
+    d->offset = at;
+    d->lost = -1;
+    d->frames_lost = -1;
+    struct stat sb;
+    int fd = r->size >= 0 ? fileno(r->file) : -1;
+    if (fd >= 0 && fstat(fd, &sb) == 0) {
+        long long size = (long long)sb.st_size - r->base; /* now: the file may have grown */
+        d->lost = size > at ? size - at : 0;
+        d->frames_lost = (d->lost + frame - 1) / frame;
+    }
+    char what[512];
+    snprintf(what, sizeof what, "%s", sh_error_message());
+    if (d->lost >= 0)
+        sh_error_set(SH_EFORMAT, "%s at byte %lld; %lld bytes (%lld frame%s) from there to the end not read", what,
+                     at, d->lost, d->frames_lost, d->frames_lost == 1 ? "" : "s");
+    else
+        sh_error_set(SH_EFORMAT, "%s at byte %lld", what, at);
 }
 
 sh_status sh_y4m_reader_read(sh_y4m_reader *reader, sh_image *img)
@@ -160,10 +231,12 @@ sh_status sh_y4m_reader_read(sh_y4m_reader *reader, sh_image *img)
     if (reader->failed)
         return sh_error_set(reader->failed, "%s: frame %d: stream already failed", reader->name,
                             reader->frames);
+    long long at = reader->pos;
     sh_status st = read_frame_line(reader);
     if (st == SH_OK) st = read_planes(reader, img);
     if (st != SH_OK) {
         reader->failed = st;
+        if (st == SH_EFORMAT) note_damage(reader, at);
         return st;
     }
     img->siting = h->siting;

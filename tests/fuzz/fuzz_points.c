@@ -27,6 +27,12 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         return 0;
     }
     check(p.count >= 0 && p.max_frame >= -1);
+    /* accepted: nothing but blank space after the last newline (a cut file is refused) */
+    size_t tail = size;
+    while (tail && data[tail - 1] != '\n') {
+        check(data[tail - 1] == ' ' || data[tail - 1] == '\t' || data[tail - 1] == '\r');
+        tail--;
+    }
     check(p.frame_start[0] == 0 && p.frame_start[p.max_frame + 1] == p.count);
     for (int i = 0; i < p.count; i++) {
         const sh_point *r = &p.rows[i];

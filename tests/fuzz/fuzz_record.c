@@ -1,6 +1,7 @@
-/* libFuzzer: arbitrary bytes as a recording (record.h). Reads every record and checks what the
- * reader promises: frames pass sh_raw_check against their stream, sets count their members;
- * small frames are converted to I420 and GRAY8 as the replay path would. */
+/* libFuzzer: arbitrary bytes as a recording (record.h), versions 1 and 2, damaged anywhere.
+ * Reads every record (resyncing past damage) and checks what the reader promises: frames pass
+ * sh_raw_check against their stream, sets count their members, the bytes reported lost are
+ * within the file; small frames are converted to I420 and GRAY8 as the replay path would. */
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -45,6 +46,9 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
             check(rec.set.count == __builtin_popcount(rec.set.present));
         }
     }
+    /* what was lost is within the file, and a torn tail is at most one record's worth */
+    check(sh_rec_reader_lost_bytes(r) <= size);
+    check(sh_rec_reader_version(r) == 1 || sh_rec_reader_version(r) == 2);
     sh_pixconv_destroy(conv);
     sh_rec_reader_close(r);
     fclose(in);

@@ -1,10 +1,14 @@
 /* libFuzzer: arbitrary bytes as a Y4M stream. Reads every frame, and checks that whatever was
  * read writes back and reads again to the same header and pixels (a round-trip oracle, so the
- * fuzzer finds wrong answers as well as crashes). */
+ * fuzzer finds wrong answers as well as crashes). The same bytes as a regular file (a memfd)
+ * take the path that measures the header's frame size against the file and the damage. */
+#define _GNU_SOURCE
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/mman.h>
+#include <unistd.h>
 
 #include "stillheart/y4m.h"
 
@@ -27,8 +31,45 @@ static int same_pixels(const sh_image *a, const sh_image *b)
     return 1;
 }
 
+/* As a regular file: an accepted header leaves room for at least one whole frame (or none at
+ * all), the frames read are at most the whole frames counted, and damage is located at the
+ * frame that failed, with what lies behind it. */
+static void as_file(const uint8_t *data, size_t size)
+{
+    int fd = memfd_create("fuzz.y4m", 0);
+    if (fd < 0) return;
+    FILE *f = fdopen(fd, "w+b");
+    check(f && fwrite(data, 1, size, f) == size && fseek(f, 0, SEEK_SET) == 0);
+    sh_y4m_reader *r;
+    if (sh_y4m_reader_open_file(f, "fuzz.y4m", &r) != SH_OK) {
+        check(strstr(sh_error_message(), "fuzz.y4m") != NULL);
+        fclose(f);
+        return;
+    }
+    const sh_y4m_header *h = sh_y4m_reader_header(r);
+    size_t bytes = sh_image_packed_size(h->format, h->width, h->height);
+    long long whole = sh_y4m_reader_whole_frames(r);
+    check(whole >= 0 && whole <= (long long)size / (long long)(bytes + 6));
+    sh_image img;
+    if (bytes <= MAX_FRAME_BYTES && sh_image_create(&img, h->format, h->width, h->height) == SH_OK) {
+        sh_status st;
+        int frames = 0;
+        while ((st = sh_y4m_reader_read(r, &img)) == SH_OK) frames++;
+        check(frames <= whole);
+        sh_y4m_damage d;
+        check(sh_y4m_reader_damage(r, &d) == (st == SH_EFORMAT));
+        if (st == SH_EFORMAT)
+            check(d.frame == frames && d.offset > 0 && d.lost >= 0 && d.offset + d.lost == (long long)size &&
+                  d.frames_lost >= (d.lost > 0));
+        sh_image_destroy(&img);
+    }
+    sh_y4m_reader_close(r);
+    fclose(f);
+}
+
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {
+    as_file(data, size);
     if (size == 0) return 0; /* fmemopen refuses an empty buffer */
     const char *nl = memchr(data, '\n', size);
     sh_y4m_header parsed;

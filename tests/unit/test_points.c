@@ -24,14 +24,14 @@ static void test_layout_tolerance(void **state)
 {
     (void)state;
     /* BOM, CRLF, blank lines (one with spaces), spaces and tabs around fields, rows out of
-     * order, no final newline. */
+     * order. */
     const char *text = "\xEF\xBB\xBF frame , id,x,y\r\n"
                        "\r\n"
                        "2,5, 10.5 ,\t-3\r\n"
                        "   \n"
                        "0,1,1e2,0.25\n"
                        "2,0,+7,8.125\n"
-                       "0,0,-1.5,2";
+                       "0,0,-1.5,2\n";
     sh_points p;
     assert_int_equal(parse(text, &p), SH_OK);
     assert_int_equal(p.count, 4);
@@ -133,10 +133,51 @@ static void test_refusals_name_the_line(void **state)
     expect_error("frame,id,x,y,X,Y,Z\n0,0,1,2,3,4,NaN\n", "pts.csv:2: Z 'NaN' is not finite");
     expect_error("frame,id,x,y\r\n3,1,1,2\r\n0,0,1,2\r\n3,1,5,6\r\n",
                  "pts.csv:4: duplicate marker: frame 3 id 1 (first at line 2)");
+    /* numbers are whole fields: what strtod stops short of is refused, not dropped */
+    expect_error("frame,id,x,y\n0,0,2.5x,1\n", "pts.csv:2: x '2.5x' is not a number");
+    expect_error("frame,id,x,y\n0,0,1e,1\n", "pts.csv:2: x '1e' is not a number");
+    expect_error("frame,id,x,y\n0,0,1,-\n", "pts.csv:2: y '-' is not a number");
+    expect_error("frame,id,x,y\n0,0,.,1\n", "pts.csv:2: x '.' is not a number");
+    expect_error("frame,id,x,y\n0,0,1,2;\n", "pts.csv:2: y '2;' is not a number");
     const char nul[] = "frame,id,x,y\n0,0,1\0,2\n";
     sh_points p;
     assert_int_equal(sh_points_parse(nul, sizeof nul - 1, "pts.csv", &p), SH_EFORMAT);
     assert_non_null(strstr(sh_error_message(), "pts.csv:2: x"));
+}
+
+/* A file cut anywhere before its last newline is refused naming the last line: the issue's y =
+ * 24.31 cut to "2" parses as a number, so only the missing newline gives the cut away. */
+static void test_cut_file_refused(void **state)
+{
+    (void)state;
+    const char *full = "frame,id,x,y\n0,0,10.5,20.25\n4,7,130.5,24.31\n";
+    size_t n = strlen(full);
+    const size_t row2 = strlen("frame,id,x,y\n0,0,10.5,20.25\n");
+    for (size_t cut = 1; cut < n; cut++) {
+        sh_points p;
+        sh_status st = sh_points_parse(full, cut, "pts.csv", &p);
+        if (full[cut - 1] == '\n') {
+            /* cut at a line's end: a shorter file, not a damaged one */
+            assert_int_equal(st, SH_OK);
+            assert_int_equal(p.count, cut == n ? 2 : cut == row2 ? 1 : 0);
+            sh_points_destroy(&p);
+            continue;
+        }
+        assert_int_equal(st, SH_EFORMAT);
+        int line = cut < strlen("frame,id,x,y\n") ? 1 : cut < row2 ? 2 : 3;
+        char want[160];
+        snprintf(want, sizeof want, "pts.csv:%d: the last line does not end in a newline (is the file cut?)", line);
+        assert_string_equal(sh_error_message(), want);
+        assert_null(p.rows);
+    }
+    sh_points p;
+    assert_int_equal(sh_points_parse(full, n, "pts.csv", &p), SH_OK);
+    assert_true(p.rows[1].y == 24.31);
+    sh_points_destroy(&p);
+    /* trailing blank space after the last newline is layout, not a cut */
+    assert_int_equal(parse("frame,id,x,y\n0,0,1,2\n  \t", &p), SH_OK);
+    assert_int_equal(p.count, 1);
+    sh_points_destroy(&p);
 }
 
 static void test_write_read_round_trip(void **state)
@@ -199,6 +240,13 @@ static void test_read_file(void **state)
     char want[200];
     snprintf(want, sizeof want, "%s:3: id 'x' is not an integer", path);
     assert_string_equal(sh_error_message(), want);
+    /* y = 2 cut from "2.5": refused with the file and line */
+    fd = open(path, O_WRONLY | O_TRUNC);
+    assert_int_equal(write(fd, "frame,id,x,y\n1,0,1,2", 20), 20);
+    close(fd);
+    assert_int_equal(sh_points_read(path, &p), SH_EFORMAT);
+    snprintf(want, sizeof want, "%s:2: the last line does not end in a newline (is the file cut?)", path);
+    assert_string_equal(sh_error_message(), want);
     fd = open(path, O_WRONLY | O_TRUNC);
     assert_int_equal(write(fd, text, 21), 21);
     close(fd);
@@ -234,6 +282,7 @@ int main(void)
         cmocka_unit_test(test_layout_tolerance),
         cmocka_unit_test(test_3d_and_header_only),
         cmocka_unit_test(test_refusals_name_the_line),
+        cmocka_unit_test(test_cut_file_refused),
         cmocka_unit_test(test_write_read_round_trip),
         cmocka_unit_test(test_read_file),
         cmocka_unit_test(test_match),

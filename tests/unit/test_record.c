@@ -1,6 +1,7 @@
 /* Recordings: CRC-32 against its published check value, a round trip of streams, frames and
- * sets, a torn tail at every byte of the last record, a damaged record in the middle, a writer
- * killed mid-stream, the refusals, and replay through the source interface (rec:DIR). */
+ * sets, a torn tail at every byte of the last record, a damaged record in the middle, every
+ * byte flipped in turn, version 1 files, a writer killed mid-stream, the refusals, and replay
+ * through the source interface (rec:DIR), damaged too. */
 #include <setjmp.h>
 #include <signal.h>
 #include <stdarg.h>
@@ -180,27 +181,226 @@ static void test_torn_tail(void **state)
     free(all);
 }
 
+/* Record sizes in write_rec's file, from the layout in record.h, and where frame k of camera c
+ * begins. */
+enum { STREAM_REC = 16 + 7 * 4 + 64, FRAME0_REC = 16 + 24 + 2 * W * H, FRAME1_REC = 16 + 24 + W * H,
+       SET_REC = 16 + 24 + 8 * SH_SYNC_MAX_CAMERAS };
+static long frame_at(int k, int c) { return 16 + 2 * STREAM_REC + k * (FRAME0_REC + FRAME1_REC + SET_REC) + c * FRAME0_REC; }
+
+/* XORs the byte at `at` of the recording with mask. */
+static void flip_at(long at, int mask)
+{
+    FILE *f = fopen(file, "r+b");
+    assert_non_null(f);
+    fseek(f, at, SEEK_SET);
+    int c = fgetc(f);
+    fseek(f, at, SEEK_SET);
+    fputc(c ^ mask, f);
+    fclose(f);
+}
+
 /* One flipped byte in frame 3 of camera 0: that frame is skipped and counted, the rest reads. */
 static void test_damaged_middle(void **state)
 {
     (void)state;
     rm_rec();
     write_rec();
-    long stream_rec = 16 + 7 * 4 + 64, frame0 = 16 + 24 + 2 * W * H, frame1 = 16 + 24 + W * H,
-         set_rec = 16 + 24 + 8 * SH_SYNC_MAX_CAMERAS;
-    long at = 16 + 2 * stream_rec + 3 * (frame0 + frame1 + set_rec) + 16 + 24 + 5;
-    FILE *f = fopen(file, "r+b");
-    fseek(f, at, SEEK_SET);
-    int c = fgetc(f);
-    fseek(f, at, SEEK_SET);
-    fputc(c ^ 0x40, f);
-    fclose(f);
+    flip_at(frame_at(3, 0) + 16 + 24 + 5, 0x40);
     int sets, trunc;
     uint64_t skipped;
     assert_int_equal(read_all(dir, &sets, &trunc, &skipped), 2 * NF - 1);
     assert_int_equal(sets, NF);
     assert_false(trunc);
     assert_int_equal(skipped, 1);
+    sh_rec_reader *r;
+    assert_int_equal(sh_rec_reader_open(dir, &r), SH_OK);
+    sh_rec_record rec;
+    while (sh_rec_reader_next(r, &rec) == SH_OK) {
+    }
+    assert_int_equal(sh_rec_reader_lost_bytes(r), FRAME0_REC); /* the damaged record, no more */
+    sh_rec_reader_close(r);
+}
+
+/* The records of write_rec in file order: kind (0 stream, 1 frame, 2 set), camera, index, and
+ * their byte sizes, from the layout in record.h. */
+enum { NREC = 2 + 3 * NF };
+static void layout(int kind[NREC], int cam[NREC], int idx[NREC], long size[NREC])
+{
+    for (int c = 0; c < 2; c++) kind[c] = 0, cam[c] = c, idx[c] = 0, size[c] = STREAM_REC;
+    for (int k = 0; k < NF; k++)
+        for (int j = 0; j < 3; j++) {
+            int i = 2 + 3 * k + j;
+            kind[i] = j < 2 ? 1 : 2;
+            cam[i] = j < 2 ? j : -1;
+            idx[i] = k;
+            size[i] = j == 2 ? SET_REC : j ? FRAME1_REC : FRAME0_REC;
+        }
+}
+
+/* Every byte of a small recording flipped in turn (one bit, a different one as the offset goes):
+ * the reader never crashes, refuses a damaged file header by name, and otherwise reads every
+ * record but the one the flip is in, in order and intact, counting that one record (skipped or
+ * a torn tail) and exactly its bytes. A damaged STREAM record costs its camera's frames too
+ * (they cannot be read without it): those are counted as skipped. */
+static void test_bit_flips(void **state)
+{
+    (void)state;
+    rm_rec();
+    write_rec();
+    int kind[NREC], cam[NREC], idx[NREC];
+    long size[NREC], start[NREC + 1];
+    layout(kind, cam, idx, size);
+    start[0] = 16;
+    for (int i = 0; i < NREC; i++) start[i + 1] = start[i] + size[i];
+    long full = file_size();
+    assert_int_equal(full, start[NREC]);
+    FILE *f = fopen(file, "rb");
+    uint8_t *all = malloc((size_t)full);
+    assert_int_equal(fread(all, 1, (size_t)full, f), (size_t)full);
+    fclose(f);
+    uint8_t b[2 * W * H];
+    int refused = 0, torn = 0;
+    for (long at = 0; at < full; at++) {
+        all[at] ^= (uint8_t)(1u << (at % 8));
+        f = fopen(file, "wb");
+        assert_int_equal(fwrite(all, 1, (size_t)full, f), (size_t)full);
+        fclose(f);
+        all[at] ^= (uint8_t)(1u << (at % 8));
+        sh_rec_reader *r;
+        sh_status st = sh_rec_reader_open(dir, &r);
+        if (at < 16) {
+            assert_int_equal(st, SH_EFORMAT);
+            assert_non_null(strstr(sh_error_message(), file));
+            refused++;
+            continue;
+        }
+        assert_int_equal(st, SH_OK);
+        int hit = 0;
+        while (start[hit + 1] <= at) hit++;
+        int lost_cam = kind[hit] == 0 ? cam[hit] : -1;
+        uint64_t want_skipped = 1, want_lost = (uint64_t)size[hit];
+        if (lost_cam >= 0) want_skipped += NF, want_lost += (uint64_t)NF * (uint64_t)size[2 + lost_cam];
+        sh_rec_record rec;
+        int i = 2; /* the next record expected after the streams */
+        assert_int_equal(sh_rec_reader_streams(r, NULL), lost_cam >= 0 ? 1 : 2);
+        while ((st = sh_rec_reader_next(r, &rec)) == SH_OK) {
+            while (i == hit || (kind[i] == 1 && cam[i] == lost_cam)) i++;
+            assert_true(i < NREC);
+            if (kind[i] == 1) {
+                assert_int_equal(rec.type, SH_REC_FRAME);
+                assert_int_equal(rec.camera, cam[i]);
+                assert_int_equal(rec.sequence, (uint64_t)idx[i]);
+                fill(b, rec.raw.bytes, idx[i] + 100 * cam[i]);
+                assert_int_equal((long)rec.raw.bytes, size[i] - 40);
+                assert_memory_equal(b, rec.raw.data, rec.raw.bytes);
+            } else {
+                assert_int_equal(rec.type, SH_REC_SET);
+                assert_int_equal(rec.set.index, (uint64_t)idx[i]);
+            }
+            i++;
+        }
+        assert_int_equal(st, SH_EEOF);
+        while (i < NREC && (i == hit || (kind[i] == 1 && cam[i] == lost_cam))) i++;
+        assert_int_equal(i, NREC); /* nothing else lost */
+        uint64_t sk = sh_rec_reader_skipped(r);
+        int tr = sh_rec_reader_truncated(r);
+        torn += tr;
+        assert_int_equal(sk + (uint64_t)tr, want_skipped);
+        assert_int_equal(sh_rec_reader_lost_bytes(r), want_lost);
+        sh_rec_reader_close(r);
+    }
+    print_message("%ld bytes flipped in turn: %d in the file header refused by name, %ld in records each cost that "
+                  "record alone (%d of them read as a torn tail)\n", full, refused, full - 16, torn);
+    free(all);
+}
+
+/* Version 1 (the CRC of the payload alone) still reads; a version this reader does not know is
+ * refused by its number. */
+static void test_versions(void **state)
+{
+    (void)state;
+    rm_rec();
+    write_rec();
+    long full = file_size();
+    FILE *f = fopen(file, "rb");
+    uint8_t *all = malloc((size_t)full);
+    assert_int_equal(fread(all, 1, (size_t)full, f), (size_t)full);
+    fclose(f);
+    assert_int_equal(all[8], 2);
+    all[8] = 1;
+    for (long at = 16; at < full;) { /* rewrite every record's CRC as version 1 had it */
+        uint32_t len = (uint32_t)all[at + 8] | (uint32_t)all[at + 9] << 8 | (uint32_t)all[at + 10] << 16 |
+                       (uint32_t)all[at + 11] << 24;
+        uint32_t crc = sh_crc32(0, all + at + 16, len);
+        for (int k = 0; k < 4; k++) all[at + 12 + k] = (uint8_t)(crc >> (8 * k));
+        at += 16 + (long)len;
+    }
+    f = fopen(file, "wb");
+    assert_int_equal(fwrite(all, 1, (size_t)full, f), (size_t)full);
+    fclose(f);
+    int sets, trunc;
+    uint64_t skipped;
+    assert_int_equal(read_all(dir, &sets, &trunc, &skipped), 2 * NF);
+    assert_int_equal(sets, NF);
+    assert_int_equal(skipped, 0);
+    all[8] = 3;
+    f = fopen(file, "wb");
+    assert_int_equal(fwrite(all, 1, (size_t)full, f), (size_t)full);
+    fclose(f);
+    sh_rec_reader *r;
+    assert_int_equal(sh_rec_reader_open(dir, &r), SH_EFORMAT);
+    assert_non_null(strstr(sh_error_message(), "recording version 3, this reader knows 1 to 2"));
+    assert_non_null(strstr(sh_error_message(), file));
+    free(all);
+}
+
+/* A replay meets damage: it goes on past it (camera 1's frame 3 skipped), counts it once and
+ * describes it; without loop the end is an error saying how much was lost, with loop every
+ * good frame comes round again. */
+static void test_replay_damage(void **state)
+{
+    (void)state;
+    rm_rec();
+    write_rec();
+    flip_at(frame_at(3, 1) + 30, 0x01);
+    char spec[96], want[200];
+    snprintf(spec, sizeof spec, "rec:%s", dir);
+    snprintf(want, sizeof want, "rec:%s: damaged recording: 1 record(s) skipped, %d bytes lost so far", dir, FRAME1_REC);
+    for (int loop = 0; loop < 2; loop++) {
+        sh_source_options o;
+        sh_source_options_default(&o);
+        o.camera = 1;
+        o.realtime = 0;
+        o.loop = loop;
+        sh_source *s;
+        assert_int_equal(sh_source_open(spec, &o, &s), SH_OK);
+        assert_int_equal(sh_source_start(s), SH_OK);
+        uint8_t b[W * H];
+        int n = 0;
+        sh_status st = SH_OK;
+        for (; n < 2 * (NF - 1); n++) {
+            sh_source_frame fr;
+            int got;
+            if ((st = sh_source_dequeue(s, 0, &fr, &got)) != SH_OK) break;
+            int k = n % (NF - 1);
+            fill(b, W * H, (k < 3 ? k : k + 1) + 100); /* frame 3 is the damaged one */
+            assert_memory_equal(b, fr.raw.data, W * H);
+            assert_int_equal(sh_source_release(s, &fr), SH_OK);
+        }
+        sh_source_stats ss;
+        sh_source_get_stats(s, &ss);
+        assert_int_equal(ss.damaged, 1);
+        assert_int_equal(ss.lost_bytes, (uint64_t)FRAME1_REC);
+        assert_non_null(strstr(sh_source_damage(s), want));
+        if (loop) {
+            assert_int_equal(n, 2 * (NF - 1));
+        } else {
+            assert_int_equal(n, NF - 1);
+            assert_int_equal(st, SH_EFORMAT);
+            assert_non_null(strstr(sh_error_message(), want));
+        }
+        sh_source_close(s);
+    }
 }
 
 /* A writer killed mid-stream: every frame it finished reads back. */
@@ -256,6 +456,15 @@ static void test_refusals(void **state)
     FILE *f = fmemopen((void *)"YUV4MPEG2 W8 H4\n", 16, "rb");
     assert_int_equal(sh_rec_reader_open_file(f, "x.y4m", &r), SH_EFORMAT);
     assert_non_null(strstr(sh_error_message(), "x.y4m"));
+    fclose(f);
+    /* a pipe: resync seeks, so it is refused by name */
+    int fds[2];
+    assert_int_equal(pipe(fds), 0);
+    assert_int_equal(write(fds[1], "SHREC\r\n\x1a\x02\0\0\0\x10\0\0\0", 16), 16);
+    close(fds[1]);
+    f = fdopen(fds[0], "rb");
+    assert_int_equal(sh_rec_reader_open_file(f, "pipe.shrec", &r), SH_EINVAL);
+    assert_non_null(strstr(sh_error_message(), "pipe.shrec: a recording is read from a file that can seek"));
     fclose(f);
     sh_rec_writer *w;
     rm_rec();
@@ -313,7 +522,8 @@ int main(void)
         cmocka_unit_test(test_crc),           cmocka_unit_test(test_round_trip),
         cmocka_unit_test(test_torn_tail),     cmocka_unit_test(test_damaged_middle),
         cmocka_unit_test(test_killed_writer), cmocka_unit_test(test_refusals),
-        cmocka_unit_test(test_replay),
+        cmocka_unit_test(test_replay),        cmocka_unit_test(test_bit_flips),
+        cmocka_unit_test(test_versions),      cmocka_unit_test(test_replay_damage),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }

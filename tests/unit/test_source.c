@@ -9,6 +9,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/resource.h>
 #include <unistd.h>
 
 #include <cmocka.h>
@@ -206,6 +207,158 @@ static void test_loop_discontinuity(void **state)
     }
 }
 
+enum { FRAME_REC = 6 + W * H * 3 / 2 }; /* "FRAME\n" and an I420 frame */
+
+/* The file's bytes, and the offset of its first FRAME line (the header's length). */
+static unsigned char *slurp(size_t *len, size_t *header)
+{
+    FILE *f = fopen(path, "rb");
+    assert_non_null(f);
+    unsigned char *buf = malloc(1 << 16);
+    *len = fread(buf, 1, 1 << 16, f);
+    fclose(f);
+    const unsigned char *nl = memchr(buf, '\n', *len);
+    assert_non_null(nl);
+    *header = (size_t)(nl - buf) + 1;
+    assert_memory_equal(buf + *header, "FRAME\n", 6);
+    assert_int_equal(*len, *header + (size_t)N * FRAME_REC); /* the layout counted by hand */
+    return buf;
+}
+
+static void put_file(const unsigned char *buf, size_t len)
+{
+    FILE *f = fopen(path, "wb");
+    assert_non_null(f);
+    assert_int_equal(fwrite(buf, 1, len, f), len);
+    assert_int_equal(fclose(f), 0);
+}
+
+/* Replays the file (loop or not) for up to `max` frames; returns the frames delivered, and the
+ * status that ended it (SH_OK when max was reached) in *end. Frame k's luma must be k mod good. */
+static int replay(int loop, int max, int good, sh_status *end, sh_source_stats *stats, char *damage)
+{
+    sh_source_options o;
+    sh_source_options_default(&o);
+    o.realtime = 0;
+    o.loop = loop;
+    sh_source *s;
+    assert_int_equal(sh_source_open(spec, &o, &s), SH_OK);
+    assert_int_equal(sh_source_start(s), SH_OK);
+    int k = 0;
+    *end = SH_OK;
+    for (; k < max; k++) {
+        int got = 0;
+        sh_source_frame fr;
+        sh_status st = sh_source_dequeue(s, 0, &fr, &got);
+        if (st != SH_OK) {
+            *end = st;
+            if (st != SH_EEOF) snprintf(damage + 512, 512, "%s", sh_error_message());
+            break;
+        }
+        assert_int_equal(got, 1);
+        assert_int_equal(fr.raw.data[0], k % good);
+        assert_int_equal(sh_source_release(s, &fr), SH_OK);
+    }
+    sh_source_get_stats(s, stats);
+    snprintf(damage, 512, "%s", sh_source_damage(s));
+    sh_source_close(s);
+    return k;
+}
+
+static void expect_in(const char *text, const char *needle)
+{
+    if (!strstr(text, needle)) {
+        print_error("'%s' lacks '%s'\n", text, needle);
+        fail();
+    }
+}
+
+/* A damaged FRAME line mid-stream: the frames before it, then an error saying where and how
+ * much was lost, looping or not (a loop would show the first 3 frames as if they were the
+ * file). A torn last frame (a killed recorder): the whole good part, looped with the damage
+ * described once, or, not looping, ended by the error rather than a clean end. */
+static void test_damaged_replays(void **state)
+{
+    (void)state;
+    write_y4m(25, 1);
+    size_t len, hdr;
+    unsigned char *buf = slurp(&len, &hdr);
+    char damage[1024], want[256];
+    sh_status end;
+    sh_source_stats st;
+
+    buf[hdr + 3 * FRAME_REC + 4] = 'X'; /* FRAMX at frame 3 */
+    put_file(buf, len);
+    for (int loop = 0; loop < 2; loop++) {
+        assert_int_equal(replay(loop, 4 * N, N, &end, &st, damage), 3);
+        assert_int_equal(end, SH_EFORMAT);
+        snprintf(want, sizeof want, "%s: frame 3: bad FRAME line at byte %zu; %d bytes (3 frames)", path,
+                 hdr + 3 * FRAME_REC, 3 * FRAME_REC);
+        expect_in(damage + 512, want);
+        expect_in(damage, want);
+        expect_in(damage, "the replay stops there");
+        assert_int_equal(st.damaged, 1);
+        assert_int_equal(st.lost_bytes, 3 * FRAME_REC);
+        assert_int_equal(st.frames, 3);
+    }
+
+    buf[hdr + 3 * FRAME_REC + 4] = 'E';
+    size_t cut = hdr + 5 * FRAME_REC + 100; /* frame 5: its FRAME line and 94 bytes */
+    put_file(buf, cut);
+    assert_int_equal(replay(0, 4 * N, 5, &end, &st, damage), 5);
+    assert_int_equal(end, SH_EFORMAT);
+    snprintf(want, sizeof want, "%s: frame 5 truncated (94 of %d bytes) at byte %zu; 100 bytes (1 frame)", path,
+             FRAME_REC - 6, hdr + 5 * FRAME_REC);
+    expect_in(damage + 512, want);
+    assert_int_equal(st.damaged, 1);
+    assert_int_equal(st.lost_bytes, 100);
+    assert_int_equal(replay(1, 3 * 5, 5, &end, &st, damage), 15);
+    assert_int_equal(end, SH_OK);
+    expect_in(damage, want);
+    expect_in(damage, "the frames before it are looped");
+    assert_int_equal(st.damaged, 1); /* once, not on each of the three passes */
+    assert_int_equal(st.errors, 1);
+    free(buf);
+}
+
+/* A header that promises more than its file holds is refused at open, before a frame is
+ * allocated: the issue's 184 KB file saying W16384 H16384 (a 4:4:4 frame is 768 MiB). Peak
+ * RSS is measured around the open. Sizes that would overflow are refused by the header. */
+static void test_hostile_headers(void **state)
+{
+    (void)state;
+    static const char *const heads[] = {"YUV4MPEG2 W16384 H16384 F25:1 C444\n", "YUV4MPEG2 W16384 H16384 F25:1\n",
+                                        "YUV4MPEG2 W2147483647 H2147483647 F25:1\n",
+                                        "YUV4MPEG2 W4294967297 H3 F25:1\n", "YUV4MPEG2 W32 H16 F25:1\n"};
+    /* 16384^2 x 3 and x 1.5 bytes a frame; the rest of the file is 184000 less the header */
+    static const char *const why[] = {"16384x16384 yuv444 frames of 805306368 bytes, the file holds %zu after",
+                                      "16384x16384 i420 frames of 402653184 bytes, the file holds %zu after",
+                                      "W2147483647", "W4294967297", "no frame in the file"};
+    unsigned char *buf = calloc(1, 184000);
+    struct rusage ru;
+    getrusage(RUSAGE_SELF, &ru);
+    long before = ru.ru_maxrss;
+    for (int i = 0; i < 5; i++) {
+        size_t n = strlen(heads[i]);
+        memcpy(buf, heads[i], n);
+        memcpy(buf + n, "FRAME\n", 6);
+        put_file(buf, i == 4 ? n : 184000);
+        sh_source_options o;
+        sh_source_options_default(&o);
+        sh_source *s = NULL;
+        assert_int_equal(sh_source_open(spec, &o, &s), SH_EFORMAT);
+        assert_null(s);
+        expect_in(sh_error_message(), path);
+        char want[160];
+        snprintf(want, sizeof want, why[i], 184000 - n);
+        expect_in(sh_error_message(), want);
+    }
+    getrusage(RUSAGE_SELF, &ru);
+    print_message("peak RSS %ld KiB before the hostile headers, %ld KiB after\n", before, ru.ru_maxrss);
+    assert_true(ru.ru_maxrss - before < 16 * 1024);
+    free(buf);
+}
+
 static void test_errors(void **state)
 {
     (void)state;
@@ -233,6 +386,8 @@ int main(void)
         cmocka_unit_test(test_ntsc_rate_and_poll),
         cmocka_unit_test(test_fast_replay),
         cmocka_unit_test(test_loop_discontinuity),
+        cmocka_unit_test(test_damaged_replays),
+        cmocka_unit_test(test_hostile_headers),
         cmocka_unit_test(test_errors),
     };
     return cmocka_run_group_tests(tests, setup, teardown);

@@ -299,6 +299,20 @@ static void expect_third_frame_error(const char *tail, size_t tail_len, const ch
         fail();
     }
     assert_int_equal(sh_y4m_reader_frame_index(r), 2);
+    /* where: after the 22-byte header and two frames of "FRAME\n" + 8 bytes; what is lost: the
+     * tail, in bytes and in (started) 14-byte frames */
+    sh_y4m_damage d;
+    assert_int_equal(sh_y4m_reader_damage(r, &d), 1);
+    assert_int_equal(d.frame, 2);
+    assert_int_equal(d.offset, 22 + 2 * 14);
+    assert_int_equal(d.lost, (long long)tail_len);
+    assert_int_equal(d.frames_lost, ((long long)tail_len + 13) / 14);
+    snprintf(want, sizeof want, "at byte 50; %zu bytes (%lld frame%s) from there to the end not read", tail_len,
+             d.frames_lost, d.frames_lost == 1 ? "" : "s");
+    if (!strstr(sh_error_message(), want)) {
+        print_error("message '%s' lacks '%s'\n", sh_error_message(), want);
+        fail();
+    }
     assert_int_equal(sh_y4m_reader_read(r, &img), SH_EFORMAT); /* stays failed */
     sh_y4m_reader_close(r);
     sh_image_destroy(&img);
@@ -313,6 +327,37 @@ static void test_truncated_and_damaged_frames(void **state)
     expect_third_frame_error("FRAMX\n12345678", 14, "bad FRAME line");
     expect_third_frame_error("FRAMES\n12345678", 15, "bad FRAME line");
     expect_third_frame_error("\n", 1, "bad FRAME line");
+    /* damage with good frames behind it: all of them counted as lost */
+    expect_third_frame_error("FRAMX\n12345678FRAME\n12345678FRAME\n1234", 38, "bad FRAME line");
+}
+
+/* The header's frame size against the file's: refused at open when the file after the header
+ * holds less than one frame; whole frames counted from the file's size. */
+static void test_frame_size_against_file(void **state)
+{
+    (void)state;
+    expect_error("YUV4MPEG2 W16384 H16384 C444\nFRAME\n0123456789", SH_EFORMAT,
+                 "promises 16384x16384 yuv444 frames of 805306368 bytes, the file holds 16 after its header");
+    expect_error("YUV4MPEG2 W4 H2 Cmono\nFRAME\n1234567", SH_EFORMAT, "frames of 8 bytes, the file holds 13");
+    expect_error("YUV4MPEG2 W2147483647 H2147483647\n", SH_EFORMAT, "W2147483647");
+    expect_error("YUV4MPEG2 W16384 H16385\n", SH_EFORMAT, "H16385");
+    sh_y4m_reader *r;
+    assert_int_equal(open_header("YUV4MPEG2 W4 H2 Cmono\nFRAME\n12345678FRAME\n12345678FRAME\n12", &r), SH_OK);
+    assert_int_equal(sh_y4m_reader_whole_frames(r), 2);
+    sh_image img;
+    assert_int_equal(sh_image_create(&img, SH_PIX_GRAY8, 4, 2), SH_OK);
+    assert_int_equal(sh_y4m_reader_read(r, &img), SH_OK);
+    assert_int_equal(sh_y4m_reader_whole_frames(r), 1);
+    assert_int_equal(sh_y4m_reader_damage(r, NULL), 0);
+    sh_y4m_reader_close(r);
+    sh_image_destroy(&img);
+    /* a stream of unknown size (a pipe here, as fmemopen) is not measured */
+    static char text[] = "YUV4MPEG2 W4 H2 Cmono\nFRAME\n12";
+    FILE *mem = fmemopen(text, sizeof text - 1, "rb");
+    assert_int_equal(sh_y4m_reader_open_file(mem, "mem", &r), SH_OK);
+    assert_int_equal(sh_y4m_reader_whole_frames(r), -1);
+    sh_y4m_reader_close(r);
+    fclose(mem);
 }
 
 static void test_frame_parameters_skipped(void **state)
@@ -443,6 +488,7 @@ int main(void)
         cmocka_unit_test(test_unsupported_colour_spaces),
         cmocka_unit_test(test_damaged_headers),
         cmocka_unit_test(test_truncated_and_damaged_frames),
+        cmocka_unit_test(test_frame_size_against_file),
         cmocka_unit_test(test_frame_parameters_skipped),
         cmocka_unit_test(test_wrong_image_refused),
         cmocka_unit_test(test_stdin_pipe),

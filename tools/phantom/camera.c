@@ -1,6 +1,7 @@
 /* Pinhole cameras with OpenCV's lens distortion model (k1 k2 p1 p2 k3), written out exactly as
  * cv::projectPoints computes it so that the calibration file reproduces our pixels. */
 #include <math.h>
+#include <string.h>
 
 #include "phantom.h"
 
@@ -45,4 +46,23 @@ void phantom_undistort(const phantom_camera *c, double x, double y, double *xn, 
     }
     *xn = a;
     *yn = b;
+}
+
+void phantom_calibration(const phantom_model *m, sh_calib *cal)
+{
+    memset(cal, 0, sizeof *cal);
+    cal->num_cameras = m->num_cameras;
+    cal->width = m->width;
+    cal->height = m->height;
+    for (int c = 0; c < m->num_cameras; c++) {
+        const phantom_camera *pc = &m->cam[c];
+        sh_calib_camera *k = &cal->cam[c];
+        double K[9] = {pc->fx, 0, pc->cx, 0, pc->fy, pc->cy, 0, 0, 1};
+        memcpy(k->K, K, sizeof K);
+        memcpy(k->dist, pc->dist, sizeof pc->dist);
+        k->num_dist = 5;
+        memcpy(k->R, pc->R, sizeof pc->R);
+        memcpy(k->t, pc->t, sizeof pc->t);
+    }
+    sh_calib_compute_p(cal);
 }

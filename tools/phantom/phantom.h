@@ -40,6 +40,7 @@
 
 #include <stdint.h>
 
+#include "stillheart/calib.h"
 #include "stillheart/core.h"
 
 #ifdef __cplusplus
@@ -159,6 +160,9 @@ int phantom_project(const phantom_camera *c, const double X[3], double *x, doubl
 void phantom_camera_center(const phantom_camera *c, double C[3]);
 /* Normalised undistorted ray coordinates (X/Z, Y/Z) of a distorted pixel (fixed point). */
 void phantom_undistort(const phantom_camera *c, double x, double y, double *xn, double *yn);
+/* The model's cameras as a calibration (K, k1 k2 p1 p2 k3, R, t, P = K [R | t]): what
+ * stillheart-render writes beside its videos. */
+void phantom_calibration(const phantom_model *m, sh_calib *cal);
 
 /* Material coordinates of marker index i's point k (0..3 corners, 4 centre): where on the
  * tissue the point sits (what a blood blob covers). */

@@ -210,21 +210,7 @@ static void progress(int done, int total, double t0)
 static sh_status write_calibration(const phantom_model *m, const char *path)
 {
     sh_calib cal;
-    memset(&cal, 0, sizeof cal);
-    cal.num_cameras = m->num_cameras;
-    cal.width = m->width;
-    cal.height = m->height;
-    for (int c = 0; c < m->num_cameras; c++) {
-        const phantom_camera *pc = &m->cam[c];
-        sh_calib_camera *k = &cal.cam[c];
-        double K[9] = {pc->fx, 0, pc->cx, 0, pc->fy, pc->cy, 0, 0, 1};
-        memcpy(k->K, K, sizeof K);
-        memcpy(k->dist, pc->dist, sizeof pc->dist);
-        k->num_dist = 5;
-        memcpy(k->R, pc->R, sizeof pc->R);
-        memcpy(k->t, pc->t, sizeof pc->t);
-    }
-    sh_calib_compute_p(&cal);
+    phantom_calibration(m, &cal);
     return sh_calib_write(path, &cal);
 }
 

@@ -71,28 +71,6 @@ static void corrupt_quad(sh_detection *d, const int *vis, double shift, double n
     d->cy = d->corner[0][1] + s * ay + noise * nrand(rng);
 }
 
-static void to_calib(const phantom_model *m, sh_calib *calib)
-{
-    memset(calib, 0, sizeof *calib);
-    calib->num_cameras = m->num_cameras;
-    calib->width = m->width;
-    calib->height = m->height;
-    for (int c = 0; c < m->num_cameras; c++) {
-        const phantom_camera *pc = &m->cam[c];
-        sh_calib_camera *k = &calib->cam[c];
-        k->K[0] = pc->fx;
-        k->K[2] = pc->cx;
-        k->K[4] = pc->fy;
-        k->K[5] = pc->cy;
-        k->K[8] = 1;
-        memcpy(k->dist, pc->dist, sizeof pc->dist);
-        k->num_dist = 5;
-        memcpy(k->R, pc->R, sizeof pc->R);
-        memcpy(k->t, pc->t, sizeof pc->t);
-    }
-    sh_calib_compute_p(calib);
-}
-
 sh_status track_sim_run(const track_sim_config *c, const sh_track_options *topts, track_sim_result *r)
 {
     static phantom_model m;
@@ -116,7 +94,7 @@ sh_status track_sim_run(const track_sim_config *c, const sh_track_options *topts
     r->true_resp_hz = m.resp_hz;
 
     sh_calib calib;
-    to_calib(&m, &calib);
+    phantom_calibration(&m, &calib);
     if (c->swap_a != c->swap_b && c->swap_a < calib.num_cameras && c->swap_b < calib.num_cameras) {
         sh_calib_camera k = calib.cam[c->swap_a];
         calib.cam[c->swap_a] = calib.cam[c->swap_b];

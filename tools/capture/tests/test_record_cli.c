@@ -1,6 +1,7 @@
 /* stillheart record, run as a program: two replayed cameras recorded and converted back to Y4M
  * give the input frames byte for byte; the same two cameras from a config file (--config, the
- * daemon's [cameraN] sections) give the same recording; the refusals (a missing camera, an
+ * daemon's [cameraN] sections) give the same recording; a recording with a flipped byte converts
+ * every good record and exits 1 saying what was lost; the refusals (a missing camera, an
  * existing recording, --config mixed with camera options, a bad or missing config) exit non-zero
  * with a message naming what was wrong.
  *
@@ -149,6 +150,41 @@ static void test_record_config(void **state)
     assert_non_null(strstr(test_out, "gone.y4m"));
 }
 
+/* A recording with one byte flipped in the middle: --to-y4m converts every good record, then says
+ * what was lost (one record, resynced past) and exits 1. */
+static void test_convert_damaged(void **state)
+{
+    (void)state;
+    assert_int_equal(test_run("rm -rf %s/dmg && cp -r %s/rec %s/dmg", tmp, tmp, tmp), 0);
+    char path[128];
+    snprintf(path, sizeof path, "%s/dmg/recording.shrec", tmp);
+    FILE *f = fopen(path, "r+b");
+    assert_non_null(f);
+    assert_int_equal(fseek(f, 0, SEEK_END), 0);
+    long mid = ftell(f) / 2;
+    assert_int_equal(fseek(f, mid, SEEK_SET), 0);
+    int c = fgetc(f);
+    assert_int_equal(fseek(f, mid, SEEK_SET), 0);
+    fputc(c ^ 0x10, f);
+    assert_int_equal(fclose(f), 0);
+    int frames = 0;
+    for (int cam = 0; cam < 2; cam++) {
+        assert_int_equal(test_run("%s record --to-y4m %s/dmg %s/dmg%d.y4m --camera %d", RECORD_BIN, tmp, tmp, cam, cam), 1);
+        assert_non_null(strstr(test_out, "WARNING"));
+        assert_non_null(strstr(test_out, "is damaged: 1 record(s) skipped"));
+        const char *n = strstr(test_out, " frames of camera");
+        assert_non_null(n);
+        while (n > test_out && n[-1] >= '0' && n[-1] <= '9') n--;
+        frames += atoi(n);
+    }
+    /* the flip is in one record: a frame of either camera, or a set */
+    assert_true(frames == 2 * N || frames == 2 * N - 1);
+    /* replayed as a source, the damage is said at WARNING when met and the end is an error */
+    assert_int_equal(test_run("%s record --source rec:%s/dmg --fast --frames 100 %s/again", RECORD_BIN, tmp, tmp), 1);
+    assert_non_null(strstr(test_out, "WARNING: rec:"));
+    assert_non_null(strstr(test_out, "/dmg: damaged recording: 1 record(s) skipped"));
+}
+
 static void test_refusals(void **state)
 {
     (void)state;
@@ -172,6 +208,7 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_record_and_convert),
+        cmocka_unit_test(test_convert_damaged),
         cmocka_unit_test(test_record_config),
         cmocka_unit_test(test_refusals),
     };
