@@ -208,7 +208,7 @@ static int reload(run_pipeline *pl, const run_opts *ro, int argc, char **argv, u
     if (load_config(&fresh, ro->config_path, argc, argv, err) != SH_OK) {
         snprintf(what, sizeof what, "reload refused, keeping the running config: %s", err);
     } else {
-        cams = run_source_config_changed(&fresh, &pl->cfg);
+        cams = (sh_config_changes(&fresh, &pl->cfg) & SH_CONFIG_SOURCE) != 0;
         r = run_pipeline_reload(pl, &fresh, what, sizeof what);
     }
     if (r == RUN_RELOAD_FATAL) {
@@ -280,7 +280,7 @@ int cmd_run(int argc, char **argv)
 
     if (run_pipeline_start(&pl) != SH_OK) { fprintf(stderr, "stillheart run: %s\n", sh_error_message()); goto done; }
     logm("INFO", "main", "source %s %dx%d %s %.3f fps (%s%s), sink %s, method %s, %s",
-         cfg.source, pl.hdr.width, pl.hdr.height, sh_pixfmt_name(pl.hdr.format), run_source_fps(pl.src),
+         cfg.camera[0].spec, pl.hdr.width, pl.hdr.height, sh_pixfmt_name(pl.hdr.format), run_source_fps(pl.src),
          cfg.realtime ? "real time" : "as fast as possible", cfg.loop ? ", looping" : "", cfg.sink,
          cfg.method_name, cfg.points[0] ? "markers from the points file (test mode)" : "markers detected");
     sh_notify("READY=1\nSTATUS=started, waiting for the reference frame");

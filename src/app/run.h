@@ -18,7 +18,7 @@
 #include "stillheart/warp.h"
 #include "stillheart/y4m.h"
 
-#define RUN_MAX_MARKERS 64 /* the tracker's limit (SH_TRACK_MAX_MARKERS) */
+#define RUN_MAX_MARKERS SH_TRACK_MAX_MARKERS /* the tracker's limit */
 
 /* ---- models (run_model.c) ----
  * Everything that depends on the reference (the interpolant, the warp's grid basis, and the n

@@ -531,16 +531,6 @@ int run_source_ended(run_source *rs)
     return e;
 }
 
-int run_source_config_changed(const sh_config *a, const sh_config *b)
-{
-    return memcmp(a->camera, b->camera, sizeof a->camera) || a->realtime != b->realtime || a->loop != b->loop ||
-           a->output_camera != b->output_camera || a->sync_tolerance_ms != b->sync_tolerance_ms ||
-           a->sync_wait_ms != b->sync_wait_ms || a->camera_timeout_ms != b->camera_timeout_ms ||
-           a->trigger != b->trigger || strcmp(a->trigger_chip, b->trigger_chip) || a->trigger_line != b->trigger_line ||
-           a->trigger_active_low != b->trigger_active_low || a->trigger_fps != b->trigger_fps ||
-           a->trigger_pulse_us != b->trigger_pulse_us || a->trigger_offset_us != b->trigger_offset_us;
-}
-
 uint64_t run_source_dropped(run_source *rs)
 {
     pthread_mutex_lock(&rs->mu);

@@ -2,6 +2,8 @@
  * each key goes through sh_config_set (config.c), all or nothing. */
 #include "stillheart/config.h"
 
+#include "config_internal.h"
+
 #include <errno.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -26,7 +28,7 @@ static int on_key(void *user, const char *section, const char *name, const char 
     parse_ctx *c = user;
     if (c->failed)
         return 1; /* keep the first error's line as the one returned */
-    if (sh_config_set(c->cfg, section, name, value, "", 0, c->err) != SH_OK) {
+    if (sh_config_set_why(c->cfg, section, name, value, c->err) != SH_OK) {
         c->failed = 1;
         return 0;
     }
@@ -43,7 +45,7 @@ sh_status sh_config_parse_string(sh_config *cfg, const char *text, const char *o
     int r = ini_parse_string(text, on_key, &c);
     if (c.failed) {
         char why[SH_CONFIG_ERR];
-        snprintf(why, sizeof why, "%s", err + 2); /* past the empty origin's ": " */
+        snprintf(why, sizeof why, "%s", err);
         snprintf(err, SH_CONFIG_ERR, "%.200s:%d: %.300s", origin, r, why);
         return SH_EINVAL;
     }
