@@ -8,6 +8,7 @@
 #define STILLHEART_CORE_H
 
 #include <stddef.h>
+#include <stdint.h>
 
 #ifdef __cplusplus
 extern "C" {
@@ -38,6 +39,9 @@ const char *sh_error_message(void);
 
 /* A short name for a status code ("invalid argument", ...). */
 const char *sh_status_name(sh_status code);
+
+/* CLOCK_MONOTONIC now, in nanoseconds: frame timestamps, deadlines and logs on one clock. */
+int64_t sh_monotonic_ns(void);
 
 #ifdef __cplusplus
 }

@@ -95,9 +95,6 @@ void sh_source_close(sh_source *src);
 void sh_source_get_stats(const sh_source *src, sh_source_stats *stats);
 const char *sh_source_name(const sh_source *src);
 
-/* CLOCK_MONOTONIC now, in nanoseconds. */
-int64_t sh_monotonic_ns(void);
-
 #ifdef __cplusplus
 }
 #endif

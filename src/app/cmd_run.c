@@ -38,13 +38,6 @@
 #define LAT_CAP (1 << 20)
 
 /* ---- logging: "-- LEVEL [monotonic thread] -- message", as ustreamer does ---- */
-static int64_t mono_ns(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (int64_t)ts.tv_sec * 1000000000 + ts.tv_nsec;
-}
-
 static int log_quiet;
 static pthread_mutex_t log_mu = PTHREAD_MUTEX_INITIALIZER;
 static __attribute__((format(printf, 3, 4))) void logm(const char *level, const char *thread,
@@ -58,7 +51,7 @@ static __attribute__((format(printf, 3, 4))) void logm(const char *level, const 
     vsnprintf(msg, sizeof msg, fmt, ap);
     va_end(ap);
     pthread_mutex_lock(&log_mu);
-    fprintf(stderr, "-- %-5s [%.3f %-7s] -- %s\n", level, (double)mono_ns() / 1e9, thread, msg);
+    fprintf(stderr, "-- %-5s [%.3f %-7s] -- %s\n", level, (double)sh_monotonic_ns() / 1e9, thread, msg);
     pthread_mutex_unlock(&log_mu);
 }
 /* A repeating error is logged once until `ok` clears its guard. */
@@ -200,7 +193,7 @@ static long rss_kb(void)
 static int reload(run_pipeline *pl, const run_opts *ro, int argc, char **argv, uint64_t wd_usec)
 {
     char err[SH_CONFIG_ERR], what[640];
-    sh_notifyf("RELOADING=1\nMONOTONIC_USEC=%llu\nSTATUS=reloading the config", (unsigned long long)(mono_ns() / 1000));
+    sh_notifyf("RELOADING=1\nMONOTONIC_USEC=%llu\nSTATUS=reloading the config", (unsigned long long)(sh_monotonic_ns() / 1000));
     if (wd_usec) sh_notify("WATCHDOG=1");
     sh_config fresh;
     run_reload r = RUN_RELOAD_REFUSED;
@@ -286,10 +279,10 @@ int cmd_run(int argc, char **argv)
     sh_notify("READY=1\nSTATUS=started, waiting for the reference frame");
 
     uint64_t wd_usec = cfg.watchdog ? sh_notify_watchdog_usec() : 0;
-    int64_t last_ping = mono_ns(), last_status = mono_ns();
+    int64_t last_ping = sh_monotonic_ns(), last_status = sh_monotonic_ns();
     uint64_t published = 0, published_at_ping = 0, published_at_status = 0, raw_count = 0, degraded_count = 0;
     long rss_start = 0, rss_max = 0, rss_1min = 0; /* warm-up (detector, caches) is over after a minute */
-    int64_t t_start = mono_ns();
+    int64_t t_start = sh_monotonic_ns();
     size_t nlat = 0;
     uint32_t last_status_shown = 99;
     char last_reason[44] = "";
@@ -312,7 +305,7 @@ int cmd_run(int argc, char **argv)
             int cams = reload(&pl, &ro, argc, argv, wd_usec);
             if (cams < 0) { fatal = 1; break; }
             wd_usec = pl.cfg.watchdog ? sh_notify_watchdog_usec() : 0;
-            last_ping = mono_ns();
+            last_ping = sh_monotonic_ns();
             published_at_ping = published;
             if (cams) { /* a new stream: its rate, and nothing lost yet; its first frame is logged */
                 period = frame_period(pl.src);
@@ -331,7 +324,7 @@ int cmd_run(int argc, char **argv)
         if (!s) {
             if (run_source_ended(pl.src)) break;
             int why = run_source_output_lost(pl.src, lost_text, sizeof lost_text);
-            int64_t now = mono_ns();
+            int64_t now = sh_monotonic_ns();
             if (why && !lost) {
                 lost = 1;
                 lost_since = now;
@@ -361,7 +354,7 @@ int cmd_run(int argc, char **argv)
         } else {
             if (lost) {
                 logm("INFO", "main", "the output camera's frames are back after %.1f s (%llu black frames shown)",
-                     (double)(mono_ns() - lost_since) / 1e9, (unsigned long long)black_count);
+                     (double)(sh_monotonic_ns() - lost_since) / 1e9, (unsigned long long)black_count);
                 lost = 0;
             }
             sh_display_frame_info info;
@@ -379,7 +372,7 @@ int cmd_run(int argc, char **argv)
                 memcpy(last_reason, info.reason, sizeof last_reason);
             }
             if (pl.disp) {
-                info.publish_ns = mono_ns();
+                info.publish_ns = sh_monotonic_ns();
                 if (sh_display_writer_publish(pl.disp, shown, &info) != SH_OK)
                     logm("ERROR", "main", "publish: %s", sh_error_message());
             }
@@ -388,7 +381,7 @@ int cmd_run(int argc, char **argv)
                 run_record_close(pl.rec);
                 pl.rec = NULL;
             }
-            int64_t done_ns = mono_ns();
+            int64_t done_ns = sh_monotonic_ns();
             if (nlat < LAT_CAP) lat[nlat++] = (float)((double)(done_ns - s->avail_ns) / 1e6);
             published++;
             if (published == 30) rss_start = rss_kb();
@@ -416,7 +409,7 @@ int cmd_run(int argc, char **argv)
         }
         /* systemd: STATUS each second; WATCHDOG while frames progress, or while the output camera
          * is lost and every thread still goes round. A hung processing loop sends neither. */
-        int64_t now = mono_ns();
+        int64_t now = sh_monotonic_ns();
         if ((published || black_count) && now - last_status >= 1000000000) {
             double fps = (double)(published - published_at_status) * 1e9 / (double)(now - last_status);
             char cams[128];

@@ -25,13 +25,6 @@ _Static_assert(sizeof(sh_display_header) == 256, "the header's size is part of t
 _Static_assert(sizeof(sh_display_frame_info) == 80, "frame info is part of the format");
 _Static_assert(sizeof(slot_header) == SLOT_HEADER_BYTES, "slot header is part of the format");
 
-static int64_t now_ns(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (int64_t)ts.tv_sec * 1000000000 + ts.tv_nsec;
-}
-
 /* The pixel layout of one slot for a format: planes packed, rows padded to 16 bytes. */
 static sh_status layout(sh_display_header *h, sh_pixfmt format, int width, int height)
 {
@@ -187,7 +180,7 @@ sh_status sh_display_writer_publish(sh_display_writer *w, const sh_image *frame,
     __atomic_thread_fence(__ATOMIC_RELEASE);
     sh_display_frame_info copy = info ? *info : (sh_display_frame_info){0};
     copy.sequence = ++w->sequence;
-    copy.publish_ns = now_ns();
+    copy.publish_ns = sh_monotonic_ns();
     copy.reason[sizeof copy.reason - 1] = 0;
     memcpy(&sh->info, &copy, sizeof copy);
     uint8_t *pixels = base + SLOT_HEADER_BYTES;
@@ -373,7 +366,7 @@ sh_status sh_display_reader_next(sh_display_reader *r, sh_image *frame,
         frame->height != (int)g->height)
         return sh_error_set(SH_EINVAL, "display: reader frame must be %ux%u %s", g->width,
                             g->height, sh_pixfmt_name((sh_pixfmt)g->format));
-    int64_t deadline = timeout_ms < 0 ? INT64_MAX : now_ns() + (int64_t)timeout_ms * 1000000;
+    int64_t deadline = timeout_ms < 0 ? INT64_MAX : sh_monotonic_ns() + (int64_t)timeout_ms * 1000000;
     for (;;) {
         uint64_t latest = __atomic_load_n(&live->latest, __ATOMIC_ACQUIRE);
         uint32_t slot = (uint32_t)(latest & 0xff);
@@ -396,7 +389,7 @@ sh_status sh_display_reader_next(sh_display_reader *r, sh_image *frame,
             return sh_error_set(SH_EEOF, "display: the segment was replaced");
         if (__atomic_load_n(&live->closed, __ATOMIC_ACQUIRE) && (latest >> 8) <= r->last_sequence)
             return sh_error_set(SH_EEOF, "display: the writer closed the segment");
-        if (now_ns() >= deadline) return sh_error_set(SH_EIO, "display: no new frame in %d ms", timeout_ms);
+        if (sh_monotonic_ns() >= deadline) return sh_error_set(SH_EIO, "display: no new frame in %d ms", timeout_ms);
         struct timespec pause = {0, 500000}; /* 0.5 ms: a frame period is 16 ms or more */
         nanosleep(&pause, NULL);
     }
