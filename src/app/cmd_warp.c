@@ -112,11 +112,6 @@ static sh_status cache_get(model_cache *c, const int *ids, int n, sh_warp_model 
     return SH_OK;
 }
 
-static int full_range(const sh_y4m_header *h)
-{
-    return strstr(h->extra, "XCOLORRANGE=FULL") != NULL;
-}
-
 /* e for the input against the reference frame, and for the output against the reference frame
  * warped by the model of all reference markers (ref_xy: their positions there). */
 static int start_metrics(sh_warp_model *model, const double *ref_xy, sh_warp *warp,
@@ -241,7 +236,7 @@ int cmd_warp(int argc, char **argv)
     int nref = sh_points_match(cache.ref_rows, cache.ref_count, cache.ref_rows, cache.ref_count,
                               ids, cur_xy);
     if (cache_get(&cache, ids, nref, &model) != SH_OK) { fail("reference markers"); goto done; }
-    int fr = full_range(hdr);
+    int fr = sh_y4m_header_full_range(hdr);
     if (!from_stdin && !start_metrics(model, cur_xy, warp, &ref, &out, fr, &metric_in, &metric_out)) {
         fail("reference frame");
         goto done;

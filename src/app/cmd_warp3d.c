@@ -425,7 +425,7 @@ int cmd_warp3d(int argc, char **argv)
     }
     slot3d *slot;
     if (cache_get(&cache, ids, nref, scratch, &slot) != SH_OK) { fail("reference markers"); goto done; }
-    int fr = strstr(hdr->extra, "XCOLORRANGE=FULL") != NULL;
+    int fr = sh_y4m_header_full_range(hdr);
     int from_stdin = !strcmp(in_path, "-");
     int measure = !stereo && !pose;
     if (measure && !from_stdin) {

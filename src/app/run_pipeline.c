@@ -15,12 +15,11 @@
 #include "run_pipeline.h"
 
 static const char *shm_name(const sh_config *c) { return strncmp(c->sink, "shm:", 4) ? NULL : c->sink + 4; }
-static int full_range(const sh_y4m_header *h) { return strstr(h->extra, "XCOLORRANGE=FULL") != NULL; }
 
 static sh_status display_create(const sh_config *cfg, const sh_y4m_header *h, sh_display_writer **out)
 {
     sh_status st = sh_display_writer_create(shm_name(cfg), h->format, h->width, h->height, cfg->slots,
-                                            full_range(h), cfg->group[0] ? cfg->group : NULL, out);
+                                            sh_y4m_header_full_range(h), cfg->group[0] ? cfg->group : NULL, out);
     return st == SH_OK ? SH_OK : sh_error_set(st, "[sink] display: %s", sh_error_message());
 }
 
@@ -29,7 +28,7 @@ static sh_status black_frame(const sh_y4m_header *hdr, sh_image *img)
 {
     sh_status st = sh_image_create(img, hdr->format, hdr->width, hdr->height);
     if (st != SH_OK) return st;
-    uint8_t luma = full_range(hdr) || hdr->format == SH_PIX_RGB24 ? 0 : 16;
+    uint8_t luma = sh_y4m_header_full_range(hdr) || hdr->format == SH_PIX_RGB24 ? 0 : 16;
     for (int p = 0; p < img->num_planes; p++)
         for (int y = 0; y < img->plane[p].height; y++)
             memset(img->plane[p].data + (size_t)y * img->plane[p].stride, p ? 128 : luma,
@@ -147,7 +146,7 @@ static int proc_changes(const run_pipeline *p, const run_pipeline *n, char *out,
 
 static int same_frames(const sh_y4m_header *a, const sh_y4m_header *b)
 {
-    return a->width == b->width && a->height == b->height && a->format == b->format && full_range(a) == full_range(b);
+    return a->width == b->width && a->height == b->height && a->format == b->format && sh_y4m_header_full_range(a) == sh_y4m_header_full_range(b);
 }
 
 /* What a reload changes, decided before anything is opened: from the effects of the keys that

@@ -126,7 +126,7 @@ void run_y4m_header(sh_rawfmt format, int width, int height, int fps_num, int fp
     h->fps_num = fps_num > 0 && fps_den > 0 ? fps_num : 25;
     h->fps_den = fps_num > 0 && fps_den > 0 ? fps_den : 1;
     h->interlace = 'p';
-    if (format == SH_RAW_MJPEG) snprintf(h->extra, sizeof h->extra, "XCOLORRANGE=FULL");
+    if (format == SH_RAW_MJPEG) snprintf(h->extra, sizeof h->extra, "%s", SH_Y4M_FULL_RANGE);
 }
 
 /* ---- under rs->mu ---- */
