@@ -57,20 +57,12 @@ sh_status sh_config_parse_string(sh_config *cfg, const char *text, const char *o
 #else
     (void)c; /* the handler's context, for inih */
     /* The same rules as inih's defaults: [section], key = value or key : value, ; and # comments. */
-    char section[64] = "";
-    int lineno = 0;
-    const char *p = text;
-    while (*p) {
-        char line[1024];
-        size_t n = strcspn(p, "\n");
-        lineno++;
-        if (n >= sizeof line) {
-            snprintf(err, SH_CONFIG_ERR, "%s:%d: line too long", origin, lineno);
-            return SH_EFORMAT;
-        }
-        memcpy(line, p, n);
-        line[n] = 0;
-        p += n + (p[n] == '\n');
+    char section[64] = "", line[1024];
+    sh_lines it;
+    sh_lines_init(&it, text, strlen(text), origin);
+    sh_status st;
+    while ((st = sh_lines_next(&it, line, sizeof line)) == SH_OK) {
+        int lineno = it.lineno;
         char *s = line;
         while (*s == ' ' || *s == '\t' || *s == '\r')
             s++;
@@ -110,6 +102,10 @@ sh_status sh_config_parse_string(sh_config *cfg, const char *text, const char *o
         }
         if (sh_config_set(&work, section, k, v, origin, lineno, err) != SH_OK)
             return SH_EINVAL;
+    }
+    if (st != SH_EEOF) { /* a line too long */
+        snprintf(err, SH_CONFIG_ERR, "%s", sh_error_message());
+        return st;
     }
 #endif
     *cfg = work;
