@@ -32,7 +32,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     free(text);
     check(c.threads >= 1 && c.threads <= 64 && c.slots >= 3 && c.slots <= 16);
     check(c.min_markers >= 1 && c.dropout_ms >= 0);
-    check(memchr(c.sink, 0, sizeof c.sink));
+    check(memchr(c.sink, 0, sizeof c.sink) != NULL);
     for (int i = 0; i < SH_CONFIG_MAX_CAMERAS; i++) {
         const sh_config_camera *k = &c.camera[i];
         check(memchr(k->spec, 0, sizeof k->spec) && memchr(k->format, 0, sizeof k->format));
