@@ -71,19 +71,6 @@ static int fail(const char *what)
     return 1;
 }
 
-/* Reads frame `index` of path into img (a second pass over the file, so any frame can be the
- * reference without holding the video in memory). */
-static int read_frame_at(const char *path, int index, sh_image *img)
-{
-    sh_y4m_reader *r;
-    if (sh_y4m_reader_open(path, &r) != SH_OK) return 0;
-    sh_status st = SH_OK;
-    for (int i = 0; i <= index && st == SH_OK; i++) st = sh_y4m_reader_read(r, img);
-    sh_y4m_reader_close(r);
-    if (st == SH_EEOF) sh_error_set(SH_EINVAL, "%s has no frame %d", path, index);
-    return st == SH_OK;
-}
-
 int cmd_warp(int argc, char **argv)
 {
     static const struct option options[] = {
@@ -176,7 +163,7 @@ int cmd_warp(int argc, char **argv)
     /* The reference model (all reference markers) and both metrics' reference frames. */
     int from_stdin = !strcmp(in_path, "-");
     /* From standard input (reference 0 only) the reference frame is the first one read below. */
-    if (!from_stdin && !read_frame_at(in_path, reference, &ref)) { fail("reference frame"); goto done; }
+    if (!from_stdin && !app_read_frame_at(in_path, reference, &ref)) { fail("reference frame"); goto done; }
     int nref = sh_points_match(ref_rows, ref_count, ref_rows, ref_count, ids, cur_xy);
     if (cache_get(cache, ids, nref, &model) != SH_OK) { fail("reference markers"); goto done; }
     int fr = sh_y4m_header_full_range(hdr);

@@ -99,17 +99,6 @@ static int fail(const char *what)
     return 1;
 }
 
-static int read_frame_at(const char *path, int index, sh_image *img)
-{
-    sh_y4m_reader *r;
-    if (sh_y4m_reader_open(path, &r) != SH_OK) return 0;
-    sh_status st = SH_OK;
-    for (int i = 0; i <= index && st == SH_OK; i++) st = sh_y4m_reader_read(r, img);
-    sh_y4m_reader_close(r);
-    if (st == SH_EEOF) sh_error_set(SH_EINVAL, "%s has no frame %d", path, index);
-    return st == SH_OK;
-}
-
 /* pose:RX,RY,RZ[,TX,TY,TZ] */
 static int parse_pose(const char *text, double rvec[3], double tvec[3])
 {
@@ -359,7 +348,7 @@ int cmd_warp3d(int argc, char **argv)
     int from_stdin = !strcmp(in_path, "-");
     int measure = !stereo && !pose;
     if (measure && !from_stdin) {
-        if (!read_frame_at(in_path, reference, &ref)) { fail("reference frame"); goto done; }
+        if (!app_read_frame_at(in_path, reference, &ref)) { fail("reference frame"); goto done; }
         if (sh_warp3d_model_update(slot->m3, cur_xyz) != SH_OK ||
             sh_warp3d_view_update(slot->view[0]) != SH_OK ||
             render(warp, slot, 1, 0, 0, NULL, &ref, &out, 0) != SH_OK ||
