@@ -97,21 +97,9 @@ static sh_status r_dequeue(sh_source *s, int timeout_ms, sh_source_frame *f, int
     uint8_t *out = r->next_mem;
     r->next_mem = r->mem[slot];
     r->mem[slot] = out;
-    memset(f, 0, sizeof *f);
-    f->camera = s->opts.camera;
-    f->sequence = r->sequence_out++;
-    f->discontinuity = r->restarted; /* read ahead at the previous frame: this one opens a pass */
+    /* restarted: read ahead at the previous frame, this one opens a pass */
+    sh_replay_hand_out(&r->rp, slot, out, r->next_bytes, r->sequence_out++, due, r->restarted, f);
     r->restarted = 0;
-    f->timestamp_ns = due;
-    f->raw.format = s->format;
-    f->raw.width = s->width;
-    f->raw.height = s->height;
-    f->raw.stride = s->stride;
-    f->raw.data = out;
-    f->raw.bytes = r->next_bytes;
-    f->slot = slot;
-    r->rp.held[slot] = 1;
-    s->stats.frames++;
     st = read_ahead(r);
     if (st != SH_OK) {
         r->rp.held[slot] = 0;

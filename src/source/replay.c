@@ -66,6 +66,26 @@ int sh_replay_wait(sh_replay *rp, int64_t due, int timeout_ms)
     return 1;
 }
 
+void sh_replay_hand_out(sh_replay *rp, int slot, uint8_t *data, size_t bytes, uint64_t sequence,
+                        int64_t timestamp_ns, int discontinuity, sh_source_frame *f)
+{
+    const sh_source *s = &rp->base;
+    memset(f, 0, sizeof *f);
+    f->camera = s->opts.camera;
+    f->sequence = sequence;
+    f->discontinuity = discontinuity;
+    f->timestamp_ns = timestamp_ns;
+    f->raw.format = s->format;
+    f->raw.width = s->width;
+    f->raw.height = s->height;
+    f->raw.stride = s->stride;
+    f->raw.data = data;
+    f->raw.bytes = bytes;
+    f->slot = slot;
+    rp->held[slot] = 1;
+    rp->base.stats.frames++;
+}
+
 int sh_replay_fd(const sh_source *s) { return ((const sh_replay *)s)->tfd; }
 
 sh_status sh_replay_release(sh_source *s, sh_source_frame *f)

@@ -55,6 +55,10 @@ sh_status sh_replay_slot(sh_replay *rp, int *slot);
 /* In real time, waits for due up to timeout_ms (< 0: as long as it takes); 0 when it is not due
  * yet (nothing to hand out). Once due, the timer's expirations are cleared and 1 returned. */
 int sh_replay_wait(sh_replay *rp, int64_t due, int timeout_ms);
+/* Hands out the frame in slot (held from now on, counted): the source's format, data and bytes,
+ * its sequence number and timestamp, and whether the scene jumps before it. */
+void sh_replay_hand_out(sh_replay *rp, int slot, uint8_t *data, size_t bytes, uint64_t sequence,
+                        int64_t timestamp_ns, int discontinuity, sh_source_frame *f);
 /* The ops both replays use as they are. */
 int sh_replay_fd(const sh_source *s);
 sh_status sh_replay_release(sh_source *s, sh_source_frame *frame);

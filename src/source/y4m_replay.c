@@ -71,22 +71,9 @@ static sh_status y_dequeue(sh_source *s, int timeout_ms, sh_source_frame *f, int
         st = sh_y4m_reader_read(y->reader, &y->img[slot]);
     }
     if (st != SH_OK) return st == SH_EEOF ? sh_error_set(SH_EFORMAT, "%s: no frame to loop over", s->name) : st;
-    y->rp.held[slot] = 1;
-    memset(f, 0, sizeof *f);
-    f->camera = s->opts.camera;
-    f->sequence = y->k;
-    f->discontinuity = y->restarted;
+    sh_replay_hand_out(&y->rp, slot, y->mem[slot], y->frame_bytes, y->k, due, y->restarted, f);
     y->restarted = 0;
-    f->timestamp_ns = due;
-    f->raw.format = s->format;
-    f->raw.width = s->width;
-    f->raw.height = s->height;
-    f->raw.stride = s->stride;
-    f->raw.data = y->mem[slot];
-    f->raw.bytes = y->frame_bytes;
-    f->slot = slot;
     y->k++;
-    s->stats.frames++;
     sh_replay_arm(&y->rp, sh_source_schedule_ns(y->t0, y->k, s->fps_num, s->fps_den));
     *got = 1;
     return SH_OK;
