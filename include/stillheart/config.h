@@ -8,6 +8,7 @@
 #ifndef STILLHEART_CONFIG_H
 #define STILLHEART_CONFIG_H
 
+#include <stddef.h>
 #include <stdint.h>
 #include <stdio.h>
 #include "stillheart/core.h"
@@ -36,11 +37,8 @@ typedef struct {
 typedef enum { SH_TRIGGER_OFF = 0, SH_TRIGGER_OUT, SH_TRIGGER_IN } sh_trigger_mode;
 
 typedef struct {
-    /* [cameraN]; source is camera[0].spec, the name [source] spec and --source give it */
-    union {
-        char source[SH_CONFIG_STR];
-        sh_config_camera camera[SH_CONFIG_MAX_CAMERAS];
-    };
+    /* [cameraN]; [source] spec and --source are other names of camera[0].spec */
+    sh_config_camera camera[SH_CONFIG_MAX_CAMERAS];
     /* [source] */
     int realtime;                    /* 1: the stream's frame rate; 0: as fast as possible */
     int loop;                        /* replay: start over at the end */
@@ -61,8 +59,7 @@ typedef struct {
     uint8_t ids[SH_CONFIG_MAX_IDS];  /* ids[i] = 1: tag i is a marker */
     char ids_text[SH_CONFIG_STR];    /* as written: "0-15", "1,3,5-9" */
     /* [method] */
-    char method_name[32];
-    sh_interp_params method;         /* sigma / levels / smoothing applied over the defaults */
+    char method_name[32];            /* sh_config_method: the interpolation parameters of these four */
     double sigma;                    /* < 0: the method's default */
     int levels;
     double smoothing;
@@ -94,6 +91,19 @@ typedef struct {
  * (new, the default) or the old one is kept (keep). */
 enum { SH_CAMERA_MOTION_NEW = 0, SH_CAMERA_MOTION_KEEP = 1 };
 
+/* When a key's change takes effect in the running daemon (SIGHUP: src/app/run_pipeline.c). The key
+ * table gives every key exactly one; the reload acts on these classes, never on key names, so a
+ * new key is applied as soon as its row says how (docs/daemon.md lists them). */
+typedef enum {
+    SH_CONFIG_LIVE = 1 << 0,       /* read from the running config where it is used: nothing is rebuilt */
+    SH_CONFIG_GATING = 1 << 1,     /* handed to the running processing (the gate), from the next frame */
+    SH_CONFIG_SOURCE = 1 << 2,     /* the cameras closed and opened again (a new stream: processing too) */
+    SH_CONFIG_PROCESSING = 1 << 3, /* detector, tracker, models and warp made again: a new reference */
+    SH_CONFIG_DISPLAY = 1 << 4,    /* the display segment made again (or another one made) */
+    SH_CONFIG_RECORD = 1 << 5,     /* the record file or folder closed and another opened */
+    SH_CONFIG_CONTROL = 1 << 6,    /* the control socket closed and another opened */
+} sh_config_effect;
+
 /* The embedded defaults (the run demo's config): y4m:out/run-demo/cam0.y4m, tps, shm:/stillheart. */
 void sh_config_default(sh_config *cfg);
 
@@ -116,6 +126,21 @@ sh_status sh_config_check(const sh_config *cfg, char *err);
 void sh_config_write(const sh_config *cfg, FILE *out);
 /* The number of cameras: those with a spec, from camera 0 on (sh_config_check refuses gaps). */
 int sh_config_cameras(const sh_config *cfg);
+/* The interpolation parameters that [method] name, sigma, levels and smoothing give. */
+void sh_config_method(const sh_config *cfg, sh_interp_params *params);
+
+/* The effects (sh_config_effect bits) of every key whose value differs between a and b, compared
+ * key by key through the table; 0: the same configuration. */
+unsigned sh_config_changes(const sh_config *a, const sh_config *b);
+/* Copies from src into dst every key whose effect is among effects. */
+void sh_config_copy_keys(sh_config *dst, const sh_config *src, unsigned effects);
+/* Appends to out (", " between items) "OPTION OLD -> NEW" for every key among effects whose value
+ * differs, for the daemon's log ("method tps -> bspline"); empty values read "none". */
+void sh_config_describe(const sh_config *a, const sh_config *b, unsigned effects, char *out, size_t cap);
+/* The table, for tests and docs: key i's section, name and effect; 0 past the last key. Other
+ * names of a key ([source] spec) are listed too. */
+int sh_config_key(int i, const char **section, const char **key, sh_config_effect *effect);
+
 /* Prints the option list for --help. */
 void sh_config_usage(FILE *out);
 

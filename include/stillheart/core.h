@@ -8,6 +8,7 @@
 #define STILLHEART_CORE_H
 
 #include <stddef.h>
+#include <stdint.h>
 
 #ifdef __cplusplus
 extern "C" {
@@ -38,6 +39,21 @@ const char *sh_error_message(void);
 
 /* A short name for a status code ("invalid argument", ...). */
 const char *sh_status_name(sh_status code);
+
+/* Line by line through a text in memory, for the line-oriented parsers (the config's INI, the
+ * calibration YAML, phantom files): '\n' ends a line, and so does the text's end. */
+typedef struct {
+    const char *text, *name; /* name: the file, for messages */
+    size_t len, pos;
+    int lineno; /* the line last returned, from 1 */
+} sh_lines;
+void sh_lines_init(sh_lines *it, const char *text, size_t len, const char *name);
+/* The next line, without its '\n', into line (cap bytes): SH_OK, SH_EEOF after the last, or
+ * SH_EFORMAT "NAME:N: line too long" (cap bytes or more) / "NAME:N: NUL byte". */
+sh_status sh_lines_next(sh_lines *it, char *line, size_t cap);
+
+/* CLOCK_MONOTONIC now, in nanoseconds: frame timestamps, deadlines and logs on one clock. */
+int64_t sh_monotonic_ns(void);
 
 #ifdef __cplusplus
 }

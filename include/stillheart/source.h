@@ -106,9 +106,6 @@ const char *sh_source_name(const sh_source *src);
  * of a damaged file ends in that error, never in SH_EEOF. */
 const char *sh_source_damage(const sh_source *src);
 
-/* CLOCK_MONOTONIC now, in nanoseconds. */
-int64_t sh_monotonic_ns(void);
-
 #ifdef __cplusplus
 }
 #endif

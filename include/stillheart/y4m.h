@@ -21,6 +21,9 @@ extern "C" {
  * (a periodic phantom, stillheart-render --periodic): a looping replay (source.h) goes on across
  * the loop instead of flagging a discontinuity. */
 #define SH_Y4M_LOOP_SEAMLESS "XLOOP=SEAMLESS"
+/* The X tag of full-range samples (0..255, as JPEG and our renderers make them); without it a
+ * stream is limited range (16..235), as Y4M has it. */
+#define SH_Y4M_FULL_RANGE "XCOLORRANGE=FULL"
 
 typedef struct {
     int width, height;
@@ -34,6 +37,8 @@ typedef struct {
 
 /* 1 when the header's X tags hold `tag` (e.g. SH_Y4M_LOOP_SEAMLESS) as a whole word. */
 int sh_y4m_header_has_tag(const sh_y4m_header *header, const char *tag);
+/* 1 when the header says its samples are full range (SH_Y4M_FULL_RANGE). */
+int sh_y4m_header_full_range(const sh_y4m_header *header);
 
 typedef struct sh_y4m_reader sh_y4m_reader;
 

@@ -4,6 +4,8 @@
 
 #include <stdio.h>
 
+#include "stillheart/image.h"
+
 #define STILLHEART_VERSION "0.1.0"
 
 int cmd_warp(int argc, char **argv);
@@ -28,7 +30,13 @@ void app_progress_start(app_progress *p);
 void app_progress_update(app_progress *p, const char *label, int done, int total);
 void app_progress_end(app_progress *p);
 
+/* Monotonic seconds (sh_monotonic_ns), for the commands' timings. */
 double app_now(void);
+
+/* Reads frame `index` of the Y4M file path into img (a second pass over the file, so any frame
+ * can be the reference without holding the video in memory); 0, with the message set, when it
+ * cannot. */
+int app_read_frame_at(const char *path, int index, sh_image *img);
 
 /* Writes a float32 array of shape (h, w, 2) as NumPy .npy (version 1.0, little endian). */
 int app_write_npy(const char *path, const float *data, int h, int w, int depth);

@@ -39,13 +39,6 @@
  * RestartPreventExitStatus names it, and 2 (a config refused), beside it. */
 #define RUN_EXIT_NOT_CONFIGURED 6
 
-static int64_t mono_ns(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (int64_t)ts.tv_sec * 1000000000 + ts.tv_nsec;
-}
-
 /* One frame to the display. The writer makes its segment anew when it finds it shrunk, unlinked
  * or replaced under it (display.h); that is logged at most once a second (someone meddling could
  * otherwise fill the log), as is a publish that fails (the name taken by another user). */
@@ -208,7 +201,7 @@ static long rss_kb(void)
 static int reload(run_pipeline *pl, const run_opts *ro, int argc, char **argv, uint64_t wd_usec)
 {
     char err[SH_CONFIG_ERR], what[640];
-    sh_notifyf("RELOADING=1\nMONOTONIC_USEC=%llu\nSTATUS=reloading the config", (unsigned long long)(mono_ns() / 1000));
+    sh_notifyf("RELOADING=1\nMONOTONIC_USEC=%llu\nSTATUS=reloading the config", (unsigned long long)(sh_monotonic_ns() / 1000));
     if (wd_usec) sh_notify("WATCHDOG=1");
     sh_config fresh;
     run_reload r = RUN_RELOAD_REFUSED;
@@ -216,7 +209,7 @@ static int reload(run_pipeline *pl, const run_opts *ro, int argc, char **argv, u
     if (load_config(&fresh, ro->config_path, argc, argv, err, NULL) != SH_OK) {
         snprintf(what, sizeof what, "reload refused, keeping the running config: %s", err);
     } else {
-        cams = run_source_config_changed(&fresh, &pl->cfg);
+        cams = (sh_config_changes(&fresh, &pl->cfg) & SH_CONFIG_SOURCE) != 0;
         r = run_pipeline_reload(pl, &fresh, what, sizeof what);
     }
     if (r == RUN_RELOAD_FATAL) {
@@ -299,16 +292,16 @@ int cmd_run(int argc, char **argv)
 
     if (run_pipeline_start(&pl) != SH_OK) { fprintf(stderr, "stillheart run: %s\n", sh_error_message()); goto done; }
     sh_log_info("source %s %dx%d %s %.3f fps (%s%s), sink %s, method %s, %s",
-         cfg.source, pl.hdr.width, pl.hdr.height, sh_pixfmt_name(pl.hdr.format), run_source_fps(pl.src),
+         cfg.camera[0].spec, pl.hdr.width, pl.hdr.height, sh_pixfmt_name(pl.hdr.format), run_source_fps(pl.src),
          cfg.realtime ? "real time" : "as fast as possible", cfg.loop ? ", looping" : "", cfg.sink,
          cfg.method_name, cfg.points[0] ? "markers from the points file (test mode)" : "markers detected");
     sh_notify("READY=1\nSTATUS=started, waiting for the reference frame");
 
     uint64_t wd_usec = cfg.watchdog ? sh_notify_watchdog_usec() : 0;
-    int64_t last_ping = mono_ns(), last_status = mono_ns();
+    int64_t last_ping = sh_monotonic_ns(), last_status = sh_monotonic_ns();
     uint64_t published = 0, published_at_ping = 0, published_at_status = 0, raw_count = 0, degraded_count = 0;
     long rss_start = 0, rss_max = 0, rss_1min = 0; /* warm-up (detector, caches) is over after a minute */
-    int64_t t_start = mono_ns();
+    int64_t t_start = sh_monotonic_ns();
     size_t nlat = 0;
     uint32_t last_status_shown = 99;
     char last_reason[44] = "";
@@ -332,7 +325,7 @@ int cmd_run(int argc, char **argv)
             int cams = reload(&pl, &ro, argc, argv, wd_usec);
             if (cams < 0) { fatal = 1; break; }
             wd_usec = pl.cfg.watchdog ? sh_notify_watchdog_usec() : 0;
-            last_ping = mono_ns();
+            last_ping = sh_monotonic_ns();
             published_at_ping = published;
             if (cams) { /* a new stream: its rate, and nothing lost yet; its first frame is logged */
                 period = frame_period(pl.src);
@@ -352,7 +345,7 @@ int cmd_run(int argc, char **argv)
         if (!s) {
             if (run_source_ended(pl.src)) break;
             int why = run_source_output_lost(pl.src, lost_text, sizeof lost_text);
-            int64_t now = mono_ns();
+            int64_t now = sh_monotonic_ns();
             if (why && !lost) {
                 lost = 1;
                 lost_since = now;
@@ -381,7 +374,7 @@ int cmd_run(int argc, char **argv)
         } else {
             if (lost) {
                 sh_log_info("the output camera's frames are back after %.1f s (%llu black frames shown)",
-                     (double)(mono_ns() - lost_since) / 1e9, (unsigned long long)black_count);
+                     (double)(sh_monotonic_ns() - lost_since) / 1e9, (unsigned long long)black_count);
                 lost = 0;
             }
             sh_display_frame_info info;
@@ -399,7 +392,7 @@ int cmd_run(int argc, char **argv)
                 memcpy(last_reason, info.reason, sizeof last_reason);
             }
             if (pl.disp) {
-                info.publish_ns = mono_ns();
+                info.publish_ns = sh_monotonic_ns();
                 display_publish(pl.disp, shown, &info);
             }
             if (pl.rec && run_record_write(pl.rec, shown) != SH_OK) {
@@ -407,7 +400,7 @@ int cmd_run(int argc, char **argv)
                 run_record_close(pl.rec);
                 pl.rec = NULL;
             }
-            int64_t done_ns = mono_ns();
+            int64_t done_ns = sh_monotonic_ns();
             if (nlat < LAT_CAP) lat[nlat++] = (float)((double)(done_ns - s->avail_ns) / 1e6);
             published++;
             if (published == 30) rss_start = rss_kb();
@@ -436,7 +429,7 @@ int cmd_run(int argc, char **argv)
         if (pl.ctl) run_ctl_set_status(pl.ctl, status_line);
         /* systemd: STATUS each second; WATCHDOG while frames progress, or while the output camera
          * is lost and every thread still goes round. A hung processing loop sends neither. */
-        int64_t now = mono_ns();
+        int64_t now = sh_monotonic_ns();
         if ((published || black_count) && now - last_status >= 1000000000) {
             double fps = (double)(published - published_at_status) * 1e9 / (double)(now - last_status);
             char cams[128];

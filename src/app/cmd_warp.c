@@ -6,6 +6,7 @@
 #include "app.h"
 #include "stillheart/log.h"
 #include "stillheart/metrics.h"
+#include "stillheart/modelcache.h"
 #include "stillheart/points.h"
 #include "stillheart/warp.h"
 #include "stillheart/y4m.h"
@@ -42,80 +43,14 @@ static void usage(FILE *out)
         "OUT '-' the e figures go to standard error).\n");
 }
 
-typedef struct {
-    int n;
-    int *ids;          /* sorted marker ids of this set */
-    double *ref_xy;
-    sh_interp *interp;
-    sh_warp_model *model;
-    unsigned long last_used;
-} model_slot;
-
-typedef struct {
-    sh_interp_params params;
-    sh_warp_options wopts;
-    int width, height, max_markers;
-    const sh_point *ref_rows;
-    int ref_count;
-    model_slot slot[CACHE_SLOTS];
-    unsigned long clock;
-    int builds;
-    double build_seconds;
-} model_cache;
-
-static void slot_clear(model_slot *s)
+/* The model for the set of ids (sorted), built on a miss and kept (modelcache.h), so a marker
+ * that comes and goes costs one rebuild per distinct set, not one per frame. */
+static sh_status cache_get(sh_modelcache *c, const int *ids, int n, sh_warp_model **out)
 {
-    sh_warp_model_destroy(s->model);
-    sh_interp_destroy(s->interp);
-    free(s->ids);
-    free(s->ref_xy);
-    memset(s, 0, sizeof *s);
-}
-
-/* The model for the set of ids (sorted), built on a miss and kept in a small LRU cache, so a
- * marker that comes and goes costs one rebuild per distinct set, not one per frame. */
-static sh_status cache_get(model_cache *c, const int *ids, int n, sh_warp_model **out)
-{
-    model_slot *victim = &c->slot[0];
-    for (int i = 0; i < CACHE_SLOTS; i++) {
-        model_slot *s = &c->slot[i];
-        if (s->model && s->n == n && !memcmp(s->ids, ids, sizeof(int) * (size_t)n)) {
-            s->last_used = ++c->clock;
-            *out = s->model;
-            return SH_OK;
-        }
-        if (!s->model || s->last_used < victim->last_used) victim = s;
-    }
-    slot_clear(victim);
-    double t0 = app_now();
-    victim->ids = malloc(sizeof(int) * (size_t)n);
-    victim->ref_xy = malloc(sizeof(double) * 2 * (size_t)n);
-    if (!victim->ids || !victim->ref_xy) return sh_error_set(SH_ENOMEM, "warp: out of memory");
-    memcpy(victim->ids, ids, sizeof(int) * (size_t)n);
-    victim->n = n;
-    for (int k = 0, r = 0; k < n; k++) {
-        while (c->ref_rows[r].id != ids[k]) r++;
-        victim->ref_xy[2 * k] = c->ref_rows[r].x;
-        victim->ref_xy[2 * k + 1] = c->ref_rows[r].y;
-    }
-    sh_status st = sh_interp_create(&c->params, victim->ref_xy, n, &victim->interp);
-    if (st == SH_OK)
-        st = sh_warp_model_create(victim->interp, victim->ref_xy, n, c->width, c->height,
-                                  &c->wopts, &victim->model);
-    if (st != SH_OK) {
-        slot_clear(victim);
-        return st;
-    }
-    victim->last_used = ++c->clock;
-    c->builds++;
-    c->build_seconds += app_now() - t0;
-    *out = victim->model;
-    return SH_OK;
-}
-
-static int full_range(const sh_y4m_header *h)
-{
-    return strstr(h->extra, "XCOLORRANGE=FULL") != NULL;
+    sh_modelcache_entry *e;
+    sh_status st = sh_modelcache_get(c, ids, n, &e);
+    if (st == SH_OK) *out = e->model;
+    return st;
 }
 
 /* e for the input against the reference frame, and for the output against the reference frame
@@ -135,19 +70,6 @@ static int fail(const char *what)
     sh_log_error("%s%s%s", what, *sh_error_message() ? ": " : "",
                  sh_error_message());
     return 1;
-}
-
-/* Reads frame `index` of path into img (a second pass over the file, so any frame can be the
- * reference without holding the video in memory). */
-static int read_frame_at(const char *path, int index, sh_image *img)
-{
-    sh_y4m_reader *r;
-    if (sh_y4m_reader_open(path, &r) != SH_OK) return 0;
-    sh_status st = SH_OK;
-    for (int i = 0; i <= index && st == SH_OK; i++) st = sh_y4m_reader_read(r, img);
-    sh_y4m_reader_close(r);
-    if (st == SH_EEOF) sh_error_set(SH_EINVAL, "%s has no frame %d", path, index);
-    return st == SH_OK;
 }
 
 int cmd_warp(int argc, char **argv)
@@ -194,13 +116,15 @@ int cmd_warp(int argc, char **argv)
         return 2;
     }
 
-    model_cache cache = {0};
-    if (sh_interp_params_parse(method, &cache.params) != SH_OK) return fail("--method");
-    if (have_sigma) cache.params.sigma = sigma;
-    cache.params.levels = levels;
-    cache.params.smoothing = smoothing;
-    sh_warp_options_default(&cache.wopts);
-    cache.wopts.max_error = max_error;
+    sh_modelcache_recipe recipe;
+    memset(&recipe, 0, sizeof recipe);
+    if (sh_interp_params_parse(method, &recipe.params) != SH_OK) return fail("--method");
+    if (have_sigma) recipe.params.sigma = sigma;
+    recipe.params.levels = levels;
+    recipe.params.smoothing = smoothing;
+    sh_warp_options_default(&recipe.wopts);
+    recipe.wopts.max_error = max_error;
+    sh_modelcache *cache = NULL;
 
     int rc = 1;
     sh_points points = {0};
@@ -217,17 +141,18 @@ int cmd_warp(int argc, char **argv)
     if (sh_points_read(points_path, &points) != SH_OK) { fail("points"); goto done; }
     if (sh_y4m_reader_open(in_path, &reader) != SH_OK) { fail("input"); goto done; }
     const sh_y4m_header *hdr = sh_y4m_reader_header(reader);
-    cache.width = hdr->width;
-    cache.height = hdr->height;
-    cache.ref_rows = sh_points_frame(&points, reference, &cache.ref_count);
-    if (cache.ref_count < 3) {
-        sh_log_error("%s: the reference frame %d has %d markers, need 3",
-                     points_path, reference, cache.ref_count);
+    recipe.width = hdr->width;
+    recipe.height = hdr->height;
+    int ref_count;
+    const sh_point *ref_rows = sh_points_frame(&points, reference, &ref_count);
+    if (ref_count < 3) {
+        sh_log_error("%s: the reference frame %d has %d markers, need 3", points_path, reference, ref_count);
         goto done;
     }
-    ids = malloc(sizeof(int) * (size_t)cache.ref_count);
-    cur_xy = malloc(sizeof(double) * 2 * (size_t)cache.ref_count);
+    ids = malloc(sizeof(int) * (size_t)ref_count);
+    cur_xy = malloc(sizeof(double) * 2 * (size_t)ref_count);
     if (!ids || !cur_xy) { fail("out of memory"); goto done; }
+    if (sh_modelcache_create(&recipe, ref_rows, ref_count, CACHE_SLOTS, &cache) != SH_OK) { fail("models"); goto done; }
     if (sh_image_create(&in, hdr->format, hdr->width, hdr->height) != SH_OK ||
         sh_image_create(&out, hdr->format, hdr->width, hdr->height) != SH_OK ||
         sh_image_create(&ref, hdr->format, hdr->width, hdr->height) != SH_OK) {
@@ -239,11 +164,10 @@ int cmd_warp(int argc, char **argv)
     /* The reference model (all reference markers) and both metrics' reference frames. */
     int from_stdin = !strcmp(in_path, "-");
     /* From standard input (reference 0 only) the reference frame is the first one read below. */
-    if (!from_stdin && !read_frame_at(in_path, reference, &ref)) { fail("reference frame"); goto done; }
-    int nref = sh_points_match(cache.ref_rows, cache.ref_count, cache.ref_rows, cache.ref_count,
-                              ids, cur_xy);
-    if (cache_get(&cache, ids, nref, &model) != SH_OK) { fail("reference markers"); goto done; }
-    int fr = full_range(hdr);
+    if (!from_stdin && !app_read_frame_at(in_path, reference, &ref)) { fail("reference frame"); goto done; }
+    int nref = sh_points_match(ref_rows, ref_count, ref_rows, ref_count, ids, cur_xy);
+    if (cache_get(cache, ids, nref, &model) != SH_OK) { fail("reference markers"); goto done; }
+    int fr = sh_y4m_header_full_range(hdr);
     if (!from_stdin && !start_metrics(model, cur_xy, warp, &ref, &out, fr, &metric_in, &metric_out)) {
         fail("reference frame");
         goto done;
@@ -266,10 +190,10 @@ int cmd_warp(int argc, char **argv)
         }
         int ncur;
         const sh_point *cur = sh_points_frame(&points, frames, &ncur);
-        int n = sh_points_match(cache.ref_rows, cache.ref_count, cur, ncur, ids, cur_xy);
+        int n = sh_points_match(ref_rows, ref_count, cur, ncur, ids, cur_xy);
         double t0 = app_now();
         const sh_image *shown = &out;
-        if (n < 3 || cache_get(&cache, ids, n, &model) != SH_OK ||
+        if (n < 3 || cache_get(cache, ids, n, &model) != SH_OK ||
             sh_warp_model_update(model, cur_xy) != SH_OK ||
             sh_warp_apply(warp, model, &in, &out) != SH_OK) {
             shown = &in; /* nothing trustworthy to warp with: pass the frame through, counted */
@@ -301,14 +225,14 @@ int cmd_warp(int argc, char **argv)
             sh_log_error("--map-out: no frame was stabilized");
             goto done;
         }
-        map = malloc(sizeof(float) * 2 * (size_t)cache.width * cache.height);
+        map = malloc(sizeof(float) * 2 * (size_t)recipe.width * recipe.height);
         if (!map || sh_warp_model_map(last_model, map) != SH_OK) { fail("map"); goto done; }
-        if (!app_write_npy(map_out, map, cache.height, cache.width, 2)) goto done;
+        if (!app_write_npy(map_out, map, recipe.height, recipe.width, 2)) goto done;
     }
     if (!quiet) {
         fprintf(stderr, "method %s: %d frames (%d unstabilized), %d marker sets built in %.1f ms, "
                         "warp %.2f ms/frame\n",
-                method, frames, raw_frames, cache.builds, cache.build_seconds * 1e3,
+                method, frames, raw_frames, sh_modelcache_builds(cache), sh_modelcache_build_seconds(cache) * 1e3,
                 frames ? warp_seconds * 1e3 / frames : 0.0);
         if (last_model && sh_warp_model_grid_spacing(last_model))
             fprintf(stderr, "grid spacing %d px, map error bound %.4f px\n",
@@ -322,7 +246,7 @@ int cmd_warp(int argc, char **argv)
     rc = st == SH_EEOF ? 0 : 1;
 done:
     if (writer) sh_y4m_writer_close(writer);
-    for (int i = 0; i < CACHE_SLOTS; i++) slot_clear(&cache.slot[i]);
+    sh_modelcache_destroy(cache);
     sh_y4m_reader_close(reader);
     sh_points_destroy(&points);
     sh_warp_destroy(warp);

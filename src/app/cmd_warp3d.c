@@ -11,6 +11,7 @@
 #include "stillheart/calib.h"
 #include "stillheart/log.h"
 #include "stillheart/metrics.h"
+#include "stillheart/modelcache.h"
 #include "stillheart/points.h"
 #include "stillheart/warp3d.h"
 #include "stillheart/y4m.h"
@@ -65,80 +66,6 @@ static void usage(FILE *out)
         "With --view reference the paper's metric e is printed for the input and the output.\n");
 }
 
-typedef struct {
-    int n;
-    int *ids;
-    sh_warp3d_model *model;
-    sh_warp3d_view *view[2];
-    sh_warp3d_ply *ply;   /* lattice in this model's surface frame (with --export-ply) */
-    unsigned long last_used;
-} slot3d;
-
-typedef struct {
-    sh_warp3d_params params;
-    sh_warp3d_view_options vopts;
-    sh_calib_camera vcam[2], source;
-    int nviews, width, height;
-    double ply_spacing;   /* > 0: build a PLY exporter per marker set */
-    int ply_mesh;
-    const sh_point *ref_rows;
-    int ref_count;
-    slot3d slot[CACHE_SLOTS];
-    unsigned long clock;
-    int builds;
-    double build_seconds;
-} cache3d;
-
-static void slot_clear(slot3d *s)
-{
-    for (int v = 0; v < 2; v++) sh_warp3d_view_destroy(s->view[v]);
-    sh_warp3d_ply_destroy(s->ply);
-    sh_warp3d_model_destroy(s->model);
-    free(s->ids);
-    memset(s, 0, sizeof *s);
-}
-
-static sh_status cache_get(cache3d *c, const int *ids, int n, double *scratch, slot3d **out)
-{
-    slot3d *victim = &c->slot[0];
-    for (int i = 0; i < CACHE_SLOTS; i++) {
-        slot3d *s = &c->slot[i];
-        if (s->model && s->n == n && !memcmp(s->ids, ids, sizeof(int) * (size_t)n)) {
-            s->last_used = ++c->clock;
-            *out = s;
-            return SH_OK;
-        }
-        if (!s->model || s->last_used < victim->last_used) victim = s;
-    }
-    slot_clear(victim);
-    double t0 = app_now();
-    victim->ids = malloc(sizeof(int) * (size_t)n);
-    if (!victim->ids) return sh_error_set(SH_ENOMEM, "warp3d: out of memory");
-    memcpy(victim->ids, ids, sizeof(int) * (size_t)n);
-    victim->n = n;
-    for (int k = 0, r = 0; k < n; k++) {
-        while (c->ref_rows[r].id != ids[k]) r++;
-        scratch[3 * k] = c->ref_rows[r].X;
-        scratch[3 * k + 1] = c->ref_rows[r].Y;
-        scratch[3 * k + 2] = c->ref_rows[r].Z;
-    }
-    sh_status st = sh_warp3d_model_create(&c->params, scratch, n, &victim->model);
-    for (int v = 0; v < c->nviews && st == SH_OK; v++)
-        st = sh_warp3d_view_create(victim->model, &c->vcam[v], &c->source, c->width, c->height,
-                                   &c->vopts, &victim->view[v]);
-    if (st == SH_OK && c->ply_spacing > 0)
-        st = sh_warp3d_ply_create(victim->model, c->ply_spacing, c->ply_mesh, &victim->ply);
-    if (st != SH_OK) {
-        slot_clear(victim);
-        return st;
-    }
-    victim->last_used = ++c->clock;
-    c->builds++;
-    c->build_seconds += app_now() - t0;
-    *out = victim;
-    return SH_OK;
-}
-
 static int has_xyz(const sh_point *p)
 {
     return isfinite(p->X) && isfinite(p->Y) && isfinite(p->Z);
@@ -173,17 +100,6 @@ static int fail(const char *what)
     return 1;
 }
 
-static int read_frame_at(const char *path, int index, sh_image *img)
-{
-    sh_y4m_reader *r;
-    if (sh_y4m_reader_open(path, &r) != SH_OK) return 0;
-    sh_status st = SH_OK;
-    for (int i = 0; i <= index && st == SH_OK; i++) st = sh_y4m_reader_read(r, img);
-    sh_y4m_reader_close(r);
-    if (st == SH_EEOF) sh_error_set(SH_EINVAL, "%s has no frame %d", path, index);
-    return st == SH_OK;
-}
-
 /* pose:RX,RY,RZ[,TX,TY,TZ] */
 static int parse_pose(const char *text, double rvec[3], double tvec[3])
 {
@@ -209,7 +125,7 @@ static int parse_pose(const char *text, double rvec[3], double tvec[3])
 
 /* Writes the stabilized frame: one view, or the two eyes in their layout. Raw: the input in
  * every view's place. Half layouts render each eye into `eye` (W x H) and squeeze it. */
-static sh_status render(sh_warp *warp, const slot3d *s, int nviews, int tb, int half, sh_image *eye,
+static sh_status render(sh_warp *warp, const sh_modelcache_entry *s, int nviews, int tb, int half, sh_image *eye,
                         const sh_image *in, sh_image *out, int raw)
 {
     if (half && nviews == 2) {
@@ -319,17 +235,20 @@ int cmd_warp3d(int argc, char **argv)
         return 2;
     }
 
-    cache3d cache = {0};
-    sh_warp3d_params_default(&cache.params);
-    if (sh_interp_params_parse(smethod ? smethod : method, &cache.params.surface) != SH_OK ||
-        sh_interp_params_parse(dmethod ? dmethod : method, &cache.params.displacement) != SH_OK) {
+    sh_modelcache_recipe recipe;
+    memset(&recipe, 0, sizeof recipe);
+    recipe.three_d = 1;
+    sh_warp3d_params_default(&recipe.p3);
+    if (sh_interp_params_parse(smethod ? smethod : method, &recipe.p3.surface) != SH_OK ||
+        sh_interp_params_parse(dmethod ? dmethod : method, &recipe.p3.displacement) != SH_OK) {
         fail("--method");
         return 2;
     }
-    if (have_sigma) cache.params.surface.sigma = cache.params.displacement.sigma = sigma;
-    sh_warp3d_view_options_default(&cache.vopts);
-    cache.vopts.warp.max_error = max_error;
-    cache.vopts.depth_scale = depth_scale;
+    if (have_sigma) recipe.p3.surface.sigma = recipe.p3.displacement.sigma = sigma;
+    sh_warp3d_view_options_default(&recipe.vopts);
+    recipe.vopts.warp.max_error = max_error;
+    recipe.vopts.depth_scale = depth_scale;
+    sh_modelcache *cache = NULL;
 
     int rc = 1;
     sh_calib calib;
@@ -340,7 +259,7 @@ int cmd_warp3d(int argc, char **argv)
     sh_metric *metric_in = NULL, *metric_out = NULL;
     sh_image in = {0}, out = {0}, ref = {0}, rgb = {0}, eye = {0};
     int *ids = NULL;
-    double *cur_xyz = NULL, *scratch = NULL;
+    double *cur_xyz = NULL;
 
     if (sh_calib_read(calib_path, &calib) != SH_OK) { fail("cameras"); goto done; }
     if (camera >= calib.num_cameras) {
@@ -360,16 +279,15 @@ int cmd_warp3d(int argc, char **argv)
                      hdr->width, hdr->height, calib_path, calib.width, calib.height);
         goto done;
     }
-    cache.width = hdr->width;
-    cache.height = hdr->height;
-    cache.source = calib.cam[camera];
-    cache.ref_rows = sh_points_frame(&points, reference, &cache.ref_count);
-    ids = malloc(sizeof(int) * ((size_t)cache.ref_count + 1));
-    cur_xyz = malloc(sizeof(double) * 3 * ((size_t)cache.ref_count + 1));
-    scratch = malloc(sizeof(double) * 3 * ((size_t)cache.ref_count + 1));
-    if (!ids || !cur_xyz || !scratch) { fail("out of memory"); goto done; }
-    int nref = common_markers(cache.ref_rows, cache.ref_count, cache.ref_rows, cache.ref_count, ids,
-                              cur_xyz);
+    recipe.width = hdr->width;
+    recipe.height = hdr->height;
+    recipe.source_cam = calib.cam[camera];
+    int ref_count;
+    const sh_point *ref_rows = sh_points_frame(&points, reference, &ref_count);
+    ids = malloc(sizeof(int) * ((size_t)ref_count + 1));
+    cur_xyz = malloc(sizeof(double) * 3 * ((size_t)ref_count + 1));
+    if (!ids || !cur_xyz) { fail("out of memory"); goto done; }
+    int nref = common_markers(ref_rows, ref_count, ref_rows, ref_count, ids, cur_xyz);
     if (nref < 4) {
         sh_log_error("%s: the reference frame %d has %d markers with X,Y,Z, need 4",
                      points_path, reference, nref);
@@ -379,17 +297,17 @@ int cmd_warp3d(int argc, char **argv)
     if (!ref_xyz) { fail("out of memory"); goto done; }
     memcpy(ref_xyz, cur_xyz, sizeof(double) * 3 * (size_t)nref);
     if (stereo) {
-        sh_warp3d_stereo_cameras(&cache.source, baseline, &cache.vcam[0], &cache.vcam[1]);
-        cache.nviews = 2;
+        sh_warp3d_stereo_cameras(&recipe.source_cam, baseline, &recipe.view_cam[0], &recipe.view_cam[1]);
+        recipe.nviews = 2;
     } else if (pose) {
         double c[3] = {0, 0, 0};
         for (int i = 0; i < nref; i++)
             for (int k = 0; k < 3; k++) c[k] += ref_xyz[3 * i + k] / nref;
-        sh_warp3d_pose_camera(&cache.source, c, rvec, tvec, &cache.vcam[0]);
-        cache.nviews = 1;
+        sh_warp3d_pose_camera(&recipe.source_cam, c, rvec, tvec, &recipe.view_cam[0]);
+        recipe.nviews = 1;
     } else {
-        cache.vcam[0] = cache.source;
-        cache.nviews = 1;
+        recipe.view_cam[0] = recipe.source_cam;
+        recipe.nviews = 1;
     }
     free(ref_xyz);
 
@@ -422,17 +340,18 @@ int cmd_warp3d(int argc, char **argv)
             sh_log_error("--export-ply %s: cannot create the folder", ply_dir);
             goto done;
         }
-        cache.ply_spacing = ply_spacing;
-        cache.ply_mesh = ply_mesh;
+        recipe.ply_spacing = ply_spacing;
+        recipe.ply_mesh = ply_mesh;
     }
-    slot3d *slot;
-    if (cache_get(&cache, ids, nref, scratch, &slot) != SH_OK) { fail("reference markers"); goto done; }
-    int fr = strstr(hdr->extra, "XCOLORRANGE=FULL") != NULL;
+    if (sh_modelcache_create(&recipe, ref_rows, ref_count, CACHE_SLOTS, &cache) != SH_OK) { fail("models"); goto done; }
+    sh_modelcache_entry *slot;
+    if (sh_modelcache_get(cache, ids, nref, &slot) != SH_OK) { fail("reference markers"); goto done; }
+    int fr = sh_y4m_header_full_range(hdr);
     int from_stdin = !strcmp(in_path, "-");
     int measure = !stereo && !pose;
     if (measure && !from_stdin) {
-        if (!read_frame_at(in_path, reference, &ref)) { fail("reference frame"); goto done; }
-        if (sh_warp3d_model_update(slot->model, cur_xyz) != SH_OK ||
+        if (!app_read_frame_at(in_path, reference, &ref)) { fail("reference frame"); goto done; }
+        if (sh_warp3d_model_update(slot->m3, cur_xyz) != SH_OK ||
             sh_warp3d_view_update(slot->view[0]) != SH_OK ||
             render(warp, slot, 1, 0, 0, NULL, &ref, &out, 0) != SH_OK ||
             sh_metric_create(&ref, sh_warp3d_view_hull(slot->view[0]), fr, &metric_in) != SH_OK ||
@@ -453,20 +372,20 @@ int cmd_warp3d(int argc, char **argv)
     while ((st = sh_y4m_reader_read(reader, &in)) == SH_OK) {
         int ncur;
         const sh_point *cur = sh_points_frame(&points, frames, &ncur);
-        int n = common_markers(cache.ref_rows, cache.ref_count, cur, ncur, ids, cur_xyz);
+        int n = common_markers(ref_rows, ref_count, cur, ncur, ids, cur_xyz);
         double t0 = app_now();
-        int raw = n < 4 || cache_get(&cache, ids, n, scratch, &slot) != SH_OK ||
-                  sh_warp3d_model_update(slot->model, cur_xyz) != SH_OK;
-        for (int v = 0; v < cache.nviews && !raw; v++)
+        int raw = n < 4 || sh_modelcache_get(cache, ids, n, &slot) != SH_OK ||
+                  sh_warp3d_model_update(slot->m3, cur_xyz) != SH_OK;
+        for (int v = 0; v < recipe.nviews && !raw; v++)
             raw = sh_warp3d_view_update(slot->view[v]) != SH_OK;
-        if (!raw && render(warp, slot, cache.nviews, tb, half, &eye, &in, &out, 0) != SH_OK) raw = 1;
+        if (!raw && render(warp, slot, recipe.nviews, tb, half, &eye, &in, &out, 0) != SH_OK) raw = 1;
         if (raw) {
             raw_frames++;
             if (!quiet)
                 fprintf(stderr, "%sstillheart warp3d: frame %d left unstabilized (%d markers%s%s)\n",
                         progress.enabled ? "\n" : "", frames, n, n >= 4 ? ": " : "",
                         n >= 4 ? sh_error_message() : "");
-            render(warp, slot, cache.nviews, tb, half, &eye, &in, &out, 1);
+            render(warp, slot, recipe.nviews, tb, half, &eye, &in, &out, 1);
         }
         warp_seconds += app_now() - t0;
         if (frames == reference && from_stdin && measure && !metric_in && !raw) {
@@ -485,12 +404,12 @@ int cmd_warp3d(int argc, char **argv)
         if (ply_dir && !raw && frames % ply_every == 0) {
             snprintf(ply_path, sizeof ply_path, "%s/frame_%06d.ply", ply_dir, frames);
             if (sh_image_to_rgb(&in, &rgb, fr) != SH_OK ||
-                sh_warp3d_ply_write(slot->ply, slot->model, 1, &rgb, &cache.source, ply_path) != SH_OK) {
+                sh_warp3d_ply_write(slot->ply, slot->m3, 1, &rgb, &recipe.source_cam, ply_path) != SH_OK) {
                 fail("--export-ply");
                 goto done;
             }
             snprintf(ply_path, sizeof ply_path, "%s/frame_%06d", ply_dir, frames);
-            if (ply_texture && sh_warp3d_obj_write(slot->ply, slot->model, 1, &rgb, &cache.source, ply_path) != SH_OK) {
+            if (ply_texture && sh_warp3d_obj_write(slot->ply, slot->m3, 1, &rgb, &recipe.source_cam, ply_path) != SH_OK) {
                 fail("--export-ply");
                 goto done;
             }
@@ -507,7 +426,7 @@ int cmd_warp3d(int argc, char **argv)
         fprintf(stderr, "warp3d %s view, %s: %d frames (%d unstabilized), %d marker sets built in "
                         "%.1f ms, %.2f ms/frame",
                 stereo ? "stereo" : pose ? "pose" : "reference", method, frames, raw_frames,
-                cache.builds, cache.build_seconds * 1e3, frames ? warp_seconds * 1e3 / frames : 0.0);
+                sh_modelcache_builds(cache), sh_modelcache_build_seconds(cache) * 1e3, frames ? warp_seconds * 1e3 / frames : 0.0);
         if (ply_dir) fprintf(stderr, ", %d PLY files", exported);
         fprintf(stderr, "\n");
         if (metric_in)
@@ -518,7 +437,7 @@ int cmd_warp3d(int argc, char **argv)
     rc = st == SH_EEOF ? 0 : 1;
 done:
     if (writer) sh_y4m_writer_close(writer);
-    for (int i = 0; i < CACHE_SLOTS; i++) slot_clear(&cache.slot[i]);
+    sh_modelcache_destroy(cache);
     sh_y4m_reader_close(reader);
     sh_points_destroy(&points);
     sh_warp_destroy(warp);
@@ -531,6 +450,5 @@ done:
     sh_image_destroy(&eye);
     free(ids);
     free(cur_xyz);
-    free(scratch);
     return rc;
 }

@@ -19,7 +19,7 @@
 #include "stillheart/y4m.h"
 #include "run_source.h" /* run_log_fn */
 
-#define RUN_MAX_MARKERS 64 /* the tracker's limit (SH_TRACK_MAX_MARKERS) */
+#define RUN_MAX_MARKERS SH_TRACK_MAX_MARKERS /* the tracker's limit */
 
 /* ---- models (run_model.c) ----
  * Everything that depends on the reference (the interpolant, the warp's grid basis, and the n

@@ -13,31 +13,24 @@
 #include <string.h>
 
 #include "run.h"
+#include "stillheart/modelcache.h"
 #include "stillheart/warp3d.h"
 
 #define SLOTS 8
 
 enum { EMPTY = 0, BUILDING, READY, FAILED };
 
+/* A slot: the marker set's entry (modelcache.h: key, models, LRU stamp) and what the daemon adds. */
 struct run_model {
-    int n;
-    int ids[RUN_MAX_MARKERS];
-    double ref_xy[2 * RUN_MAX_MARKERS];
-    sh_interp *interp;
-    sh_warp_model *model;
-    /* 3D: the surface over the reference markers, the output camera's view of it, and each
-     * marker's surface parameter (for the residual; NaN where the view's ray misses) */
-    double ref_xyz[3 * RUN_MAX_MARKERS];
-    sh_warp3d_model *m3;
-    sh_warp3d_view *view;
-    double uv[2 * RUN_MAX_MARKERS];
+    sh_modelcache_entry e; /* 3D: the surface and the output camera's view of it (view[0]) */
+    double uv[2 * RUN_MAX_MARKERS]; /* 3D: each marker's surface parameter (for the residual; NaN
+                                     * where the view's ray misses) */
     const run_models *owner; /* its camera, for the 3D residual */
     double *coef;   /* the interpolant's coefficients, 2 columns (for the residual) */
     double vals[2 * RUN_MAX_MARKERS];
     int state;
     int taken;      /* the helper is building it */
     char err[160];  /* why the build failed */
-    unsigned long last_used;
 };
 
 typedef struct {
@@ -49,9 +42,8 @@ typedef struct {
 } generation;
 
 struct run_models {
-    sh_interp_params params;
-    sh_warp_options wopts;
-    int width, height, wait;
+    sh_modelcache_recipe recipe; /* 2D, or 3D after run_models_set_3d (one view: the camera's own) */
+    int wait;
     pthread_mutex_t mu;
     pthread_cond_t cv;      /* the helper waits for work; waiters for results */
     pthread_t helper;
@@ -61,19 +53,12 @@ struct run_models {
     run_model *evicted[SLOTS * 2];
     int nevicted;
     int builds;
-    int three_d;            /* run_models_set_3d */
-    sh_calib_camera cam;
-    sh_warp3d_params p3;
-    sh_warp3d_view_options vopts;
     run_model *pinned;      /* the model last handed out: never evicted (the fallback) */
 };
 
 static void model_free(run_model *md)
 {
-    sh_warp3d_view_destroy(md->view);
-    sh_warp3d_model_destroy(md->m3);
-    sh_warp_model_destroy(md->model);
-    sh_interp_destroy(md->interp);
+    sh_modelcache_entry_clear(&md->e);
     free(md->coef);
     memset(md, 0, sizeof *md);
 }
@@ -85,23 +70,20 @@ static void generation_free(generation *g)
     free(g);
 }
 
-/* Builds interpolant and warp model of md (ids, n, ref_xy set). */
+/* Builds md's models (its entry's key set) and what the residual needs beside them. */
 static sh_status model_build(const run_models *m, run_model *md)
 {
     md->owner = m;
-    if (m->three_d) {
-        sh_status st = sh_warp3d_model_create(&m->p3, md->ref_xyz, md->n, &md->m3);
-        if (st == SH_OK) st = sh_warp3d_view_create(md->m3, &m->cam, &m->cam, m->width, m->height, &m->vopts, &md->view);
-        for (int k = 0; st == SH_OK && k < md->n; k++)
-            if (sh_warp3d_view_locate(md->view, md->ref_xy[2 * k], md->ref_xy[2 * k + 1], &md->uv[2 * k]) != SH_OK)
-                md->uv[2 * k] = md->uv[2 * k + 1] = NAN;
-        return st;
-    }
-    sh_status st = sh_interp_create(&m->params, md->ref_xy, md->n, &md->interp);
-    if (st == SH_OK)
-        st = sh_warp_model_create(md->interp, md->ref_xy, md->n, m->width, m->height, &m->wopts, &md->model);
+    const sh_modelcache_entry *e = &md->e;
+    sh_status st = sh_modelcache_entry_build(&md->e, &m->recipe);
     if (st != SH_OK) return st;
-    md->coef = malloc(sizeof(double) * 2 * (size_t)sh_interp_num_coefs(md->interp));
+    if (m->recipe.three_d) {
+        for (int k = 0; k < e->n; k++)
+            if (sh_warp3d_view_locate(e->view[0], e->ref_xy[2 * k], e->ref_xy[2 * k + 1], &md->uv[2 * k]) != SH_OK)
+                md->uv[2 * k] = md->uv[2 * k + 1] = NAN;
+        return SH_OK;
+    }
+    md->coef = malloc(sizeof(double) * 2 * (size_t)sh_interp_num_coefs(e->interp));
     if (!md->coef) return sh_error_set(SH_ENOMEM, "model: out of memory");
     return SH_OK;
 }
@@ -111,16 +93,16 @@ static sh_status model_build(const run_models *m, run_model *md)
 static sh_status update_3d(const run_models *m, run_model *md, const double *cur_xyz, const double *det_xy,
                            double *residual)
 {
-    sh_status st = sh_warp3d_model_update(md->m3, cur_xyz);
-    if (st == SH_OK) st = sh_warp3d_view_update(md->view);
+    sh_status st = sh_warp3d_model_update(md->e.m3, cur_xyz);
+    if (st == SH_OK) st = sh_warp3d_view_update(md->e.view[0]);
     if (st != SH_OK) return st;
     double worst = -1;
-    for (int k = 0; k < md->n; k++) {
+    for (int k = 0; k < md->e.n; k++) {
         if (!isfinite(det_xy[2 * k])) continue;
         double X[3], x = NAN, y = NAN;
         if (isfinite(md->uv[2 * k])) {
-            sh_warp3d_model_point(md->m3, md->uv[2 * k], md->uv[2 * k + 1], 1.0, 1, X);
-            if (!sh_warp3d_project(&m->cam, X, &x, &y)) x = y = NAN;
+            sh_warp3d_model_point(md->e.m3, md->uv[2 * k], md->uv[2 * k + 1], 1.0, 1, X);
+            if (!sh_warp3d_project(&m->recipe.source_cam, X, &x, &y)) x = y = NAN;
         }
         double r = hypot(x - det_xy[2 * k], y - det_xy[2 * k + 1]);
         if (!(r <= worst)) worst = r; /* a NaN wins: never hidden */
@@ -132,23 +114,24 @@ static sh_status update_3d(const run_models *m, run_model *md, const double *cur
 sh_status run_model_update(run_model *md, const double *cur_xy, const double *cur_xyz, const double *det_xy,
                            double *residual)
 {
-    if (md->m3) return update_3d(md->owner, md, cur_xyz, det_xy, residual);
-    sh_status st = sh_warp_model_update(md->model, cur_xy);
+    const sh_modelcache_entry *e = &md->e;
+    if (e->m3) return update_3d(md->owner, md, cur_xyz, det_xy, residual);
+    sh_status st = sh_warp_model_update(e->model, cur_xy);
     if (st != SH_OK) return st;
     /* The map at a marker's reference position, f(q) = q + D(q), against where the detector saw
      * it this frame: the tracker's smoothing plus what an approximating method leaves out. */
-    for (int k = 0; k < 2 * md->n; k++) md->vals[k] = cur_xy[k] - md->ref_xy[k];
-    st = sh_interp_fit(md->interp, md->vals, 2, md->coef);
+    for (int k = 0; k < 2 * e->n; k++) md->vals[k] = cur_xy[k] - e->ref_xy[k];
+    st = sh_interp_fit(e->interp, md->vals, 2, md->coef);
     if (st != SH_OK) return st;
     double worst = -1;
-    for (int k = 0; k < md->n; k++) {
+    for (int k = 0; k < e->n; k++) {
         double d[2];
         if (!isfinite(det_xy[2 * k])) continue; /* predicted this frame: nothing to compare */
-        if (sh_interp_eval(md->interp, md->coef, 2, md->ref_xy[2 * k], md->ref_xy[2 * k + 1], d) != SH_OK) {
+        if (sh_interp_eval(e->interp, md->coef, 2, e->ref_xy[2 * k], e->ref_xy[2 * k + 1], d) != SH_OK) {
             worst = NAN;
             break;
         }
-        double ex = md->ref_xy[2 * k] + d[0] - det_xy[2 * k], ey = md->ref_xy[2 * k + 1] + d[1] - det_xy[2 * k + 1];
+        double ex = e->ref_xy[2 * k] + d[0] - det_xy[2 * k], ey = e->ref_xy[2 * k + 1] + d[1] - det_xy[2 * k + 1];
         double r = sqrt(ex * ex + ey * ey);
         if (!(r <= worst)) worst = r; /* a NaN wins: never hidden */
     }
@@ -162,18 +145,25 @@ sh_status run_residual(const sh_interp_params *params, const double *ref_xy, con
     if (n < 1 || n > RUN_MAX_MARKERS) return sh_error_set(SH_EINVAL, "residual: %d markers", n);
     run_models m;
     memset(&m, 0, sizeof m);
-    m.params = *params;
-    sh_warp_options_default(&m.wopts);
-    m.width = m.height = 2;
+    m.recipe.params = *params;
+    sh_warp_options_default(&m.recipe.wopts);
+    m.recipe.width = m.recipe.height = 2;
     for (int k = 0; k < n; k++) { /* a frame that holds the points */
-        if (ref_xy[2 * k] + 2 > m.width) m.width = (int)ref_xy[2 * k] + 2;
-        if (ref_xy[2 * k + 1] + 2 > m.height) m.height = (int)ref_xy[2 * k + 1] + 2;
+        if (ref_xy[2 * k] + 2 > m.recipe.width) m.recipe.width = (int)ref_xy[2 * k] + 2;
+        if (ref_xy[2 * k + 1] + 2 > m.recipe.height) m.recipe.height = (int)ref_xy[2 * k + 1] + 2;
     }
     run_model *md = calloc(1, sizeof *md);
     if (!md) return sh_error_set(SH_ENOMEM, "residual: out of memory");
-    md->n = n;
-    memcpy(md->ref_xy, ref_xy, sizeof(double) * 2 * (size_t)n);
-    sh_status st = model_build(&m, md);
+    sh_point ref[RUN_MAX_MARKERS]; /* the entry's key: ids 0..n-1 at these positions */
+    int ids[RUN_MAX_MARKERS];
+    for (int k = 0; k < n; k++) {
+        memset(&ref[k], 0, sizeof ref[k]);
+        ref[k].id = ids[k] = k;
+        ref[k].x = ref_xy[2 * k];
+        ref[k].y = ref_xy[2 * k + 1];
+    }
+    sh_status st = sh_modelcache_entry_set(&md->e, ref, n, ids, n);
+    if (st == SH_OK) st = model_build(&m, md);
     if (st == SH_OK) st = run_model_update(md, cur_xy, NULL, det_xy, residual);
     model_free(md);
     free(md);
@@ -226,19 +216,24 @@ static void *helper_main(void *arg)
          * or replace the generation meanwhile; the result lands only if the slot still asks. */
         run_model tmp;
         memset(&tmp, 0, sizeof tmp);
-        tmp.n = job->n;
-        memcpy(tmp.ids, job->ids, sizeof(int) * (size_t)job->n);
-        memcpy(tmp.ref_xy, job->ref_xy, sizeof(double) * 2 * (size_t)job->n);
-        memcpy(tmp.ref_xyz, job->ref_xyz, sizeof(double) * 3 * (size_t)job->n);
+        /* the key copied from the generation's reference, which only this thread frees */
+        sh_status st = sh_modelcache_entry_set(&tmp.e, job_gen->ref, job_gen->nref, job->e.ids, job->e.n);
+        if (st != SH_OK) { /* out of memory: the set is marked failed like a model that would not build */
+            job->state = FAILED;
+            snprintf(job->err, sizeof job->err, "%s", sh_error_message());
+            pthread_cond_broadcast(&m->cv);
+            continue;
+        }
         job->taken = 1;
         pthread_mutex_unlock(&m->mu);
-        sh_status st = model_build(m, &tmp);
+        st = model_build(m, &tmp);
         pthread_mutex_lock(&m->mu);
-        int still = (job_gen == m->cur || job_gen == m->next) && job->state == BUILDING &&
-                    job->taken && job->n == tmp.n && !memcmp(job->ids, tmp.ids, sizeof(int) * (size_t)tmp.n);
+        int still = (job_gen == m->cur || job_gen == m->next) && job->state == BUILDING && job->taken &&
+                    sh_modelcache_entry_is(&job->e, tmp.e.ids, tmp.e.n);
         if (still) {
-            unsigned long lu = job->last_used;
+            unsigned long lu = job->e.last_used;
             if (st == SH_OK) {
+                model_free(job); /* its key: tmp has its own */
                 *job = tmp;
                 job->state = READY;
                 m->builds++;
@@ -248,7 +243,7 @@ static void *helper_main(void *arg)
                 snprintf(job->err, sizeof job->err, "%s", sh_error_message());
             }
             job->taken = 0;
-            job->last_used = lu;
+            job->e.last_used = lu;
             pthread_cond_broadcast(&m->cv);
         } else {
             pthread_mutex_unlock(&m->mu);
@@ -265,10 +260,10 @@ sh_status run_models_create(const sh_interp_params *params, const sh_warp_option
 {
     run_models *m = calloc(1, sizeof *m);
     if (!m) return sh_error_set(SH_ENOMEM, "models: out of memory");
-    m->params = *params;
-    m->wopts = *wopts;
-    m->width = width;
-    m->height = height;
+    m->recipe.params = *params;
+    m->recipe.wopts = *wopts;
+    m->recipe.width = width;
+    m->recipe.height = height;
     m->wait = wait;
     pthread_mutex_init(&m->mu, NULL);
     pthread_cond_init(&m->cv, NULL);
@@ -307,22 +302,28 @@ static void discard(run_models *m, generation *g)
     generation_free(g);
 }
 
+typedef struct {
+    run_models *m;
+    generation *g;
+} lookup_ctx;
+
+static sh_modelcache_entry *slot_entry(void *table, int i) { return &((lookup_ctx *)table)->g->slot[i].e; }
+
+/* A slot being built is not evicted (the helper holds it), nor the one in use. */
+static int slot_kept(void *table, int i)
+{
+    const lookup_ctx *c = table;
+    return c->g->slot[i].state == BUILDING || &c->g->slot[i] == c->m->pinned;
+}
+
 /* Under the mutex: slot for ids in g (a hit, or a new BUILDING slot in place of the LRU one). */
 static run_model *slot_for(run_models *m, generation *g, const int *ids, int n)
 {
-    run_model *victim = NULL;
-    for (int i = 0; i < SLOTS; i++) {
-        run_model *s = &g->slot[i];
-        if (s->state != EMPTY && s->n == n && !memcmp(s->ids, ids, sizeof(int) * (size_t)n)) {
-            s->last_used = ++g->clock;
-            return s;
-        }
-        /* a slot being built is not evicted (the helper holds it), nor the one in use */
-        if (s->state == BUILDING || s == m->pinned) continue;
-        if (!victim || (victim->state != EMPTY && (s->state == EMPTY || s->last_used < victim->last_used)))
-            victim = s;
-    }
-    if (!victim) return NULL; /* every slot building: ask again next frame */
+    lookup_ctx ctx = {m, g};
+    int v, hit = sh_modelcache_lookup(&ctx, SLOTS, slot_entry, slot_kept, &g->clock, ids, n, &v);
+    if (hit >= 0) return &g->slot[hit];
+    if (v < 0) return NULL; /* every slot building: ask again next frame */
+    run_model *victim = &g->slot[v];
     if (victim->state == READY || victim->state == FAILED) {
         run_model *e = m->nevicted < SLOTS * 2 ? malloc(sizeof *e) : NULL;
         if (e) {
@@ -333,19 +334,10 @@ static run_model *slot_for(run_models *m, generation *g, const int *ids, int n)
         }
     }
     memset(victim, 0, sizeof *victim);
-    victim->n = n;
-    memcpy(victim->ids, ids, sizeof(int) * (size_t)n);
-    for (int k = 0, r = 0; k < n; k++) {
-        while (r < g->nref && g->ref[r].id != ids[k]) r++;
-        if (r == g->nref) return NULL; /* not in the reference: the caller's bug */
-        victim->ref_xy[2 * k] = g->ref[r].x;
-        victim->ref_xy[2 * k + 1] = g->ref[r].y;
-        victim->ref_xyz[3 * k] = g->ref[r].X;
-        victim->ref_xyz[3 * k + 1] = g->ref[r].Y;
-        victim->ref_xyz[3 * k + 2] = g->ref[r].Z;
-    }
+    /* fails for ids not in the reference (the caller's bug) or out of memory: asked again */
+    if (sh_modelcache_entry_set(&victim->e, g->ref, g->nref, ids, n) != SH_OK) return NULL;
     victim->state = BUILDING;
-    victim->last_used = ++g->clock;
+    victim->e.last_used = ++g->clock;
     pthread_cond_broadcast(&m->cv);
     return victim;
 }
@@ -417,26 +409,28 @@ int run_models_get(run_models *m, const int *ids, int n, run_model **out)
 
 const sh_warp_model *run_model_warp(const run_model *md)
 {
-    return md->view ? sh_warp3d_view_map_model(md->view) : md->model;
+    return md->e.view[0] ? sh_warp3d_view_map_model(md->e.view[0]) : md->e.model;
 }
 
 sh_status run_models_set_3d(run_models *m, const sh_calib *calib, int camera)
 {
     if (camera < 0 || camera >= calib->num_cameras)
         return sh_error_set(SH_EINVAL, "calibration: no camera %d (%d cameras)", camera, calib->num_cameras);
-    m->cam = calib->cam[camera];
-    sh_warp3d_params_default(&m->p3);
-    m->p3.surface = m->p3.displacement = m->params;
-    sh_warp3d_view_options_default(&m->vopts);
-    m->vopts.warp = m->wopts;
-    m->three_d = 1;
+    sh_modelcache_recipe *r = &m->recipe;
+    r->source_cam = r->view_cam[0] = calib->cam[camera];
+    r->nviews = 1;
+    sh_warp3d_params_default(&r->p3);
+    r->p3.surface = r->p3.displacement = r->params;
+    sh_warp3d_view_options_default(&r->vopts);
+    r->vopts.warp = r->wopts;
+    r->three_d = 1;
     return SH_OK;
 }
 
 const int *run_model_ids(const run_model *md, int *n)
 {
-    *n = md->n;
-    return md->ids;
+    *n = md->e.n;
+    return md->e.ids;
 }
 
 int run_models_builds(const run_models *m) { return m->builds; }

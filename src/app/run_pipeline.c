@@ -16,13 +16,11 @@
 #include "stillheart/log.h"
 
 static const char *shm_name(const sh_config *c) { return strncmp(c->sink, "shm:", 4) ? NULL : c->sink + 4; }
-static int full_range(const sh_y4m_header *h) { return strstr(h->extra, "XCOLORRANGE=FULL") != NULL; }
-static const char *or_none(const char *s) { return s[0] ? s : "none"; }
 
 static sh_status display_create(const sh_config *cfg, const sh_y4m_header *h, sh_display_writer **out)
 {
     sh_status st = sh_display_writer_create(shm_name(cfg), h->format, h->width, h->height, cfg->slots,
-                                            full_range(h), cfg->group[0] ? cfg->group : NULL, out);
+                                            sh_y4m_header_full_range(h), cfg->group[0] ? cfg->group : NULL, out);
     return st == SH_OK ? SH_OK : sh_error_set(st, "[sink] display: %s", sh_error_message());
 }
 
@@ -31,7 +29,7 @@ static sh_status black_frame(const sh_y4m_header *hdr, sh_image *img)
 {
     sh_status st = sh_image_create(img, hdr->format, hdr->width, hdr->height);
     if (st != SH_OK) return st;
-    uint8_t luma = full_range(hdr) || hdr->format == SH_PIX_RGB24 ? 0 : 16;
+    uint8_t luma = sh_y4m_header_full_range(hdr) || hdr->format == SH_PIX_RGB24 ? 0 : 16;
     for (int p = 0; p < img->num_planes; p++)
         for (int y = 0; y < img->plane[p].height; y++)
             memset(img->plane[p].data + (size_t)y * img->plane[p].stride, p ? 128 : luma,
@@ -127,52 +125,42 @@ static __attribute__((format(printf, 3, 4))) void add(char *out, size_t cap, con
     va_end(ap);
 }
 
-/* The processing keys that differ between p's config and n's (what a run_proc is created with,
- * gating aside), and the files it reads rewritten, as text for the log; 0 when none does. */
+static int same_stamp(const run_file_stamp *a, const run_file_stamp *b)
+{
+    return a->ino == b->ino && a->size == b->size && a->mtime_ns == b->mtime_ns;
+}
+
+/* The processing keys that differ between p's config and n's (the key table's
+ * SH_CONFIG_PROCESSING), and the files processing reads rewritten under the same name, as text
+ * for the log; 0 when nothing did. */
 static int proc_changes(const run_pipeline *p, const run_pipeline *n, char *out, size_t cap)
 {
     const sh_config *a = &p->cfg, *b = &n->cfg;
     out[0] = 0;
-    if (strcmp(a->method_name, b->method_name)) add(out, cap, "method %s -> %s", a->method_name, b->method_name);
-    else if (memcmp(&a->method, &b->method, sizeof a->method) || a->sigma != b->sigma || a->levels != b->levels ||
-             a->smoothing != b->smoothing)
-        add(out, cap, "method parameters"); /* (another method has other parameters anyway) */
-    if (a->grid != b->grid) add(out, cap, "grid %g -> %g px", a->grid, b->grid);
-    if (strcmp(a->family, b->family)) add(out, cap, "family %s -> %s", a->family, b->family);
-    if (memcmp(a->ids, b->ids, sizeof a->ids)) add(out, cap, "ids %s -> %s", a->ids_text, b->ids_text);
-    if (a->threads != b->threads) add(out, cap, "threads %d -> %d", a->threads, b->threads);
-    if (strcmp(a->points, b->points)) add(out, cap, "points %s -> %s", or_none(a->points), or_none(b->points));
-    else if (memcmp(&p->points_file, &n->points_file, sizeof p->points_file)) add(out, cap, "points file rewritten");
-    if (strcmp(a->calibration, b->calibration))
-        add(out, cap, "calibration %s -> %s", or_none(a->calibration), or_none(b->calibration));
-    else if (memcmp(&p->calib_file, &n->calib_file, sizeof p->calib_file)) add(out, cap, "calibration rewritten");
-    if (a->reference_frame != b->reference_frame)
-        add(out, cap, "reference frame %d -> %d", a->reference_frame, b->reference_frame);
+    sh_config_describe(a, b, SH_CONFIG_PROCESSING, out, cap);
+    if (!strcmp(a->points, b->points) && !same_stamp(&p->points_file, &n->points_file))
+        add(out, cap, "points file rewritten");
+    if (!strcmp(a->calibration, b->calibration) && !same_stamp(&p->calib_file, &n->calib_file))
+        add(out, cap, "calibration rewritten");
     return out[0] != 0;
-}
-
-static int gating_changed(const sh_config *a, const sh_config *b)
-{
-    return a->min_markers != b->min_markers || a->max_residual_px != b->max_residual_px ||
-           a->max_sigma_px != b->max_sigma_px || a->dropout_ms != b->dropout_ms ||
-           a->max_calibration_px != b->max_calibration_px ||
-           a->on_camera_motion != b->on_camera_motion;
 }
 
 static int same_frames(const sh_y4m_header *a, const sh_y4m_header *b)
 {
-    return a->width == b->width && a->height == b->height && a->format == b->format && full_range(a) == full_range(b);
+    return a->width == b->width && a->height == b->height && a->format == b->format && sh_y4m_header_full_range(a) == sh_y4m_header_full_range(b);
 }
 
-/* What a reload changes, decided before anything is opened. */
+/* What a reload changes, decided before anything is opened: from the effects of the keys that
+ * changed (the key table's column, sh_config_changes), the files and the frames. */
 typedef struct {
-    int cameras;         /* [cameraN], [source], [trigger]: the cameras are closed and opened */
-    int processing;      /* a new run_proc (processing keys, or new cameras: a new stream) */
+    unsigned effects;    /* sh_config_effect bits of the keys that changed */
+    int cameras;         /* SH_CONFIG_SOURCE: the cameras are closed and opened */
+    int processing;      /* a new run_proc (processing keys or files, or new cameras: a new stream) */
     char proc_text[384]; /* the processing keys that changed, for the log */
-    int record, control; /* their keys changed */
-    int ctl_groups;      /* the control socket is kept with other groups */
+    int record, control; /* SH_CONFIG_RECORD, SH_CONFIG_CONTROL */
+    int ctl_groups;      /* the control socket is kept with other groups (SH_CONFIG_LIVE) */
     int same_name;       /* the display segment keeps its name ... */
-    int keep_disp;       /* ... and its geometry, format, slots and group: kept as it is */
+    int keep_disp;       /* ... its geometry and format and every SH_CONFIG_DISPLAY key: kept as it is */
     int new_frames;      /* the output camera's geometry or format changed */
     int black_made;      /* n's black frame is new */
     char again[512];     /* why the previous display could not be made again ("" when it could) */
@@ -222,15 +210,11 @@ static void describe(const run_pipeline *p, const run_pipeline *n, const changes
     if (c->proc_text[0]) add(what, cap, "%s", c->proc_text);
     if (c->same_name && !c->keep_disp)
         add(what, cap, "sink %s made again for %dx%d frames", fresh->sink, n->hdr.width, n->hdr.height);
-    else if (strcmp(old->sink, fresh->sink))
-        add(what, cap, "sink %s -> %s", old->sink, fresh->sink);
-    if (c->record) add(what, cap, "record %s -> %s", or_none(old->record), or_none(fresh->record));
-    if (c->control) add(what, cap, "control %s -> %s", or_none(old->control), or_none(fresh->control));
-    if (c->ctl_groups) add(what, cap, "control groups '%s' '%s' -> '%s' '%s'", old->control_group, old->group,
-                           fresh->control_group, fresh->group);
-    if (fresh->watchdog != old->watchdog) add(what, cap, "watchdog %s", fresh->watchdog ? "on" : "off");
+    else
+        sh_config_describe(old, fresh, SH_CONFIG_DISPLAY, what, cap);
+    sh_config_describe(old, fresh, SH_CONFIG_RECORD | SH_CONFIG_CONTROL | SH_CONFIG_LIVE, what, cap);
     if (what[0] && c->keep_disp) add(what, cap, "sink kept");
-    if (what[0] && gating_changed(old, fresh)) add(what, cap, "gating");
+    if (what[0] && (c->effects & SH_CONFIG_GATING)) add(what, cap, "gating");
 }
 
 run_reload run_pipeline_reload(run_pipeline *p, const sh_config *fresh, char *what, size_t cap)
@@ -241,10 +225,11 @@ run_reload run_pipeline_reload(run_pipeline *p, const sh_config *fresh, char *wh
     stamps(&n);
     changes c;
     memset(&c, 0, sizeof c);
-    c.cameras = run_source_config_changed(fresh, old);
+    c.effects = sh_config_changes(old, fresh);
+    c.cameras = (c.effects & SH_CONFIG_SOURCE) != 0;
     c.processing = proc_changes(p, &n, c.proc_text, sizeof c.proc_text) || c.cameras;
-    c.record = strcmp(fresh->record, old->record) != 0;
-    c.control = strcmp(fresh->control, old->control) != 0;
+    c.record = (c.effects & SH_CONFIG_RECORD) != 0;
+    c.control = (c.effects & SH_CONFIG_CONTROL) != 0;
     const char *oname = shm_name(old), *nname = shm_name(fresh);
     c.same_name = oname && nname && !strcmp(oname, nname);
     sh_status st = SH_OK;
@@ -257,7 +242,7 @@ run_reload run_pipeline_reload(run_pipeline *p, const sh_config *fresh, char *wh
         if (st == SH_OK) n.hdr = *run_source_header(n.src);
     }
     c.new_frames = !same_frames(&n.hdr, &p->hdr);
-    c.keep_disp = c.same_name && !c.new_frames && fresh->slots == old->slots && !strcmp(fresh->group, old->group);
+    c.keep_disp = c.same_name && !c.new_frames && !(c.effects & SH_CONFIG_DISPLAY);
     if (st == SH_OK && c.processing)
         st = run_proc_create(fresh, &n.hdr, run_source_fps(n.src), run_source_cameras(n.src), &n.proc);
     if (st == SH_OK && c.cameras && (st = black_frame(&n.hdr, &n.black)) == SH_OK) c.black_made = 1;

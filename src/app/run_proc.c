@@ -82,7 +82,9 @@ sh_status run_proc_create(const sh_config *cfg, const sh_y4m_header *hdr, double
     if (cfg->grid > 0) wopts.grid_spacing = (int)cfg->grid;
     sh_status st = sh_image_create(&p->out, hdr->format, hdr->width, hdr->height);
     /* test mode waits for every model: its output must equal `stillheart warp`'s frame by frame */
-    if (st == SH_OK) st = run_models_create(&cfg->method, &wopts, hdr->width, hdr->height, cfg->points[0] != 0, &p->models);
+    sh_interp_params method;
+    sh_config_method(cfg, &method);
+    if (st == SH_OK) st = run_models_create(&method, &wopts, hdr->width, hdr->height, cfg->points[0] != 0, &p->models);
     if (st == SH_OK && p->three_d) st = run_models_set_3d(p->models, &p->calib, p->out_cam);
     if (st == SH_OK) st = sh_warp_create(cfg->threads, &p->warp);
     if (st == SH_OK && cfg->points[0]) {
@@ -118,12 +120,7 @@ void run_proc_destroy(run_proc *p)
 
 void run_proc_set_gating(run_proc *p, const sh_config *cfg)
 {
-    p->cfg.min_markers = cfg->min_markers;
-    p->cfg.max_residual_px = cfg->max_residual_px;
-    p->cfg.max_sigma_px = cfg->max_sigma_px;
-    p->cfg.dropout_ms = cfg->dropout_ms;
-    p->cfg.max_calibration_px = cfg->max_calibration_px;
-    p->cfg.on_camera_motion = cfg->on_camera_motion;
+    sh_config_copy_keys(&p->cfg, cfg, SH_CONFIG_GATING);
 }
 
 /* The reason field holds 43 characters: longer reasons are cut (the counts come first). */

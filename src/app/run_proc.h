@@ -13,7 +13,7 @@ typedef struct run_proc run_proc;
  * cameras as configured, 2+): tracking in 3D over every camera's frames and warp3d. */
 sh_status run_proc_create(const sh_config *cfg, const sh_y4m_header *hdr, double fps, int cameras, run_proc **out);
 void run_proc_destroy(run_proc *p);
-/* SIGHUP: [gating] takes effect from the next frame. */
+/* SIGHUP: the keys of effect SH_CONFIG_GATING take effect from the next frame. */
 void run_proc_set_gating(run_proc *p, const sh_config *cfg);
 /* The next frame with at least min_markers detected markers becomes the reference (its models
  * are built beside the running ones and swapped in when ready). */

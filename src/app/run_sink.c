@@ -70,7 +70,7 @@ sh_status run_record_open(const char *spec, const sh_y4m_header *hdr, run_record
         return SH_OK;
     }
     snprintf(r->dir, sizeof r->dir, "%s", spec + 4);
-    r->full_range = strstr(hdr->extra, "XCOLORRANGE=FULL") != NULL;
+    r->full_range = sh_y4m_header_full_range(hdr);
     if (mkdir(r->dir, 0775) && errno != EEXIST) {
         sh_status st = sh_error_set(SH_EIO, "%s: %s", r->dir, strerror(errno));
         run_record_close(r);

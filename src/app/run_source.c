@@ -65,13 +65,6 @@ struct run_source {
     double fps;
 };
 
-static int64_t mono_ns(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (int64_t)ts.tv_sec * 1000000000 + ts.tv_nsec;
-}
-
 static int is_replay(const char *spec) { return !strncmp(spec, "y4m:", 4) || !strncmp(spec, "rec:", 4); }
 
 _Static_assert(SH_CONFIG_CTRL_UNSET == SH_SOURCE_CTRL_UNSET, "config's unset control is source.h's");
@@ -134,7 +127,7 @@ void run_y4m_header(sh_rawfmt format, int width, int height, int fps_num, int fp
     h->fps_num = fps_num > 0 && fps_den > 0 ? fps_num : 25;
     h->fps_den = fps_num > 0 && fps_den > 0 ? fps_den : 1;
     h->interlace = 'p';
-    if (format == SH_RAW_MJPEG) snprintf(h->extra, sizeof h->extra, "XCOLORRANGE=FULL");
+    if (format == SH_RAW_MJPEG) snprintf(h->extra, sizeof h->extra, "%s", SH_Y4M_FULL_RANGE);
 }
 
 /* ---- under rs->mu ---- */
@@ -171,7 +164,7 @@ static void deliver(run_source *rs, const sh_frame_set *set)
     f.capture_ns = set->time_ns;
     f.set = set->index;
     f.complete = set->complete;
-    f.avail_ns = mono_ns();
+    f.avail_ns = sh_monotonic_ns();
     rs->output_ns = f.avail_ns;
     if (rs->have_waiting) { /* behind: the waiting set is the oldest, drop it */
         free_buffers(rs, &rs->waiting);
@@ -222,7 +215,7 @@ static void pace(run_source *rs, camera *k)
             flush(rs);
             continue;
         }
-        k->beat_ns = mono_ns(); /* waiting for processing is not hanging */
+        k->beat_ns = sh_monotonic_ns(); /* waiting for processing is not hanging */
         struct timespec ts;
         clock_gettime(CLOCK_REALTIME, &ts);
         ts.tv_nsec += 50000000;
@@ -263,7 +256,7 @@ static void *camera_thread(void *arg)
         reopens = ss.reopens;
         pthread_mutex_lock(&rs->mu);
         k->st.source = ss; /* also while the camera is down: online says so */
-        k->beat_ns = mono_ns();
+        k->beat_ns = sh_monotonic_ns();
         if (got) k->frame_ns = k->beat_ns;
         pthread_mutex_unlock(&rs->mu);
         if (st == SH_EEOF) {
@@ -335,7 +328,7 @@ static void *trigger_thread(void *arg)
         }
         sh_log_limit_clear(&err);
         pthread_mutex_lock(&rs->mu);
-        rs->trig_beat_ns = mono_ns();
+        rs->trig_beat_ns = sh_monotonic_ns();
         if (got) {
             sh_sync_trigger(rs->sync, edge);
             drain(rs);
@@ -468,7 +461,7 @@ sh_status run_source_start(run_source *rs)
     for (int i = 0; i < rs->ncam; i++)
         if (sh_source_start(rs->cam[i].src) != SH_OK)
             return sh_error_set(SH_EIO, "%s: %s", rs->cam[i].name, sh_error_message());
-    int64_t now = mono_ns();
+    int64_t now = sh_monotonic_ns();
     pthread_mutex_lock(&rs->mu);
     rs->output_ns = rs->trig_beat_ns = now;
     for (int i = 0; i < rs->ncam; i++) {
@@ -530,16 +523,6 @@ int run_source_ended(run_source *rs)
     return e;
 }
 
-int run_source_config_changed(const sh_config *a, const sh_config *b)
-{
-    return memcmp(a->camera, b->camera, sizeof a->camera) || a->realtime != b->realtime || a->loop != b->loop ||
-           a->output_camera != b->output_camera || a->sync_tolerance_ms != b->sync_tolerance_ms ||
-           a->sync_wait_ms != b->sync_wait_ms || a->camera_timeout_ms != b->camera_timeout_ms ||
-           a->trigger != b->trigger || strcmp(a->trigger_chip, b->trigger_chip) || a->trigger_line != b->trigger_line ||
-           a->trigger_active_low != b->trigger_active_low || a->trigger_fps != b->trigger_fps ||
-           a->trigger_pulse_us != b->trigger_pulse_us || a->trigger_offset_us != b->trigger_offset_us;
-}
-
 uint64_t run_source_dropped(run_source *rs)
 {
     pthread_mutex_lock(&rs->mu);
@@ -571,7 +554,7 @@ int run_source_online(run_source *rs, char *text, size_t cap)
 {
     int n = 0;
     char down[96] = "";
-    int64_t now = mono_ns();
+    int64_t now = sh_monotonic_ns();
     pthread_mutex_lock(&rs->mu);
     for (int c = 0; c < rs->ncam; c++) {
         const char *why = camera_down(rs, &rs->cam[c], now);
@@ -590,7 +573,7 @@ int run_source_online(run_source *rs, char *text, size_t cap)
 
 int run_source_output_lost(run_source *rs, char *text, size_t cap)
 {
-    int64_t now = mono_ns();
+    int64_t now = sh_monotonic_ns();
     pthread_mutex_lock(&rs->mu);
     const camera *k = &rs->cam[rs->out];
     const char *why = camera_down(rs, k, now);
@@ -610,7 +593,7 @@ int run_source_output_lost(run_source *rs, char *text, size_t cap)
 
 int run_source_alive(run_source *rs, int64_t max_age_ns, char *who, size_t cap)
 {
-    int64_t now = mono_ns();
+    int64_t now = sh_monotonic_ns();
     int alive = 1;
     pthread_mutex_lock(&rs->mu);
     for (int c = 0; c < rs->ncam && alive; c++) {

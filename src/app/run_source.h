@@ -61,10 +61,6 @@ const run_frame *run_source_take(run_source *rs, int timeout_ms);
 /* 1 once the source has ended (replays without loop, or the output camera failed for good) and
  * its last set was taken. */
 int run_source_ended(run_source *rs);
-/* 1 when a and b differ in what the source was opened with ([cameraN], [source], [trigger]):
- * a reload with such a change destroys the running source before it opens the new one (a V4L2
- * device opens once), and opens the previous one again when the new one fails (run_pipeline.c). */
-int run_source_config_changed(const sh_config *a, const sh_config *b);
 /* Sets dropped because processing was behind (sets without the output camera's frame are
  * counted apart, in the exit log). */
 uint64_t run_source_dropped(run_source *rs);

@@ -3,10 +3,10 @@
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 #include <unistd.h>
 
 #include "app.h"
+#include "stillheart/y4m.h"
 
 int app_parse_int(const char *option, const char *text, int min, int max, int *out)
 {
@@ -36,11 +36,17 @@ int app_parse_double(const char *option, const char *text, double min, double ma
     return 1;
 }
 
-double app_now(void)
+double app_now(void) { return (double)sh_monotonic_ns() * 1e-9; }
+
+int app_read_frame_at(const char *path, int index, sh_image *img)
 {
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + ts.tv_nsec * 1e-9;
+    sh_y4m_reader *r;
+    if (sh_y4m_reader_open(path, &r) != SH_OK) return 0;
+    sh_status st = SH_OK;
+    for (int i = 0; i <= index && st == SH_OK; i++) st = sh_y4m_reader_read(r, img);
+    sh_y4m_reader_close(r);
+    if (st == SH_EEOF) sh_error_set(SH_EINVAL, "%s has no frame %d", path, index);
+    return st == SH_OK;
 }
 
 void app_progress_start(app_progress *p)

@@ -152,19 +152,11 @@ sh_status sh_calib_parse(const char *text, size_t len, const char *name, sh_cali
     matrix mx;
     memset(&mx, 0, sizeof mx);
     char line[512];
-    size_t pos = 0;
-    int lineno = 0;
+    sh_lines it;
+    sh_lines_init(&it, text, len, name);
     sh_status st;
-    while (pos < len) {
-        size_t e = pos;
-        while (e < len && text[e] != '\n') e++;
-        size_t n = e - pos;
-        lineno++;
-        if (n >= sizeof line) return sh_error_set(SH_EFORMAT, "%s:%d: line too long", name, lineno);
-        memcpy(line, text + pos, n);
-        line[n] = '\0';
-        pos = e + 1;
-        if (strlen(line) != n) return sh_error_set(SH_EFORMAT, "%s:%d: NUL byte", name, lineno);
+    while ((st = sh_lines_next(&it, line, sizeof line)) == SH_OK) {
+        int lineno = it.lineno;
         if (lineno == 1) {
             if (strncmp(line, "%YAML", 5) != 0)
                 return sh_error_set(SH_EFORMAT, "%s:1: not an OpenCV YAML file (no %%YAML)", name);
@@ -215,6 +207,7 @@ sh_status sh_calib_parse(const char *text, size_t len, const char *name, sh_cali
         }
         if (!ok) return sh_error_set(SH_EFORMAT, "%s:%d: bad matrix field '%s'", name, lineno, key);
     }
+    if (st != SH_EEOF) return st;
     if (mx.in_data) return sh_error_set(SH_EFORMAT, "%s: matrix '%s' not closed", name, mx.key);
     if ((st = finish_matrix(&mx, name, calib, have)) != SH_OK) return st;
     if (calib->num_cameras < 1 || calib->num_cameras > SH_CALIB_MAX_CAMERAS)

@@ -2,6 +2,8 @@
  * each key goes through sh_config_set (config.c), all or nothing. */
 #include "stillheart/config.h"
 
+#include "config_internal.h"
+
 #include <errno.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -26,7 +28,7 @@ static int on_key(void *user, const char *section, const char *name, const char 
     parse_ctx *c = user;
     if (c->failed)
         return 1; /* keep the first error's line as the one returned */
-    if (sh_config_set(c->cfg, section, name, value, "", 0, c->err) != SH_OK) {
+    if (sh_config_set_why(c->cfg, section, name, value, c->err) != SH_OK) {
         c->failed = 1;
         return 0;
     }
@@ -43,7 +45,7 @@ sh_status sh_config_parse_string(sh_config *cfg, const char *text, const char *o
     int r = ini_parse_string(text, on_key, &c);
     if (c.failed) {
         char why[SH_CONFIG_ERR];
-        snprintf(why, sizeof why, "%s", err + 2); /* past the empty origin's ": " */
+        snprintf(why, sizeof why, "%s", err);
         snprintf(err, SH_CONFIG_ERR, "%.200s:%d: %.300s", origin, r, why);
         return SH_EINVAL;
     }
@@ -55,20 +57,12 @@ sh_status sh_config_parse_string(sh_config *cfg, const char *text, const char *o
 #else
     (void)c; /* the handler's context, for inih */
     /* The same rules as inih's defaults: [section], key = value or key : value, ; and # comments. */
-    char section[64] = "";
-    int lineno = 0;
-    const char *p = text;
-    while (*p) {
-        char line[1024];
-        size_t n = strcspn(p, "\n");
-        lineno++;
-        if (n >= sizeof line) {
-            snprintf(err, SH_CONFIG_ERR, "%s:%d: line too long", origin, lineno);
-            return SH_EFORMAT;
-        }
-        memcpy(line, p, n);
-        line[n] = 0;
-        p += n + (p[n] == '\n');
+    char section[64] = "", line[1024];
+    sh_lines it;
+    sh_lines_init(&it, text, strlen(text), origin);
+    sh_status st;
+    while ((st = sh_lines_next(&it, line, sizeof line)) == SH_OK) {
+        int lineno = it.lineno;
         char *s = line;
         while (*s == ' ' || *s == '\t' || *s == '\r')
             s++;
@@ -108,6 +102,10 @@ sh_status sh_config_parse_string(sh_config *cfg, const char *text, const char *o
         }
         if (sh_config_set(&work, section, k, v, origin, lineno, err) != SH_OK)
             return SH_EINVAL;
+    }
+    if (st != SH_EEOF) { /* a line too long */
+        snprintf(err, SH_CONFIG_ERR, "%s", sh_error_message());
+        return st;
     }
 #endif
     *cfg = work;

@@ -11,6 +11,23 @@
 #include <stdlib.h>
 #include <string.h>
 
+/* One set of defaults with or without libapriltag: callers fill the options before they learn
+ * whether a detector can be created. */
+void sh_detector_options_default(sh_detector_options *opts)
+{
+    if (!opts) return;
+    memset(opts, 0, sizeof *opts);
+    opts->family = "tag36h11";
+    opts->quad_decimate = 2.0;
+    opts->quad_sigma = 0.0;
+    opts->refine_edges = 1;
+    opts->decode_sharpening = 0.25;
+    opts->threads = 1;
+    opts->max_hamming = 2;
+    opts->window_decimate = 1.0;
+    opts->merge_windows = 1;
+}
+
 #ifdef SH_HAVE_APRILTAG
 
 #include <apriltag/apriltag.h>
@@ -58,21 +75,6 @@ struct sh_detector {
     sh_window scan[SH_DETECT_MAX_WINDOWS];
     int num_scan;
 };
-
-void sh_detector_options_default(sh_detector_options *opts)
-{
-    if (!opts) return;
-    memset(opts, 0, sizeof *opts);
-    opts->family = "tag36h11";
-    opts->quad_decimate = 2.0;
-    opts->quad_sigma = 0.0;
-    opts->refine_edges = 1;
-    opts->decode_sharpening = 0.25;
-    opts->threads = 1;
-    opts->max_hamming = 2;
-    opts->window_decimate = 1.0;
-    opts->merge_windows = 1;
-}
 
 const char *sh_detector_families(void)
 {
@@ -360,20 +362,6 @@ sh_status sh_detector_detect_windows(sh_detector *det, const sh_image *frame,
 }
 
 #else /* !SH_HAVE_APRILTAG */
-
-void sh_detector_options_default(sh_detector_options *opts)
-{
-    if (!opts) return;
-    memset(opts, 0, sizeof *opts);
-    opts->family = "tag36h11";
-    opts->quad_decimate = 2.0;
-    opts->refine_edges = 1;
-    opts->decode_sharpening = 0.25;
-    opts->threads = 1;
-    opts->max_hamming = 2;
-    opts->window_decimate = 1.0;
-    opts->merge_windows = 1;
-}
 
 const char *sh_detector_families(void)
 {

@@ -10,13 +10,6 @@ _Static_assert(sizeof(sh_display_frame_info) == 80, "frame info is part of the f
 _Static_assert(sizeof(display_slot_header) == SLOT_HEADER_BYTES, "slot header is part of the format");
 _Static_assert(SH_DISPLAY_SLOT_HEADER_BYTES == SLOT_HEADER_BYTES, "display.h says the slot header's size");
 
-int64_t display_now_ns(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (int64_t)ts.tv_sec * 1000000000 + ts.tv_nsec;
-}
-
 void display_sleep_us(long us)
 {
     struct timespec t = {us / 1000000, (us % 1000000) * 1000};

@@ -9,6 +9,7 @@
 #include <stdint.h>
 #include <sys/types.h>
 
+#include "stillheart/core.h"
 #include "stillheart/display.h"
 
 #define SLOT_HEADER_BYTES 128
@@ -20,7 +21,6 @@ typedef struct {
     uint8_t reserved[SLOT_HEADER_BYTES - 16 - sizeof(sh_display_frame_info)];
 } display_slot_header;
 
-int64_t display_now_ns(void);
 void display_sleep_us(long us);
 /* The pixel layout of one slot for a format: planes packed, rows padded to 16 bytes. */
 sh_status display_layout(sh_display_header *h, sh_pixfmt format, int width, int height);

@@ -148,7 +148,7 @@ static sh_status map_name(sh_display_reader *r)
     r->have_object = 1;
     r->dev = sb.st_dev;
     r->ino = sb.st_ino;
-    r->next_name_check = display_now_ns() + NAME_CHECK_NS;
+    r->next_name_check = sh_monotonic_ns() + NAME_CHECK_NS;
     return SH_OK;
 }
 
@@ -177,9 +177,9 @@ sh_status sh_display_reader_open(const char *name, const sh_display_reader_optio
     r->fd = -1;
     r->owner = !opt || opt->owner_uid < 0 ? geteuid() : (uid_t)opt->owner_uid;
     r->follow = opt && opt->follow;
-    int64_t deadline = timeout_ms < 0 ? INT64_MAX : display_now_ns() + (int64_t)timeout_ms * 1000000;
+    int64_t deadline = timeout_ms < 0 ? INT64_MAX : sh_monotonic_ns() + (int64_t)timeout_ms * 1000000;
     /* the daemon may be starting: its segment appears, then becomes valid, within the timeout */
-    while ((st = map_name(r)) != SH_OK && st != SH_EINVAL && display_now_ns() < deadline)
+    while ((st = map_name(r)) != SH_OK && st != SH_EINVAL && sh_monotonic_ns() < deadline)
         display_sleep_us(2000);
     if (st != SH_OK) {
         sh_display_reader_close(r);
@@ -275,7 +275,7 @@ sh_status sh_display_reader_next(sh_display_reader *r, sh_image *frame,
 {
     if (!frame) return sh_error_set(SH_EINVAL, "display: no frame to read into");
     const sh_display_header *g = &r->geometry;
-    int64_t deadline = timeout_ms < 0 ? INT64_MAX : display_now_ns() + (int64_t)timeout_ms * 1000000;
+    int64_t deadline = timeout_ms < 0 ? INT64_MAX : sh_monotonic_ns() + (int64_t)timeout_ms * 1000000;
     for (;;) {
         int left = 0, closed = 0;
         if (!r->base) {
@@ -299,7 +299,7 @@ sh_status sh_display_reader_next(sh_display_reader *r, sh_image *frame,
                                r->stage + g->plane_offset[p] + (size_t)y * g->stride[p], row);
                 }
                 r->last_sequence = copy.sequence;
-                r->next_name_check = display_now_ns() + NAME_CHECK_NS;
+                r->next_name_check = sh_monotonic_ns() + NAME_CHECK_NS;
                 if (info) *info = copy;
                 return SH_OK;
             }
@@ -312,7 +312,7 @@ sh_status sh_display_reader_next(sh_display_reader *r, sh_image *frame,
              * the name is found to stand for another object; the writer, if it was not really
              * gone, clears the flag with its next publish) and the name is looked at each time. */
             closed = what == POLL_CLOSED;
-            int64_t now = display_now_ns();
+            int64_t now = sh_monotonic_ns();
             if (r->name[0] && (what == POLL_RETIRED || what == POLL_CUT_SHORT ||
                                ((closed || now >= r->next_name_check) && !name_holds_ours(r)))) {
                 unmap(r);
@@ -321,7 +321,7 @@ sh_status sh_display_reader_next(sh_display_reader *r, sh_image *frame,
                 r->next_name_check = now + NAME_CHECK_NS;
             }
         }
-        if (display_now_ns() >= deadline)
+        if (sh_monotonic_ns() >= deadline)
             return sh_error_set(SH_EIO, "display: no new frame in %d ms%s", timeout_ms, r->base ? "" : " (no segment)");
         /* 0.5 ms: a frame period is 16 ms or more; 2 ms between two opens of the name, 5 ms
          * between two looks at the name of a closed segment */

@@ -46,7 +46,7 @@ static uint64_t new_generation(void)
 {
     uint64_t g = 0;
     while (g == 0)
-        if (getrandom(&g, sizeof g, 0) != (ssize_t)sizeof g) g = (uint64_t)display_now_ns() ^ ((uint64_t)getpid() << 40);
+        if (getrandom(&g, sizeof g, 0) != (ssize_t)sizeof g) g = (uint64_t)sh_monotonic_ns() ^ ((uint64_t)getpid() << 40);
     return g;
 }
 
@@ -306,7 +306,7 @@ sh_status sh_display_writer_publish(sh_display_writer *w, const sh_image *frame,
                             h->width, h->height, sh_pixfmt_name((sh_pixfmt)h->format));
     sh_display_frame_info copy = info ? *info : (sh_display_frame_info){0};
     copy.sequence = ++w->sequence;
-    copy.publish_ns = display_now_ns();
+    copy.publish_ns = sh_monotonic_ns();
     copy.reason[sizeof copy.reason - 1] = 0;
     /* twice at most: a segment cut short during the copy is made again and the frame goes there */
     int cut_short = 0;

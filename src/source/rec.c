@@ -6,26 +6,19 @@
  * damage is counted and described (note_damage) and, without loop, the end is an error. */
 #include "source_internal.h"
 
-#include <errno.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/timerfd.h>
-#include <unistd.h>
 
 #include "stillheart/record.h"
 
-#define SLOTS 2
-
 typedef struct {
-    sh_source base;
+    sh_replay rp; /* first: the base source, the timer and the slots */
     char path[256];
     sh_rec_reader *reader;
     sh_rec_stream stream;
-    uint8_t *mem[SLOTS];
+    uint8_t *mem[SH_REPLAY_SLOTS];
     size_t cap;
-    int held[SLOTS];
-    int tfd;
     int64_t start, first_ts, last_ts, offset;
     uint64_t count_in_pass;
     int have_first;
@@ -49,7 +42,7 @@ static void note_damage(rec_source *r)
 {
     uint64_t sk = sh_rec_reader_skipped(r->reader), lost = sh_rec_reader_lost_bytes(r->reader);
     if (r->passes || lost == r->seen_lost) return;
-    sh_source *s = &r->base;
+    sh_source *s = &r->rp.base;
     s->stats.damaged++;
     s->stats.errors += sk - r->seen_skipped;
     s->stats.lost_bytes = lost;
@@ -69,10 +62,10 @@ static sh_status read_ahead(rec_source *r)
         sh_status st = sh_rec_reader_next(r->reader, &rec);
         note_damage(r);
         if (st == SH_EEOF) {
-            if (!r->base.opts.loop || !r->count_in_pass) {
+            if (!r->rp.base.opts.loop || !r->count_in_pass) {
                 r->have_next = 0;
                 r->at_end = 1;
-                r->end_damaged = r->base.stats.damaged != 0;
+                r->end_damaged = r->rp.base.stats.damaged != 0;
                 return SH_OK;
             }
             r->passes++;
@@ -89,7 +82,7 @@ static sh_status read_ahead(rec_source *r)
         if (st != SH_OK) return st;
         if (rec.type != SH_REC_FRAME || rec.camera != r->stream.camera) continue;
         if (rec.raw.bytes > r->cap) {
-            r->base.stats.errors++;
+            r->rp.base.stats.errors++;
             continue;
         }
         if (!r->have_first) r->first_ts = rec.timestamp_ns, r->have_first = 1;
@@ -106,21 +99,8 @@ static sh_status read_ahead(rec_source *r)
 
 static int64_t due_of(const rec_source *r) { return r->start + (r->next_ts - r->first_ts) + r->offset; }
 
-static void arm(rec_source *r)
-{
-    struct itimerspec it;
-    memset(&it, 0, sizeof it);
-    int64_t due = due_of(r);
-    if (!r->base.opts.realtime || !r->have_next || due <= 0) {
-        it.it_value.tv_nsec = 1;
-        timerfd_settime(r->tfd, 0, &it, NULL);
-        return;
-    }
-    it.it_value.tv_sec = (time_t)(due / 1000000000);
-    it.it_value.tv_nsec = (long)(due % 1000000000);
-    if (!it.it_value.tv_sec && !it.it_value.tv_nsec) it.it_value.tv_nsec = 1;
-    timerfd_settime(r->tfd, TFD_TIMER_ABSTIME, &it, NULL);
-}
+/* At the end (nothing read ahead) the timer is readable at once: the next dequeue says so. */
+static void arm(rec_source *r) { sh_replay_arm(&r->rp, r->have_next ? due_of(r) : 0); }
 
 static sh_status r_start(sh_source *s)
 {
@@ -130,61 +110,29 @@ static sh_status r_start(sh_source *s)
     return SH_OK;
 }
 
-static int r_fd(const sh_source *s) { return ((const rec_source *)s)->tfd; }
-
 static sh_status r_dequeue(sh_source *s, int timeout_ms, sh_source_frame *f, int *got)
 {
     rec_source *r = (rec_source *)s;
-    int slot = -1;
-    for (int i = 0; i < SLOTS; i++)
-        if (!r->held[i]) {
-            slot = i;
-            break;
-        }
-    if (slot < 0) return sh_error_set(SH_EINVAL, "%s: every frame slot is held (release frames)", s->name);
+    int slot;
+    sh_status st = sh_replay_slot(&r->rp, &slot);
+    if (st != SH_OK) return st;
     if (!r->have_next && r->end_damaged) { /* the end of a damaged recording is an error: a caller's exit says so */
         r->end_damaged = 0;
-        return sh_error_set(SH_EFORMAT, "%s", s->damage);
+        return sh_error_set(SH_EFORMAT, "%s", r->rp.base.damage);
     }
     if (!r->have_next) return SH_EEOF;
     int64_t due = due_of(r);
-    if (s->opts.realtime) {
-        int64_t now = sh_monotonic_ns();
-        if (now < due) {
-            if (timeout_ms == 0) return SH_OK;
-            if (timeout_ms > 0 && now + (int64_t)timeout_ms * 1000000 < due) {
-                sh_source_sleep_until(now + (int64_t)timeout_ms * 1000000);
-                return SH_OK;
-            }
-            sh_source_sleep_until(due);
-        }
-    }
-    uint64_t expirations;
-    if (read(r->tfd, &expirations, sizeof expirations) < 0 && errno != EAGAIN) {
-        /* nothing to clear */
-    }
+    if (!sh_replay_wait(&r->rp, due, timeout_ms)) return SH_OK;
     /* hand out the read-ahead buffer; the slot's buffer becomes the next read-ahead one */
     uint8_t *out = r->next_mem;
     r->next_mem = r->mem[slot];
     r->mem[slot] = out;
-    memset(f, 0, sizeof *f);
-    f->camera = s->opts.camera;
-    f->sequence = r->sequence_out++;
-    f->discontinuity = r->restarted; /* read ahead at the previous frame: this one opens a pass */
+    /* restarted: read ahead at the previous frame, this one opens a pass */
+    sh_replay_hand_out(&r->rp, slot, out, r->next_bytes, r->sequence_out++, due, r->restarted, f);
     r->restarted = 0;
-    f->timestamp_ns = due;
-    f->raw.format = s->format;
-    f->raw.width = s->width;
-    f->raw.height = s->height;
-    f->raw.stride = s->stride;
-    f->raw.data = out;
-    f->raw.bytes = r->next_bytes;
-    f->slot = slot;
-    r->held[slot] = 1;
-    s->stats.frames++;
-    sh_status st = read_ahead(r);
+    st = read_ahead(r);
     if (st != SH_OK) {
-        r->held[slot] = 0;
+        r->rp.held[slot] = 0;
         return st;
     }
     arm(r);
@@ -192,33 +140,17 @@ static sh_status r_dequeue(sh_source *s, int timeout_ms, sh_source_frame *f, int
     return SH_OK;
 }
 
-static sh_status r_release(sh_source *s, sh_source_frame *f)
-{
-    rec_source *r = (rec_source *)s;
-    if (f->slot < 0 || f->slot >= SLOTS || !r->held[f->slot])
-        return sh_error_set(SH_EINVAL, "%s: release of a frame not held", s->name);
-    r->held[f->slot] = 0;
-    f->slot = -1;
-    return SH_OK;
-}
-
-static sh_status r_stop(sh_source *s)
-{
-    (void)s;
-    return SH_OK;
-}
-
 static void r_close(sh_source *s)
 {
     rec_source *r = (rec_source *)s;
     sh_rec_reader_close(r->reader);
-    for (int i = 0; i < SLOTS; i++) free(r->mem[i]);
+    for (int i = 0; i < SH_REPLAY_SLOTS; i++) free(r->mem[i]);
     free(r->next_mem);
-    if (r->tfd >= 0) close(r->tfd);
+    sh_replay_close(&r->rp);
     free(r);
 }
 
-static const sh_source_ops ops = {r_start, r_fd, r_dequeue, r_release, r_stop, r_close};
+static const sh_source_ops ops = {r_start, sh_replay_fd, r_dequeue, sh_replay_release, sh_replay_stop, r_close};
 
 sh_status sh_source_open_rec(const char *path, const sh_source_options *opts, sh_source **out)
 {
@@ -227,40 +159,37 @@ sh_status sh_source_open_rec(const char *path, const sh_source_options *opts, sh
         return sh_error_set(SH_EINVAL, "rec:%.40s...: path too long", path);
     rec_source *r = calloc(1, sizeof *r);
     if (!r) return sh_error_set(SH_ENOMEM, "rec:%s: out of memory", path);
-    r->base.ops = &ops;
-    r->base.opts = *opts;
-    r->tfd = -1;
+    sh_replay_init(&r->rp, &ops, opts);
     snprintf(r->path, sizeof r->path, "%s", path);
     sh_status st = sh_rec_reader_open(path, &r->reader);
     if (st != SH_OK) {
-        r_close(&r->base);
+        r_close(&r->rp.base);
         return st;
     }
     const sh_rec_stream *s = sh_rec_reader_stream(r->reader, opts->camera);
     if (!s) {
-        r_close(&r->base);
+        r_close(&r->rp.base);
         return sh_error_set(SH_EINVAL, "rec:%s: no camera %d in the recording", path, opts->camera);
     }
     r->stream = *s;
-    r->base.format = s->format;
-    r->base.width = s->width;
-    r->base.height = s->height;
-    r->base.stride = s->stride;
-    r->base.fps_num = s->fps_num;
-    r->base.fps_den = s->fps_den;
+    r->rp.base.format = s->format;
+    r->rp.base.width = s->width;
+    r->rp.base.height = s->height;
+    r->rp.base.stride = s->stride;
+    r->rp.base.fps_num = s->fps_num;
+    r->rp.base.fps_den = s->fps_den;
     r->cap = s->format == SH_RAW_MJPEG ? (size_t)s->width * s->height * 3 + (1u << 20)
                                        : sh_raw_frame_size(s->format, s->width, s->height, s->stride) + (1u << 20);
-    for (int i = 0; i < SLOTS; i++) r->mem[i] = malloc(r->cap);
+    for (int i = 0; i < SH_REPLAY_SLOTS; i++) r->mem[i] = malloc(r->cap);
     r->next_mem = malloc(r->cap);
-    r->tfd = timerfd_create(CLOCK_MONOTONIC, TFD_NONBLOCK | TFD_CLOEXEC);
-    if (!r->mem[0] || !r->mem[1] || !r->next_mem || r->tfd < 0) {
-        r_close(&r->base);
+    if (!r->mem[0] || !r->mem[1] || !r->next_mem || sh_replay_timer_create(&r->rp) < 0) {
+        r_close(&r->rp.base);
         return sh_error_set(SH_ENOMEM, "rec:%s: out of memory", path);
     }
     if ((st = read_ahead(r)) != SH_OK) {
-        r_close(&r->base);
+        r_close(&r->rp.base);
         return st;
     }
-    *out = &r->base;
+    *out = &r->rp.base;
     return SH_OK;
 }

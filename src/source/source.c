@@ -14,13 +14,6 @@ void sh_source_options_default(sh_source_options *o)
     o->realtime = 1;
 }
 
-int64_t sh_monotonic_ns(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (int64_t)ts.tv_sec * 1000000000 + ts.tv_nsec;
-}
-
 void sh_source_sleep_until(int64_t t)
 {
     struct timespec ts = {(time_t)(t / 1000000000), (long)(t % 1000000000)};

@@ -35,6 +35,38 @@ sh_status sh_source_open_v4l2(const char *path, const sh_source_options *opts, s
 sh_status sh_source_open_rec(const char *dir, const sh_source_options *opts, sh_source **out);
 sh_status sh_source_open_libcamera(const char *name, const sh_source_options *opts, sh_source **out);
 
+/* What the two replays (y4m:, rec:) share, as the first member of their state: a timerfd that is
+ * readable when the next frame is due (the source's fd), and two frame slots that the caller
+ * holds from dequeue to release. */
+#define SH_REPLAY_SLOTS 2
+typedef struct {
+    sh_source base;
+    int tfd;
+    int held[SH_REPLAY_SLOTS];
+} sh_replay;
+
+/* Sets the base's ops and options; no timer yet (tfd -1, which sh_replay_close skips). */
+void sh_replay_init(sh_replay *rp, const sh_source_ops *ops, const sh_source_options *opts);
+/* Creates the timer: -1 with errno when it cannot be. */
+int sh_replay_timer_create(sh_replay *rp);
+/* Arms the timer at the absolute time due, or readable at once when not in real time (or due <= 0). */
+void sh_replay_arm(sh_replay *rp, int64_t due);
+/* The start of a dequeue: a slot the caller does not hold (an error when it holds both). */
+sh_status sh_replay_slot(sh_replay *rp, int *slot);
+/* In real time, waits for due up to timeout_ms (< 0: as long as it takes); 0 when it is not due
+ * yet (nothing to hand out). Once due, the timer's expirations are cleared and 1 returned. */
+int sh_replay_wait(sh_replay *rp, int64_t due, int timeout_ms);
+/* Hands out the frame in slot (held from now on, counted): the source's format, data and bytes,
+ * its sequence number and timestamp, and whether the scene jumps before it. */
+void sh_replay_hand_out(sh_replay *rp, int slot, uint8_t *data, size_t bytes, uint64_t sequence,
+                        int64_t timestamp_ns, int discontinuity, sh_source_frame *f);
+/* The ops both replays use as they are. */
+int sh_replay_fd(const sh_source *s);
+sh_status sh_replay_release(sh_source *s, sh_source_frame *frame);
+sh_status sh_replay_stop(sh_source *s);
+/* Closes the timer (the backend frees the rest). */
+void sh_replay_close(sh_replay *rp);
+
 /* t0 + k frames at num/den frames per second, exact in integers (no overflow for any k). */
 int64_t sh_source_schedule_ns(int64_t t0, uint64_t k, int fps_num, int fps_den);
 /* Sleeps until the absolute CLOCK_MONOTONIC time (ns). */

@@ -11,23 +11,17 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/timerfd.h>
-#include <unistd.h>
 
 #include "stillheart/y4m.h"
 
-#define SLOTS 2
-
 typedef struct {
-    sh_source base;
+    sh_replay rp; /* first: the base source, the timer and the slots */
     char path[256];
     sh_y4m_reader *reader;
     sh_pixfmt pixfmt;
-    uint8_t *mem[SLOTS];
-    sh_image img[SLOTS];
-    int held[SLOTS];
+    uint8_t *mem[SH_REPLAY_SLOTS];
+    sh_image img[SH_REPLAY_SLOTS];
     size_t frame_bytes;
-    int tfd;
     int64_t t0;
     uint64_t k;
     int at_end;
@@ -36,31 +30,14 @@ typedef struct {
     int damage_seen; /* met once: counted once, not on every pass */
 } y4m_source;
 
-static void arm(y4m_source *y, int64_t due)
-{
-    struct itimerspec it;
-    memset(&it, 0, sizeof it);
-    if (!y->base.opts.realtime || due <= 0) {
-        it.it_value.tv_nsec = 1; /* relative: readable at once */
-        timerfd_settime(y->tfd, 0, &it, NULL);
-        return;
-    }
-    it.it_value.tv_sec = (time_t)(due / 1000000000);
-    it.it_value.tv_nsec = (long)(due % 1000000000);
-    if (!it.it_value.tv_sec && !it.it_value.tv_nsec) it.it_value.tv_nsec = 1;
-    timerfd_settime(y->tfd, TFD_TIMER_ABSTIME, &it, NULL);
-}
-
 static sh_status y_start(sh_source *s)
 {
     y4m_source *y = (y4m_source *)s;
     y->t0 = sh_monotonic_ns();
     y->k = 0;
-    arm(y, y->t0);
+    sh_replay_arm(&y->rp, y->t0);
     return SH_OK;
 }
-
-static int y_fd(const sh_source *s) { return ((const y4m_source *)s)->tfd; }
 
 static sh_status rewind_reader(y4m_source *y)
 {
@@ -69,7 +46,7 @@ static sh_status rewind_reader(y4m_source *y)
     sh_status st = sh_y4m_reader_open(y->path, &y->reader);
     if (st != SH_OK) return st;
     const sh_y4m_header *h = sh_y4m_reader_header(y->reader);
-    if (h->width != y->base.width || h->height != y->base.height || h->format != y->pixfmt)
+    if (h->width != y->rp.base.width || h->height != y->rp.base.height || h->format != y->pixfmt)
         return sh_error_set(SH_EFORMAT, "y4m:%s: the file changed while looping", y->path);
     return SH_OK;
 }
@@ -81,7 +58,7 @@ static sh_status rewind_reader(y4m_source *y)
  * end the pass, or the error. */
 static sh_status met_damage(y4m_source *y)
 {
-    sh_source *s = &y->base;
+    sh_source *s = &y->rp.base;
     sh_y4m_damage d;
     if (!sh_y4m_reader_damage(y->reader, &d)) return SH_EFORMAT;
     int tail = d.frames_lost >= 0 && d.frames_lost <= 1 && d.frame > 0;
@@ -103,31 +80,13 @@ static sh_status met_damage(y4m_source *y)
 static sh_status y_dequeue(sh_source *s, int timeout_ms, sh_source_frame *f, int *got)
 {
     y4m_source *y = (y4m_source *)s;
-    int slot = -1;
-    for (int i = 0; i < SLOTS; i++)
-        if (!y->held[i]) {
-            slot = i;
-            break;
-        }
-    if (slot < 0) return sh_error_set(SH_EINVAL, "%s: every frame slot is held (release frames)", s->name);
+    int slot;
+    sh_status st = sh_replay_slot(&y->rp, &slot);
+    if (st != SH_OK) return st;
     if (y->at_end) return SH_EEOF;
     int64_t due = sh_source_schedule_ns(y->t0, y->k, s->fps_num, s->fps_den);
-    if (s->opts.realtime) {
-        int64_t now = sh_monotonic_ns();
-        if (now < due) {
-            if (timeout_ms == 0) return SH_OK;
-            if (timeout_ms > 0 && now + (int64_t)timeout_ms * 1000000 < due) {
-                sh_source_sleep_until(now + (int64_t)timeout_ms * 1000000);
-                return SH_OK;
-            }
-            sh_source_sleep_until(due);
-        }
-    }
-    uint64_t expirations;
-    if (read(y->tfd, &expirations, sizeof expirations) < 0 && errno != EAGAIN) {
-        /* nothing to clear */
-    }
-    sh_status st = sh_y4m_reader_read(y->reader, &y->img[slot]);
+    if (!sh_replay_wait(&y->rp, due, timeout_ms)) return SH_OK;
+    st = sh_y4m_reader_read(y->reader, &y->img[slot]);
     for (int attempt = 0; st != SH_OK && attempt < 2; attempt++) {
         if (st == SH_EFORMAT) st = met_damage(y);
         if (st != SH_EEOF) return st;
@@ -142,40 +101,11 @@ static sh_status y_dequeue(sh_source *s, int timeout_ms, sh_source_frame *f, int
         st = sh_y4m_reader_read(y->reader, &y->img[slot]);
     }
     if (st != SH_OK) return st == SH_EEOF ? sh_error_set(SH_EFORMAT, "%s: no frame to loop over", s->name) : st;
-    y->held[slot] = 1;
-    memset(f, 0, sizeof *f);
-    f->camera = s->opts.camera;
-    f->sequence = y->k;
-    f->discontinuity = y->restarted;
+    sh_replay_hand_out(&y->rp, slot, y->mem[slot], y->frame_bytes, y->k, due, y->restarted, f);
     y->restarted = 0;
-    f->timestamp_ns = due;
-    f->raw.format = s->format;
-    f->raw.width = s->width;
-    f->raw.height = s->height;
-    f->raw.stride = s->stride;
-    f->raw.data = y->mem[slot];
-    f->raw.bytes = y->frame_bytes;
-    f->slot = slot;
     y->k++;
-    s->stats.frames++;
-    arm(y, sh_source_schedule_ns(y->t0, y->k, s->fps_num, s->fps_den));
+    sh_replay_arm(&y->rp, sh_source_schedule_ns(y->t0, y->k, s->fps_num, s->fps_den));
     *got = 1;
-    return SH_OK;
-}
-
-static sh_status y_release(sh_source *s, sh_source_frame *f)
-{
-    y4m_source *y = (y4m_source *)s;
-    if (f->slot < 0 || f->slot >= SLOTS || !y->held[f->slot])
-        return sh_error_set(SH_EINVAL, "%s: release of a frame not held", s->name);
-    y->held[f->slot] = 0;
-    f->slot = -1;
-    return SH_OK;
-}
-
-static sh_status y_stop(sh_source *s)
-{
-    (void)s;
     return SH_OK;
 }
 
@@ -183,12 +113,12 @@ static void y_close(sh_source *s)
 {
     y4m_source *y = (y4m_source *)s;
     sh_y4m_reader_close(y->reader);
-    for (int i = 0; i < SLOTS; i++) free(y->mem[i]);
-    if (y->tfd >= 0) close(y->tfd);
+    for (int i = 0; i < SH_REPLAY_SLOTS; i++) free(y->mem[i]);
+    sh_replay_close(&y->rp);
     free(y);
 }
 
-static const sh_source_ops ops = {y_start, y_fd, y_dequeue, y_release, y_stop, y_close};
+static const sh_source_ops ops = {y_start, sh_replay_fd, y_dequeue, sh_replay_release, sh_replay_stop, y_close};
 
 sh_status sh_source_open_y4m(const char *path, const sh_source_options *opts, sh_source **out)
 {
@@ -197,48 +127,45 @@ sh_status sh_source_open_y4m(const char *path, const sh_source_options *opts, sh
         return sh_error_set(SH_EINVAL, "y4m:%.40s...: path too long", path);
     y4m_source *y = calloc(1, sizeof *y);
     if (!y) return sh_error_set(SH_ENOMEM, "y4m:%s: out of memory", path);
-    y->base.ops = &ops;
-    y->base.opts = *opts;
-    y->tfd = -1;
+    sh_replay_init(&y->rp, &ops, opts);
     snprintf(y->path, sizeof y->path, "%s", path);
     sh_status st = sh_y4m_reader_open(path, &y->reader);
     if (st != SH_OK) {
-        y_close(&y->base);
+        y_close(&y->rp.base);
         return st;
     }
     const sh_y4m_header *h = sh_y4m_reader_header(y->reader);
     y->pixfmt = h->format;
     y->seamless = sh_y4m_header_has_tag(h, SH_Y4M_LOOP_SEAMLESS);
-    y->base.format = h->format == SH_PIX_GRAY8 ? SH_RAW_GREY : h->format == SH_PIX_I420 ? SH_RAW_I420
+    y->rp.base.format = h->format == SH_PIX_GRAY8 ? SH_RAW_GREY : h->format == SH_PIX_I420 ? SH_RAW_I420
                                                                                        : SH_RAW_YUV444;
-    y->base.width = h->width;
-    y->base.height = h->height;
-    y->base.stride = h->width;
-    y->base.fps_num = h->fps_num > 0 && h->fps_den > 0 ? h->fps_num : opts->fps_num;
-    y->base.fps_den = h->fps_num > 0 && h->fps_den > 0 ? h->fps_den : opts->fps_den;
-    if (y->base.fps_num <= 0 || y->base.fps_den <= 0) y->base.fps_num = 25, y->base.fps_den = 1;
-    if (sh_y4m_reader_whole_frames(y->reader) == 0) { /* before its frame size is allocated */
-        y_close(&y->base);
-        return sh_error_set(SH_EFORMAT, "y4m:%s: no frame in the file", path);
-    }
+    y->rp.base.width = h->width;
+    y->rp.base.height = h->height;
+    y->rp.base.stride = h->width;
+    y->rp.base.fps_num = h->fps_num > 0 && h->fps_den > 0 ? h->fps_num : opts->fps_num;
+    y->rp.base.fps_den = h->fps_num > 0 && h->fps_den > 0 ? h->fps_den : opts->fps_den;
+    if (y->rp.base.fps_num <= 0 || y->rp.base.fps_den <= 0) y->rp.base.fps_num = 25, y->rp.base.fps_den = 1;
     y->frame_bytes = sh_image_packed_size(h->format, h->width, h->height);
     if (h->format == SH_PIX_I420 && ((h->width | h->height) & 1)) {
-        y_close(&y->base);
+        y_close(&y->rp.base);
         return sh_error_set(SH_EUNSUPPORTED, "y4m:%s: odd size %dx%d", path, h->width, h->height);
     }
-    for (int i = 0; i < SLOTS; i++) {
+    if (sh_y4m_reader_whole_frames(y->reader) == 0) { /* before its frame size is allocated */
+        y_close(&y->rp.base);
+        return sh_error_set(SH_EFORMAT, "y4m:%s: no frame in the file", path);
+    }
+    for (int i = 0; i < SH_REPLAY_SLOTS; i++) {
         y->mem[i] = malloc(y->frame_bytes);
         if (!y->mem[i] || sh_image_wrap(&y->img[i], h->format, h->width, h->height, y->mem[i]) != SH_OK) {
-            y_close(&y->base);
+            y_close(&y->rp.base);
             return sh_error_set(SH_ENOMEM, "y4m:%s: out of memory", path);
         }
     }
-    y->tfd = timerfd_create(CLOCK_MONOTONIC, TFD_NONBLOCK | TFD_CLOEXEC);
-    if (y->tfd < 0) {
+    if (sh_replay_timer_create(&y->rp) < 0) {
         int e = errno;
-        y_close(&y->base);
+        y_close(&y->rp.base);
         return sh_error_set(SH_EIO, "y4m:%s: timerfd: %s", path, strerror(e));
     }
-    *out = &y->base;
+    *out = &y->rp.base;
     return SH_OK;
 }

@@ -26,13 +26,6 @@ struct sh_gpio_trigger {
     uint64_t edges;
 };
 
-static int64_t mono_ns(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (int64_t)ts.tv_sec * 1000000000 + ts.tv_nsec;
-}
-
 static void arm_at(int tfd, int64_t t)
 {
     struct itimerspec it;
@@ -98,7 +91,7 @@ sh_status sh_gpio_trigger_start(sh_gpio_trigger *t)
 {
     if (!t) return sh_error_set(SH_EINVAL, "gpio: NULL");
     if (!t->o.output) return SH_OK;
-    t->t0 = mono_ns();
+    t->t0 = sh_monotonic_ns();
     t->k = 0;
     t->high = 0;
     arm_at(t->tfd, t->t0);
@@ -134,7 +127,7 @@ sh_status sh_gpio_trigger_service(sh_gpio_trigger *t, int64_t *edge_ns, int *got
     if (!t->high) {
         if (gpiod_line_set_value(t->line, 1) < 0)
             return sh_error_set(SH_EIO, "gpio chip %s line %u: %s", t->o.chip, t->o.line, strerror(errno));
-        *edge_ns = mono_ns();
+        *edge_ns = sh_monotonic_ns();
         *got = 1;
         t->edges++;
         t->high = 1;
@@ -144,7 +137,7 @@ sh_status sh_gpio_trigger_service(sh_gpio_trigger *t, int64_t *edge_ns, int *got
             return sh_error_set(SH_EIO, "gpio chip %s line %u: %s", t->o.chip, t->o.line, strerror(errno));
         t->high = 0;
         /* the next pulse on the schedule; pulses missed while the caller was away are skipped */
-        int64_t now = mono_ns();
+        int64_t now = sh_monotonic_ns();
         do t->k++;
         while (t->t0 + (int64_t)t->k * t->o.period_ns < now);
         arm_at(t->tfd, t->t0 + (int64_t)t->k * t->o.period_ns);

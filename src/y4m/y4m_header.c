@@ -213,3 +213,5 @@ int sh_y4m_header_has_tag(const sh_y4m_header *h, const char *tag)
     }
     return 0;
 }
+
+int sh_y4m_header_full_range(const sh_y4m_header *h) { return sh_y4m_header_has_tag(h, SH_Y4M_FULL_RANGE); }

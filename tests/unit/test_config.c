@@ -20,7 +20,9 @@ static void test_defaults_check(void **state)
     char err[SH_CONFIG_ERR];
     sh_config_default(&c);
     assert_int_equal(sh_config_check(&c, err), SH_OK);
-    assert_int_equal(c.method.method, SH_METHOD_TPS);
+    sh_interp_params m;
+    sh_config_method(&c, &m);
+    assert_int_equal(m.method, SH_METHOD_TPS);
 }
 
 static void test_parse_every_kind(void **state)
@@ -37,7 +39,7 @@ static void test_parse_every_kind(void **state)
                        "[run]\nthreads = 3\n"
                        "[sink]\ndisplay = shm:/abc\nslots = 5\ngroup =\n";
     assert_int_equal(sh_config_parse_string(&c, text, "t.ini", err), SH_OK);
-    assert_string_equal(c.source, "y4m:/tmp/x.y4m");
+    assert_string_equal(c.camera[0].spec, "y4m:/tmp/x.y4m");
     assert_int_equal(c.realtime, 0);
     assert_int_equal(c.loop, 0);
     assert_int_equal(c.ids[0], 0);
@@ -47,8 +49,10 @@ static void test_parse_every_kind(void **state)
     for (int i = 5; i <= 9; i++)
         assert_int_equal(c.ids[i], 1);
     assert_int_equal(c.ids[10], 0);
-    assert_int_equal(c.method.method, SH_METHOD_GAUSSIAN);
-    assert_true(c.method.sigma == 80.0);
+    sh_interp_params m;
+    sh_config_method(&c, &m);
+    assert_int_equal(m.method, SH_METHOD_GAUSSIAN);
+    assert_true(m.sigma == 80.0);
     assert_int_equal(c.min_markers, 4);
     assert_true(c.max_residual_px == 2.5);
     assert_int_equal(c.dropout_ms, 150);
@@ -126,7 +130,7 @@ static void test_cameras_and_trigger(void **state)
     assert_int_equal(sh_config_parse_string(&c, text, "t.ini", err), SH_OK);
     assert_int_equal(sh_config_check(&c, err), SH_OK);
     assert_int_equal(sh_config_cameras(&c), 2);
-    assert_string_equal(c.source, "v4l2:/dev/video0");
+    assert_string_equal(c.camera[0].spec, "v4l2:/dev/video0");
     assert_string_equal(c.camera[0].format, "YUYV");
     assert_int_equal(c.camera[0].width, 1920);
     assert_int_equal(c.camera[0].height, 1080);
@@ -165,7 +169,7 @@ static void test_cameras_and_trigger(void **state)
     sh_config_default(&d);
     assert_int_equal(sh_config_parse_string(&d, buf, "written", err), SH_OK);
     free(buf);
-    assert_memory_equal(&c, &d, sizeof c);
+    assert_int_equal(sh_config_changes(&c, &d), 0);
 
     const char *sec, *key;
     int flag = 1;
@@ -305,8 +309,101 @@ static void test_options_and_write_round_trip(void **state)
     assert_int_equal(sh_config_parse_string(&b, buf, "written", err), SH_OK);
     free(buf);
     assert_string_equal(b.method_name, "rbf-local");
-    assert_true(b.method.sigma == 123.5);
-    assert_memory_equal(&a, &b, sizeof a);
+    sh_interp_params m;
+    sh_config_method(&b, &m);
+    assert_true(m.sigma == 123.5);
+    assert_int_equal(sh_config_changes(&a, &b), 0);
+}
+
+/* The effect classes as docs/daemon.md names them ("When each key's change takes effect"). */
+static unsigned effect_from_doc(const char *word)
+{
+    static const struct {
+        const char *word;
+        unsigned effect;
+    } words[] = {{"live", SH_CONFIG_LIVE},       {"gating", SH_CONFIG_GATING}, {"cameras", SH_CONFIG_SOURCE},
+                 {"processing", SH_CONFIG_PROCESSING}, {"display", SH_CONFIG_DISPLAY}, {"record", SH_CONFIG_RECORD},
+                 {"control", SH_CONFIG_CONTROL}};
+    for (size_t i = 0; i < sizeof words / sizeof words[0]; i++)
+        if (!strcmp(word, words[i].word))
+            return words[i].effect;
+    fail_msg("docs/daemon.md: unknown effect '%s'", word);
+    return 0;
+}
+
+/* The documented effect of [section] key ([cameraN] for cameras 0..3); 0 when the docs have no row. */
+static unsigned documented_effect(const char *section, const char *key)
+{
+    char sec[32];
+    snprintf(sec, sizeof sec, "%s", !strncmp(section, "camera", 6) ? "cameraN" : section);
+    FILE *f = fopen("docs/daemon.md", "r");
+    assert_non_null(f);
+    char line[512], want[128], word[32];
+    snprintf(want, sizeof want, "| `[%s] %s` | ", sec, key);
+    unsigned effect = 0;
+    while (fgets(line, sizeof line, f))
+        if (!strncmp(line, want, strlen(want)) && sscanf(line + strlen(want), "%31[a-z]", word) == 1)
+            effect = effect_from_doc(word);
+    fclose(f);
+    return effect;
+}
+
+/* Every key of the table has an effect, one, and the one docs/daemon.md gives it. */
+static void test_every_key_has_its_documented_effect(void **state)
+{
+    (void)state;
+    const char *section, *key;
+    sh_config_effect effect;
+    int n = 0;
+    for (int i = 0; sh_config_key(i, &section, &key, &effect); i++, n++) {
+        unsigned doc = documented_effect(section, key);
+        if (!doc)
+            fail_msg("[%s] %s: no row in docs/daemon.md's table of effects", section, key);
+        if (!effect || (effect & (effect - 1)))
+            fail_msg("[%s] %s: effect %#x is not one class", section, key, (unsigned)effect);
+        if (effect != doc)
+            fail_msg("[%s] %s: the table says %#x, docs/daemon.md %#x", section, key, (unsigned)effect, doc);
+    }
+    assert_true(n >= 60); /* 4 cameras x 7 keys and the rest: the walk saw the table */
+}
+
+/* Changing each key alone reports its documented class and nothing else; copying that class
+ * over undoes it; the log's description names the option. Values: the first of a list that the
+ * key takes and that differs from the default. */
+static void test_changing_each_key_reports_its_effect(void **state)
+{
+    (void)state;
+    static const char *const values[] = {"y4m:other.y4m", "nv12",  "640x480", "25",     "keep", "out",
+                                         "low",           "no",    "7",       "2.5",    "gaussian",
+                                         "1,3",           "1",     "4600",    "0",      "yes"};
+    const char *section, *key;
+    sh_config_effect effect;
+    for (int i = 0; sh_config_key(i, &section, &key, &effect); i++) {
+        unsigned doc = documented_effect(section, key);
+        sh_config a, b;
+        char err[SH_CONFIG_ERR];
+        sh_config_default(&a);
+        int changed = 0;
+        for (size_t v = 0; v < sizeof values / sizeof values[0] && !changed; v++) {
+            b = a;
+            changed = sh_config_set(&b, section, key, values[v], "x", 0, err) == SH_OK && sh_config_changes(&a, &b);
+        }
+        if (!changed)
+            fail_msg("[%s] %s: no test value changes it", section, key);
+        if (sh_config_changes(&a, &b) != doc)
+            fail_msg("[%s] %s: a change reports %#x, docs/daemon.md says %#x", section, key, sh_config_changes(&a, &b),
+                     doc);
+        char text[512] = "";
+        sh_config_describe(&a, &b, doc, text, sizeof text);
+        if (!strstr(text, " -> "))
+            fail_msg("[%s] %s: described as '%s'", section, key, text);
+        char other[256] = "";
+        sh_config_describe(&a, &b, ~doc, other, sizeof other);
+        if (other[0])
+            fail_msg("[%s] %s: other classes described: '%s'", section, key, other);
+        sh_config_copy_keys(&a, &b, doc);
+        assert_int_equal(sh_config_changes(&a, &b), 0);
+    }
 }
 
 static void test_files(void **state)
@@ -363,6 +460,8 @@ int main(int argc, char **argv)
         cmocka_unit_test(test_processing_keys),
         cmocka_unit_test(test_options_and_write_round_trip),
         cmocka_unit_test(test_files),
+        cmocka_unit_test(test_every_key_has_its_documented_effect),
+        cmocka_unit_test(test_changing_each_key_reports_its_effect),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -480,6 +480,23 @@ static void test_writer_errors(void **state)
     assert_non_null(strstr(sh_error_message(), "/nonexistent-dir/x.y4m"));
 }
 
+/* Full range is the whole tag XCOLORRANGE=FULL among the X tags, not a prefix of another. */
+static void test_full_range_tag(void **state)
+{
+    (void)state;
+    static const struct {
+        const char *extra;
+        int full;
+    } cases[] = {{"XCOLORRANGE=FULL", 1}, {"XLOOP=SEAMLESS XCOLORRANGE=FULL", 1}, {"XCOLORRANGE=FULL XA=1", 1},
+                 {"", 0}, {"XCOLORRANGE=LIMITED", 0}, {"XCOLORRANGE=FULLY", 0}};
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+        sh_y4m_header h;
+        memset(&h, 0, sizeof h);
+        snprintf(h.extra, sizeof h.extra, "%s", cases[i].extra);
+        assert_int_equal(sh_y4m_header_full_range(&h), cases[i].full);
+    }
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -493,6 +510,7 @@ int main(void)
         cmocka_unit_test(test_wrong_image_refused),
         cmocka_unit_test(test_stdin_pipe),
         cmocka_unit_test(test_writer_errors),
+        cmocka_unit_test(test_full_range_tag),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }

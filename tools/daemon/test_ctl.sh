@@ -189,7 +189,7 @@ def reload(mark):
 f = []
 write_ini(dg.gr_name, dg.gr_name)
 text = reload(len(daemon_log()))
-if "control groups" not in text: f.append("reload: " + text[-300:])
+if "control-group" not in text or "-> " + dg.gr_name not in text: f.append("reload: " + text[-300:])
 rc, out, err, lines = ask_logged("reference", as_user([dg.gr_gid]))
 if rc or out != "ok: new reference requested": f.append("new control group's reference: rc %d %r %r" % (rc, out, err))
 rc, out, err, lines = ask_logged("reference", as_user([cg.gr_gid]))

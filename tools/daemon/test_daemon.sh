@@ -140,10 +140,15 @@ def need(c, m):
     if not c: print("FAIL:", m); ok = False
 # every marker needed: a hidden one (predicted, then stale) never leaves a frame stabilized, and
 # with all visible (2 frames either side: a tag's border goes before its corners) it is stabilized
+# The reference's model is built beside the first frames (nothing waits for it): they are raw
+# for as long as the build takes, which a loaded machine stretches; judged from the first
+# stabilized frame on, which must come within 40 frames.
 rows = list(csv.DictReader(open(sys.argv[2])))
 need(len(rows) == 240, "all.csv: %d frames" % len(rows))
 bad_hidden = [int(r['index']) for r in rows if any_hidden(int(r['index'])) and r['status'] == 'stabilized']
-clear = [r for r in rows if int(r['index']) > 0 and not near(int(r['index']), 2)]
+start = next((int(r['index']) for r in rows if r['status'] == 'stabilized'), 999)
+need(start <= 40, "the first stabilized frame is %d" % start)
+clear = [r for r in rows if int(r['index']) >= max(start, 1) and not near(int(r['index']), 2)]
 bad_clear = [int(r['index']) for r in clear if r['status'] != 'stabilized']
 need(not bad_hidden, "stabilized with a marker hidden: frames %s" % bad_hidden[:10])
 need(len(clear) >= 30 and len(bad_clear) <= len(clear) // 20, "%d of %d clear frames not stabilized: %s" % (len(bad_clear), len(clear), bad_clear[:10]))
@@ -417,7 +422,8 @@ msg=$($RUN --source "y4m:$T/s3/cam0.y4m" --calibration "$T/s3/calibration.yaml" 
 # 8. looping replays: a periodic recording (stillheart-render --periodic, tagged XLOOP=SEAMLESS)
 #    loops with the tracker running on, as on a live camera; the same heart rendered without the
 #    tag jumps at each loop, and the tracker starts afresh there (logged once). 129 frames at 23
-#    frames/s hold 4 beats at 0.713 Hz. Every frame after the first is stabilized in both.
+#    frames/s hold 4 beats at 0.713 Hz. Every frame from the first stabilized one on (within 40
+#    frames: the reference's model is built beside them) is stabilized in both.
 "$B/stillheart-render" --preset exvivo --frames 129 --cameras 1 --width 640 --height 360 --periodic --out "$T/per" >/dev/null 2>&1
 head -n 1 "$T/per/cam0.y4m" | grep -q XLOOP=SEAMLESS || bad "periodic render tagged" "no XLOOP=SEAMLESS in the header"
 python3 - "$T/per/cam0.y4m" "$T/jump.y4m" <<'PY'
@@ -439,7 +445,10 @@ for kind, restarts, frames in (("per", 0, 387), ("jump", 1, 129)):
     rows = list(csv.DictReader(open("%s/loop-%s.csv" % (sys.argv[1], kind))))
     said = log.count("tracking starts afresh")
     m = re.search(r"tracker: (\d+) frames", log)
-    off = [(r['index'], r['status'], r['reason']) for r in rows[1:] if r['status'] != 'stabilized']
+    # the reference's model is built beside the first frames, raw until it is (section 7)
+    first = next((i for i, r in enumerate(rows) if r['status'] == 'stabilized'), 999)
+    off = [(r['index'], r['status'], r['reason']) for r in rows[first:] if r['status'] != 'stabilized']
+    if first > 40: off.insert(0, ("first stabilized", first, ""))
     if said != restarts or not m or int(m.group(1)) != frames or len(rows) != 387 or off:
         print(kind, ": restart logged", said, "times, tracker frames", m and m.group(1), ",", len(rows), "rows, not stabilized:", off[:5])
         ok = False

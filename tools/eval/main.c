@@ -132,7 +132,7 @@ static sh_status video_open(video *v, const char *path, int reference, const sh_
     sh_status st = sh_y4m_reader_open(path, &v->reader);
     if (st != SH_OK) return st;
     const sh_y4m_header *h = sh_y4m_reader_header(v->reader);
-    v->full_range = strstr(h->extra, "XCOLORRANGE=FULL") != NULL;
+    v->full_range = sh_y4m_header_full_range(h);
     if ((st = sh_image_create(&v->frame, h->format, h->width, h->height)) != SH_OK) return st;
     if (!strcmp(path, "-")) {
         if (reference != 0)

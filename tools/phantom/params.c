@@ -151,18 +151,11 @@ sh_status phantom_model_parse(const char *text, size_t len, const char *name, ph
     unsigned seen_pad = 0, seen_blob = 0, seen_cam = 0;
     uint64_t seen_marker = 0;
     char line[1024];
-    size_t pos = 0;
-    int lineno = 0;
-    while (pos < len) {
-        size_t e = pos;
-        while (e < len && text[e] != '\n') e++;
-        size_t n = e - pos;
-        lineno++;
-        if (n >= sizeof line) return sh_error_set(SH_EFORMAT, "%s:%d: line too long", name, lineno);
-        memcpy(line, text + pos, n);
-        line[n] = '\0';
-        pos = e + 1;
-        if (memchr(line, '\0', n)) return sh_error_set(SH_EFORMAT, "%s:%d: NUL byte", name, lineno);
+    sh_lines it;
+    sh_lines_init(&it, text, len, name);
+    sh_status st;
+    while ((st = sh_lines_next(&it, line, sizeof line)) == SH_OK) {
+        int lineno = it.lineno;
         if (lineno == 1) {
             if (strncmp(line, MAGIC, strlen(MAGIC)) != 0)
                 return sh_error_set(SH_EFORMAT, "%s:1: not a phantom file (want '%s')", name, MAGIC);
@@ -239,7 +232,8 @@ sh_status phantom_model_parse(const char *text, size_t len, const char *name, ph
         }
         if (!ok) return sh_error_set(SH_EFORMAT, "%s:%d: bad values for '%s'", name, lineno, key);
     }
-    if (lineno == 0) return sh_error_set(SH_EFORMAT, "%s: empty", name);
+    if (st != SH_EEOF) return st;
+    if (it.lineno == 0) return sh_error_set(SH_EFORMAT, "%s: empty", name);
     for (size_t k = 0; k < NFIELDS; k++)
         if (!seen_field[k] && group_on(m, fields[k].group))
             return sh_error_set(SH_EFORMAT, "%s: missing '%s'", name, fields[k].key);

@@ -112,7 +112,7 @@ int main(int argc, char **argv)
     synth_motion motion = {width, height, amplitude};
     sh_y4m_header h = {.width = width, .height = height, .format = format, .fps_num = 25,
                        .fps_den = 1, .aspect_num = 1, .aspect_den = 1, .interlace = 'p'};
-    strcpy(h.extra, "XCOLORRANGE=FULL"); /* synth_render writes full-range BT.601 */
+    strcpy(h.extra, SH_Y4M_FULL_RANGE); /* synth_render writes full-range BT.601 */
     double *ref = malloc(sizeof(double) * 2 * markers);
     sh_point *rows = malloc(sizeof(sh_point) * (size_t)markers * frames);
     sh_image img = {0};
