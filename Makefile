@@ -1,7 +1,8 @@
 # stillheart — build, test, benchmark, install.
 #   make              library, the `stillheart` command and tools
 #   make check        installs Debian deps if missing, checks the include rules (docs/architecture.md),
-#                     runs the unit suite, then again under ASan+UBSan
+#                     runs the unit suite, then again under ASan+UBSan, every fuzz harness for a
+#                     few seconds (fuzz-check), the VM and aarch64 suites
 #   make bench        benchmarks beside their peers (OpenCV cv::remap, ...)
 #   make fuzz         every libFuzzer harness for FUZZ_SECONDS each
 #   make install      PREFIX=/usr/local DESTDIR=
@@ -166,11 +167,12 @@ check: deps
 	$(MAKE) --no-print-directory -j$(CHECK_JOBS) tests
 	$(MAKE) --no-print-directory check-includes
 	$(MAKE) --no-print-directory -j$(CHECK_JOBS) BUILD=build-asan SAN=1 OPT=-O1 tests
+	@$(MAKE) --no-print-directory -j$(CHECK_JOBS) fuzz-check > $(BUILD)/fuzz.out 2>&1; grep '^fuzz' $(BUILD)/fuzz.out
 	@$(MAKE) --no-print-directory vmtest > $(BUILD)/vmtest.out 2>&1; tail -n 25 $(BUILD)/vmtest.out
 	@rm -f $(BUILD)/arm64.out; if [ "$(CHECK_ARM64)" = 1 ]; then \
 	  $(MAKE) --no-print-directory check-arm64 > $(BUILD)/arm64.out 2>&1; \
 	  grep -E '^(\[  (FAILED|ERROR) |crashed|[0-9]+ passed, )' $(BUILD)/arm64.out | sed 's/^/arm64: /'; fi
-	@VMTEST_OUT=$(BUILD)/vmtest.out ARM64_OUT=$(if $(filter 1,$(CHECK_ARM64)),$(BUILD)/arm64.out) \
+	@VMTEST_OUT=$(BUILD)/vmtest.out FUZZ_OUT=$(BUILD)/fuzz.out ARM64_OUT=$(if $(filter 1,$(CHECK_ARM64)),$(BUILD)/arm64.out) \
 	  sh tests/run-tests.sh build build-asan
 
 .PHONY: check-includes
@@ -201,14 +203,35 @@ FUZZ_FLAGS := -std=c11 -D_POSIX_C_SOURCE=200809L -D_DEFAULT_SOURCE -g -O1 -Iincl
 # Linked by clang++: a harness that reaches the library's C++ objects (src/linalg's Eigen, through
 # the interpolation methods; src/source's libcamera, through the clock) needs the C++ sanitizer
 # runtime, and it costs the others nothing.
-build-fuzz/%: tests/fuzz/%.c $(LIB_C) $(LIB_CXX)
+# The instrumented library once per make (its own make, which knows the header dependencies),
+# before any harness: harnesses built side by side (make -j) must not each build it.
+FUZZ_LIB := build-fuzz/lib/libstillheart.a
+ifneq ($(BUILD),build-fuzz/lib)
+.PHONY: fuzz-lib
+fuzz-lib:
 	@mkdir -p build-fuzz
 	$(MAKE) --no-print-directory BUILD=build-fuzz/lib CC=clang CXX=clang++ SAN=0 \
 		CFLAGS="-fsanitize=fuzzer-no-link,address,undefined" \
-		CXXFLAGS="-fsanitize=fuzzer-no-link,address,undefined" build-fuzz/lib/libstillheart.a
+		CXXFLAGS="-fsanitize=fuzzer-no-link,address,undefined" $(FUZZ_LIB)
+endif
+build-fuzz/%: tests/fuzz/%.c fuzz-lib
 	clang $(FUZZ_FLAGS) $(shell $(PKG_CONFIG) --cflags qhull_r kissfft-float) -c $< -o build-fuzz/$*.o
 	clang++ -fsanitize=fuzzer,address,undefined build-fuzz/$*.o build-fuzz/lib/libstillheart.a \
 		$(filter-out -lstdc++,$(LDLIBS_ALL)) -o $@
+
+# make check: every harness for FUZZ_CHECK_SECONDS on its seed corpus (and what earlier runs
+# found, build-fuzz/corpus), so that a parser that crashes on its own seeds or on what a few
+# seconds of mutation make of them fails the suite; one line per harness and a closing
+# "fuzz: N passed, N failed" that tests/run-tests.sh counts. make fuzz runs them for longer.
+FUZZ_CHECK_SECONDS ?= 3
+.PHONY: fuzz-check
+fuzz-check: $(FUZZ_BIN)
+	@p=0; f=0; for h in $(FUZZ_BIN); do n=$$(basename $$h); mkdir -p build-fuzz/corpus/$$n; \
+	  if $$h -max_total_time=$(FUZZ_CHECK_SECONDS) -print_final_stats=1 build-fuzz/corpus/$$n tests/fuzz/corpus/$$n \
+	    > build-fuzz/$$n.log 2>&1; then p=$$((p + 1)); \
+	    echo "fuzz: $$n: $$(sed -n 's/^stat::number_of_executed_units: *//p' build-fuzz/$$n.log) runs, no crash"; \
+	  else f=$$((f + 1)); echo "fuzz: $$n: FAILED (build-fuzz/$$n.log)"; tail -30 build-fuzz/$$n.log; fi; \
+	done; echo "fuzz: $$p passed, $$f failed"
 
 fuzz: deps $(FUZZ_BIN)
 	@for f in $(FUZZ_BIN); do n=$$(basename $$f); echo "== $$n ($(FUZZ_SECONDS) s)"; \

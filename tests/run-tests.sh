@@ -51,6 +51,17 @@ if [ -n "${VMTEST_OUT:-}" ]; then
         failed=$((failed + 1)); crashed="$crashed vmtest(no summary: see $VMTEST_OUT)"
     fi
 fi
+# make fuzz-check's closing line ("fuzz: N passed, N failed": harnesses that ran without a crash)
+if [ -n "${FUZZ_OUT:-}" ]; then
+    line=$(grep -E '^fuzz: [0-9]+ passed, [0-9]+ failed' "$FUZZ_OUT" 2>/dev/null | tail -1)
+    if [ -n "$line" ]; then
+        p=$(echo "$line" | sed 's/^fuzz: \([0-9]*\) passed.*/\1/')
+        f=$(echo "$line" | sed 's/.* \([0-9]*\) failed$/\1/')
+        passed=$((passed + p)); failed=$((failed + f))
+    else
+        failed=$((failed + 1)); crashed="$crashed fuzz-check(no summary, the harnesses did not build: see $FUZZ_OUT)"
+    fi
+fi
 # make check-arm64's closing line (the same suite on the aarch64 build under qemu-aarch64)
 if [ -n "${ARM64_OUT:-}" ]; then
     line=$(grep -E '^[0-9]+ passed, [0-9]+ failed$' "$ARM64_OUT" 2>/dev/null | tail -1)
