@@ -479,10 +479,12 @@ static void test_hung_processing_stops_watchdog(void **state)
                     nl->path, bin, tmp, fifo, tmp);
     /* the loop blocks once the pipe and the writer's buffer are full: about 0.4 s here, several
      * seconds under qemu-aarch64 (make check-arm64, where the daemon also takes a second to
-     * start), so wait for the pings to begin, then for a second without them */
+     * start), so wait for the pings to begin, then for 2.5 s without them: on a loaded machine
+     * under emulation a frame alone took 1.1 s (0.9 fps), and a one-second window took that
+     * slowness for the hang (issue 21) */
     for (int waited = 0, seen = 0; waited < 30; waited++) {
         int from = nl->n, pings = 0;
-        notify_pump(nl, 1000);
+        notify_pump(nl, 2500);
         for (int i = from; i < nl->n; i++) pings += !strcmp(nl->msg[i], "WATCHDOG=1");
         if (!pings && seen) break;
         seen += pings;

@@ -44,10 +44,12 @@ def write_ini(control_group, group):
 write_ini(cg.gr_name, dg.gr_name)
 d = subprocess.Popen([exe, "run", "--config", T + "/ctl.ini", "--source", "y4m:" + T + "/in.y4m", "--loop", "--realtime",
                       "--sink", "none", "--control", ctl], stderr=log)
-for i in range(100):
-    if os.path.exists(ctl): break
-    time.sleep(0.05)
-time.sleep(0.3)
+# ready when the socket takes a connection: the stale one is there from the start (a loop on
+# its existence let the test in before the daemon listened: qemu-aarch64, issue 21's pattern)
+for i in range(400):
+    probe = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+    try: probe.connect(ctl); probe.close(); break
+    except OSError: probe.close(); time.sleep(0.05)
 
 def as_user(groups):  # setpriv as uid/gid 65534 with exactly these supplementary groups
     return ["setpriv", "--reuid=65534", "--regid=65534"] + (["--groups=" + ",".join(str(g) for g in groups)] if groups else ["--clear-groups"])
