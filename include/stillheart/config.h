@@ -84,6 +84,7 @@ typedef struct {
     int slots;
     char group[64];                  /* owner group of the segment ("" = the process's) */
     char record[SH_CONFIG_STR];      /* "", FILE.y4m or png:DIR: what is shown, also to files */
+    int record_sync_ms;              /* Y4M record: flushed and synced this often (0: every frame) */
     int watchdog;                    /* 1: WATCHDOG=1 pings when systemd asks for them */
 } sh_config;
 

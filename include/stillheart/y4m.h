@@ -76,6 +76,15 @@ typedef struct sh_y4m_writer sh_y4m_writer;
 /* path "-" writes stdout. The header is written at once. */
 sh_status sh_y4m_writer_open(const char *path, const sh_y4m_header *header, sh_y4m_writer **out);
 sh_status sh_y4m_writer_write(sh_y4m_writer *writer, const sh_image *img);
+/* A file that does not exist yet (O_EXCL, mode 0640 before the umask): an existing one is never
+ * written over (SH_EIO naming it). */
+sh_status sh_y4m_writer_open_new(const char *path, const sh_y4m_header *header, sh_y4m_writer **out);
+/* Hands what is buffered to the kernel (fflush): a process killed after this loses none of it,
+ * power loss only what the kernel has not written yet (fdatasync the descriptor for that, from
+ * any thread: sh_y4m_writer_fd). SH_EIO on a write error (disk full). */
+sh_status sh_y4m_writer_flush(sh_y4m_writer *writer);
+/* The file's descriptor (-1 for none). */
+int sh_y4m_writer_fd(const sh_y4m_writer *writer);
 /* Flushes and closes; reports a failed flush (disk full) as SH_EIO. */
 sh_status sh_y4m_writer_close(sh_y4m_writer *writer);
 /* Writes to a stream the caller opened; close flushes it but leaves it open. */

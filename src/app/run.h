@@ -138,7 +138,10 @@ int run_ctl_command(const char *data, size_t len, int rights, const char *status
 
 /* ---- recording what was shown (run_sink.c): y4m FILE, FILE.y4m or png:DIR ---- */
 typedef struct run_record run_record;
-sh_status run_record_open(const char *spec, const sh_y4m_header *hdr, run_record **out);
+/* Never over an earlier recording: the first free name of spec, spec-2, spec-3, ...
+ * (run_record_path); a Y4M file is flushed every sync_ms and made durable beside. */
+sh_status run_record_open(const char *spec, const sh_y4m_header *hdr, int sync_ms, run_record **out);
+const char *run_record_path(const run_record *r);
 sh_status run_record_write(run_record *r, const sh_image *shown);
 /* Frames the PNG writer could not keep up with (not recorded). */
 uint64_t run_record_skipped(const run_record *r);

@@ -49,6 +49,16 @@ static sh_status source_open(const sh_config *cfg, int start, run_source **out)
     return sh_error_set(st, "%s", m);
 }
 
+/* Which file this start records to: another than the configured one when that was taken. */
+static void log_record(const sh_config *cfg, const run_record *rec)
+{
+    const char *path = run_record_path(rec), *want = strncmp(cfg->record, "png:", 4) ? cfg->record : cfg->record + 4;
+    if (strcmp(path, want))
+        sh_log_info("[sink] record: %s holds an earlier recording (never written over): recording to %s", want, path);
+    else
+        sh_log_info("[sink] record: recording to %s", path);
+}
+
 static sh_status record_close(run_record *rec)
 {
     if (!rec) return SH_OK;
@@ -91,8 +101,9 @@ sh_status run_pipeline_open(run_pipeline *p, const sh_config *cfg)
     }
     if (st == SH_OK && shm_name(cfg)) st = display_create(cfg, &p->hdr, &p->disp);
     if (st == SH_OK) st = black_frame(&p->hdr, &p->black);
-    if (st == SH_OK && cfg->record[0] && (st = run_record_open(cfg->record, &p->hdr, &p->rec)) != SH_OK)
+    if (st == SH_OK && cfg->record[0] && (st = run_record_open(cfg->record, &p->hdr, cfg->record_sync_ms, &p->rec)) != SH_OK)
         st = sh_error_set(st, "[sink] record: %s", sh_error_message());
+    if (st == SH_OK && p->rec) log_record(cfg, p->rec);
     if (st == SH_OK && cfg->control[0] &&
         (st = run_ctl_open(cfg->control, cfg->control_group, cfg->group, &p->ctl)) != SH_OK)
         st = sh_error_set(st, "[run] control: %s", sh_error_message());
@@ -253,8 +264,9 @@ run_reload run_pipeline_reload(run_pipeline *p, const sh_config *fresh, char *wh
                           n.hdr.width, n.hdr.height);
     if (st == SH_OK && c.record) {
         n.rec = NULL;
-        if (fresh->record[0] && (st = run_record_open(fresh->record, &n.hdr, &n.rec)) != SH_OK)
+        if (fresh->record[0] && (st = run_record_open(fresh->record, &n.hdr, fresh->record_sync_ms, &n.rec)) != SH_OK)
             st = sh_error_set(st, "[sink] record: %s", sh_error_message());
+        if (st == SH_OK && n.rec) log_record(fresh, n.rec);
     }
     if (st == SH_OK && c.control) {
         n.ctl = NULL;

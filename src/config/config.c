@@ -80,7 +80,10 @@ static const keydef keys[] = {
     {"sink", "display", "sink", K_STR, SH_CONFIG_DISPLAY, F(sink), S(sink), 0, 0, "shm:NAME | none"},
     {"sink", "slots", "slots", K_INT, SH_CONFIG_DISPLAY, F(slots), 0, 3, 16, "frame slots of the segment"},
     {"sink", "group", "group", K_STR, SH_CONFIG_DISPLAY, F(group), S(group), 0, 0, "owner group of the segment (\"\": the process's)"},
-    {"sink", "record", "record", K_STR, SH_CONFIG_RECORD, F(record), S(record), 0, 0, "also write what is shown: FILE.y4m or png:DIR (\"\": no)"},
+    {"sink", "record", "record", K_STR, SH_CONFIG_RECORD, F(record), S(record), 0, 0,
+     "also write what is shown: FILE.y4m or png:DIR (\"\": no); taken: FILE-2.y4m, DIR-2, ..."},
+    {"sink", "record_sync_ms", "record-sync-ms", K_INT, SH_CONFIG_RECORD, F(record_sync_ms), 0, 0, 60000,
+     "Y4M record: handed to the kernel and synced to disk this often (a kill or power loss loses about this much)"},
     {"sink", "watchdog", "watchdog", K_BOOL, SH_CONFIG_LIVE, F(watchdog), 0, 0, 1, "send WATCHDOG=1 when systemd asks"},
 };
 #pragma GCC diagnostic pop
@@ -117,6 +120,7 @@ void sh_config_default(sh_config *cfg)
     cfg->threads = 2;
     snprintf(cfg->sink, sizeof cfg->sink, "shm:/stillheart");
     cfg->slots = 4;
+    cfg->record_sync_ms = 1000;
     snprintf(cfg->group, sizeof cfg->group, "video");
     cfg->watchdog = 1;
 }

@@ -2,8 +2,10 @@
 #include "y4m_internal.h"
 
 #include <errno.h>
+#include <fcntl.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #define WRITE_BUFFER (1u << 20)
 
@@ -68,6 +70,37 @@ sh_status sh_y4m_writer_open(const char *path, const sh_y4m_header *header, sh_y
     }
     return open_common(f, is_stdout ? "<stdout>" : path, !is_stdout, vbuf, header, out);
 }
+
+sh_status sh_y4m_writer_open_new(const char *path, const sh_y4m_header *header, sh_y4m_writer **out)
+{
+    if (!path || !header || !out) return sh_error_set(SH_EINVAL, "y4m: missing argument");
+    *out = NULL;
+    int fd = open(path, O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0640);
+    if (fd < 0)
+        return sh_error_set(SH_EIO, "%s: %s", path, errno == EEXIST ? "exists (never written over)" : strerror(errno));
+    FILE *f = fdopen(fd, "wb");
+    if (!f) {
+        int e = errno;
+        close(fd);
+        return sh_error_set(SH_EIO, "%s: %s", path, strerror(e));
+    }
+    char *vbuf = malloc(WRITE_BUFFER);
+    if (vbuf && setvbuf(f, vbuf, _IOFBF, WRITE_BUFFER) != 0) {
+        free(vbuf);
+        vbuf = NULL;
+    }
+    return open_common(f, path, 1, vbuf, header, out);
+}
+
+sh_status sh_y4m_writer_flush(sh_y4m_writer *writer)
+{
+    if (!writer) return sh_error_set(SH_EINVAL, "y4m: missing argument");
+    if (fflush(writer->file) != 0 || ferror(writer->file))
+        return sh_error_set(SH_EIO, "%s: write error: %s", writer->name, strerror(errno));
+    return SH_OK;
+}
+
+int sh_y4m_writer_fd(const sh_y4m_writer *writer) { return writer ? fileno(writer->file) : -1; }
 
 sh_status sh_y4m_writer_open_file(FILE *file, const char *name, const sh_y4m_header *header,
                                   sh_y4m_writer **out)
