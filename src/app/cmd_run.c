@@ -458,6 +458,12 @@ int cmd_run(int argc, char **argv)
     sh_notify("STOPPING=1");
     sig_stop = 1;
     rc = fatal; /* non-zero: systemd's Restart=on-failure starts the service again */
+    if (!rc && pl.src && run_source_ended(pl.src) && run_source_failed(pl.src)) {
+        /* the output camera's input ended in an error, logged where it was met: not a clean stop,
+         * and one a restart cannot mend (a damaged file), so the unit does not restart on it */
+        sh_log_error("the output camera ended in an error (above): exit status 2");
+        rc = 2;
+    }
     if (ro.stats || sh_log_get_level() >= SH_LOG_INFO) {
         qsort(lat, nlat, sizeof *lat, cmp_float);
         double med = nlat ? lat[nlat / 2] : 0, p99 = nlat ? lat[(size_t)((double)(nlat - 1) * 0.99)] : 0,

@@ -59,6 +59,7 @@ struct run_source {
     int have_waiting, have_held;
     int paced;             /* as fast as possible, nothing dropped: every camera a replay */
     int nended, eof, stop;
+    int failed;            /* the output camera ended in an error (run_source_failed) */
     uint64_t dropped;      /* sets replaced while waiting: processing was behind */
     uint64_t no_output;    /* sets without the output camera's frame */
     sh_y4m_header hdr;
@@ -189,10 +190,11 @@ static void flush(run_source *rs)
 
 /* The camera's replay ended or failed for good: the others go on (their sets incomplete); when
  * every camera, or the output camera, is gone the source has ended. */
-static void camera_ended(run_source *rs, camera *k)
+static void camera_ended(run_source *rs, camera *k, int failed)
 {
     pthread_mutex_lock(&rs->mu);
     k->st.ended = 1;
+    rs->failed |= failed && k->index == rs->out;
     rs->nended++;
     flush(rs);
     if (rs->nended == rs->ncam || k->index == rs->out) rs->eof = 1;
@@ -239,7 +241,7 @@ static void *camera_thread(void *arg)
     camera *k = arg;
     run_source *rs = k->rs;
     sh_log_limit bad = {0};
-    uint64_t losses = 0, reopens = 0;
+    uint64_t losses = 0, reopens = 0, damaged = 0;
     sh_log_set_thread(k->thread_name);
     while (!stopping(rs)) {
         pace(rs, k);
@@ -252,6 +254,11 @@ static void *camera_thread(void *arg)
             sh_log_warn("%s lost (%llu times so far), reopening with back-off; the other cameras go on",
                     k->name, (unsigned long long)ss.losses);
         if (ss.reopens != reopens) sh_log_info("%s is back", k->name);
+        /* a replay met damage in its file and goes on (or ends) past it: said once, where it is
+         * (damage that stops it comes back as the error below) */
+        if (ss.damaged != damaged && (st == SH_OK || st == SH_EEOF))
+            sh_log_warn("%s: %s", k->name, sh_source_damage(k->src));
+        damaged = ss.damaged;
         losses = ss.losses;
         reopens = ss.reopens;
         pthread_mutex_lock(&rs->mu);
@@ -261,12 +268,12 @@ static void *camera_thread(void *arg)
         pthread_mutex_unlock(&rs->mu);
         if (st == SH_EEOF) {
             sh_log_info("%s: end of stream", k->name);
-            camera_ended(rs, k);
+            camera_ended(rs, k, 0);
             break;
         }
         if (st != SH_OK) {
             sh_log_error("%s: %s", k->name, sh_error_message());
-            camera_ended(rs, k);
+            camera_ended(rs, k, 1);
             break;
         }
         if (!got) continue;
@@ -521,6 +528,14 @@ int run_source_ended(run_source *rs)
     int e = rs->eof && !rs->have_waiting;
     pthread_mutex_unlock(&rs->mu);
     return e;
+}
+
+int run_source_failed(run_source *rs)
+{
+    pthread_mutex_lock(&rs->mu);
+    int f = rs->failed;
+    pthread_mutex_unlock(&rs->mu);
+    return f;
 }
 
 uint64_t run_source_dropped(run_source *rs)

@@ -61,6 +61,9 @@ const run_frame *run_source_take(run_source *rs, int timeout_ms);
 /* 1 once the source has ended (replays without loop, or the output camera failed for good) and
  * its last set was taken. */
 int run_source_ended(run_source *rs);
+/* 1 when the output camera ended in an error (a replay's file damaged where good frames lie
+ * behind the damage, a device that failed for good): the stop is not a clean end. */
+int run_source_failed(run_source *rs);
 /* Sets dropped because processing was behind (sets without the output camera's frame are
  * counted apart, in the exit log). */
 uint64_t run_source_dropped(run_source *rs);

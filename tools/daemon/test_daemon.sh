@@ -200,6 +200,27 @@ msg=$($RUN --source "y4m:$T/ph/cam0.y4m" --points "$T/none.csv" --sink none 2>&1
 [ $rc -ne 0 ] && echo "$msg" | grep -q "\[run\] points: $T/none.csv: No such file" && ok "missing points file named" \
     || bad "missing points file named" "$msg"
 
+# 3b. a damaged replay (issue 16) is never a silent prefix: damage with good frames behind it stops
+#    the replay with one ERROR naming the place and exit status 2 (a restart cannot mend a file:
+#    RestartPreventExitStatus), with or without --loop; a torn last frame (a recorder killed) is
+#    said once at WARNING and the frames before it loop on
+python3 - "$T" <<'PY'
+import sys
+W, H = 64, 48
+fr = [bytes([50 + 5 * k]) * (W * H) + bytes([128]) * (W * H // 2) for k in range(8)]
+hdr = b"YUV4MPEG2 W64 H48 F25:1 Ip A1:1 C420jpeg\n"
+open(sys.argv[1] + "/bad.y4m", "wb").write(hdr + b"".join((b"FRAMX\n" if k == 3 else b"FRAME\n") + f for k, f in enumerate(fr)))
+whole = hdr + b"".join(b"FRAME\n" + f for f in fr)
+open(sys.argv[1] + "/torn.y4m", "wb").write(whole[:len(whole) - 2000])
+PY
+$RUN --source "y4m:$T/bad.y4m" --loop --no-realtime --sink none --max-frames 20 2> "$T/bad.log"; rc_bad=$?
+$RUN --source "y4m:$T/torn.y4m" --loop --no-realtime --sink none --max-frames 20 --trace "$T/torn.csv" 2> "$T/torn.log"; rc_torn=$?
+n_err=$(grep -c "frame 3: bad FRAME line" "$T/bad.log"); n_warn=$(grep -c "WARN.*frame 7 truncated" "$T/torn.log")
+[ $rc_bad -eq 2 ] && [ "$n_err" -eq 1 ] && [ $rc_torn -eq 0 ] && [ "$n_warn" -eq 1 ] && [ "$(grep -c '^[0-9]' "$T/torn.csv")" -eq 20 ] \
+    && ok "damaged replays: stopped with exit 2 where frames lie behind the damage, a torn tail said once and looped" \
+    || bad "damaged replays: stopped with exit 2 where frames lie behind the damage, a torn tail said once and looped" \
+           "exit $rc_bad, $n_err ERROR lines; torn: exit $rc_torn, $n_warn WARN lines: $(tail -3 "$T/bad.log" "$T/torn.log")"
+
 # 4. SIGTERM stops within a second, segment closed; sd_notify READY/STATUS/WATCHDOG; SIGHUP bad reload kept
 python3 - "$B/stillheart" "$T/ph/cam0.y4m" "$T/good.ini" "$SHM" <<'PY' && ok "notify, reload, SIGUSR1 reference, SIGTERM < 1 s" || bad "notify, reload, SIGUSR1 reference, SIGTERM < 1 s" "see above"
 import os, socket, subprocess, sys, time, signal
