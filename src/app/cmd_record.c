@@ -7,7 +7,7 @@
 #include <string.h>
 
 #include "app.h"
-#include "run_source.h"
+#include "../daemon/run_source.h"
 #include "stillheart/config.h"
 #include "stillheart/log.h"
 #include "stillheart/pixconv.h"

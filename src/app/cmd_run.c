@@ -23,8 +23,7 @@
 #include <unistd.h>
 
 #include "app.h"
-#include "run.h"
-#include "run_pipeline.h"
+#include "../daemon/run_pipeline.h"
 #include "stillheart/config.h"
 #include "stillheart/detect.h"
 #include "stillheart/display.h"

@@ -1,4 +1,4 @@
-/* The daemon's processing pieces (src/app/run_model.c, run_track.c): the residual against its
+/* The daemon's processing pieces (src/daemon/run_model.c, run_track.c): the residual against its
  * closed form, the dropout / staleness rule of the selection, and the helper-thread models (a new
  * reference is swapped in only once built; the old one stays in use meanwhile). */
 #include <math.h>
@@ -10,7 +10,8 @@
 
 #include <cmocka.h>
 
-#include "../../src/app/run.h"
+#include "../../src/daemon/run_model.h"
+#include "../../src/daemon/run_track.h"
 
 #define N 9
 

@@ -7,7 +7,8 @@
 #include <string.h>
 #include <time.h>
 
-#include "run.h"
+#include "run_model.h"
+#include "run_track.h"
 #include "run_proc.h"
 #include "stillheart/log.h"
 
@@ -20,7 +21,7 @@ struct run_proc {
     sh_image out;
     double fps;
     int want_ref;
-    run_marker mk[RUN_MAX_MARKERS];
+    run_marker mk[SH_TRACK_MAX_MARKERS];
     int three_d, out_cam;
     sh_calib calib;
     run_model *last;      /* the last model used: the fallback while another set is built */
@@ -33,8 +34,8 @@ struct run_proc {
     int calib_off;        /* the calibration does not fit what the cameras see (logged once) */
     double moved_px;      /* largest one-frame motion of this episode */
     /* the markers the last warped frame's map was made from (run_proc_markers) */
-    int used_n, used_ids[RUN_MAX_MARKERS];
-    double used_xy[2 * RUN_MAX_MARKERS];
+    int used_n, used_ids[SH_TRACK_MAX_MARKERS];
+    double used_xy[2 * SH_TRACK_MAX_MARKERS];
 };
 
 #define RUN_SETTLE_FRAMES 2
@@ -150,7 +151,7 @@ static int markers(run_proc *p, const sh_image *img, const sh_image *const *cams
     if (!p->tracker) {
         int cnt;
         const sh_point *rows = sh_points_frame(&p->points, index, &cnt);
-        for (int i = 0; i < cnt && n < RUN_MAX_MARKERS; i++) {
+        for (int i = 0; i < cnt && n < SH_TRACK_MAX_MARKERS; i++) {
             const sh_point *r = &rows[i];
             if (!isfinite(r->x) || !isfinite(r->y) || (p->three_d && !(isfinite(r->X) && isfinite(r->Y) && isfinite(r->Z))))
                 continue;
@@ -174,7 +175,7 @@ static int markers(run_proc *p, const sh_image *img, const sh_image *const *cams
 
 static void take_reference(run_proc *p, int index, int nm)
 {
-    sh_point ref[RUN_MAX_MARKERS];
+    sh_point ref[SH_TRACK_MAX_MARKERS];
     int n = 0;
     for (int i = 0; i < nm; i++)
         if (p->mk[i].age == 0) /* detected in this very frame: no prediction in a reference */
@@ -325,7 +326,7 @@ const sh_image *run_proc_frame(run_proc *p, const sh_image *img, const sh_image 
     }
     run_model *md = NULL;
     const double *xy = sel.xy, *xyz = sel.xyz, *det = sel.det;
-    double fb_xy[2 * RUN_MAX_MARKERS], fb_xyz[3 * RUN_MAX_MARKERS], fb_det[2 * RUN_MAX_MARKERS];
+    double fb_xy[2 * SH_TRACK_MAX_MARKERS], fb_xyz[3 * SH_TRACK_MAX_MARKERS], fb_det[2 * SH_TRACK_MAX_MARKERS];
     int building = 0;
     int got = run_models_get(p->models, sel.ids, sel.n, &md);
     if (got < 0) {

@@ -7,7 +7,8 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "run.h"
+#include "run_ctl.h"
+#include "run_sink.h"
 #include "run_proc.h"
 #include "run_source.h"
 #include "stillheart/config.h"

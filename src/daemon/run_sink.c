@@ -11,7 +11,8 @@
 #include <string.h>
 #include <sys/stat.h>
 
-#include "run.h"
+#include "run_sink.h"
+#include "stillheart/config.h"
 #include "stillheart/png.h"
 
 #define RING 4
