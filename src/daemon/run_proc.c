@@ -155,7 +155,8 @@ static int markers(run_proc *p, const sh_image *img, const sh_image *const *cams
             const sh_point *r = &rows[i];
             if (!isfinite(r->x) || !isfinite(r->y) || (p->three_d && !(isfinite(r->X) && isfinite(r->Y) && isfinite(r->Z))))
                 continue;
-            p->mk[n] = (run_marker){r->id, r->x, r->y, r->x, r->y, 0, 0, r->X, r->Y, r->Z};
+            p->mk[n] = (run_marker){.id = r->id, .x = r->x, .y = r->y, .dx = r->x, .dy = r->y, .sigma = 0, .age = 0,
+                                    .X = r->X, .Y = r->Y, .Z = r->Z};
             n++;
         }
         return n;
@@ -179,7 +180,8 @@ static void take_reference(run_proc *p, int index, int nm)
     int n = 0;
     for (int i = 0; i < nm; i++)
         if (p->mk[i].age == 0) /* detected in this very frame: no prediction in a reference */
-            ref[n++] = (sh_point){index, p->mk[i].id, p->mk[i].x, p->mk[i].y, p->mk[i].X, p->mk[i].Y, p->mk[i].Z};
+            ref[n++] = (sh_point){.frame = index, .id = p->mk[i].id, .x = p->mk[i].x, .y = p->mk[i].y,
+                                  .X = p->mk[i].X, .Y = p->mk[i].Y, .Z = p->mk[i].Z};
     int first = run_models_reference(p->models, &(int){0}) == NULL;
     int due = p->want_ref ? n >= p->cfg.min_markers
             : !first || run_models_pending(p->models) ? 0

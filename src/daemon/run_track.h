@@ -11,6 +11,13 @@
 #include "stillheart/track.h"
 
 /* ---- markers and gate (run_track.c) ---- */
+/* One frame's marker as processing needs it: its position, this frame's detection, how uncertain
+ * and how old it is (the selection's dropout rule). Two marker types cross the daemon, for this
+ * reason: run_marker carries that tracking state, sh_point (points.h) is a bare position with its
+ * frame, which is what a points file holds and what a reference is (run_model.c keys its models by
+ * sh_point sets; a reference has no age or uncertainty). The tracker's sh_track_estimate (per-camera
+ * views, full covariance) stays inside run_track.c, converted once into run_marker there; a points
+ * file's rows become run_markers in run_proc.c (detected this frame, uncertainty 0). */
 typedef struct {
     int id;
     double x, y;      /* camera 0 pixels */

@@ -99,11 +99,12 @@ static void test_select_dropout(void **state)
     cfg.dropout_ms = 200;
     sh_point ref[5];
     run_marker m[4];
-    for (int i = 0; i < 5; i++) ref[i] = (sh_point){0, 2 * i, 10.0 * i, 5.0 * i, NAN, NAN, NAN};
+    for (int i = 0; i < 5; i++) ref[i] = (sh_point){.frame = 0, .id = 2 * i, .x = 10.0 * i, .y = 5.0 * i, .X = NAN, .Y = NAN, .Z = NAN};
     /* ids 0, 2, 4, 6 tracked (8 lost); 4 unseen 4 frames, 6 unseen 5 frames */
     int ages[4] = {0, 0, 4, 5};
     double sig[4] = {0.2, 0.3, 2.5, 9};
-    for (int i = 0; i < 4; i++) m[i] = (run_marker){2 * i, 1.0 + i, 2.0 + i, 1.0 + i, 2.0 + i, sig[i], ages[i], NAN, NAN, NAN};
+    for (int i = 0; i < 4; i++) m[i] = (run_marker){.id = 2 * i, .x = 1.0 + i, .y = 2.0 + i, .dx = 1.0 + i, .dy = 2.0 + i,
+                                   .sigma = sig[i], .age = ages[i], .X = NAN, .Y = NAN, .Z = NAN};
     run_selection sel;
     run_select(&cfg, 20, ref, 5, m, 4, &sel);
     assert_int_equal(sel.n, 3);
@@ -136,7 +137,7 @@ static void test_models_swap(void **state)
     sh_point ref[N];
     int ids[N], nref, frame, n;
     for (int i = 0; i < N; i++) {
-        ref[i] = (sh_point){0, i, xy[2 * i], xy[2 * i + 1], NAN, NAN, NAN};
+        ref[i] = (sh_point){.frame = 0, .id = i, .x = xy[2 * i], .y = xy[2 * i + 1], .X = NAN, .Y = NAN, .Z = NAN};
         ids[i] = i;
     }
     assert_null(run_models_reference(m, &nref));
