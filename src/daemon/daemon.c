@@ -21,7 +21,7 @@
 
 static const char *const status_names[] = {"raw", "stabilized", "degraded"};
 
-/* The loop's state: everything cmd_run once held in locals, in the order the loop meets it. */
+/* The loop's state: counters, what was shown, systemd, the output camera lost. */
 struct sh_daemon {
     run_pipeline pl;
     sh_daemon_options opt;

@@ -1,6 +1,6 @@
-/* Private to stillheart run: the pipeline's pieces (source, processing, shared-memory display,
+/* Private to the daemon (src/daemon): the pipeline's pieces (source, processing, shared-memory display,
  * record, control socket) opened together from one config at start and swapped together when
- * SIGHUP brings a new one (run_pipeline.c). cmd_run.c drives the loop over them. */
+ * SIGHUP brings a new one (run_pipeline.c). daemon.c drives the loop over them. */
 #ifndef STILLHEART_RUN_PIPELINE_H
 #define STILLHEART_RUN_PIPELINE_H
 

@@ -1,4 +1,4 @@
-/* Private to stillheart run (and record --config): the daemon's cameras. One thread per camera
+/* Private to the daemon (src/daemon): its cameras. One thread per camera
  * ([cameraN] in the config, opened through include/stillheart/source.h: V4L2, libcamera, Y4M
  * replay, recordings) converts each frame into its working format (pixconv.h: GRAY8 for a grey
  * camera, I420 otherwise) and groups it with the other cameras' into a set (sync.h: by trigger
