@@ -2,8 +2,10 @@
 # The include and link rules of docs/architecture.md ("What may include what"), run by make check:
 #   1. the engine includes no capture, display, config, systemd or logging header;
 #   2. capture includes no engine header but core's and image's (it knows no tracking);
-#   3. no library module includes the programs' logging header (the library never prints);
-#   4. the daemon (BUILD/stillheart) links no OpenCV and no OSMesa.
+#   3. no library module includes the programs' logging header (the library never prints), and
+#      none includes the daemon's (src/daemon sits above every module, below the programs);
+#   4. the daemon module includes nothing of the programs (src/app);
+#   5. the daemon (BUILD/stillheart) links no OpenCV and no OSMesa.
 # Each broken rule is one line naming the file (and line) and what it includes or links; the
 # exit status is 1 when any rule is broken.
 #   scripts/check-includes.sh [--root DIR] [--build DIR | --binary FILE | --no-link]
@@ -12,15 +14,16 @@ set -u
 
 # The module lists are the ones docs/architecture.md states; a module folder in src/ that is in
 # none of them (a new one) is reported, so that it gets a place in the doc and here.
-ENGINE="core image linalg interp hull warp warp3d metrics camera calib track detect"
+ENGINE="core image linalg interp hull warp warp3d modelcache metrics camera calib track detect"
 FORMATS="y4m png imageio points"
 CAPTURE="source pixconv sync record"
 OUTPUT="display"
-DAEMON="config notify log app"
+DAEMON="config notify log daemon app"
 # What the engine may not include, and what capture may not include besides.
-ENGINE_DENY="$CAPTURE $OUTPUT config notify log app"
-CAPTURE_DENY="interp hull warp warp3d metrics camera calib track detect linalg $OUTPUT config notify log app"
-LIBRARY_DENY="log app"
+ENGINE_DENY="$CAPTURE $OUTPUT config notify log daemon app"
+CAPTURE_DENY="interp hull warp warp3d metrics camera calib track detect linalg $OUTPUT config notify log daemon app"
+LIBRARY_DENY="log daemon app"
+DAEMON_DENY="app"
 
 root=.
 build=build
@@ -74,6 +77,7 @@ check_tree() {
         if in_list "$mod" $ENGINE; then deny="$ENGINE_DENY"; role="the engine"
         elif in_list "$mod" $CAPTURE; then deny="$CAPTURE_DENY"; role="capture"
         elif in_list "$mod" $FORMATS $OUTPUT config notify; then deny="$LIBRARY_DENY"; role="the library"
+        elif [ "$mod" = daemon ]; then deny="$DAEMON_DENY"; role="the daemon"
         elif in_list "$mod" log app; then continue
         else violation "src/$mod/: a module in none of the lists of docs/architecture.md (and of $0)"; continue
         fi
@@ -112,22 +116,26 @@ if [ "$self_test" = 1 ]; then
     # A scratch tree: each planted include must be reported (file, line, header), the allowed
     # ones must not, and an unlisted module must be named.
     s=$tmp/scratch
-    mkdir -p "$s/src/warp" "$s/src/source" "$s/src/png" "$s/src/app" "$s/src/newmod" "$s/include/stillheart"
+    mkdir -p "$s/src/warp" "$s/src/source" "$s/src/png" "$s/src/app" "$s/src/daemon" "$s/src/newmod" "$s/include/stillheart"
     printf '#include <math.h>\n#include "stillheart/warp.h"\n#include "stillheart/display.h"\n' > "$s/src/warp/a.c"
     printf '#include "stillheart/core.h"\n#include "../source/source_internal.h"\n' > "$s/src/warp/b.c"
     printf '#include "stillheart/y4m.h"\n#include "stillheart/track.h"\n' > "$s/src/source/s.c"
     printf '#include "stillheart/image.h"\n#include <stillheart/log.h>\n' > "$s/src/png/p.c"
-    printf '#include "stillheart/config.h"\n#include "stillheart/log.h"\n' > "$s/src/app/ok.c"
+    printf '#include "stillheart/config.h"\n#include "stillheart/log.h"\n#include "stillheart/daemon.h"\n' > "$s/src/app/ok.c"
+    printf '#include "stillheart/track.h"\n#include "stillheart/log.h"\n#include "../app/app.h"\n' > "$s/src/daemon/d.c"
+    printf '#include "stillheart/daemon.h"\n' > "$s/src/warp/c.c"
     printf '#include "stillheart/image.h"\n#include "stillheart/config.h"\n' > "$s/include/stillheart/hull.h"
     mkdir -p "$s/src/hull"
     printf 'int x;\n' > "$s/src/newmod/n.c"
     out=$(sh "$0" --root "$s" --no-link); rc=$?
     want="check-includes: include/stillheart/hull.h:2: the engine (hull) includes stillheart/config.h (config)
+check-includes: src/daemon/d.c:3: the daemon (daemon) includes ../app/app.h (app)
 check-includes: src/newmod/: a module in none of the lists of docs/architecture.md
 check-includes: src/png/p.c:2: the library (png) includes stillheart/log.h (log)
 check-includes: src/source/s.c:2: capture (source) includes stillheart/track.h (track)
 check-includes: src/warp/a.c:3: the engine (warp) includes stillheart/display.h (display)
-check-includes: src/warp/b.c:2: the engine (warp) includes ../source/source_internal.h (source)"
+check-includes: src/warp/b.c:2: the engine (warp) includes ../source/source_internal.h (source)
+check-includes: src/warp/c.c:1: the engine (warp) includes stillheart/daemon.h (daemon)"
     got=$(printf '%s\n' "$out" | sed 's/: docs\/architecture.md.*//; s/ (and of .*//' | sort)
     if [ "$rc" -ne 1 ] || [ "$got" != "$want" ]; then
         echo "check-includes self-test: FAILED (rc $rc); the checker said:"; printf '%s\n' "$out"

@@ -92,7 +92,7 @@ typedef struct {
  * (new, the default) or the old one is kept (keep). */
 enum { SH_CAMERA_MOTION_NEW = 0, SH_CAMERA_MOTION_KEEP = 1 };
 
-/* When a key's change takes effect in the running daemon (SIGHUP: src/app/run_pipeline.c). The key
+/* When a key's change takes effect in the running daemon (SIGHUP: src/daemon/run_pipeline.c). The key
  * table gives every key exactly one; the reload acts on these classes, never on key names, so a
  * new key is applied as soon as its row says how (docs/daemon.md lists them). */
 typedef enum {

@@ -1,7 +1,7 @@
 /* Models per marker set: the interpolant and warp model (2D), or the surface model and its views
  * (3D), over the reference positions of one set of markers, kept in a small least-recently-used
  * table so that a marker that comes and goes costs one build per distinct set, not one per frame.
- * `stillheart warp`, `stillheart warp3d` and the daemon's models (src/app/run_model.c) all key,
+ * `stillheart warp`, `stillheart warp3d` and the daemon's models (src/daemon/run_model.c) all key,
  * build and free their models here.
  *
  * A library module, not a file of src/app: the daemon's pipeline is to become a library of its

@@ -7,8 +7,8 @@
 #include <string.h>
 
 #include "app.h"
-#include "run_source.h"
 #include "stillheart/config.h"
+#include "stillheart/daemon.h"
 #include "stillheart/log.h"
 #include "stillheart/pixconv.h"
 #include "stillheart/record.h"
@@ -77,7 +77,7 @@ static int to_y4m(const char *rec_path, const char *out_path, int camera)
         return 1;
     }
     sh_y4m_header h;
-    run_y4m_header(s->format, s->width, s->height, s->fps_num, s->fps_den, &h);
+    sh_daemon_y4m_header(s->format, s->width, s->height, s->fps_num, s->fps_den, &h);
     int rc = 1;
     sh_image img;
     sh_pixconv *conv = NULL;
@@ -262,7 +262,7 @@ int cmd_record(int argc, char **argv)
         sh_source_options oi = o;
         oi.camera = i;
         if (!strncmp(specs[i], "rec:", 4)) oi.camera = 0;
-        if (config_path) run_camera_options(&cfg, i, &oi); /* rec:DIR: its camera i */
+        if (config_path) sh_daemon_camera_options(&cfg, i, &oi); /* rec:DIR: its camera i */
         if (sh_source_open(specs[i], &oi, &src[i]) != SH_OK) {
             sh_log_error("%s%d%s: %s", config_path ? "[camera" : "camera ", i,
                          config_path ? "] spec" : "", sh_error_message());
@@ -273,8 +273,8 @@ int cmd_record(int argc, char **argv)
     if (config_path) { /* the defaults follow camera 0's rate, as in the daemon */
         int num = 0, den = 0;
         sh_source_format(src[0], NULL, NULL, NULL, &num, &den);
-        run_sync_options(&cfg, nspec, num, den, &so);
-        have_trigger = run_gpio_options(&cfg, num, den, &go);
+        sh_daemon_sync_options(&cfg, nspec, num, den, &so);
+        have_trigger = sh_daemon_gpio_options(&cfg, num, den, &go);
         trigger_out = go.output;
     }
     if (have_trigger && sh_gpio_trigger_open(&go, &trig) != SH_OK) {

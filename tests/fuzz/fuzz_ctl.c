@@ -1,15 +1,14 @@
-/* libFuzzer: arbitrary bytes as one command on the daemon's control socket (src/app/run_ctl.c,
- * compiled in here: it lives in the stillheart command, not in the library). The first byte is
+/* libFuzzer: arbitrary bytes as one command on the daemon's control socket (src/daemon/run_ctl.c,
+ * linked from the library). The first byte is
  * the peer's rights (bit 0: status, bit 1: reference, as the daemon derives them from
  * SO_PEERCRED), the rest the command. The reply is one printable line that never overflows;
  * only "reference" with the reference right asks for a new reference, "status" without the
  * status right is refused and never shows the status line. */
-#define _GNU_SOURCE /* before any header: run_ctl.c needs struct ucred, accept4, pipe2 */
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 
-#include "../../src/app/run_ctl.c"
+#include "../../src/daemon/run_ctl.h"
 
 static void check(int ok)
 {

@@ -1,4 +1,4 @@
-/* The daemon's processing pieces (src/app/run_model.c, run_track.c): the residual against its
+/* The daemon's processing pieces (src/daemon/run_model.c, run_track.c): the residual against its
  * closed form, the dropout / staleness rule of the selection, and the helper-thread models (a new
  * reference is swapped in only once built; the old one stays in use meanwhile). */
 #include <math.h>
@@ -10,7 +10,8 @@
 
 #include <cmocka.h>
 
-#include "../../src/app/run.h"
+#include "../../src/daemon/run_model.h"
+#include "../../src/daemon/run_track.h"
 
 #define N 9
 
@@ -98,11 +99,12 @@ static void test_select_dropout(void **state)
     cfg.dropout_ms = 200;
     sh_point ref[5];
     run_marker m[4];
-    for (int i = 0; i < 5; i++) ref[i] = (sh_point){0, 2 * i, 10.0 * i, 5.0 * i, NAN, NAN, NAN};
+    for (int i = 0; i < 5; i++) ref[i] = (sh_point){.frame = 0, .id = 2 * i, .x = 10.0 * i, .y = 5.0 * i, .X = NAN, .Y = NAN, .Z = NAN};
     /* ids 0, 2, 4, 6 tracked (8 lost); 4 unseen 4 frames, 6 unseen 5 frames */
     int ages[4] = {0, 0, 4, 5};
     double sig[4] = {0.2, 0.3, 2.5, 9};
-    for (int i = 0; i < 4; i++) m[i] = (run_marker){2 * i, 1.0 + i, 2.0 + i, 1.0 + i, 2.0 + i, sig[i], ages[i], NAN, NAN, NAN};
+    for (int i = 0; i < 4; i++) m[i] = (run_marker){.id = 2 * i, .x = 1.0 + i, .y = 2.0 + i, .dx = 1.0 + i, .dy = 2.0 + i,
+                                   .sigma = sig[i], .age = ages[i], .X = NAN, .Y = NAN, .Z = NAN};
     run_selection sel;
     run_select(&cfg, 20, ref, 5, m, 4, &sel);
     assert_int_equal(sel.n, 3);
@@ -135,7 +137,7 @@ static void test_models_swap(void **state)
     sh_point ref[N];
     int ids[N], nref, frame, n;
     for (int i = 0; i < N; i++) {
-        ref[i] = (sh_point){0, i, xy[2 * i], xy[2 * i + 1], NAN, NAN, NAN};
+        ref[i] = (sh_point){.frame = 0, .id = i, .x = xy[2 * i], .y = xy[2 * i + 1], .X = NAN, .Y = NAN, .Z = NAN};
         ids[i] = i;
     }
     assert_null(run_models_reference(m, &nref));

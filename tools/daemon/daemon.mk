@@ -65,10 +65,3 @@ install-daemon: all
 	install -m 0644 firmware-config/99-stillheart.rules $(DESTDIR)$(UDEV_RULES_DIR)/
 	[ -e $(DESTDIR)$(SYSCONF_DIR)/stillheart.ini ] || install -m 0644 firmware-config/stillheart.ini $(DESTDIR)$(SYSCONF_DIR)/
 	install -m 0644 docs/daemon.md $(DESTDIR)$(PREFIX)/share/doc/stillheart/
-
-# test_daemon_proc (tests/unit) also links the daemon's processing objects, which live in the
-# stillheart command (src/app), not in the library.
-DAEMON_PROC_OBJ := $(BUILD)/src/app/run_model.o $(BUILD)/src/app/run_track.o
-$(BUILD)/tests/test_daemon_proc: $(BUILD)/tests/unit/test_daemon_proc.o $(DAEMON_PROC_OBJ) $(TEST_SUPPORT) $(LIB)
-	@mkdir -p $(dir $@)
-	$(CC) $(LDFLAGS) $< $(DAEMON_PROC_OBJ) $(TEST_SUPPORT) $(LIB) $(shell $(PKG_CONFIG) --libs cmocka) $(LDLIBS_ALL) -o $@

@@ -1,4 +1,4 @@
-/* Private to stillheart run: one frame's processing (run_proc.c), between the source
+/* Private to the daemon (src/daemon): one frame's processing (run_proc.c), between the source
  * (run_source.h) and the sinks: markers, reference, gate, model, warp. */
 #ifndef STILLHEART_RUN_PROC_H
 #define STILLHEART_RUN_PROC_H

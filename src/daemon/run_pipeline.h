@@ -1,13 +1,14 @@
-/* Private to stillheart run: the pipeline's pieces (source, processing, shared-memory display,
+/* Private to the daemon (src/daemon): the pipeline's pieces (source, processing, shared-memory display,
  * record, control socket) opened together from one config at start and swapped together when
- * SIGHUP brings a new one (run_pipeline.c). cmd_run.c drives the loop over them. */
+ * SIGHUP brings a new one (run_pipeline.c). daemon.c drives the loop over them. */
 #ifndef STILLHEART_RUN_PIPELINE_H
 #define STILLHEART_RUN_PIPELINE_H
 
 #include <stddef.h>
 #include <stdint.h>
 
-#include "run.h"
+#include "run_ctl.h"
+#include "run_sink.h"
 #include "run_proc.h"
 #include "run_source.h"
 #include "stillheart/config.h"

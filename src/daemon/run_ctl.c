@@ -30,7 +30,7 @@
 #include <time.h>
 #include <unistd.h>
 
-#include "run.h"
+#include "run_ctl.h"
 #include "stillheart/log.h"
 
 #define CLIENTS 64

@@ -19,7 +19,8 @@
 #include <time.h>
 #include <unistd.h>
 
-#include "run.h"
+#include "run_sink.h"
+#include "stillheart/config.h"
 #include "stillheart/core.h"
 #include "stillheart/png.h"
 

@@ -7,7 +7,8 @@
 #include <string.h>
 #include <time.h>
 
-#include "run.h"
+#include "run_model.h"
+#include "run_track.h"
 #include "run_proc.h"
 #include "stillheart/log.h"
 
@@ -20,7 +21,7 @@ struct run_proc {
     sh_image out;
     double fps;
     int want_ref;
-    run_marker mk[RUN_MAX_MARKERS];
+    run_marker mk[SH_TRACK_MAX_MARKERS];
     int three_d, out_cam;
     sh_calib calib;
     run_model *last;      /* the last model used: the fallback while another set is built */
@@ -33,8 +34,8 @@ struct run_proc {
     int calib_off;        /* the calibration does not fit what the cameras see (logged once) */
     double moved_px;      /* largest one-frame motion of this episode */
     /* the markers the last warped frame's map was made from (run_proc_markers) */
-    int used_n, used_ids[RUN_MAX_MARKERS];
-    double used_xy[2 * RUN_MAX_MARKERS];
+    int used_n, used_ids[SH_TRACK_MAX_MARKERS];
+    double used_xy[2 * SH_TRACK_MAX_MARKERS];
 };
 
 #define RUN_SETTLE_FRAMES 2
@@ -150,11 +151,12 @@ static int markers(run_proc *p, const sh_image *img, const sh_image *const *cams
     if (!p->tracker) {
         int cnt;
         const sh_point *rows = sh_points_frame(&p->points, index, &cnt);
-        for (int i = 0; i < cnt && n < RUN_MAX_MARKERS; i++) {
+        for (int i = 0; i < cnt && n < SH_TRACK_MAX_MARKERS; i++) {
             const sh_point *r = &rows[i];
             if (!isfinite(r->x) || !isfinite(r->y) || (p->three_d && !(isfinite(r->X) && isfinite(r->Y) && isfinite(r->Z))))
                 continue;
-            p->mk[n] = (run_marker){r->id, r->x, r->y, r->x, r->y, 0, 0, r->X, r->Y, r->Z};
+            p->mk[n] = (run_marker){.id = r->id, .x = r->x, .y = r->y, .dx = r->x, .dy = r->y, .sigma = 0, .age = 0,
+                                    .X = r->X, .Y = r->Y, .Z = r->Z};
             n++;
         }
         return n;
@@ -174,11 +176,12 @@ static int markers(run_proc *p, const sh_image *img, const sh_image *const *cams
 
 static void take_reference(run_proc *p, int index, int nm)
 {
-    sh_point ref[RUN_MAX_MARKERS];
+    sh_point ref[SH_TRACK_MAX_MARKERS];
     int n = 0;
     for (int i = 0; i < nm; i++)
         if (p->mk[i].age == 0) /* detected in this very frame: no prediction in a reference */
-            ref[n++] = (sh_point){index, p->mk[i].id, p->mk[i].x, p->mk[i].y, p->mk[i].X, p->mk[i].Y, p->mk[i].Z};
+            ref[n++] = (sh_point){.frame = index, .id = p->mk[i].id, .x = p->mk[i].x, .y = p->mk[i].y,
+                                  .X = p->mk[i].X, .Y = p->mk[i].Y, .Z = p->mk[i].Z};
     int first = run_models_reference(p->models, &(int){0}) == NULL;
     int due = p->want_ref ? n >= p->cfg.min_markers
             : !first || run_models_pending(p->models) ? 0
@@ -276,6 +279,102 @@ static int camera_motion(run_proc *p, int index, sh_display_frame_info *info)
     return 0;
 }
 
+/* The gates before any model: a moving camera, a calibration that does not fit, a reference
+ * awaited or not there yet. 1 when the frame goes on (the reference in use in *ref, *nref). */
+static int reference_ready(run_proc *p, int index, int nm, sh_display_frame_info *info, const sh_point **ref,
+                           int *nref)
+{
+    if (camera_motion(p, index, info) || calibration_off(p, index, info)) return 0;
+    take_reference(p, index, nm);
+    int ref_frame, ref_n;
+    if (run_models_poll(p->models, &ref_frame, &ref_n)) {
+        p->last = NULL; /* it belonged to the old reference, now freed */
+        p->await_ref = 0;
+        sh_log_info("reference: frame %d, %d markers", ref_frame, ref_n);
+    }
+    if (p->await_ref) {
+        /* the old reference is a view the camera has left: the live picture until the new one */
+        reason(info, "camera moved: new reference (%d markers)", nm);
+        return 0;
+    }
+    *ref = run_models_reference(p->models, nref);
+    if (!*ref) {
+        reason(info, run_models_pending(p->models) ? "building the reference (%d markers)" : "no reference yet (%d markers)", nm);
+        return 0;
+    }
+    return 1;
+}
+
+/* The markers matched to the reference, gated on their number and their uncertainty: 1 when the
+ * frame goes on with sel. */
+static int selection_ok(run_proc *p, const sh_point *ref, int nref, int nm, run_selection *sel,
+                        sh_display_frame_info *info)
+{
+    run_select(&p->cfg, p->fps, ref, nref, p->mk, nm, sel);
+    info->markers_used = (uint32_t)sel->n;
+    int need = p->cfg.min_markers > 3 ? p->cfg.min_markers : 3;
+    if (sel->n < need) {
+        if (sel->stale)
+            reason(info, "too few markers (%d < %d, %d stale)", sel->n, need, sel->stale);
+        else
+            reason(info, "too few markers (%d < %d)", sel->n, need);
+        return 0;
+    }
+    if (sel->worst_sigma > p->cfg.max_sigma_px) {
+        reason(info, "uncertain: marker %d %.1f px > %.1f", sel->worst_id,
+                 sel->worst_sigma, p->cfg.max_sigma_px);
+        return 0;
+    }
+    return 1;
+}
+
+/* The positions a model is updated with: the selection's, or the fallback's (fallback()). */
+typedef struct {
+    double xy[2 * SH_TRACK_MAX_MARKERS], xyz[3 * SH_TRACK_MAX_MARKERS], det[2 * SH_TRACK_MAX_MARKERS];
+} run_positions;
+
+/* The model of sel's marker set; while it is being built the last one, with its own markers'
+ * positions in fb (*building set). NULL when neither can be used (info says why). */
+static run_model *model_for(run_proc *p, int nm, const run_selection *sel, run_positions *fb, int *building,
+                            sh_display_frame_info *info)
+{
+    run_model *md = NULL;
+    int got = run_models_get(p->models, sel->ids, sel->n, &md);
+    if (got < 0) {
+        sh_log_limited(&p->model_err, SH_LOG_ERROR, "%s", sh_error_message());
+        reason(info, "model failed (%d markers)", sel->n);
+        return NULL;
+    }
+    sh_log_limit_clear(&p->model_err);
+    if (got == 1) {
+        p->last = md; /* the model run_models keeps from eviction (pinned) */
+        return md;
+    }
+    int n = fallback(p, nm, fb->xy, fb->xyz, fb->det);
+    if (!n) {
+        reason(info, "model for %d markers building", sel->n);
+        return NULL;
+    }
+    *building = 1;
+    info->markers_used = (uint32_t)n;
+    return p->last;
+}
+
+/* A warped frame's status: degraded while its own model is built or when markers were predicted. */
+static void warped_status(const run_selection *sel, int building, sh_display_frame_info *info)
+{
+    if (building) {
+        info->status = SH_DISPLAY_DEGRADED;
+        reason(info, "model for %d markers building", sel->n);
+    } else if (sel->predicted) {
+        info->status = SH_DISPLAY_DEGRADED;
+        reason(info, "dropout: %d markers predicted", sel->predicted);
+    } else {
+        info->status = SH_DISPLAY_STABILIZED;
+        info->reason[0] = 0;
+    }
+}
+
 const sh_image *run_proc_frame(run_proc *p, const sh_image *img, const sh_image *const *cams, int index,
                                unsigned epoch, sh_display_frame_info *info)
 {
@@ -288,66 +387,17 @@ const sh_image *run_proc_frame(run_proc *p, const sh_image *img, const sh_image 
     info->residual_px = -1; /* not measured */
     info->markers_used = 0;
     p->used_n = 0;
-    if (camera_motion(p, index, info) || calibration_off(p, index, info)) return img;
-    take_reference(p, index, nm);
-    int ref_frame, ref_n;
-    if (run_models_poll(p->models, &ref_frame, &ref_n)) {
-        p->last = NULL; /* it belonged to the old reference, now freed */
-        p->await_ref = 0;
-        sh_log_info("reference: frame %d, %d markers", ref_frame, ref_n);
-    }
-    if (p->await_ref) {
-        /* the old reference is a view the camera has left: the live picture until the new one */
-        reason(info, "camera moved: new reference (%d markers)", nm);
-        return img;
-    }
+    const sh_point *ref;
     int nref;
-    const sh_point *ref = run_models_reference(p->models, &nref);
-    if (!ref) {
-        reason(info, run_models_pending(p->models) ? "building the reference (%d markers)" : "no reference yet (%d markers)", nm);
-        return img;
-    }
     run_selection sel;
-    run_select(&p->cfg, p->fps, ref, nref, p->mk, nm, &sel);
-    info->markers_used = (uint32_t)sel.n;
-    int need = p->cfg.min_markers > 3 ? p->cfg.min_markers : 3;
-    if (sel.n < need) {
-        if (sel.stale)
-            reason(info, "too few markers (%d < %d, %d stale)", sel.n, need, sel.stale);
-        else
-            reason(info, "too few markers (%d < %d)", sel.n, need);
+    if (!reference_ready(p, index, nm, info, &ref, &nref) || !selection_ok(p, ref, nref, nm, &sel, info))
         return img;
-    }
-    if (sel.worst_sigma > p->cfg.max_sigma_px) {
-        reason(info, "uncertain: marker %d %.1f px > %.1f", sel.worst_id,
-                 sel.worst_sigma, p->cfg.max_sigma_px);
-        return img;
-    }
-    run_model *md = NULL;
-    const double *xy = sel.xy, *xyz = sel.xyz, *det = sel.det;
-    double fb_xy[2 * RUN_MAX_MARKERS], fb_xyz[3 * RUN_MAX_MARKERS], fb_det[2 * RUN_MAX_MARKERS];
+    run_positions fb;
     int building = 0;
-    int got = run_models_get(p->models, sel.ids, sel.n, &md);
-    if (got < 0) {
-        sh_log_limited(&p->model_err, SH_LOG_ERROR, "%s", sh_error_message());
-        reason(info, "model failed (%d markers)", sel.n);
-        return img;
-    }
-    sh_log_limit_clear(&p->model_err);
-    if (got == 1) p->last = md; /* the model run_models keeps from eviction (pinned) */
-    if (got == 0) {
-        int n = fallback(p, nm, fb_xy, fb_xyz, fb_det);
-        if (!n) {
-            reason(info, "model for %d markers building", sel.n);
-            return img;
-        }
-        md = p->last;
-        xy = fb_xy;
-        xyz = fb_xyz;
-        det = fb_det;
-        building = 1;
-        info->markers_used = (uint32_t)n;
-    }
+    run_model *md = model_for(p, nm, &sel, &fb, &building, info);
+    if (!md) return img;
+    const double *xy = building ? fb.xy : sel.xy, *xyz = building ? fb.xyz : sel.xyz,
+                 *det = building ? fb.det : sel.det;
     double residual;
     sh_status ust = run_model_update(md, xy, xyz, det, &residual);
     double t2 = now_ms();
@@ -377,15 +427,6 @@ const sh_image *run_proc_frame(run_proc *p, const sh_image *img, const sh_image 
     p->used_n = mn;
     memcpy(p->used_ids, mids, sizeof(int) * (size_t)mn);
     memcpy(p->used_xy, xy, sizeof(double) * 2 * (size_t)mn);
-    if (building) {
-        info->status = SH_DISPLAY_DEGRADED;
-        reason(info, "model for %d markers building", sel.n);
-    } else if (sel.predicted) {
-        info->status = SH_DISPLAY_DEGRADED;
-        reason(info, "dropout: %d markers predicted", sel.predicted);
-    } else {
-        info->status = SH_DISPLAY_STABILIZED;
-        info->reason[0] = 0;
-    }
+    warped_status(&sel, building, info);
     return &p->out;
 }

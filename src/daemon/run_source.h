@@ -1,4 +1,4 @@
-/* Private to stillheart run (and record --config): the daemon's cameras. One thread per camera
+/* Private to the daemon (src/daemon): its cameras. One thread per camera
  * ([cameraN] in the config, opened through include/stillheart/source.h: V4L2, libcamera, Y4M
  * replay, recordings) converts each frame into its working format (pixconv.h: GRAY8 for a grey
  * camera, I420 otherwise) and groups it with the other cameras' into a set (sync.h: by trigger
@@ -86,14 +86,10 @@ int run_source_alive(run_source *rs, int64_t max_age_ns, char *who, size_t cap);
  * and frees everything. */
 void run_source_destroy(run_source *rs);
 
-/* ---- shared with stillheart record --config ---- */
-/* source.h options of [cameraN] (and [source] realtime, loop, camera_timeout_ms). */
-void run_camera_options(const sh_config *cfg, int camera, sh_source_options *o);
-/* sync.h options for the cameras; fps_num/den: camera 0's rate (for the defaults). */
-void run_sync_options(const sh_config *cfg, int cameras, int fps_num, int fps_den, sh_sync_options *o);
-/* [trigger] as sh_gpio_options (chip points into cfg); 0 when mode is off. fps as above. */
-int run_gpio_options(const sh_config *cfg, int fps_num, int fps_den, sh_gpio_options *o);
-/* The Y4M header of a raw format's frames converted by pixconv (GRAY8 or I420). */
-void run_y4m_header(sh_rawfmt format, int width, int height, int fps_num, int fps_den, sh_y4m_header *h);
+/* ---- source_options.c (the public half is in daemon.h: sh_daemon_camera_options, ...) ---- */
+/* 1 for a replay's spec (y4m: or rec:). */
+int run_is_replay(const char *spec);
+/* A rate's frame period, ns (unknown: PAL's, 25 fps). */
+double run_period_ns(int fps_num, int fps_den);
 
 #endif

@@ -228,6 +228,47 @@ static void describe(const run_pipeline *p, const run_pipeline *n, const changes
     if (what[0] && (c->effects & SH_CONFIG_GATING)) add(what, cap, "gating");
 }
 
+/* A reload's record and control socket: opened anew when their keys changed (n's then), else the
+ * running socket takes the fresh groups. */
+static sh_status reload_record_control(run_pipeline *p, run_pipeline *n, changes *c)
+{
+    const sh_config *old = &p->cfg, *fresh = &n->cfg;
+    sh_status st = SH_OK;
+    if (c->record) {
+        n->rec = NULL;
+        if (fresh->record[0] && (st = run_record_open(fresh->record, &n->hdr, fresh->record_sync_ms, &n->rec)) != SH_OK)
+            return sh_error_set(st, "[sink] record: %s", sh_error_message());
+        if (n->rec) log_record(fresh, n->rec);
+    }
+    if (c->control) {
+        n->ctl = NULL;
+        if (fresh->control[0] &&
+            (st = run_ctl_open(fresh->control, fresh->control_group, fresh->group, &n->ctl)) != SH_OK)
+            st = sh_error_set(st, "[run] control: %s", sh_error_message());
+    } else if (p->ctl && (strcmp(fresh->control_group, old->control_group) || strcmp(fresh->group, old->group))) {
+        if ((st = run_ctl_groups(p->ctl, fresh->control_group, fresh->group)) == SH_OK) c->ctl_groups = 1;
+    }
+    return st;
+}
+
+/* Every piece of n opened: closes the ones of p it replaced and makes n the running pipeline. */
+static void swap_in(run_pipeline *p, run_pipeline *n, const changes *c)
+{
+    if (n->proc != p->proc) {
+        p->builds_before += run_proc_builds(p->proc);
+        run_proc_destroy(p->proc);
+    } else {
+        run_proc_set_gating(p->proc, &n->cfg);
+    }
+    if (n->rec != p->rec) record_close(p->rec);
+    if (n->ctl != p->ctl) run_ctl_close(p->ctl);
+    if (n->disp != p->disp && p->disp) sh_display_writer_destroy(p->disp, 0); /* marked closed, as at exit */
+    if (c->black_made) sh_image_destroy(&p->black);
+    n->dropped_before = p->dropped_before;
+    n->builds_before = p->builds_before;
+    *p = *n;
+}
+
 run_reload run_pipeline_reload(run_pipeline *p, const sh_config *fresh, char *what, size_t cap)
 {
     const sh_config *old = &p->cfg;
@@ -262,21 +303,7 @@ run_reload run_pipeline_reload(run_pipeline *p, const sh_config *fresh, char *wh
         st = sh_error_set(SH_EINVAL, "[sink] record %s: the frames change from %dx%d to %dx%d and a record keeps "
                           "one size (give [sink] record a new name)", fresh->record, p->hdr.width, p->hdr.height,
                           n.hdr.width, n.hdr.height);
-    if (st == SH_OK && c.record) {
-        n.rec = NULL;
-        if (fresh->record[0] && (st = run_record_open(fresh->record, &n.hdr, fresh->record_sync_ms, &n.rec)) != SH_OK)
-            st = sh_error_set(st, "[sink] record: %s", sh_error_message());
-        if (st == SH_OK && n.rec) log_record(fresh, n.rec);
-    }
-    if (st == SH_OK && c.control) {
-        n.ctl = NULL;
-        if (fresh->control[0] &&
-            (st = run_ctl_open(fresh->control, fresh->control_group, fresh->group, &n.ctl)) != SH_OK)
-            st = sh_error_set(st, "[run] control: %s", sh_error_message());
-    } else if (st == SH_OK && p->ctl &&
-               (strcmp(fresh->control_group, old->control_group) || strcmp(fresh->group, old->group))) {
-        if ((st = run_ctl_groups(p->ctl, fresh->control_group, fresh->group)) == SH_OK) c.ctl_groups = 1;
-    }
+    if (st == SH_OK) st = reload_record_control(p, &n, &c);
     if (st == SH_OK && !c.same_name) {
         n.disp = NULL;
         if (nname) st = display_create(fresh, &n.hdr, &n.disp);
@@ -297,19 +324,7 @@ run_reload run_pipeline_reload(run_pipeline *p, const sh_config *fresh, char *wh
     if (st != SH_OK) return refuse(p, &n, &c, what, cap);
 
     describe(p, &n, &c, what, cap);
-    if (n.proc != p->proc) {
-        p->builds_before += run_proc_builds(p->proc);
-        run_proc_destroy(p->proc);
-    } else {
-        run_proc_set_gating(p->proc, fresh);
-    }
-    if (n.rec != p->rec) record_close(p->rec);
-    if (n.ctl != p->ctl) run_ctl_close(p->ctl);
-    if (n.disp != p->disp && p->disp) sh_display_writer_destroy(p->disp, 0); /* marked closed, as at exit */
-    if (c.black_made) sh_image_destroy(&p->black);
-    n.dropped_before = p->dropped_before;
-    n.builds_before = p->builds_before;
-    *p = n;
+    swap_in(p, &n, &c);
     return RUN_RELOAD_APPLIED;
 }
 

@@ -3,6 +3,7 @@
  * by its camera's thread, in a pending set (sync.h holds its index as `user`), in the waiting set
  * or in the set processing holds. */
 #include "run_source.h"
+#include "stillheart/daemon.h"
 
 #include <errno.h>
 #include <poll.h>
@@ -65,71 +66,6 @@ struct run_source {
     sh_y4m_header hdr;
     double fps;
 };
-
-static int is_replay(const char *spec) { return !strncmp(spec, "y4m:", 4) || !strncmp(spec, "rec:", 4); }
-
-_Static_assert(SH_CONFIG_CTRL_UNSET == SH_SOURCE_CTRL_UNSET, "config's unset control is source.h's");
-_Static_assert(SH_CONFIG_MAX_CAMERAS <= SH_SYNC_MAX_CAMERAS, "every configured camera fits in a set");
-
-void run_camera_options(const sh_config *cfg, int i, sh_source_options *o)
-{
-    const sh_config_camera *c = &cfg->camera[i];
-    sh_source_options_default(o);
-    o->camera = i;
-    o->width = c->width;
-    o->height = c->height;
-    sh_rawfmt f;
-    if (c->format[0] && sh_rawfmt_parse(c->format, &f) == SH_OK) o->format = (int)f;
-    o->fps_num = c->fps_num;
-    o->fps_den = c->fps_den;
-    o->timeout_ms = cfg->camera_timeout_ms;
-    o->exposure = c->exposure;
-    o->gain = c->gain;
-    o->white_balance = c->white_balance;
-    o->realtime = cfg->realtime;
-    o->loop = cfg->loop;
-}
-
-static double period_ns(int fps_num, int fps_den)
-{
-    return fps_num > 0 && fps_den > 0 ? 1e9 * fps_den / fps_num : 1e9 / 25; /* unknown: PAL's */
-}
-
-void run_sync_options(const sh_config *cfg, int cameras, int fps_num, int fps_den, sh_sync_options *o)
-{
-    double p = period_ns(fps_num, fps_den);
-    o->cameras = cameras;
-    o->tolerance_ns = cfg->sync_tolerance_ms > 0 ? (int64_t)(cfg->sync_tolerance_ms * 1e6) : (int64_t)(p / 4);
-    o->max_wait_ns = cfg->sync_wait_ms > 0 ? (int64_t)(cfg->sync_wait_ms * 1e6) : (int64_t)(2 * p);
-    o->trigger_offset_ns = (int64_t)cfg->trigger_offset_us * 1000;
-}
-
-int run_gpio_options(const sh_config *cfg, int fps_num, int fps_den, sh_gpio_options *o)
-{
-    memset(o, 0, sizeof *o);
-    if (cfg->trigger == SH_TRIGGER_OFF) return 0;
-    o->chip = cfg->trigger_chip;
-    o->line = (unsigned)cfg->trigger_line;
-    o->active_low = cfg->trigger_active_low;
-    o->output = cfg->trigger == SH_TRIGGER_OUT;
-    o->period_ns = cfg->trigger_fps > 0 ? (int64_t)(1e9 / cfg->trigger_fps) : (int64_t)period_ns(fps_num, fps_den);
-    o->pulse_ns = (int64_t)cfg->trigger_pulse_us * 1000;
-    return 1;
-}
-
-void run_y4m_header(sh_rawfmt format, int width, int height, int fps_num, int fps_den, sh_y4m_header *h)
-{
-    memset(h, 0, sizeof *h);
-    h->width = width;
-    h->height = height;
-    h->format = format == SH_RAW_GREY ? SH_PIX_GRAY8 : SH_PIX_I420;
-    /* where pixconv puts the chroma (pixconv.h): 4:2:2 and NV12 keep theirs */
-    h->siting = format == SH_RAW_YUYV || format == SH_RAW_NV12 ? SH_CHROMA_LEFT : SH_CHROMA_CENTER;
-    h->fps_num = fps_num > 0 && fps_den > 0 ? fps_num : 25;
-    h->fps_den = fps_num > 0 && fps_den > 0 ? fps_den : 1;
-    h->interlace = 'p';
-    if (format == SH_RAW_MJPEG) snprintf(h->extra, sizeof h->extra, "%s", SH_Y4M_FULL_RANGE);
-}
 
 /* ---- under rs->mu ---- */
 static void free_buffers(run_source *rs, const run_frame *f)
@@ -385,9 +321,9 @@ static sh_status open_camera(run_source *rs, const sh_config *cfg, int i)
     k->index = i;
     snprintf(k->name, sizeof k->name, "camera %d (%s)", i, spec);
     snprintf(k->thread_name, sizeof k->thread_name, "cam%d", i);
-    k->replay = is_replay(spec);
+    k->replay = run_is_replay(spec);
     sh_source_options o;
-    run_camera_options(cfg, i, &o);
+    sh_daemon_camera_options(cfg, i, &o);
     sh_status st = sh_source_open(spec, &o, &k->src);
     char what[32];
     snprintf(what, sizeof what, "[camera%d] spec", i);
@@ -427,15 +363,15 @@ sh_status run_source_open(const sh_config *cfg, run_source **out)
     for (int i = 0; i < n; i++) { /* a slow replay's frames are further apart than a camera's timeout */
         camera *k = &rs->cam[i];
         double t = 1e6 * (cfg->camera_timeout_ms > 0 ? cfg->camera_timeout_ms : 1000);
-        double p2 = 2 * period_ns(k->fps_num, k->fps_den);
+        double p2 = 2 * run_period_ns(k->fps_num, k->fps_den);
         k->timeout_ns = (int64_t)(t > p2 ? t : p2);
     }
     camera *k0 = &rs->cam[0], *ko = &rs->cam[rs->out];
     sh_sync_options so;
-    run_sync_options(cfg, n, k0->fps_num, k0->fps_den, &so);
+    sh_daemon_sync_options(cfg, n, k0->fps_num, k0->fps_den, &so);
     sh_gpio_options go;
     if ((st = sh_sync_create(&so, &rs->sync)) != SH_OK ||
-        (run_gpio_options(cfg, k0->fps_num, k0->fps_den, &go) && (st = sh_gpio_trigger_open(&go, &rs->trig)) != SH_OK)) {
+        (sh_daemon_gpio_options(cfg, k0->fps_num, k0->fps_den, &go) && (st = sh_gpio_trigger_open(&go, &rs->trig)) != SH_OK)) {
         if (rs->sync && !rs->trig) st = sh_error_set(st, "[trigger]: %s", sh_error_message());
         run_source_destroy(rs);
         return st;
@@ -449,7 +385,7 @@ sh_status run_source_open(const sh_config *cfg, run_source **out)
         rs->hdr.format = ko->pool[0].format;
         sh_y4m_reader_close(r);
     } else {
-        run_y4m_header(ko->format, ko->width, ko->height, ko->fps_num, ko->fps_den, &rs->hdr);
+        sh_daemon_y4m_header(ko->format, ko->width, ko->height, ko->fps_num, ko->fps_den, &rs->hdr);
     }
     rs->fps = ko->fps_num > 0 && ko->fps_den > 0 ? (double)ko->fps_num / ko->fps_den : 0;
     *out = rs;

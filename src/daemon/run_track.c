@@ -5,14 +5,14 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "run.h"
+#include "run_track.h"
 #include "stillheart/track.h"
 
 #define MAX_DET SH_TRACK_MAX_DETECTIONS
 
 struct run_tracker {
     sh_track_options opts;
-    int ids[RUN_MAX_MARKERS];
+    int ids[SH_TRACK_MAX_MARKERS];
     sh_calib calib;
     int ncam, out_cam;
     sh_tracker *t;
@@ -36,10 +36,10 @@ sh_status run_tracker_create(const sh_config *cfg, const sh_calib *calib, int ou
     int n = 0;
     for (int i = 0; i < SH_CONFIG_MAX_IDS; i++)
         if (cfg->ids[i]) {
-            if (n == RUN_MAX_MARKERS) {
+            if (n == SH_TRACK_MAX_MARKERS) {
                 free(rt);
                 return sh_error_set(SH_EINVAL, "[detect] ids: '%s': the tracker follows at most %d markers",
-                                    cfg->ids_text, RUN_MAX_MARKERS);
+                                    cfg->ids_text, SH_TRACK_MAX_MARKERS);
             }
             rt->ids[n++] = i;
         }

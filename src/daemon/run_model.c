@@ -12,7 +12,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "run.h"
+#include "run_model.h"
 #include "stillheart/modelcache.h"
 #include "stillheart/warp3d.h"
 
@@ -23,18 +23,18 @@ enum { EMPTY = 0, BUILDING, READY, FAILED };
 /* A slot: the marker set's entry (modelcache.h: key, models, LRU stamp) and what the daemon adds. */
 struct run_model {
     sh_modelcache_entry e; /* 3D: the surface and the output camera's view of it (view[0]) */
-    double uv[2 * RUN_MAX_MARKERS]; /* 3D: each marker's surface parameter (for the residual; NaN
+    double uv[2 * SH_TRACK_MAX_MARKERS]; /* 3D: each marker's surface parameter (for the residual; NaN
                                      * where the view's ray misses) */
     const run_models *owner; /* its camera, for the 3D residual */
     double *coef;   /* the interpolant's coefficients, 2 columns (for the residual) */
-    double vals[2 * RUN_MAX_MARKERS];
+    double vals[2 * SH_TRACK_MAX_MARKERS];
     int state;
     int taken;      /* the helper is building it */
     char err[160];  /* why the build failed */
 };
 
 typedef struct {
-    sh_point ref[RUN_MAX_MARKERS];
+    sh_point ref[SH_TRACK_MAX_MARKERS];
     int nref, frame;
     run_model *full; /* the full set's slot: the swap waits for it */
     run_model slot[SLOTS];
@@ -142,7 +142,7 @@ sh_status run_model_update(run_model *md, const double *cur_xy, const double *cu
 sh_status run_residual(const sh_interp_params *params, const double *ref_xy, const double *cur_xy,
                        const double *det_xy, int n, double *residual)
 {
-    if (n < 1 || n > RUN_MAX_MARKERS) return sh_error_set(SH_EINVAL, "residual: %d markers", n);
+    if (n < 1 || n > SH_TRACK_MAX_MARKERS) return sh_error_set(SH_EINVAL, "residual: %d markers", n);
     run_models m;
     memset(&m, 0, sizeof m);
     m.recipe.params = *params;
@@ -154,8 +154,8 @@ sh_status run_residual(const sh_interp_params *params, const double *ref_xy, con
     }
     run_model *md = calloc(1, sizeof *md);
     if (!md) return sh_error_set(SH_ENOMEM, "residual: out of memory");
-    sh_point ref[RUN_MAX_MARKERS]; /* the entry's key: ids 0..n-1 at these positions */
-    int ids[RUN_MAX_MARKERS];
+    sh_point ref[SH_TRACK_MAX_MARKERS]; /* the entry's key: ids 0..n-1 at these positions */
+    int ids[SH_TRACK_MAX_MARKERS];
     for (int k = 0; k < n; k++) {
         memset(&ref[k], 0, sizeof ref[k]);
         ref[k].id = ids[k] = k;
@@ -344,13 +344,13 @@ static run_model *slot_for(run_models *m, generation *g, const int *ids, int n)
 
 sh_status run_models_set_reference(run_models *m, const sh_point *ref, int n, int frame)
 {
-    if (n < 1 || n > RUN_MAX_MARKERS) return sh_error_set(SH_EINVAL, "reference: %d markers", n);
+    if (n < 1 || n > SH_TRACK_MAX_MARKERS) return sh_error_set(SH_EINVAL, "reference: %d markers", n);
     generation *g = calloc(1, sizeof *g);
     if (!g) return sh_error_set(SH_ENOMEM, "reference: out of memory");
     memcpy(g->ref, ref, sizeof(sh_point) * (size_t)n);
     g->nref = n;
     g->frame = frame;
-    int ids[RUN_MAX_MARKERS];
+    int ids[SH_TRACK_MAX_MARKERS];
     for (int i = 0; i < n; i++) ids[i] = ref[i].id;
     pthread_mutex_lock(&m->mu);
     discard(m, m->next);

@@ -1,0 +1,58 @@
+/* Private to the daemon (src/daemon): models per marker set built on a helper thread, with their
+ * leave-one-out residual (run_model.c). */
+#ifndef STILLHEART_RUN_MODEL_H
+#define STILLHEART_RUN_MODEL_H
+
+#include <stddef.h>
+#include "stillheart/calib.h"
+#include "stillheart/core.h"
+#include "stillheart/interp.h"
+#include "stillheart/points.h"
+#include "stillheart/track.h"
+#include "stillheart/warp.h"
+
+/* ---- models (run_model.c) ----
+ * Everything that depends on the reference (the interpolant, the warp's grid basis, and the n
+ * leave-one-out interpolants of the residual) is built on a helper thread. The processing thread
+ * asks for the model of a marker set and gets it when it is ready; a new reference is built
+ * beside the running one and swapped in by run_models_poll, so frames keep being published with
+ * the old reference meanwhile. With wait = 1 every request blocks until built (deterministic
+ * output: the test mode that must equal `stillheart warp` frame for frame). */
+typedef struct run_models run_models;
+typedef struct run_model run_model;
+
+sh_status run_models_create(const sh_interp_params *params, const sh_warp_options *wopts, int width,
+                            int height, int wait, run_models **out);
+/* 3D (before the first reference): models are warp3d surfaces over the markers' world positions
+ * (params: the interpolant of surface and displacement), seen by calibration camera `camera`,
+ * which is also the one whose frames are warped. */
+sh_status run_models_set_3d(run_models *m, const sh_calib *calib, int camera);
+void run_models_destroy(run_models *m);
+/* Requests a new reference (markers sorted by id, n <= SH_TRACK_MAX_MARKERS); its full-set model is
+ * built first. A reference still being built is replaced. frame: for the log. */
+sh_status run_models_set_reference(run_models *m, const sh_point *ref, int n, int frame);
+/* Swaps in a new reference once its full-set model is built: returns 1 (and its frame and
+ * marker count) when it did, 0 otherwise. */
+int run_models_poll(run_models *m, int *frame, int *n);
+/* 1 while a new reference is being built (the old one is still in use). */
+int run_models_pending(run_models *m);
+/* The reference in use (NULL and n = 0 before the first one is swapped in). */
+const sh_point *run_models_reference(const run_models *m, int *n);
+/* The model for ids (sorted, a subset of the reference's): 1 ready (*out set), 0 being built,
+ * -1 its build failed (sh_error_message says why, once). */
+int run_models_get(run_models *m, const int *ids, int n, run_model **out);
+/* Map for the current positions cur_xy (n points in the model's id order, x0,y0,x1,y1,...) and
+ * the residual: the largest distance, over the markers detected this frame, between where the
+ * map puts the marker's reference position and where the detector saw it (det_xy; NaN for a
+ * marker not detected). *residual is -1 when no marker was detected, NaN if the map cannot be
+ * evaluated at a marker. */
+sh_status run_model_update(run_model *md, const double *cur_xy, const double *cur_xyz, const double *det_xy,
+                           double *residual);
+const sh_warp_model *run_model_warp(const run_model *md);
+const int *run_model_ids(const run_model *md, int *n);
+int run_models_builds(const run_models *m);
+/* The residual alone, on a model built here (tests). */
+sh_status run_residual(const sh_interp_params *params, const double *ref_xy, const double *cur_xy,
+                       const double *det_xy, int n, double *residual);
+
+#endif

@@ -1,0 +1,165 @@
+/* The daemon as a module (daemon.h), driven in-process as `stillheart run` drives it: a refused
+ * trace file names itself and leaves nothing open; a replay of frames without markers publishes
+ * max_frames raw frames; a stop flag set before the loop publishes nothing; a reload whose config
+ * cannot be read is refused and the loop goes on. The counts come from the input (N frames, no
+ * markers in them, max_frames), read back through the stats line. */
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cmocka.h>
+
+#include "stillheart/daemon.h"
+#include "stillheart/image.h"
+#include "stillheart/log.h"
+#include "stillheart/y4m.h"
+
+#define W 64
+#define H 48
+#define N 8
+
+static char tmp[64], video[128];
+
+/* N grey gradient frames: nothing a detector could take for a marker. */
+static int setup(void **state)
+{
+    (void)state;
+    snprintf(tmp, sizeof tmp, "/tmp/sh-test-dmod-%d", (int)getpid());
+    if (mkdir(tmp, 0700)) return -1;
+    snprintf(video, sizeof video, "%s/cam0.y4m", tmp);
+    sh_y4m_header h;
+    memset(&h, 0, sizeof h);
+    h.width = W;
+    h.height = H;
+    h.format = SH_PIX_I420;
+    h.fps_num = 25;
+    h.fps_den = 1;
+    sh_y4m_writer *wr;
+    if (sh_y4m_writer_open(video, &h, &wr) != SH_OK) return -1;
+    sh_image img;
+    if (sh_image_create(&img, SH_PIX_I420, W, H) != SH_OK) return -1;
+    for (int k = 0; k < N; k++) {
+        for (int p = 0; p < 3; p++)
+            for (int y = 0; y < img.plane[p].height; y++)
+                memset(img.plane[p].data + y * img.plane[p].stride, (k * 9 + y) & 255, (size_t)img.plane[p].width);
+        if (sh_y4m_writer_write(wr, &img) != SH_OK) return -1;
+    }
+    sh_image_destroy(&img);
+    sh_log_setup(SH_LOG_DAEMON, "test_daemon_module", SH_LOG_WARN);
+    return sh_y4m_writer_close(wr) == SH_OK ? 0 : -1;
+}
+
+static int teardown(void **state)
+{
+    (void)state;
+    unlink(video);
+    return rmdir(tmp);
+}
+
+static void config(sh_config *cfg)
+{
+    char ini[512], err[SH_CONFIG_ERR];
+    snprintf(ini, sizeof ini, "[camera0]\nspec = y4m:%s\n[source]\nrealtime = 0\nloop = 0\n[sink]\ndisplay = none\n"
+             "[run]\ncontrol =\n", video);
+    sh_config_default(cfg);
+    assert_int_equal(sh_config_parse_string(cfg, ini, "test", err), SH_OK);
+    assert_int_equal(sh_config_check(cfg, err), SH_OK);
+}
+
+static int loads;
+static sh_status refuse_load(void *ctx, sh_config *fresh, char *err)
+{
+    (void)fresh;
+    assert_ptr_equal(ctx, &loads);
+    loads++;
+    snprintf(err, SH_CONFIG_ERR, "test: no config today");
+    return SH_EINVAL;
+}
+
+/* Runs a daemon over the replay; returns the stats line. */
+static void run(const sh_daemon_options *o, sh_daemon_signals *sig, char *stats, size_t cap)
+{
+    sh_config cfg;
+    config(&cfg);
+    sh_daemon *d = NULL;
+    assert_int_equal(sh_daemon_create(&cfg, o, &d), SH_OK);
+    assert_int_equal(sh_daemon_start(d), SH_OK);
+    assert_int_equal(sh_daemon_run(d, sig), SH_OK);
+    sh_daemon_stats(d, stats, cap);
+    assert_int_equal(sh_daemon_destroy(d), SH_OK);
+}
+
+static void test_trace_refused(void **state)
+{
+    (void)state;
+    sh_config cfg;
+    config(&cfg);
+    sh_daemon_options o = {.trace_path = "/nonexistent-dir/trace.csv"};
+    sh_daemon *d = (sh_daemon *)&o; /* must be reset */
+    assert_int_equal(sh_daemon_create(&cfg, &o, &d), SH_EIO);
+    assert_null(d);
+    assert_string_equal(sh_error_message(), "--trace: /nonexistent-dir/trace.csv: No such file or directory");
+}
+
+static void test_max_frames(void **state)
+{
+    (void)state;
+    char stats[512];
+    sh_daemon_signals sig = {0};
+    sh_daemon_options o = {.max_frames = 3};
+    run(&o, &sig, stats, sizeof stats);
+    assert_memory_equal(stats, "stats: 3 published (3 raw, 0 degraded), 0 dropped,", 50);
+}
+
+static void test_stop_before(void **state)
+{
+    (void)state;
+    char stats[512];
+    sh_daemon_signals sig = {.stop = 1};
+    sh_daemon_options o = {0};
+    run(&o, &sig, stats, sizeof stats);
+    assert_memory_equal(stats, "stats: 0 published (0 raw, 0 degraded)", 38);
+}
+
+static void test_reload_refused(void **state)
+{
+    (void)state;
+    char stats[512];
+    loads = 0;
+    sh_daemon_signals sig = {.reload = 1};
+    sh_daemon_options o = {.max_frames = 2, .load = refuse_load, .load_ctx = &loads};
+    run(&o, &sig, stats, sizeof stats);
+    assert_int_equal(loads, 1);
+    assert_int_equal(sig.reload, 0);
+    assert_memory_equal(stats, "stats: 2 published (2 raw, 0 degraded)", 38);
+}
+
+/* A replay without loop ends: the loop stops after its last frame, every frame published. */
+static void test_replay_ends(void **state)
+{
+    (void)state;
+    char stats[512], want[64];
+    sh_daemon_signals sig = {0};
+    sh_daemon_options o = {0};
+    run(&o, &sig, stats, sizeof stats);
+    int n = snprintf(want, sizeof want, "stats: %d published (%d raw, 0 degraded)", N, N);
+    assert_memory_equal(stats, want, (size_t)n);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_trace_refused),
+        cmocka_unit_test(test_max_frames),
+        cmocka_unit_test(test_stop_before),
+        cmocka_unit_test(test_reload_refused),
+        cmocka_unit_test(test_replay_ends),
+    };
+    return cmocka_run_group_tests(tests, setup, teardown);
+}
