@@ -1,7 +1,10 @@
 /* stillheart run's cameras: a thread per camera, sets grouped under one lock, a one-set mailbox
  * (run_source.h). Frame buffers live in a small pool per camera; a buffer is free, being filled
  * by its camera's thread, in a pending set (sync.h holds its index as `user`), in the waiting set
- * or in the set processing holds. */
+ * or in the set processing holds.
+ * About 620 lines, on purpose: the pool, the grouping, the mailbox and the camera threads share
+ * one lock and one buffer life cycle, and split across files each would have to know the
+ * others' invariants (the options that are not, source_options.c, already went). */
 #include "run_source.h"
 #include "stillheart/daemon.h"
 
