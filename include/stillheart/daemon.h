@@ -59,7 +59,9 @@ typedef struct sh_daemon sh_daemon;
 
 /* Opens every piece of the pipeline from cfg (sh_config_check passed) and the trace files; the
  * cameras are not started yet. On error nothing stays open and the message names the piece
- * ("[sink] display: ...", "--trace: FILE: ..."). */
+ * ("[sink] display: ...", "--trace: FILE: ..."). SH_EINVAL when the input cannot run whatever
+ * restarts (a replayed camera file, the points or calibration file: missing or bad); any other
+ * status for what a restart can mend (a device, the display's name, a trace file). */
 sh_status sh_daemon_create(const sh_config *cfg, const sh_daemon_options *opt, sh_daemon **out);
 /* Starts the cameras, logs what runs and tells systemd READY. */
 sh_status sh_daemon_start(sh_daemon *d);

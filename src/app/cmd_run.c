@@ -59,8 +59,14 @@ static void usage(FILE *out)
         "size, format or slots change; a config that cannot run is refused and the running one kept\n"
         "(the previous cameras reopened). SIGUSR1 takes a new reference frame (so does `stillheart ctl\n"
         "reference` on the [run] control socket).\n"
-        "exit status: 0 stopped by a signal or --max-frames, 1 a failure at run time (systemd restarts\n"
-        "the service), 2 a bad config or command line, 6 not configured: no camera named.\n");
+        "exit status (the unit's RestartPreventExitStatus=2 6 follows it):\n"
+        "  0  stopped by a signal, --max-frames or the end of a replay\n"
+        "  1  a fault a restart can mend: a device or the display's name unavailable at start, a\n"
+        "     reload that left no camera, a record or trace file that could not be written\n"
+        "  2  what no restart mends: a bad config or command line; a missing or bad points,\n"
+        "     calibration or replayed camera file at start; a replay damaged where frames lie behind\n"
+        "     the damage\n"
+        "  6  not configured: no camera named\n");
 }
 
 typedef struct {
@@ -186,9 +192,10 @@ int cmd_run(int argc, char **argv)
     int rc = 1;
     sh_log_setup(SH_LOG_DAEMON, "stillheart run", sh_log_get_level());
     sh_log_set_thread("main");
-    if (sh_daemon_create(&cfg, &dopt, &d) != SH_OK) {
+    sh_status cst = sh_daemon_create(&cfg, &dopt, &d);
+    if (cst != SH_OK) { /* the exit-code table (usage): 2 for input no restart mends */
         fprintf(stderr, "stillheart run: %s\n", sh_error_message());
-        return 1;
+        return cst == SH_EINVAL ? 2 : 1;
     }
 
     struct sigaction sa;

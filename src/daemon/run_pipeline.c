@@ -89,15 +89,28 @@ static void stamps(run_pipeline *p)
     stamp(p->cfg.points, &p->points_file);
 }
 
+/* Every configured camera a replayed file. */
+static int all_replays(const sh_config *cfg)
+{
+    int n = sh_config_cameras(cfg);
+    for (int i = 0; i < n; i++)
+        if (strncmp(cfg->camera[i].spec, "y4m:", 4) && strncmp(cfg->camera[i].spec, "rec:", 4)) return 0;
+    return n > 0;
+}
+
 sh_status run_pipeline_open(run_pipeline *p, const sh_config *cfg)
 {
     memset(p, 0, sizeof *p);
     p->cfg = *cfg;
     stamps(p); /* before the files are read: one rewritten meanwhile is read again at a reload */
     sh_status st = run_source_open(cfg, &p->src);
+    /* input a restart cannot mend: replayed files (every camera a y4m: or rec: file), and what
+     * processing reads (points, calibration) */
+    int input = st != SH_OK && all_replays(cfg);
     if (st == SH_OK) {
         p->hdr = *run_source_header(p->src);
         st = run_proc_create(cfg, &p->hdr, run_source_fps(p->src), run_source_cameras(p->src), &p->proc);
+        input = st != SH_OK;
     }
     if (st == SH_OK && shm_name(cfg)) st = display_create(cfg, &p->hdr, &p->disp);
     if (st == SH_OK) st = black_frame(&p->hdr, &p->black);
@@ -111,7 +124,7 @@ sh_status run_pipeline_open(run_pipeline *p, const sh_config *cfg)
         char m[512];
         snprintf(m, sizeof m, "%s", sh_error_message());
         run_pipeline_close(p);
-        return sh_error_set(st, "%s", m);
+        return sh_error_set(input ? SH_EINVAL : st == SH_EINVAL ? SH_EIO : st, "%s", m);
     }
     return SH_OK;
 }

@@ -36,7 +36,9 @@ typedef struct {
 } run_pipeline;
 
 /* Opens every piece from cfg (sh_config_check passed), the source not yet started. On error
- * nothing stays open and sh_error_message names the piece ("[sink] display: ..."). */
+ * nothing stays open and sh_error_message names the piece ("[sink] display: ..."); the status is
+ * SH_EINVAL exactly when the input cannot run, whatever restarts (a replayed file, the points or
+ * calibration file: the exit-code table, docs/daemon.md), never for what a restart can mend. */
 sh_status run_pipeline_open(run_pipeline *p, const sh_config *cfg);
 sh_status run_pipeline_start(run_pipeline *p);
 

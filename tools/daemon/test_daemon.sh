@@ -199,6 +199,18 @@ echo "$msg" | grep -q "^min_markers = 7" && ok "command line wins" || bad "comma
 msg=$($RUN --source "y4m:$T/ph/cam0.y4m" --points "$T/none.csv" --sink none 2>&1); rc=$?
 [ $rc -ne 0 ] && echo "$msg" | grep -q "\[run\] points: $T/none.csv: No such file" && ok "missing points file named" \
     || bad "missing points file named" "$msg"
+# the exit-code table (stillheart run --help, docs/daemon.md): 2 for what no restart mends (the
+# unit's RestartPreventExitStatus=2 6), 1 for what one can, 0 for a normal end
+got=""
+for c in "2 --source y4m:$T/none.y4m" "2 --source y4m:$T/ph/cam0.y4m --points $T/none.csv" \
+         "2 --source y4m:$T/ph/cam0.y4m --calibration $T/none.yaml" "2 --source y4m:$T/ph/cam0.y4m --min-markers lots" \
+         "1 --source v4l2:$T/no-video" "1 --source y4m:$T/ph/cam0.y4m --trace $T/no/dir/t.csv" \
+         "0 --source y4m:$T/ph/cam0.y4m --no-realtime --max-frames 2"; do
+    want=${c%% *}; $RUN --sink none ${c#* } > /dev/null 2>&1; rc=$?
+    [ $rc -eq "$want" ] || got="$got [exit $rc, not $want: ${c#* }]"
+done
+[ -z "$got" ] && ok "exit codes: 2 what no restart mends, 1 what one can, 0 a normal end" \
+    || bad "exit codes: 2 what no restart mends, 1 what one can, 0 a normal end" "$got"
 
 # 3b. a damaged replay (issue 16) is never a silent prefix: damage with good frames behind it stops
 #    the replay with one ERROR naming the place and exit status 2 (a restart cannot mend a file:
