@@ -37,6 +37,7 @@ root=$(mktemp -d /tmp/deb-root.XXXXXX)
 cleanup() { umount "$root/proc" 2>/dev/null || true; rm -rf "$root" /tmp/deb-test.$$; }
 trap cleanup EXIT
 tar -C "$root" -xf "$CACHE/bookworm-minbase.tar"
+chmod 755 "$root" # the tarball's "." is debootstrap's mktemp folder (0700): "/" closed to the service's user
 cp /etc/resolv.conf "$root/etc/resolv.conf"
 mount -t proc proc "$root/proc"
 cp "$DEB_OUT"/stillheart_"${ver}"_*.deb "$DEB_OUT"/stillheart-tools_"${ver}"_amd64.deb "$root/tmp/"
