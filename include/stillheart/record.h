@@ -60,6 +60,11 @@ typedef struct sh_rec_writer sh_rec_writer;
 
 /* Creates the folder (if missing) and its recording file; an existing recording is refused. */
 sh_status sh_rec_writer_create(const char *dir, sh_rec_writer **out);
+/* Makes what is written durable every sync_ms (fdatasync, by a thread of the writer's own, so
+ * the caller never waits for the disk): power loss then loses at most about sync_ms of records
+ * (a kill loses at most the record being written, whatever the interval). 0: a sync after every
+ * record. Without it the file is synced only at close. Once, before the first record. */
+sh_status sh_rec_writer_set_sync(sh_rec_writer *w, int sync_ms);
 /* Describes a camera; before its first frame. */
 sh_status sh_rec_writer_stream(sh_rec_writer *w, const sh_rec_stream *stream);
 sh_status sh_rec_writer_frame(sh_rec_writer *w, int camera, uint64_t sequence, int64_t timestamp_ns,

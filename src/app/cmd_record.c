@@ -50,6 +50,9 @@ static void usage(FILE *out)
         "  --trigger-in CHIP:LINE[:low]   timestamp a strobe or master trigger line's edges\n"
         "  --pulse-ms T       trigger pulse width (default 1)\n"
         "  --trigger-offset-ms T  a frame's timestamp minus its trigger edge, expected (default 0)\n"
+        "  --sync-ms T        make the recording durable (fdatasync) every T ms, so power loss\n"
+        "                     loses at most about T ms (default: [sink] record_sync_ms with\n"
+        "                     --config, else 1000; 0: after every record)\n"
         "  --to-y4m REC OUT.y4m  convert camera --camera C (default 0) of recording REC to Y4M\n"
         "                     (a damaged recording: every good record converted, then what was\n"
         "                     lost said and exit status 1)\n"
@@ -124,9 +127,56 @@ out:
     return rc;
 }
 
-int cmd_record(int argc, char **argv)
+/* What the command line asks for, apart from the state of a recording (record_job). */
+typedef struct {
+    const char *specs[MAX_SOURCES];
+    int nspec, frames, camera, tol_ms, wait_ms, sync_ms;
+    const char *to_y4m_rec, *trigger_spec, *config_path, *out_dir;
+    int camera_opts; /* options the config file gives instead */
+    int trigger_out, pulse_ms, offset_ms;
+    sh_source_options src;
+} record_options;
+
+/* The value options; 0 when the value was wrong (said on stderr). */
+static int parse_value(record_options *o, int ch, const char *arg)
 {
-    sh_log_setup(SH_LOG_TOOL, "stillheart record", SH_LOG_INFO);
+    switch (ch) {
+    case 'n': return app_parse_int("--frames", arg, 1, 100000000, &o->frames);
+    case 'f': {
+        sh_rawfmt f;
+        if (sh_rawfmt_parse(arg, &f) != SH_OK) {
+            fprintf(stderr, "--format: %s\n", sh_error_message());
+            return 0;
+        }
+        o->src.format = (int)f;
+        return 1;
+    }
+    case 'z':
+        if (sscanf(arg, "%dx%d", &o->src.width, &o->src.height) != 2 || o->src.width <= 0 || o->src.height <= 0 ||
+            o->src.width > SH_IMAGE_MAX_SIZE || o->src.height > SH_IMAGE_MAX_SIZE) {
+            fprintf(stderr, "--size: WxH, not '%s'\n", arg);
+            return 0;
+        }
+        return 1;
+    case 'r':
+        o->src.fps_den = 1;
+        return app_parse_int("--fps", arg, 1, 1000, &o->src.fps_num);
+    case 'e': return app_parse_int("--exposure", arg, 0, 100000000, &o->src.exposure);
+    case 'g': return app_parse_int("--gain", arg, 0, 100000000, &o->src.gain);
+    case 'w': return app_parse_int("--white-balance", arg, 1000, 20000, &o->src.white_balance);
+    case 't': return app_parse_int("--tolerance-ms", arg, 1, 1000, &o->tol_ms);
+    case 'm': return app_parse_int("--max-wait-ms", arg, 1, 100000, &o->wait_ms);
+    case 'C': return app_parse_int("--camera", arg, 0, MAX_SOURCES - 1, &o->camera);
+    case 'p': return app_parse_int("--pulse-ms", arg, 1, 1000, &o->pulse_ms);
+    case 'x': return app_parse_int("--trigger-offset-ms", arg, -1000, 1000, &o->offset_ms);
+    case 'S': return app_parse_int("--sync-ms", arg, 0, 60000, &o->sync_ms);
+    }
+    return 0;
+}
+
+/* -1: go on; else the exit status (0 after --help). */
+static int parse_options(int argc, char **argv, record_options *o)
+{
     static const struct option longopts[] = {
         {"source", required_argument, 0, 's'},   {"frames", required_argument, 0, 'n'},
         {"config", required_argument, 0, 'c'},   {"format", required_argument, 0, 'f'},
@@ -137,269 +187,305 @@ int cmd_record(int argc, char **argv)
         {"to-y4m", required_argument, 0, 'y'},   {"camera", required_argument, 0, 'C'},
         {"trigger-out", required_argument, 0, 'O'}, {"trigger-in", required_argument, 0, 'I'},
         {"pulse-ms", required_argument, 0, 'p'}, {"trigger-offset-ms", required_argument, 0, 'x'},
-        {"help", no_argument, 0, 'h'},           {0, 0, 0, 0}};
-    const char *specs[MAX_SOURCES];
-    int nspec = 0, frames = 0, camera = 0, tol_ms = 5, wait_ms = 100;
-    const char *to_y4m_rec = NULL, *trigger_spec = NULL, *config_path = NULL;
-    int camera_opts = 0; /* options the config file gives instead */
-    int trigger_out = 0, pulse_ms = 1, offset_ms = 0;
-    sh_source_options o;
-    sh_source_options_default(&o);
+        {"sync-ms", required_argument, 0, 'S'},  {"help", no_argument, 0, 'h'},
+        {0, 0, 0, 0}};
+    memset(o, 0, sizeof *o);
+    o->tol_ms = 5, o->wait_ms = 100, o->pulse_ms = 1, o->sync_ms = -1;
+    sh_source_options_default(&o->src);
     optind = 1;
     int ch;
     while ((ch = getopt_long(argc, argv, "", longopts, NULL)) != -1) {
-        camera_opts += strchr("sfzregwtmFOIpx", ch) != NULL;
+        o->camera_opts += strchr("sfzregwtmFOIpx", ch) != NULL;
         switch (ch) {
         case 's':
-            if (nspec >= MAX_SOURCES) {
+            if (o->nspec >= MAX_SOURCES) {
                 fprintf(stderr, "--source: at most %d cameras\n", MAX_SOURCES);
                 return 2;
             }
-            specs[nspec++] = optarg;
+            o->specs[o->nspec++] = optarg;
             break;
-        case 'n': if (!app_parse_int("--frames", optarg, 1, 100000000, &frames)) return 2; break;
-        case 'c': config_path = optarg; break;
-        case 'f': {
-            sh_rawfmt f;
-            if (sh_rawfmt_parse(optarg, &f) != SH_OK) {
-                fprintf(stderr, "--format: %s\n", sh_error_message());
-                return 2;
-            }
-            o.format = (int)f;
-            break;
-        }
-        case 'z':
-            if (sscanf(optarg, "%dx%d", &o.width, &o.height) != 2 || o.width <= 0 || o.height <= 0 ||
-                o.width > SH_IMAGE_MAX_SIZE || o.height > SH_IMAGE_MAX_SIZE) {
-                fprintf(stderr, "--size: WxH, not '%s'\n", optarg);
-                return 2;
-            }
-            break;
-        case 'r':
-            if (!app_parse_int("--fps", optarg, 1, 1000, &o.fps_num)) return 2;
-            o.fps_den = 1;
-            break;
-        case 'e': if (!app_parse_int("--exposure", optarg, 0, 100000000, &o.exposure)) return 2; break;
-        case 'g': if (!app_parse_int("--gain", optarg, 0, 100000000, &o.gain)) return 2; break;
-        case 'w': if (!app_parse_int("--white-balance", optarg, 1000, 20000, &o.white_balance)) return 2; break;
-        case 't': if (!app_parse_int("--tolerance-ms", optarg, 1, 1000, &tol_ms)) return 2; break;
-        case 'm': if (!app_parse_int("--max-wait-ms", optarg, 1, 100000, &wait_ms)) return 2; break;
-        case 'F': o.realtime = 0; break;
-        case 'y': to_y4m_rec = optarg; break;
-        case 'C': if (!app_parse_int("--camera", optarg, 0, MAX_SOURCES - 1, &camera)) return 2; break;
-        case 'O': trigger_spec = optarg, trigger_out = 1; break;
-        case 'I': trigger_spec = optarg, trigger_out = 0; break;
-        case 'p': if (!app_parse_int("--pulse-ms", optarg, 1, 1000, &pulse_ms)) return 2; break;
-        case 'x': if (!app_parse_int("--trigger-offset-ms", optarg, -1000, 1000, &offset_ms)) return 2; break;
+        case 'c': o->config_path = optarg; break;
+        case 'F': o->src.realtime = 0; break;
+        case 'y': o->to_y4m_rec = optarg; break;
+        case 'O': o->trigger_spec = optarg, o->trigger_out = 1; break;
+        case 'I': o->trigger_spec = optarg, o->trigger_out = 0; break;
         case 'h': usage(stdout); return 0;
-        default: usage(stderr); return 2;
+        case '?': usage(stderr); return 2;
+        default: if (!parse_value(o, ch, optarg)) return 2;
         }
     }
-    if (to_y4m_rec) {
-        if (optind != argc - 1) {
-            fprintf(stderr, "stillheart record --to-y4m REC OUT.y4m: one output file\n");
-            return 2;
-        }
-        return to_y4m(to_y4m_rec, argv[optind], camera);
-    }
-    if (config_path && camera_opts) {
-        sh_log_error("--config gives the cameras, their formats and controls, the sets and the "
-                        "trigger ([cameraN], [source], [trigger]); set them there, not with --source, --format, ...");
-        return 2;
-    }
-    static sh_config cfg; /* the specs and the trigger chip point into it */
-    if (config_path) {
-        char err[SH_CONFIG_ERR];
-        sh_config_default(&cfg);
-        if (sh_config_load_file(&cfg, config_path, err) != SH_OK || sh_config_check(&cfg, err) != SH_OK) {
-            sh_log_error("%s", err);
-            return 2;
-        }
-        nspec = sh_config_cameras(&cfg);
-        for (int i = 0; i < nspec; i++) specs[i] = cfg.camera[i].spec;
-    }
-    if (!nspec || !frames || optind != argc - 1) {
-        usage(stderr);
-        return 2;
-    }
-    const char *out_dir = argv[optind];
-    char chip[64] = "";
-    sh_gpio_options go = {chip, 0, 0, trigger_out, 0, (int64_t)pulse_ms * 1000000};
-    int have_trigger = trigger_spec != NULL;
-    if (trigger_spec) {
-        const char *c1 = strchr(trigger_spec, ':');
-        char *end;
-        if (!c1 || c1 == trigger_spec || (size_t)(c1 - trigger_spec) >= sizeof chip) {
-            fprintf(stderr, "--trigger-%s: CHIP:LINE[:low], not '%s'\n", trigger_out ? "out" : "in", trigger_spec);
-            return 2;
-        }
-        memcpy(chip, trigger_spec, (size_t)(c1 - trigger_spec));
-        long line = strtol(c1 + 1, &end, 10);
-        if (end == c1 + 1 || line < 0 || line > 1023 || (*end && strcmp(end, ":low"))) {
-            fprintf(stderr, "--trigger-%s: CHIP:LINE[:low], not '%s'\n", trigger_out ? "out" : "in", trigger_spec);
-            return 2;
-        }
-        go.line = (unsigned)line;
-        go.active_low = *end != 0;
-        if (trigger_out) {
-            if (o.fps_num <= 0) {
-                fprintf(stderr, "--trigger-out: give the frame rate with --fps\n");
-                return 2;
-            }
-            go.period_ns = 1000000000LL / o.fps_num;
-        }
-    }
-    sh_gpio_trigger *trig = NULL;
+    return -1;
+}
 
-    sh_source *src[MAX_SOURCES] = {0};
-    sh_rec_writer *w = NULL;
-    sh_sync *sync = NULL;
-    int rc = 1;
-    long done[MAX_SOURCES] = {0};
-    int ended[MAX_SOURCES] = {0};
-    uint64_t damaged[MAX_SOURCES] = {0}; /* replays: damage already reported */
-    for (int i = 0; i < nspec; i++) {
-        sh_source_options oi = o;
+/* --trigger-out/--trigger-in CHIP:LINE[:low] into go (its chip pointing into chip[64]); 0 when
+ * the spec is wrong (said on stderr). */
+static int parse_trigger(const record_options *o, sh_gpio_options *go, char *chip)
+{
+    const char *spec = o->trigger_spec, *c1 = strchr(spec, ':'), *dir = o->trigger_out ? "out" : "in";
+    char *end;
+    if (!c1 || c1 == spec || (size_t)(c1 - spec) >= 64) {
+        fprintf(stderr, "--trigger-%s: CHIP:LINE[:low], not '%s'\n", dir, spec);
+        return 0;
+    }
+    memcpy(chip, spec, (size_t)(c1 - spec));
+    chip[c1 - spec] = 0;
+    long line = strtol(c1 + 1, &end, 10);
+    if (end == c1 + 1 || line < 0 || line > 1023 || (*end && strcmp(end, ":low"))) {
+        fprintf(stderr, "--trigger-%s: CHIP:LINE[:low], not '%s'\n", dir, spec);
+        return 0;
+    }
+    go->line = (unsigned)line;
+    go->active_low = *end != 0;
+    if (o->trigger_out) {
+        if (o->src.fps_num <= 0) {
+            fprintf(stderr, "--trigger-out: give the frame rate with --fps\n");
+            return 0;
+        }
+        go->period_ns = 1000000000LL / o->src.fps_num;
+    }
+    return 1;
+}
+
+/* A recording being made: the cameras, their sets, the trigger and the writer. */
+typedef struct {
+    const record_options *opt;
+    const sh_config *cfg; /* --config; NULL: the command line's cameras */
+    int nspec, have_trigger, trigger_out;
+    char chip[64];
+    sh_gpio_options go;
+    sh_source *src[MAX_SOURCES];
+    sh_gpio_trigger *trig;
+    sh_rec_writer *w;
+    sh_sync *sync;
+    long done[MAX_SOURCES];
+    int ended[MAX_SOURCES];
+    uint64_t damaged[MAX_SOURCES]; /* replays: damage already reported */
+} record_job;
+
+/* Opens the cameras, the trigger, the sets and the writer; 0 (said) on failure. */
+static int job_open(record_job *j)
+{
+    const record_options *o = j->opt;
+    for (int i = 0; i < j->nspec; i++) {
+        sh_source_options oi = o->src;
         oi.camera = i;
-        if (!strncmp(specs[i], "rec:", 4)) oi.camera = 0;
-        if (config_path) sh_daemon_camera_options(&cfg, i, &oi); /* rec:DIR: its camera i */
-        if (sh_source_open(specs[i], &oi, &src[i]) != SH_OK) {
-            sh_log_error("%s%d%s: %s", config_path ? "[camera" : "camera ", i,
-                         config_path ? "] spec" : "", sh_error_message());
-            goto out;
+        if (!strncmp(o->specs[i], "rec:", 4)) oi.camera = 0;
+        if (j->cfg) sh_daemon_camera_options(j->cfg, i, &oi); /* rec:DIR: its camera i */
+        if (sh_source_open(o->specs[i], &oi, &j->src[i]) != SH_OK) {
+            sh_log_error("%s%d%s: %s", j->cfg ? "[camera" : "camera ", i, j->cfg ? "] spec" : "", sh_error_message());
+            return 0;
         }
     }
-    sh_sync_options so = {nspec, (int64_t)tol_ms * 1000000, (int64_t)wait_ms * 1000000, (int64_t)offset_ms * 1000000};
-    if (config_path) { /* the defaults follow camera 0's rate, as in the daemon */
+    sh_sync_options so = {j->nspec, (int64_t)o->tol_ms * 1000000, (int64_t)o->wait_ms * 1000000,
+                          (int64_t)o->offset_ms * 1000000};
+    if (j->cfg) { /* the defaults follow camera 0's rate, as in the daemon */
         int num = 0, den = 0;
-        sh_source_format(src[0], NULL, NULL, NULL, &num, &den);
-        sh_daemon_sync_options(&cfg, nspec, num, den, &so);
-        have_trigger = sh_daemon_gpio_options(&cfg, num, den, &go);
-        trigger_out = go.output;
+        sh_source_format(j->src[0], NULL, NULL, NULL, &num, &den);
+        sh_daemon_sync_options(j->cfg, j->nspec, num, den, &so);
+        j->have_trigger = sh_daemon_gpio_options(j->cfg, num, den, &j->go);
+        j->trigger_out = j->go.output;
     }
-    if (have_trigger && sh_gpio_trigger_open(&go, &trig) != SH_OK) {
+    int sync_ms = o->sync_ms >= 0 ? o->sync_ms : j->cfg ? j->cfg->record_sync_ms : 1000;
+    if ((j->have_trigger && sh_gpio_trigger_open(&j->go, &j->trig) != SH_OK) ||
+        sh_sync_create(&so, &j->sync) != SH_OK || sh_rec_writer_create(o->out_dir, &j->w) != SH_OK ||
+        sh_rec_writer_set_sync(j->w, sync_ms) != SH_OK) {
         sh_log_error("%s", sh_error_message());
-        goto out;
+        return 0;
     }
-    if (sh_sync_create(&so, &sync) != SH_OK || sh_rec_writer_create(out_dir, &w) != SH_OK) {
-        sh_log_error("%s", sh_error_message());
-        goto out;
-    }
-    for (int i = 0; i < nspec; i++) {
+    for (int i = 0; i < j->nspec; i++) {
         sh_rec_stream s;
         memset(&s, 0, sizeof s);
         s.camera = i;
-        sh_source_format(src[i], &s.format, &s.width, &s.height, &s.fps_num, &s.fps_den);
-        s.stride = sh_source_stride(src[i]);
-        snprintf(s.source, sizeof s.source, "%s", specs[i]);
-        if (sh_rec_writer_stream(w, &s) != SH_OK) {
+        sh_source_format(j->src[i], &s.format, &s.width, &s.height, &s.fps_num, &s.fps_den);
+        s.stride = sh_source_stride(j->src[i]);
+        snprintf(s.source, sizeof s.source, "%s", o->specs[i]);
+        if (sh_rec_writer_stream(j->w, &s) != SH_OK) {
             sh_log_error("%s", sh_error_message());
-            goto out;
+            return 0;
         }
-        sh_log_info("camera %d: %s, %dx%d %s at %d/%d fps", i, specs[i], s.width, s.height,
+        sh_log_info("camera %d: %s, %dx%d %s at %d/%d fps", i, o->specs[i], s.width, s.height,
                     sh_rawfmt_name(s.format), s.fps_num, s.fps_den);
     }
     /* started back to back, after the stream records are written: a replay's schedule starts at
      * its start, so the gap between two starts would offset the cameras' stamps */
-    for (int i = 0; i < nspec; i++)
-        if (sh_source_start(src[i]) != SH_OK) {
+    for (int i = 0; i < j->nspec; i++)
+        if (sh_source_start(j->src[i]) != SH_OK) {
             sh_log_error("%s", sh_error_message());
-            goto out;
+            return 0;
         }
-    if (trig && sh_gpio_trigger_start(trig) != SH_OK) {
+    if (j->trig && sh_gpio_trigger_start(j->trig) != SH_OK) {
         sh_log_error("%s", sh_error_message());
-        goto out;
+        return 0;
     }
-    struct sigaction sa;
-    memset(&sa, 0, sizeof sa);
-    sa.sa_handler = on_signal;
-    sigaction(SIGINT, &sa, NULL);
-    sigaction(SIGTERM, &sa, NULL);
-    for (;;) {
-        int active = 0;
-        for (int i = 0; i < nspec; i++) active += !ended[i] && done[i] < frames;
-        if (!active || stop_requested) break;
-        struct pollfd p[MAX_SOURCES + 1];
-        for (int i = 0; i < nspec; i++) {
-            p[i].fd = ended[i] || done[i] >= frames ? -1 : sh_source_fd(src[i]);
-            p[i].events = POLLIN;
-            p[i].revents = 0;
-        }
-        p[nspec].fd = trig ? sh_gpio_trigger_fd(trig) : -1;
-        p[nspec].events = POLLIN;
-        p[nspec].revents = 0;
-        poll(p, (nfds_t)nspec + 1, 100);
-        if (trig) {
-            int64_t edge;
-            int got;
-            if (sh_gpio_trigger_service(trig, &edge, &got) != SH_OK) {
-                sh_log_error("%s", sh_error_message());
-                goto out;
-            }
-            if (got) sh_sync_trigger(sync, edge);
-        }
-        for (int i = 0; i < nspec; i++) {
-            if (ended[i] || done[i] >= frames) continue;
-            sh_source_frame f;
-            int got;
-            sh_status st = sh_source_dequeue(src[i], 0, &f, &got);
-            sh_source_stats ss;
-            sh_source_get_stats(src[i], &ss);
-            if (ss.damaged != damaged[i]) { /* a replay went past damage (or ends at it: then the error follows) */
-                damaged[i] = ss.damaged;
-                sh_log_warn("WARNING: %s", sh_source_damage(src[i]));
-            }
-            if (st == SH_EEOF) {
-                ended[i] = 1;
-                continue;
-            }
-            if (st != SH_OK) {
-                sh_log_error("%s", sh_error_message());
-                goto out;
-            }
-            if (!got) continue;
-            st = sh_rec_writer_frame(w, i, f.sequence, f.timestamp_ns, &f.raw);
-            sh_sync_disposition d;
-            if (st == SH_OK) st = sh_sync_push(sync, i, f.sequence, f.timestamp_ns, NULL, &d);
-            sh_source_release(src[i], &f);
-            if (st != SH_OK) goto write_failed;
-            done[i]++;
-        }
-        sh_frame_set set;
-        while (sh_sync_pop(sync, &set))
-            if (sh_rec_writer_set(w, &set) != SH_OK) goto write_failed;
+    return 1;
+}
+
+/* Takes camera i's next frame, if there is one, into the recording and the sets; 0 (said) on a
+ * camera or write error. */
+static int take_frame(record_job *j, int i)
+{
+    sh_source_frame f;
+    int got;
+    sh_status st = sh_source_dequeue(j->src[i], 0, &f, &got);
+    sh_source_stats ss;
+    sh_source_get_stats(j->src[i], &ss);
+    if (ss.damaged != j->damaged[i]) { /* a replay went past damage (or ends at it: then the error follows) */
+        j->damaged[i] = ss.damaged;
+        sh_log_warn("WARNING: %s", sh_source_damage(j->src[i]));
     }
-    sh_sync_flush(sync);
+    if (st == SH_EEOF) {
+        j->ended[i] = 1;
+        return 1;
+    }
+    if (st == SH_OK && got) {
+        st = sh_rec_writer_frame(j->w, i, f.sequence, f.timestamp_ns, &f.raw);
+        sh_sync_disposition d;
+        if (st == SH_OK) st = sh_sync_push(j->sync, i, f.sequence, f.timestamp_ns, NULL, &d);
+        sh_source_release(j->src[i], &f);
+        j->done[i] += st == SH_OK;
+    }
+    if (st != SH_OK) sh_log_error("%s", sh_error_message());
+    return st == SH_OK;
+}
+
+/* Writes the sets formed so far; 0 (said) on a write error. */
+static int write_sets(record_job *j)
+{
     sh_frame_set set;
-    while (sh_sync_pop(sync, &set))
-        if (sh_rec_writer_set(w, &set) != SH_OK) goto write_failed;
+    while (sh_sync_pop(j->sync, &set))
+        if (sh_rec_writer_set(j->w, &set) != SH_OK) {
+            sh_log_error("%s", sh_error_message());
+            return 0;
+        }
+    return 1;
+}
+
+/* Waits up to 100 ms for frames or a trigger edge and records what came; -1 when every camera
+ * is done, 0 (said) on an error, 1 to go on. */
+static int job_step(record_job *j)
+{
+    int active = 0, n = j->nspec;
+    for (int i = 0; i < n; i++) active += !j->ended[i] && j->done[i] < j->opt->frames;
+    if (!active) return -1;
+    struct pollfd p[MAX_SOURCES + 1];
+    for (int i = 0; i < n; i++) {
+        p[i].fd = j->ended[i] || j->done[i] >= j->opt->frames ? -1 : sh_source_fd(j->src[i]);
+        p[i].events = POLLIN;
+        p[i].revents = 0;
+    }
+    p[n].fd = j->trig ? sh_gpio_trigger_fd(j->trig) : -1;
+    p[n].events = POLLIN;
+    p[n].revents = 0;
+    poll(p, (nfds_t)n + 1, 100);
+    if (j->trig) {
+        int64_t edge;
+        int got;
+        if (sh_gpio_trigger_service(j->trig, &edge, &got) != SH_OK) {
+            sh_log_error("%s", sh_error_message());
+            return 0;
+        }
+        if (got) sh_sync_trigger(j->sync, edge);
+    }
+    for (int i = 0; i < n; i++)
+        if (!j->ended[i] && j->done[i] < j->opt->frames && !take_frame(j, i)) return 0;
+    return write_sets(j);
+}
+
+static void job_report(const record_job *j)
+{
     sh_sync_stats ss;
-    sh_sync_get_stats(sync, &ss);
-    for (int i = 0; i < nspec; i++) {
+    sh_sync_get_stats(j->sync, &ss);
+    for (int i = 0; i < j->nspec; i++) {
         sh_source_stats st;
-        sh_source_get_stats(src[i], &st);
+        sh_source_get_stats(j->src[i], &st);
         sh_log_info("camera %d: %ld frames recorded; %llu skipped as damaged, %llu dropped by the "
                     "driver, %llu losses, %llu reopens",
-                    i, done[i], (unsigned long long)st.errors, (unsigned long long)st.drops,
+                    i, j->done[i], (unsigned long long)st.errors, (unsigned long long)st.drops,
                     (unsigned long long)st.losses, (unsigned long long)st.reopens);
     }
     sh_log_info("%llu sets (%llu incomplete), %llu late and %llu duplicate frames",
                 (unsigned long long)ss.sets, (unsigned long long)ss.incomplete, (unsigned long long)ss.late,
                 (unsigned long long)ss.duplicates);
-    if (trig)
-        sh_log_info("%llu trigger edges %s %s line %u", (unsigned long long)sh_gpio_trigger_edges(trig),
-                    trigger_out ? "driven on" : "read from", go.chip, go.line);
-    rc = stop_requested ? 130 : 0;
-    goto out;
-write_failed:
-    sh_log_error("%s", sh_error_message());
-out:
-    if (w && sh_rec_writer_close(w) != SH_OK) {
+    if (j->trig)
+        sh_log_info("%llu trigger edges %s %s line %u", (unsigned long long)sh_gpio_trigger_edges(j->trig),
+                    j->trigger_out ? "driven on" : "read from", j->go.chip, j->go.line);
+}
+
+/* Closes everything; 0 when the recording could not be completed (said). */
+static int job_close(record_job *j)
+{
+    int ok = 1;
+    if (j->w && sh_rec_writer_close(j->w) != SH_OK) {
         sh_log_error("%s", sh_error_message());
-        rc = 1;
+        ok = 0;
     }
-    sh_gpio_trigger_close(trig);
-    sh_sync_destroy(sync);
-    for (int i = 0; i < nspec; i++) sh_source_close(src[i]);
+    sh_gpio_trigger_close(j->trig);
+    sh_sync_destroy(j->sync);
+    for (int i = 0; i < j->nspec; i++) sh_source_close(j->src[i]);
+    return ok;
+}
+
+/* The cameras from the config file (--config) into o->specs and cfg; 0 (said) when it is refused. */
+static int load_config(record_options *o, sh_config *cfg)
+{
+    if (o->camera_opts) {
+        sh_log_error("--config gives the cameras, their formats and controls, the sets and the "
+                     "trigger ([cameraN], [source], [trigger]); set them there, not with --source, --format, ...");
+        return 0;
+    }
+    char err[SH_CONFIG_ERR];
+    sh_config_default(cfg);
+    if (sh_config_load_file(cfg, o->config_path, err) != SH_OK || sh_config_check(cfg, err) != SH_OK) {
+        sh_log_error("%s", err);
+        return 0;
+    }
+    o->nspec = sh_config_cameras(cfg);
+    for (int i = 0; i < o->nspec; i++) o->specs[i] = cfg->camera[i].spec;
+    return 1;
+}
+
+int cmd_record(int argc, char **argv)
+{
+    sh_log_setup(SH_LOG_TOOL, "stillheart record", SH_LOG_INFO);
+    record_options o;
+    int rc = parse_options(argc, argv, &o);
+    if (rc >= 0) return rc;
+    if (o.to_y4m_rec) {
+        if (optind != argc - 1) {
+            fprintf(stderr, "stillheart record --to-y4m REC OUT.y4m: one output file\n");
+            return 2;
+        }
+        return to_y4m(o.to_y4m_rec, argv[optind], o.camera);
+    }
+    static sh_config cfg; /* the specs point into it */
+    if (o.config_path && !load_config(&o, &cfg)) return 2;
+    if (!o.nspec || !o.frames || optind != argc - 1) {
+        usage(stderr);
+        return 2;
+    }
+    o.out_dir = argv[optind];
+    record_job j = {.opt = &o, .cfg = o.config_path ? &cfg : NULL, .nspec = o.nspec};
+    j.go = (sh_gpio_options){j.chip, 0, 0, o.trigger_out, 0, (int64_t)o.pulse_ms * 1000000};
+    j.have_trigger = o.trigger_spec != NULL, j.trigger_out = o.trigger_out;
+    if (o.trigger_spec && !parse_trigger(&o, &j.go, j.chip)) return 2;
+
+    rc = 1;
+    if (job_open(&j)) {
+        struct sigaction sa;
+        memset(&sa, 0, sizeof sa);
+        sa.sa_handler = on_signal;
+        sigaction(SIGINT, &sa, NULL);
+        sigaction(SIGTERM, &sa, NULL);
+        int step = 1;
+        while (!stop_requested && (step = job_step(&j)) > 0) continue;
+        if (stop_requested || step < 0) {
+            sh_sync_flush(j.sync);
+            if (write_sets(&j)) {
+                job_report(&j);
+                rc = stop_requested ? 130 : 0;
+            }
+        }
+    }
+    if (!job_close(&j)) rc = 1;
     return rc;
 }

@@ -3,6 +3,7 @@
 
 #include <errno.h>
 #include <fcntl.h>
+#include <pthread.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
@@ -61,7 +62,82 @@ struct sh_rec_writer {
     char path[4096];
     int failed;
     int have_stream[SH_REC_MAX_STREAMS];
+    /* sh_rec_writer_set_sync: the writer hands a sync request to a thread of its own every
+     * sync_ms, because fdatasync can take tens of ms on an SD card and the writer is the capture
+     * loop, which must not miss a frame for it */
+    int64_t sync_ns, last_request;
+    int sync_started, sync_stop, sync_failed, sync_errno;
+    unsigned requested, synced;
+    pthread_t sync_thread;
+    pthread_mutex_t mu;
+    pthread_cond_t cv;
 };
+
+static void *sync_thread(void *arg)
+{
+    sh_rec_writer *w = arg;
+    pthread_mutex_lock(&w->mu);
+    for (;;) {
+        while (w->synced == w->requested && !w->sync_stop) pthread_cond_wait(&w->cv, &w->mu);
+        if (w->synced == w->requested) break;
+        unsigned upto = w->requested;
+        pthread_mutex_unlock(&w->mu);
+        int rc = fdatasync(w->fd), e = errno;
+        pthread_mutex_lock(&w->mu);
+        if (rc != 0 && e != EINVAL && !w->sync_failed++) w->sync_errno = e; /* EINVAL: a pipe or device */
+        w->synced = upto;
+    }
+    pthread_mutex_unlock(&w->mu);
+    return NULL;
+}
+
+sh_status sh_rec_writer_set_sync(sh_rec_writer *w, int sync_ms)
+{
+    if (!w || sync_ms < 0) return sh_error_set(SH_EINVAL, "record: bad sync interval");
+    if (w->sync_started) return sh_error_set(SH_EINVAL, "%s: the sync interval is set already", w->path);
+    w->sync_ns = (int64_t)sync_ms * 1000000;
+    if (pthread_mutex_init(&w->mu, NULL) != 0) return sh_error_set(SH_ENOMEM, "record: no mutex");
+    if (pthread_cond_init(&w->cv, NULL) != 0) {
+        pthread_mutex_destroy(&w->mu);
+        return sh_error_set(SH_ENOMEM, "record: no condition variable");
+    }
+    if (pthread_create(&w->sync_thread, NULL, sync_thread, w) != 0) {
+        pthread_cond_destroy(&w->cv);
+        pthread_mutex_destroy(&w->mu);
+        return sh_error_set(SH_ENOMEM, "%s: cannot start the thread that syncs it", w->path);
+    }
+    w->sync_started = 1;
+    w->last_request = sh_monotonic_ns();
+    return SH_OK;
+}
+
+/* After a record is written: a sync request when the interval has passed since the last one. */
+static void request_sync(sh_rec_writer *w)
+{
+    if (!w->sync_started) return;
+    int64_t now = sh_monotonic_ns();
+    if (now - w->last_request < w->sync_ns) return;
+    w->last_request = now;
+    pthread_mutex_lock(&w->mu);
+    w->requested++;
+    pthread_cond_signal(&w->cv);
+    pthread_mutex_unlock(&w->mu);
+}
+
+/* Stops the sync thread (after the sync it is doing); 0 when a sync failed. */
+static int stop_sync(sh_rec_writer *w)
+{
+    if (!w->sync_started) return 1;
+    pthread_mutex_lock(&w->mu);
+    w->sync_stop = 1;
+    pthread_cond_signal(&w->cv);
+    pthread_mutex_unlock(&w->mu);
+    pthread_join(w->sync_thread, NULL);
+    pthread_cond_destroy(&w->cv);
+    pthread_mutex_destroy(&w->mu);
+    w->sync_started = 0;
+    return !w->sync_failed;
+}
 
 sh_status sh_rec_writer_create(const char *dir, sh_rec_writer **out)
 {
@@ -130,6 +206,7 @@ static sh_status put_record(sh_rec_writer *w, uint32_t type, const uint8_t *fixe
             iov[first].iov_len -= (size_t)r;
         }
     }
+    request_sync(w);
     return SH_OK;
 }
 
@@ -181,11 +258,13 @@ sh_status sh_rec_writer_set(sh_rec_writer *w, const sh_frame_set *set)
 sh_status sh_rec_writer_close(sh_rec_writer *w)
 {
     if (!w) return SH_OK;
-    int failed = w->failed;
+    int failed = w->failed, synced = stop_sync(w), e = w->sync_errno;
     sh_status st = SH_OK;
     if (fsync(w->fd) < 0 && errno != EINVAL) failed = 1;
     if (close(w->fd) < 0) failed = 1;
     if (failed) st = sh_error_set(SH_EIO, "%s: the recording is incomplete (write failed)", w->path);
+    else if (!synced) st = sh_error_set(SH_EIO, "%s: fdatasync failed (%s): what was written may not be on disk",
+                                        w->path, strerror(e));
     free(w);
     return st;
 }
