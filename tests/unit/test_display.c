@@ -14,6 +14,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <fcntl.h>
+#include <sys/ioctl.h>
 #include <sys/mman.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
@@ -901,6 +902,41 @@ static void test_bad_arguments(void **state)
     assert_int_equal(sh_display_reader_open("/stillheart-none-such", NULL, 0, &r), SH_EIO);
 }
 
+/* stillheart-cat with a terminal as standard output refuses (exit 2), says how to pipe it, and
+ * writes nothing there: binary video would only garble the terminal. */
+static void test_cat_refuses_a_terminal(void **state)
+{
+    (void)state;
+    int m = open("/dev/ptmx", O_RDWR | O_NOCTTY | O_NONBLOCK), unlock = 0, n = -1;
+    if (m < 0) skip(); /* no pseudo-terminals where the suite runs */
+    assert_int_equal(ioctl(m, TIOCSPTLCK, &unlock), 0);
+    assert_int_equal(ioctl(m, TIOCGPTN, &n), 0);
+    char pts[64], err[] = "/tmp/stillheart-cat-tty-XXXXXX";
+    snprintf(pts, sizeof pts, "/dev/pts/%d", n);
+    int efd = mkstemp(err);
+    assert_true(efd >= 0);
+    pid_t pid = fork();
+    if (pid == 0) {
+        int t = open(pts, O_WRONLY | O_NOCTTY);
+        if (t < 0 || dup2(t, 1) < 0 || dup2(efd, 2) < 0) _exit(99);
+        execl(cat_binary, cat_binary, "--name", name, "--count", "1", "--timeout", "1", (char *)NULL);
+        _exit(98);
+    }
+    int status;
+    assert_int_equal(waitpid(pid, &status, 0), pid);
+    char msg[1024] = "", tty[64];
+    ssize_t got = pread(efd, msg, sizeof msg - 1, 0);
+    msg[got > 0 ? got : 0] = 0;
+    close(efd);
+    unlink(err);
+    ssize_t shown = read(m, tty, sizeof tty); /* nothing: EAGAIN */
+    close(m);
+    if (!WIFEXITED(status) || WEXITSTATUS(status) != 2) fail_msg("status %d, said: %s", status, msg);
+    assert_non_null(strstr(msg, "terminal"));
+    assert_non_null(strstr(msg, "ffplay"));
+    assert_true(shown <= 0);
+}
+
 int main(int argc, char **argv)
 {
     (void)argc;
@@ -924,6 +960,7 @@ int main(int argc, char **argv)
         cmocka_unit_test(test_second_writer_refused),
         cmocka_unit_test(test_follow_through_a_clean_stop),
         cmocka_unit_test(test_bad_arguments),
+        cmocka_unit_test(test_cat_refuses_a_terminal),
     };
     return cmocka_run_group_tests(tests, setup, NULL);
 }

@@ -43,8 +43,10 @@ static void usage(FILE *out)
         "  -v, --verbose   each frame's status (stabilized / degraded / raw and why) and the\n"
         "                  segment's generation on stderr\n"
         "  --help          this text\n\n"
+        "Standard output must be a pipe or a file (a terminal is refused): stillheart-cat | ffplay -\n\n"
         "Exit status: 0 at --count or the daemon's clean stop (or a signal: SIGINT, SIGTERM end\n"
-        "the frame in hand first), 1 an error or the timeout, 2 bad usage, 3 the daemon came back\n"
+        "the frame in hand first), 1 an error or the timeout, 2 bad usage or a terminal as\n"
+        "standard output, 3 the daemon came back\n"
         "with another frame size (a Y4M stream has one size: start stillheart-cat again).\n",
         SH_DISPLAY_DEFAULT_NAME);
 }
@@ -152,6 +154,12 @@ int main(int argc, char **argv)
     }
     if (optind != argc) {
         usage(stderr);
+        return 2;
+    }
+    /* as gzip and ffmpeg do: binary video on a terminal only garbles it */
+    if (isatty(STDOUT_FILENO)) {
+        fprintf(stderr, "stillheart-cat: standard output is a terminal: pipe the video to a player or a file,\n"
+                        "  e.g. stillheart-cat | ffplay -f yuv4mpegpipe -i -   or   stillheart-cat --count 100 > out.y4m\n");
         return 2;
     }
     signal(SIGPIPE, SIG_IGN); /* a closed player shows as a write error, handled below */
