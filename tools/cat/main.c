@@ -46,8 +46,8 @@ static void usage(FILE *out)
         "Standard output must be a pipe or a file (a terminal is refused): stillheart-cat | ffplay -\n\n"
         "Exit status: 0 at --count or the daemon's clean stop (or a signal: SIGINT, SIGTERM end\n"
         "the frame in hand first), 1 an error or the timeout, 2 bad usage or a terminal as\n"
-        "standard output, 3 the daemon came back\n"
-        "with another frame size (a Y4M stream has one size: start stillheart-cat again).\n",
+        "standard output, 3 the daemon came back with another frame size (a Y4M stream has\n"
+        "one size: start stillheart-cat again).\n",
         SH_DISPLAY_DEFAULT_NAME);
 }
 
