@@ -467,7 +467,7 @@ static void test_phantom_windows_match_full_frame(void **state)
     assert_non_null(mkdtemp(dir));
     char cmd[PATH_MAX + 256];
     snprintf(cmd, sizeof cmd,
-             "'%s' --preset exvivo --frames 1 --cameras 1 --quiet --out '%s' >/dev/null",
+             "'%s' --preset exvivo --frames 1 --rig paper --cameras 1 --quiet --out '%s' >/dev/null",
              RENDER_BIN, dir);
     assert_int_equal(system(cmd), 0);
     char path[PATH_MAX];

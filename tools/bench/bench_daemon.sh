@@ -11,7 +11,7 @@ DIR=${BENCH_DAEMON_DIR:-out/bench-daemon}
 N=${BENCH_DAEMON_FRAMES:-1200}
 if ! head -c 256 "$DIR/cam0.y4m" 2>/dev/null | head -n 1 | grep -q XLOOP=SEAMLESS; then
     rm -f "$DIR/points.csv"
-    "$B/stillheart-render" --preset exvivo --frames 200 --cameras 1 --periodic --out "$DIR" >/dev/null || exit 1
+    "$B/stillheart-render" --preset exvivo --frames 200 --rig paper --cameras 1 --periodic --out "$DIR" >/dev/null || exit 1
 fi
 [ -s "$DIR/points.csv" ] || "$B/stillheart" track --ids 0-15 "$DIR/cam0.y4m" > "$DIR/points.csv" 2>/dev/null || exit 1
 echo "cores: $(nproc)"

@@ -46,7 +46,7 @@ int main()
     const int FRAMES = 8, REPEAT = 5;
     char dir[] = "/tmp/sh_bench_detect_XXXXXX";
     if (!mkdtemp(dir)) return 1;
-    std::string cmd = "'" + rbin + "' --preset exvivo --cameras 1 --quiet --frames " +
+    std::string cmd = "'" + rbin + "' --preset exvivo --rig paper --cameras 1 --quiet --frames " +
                       std::to_string(FRAMES) + " --out " + dir + " >/dev/null";
     if (std::system(cmd.c_str()) != 0) {
         std::fprintf(stderr, "bench_detect: the renderer failed\n");

@@ -106,7 +106,7 @@ int main(int argc, char **argv)
     const int FRAMES = 130, TIMED_FROM = 100, PASSES = 3;
     char dir[] = "/tmp/sh_bench_detect_track_XXXXXX";
     if (!mkdtemp(dir)) return 1;
-    std::string cmd = "'" + rbin + "' --preset exvivo --cameras 1 --quiet --frames " +
+    std::string cmd = "'" + rbin + "' --preset exvivo --rig paper --cameras 1 --quiet --frames " +
                       std::to_string(FRAMES) + " --out " + dir + " >/dev/null";
     std::printf("rendering %d phantom frames (1920x1080, exvivo, 16 tags)...\n", FRAMES);
     std::fflush(stdout);

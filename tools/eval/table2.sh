@@ -23,7 +23,7 @@ stamp() { echo "table2: [$(( $(date +%s) - start )) s] $*" >&2; }
 for p in $PRESETS; do
     dir=$OUT/work/$p
     stamp "render $p (1 camera, 1920x1080, the preset's length)"
-    "$RENDER" --preset "$p" --cameras 1 --quiet ${RENDER_ARGS:-} --out "$dir"
+    "$RENDER" --preset "$p" --rig paper --cameras 1 --quiet ${RENDER_ARGS:-} --out "$dir"
     "$EVAL" --truth "$dir" --export-points "$dir/points.csv"
     stamp "evaluate $p unstabilized"
     "$EVAL" --quiet --json --points "$dir/points.csv" --truth "$dir" --method none \

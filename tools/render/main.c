@@ -32,9 +32,13 @@ static void usage(FILE *f)
 "  --out DIR          output folder (created if missing)\n"
 "  --frames N         number of frames (default: the preset's)\n"
 "  --fps F            frame rate (default: the preset's)\n"
-"  --cameras K        1, 2 or 3 cameras of the trinocular rig (default 3)\n"
-"  --width W          image width, even (default 1920)\n"
-"  --height H         image height, even (default 1080); the focal length scales with W\n"
+"  --rig small|paper  small: 1 camera, 640x360, a render a laptop makes in seconds (the\n"
+"                     heart's default); paper: the paper's trinocular rig, 3 cameras at\n"
+"                     1920x1080 (the default with --calib-target: a rig is calibrated);\n"
+"                     --cameras, --width and --height change one of them\n"
+"  --cameras K        1, 2 or 3 cameras of the trinocular rig (default: the rig's)\n"
+"  --width W          image width, even (default: the rig's)\n"
+"  --height H         image height, even (default: the rig's); the focal length scales with W\n"
 "  --seed S           seed of everything random: texture, marker jitter, occlusions, noise\n"
 "                     (default 1); the same seed gives the same bytes\n"
 "  --occlusions       an instrument shaft crossing the view, blood blobs covering markers for\n"
@@ -282,7 +286,7 @@ int main(int argc, char **argv)
     int ids[PHANTOM_MAX_MARKERS];
     enum { O_PRESET = 256, O_FRAMES, O_CAMERAS, O_WIDTH, O_HEIGHT, O_SEED, O_OCC, O_BPM, O_MARKERS,
            O_TAG, O_FAMILY, O_IDS, O_FPS, O_DIST, O_NOISE, O_EXPOSURE, O_OUT, O_QUIET, O_HELP,
-           O_TARGET, O_PERIODIC, O_CAM_MOTION, O_CAM_MOTION_AT, O_FIRST_BEAT, O_FIRST_BEAT_AT };
+           O_TARGET, O_PERIODIC, O_CAM_MOTION, O_CAM_MOTION_AT, O_FIRST_BEAT, O_FIRST_BEAT_AT, O_RIG };
     static const struct option opts[] = {
         {"preset", 1, 0, O_PRESET}, {"frames", 1, 0, O_FRAMES}, {"cameras", 1, 0, O_CAMERAS},
         {"width", 1, 0, O_WIDTH}, {"height", 1, 0, O_HEIGHT}, {"seed", 1, 0, O_SEED},
@@ -293,9 +297,9 @@ int main(int argc, char **argv)
         {"help", 0, 0, O_HELP}, {"calib-target", 1, 0, O_TARGET},
         {"periodic", 0, 0, O_PERIODIC}, {"camera-motion", 1, 0, O_CAM_MOTION},
         {"camera-motion-at", 1, 0, O_CAM_MOTION_AT}, {"first-beat", 0, 0, O_FIRST_BEAT},
-        {"first-beat-at", 1, 0, O_FIRST_BEAT_AT}, {0, 0, 0, 0}};
+        {"first-beat-at", 1, 0, O_FIRST_BEAT_AT}, {"rig", 1, 0, O_RIG}, {0, 0, 0, 0}};
     rd_board board;
-    int board_mode = 0;
+    int board_mode = 0, rig = -1, set_cameras = 0, set_width = 0, set_height = 0; /* rig: 0 small, 1 paper */
     const char *heart_option = NULL; /* the last option that only the heart uses */
     int ch;
     long lv;
@@ -310,9 +314,14 @@ int main(int argc, char **argv)
         switch (ch) {
         case O_PRESET: o.preset = optarg; break;
         case O_FRAMES: if (!parse_int(optarg, 1, 1000000, &lv)) BAD("--frames '%s': a count from 1", optarg); o.frames = (int)lv; break;
-        case O_CAMERAS: if (!parse_int(optarg, 1, 3, &lv)) BAD("--cameras '%s': 1, 2 or 3", optarg); o.cameras = (int)lv; break;
-        case O_WIDTH: if (!parse_int(optarg, 16, 8192, &lv)) BAD("--width '%s': 16 to 8192", optarg); o.width = (int)lv; break;
-        case O_HEIGHT: if (!parse_int(optarg, 16, 8192, &lv)) BAD("--height '%s': 16 to 8192", optarg); o.height = (int)lv; break;
+        case O_CAMERAS: if (!parse_int(optarg, 1, 3, &lv)) BAD("--cameras '%s': 1, 2 or 3", optarg); o.cameras = (int)lv; set_cameras = 1; break;
+        case O_WIDTH: if (!parse_int(optarg, 16, 8192, &lv)) BAD("--width '%s': 16 to 8192", optarg); o.width = (int)lv; set_width = 1; break;
+        case O_HEIGHT: if (!parse_int(optarg, 16, 8192, &lv)) BAD("--height '%s': 16 to 8192", optarg); o.height = (int)lv; set_height = 1; break;
+        case O_RIG:
+            if (!strcmp(optarg, "small")) rig = 0;
+            else if (!strcmp(optarg, "paper")) rig = 1;
+            else BAD("--rig '%s': small or paper", optarg);
+            break;
         case O_SEED: {
             char *end;
             errno = 0;
@@ -368,6 +377,10 @@ int main(int argc, char **argv)
     if (o.first_beat_at > 0 && !o.first_beat) BAD("--first-beat-at: with --first-beat only");
 #undef BAD
     if (board_mode && o.frames <= 0) o.frames = 20;
+    if (rig < 0) rig = board_mode;
+    if (!set_cameras) o.cameras = rig ? 3 : 1;
+    if (!set_width) o.width = rig ? 1920 : 640;
+    if (!set_height) o.height = rig ? 1080 : 360;
 
     static phantom_model m;
     if (phantom_model_build(&o, &m) != SH_OK) {

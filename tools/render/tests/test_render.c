@@ -296,7 +296,7 @@ static void test_dense_truth_matches_pixels(void **state)
 static void test_same_seed_same_bytes(void **state)
 {
     (void)state;
-    const char *args = "--preset invivo --frames 3 --width 320 --height 180 --seed 11 --occlusions";
+    const char *args = "--preset invivo --frames 3 --cameras 3 --width 320 --height 180 --seed 11 --occlusions";
     const char *a = pt_render(0, args), *b = pt_render(1, args);
     assert_non_null(a);
     assert_non_null(b);
@@ -308,7 +308,7 @@ static void test_same_seed_same_bytes(void **state)
         snprintf(pb, sizeof pb, "%s/%s", b, files[i]);
         if (!pt_same_file(pa, pb)) fail_msg("%s differs between two runs with the same seed", files[i]);
     }
-    const char *c = pt_render(2, "--preset invivo --frames 3 --width 320 --height 180 --seed 12 --occlusions");
+    const char *c = pt_render(2, "--preset invivo --frames 3 --cameras 3 --width 320 --height 180 --seed 12 --occlusions");
     assert_non_null(c);
     snprintf(pb, sizeof pb, "%s/cam0.y4m", c);
     snprintf(pa, sizeof pa, "%s/cam0.y4m", a);
@@ -423,7 +423,7 @@ static void test_command_line(void **state)
                                  "--occlusions", "--bpm", "--markers", "--tag-size", "--out", "--family",
                                  "--ids", "--fps", "--distortion", "--noise", "--exposure", "--quiet",
                                  "--calib-target", "--periodic", "--camera-motion", "--camera-motion-at",
-                                 "--first-beat", "--first-beat-at"};
+                                 "--first-beat", "--first-beat-at", "--rig"};
     for (size_t i = 0; i < sizeof opts / sizeof opts[0]; i++)
         if (!strstr(help, opts[i])) fail_msg("--help does not mention %s", opts[i]);
     static const char *bad[] = {"--preset nope --out /tmp/x", "--preset exvivo", "--cameras 4 --out /tmp/x",
@@ -440,7 +440,7 @@ static void test_command_line(void **state)
                                 "--periodic --first-beat --out /tmp/x", "--camera-motion-at 2 --out /tmp/x",
                                 "--camera-motion bump --camera-motion-at 100 --frames 10 --out /tmp/x",
                                 "--first-beat --first-beat-at 0 --out /tmp/x",
-                                "--calib-target checkerboard:9x6:8 --camera-motion pan --out /tmp/x"};
+                                "--calib-target checkerboard:9x6:8 --camera-motion pan --out /tmp/x", "--rig huge --out /tmp/x"};
     for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
         snprintf(cmd, sizeof cmd, "'%s' %s 2>/dev/null", RENDER_BIN, bad[i]);
         int rc = system(cmd);
