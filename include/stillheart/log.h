@@ -6,8 +6,9 @@
  * decides whether and how to say it (scripts/check-includes.sh holds them to that).
  *
  * Two line styles, chosen once by sh_log_setup:
- *   SH_LOG_DAEMON  "-- INFO  [17042.898 main   ] -- message" (level, CLOCK_MONOTONIC seconds, the
- *                  thread's name), as ustreamer's log; docs/daemon.md.
+ *   SH_LOG_DAEMON  "-- INFO  [2026-12-01 09:14:05.898 main   ] -- message" (level, local wall-clock
+ *                  time to the ms, the thread's name), as ustreamer's log; docs/daemon.md. In
+ *                  the journal without the time ("-- INFO  [main   ] -- ..."): it has its own.
  *   SH_LOG_TOOL    "PROGRAM: message", as a command-line tool reports an error.
  * When stderr is the journal ($JOURNAL_STREAM names stderr's device and inode, as systemd sets it
  * for StandardError=journal), every line starts with the level's syslog priority, "<3>" to "<7>"

@@ -5,6 +5,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <time.h>
 #include <unistd.h>
 
 #include "stillheart/log.h"
@@ -72,10 +73,22 @@ static void emit(sh_log_level level, const char *suffix, const char *fmt, va_lis
     vsnprintf(msg, sizeof msg, fmt, ap);
     int n = 0;
     if (log_journal) n = snprintf(line, sizeof line, "<%d>", level_priority[level]);
-    if (log_style == SH_LOG_DAEMON)
-        snprintf(line + n, sizeof line - (size_t)n, "-- %-5s [%.3f %-7s] -- %s%s\n", level_name[level],
-                 (double)sh_monotonic_ns() / 1e9, log_thread[0] ? log_thread : "-", msg, suffix);
-    else
+    if (log_style == SH_LOG_DAEMON) {
+        /* the journal stamps every entry itself; elsewhere a reader compares the line with a
+         * clock on the wall (an incident report, a recording's file time), never with the
+         * seconds since boot */
+        char when[40] = "";
+        if (!log_journal) {
+            struct timespec ts;
+            struct tm tm;
+            clock_gettime(CLOCK_REALTIME, &ts);
+            localtime_r(&ts.tv_sec, &tm);
+            size_t k = strftime(when, sizeof when, "%Y-%m-%d %H:%M:%S", &tm);
+            snprintf(when + k, sizeof when - k, ".%03ld ", ts.tv_nsec / 1000000);
+        }
+        snprintf(line + n, sizeof line - (size_t)n, "-- %-5s [%s%-7s] -- %s%s\n", level_name[level], when,
+                 log_thread[0] ? log_thread : "-", msg, suffix);
+    } else
         snprintf(line + n, sizeof line - (size_t)n, "%s: %s%s\n", log_program, msg, suffix);
     fputs(line, stderr);
 }

@@ -66,17 +66,32 @@ static void tool_style_and_level_filter(void **state)
     assert_string_equal(captured(), "prog: bad.ini: 2\nprog: warning: odd\nprog: shown\nprog: last\n");
 }
 
-/* "-- LEVEL [seconds thread ] -- message": the seconds are CLOCK_MONOTONIC's at the call. */
+/* "-- LEVEL [YYYY-MM-DD HH:MM:SS.mmm thread ] -- message": local wall-clock time at the call. */
+static double wall_now(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_REALTIME, &ts);
+    return (double)ts.tv_sec + ts.tv_nsec / 1e9;
+}
+
 static void check_daemon_line(const char *line, const char *level, const char *thread, const char *msg,
                               double t0, double t1)
 {
     char want_head[32];
     snprintf(want_head, sizeof want_head, "-- %-5s [", level);
     assert_memory_equal(line, want_head, strlen(want_head));
-    char *end;
-    double t = strtod(line + strlen(want_head), &end);
-    assert_true(t >= t0 - 0.001 && t <= t1 + 0.001);
-    assert_int_equal(end - (line + strlen(want_head)) > 4 && end[-4] == '.', 1); /* %.3f */
+    struct tm tm;
+    memset(&tm, 0, sizeof tm);
+    int ms = -1, used = 0;
+    assert_int_equal(sscanf(line + strlen(want_head), "%4d-%2d-%2d %2d:%2d:%2d.%3d%n", &tm.tm_year, &tm.tm_mon,
+                            &tm.tm_mday, &tm.tm_hour, &tm.tm_min, &tm.tm_sec, &ms, &used), 7);
+    assert_int_equal(used, 23);
+    tm.tm_year -= 1900;
+    tm.tm_mon -= 1;
+    tm.tm_isdst = -1;
+    double t = (double)mktime(&tm) + ms / 1000.0; /* the line's time, read back as local time */
+    assert_true(t >= t0 - 0.002 && t <= t1 + 0.002);
+    const char *end = line + strlen(want_head) + used;
     char want_tail[256];
     snprintf(want_tail, sizeof want_tail, " %-7s] -- %s", thread, msg);
     assert_memory_equal(end, want_tail, strlen(want_tail));
@@ -95,7 +110,7 @@ static void daemon_style_and_thread_names(void **state)
 {
     (void)state;
     capture(SH_LOG_DAEMON, SH_LOG_INFO);
-    double t0 = (double)sh_monotonic_ns() / 1e9;
+    double t0 = wall_now();
     sh_log_set_thread("main");
     sh_log_info("reference: frame %d, %d markers", 0, 16);
     pthread_t th;
@@ -104,7 +119,7 @@ static void daemon_style_and_thread_names(void **state)
     sh_log_error("publish: %s", "gone");
     sh_log_set_thread("a-name-longer-than-fifteen");
     sh_log_info("cut");
-    double t1 = (double)sh_monotonic_ns() / 1e9;
+    double t1 = wall_now();
     char *out = captured();
     char *l2 = strchr(out, '\n') + 1, *l3 = strchr(l2, '\n') + 1, *l4 = strchr(l3, '\n') + 1;
     check_daemon_line(out, "INFO", "main", "reference: frame 0, 16 markers", t0, t1);
@@ -125,11 +140,11 @@ static void unnamed_thread_shows_dash(void **state)
 {
     (void)state;
     capture(SH_LOG_DAEMON, SH_LOG_INFO);
-    double t0 = (double)sh_monotonic_ns() / 1e9;
+    double t0 = wall_now();
     pthread_t th;
     assert_int_equal(pthread_create(&th, NULL, unnamed_thread, NULL), 0);
     pthread_join(th, NULL);
-    check_daemon_line(captured(), "INFO", "-", "who", t0, (double)sh_monotonic_ns() / 1e9);
+    check_daemon_line(captured(), "INFO", "-", "who", t0, wall_now());
 }
 
 static void once_until_cleared(void **state)
@@ -200,6 +215,23 @@ static void journal_priorities(void **state)
     assert_string_equal(captured(), "<3>prog: e\n<4>prog: w\n<6>prog: i\n<7>prog: d\nprog: plain\nprog: plain too\n");
 }
 
+/* The daemon's lines in the journal: the priority, no time (journald stamps each entry). */
+static void journal_daemon_lines_carry_no_time(void **state)
+{
+    (void)state;
+    capture(SH_LOG_DAEMON, SH_LOG_INFO);
+    struct stat st;
+    assert_int_equal(fstat(STDERR_FILENO, &st), 0);
+    char js[64];
+    snprintf(js, sizeof js, "%llu:%llu", (unsigned long long)st.st_dev, (unsigned long long)st.st_ino);
+    setenv("JOURNAL_STREAM", js, 1);
+    sh_log_setup(SH_LOG_DAEMON, "prog", SH_LOG_INFO);
+    sh_log_set_thread("main");
+    sh_log_warn("camera 0 lost");
+    unsetenv("JOURNAL_STREAM");
+    assert_string_equal(captured(), "<4>-- WARN  [main   ] -- camera 0 lost\n");
+}
+
 static void long_message_cut(void **state)
 {
     (void)state;
@@ -222,6 +254,7 @@ int main(void)
         cmocka_unit_test(once_until_cleared),
         cmocka_unit_test(at_most_once_a_period),
         cmocka_unit_test(journal_priorities),
+        cmocka_unit_test(journal_daemon_lines_carry_no_time),
         cmocka_unit_test(long_message_cut),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
