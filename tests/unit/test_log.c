@@ -189,24 +189,29 @@ static void at_most_once_a_period(void **state)
                                     "prog: late 7\n");
 }
 
+/* $JOURNAL_STREAM naming the captured stderr with its inode + ino_offset (0: it is the journal),
+ * and the log set up again to read it. */
+static void journal_stream(sh_log_style style, sh_log_level level, unsigned ino_offset)
+{
+    struct stat st;
+    assert_int_equal(fstat(STDERR_FILENO, &st), 0);
+    char js[64];
+    snprintf(js, sizeof js, "%llu:%llu", (unsigned long long)st.st_dev, (unsigned long long)st.st_ino + ino_offset);
+    setenv("JOURNAL_STREAM", js, 1);
+    sh_log_setup(style, "prog", level);
+}
+
 static void journal_priorities(void **state)
 {
     (void)state;
     capture(SH_LOG_TOOL, SH_LOG_DEBUG);
-    struct stat st;
-    assert_int_equal(fstat(STDERR_FILENO, &st), 0);
-    char js[64];
-    snprintf(js, sizeof js, "%llu:%llu", (unsigned long long)st.st_dev, (unsigned long long)st.st_ino);
-    setenv("JOURNAL_STREAM", js, 1);
-    sh_log_setup(SH_LOG_TOOL, "prog", SH_LOG_DEBUG);
+    journal_stream(SH_LOG_TOOL, SH_LOG_DEBUG, 0);
     sh_log_error("e");
     sh_log_warn("w");
     sh_log_info("i");
     sh_log_debug("d");
     /* another stream's identity (stderr redirected by a wrapper): no prefix */
-    snprintf(js, sizeof js, "%llu:%llu", (unsigned long long)st.st_dev, (unsigned long long)st.st_ino + 1);
-    setenv("JOURNAL_STREAM", js, 1);
-    sh_log_setup(SH_LOG_TOOL, "prog", SH_LOG_DEBUG);
+    journal_stream(SH_LOG_TOOL, SH_LOG_DEBUG, 1);
     sh_log_info("plain");
     setenv("JOURNAL_STREAM", "garbage", 1);
     sh_log_setup(SH_LOG_TOOL, "prog", SH_LOG_DEBUG);
@@ -220,12 +225,7 @@ static void journal_daemon_lines_carry_no_time(void **state)
 {
     (void)state;
     capture(SH_LOG_DAEMON, SH_LOG_INFO);
-    struct stat st;
-    assert_int_equal(fstat(STDERR_FILENO, &st), 0);
-    char js[64];
-    snprintf(js, sizeof js, "%llu:%llu", (unsigned long long)st.st_dev, (unsigned long long)st.st_ino);
-    setenv("JOURNAL_STREAM", js, 1);
-    sh_log_setup(SH_LOG_DAEMON, "prog", SH_LOG_INFO);
+    journal_stream(SH_LOG_DAEMON, SH_LOG_INFO, 0);
     sh_log_set_thread("main");
     sh_log_warn("camera 0 lost");
     unsetenv("JOURNAL_STREAM");
