@@ -167,6 +167,9 @@ sh_status sh_tracker_update(sh_tracker *t, const sh_detection *const *det, const
 int sh_tracker_estimates(const sh_tracker *t, sh_track_estimate *out, int max);
 
 void sh_tracker_stats(const sh_tracker *t, sh_track_stats *stats);
+/* A rate of the stats for people: "1.167 Hz", or "not estimated yet" for 0 (no estimate), never
+ * a made-up "0.000 Hz". */
+void sh_track_rate_text(double hz, char *out, size_t cap);
 
 /* The unexpected motion of the last updated frame (all zero when there was none). */
 void sh_tracker_motion(const sh_tracker *t, sh_track_motion *out);

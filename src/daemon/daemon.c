@@ -404,22 +404,26 @@ sh_status sh_daemon_run(sh_daemon *d, sh_daemon_signals *sig)
     return SH_OK;
 }
 
+/* Numbers that were never measured are not printed as 0: no latency before a frame is published,
+ * no one-minute RSS in a run shorter than a minute. */
 void sh_daemon_stats(sh_daemon *d, char *line, size_t cap)
 {
     size_t n = d->nlat;
-    qsort(d->lat, n, sizeof *d->lat, cmp_float);
-    double med = n ? d->lat[n / 2] : 0, p99 = n ? d->lat[(size_t)((double)(n - 1) * 0.99)] : 0,
-           mx = n ? d->lat[n - 1] : 0;
+    char lat[96] = "latency: no frame published", at1[40] = "";
+    if (n) {
+        qsort(d->lat, n, sizeof *d->lat, cmp_float);
+        snprintf(lat, sizeof lat, "latency ms median %.2f p99 %.2f max %.2f", d->lat[n / 2],
+                 d->lat[(size_t)((double)(n - 1) * 0.99)], d->lat[n - 1]);
+    }
     long r = rss_kb();
     if (r > d->rss_max) d->rss_max = r;
+    if (d->rss_1min) snprintf(at1, sizeof at1, " at 1 min %ld", d->rss_1min);
     snprintf(line, cap,
-             "stats: %llu published (%llu raw, %llu degraded), %llu dropped, latency ms median %.2f "
-             "p99 %.2f max %.2f, RSS kB start %ld at 1 min %ld max %ld end %ld, %d models built, "
-             "%llu black frames (output camera lost)",
+             "stats: %llu published (%llu raw, %llu degraded), %llu dropped, %s, RSS kB start %ld%s max %ld "
+             "end %ld, %d models built, %llu black frames (output camera lost)",
              (unsigned long long)d->published, (unsigned long long)d->raw_count,
-             (unsigned long long)d->degraded_count, (unsigned long long)run_pipeline_dropped(&d->pl), med, p99, mx,
-             d->rss_start, d->rss_1min, d->rss_max, r, run_pipeline_builds(&d->pl),
-             (unsigned long long)d->black_count);
+             (unsigned long long)d->degraded_count, (unsigned long long)run_pipeline_dropped(&d->pl), lat,
+             d->rss_start, at1, d->rss_max, r, run_pipeline_builds(&d->pl), (unsigned long long)d->black_count);
 }
 
 sh_status sh_daemon_destroy(sh_daemon *d)

@@ -80,10 +80,13 @@ void run_tracker_summary(const run_tracker *rt, char *out, size_t cap)
 {
     sh_track_stats s;
     sh_tracker_stats(rt->t, &s);
-    snprintf(out, cap, "tracker: %ld frames, heart %.3f Hz%s, respiration %.3f Hz; detections used %ld, gated %ld, "
+    char heart[48], resp[48];
+    sh_track_rate_text(s.heart_hz, heart, sizeof heart);
+    sh_track_rate_text(s.resp_hz, resp, sizeof resp);
+    snprintf(out, cap, "tracker: %ld frames, heart %s%s, respiration %s; detections used %ld, gated %ld, "
              "duplicated ids %ld, unknown ids %ld, inconsistent 3D %ld, taken on their neighbours' agreement %ld; "
              "markers lost %ld; camera moved in %ld frames",
-             s.frames, s.heart_hz, s.locked ? " (locked)" : "", s.resp_hz, s.accepted, s.gated, s.duplicates,
+             s.frames, heart, s.locked ? " (locked)" : "", resp, s.accepted, s.gated, s.duplicates,
              s.unknown, s.inconsistent, s.jumped, s.lost, s.camera_moves);
 }
 

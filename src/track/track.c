@@ -5,6 +5,7 @@
  *
  * Everything is sized at create (one allocation); nothing allocates per frame. */
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -469,6 +470,12 @@ int sh_tracker_estimates(const sh_tracker *t, sh_track_estimate *out, int max)
 void sh_tracker_stats(const sh_tracker *t, sh_track_stats *stats)
 {
     if (t && stats) *stats = t->stats;
+}
+
+void sh_track_rate_text(double hz, char *out, size_t cap)
+{
+    if (hz > 0) snprintf(out, cap, "%.3f Hz", hz);
+    else snprintf(out, cap, "not estimated yet");
 }
 
 void sh_tracker_motion(const sh_tracker *t, sh_track_motion *out)

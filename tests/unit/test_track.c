@@ -697,6 +697,17 @@ static void test_bad_input(void **state)
     sh_tracker_destroy(t);
 }
 
+/* The stats' rates as people read them: never "0.000 Hz" for a rate not estimated. */
+static void test_rate_text(void **state)
+{
+    (void)state;
+    char t[32];
+    sh_track_rate_text(0, t, sizeof t);
+    assert_string_equal(t, "not estimated yet");
+    sh_track_rate_text(70.0 / 60.0, t, sizeof t); /* 70 beats per minute */
+    assert_string_equal(t, "1.167 Hz");
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -712,6 +723,7 @@ int main(void)
         cmocka_unit_test(test_windows_hold_truth),
         cmocka_unit_test(test_auto_ids_refuse_still_tag),
         cmocka_unit_test(test_bad_input),
+        cmocka_unit_test(test_rate_text),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
