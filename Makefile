@@ -249,7 +249,7 @@ all: $(TOOLS)
 # unit tests run the programs too (stillheart, stillheart-cat, ...)
 tests: $(TOOL_TESTS) $(TOOLS)
 
-# The README's first command: a recording with a known motion, stabilized, e printed.
+# make demo: a recording with a known motion, stabilized offline, e printed (README, make targets).
 DEMO_DIR ?= out/demo
 DEMO_METHOD ?= bspline
 demo: deps
