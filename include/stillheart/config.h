@@ -36,6 +36,18 @@ typedef struct {
 
 typedef enum { SH_TRIGGER_OFF = 0, SH_TRIGGER_OUT, SH_TRIGGER_IN } sh_trigger_mode;
 
+#define SH_CONFIG_KEYS 128  /* room for the key table's rows (config.c asserts it) */
+#define SH_CONFIG_ORIGINS 4 /* files (and "command line") a config's keys were set from */
+
+/* Where each key was last set, for refusals that come after parsing (sh_config_check, the
+ * daemon's checks against the frame size): kept in the config so that it is copied, swapped and
+ * kept with it at a reload. Not a key: sh_config_changes and the effects never look at it. */
+typedef struct {
+    char name[SH_CONFIG_ORIGINS][SH_CONFIG_STR]; /* a file's name, or "command line" */
+    unsigned char from[SH_CONFIG_KEYS]; /* per key row: 0 the default, i + 1 name[i] */
+    int line[SH_CONFIG_KEYS];           /* per key row: the line in that file, 0 none (the command line) */
+} sh_config_origin;
+
 typedef struct {
     /* [cameraN]; [source] spec and --source are other names of camera[0].spec */
     sh_config_camera camera[SH_CONFIG_MAX_CAMERAS];
@@ -86,6 +98,7 @@ typedef struct {
     char record[SH_CONFIG_STR];      /* "", FILE.y4m or png:DIR: what is shown, also to files */
     int record_sync_ms;              /* Y4M record: flushed and synced this often (0: every frame) */
     int watchdog;                    /* 1: WATCHDOG=1 pings when systemd asks for them */
+    sh_config_origin origin;         /* where each key was set (sh_config_set records it) */
 } sh_config;
 
 /* [reference] on_camera_motion: once a moved endoscope has settled, a new reference is taken
@@ -108,8 +121,9 @@ typedef enum {
 /* The embedded defaults (the run demo's config): y4m:out/run-demo/cam0.y4m, tps, shm:/stillheart. */
 void sh_config_default(sh_config *cfg);
 
-/* Sets one key from text. origin (a file name or "command line") and line (0: none) only serve
- * the error message, written to err (SH_CONFIG_ERR bytes). */
+/* Sets one key from text. origin (a file name or "command line") and line (0: none) name the
+ * place in the error message, written to err (SH_CONFIG_ERR bytes), and are recorded in
+ * cfg->origin for sh_config_where (a key of another name, [source] spec, under the key it names). */
 sh_status sh_config_set(sh_config *cfg, const char *section, const char *key, const char *value,
                         const char *origin, int line, char *err);
 
@@ -121,7 +135,13 @@ sh_status sh_config_load_file(sh_config *cfg, const char *path, char *err);
 /* Command line: finds the key that --NAME sets (e.g. "max-residual" -> [gating] max_residual_px).
  * Returns 1 and the section/key, or 0 when no key has that option name. */
 int sh_config_option(const char *name, const char **section, const char **key, int *is_flag);
-/* Checks the whole config (consistency across keys: min_markers vs method, ...). */
+/* Where a key's value came from, as a refusal begins: "FILE:LINE: [section] key" from a file,
+ * "command line: --option VALUE" from the command line, "[section] key" when it has its default
+ * (or came from more files than the origin table holds). */
+void sh_config_where(const sh_config *cfg, const char *section, const char *key, char *out, size_t cap);
+/* Checks the whole config (consistency across keys: min_markers vs method, the [method] values
+ * against what the interpolation and the warp accept whatever the frames: docs/daemon.md);
+ * refusals begin with sh_config_where's place. */
 sh_status sh_config_check(const sh_config *cfg, char *err);
 /* Writes the config as INI (every key), e.g. for --print-config. */
 void sh_config_write(const sh_config *cfg, FILE *out);

@@ -35,6 +35,11 @@ typedef struct {
                          kernel matrix's diagonal). Other methods refuse a non-zero value. */
 } sh_interp_params;
 
+/* B-spline: the most control points of the finest lattice. A fit costs O(lattice) per frame
+ * (about 3 ms per million control points and component here), so the cap keeps it a few ms;
+ * 8 MiB per component. */
+#define SH_INTERP_BSPLINE_MAX_CONTROL (1 << 20)
+
 /* Paper defaults for the method: affine term on, sigma 95 / 100, automatic levels, exact. */
 void sh_interp_params_default(sh_interp_params *params, sh_method method);
 
@@ -43,6 +48,15 @@ void sh_interp_params_default(sh_interp_params *params, sh_method method);
  * gaussian-pure. Fills params with that method's defaults. */
 sh_status sh_interp_params_parse(const char *name, sh_interp_params *params);
 const char *sh_interp_method_name(sh_method method);
+/* The checks sh_interp_create makes of params before it sees a point (SH_EINVAL and a message
+ * "interp METHOD: ..."): a value the method would ignore (sigma, levels, smoothing of another
+ * method), sigma not > 0, and more B-spline levels than sh_interp_bspline_max_levels. */
+sh_status sh_interp_params_check(const sh_interp_params *params);
+/* The most B-spline levels whose finest lattice can hold SH_INTERP_BSPLINE_MAX_CONTROL control
+ * points: with one coarse cell each way (the fewest) level L has (2^(L-1) + 3)^2 (10 levels).
+ * Whether that many fit a given layout depends on its bounding box (up to four coarse cells
+ * along its longer side): sh_interp_create says. */
+int sh_interp_bspline_max_levels(void);
 
 typedef struct sh_interp sh_interp;
 

@@ -6,6 +6,8 @@
 
 #include "config_internal.h"
 
+#include <math.h>
+#include <stdarg.h>
 #include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -204,22 +206,59 @@ int sh_config_key(int i, const char **section, const char **key, sh_config_effec
     return 1;
 }
 
-sh_status sh_config_set_why(sh_config *cfg, const char *section, const char *key, const char *value, char *why)
+_Static_assert(NKEYS <= SH_CONFIG_KEYS, "sh_config_origin holds SH_CONFIG_KEYS rows: raise it");
+
+/* The row of [section] key, -1 when there is none; *section_known says whether the section is. */
+static int find_key(const char *section, const char *key, int *section_known)
 {
-    const keydef *k = NULL;
-    int section_known = 0;
-    for (int i = 0; i < NKEYS && !k; i++)
+    *section_known = 0;
+    for (int i = 0; i < NKEYS; i++)
         if (strcmp(keys[i].section, section) == 0) {
-            section_known = 1;
+            *section_known = 1;
             if (strcmp(keys[i].key, key) == 0)
-                k = &keys[i];
+                return i;
         }
+    return -1;
+}
+
+/* The row whose origin a key's value is recorded under: another name of a key ([source] spec)
+ * is its key's. */
+static int canonical(int i)
+{
+    for (int j = 0; keys[i].alias && j < NKEYS; j++)
+        if (!keys[j].alias && keys[j].offset == keys[i].offset && keys[j].type == keys[i].type)
+            return j;
+    return i;
+}
+
+static void record_origin(sh_config *cfg, int row, const char *origin, int line)
+{
+    sh_config_origin *o = &cfg->origin;
+    int i = 0;
+    while (i < SH_CONFIG_ORIGINS && o->name[i][0] && strncmp(o->name[i], origin, SH_CONFIG_STR - 1))
+        i++;
+    if (i == SH_CONFIG_ORIGINS || !origin[0]) { /* more places than the table holds: said as a default's */
+        o->from[row] = 0;
+        o->line[row] = 0;
+        return;
+    }
+    if (!o->name[i][0])
+        snprintf(o->name[i], sizeof o->name[i], "%s", origin);
+    o->from[row] = (unsigned char)(i + 1);
+    o->line[row] = line > 0 ? line : 0;
+}
+
+/* Sets [section] key; its row in *row. why gets "[section] key: reason" on a refusal. */
+static sh_status set_key(sh_config *cfg, const char *section, const char *key, const char *value, char *why, int *row)
+{
+    int section_known;
+    *row = find_key(section, key, &section_known);
     char reason[WHY];
     if (!section_known)
         snprintf(reason, sizeof reason, "unknown section [%s]", section);
-    else if (!k)
+    else if (*row < 0)
         snprintf(reason, sizeof reason, "unknown key");
-    else if (sh_config_parse_value(cfg, k, value, reason))
+    else if (sh_config_parse_value(cfg, &keys[*row], value, reason))
         return SH_OK;
     snprintf(why, SH_CONFIG_ERR, "[%s] %s: %s", section, key, reason);
     return SH_EINVAL;
@@ -229,14 +268,38 @@ sh_status sh_config_set(sh_config *cfg, const char *section, const char *key, co
                         const char *origin, int line, char *err)
 {
     char why[SH_CONFIG_ERR];
-    if (sh_config_set_why(cfg, section, key, value, why) == SH_OK)
+    int row;
+    if (set_key(cfg, section, key, value, why, &row) == SH_OK) {
+        record_origin(cfg, canonical(row), origin, line);
         return SH_OK;
+    }
     /* the place first, the reason cut at the message's end */
     int n = line > 0 ? snprintf(err, SH_CONFIG_ERR, "%s:%d: ", origin, line) : snprintf(err, SH_CONFIG_ERR, "%s: ", origin);
     size_t at = n < 0 ? 0 : n < SH_CONFIG_ERR ? (size_t)n : SH_CONFIG_ERR - 1;
     snprintf(err + at, SH_CONFIG_ERR - at, "%s", why);
     return SH_EINVAL;
 }
+
+void sh_config_where(const sh_config *cfg, const char *section, const char *key, char *out, size_t cap)
+{
+    int known, row = find_key(section, key, &known);
+    const sh_config_origin *o = &cfg->origin;
+    if (row >= 0)
+        row = canonical(row);
+    if (row < 0 || !o->from[row]) {
+        snprintf(out, cap, "[%s] %s", section, key);
+        return;
+    }
+    const char *name = o->name[o->from[row] - 1];
+    if (o->line[row] > 0) {
+        snprintf(out, cap, "%s:%d: [%s] %s", name, o->line[row], section, key);
+        return;
+    }
+    char v[SH_CONFIG_STR];
+    sh_config_format_value(cfg, &keys[row], 0, v, sizeof v);
+    snprintf(out, cap, "%s: --%s %s", name, keys[row].option, v[0] ? v : "''");
+}
+
 int sh_config_cameras(const sh_config *cfg)
 {
     int n = 0;
@@ -258,15 +321,62 @@ int sh_config_option(const char *name, const char **section, const char **key, i
     return 0;
 }
 
+/* The fewest markers a model is made from: the daemon's processing makes none from fewer than 3
+ * (src/daemon/run_proc.c), which every method's own minimum is at most (sh_interp_create). */
 static int method_min_markers(sh_method m)
 {
-    switch (m) {
-    case SH_METHOD_AFFINE:
-    case SH_METHOD_PWLINEAR:
-        return 3;
-    default:
-        return 3;
+    (void)m;
+    return 3;
+}
+
+/* A refusal of [section] key, begun with where its value came from (sh_config_where). */
+static __attribute__((format(printf, 5, 6))) sh_status refuse(const sh_config *cfg, const char *section, const char *key,
+                                                              char *err, const char *fmt, ...)
+{
+    sh_config_where(cfg, section, key, err, SH_CONFIG_ERR);
+    size_t at = strlen(err);
+    if (at + 2 < SH_CONFIG_ERR) {
+        memcpy(err + at, ": ", 3);
+        va_list ap;
+        va_start(ap, fmt);
+        vsnprintf(err + at + 2, SH_CONFIG_ERR - at - 2, fmt, ap);
+        va_end(ap);
     }
+    return SH_EINVAL;
+}
+
+/* [method]: what the interpolation and the warp refuse whatever the points and the frames
+ * (docs/daemon.md). sigma, levels and smoothing are checked one at a time over the method's
+ * defaults (sh_interp_params_check's rules), so that a refusal names the key at fault. */
+static sh_status check_method(const sh_config *cfg, char *err)
+{
+    static const char *const names[] = {"sigma", "levels", "smoothing"};
+    for (int i = 0; i < 3; i++) {
+        sh_interp_params p;
+        sh_interp_params_parse(cfg->method_name, &p); /* a name sh_config_set accepted */
+        if (i == 0 && cfg->sigma >= 0)
+            p.sigma = cfg->sigma;
+        if (i == 1)
+            p.levels = cfg->levels;
+        if (i == 2)
+            p.smoothing = cfg->smoothing;
+        if (sh_interp_params_check(&p) != SH_OK) {
+            const char *m = sh_error_message();
+            return refuse(cfg, "method", names[i], err, "%s", strncmp(m, "interp ", 7) ? m : m + 7);
+        }
+    }
+    /* sh_warp_model_create takes a power of two; run_proc hands it the whole pixels */
+    double g = cfg->grid;
+    if (g != 0 && (g != floor(g) || g < 1 || ((long)g & ((long)g - 1))))
+        return refuse(cfg, "method", "grid", err, "%g px is not a power of two (the warp's grid spacing: 1, 2, 4, "
+                      "... 256; 0: from the error bound)", g);
+    sh_interp_params method;
+    sh_config_method(cfg, &method);
+    int need = method_min_markers(method.method);
+    if (cfg->min_markers < need)
+        return refuse(cfg, "gating", "min_markers", err, "%d is fewer than %s needs (%d)", cfg->min_markers,
+                      cfg->method_name, need);
+    return SH_OK;
 }
 
 sh_status sh_config_check(const sh_config *cfg, char *err)
@@ -285,14 +395,8 @@ sh_status sh_config_check(const sh_config *cfg, char *err)
                  cfg->sink);
         return SH_EINVAL;
     }
-    sh_interp_params method;
-    sh_config_method(cfg, &method);
-    int need = method_min_markers(method.method);
-    if (cfg->min_markers < need) {
-        snprintf(err, SH_CONFIG_ERR, "[gating] min_markers: %d is fewer than %s needs (%d)", cfg->min_markers,
-                 cfg->method_name, need);
+    if (check_method(cfg, err) != SH_OK)
         return SH_EINVAL;
-    }
     int nids = 0;
     for (int i = 0; i < SH_CONFIG_MAX_IDS; i++)
         nids += cfg->ids[i];

@@ -29,8 +29,4 @@ int sh_config_parse_value(sh_config *cfg, const keydef *k, const char *value, ch
 /* k's value as sh_config_write writes it; exact 0: doubles in %g, for the reload's log. */
 void sh_config_format_value(const sh_config *cfg, const keydef *k, int exact, char *out, size_t cap);
 
-/* sh_config_set without the place: why gets "[section] key: reason" alone (SH_CONFIG_ERR bytes),
- * for a caller that learns the line only afterwards (inih returns it once the handler refused). */
-sh_status sh_config_set_why(sh_config *cfg, const char *section, const char *key, const char *value, char *why);
-
 #endif

@@ -18,17 +18,36 @@ typedef struct {
     const char *origin;
     char *err;
     int failed;
+    const char *next; /* inih's reader: the text left */
+    int line;         /* the line the reader gave last: the one the handler's key is on */
 } parse_ctx;
 
 #ifdef SH_HAVE_INIH
-/* Debian's inih calls the handler without a line number; a handler returning 0 makes
- * ini_parse_string return that line, which names it in the message afterwards. */
+/* Debian's inih calls the handler without a line number. inih counts a line per reader call,
+ * so this reader (ini_parse_string's, which also cuts a line longer than num into several)
+ * counts the same, and each key is set with its line: the refusal names it, and the config
+ * records it for the checks after parsing (sh_config_where). */
+static char *read_line(char *str, int num, void *stream)
+{
+    parse_ctx *c = stream;
+    if (!*c->next || num < 2)
+        return NULL;
+    int n = 0;
+    while (n < num - 1 && c->next[n] && (n == 0 || c->next[n - 1] != '\n'))
+        n++;
+    memcpy(str, c->next, (size_t)n);
+    str[n] = 0;
+    c->next += n;
+    c->line++;
+    return str;
+}
+
 static int on_key(void *user, const char *section, const char *name, const char *value)
 {
     parse_ctx *c = user;
     if (c->failed)
-        return 1; /* keep the first error's line as the one returned */
-    if (sh_config_set_why(c->cfg, section, name, value, c->err) != SH_OK) {
+        return 1; /* keep the first error */
+    if (sh_config_set(c->cfg, section, name, value, c->origin, c->line, c->err) != SH_OK) {
         c->failed = 1;
         return 0;
     }
@@ -39,16 +58,12 @@ static int on_key(void *user, const char *section, const char *name, const char 
 sh_status sh_config_parse_string(sh_config *cfg, const char *text, const char *origin, char *err)
 {
     sh_config work = *cfg; /* all or nothing */
-    parse_ctx c = {&work, origin, err, 0};
+    parse_ctx c = {&work, origin, err, 0, text, 0};
     err[0] = 0;
 #ifdef SH_HAVE_INIH
-    int r = ini_parse_string(text, on_key, &c);
-    if (c.failed) {
-        char why[SH_CONFIG_ERR];
-        snprintf(why, sizeof why, "%s", err);
-        snprintf(err, SH_CONFIG_ERR, "%.200s:%d: %.300s", origin, r, why);
+    int r = ini_parse_stream(read_line, &c, on_key, &c);
+    if (c.failed)
         return SH_EINVAL;
-    }
     if (r != 0) {
         snprintf(err, SH_CONFIG_ERR, "%s:%d: not an INI line (want [section] or key = value)",
                  origin, r > 0 ? r : 0);

@@ -310,6 +310,8 @@ run_reload run_pipeline_reload(run_pipeline *p, const sh_config *fresh, char *wh
     c.keep_disp = c.same_name && !c.new_frames && !(c.effects & SH_CONFIG_DISPLAY);
     if (st == SH_OK && c.processing)
         st = run_proc_create(fresh, &n.hdr, run_source_fps(n.src), run_source_cameras(n.src), &n.proc);
+    else if (st == SH_OK && (c.effects & SH_CONFIG_GATING))
+        st = run_proc_check(fresh, &n.hdr); /* min_markers: the model the frames allow (run_proc_create's check) */
     if (st == SH_OK && c.cameras && (st = black_frame(&n.hdr, &n.black)) == SH_OK) c.black_made = 1;
     if (st == SH_OK && !c.record && p->rec && c.new_frames)
         /* reopening the file or folder would write over what it holds */

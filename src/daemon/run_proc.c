@@ -55,9 +55,51 @@ void run_proc_times(const run_proc *p, double *markers_ms, double *model_ms, dou
     *warp_ms = p->ms[2];
 }
 
+/* The most favourable layout of n markers a width x height frame allows (n >= 3): the centres of
+ * a grid of cells as near square as the frame makes them, filled row by row. At least two rows
+ * and two columns, so three or more points are never collinear. */
+static void spread_layout(int n, int width, int height, double *xy)
+{
+    int cols = 2, rows = 2;
+    while (cols * rows < n) {
+        if ((double)width / (cols + 1) >= (double)height / (rows + 1)) cols++;
+        else rows++;
+    }
+    for (int k = 0; k < n; k++) {
+        xy[2 * k] = (k % cols + 0.5) * width / cols;
+        xy[2 * k + 1] = (k / cols + 0.5) * height / rows;
+    }
+}
+
+sh_status run_proc_check(const sh_config *cfg, const sh_y4m_header *hdr)
+{
+    if (cfg->calibration[0]) return SH_OK; /* 3D: the method interpolates over the surface, not these pixels */
+    sh_interp_params method;
+    sh_config_method(cfg, &method);
+    int n = cfg->min_markers > 3 ? cfg->min_markers : 3; /* run_proc_frame makes no model from fewer */
+    if (n > SH_TRACK_MAX_MARKERS) n = SH_TRACK_MAX_MARKERS;
+    double xy[2 * SH_TRACK_MAX_MARKERS];
+    spread_layout(n, hdr->width, hdr->height, xy);
+    sh_interp *it = NULL;
+    sh_status st = sh_interp_create(&method, xy, n, &it);
+    sh_interp_destroy(it);
+    if (st == SH_OK || st == SH_ENOMEM) return st;
+    /* the key whose value decided: the kernel's scale, the lattice's levels, else the method */
+    const char *key = method.method == SH_METHOD_GAUSSIAN || method.method == SH_METHOD_RBF_LOCAL ? "sigma"
+                      : method.method == SH_METHOD_BSPLINE ? "levels" : "name";
+    char where[SH_CONFIG_ERR], why[512];
+    sh_config_where(cfg, "method", key, where, sizeof where);
+    snprintf(why, sizeof why, "%s", sh_error_message());
+    return sh_error_set(SH_EINVAL, "%s: no model on %dx%d frames, not even from [gating] min_markers = %d markers "
+                        "spread evenly over the frame: %s", where, hdr->width, hdr->height, n,
+                        strncmp(why, "interp ", 7) ? why : why + 7);
+}
+
 sh_status run_proc_create(const sh_config *cfg, const sh_y4m_header *hdr, double fps, int cameras,
                           run_proc **out)
 {
+    sh_status cst = run_proc_check(cfg, hdr);
+    if (cst != SH_OK) return cst;
     run_proc *p = calloc(1, sizeof *p);
     if (!p) return sh_error_set(SH_ENOMEM, "processing: out of memory");
     p->cfg = *cfg;

@@ -59,7 +59,7 @@ const char *sh_interp_method_name(sh_method method)
 }
 
 /* "Option does nothing" is refused: a value the method would ignore is a mistake upstream. */
-static sh_status check_params(const sh_interp_params *p)
+sh_status sh_interp_params_check(const sh_interp_params *p)
 {
     if ((int)p->method < 0 || p->method >= SH_METHOD_COUNT)
         return sh_error_set(SH_EINVAL, "interp: unknown method %d (valid: " VALID_NAMES ")",
@@ -74,6 +74,14 @@ static sh_status check_params(const sh_interp_params *p)
         return sh_error_set(SH_EINVAL, "interp %s: levels must be >= 0 (0 = automatic)", name);
     if (p->levels != 0 && p->method != SH_METHOD_BSPLINE)
         return sh_error_set(SH_EINVAL, "interp %s: levels apply to bspline only", name);
+    if (p->levels > sh_interp_bspline_max_levels()) {
+        /* the coarsest lattice is at least one cell each way, so the finest one of L levels has
+         * at least (2^(L-1) + 3)^2 control points whatever the points */
+        double side = ldexp(1, p->levels - 1) + 3;
+        return sh_error_set(SH_EINVAL, "interp %s: %d levels make a lattice of at least %.0f control points, "
+                            "more than the %d a fit may use (at most %d levels)", name, p->levels, side * side,
+                            SH_INTERP_BSPLINE_MAX_CONTROL, sh_interp_bspline_max_levels());
+    }
     if (uses_sigma(p->method)) {
         if (!isfinite(p->sigma) || !(p->sigma > 0))
             return sh_error_set(SH_EINVAL, "interp %s: sigma must be finite and > 0 (got %g)",
@@ -104,7 +112,7 @@ sh_status sh_interp_create(const sh_interp_params *params, const double *ref_xy,
     *out = NULL;
     if (!params || (n > 0 && !ref_xy) || n < 0)
         return sh_error_set(SH_EINVAL, "interp: invalid arguments");
-    sh_status st = check_params(params);
+    sh_status st = sh_interp_params_check(params);
     if (st != SH_OK) return st;
     const char *name = method_names[params->method];
     for (int i = 0; i < n; i++)

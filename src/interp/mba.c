@@ -22,9 +22,8 @@
 #include <string.h>
 
 #define MBA_MAX_LEVELS 24
-/* Finest lattice control points: fit costs O(lattice) per frame (about 3 ms per million control
- * points and component here), so the cap keeps it a few ms; 8 MiB per component. */
-#define MBA_MAX_CONTROL (1 << 20)
+/* Finest lattice control points (interp.h's SH_INTERP_BSPLINE_MAX_CONTROL). */
+#define MBA_MAX_CONTROL SH_INTERP_BSPLINE_MAX_CONTROL
 
 typedef struct {
     double x0, y0, x1, y1; /* the points' bounding box and a margin; basis clamps queries into it */
@@ -244,6 +243,13 @@ static double next_residual_operator(const mba_impl *b, int k, int n, double *M)
         for (int j = 0; j < n; j++) biggest = fmax(biggest, fabs(row[j]));
     }
     return biggest;
+}
+
+int sh_interp_bspline_max_levels(void)
+{
+    int levels = 1;
+    while (levels < MBA_MAX_LEVELS && ((1L << levels) + 3) * ((1L << levels) + 3) <= MBA_MAX_CONTROL) levels++;
+    return levels;
 }
 
 sh_status sh_interp_bspline_init(sh_interp *it)

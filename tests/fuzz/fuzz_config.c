@@ -41,7 +41,11 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     }
     check(c.output_camera >= 0 && c.output_camera < SH_CONFIG_MAX_CAMERAS);
     check(c.trigger >= SH_TRIGGER_OFF && c.trigger <= SH_TRIGGER_IN && memchr(c.trigger_chip, 0, sizeof c.trigger_chip));
-    (void)sh_config_check(&c, err);
+    /* a refusal after parsing begins with where its key was set: this file's line, or no place */
+    if (sh_config_check(&c, err) != SH_OK) check(memchr(err, 0, SH_CONFIG_ERR) != NULL);
+    char where[SH_CONFIG_ERR];
+    sh_config_where(&c, "method", "grid", where, sizeof where);
+    check(!strncmp(where, "fuzz.ini:", 9) || !strcmp(where, "[method] grid"));
     /* write back and parse again: the same config (strings without newlines or comments only) */
     if (strpbrk(c.sink, "\n\r;#") || strpbrk(c.group, "\n\r;#") ||
         strpbrk(c.record, "\n\r;#") || strpbrk(c.points, "\n\r;#") || strpbrk(c.control, "\n\r;#") || strpbrk(c.family, "\n\r;#"))

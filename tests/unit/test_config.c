@@ -433,6 +433,114 @@ static void test_files(void **state)
     assert_string_equal(c.control_group, "surgeons");
 }
 
+/* "[method] name = METHOD" on line 2 and "KEY = VALUE" on line 5 of m.ini, parsed and checked. */
+static sh_status check_file(const char *method, const char *section, const char *key, const char *value, char *err)
+{
+    sh_config c;
+    char text[256];
+    sh_config_default(&c);
+    snprintf(text, sizeof text, "[method]\nname = %s\n\n[%s]\n%s = %s\n", method, section, key, value);
+    assert_int_equal(sh_config_parse_string(&c, text, "m.ini", err), SH_OK);
+    return sh_config_check(&c, err);
+}
+
+/* [method] values that could never make a model (issue 16), each refused by sh_config_check
+ * with the place it was set: FILE:LINE from a file, the option and its value from the command
+ * line. The bounds, from the modules that refuse them: the warp's grid spacing a power of two
+ * (sh_warp_model_create); at most 10 B-spline levels, since even one coarse cell each way makes
+ * (2^(L-1) + 3)^2 control points and 2^20 is the most a fit uses ((2^10 + 3)^2 = 1054729 at
+ * L = 11); sigma, levels and smoothing only for the methods that use them (sh_interp_create);
+ * min_markers at least 3 (the daemon makes no model from fewer). The nearest valid values pass. */
+static void test_method_refusals(void **state)
+{
+    (void)state;
+    static const struct {
+        const char *method, *section, *key, *value, *option, *want;
+    } bad[] = {
+        {"tps", "method", "grid", "3", "grid", "3 px is not a power of two"},
+        {"tps", "method", "grid", "0.5", "grid", "0.5 px is not a power of two"},
+        {"tps", "method", "grid", "12", "grid", "12 px is not a power of two"},
+        {"bspline", "method", "grid", "255", "grid", "255 px is not a power of two"},
+        {"bspline", "method", "levels", "16", "levels", "bspline: 16 levels make a lattice of at least 1073938441 control points"},
+        {"bspline", "method", "levels", "11", "levels", "bspline: 11 levels make a lattice of at least 1054729 control points"},
+        {"tps", "method", "levels", "3", "levels", "tps: levels apply to bspline only"},
+        {"tps", "method", "sigma", "50", "sigma", "tps: sigma applies to rbf-local and gaussian only"},
+        {"bspline", "method", "sigma", "1", "sigma", "bspline: sigma applies to rbf-local and gaussian only"},
+        {"gaussian", "method", "sigma", "0", "sigma", "gaussian: sigma must be finite and > 0"},
+        {"rbf-local-pure", "method", "sigma", "0", "sigma", "rbf-local: sigma must be finite and > 0"},
+        {"affine", "method", "smoothing", "1", "smoothing", "affine: smoothing applies to the RBF methods only"},
+        {"bspline", "method", "smoothing", "0.5", "smoothing", "bspline: smoothing applies to the RBF methods only"},
+        {"affine", "gating", "min_markers", "2", "min-markers", "2 is fewer than affine needs (3)"},
+        {"gaussian-pure", "gating", "min_markers", "1", "min-markers", "1 is fewer than gaussian-pure needs (3)"},
+    };
+    static const struct {
+        const char *method, *section, *key, *value;
+    } good[] = {
+        {"tps", "method", "grid", "0"},          {"tps", "method", "grid", "1"},
+        {"tps", "method", "grid", "2"},          {"tps", "method", "grid", "4"},
+        {"tps", "method", "grid", "16"},         {"bspline", "method", "grid", "256"},
+        {"bspline", "method", "levels", "10"},   {"bspline", "method", "levels", "0"},
+        {"gaussian", "method", "sigma", "0.001"}, {"rbf-local", "method", "sigma", "1e6"},
+        {"tps", "method", "sigma", "-1"},        {"tps-pure", "method", "smoothing", "1"},
+        {"affine", "gating", "min_markers", "3"},
+    };
+    char err[SH_CONFIG_ERR], want[SH_CONFIG_ERR];
+    for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+        snprintf(want, sizeof want, "m.ini:5: [%s] %s: %s", bad[i].section, bad[i].key, bad[i].want);
+        if (check_file(bad[i].method, bad[i].section, bad[i].key, bad[i].value, err) != SH_EINVAL ||
+            strncmp(err, want, strlen(want)))
+            fail_msg("file case %zu: got '%s', want '%s...'", i, err, want);
+        sh_config c;
+        sh_config_default(&c);
+        assert_int_equal(sh_config_set(&c, "method", "name", bad[i].method, "command line", 0, err), SH_OK);
+        assert_int_equal(sh_config_set(&c, bad[i].section, bad[i].key, bad[i].value, "command line", 0, err), SH_OK);
+        snprintf(want, sizeof want, "command line: --%s %s: %s", bad[i].option, bad[i].value, bad[i].want);
+        if (sh_config_check(&c, err) != SH_EINVAL || strncmp(err, want, strlen(want)))
+            fail_msg("command-line case %zu: got '%s', want '%s...'", i, err, want);
+    }
+    for (size_t i = 0; i < sizeof good / sizeof good[0]; i++)
+        if (check_file(good[i].method, good[i].section, good[i].key, good[i].value, err) != SH_OK)
+            fail_msg("valid case %zu (%s %s = %s) refused: %s", i, good[i].method, good[i].key, good[i].value, err);
+}
+
+/* Where a key was set: the last place wins, a key's other name is recorded under it, a default
+ * has no place, more files than the table holds fall back to that, and the place is no part of
+ * the value (a reload of the same values from other lines changes nothing). */
+static void test_origins(void **state)
+{
+    (void)state;
+    sh_config a, b;
+    char err[SH_CONFIG_ERR], where[SH_CONFIG_ERR];
+    sh_config_default(&a);
+    sh_config_where(&a, "method", "grid", where, sizeof where);
+    assert_string_equal(where, "[method] grid");
+    assert_int_equal(sh_config_parse_string(&a, "[source]\nspec = y4m:a.y4m\n[method]\n\ngrid = 8\n", "a.ini", err), SH_OK);
+    sh_config_where(&a, "method", "grid", where, sizeof where);
+    assert_string_equal(where, "a.ini:5: [method] grid");
+    sh_config_where(&a, "camera0", "spec", where, sizeof where);
+    assert_string_equal(where, "a.ini:2: [camera0] spec");
+    assert_int_equal(sh_config_set(&a, "method", "grid", "16", "command line", 0, err), SH_OK);
+    sh_config_where(&a, "method", "grid", where, sizeof where);
+    assert_string_equal(where, "command line: --grid 16");
+    sh_config_where(&a, "method", "nosuch", where, sizeof where);
+    assert_string_equal(where, "[method] nosuch");
+
+    sh_config_default(&b);
+    assert_int_equal(sh_config_parse_string(&b, "; moved down\n\n[method]\ngrid = 16\n[source]\nspec = y4m:a.y4m\n",
+                                            "b.ini", err), SH_OK);
+    assert_int_equal(sh_config_changes(&a, &b), 0);
+
+    const char *files[] = {"1.ini", "2.ini", "3.ini", "4.ini", "5.ini"};
+    sh_config_default(&a);
+    for (int i = 0; i < 5; i++)
+        assert_int_equal(sh_config_set(&a, "method", "grid", "4", files[i], 7, err), SH_OK);
+    sh_config_where(&a, "method", "grid", where, sizeof where);
+    assert_string_equal(where, "[method] grid");
+    assert_int_equal(sh_config_set(&a, "method", "grid", "4", "2.ini", 9, err), SH_OK);
+    sh_config_where(&a, "method", "grid", where, sizeof where);
+    assert_string_equal(where, "2.ini:9: [method] grid");
+}
+
 int main(int argc, char **argv)
 {
     (void)argc;
@@ -457,6 +565,8 @@ int main(int argc, char **argv)
         cmocka_unit_test(test_refusals),
         cmocka_unit_test(test_cameras_and_trigger),
         cmocka_unit_test(test_check_across_keys),
+        cmocka_unit_test(test_method_refusals),
+        cmocka_unit_test(test_origins),
         cmocka_unit_test(test_processing_keys),
         cmocka_unit_test(test_options_and_write_round_trip),
         cmocka_unit_test(test_files),

@@ -1,8 +1,9 @@
 /* The daemon as a module (daemon.h), driven in-process as `stillheart run` drives it: a refused
  * trace file names itself and leaves nothing open; a replay of frames without markers publishes
  * max_frames raw frames; a stop flag set before the loop publishes nothing; a reload whose config
- * cannot be read is refused and the loop goes on. The counts come from the input (N frames, no
- * markers in them, max_frames), read back through the stats line. */
+ * cannot be read is refused and the loop goes on; a [method] no model can come from on these
+ * frames is refused at start and at a reload, naming its file and line. The counts come from the
+ * input (N frames, no markers in them, max_frames), read back through the stats line. */
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -10,6 +11,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <fcntl.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -62,14 +64,22 @@ static int teardown(void **state)
     return rmdir(tmp);
 }
 
-static void config(sh_config *cfg)
+/* The replay's config, then extra (INI text, "hup.ini") over it. */
+static sh_status config_with(sh_config *cfg, const char *extra, char *err)
 {
-    char ini[512], err[SH_CONFIG_ERR];
+    char ini[512];
     snprintf(ini, sizeof ini, "[camera0]\nspec = y4m:%s\n[source]\nrealtime = 0\nloop = 0\n[sink]\ndisplay = none\n"
              "[run]\ncontrol =\n", video);
     sh_config_default(cfg);
     assert_int_equal(sh_config_parse_string(cfg, ini, "test", err), SH_OK);
-    assert_int_equal(sh_config_check(cfg, err), SH_OK);
+    sh_status st = sh_config_parse_string(cfg, extra, "hup.ini", err);
+    return st == SH_OK ? sh_config_check(cfg, err) : st;
+}
+
+static void config(sh_config *cfg)
+{
+    char err[SH_CONFIG_ERR];
+    assert_int_equal(config_with(cfg, "", err), SH_OK);
 }
 
 static int loads;
@@ -140,6 +150,88 @@ static void test_reload_refused(void **state)
     assert_memory_equal(stats, "stats: 2 published (2 raw, 0 degraded)", 38);
 }
 
+/* SIGHUP's config: the replay's with this text over it. */
+static const char *hup_text;
+static sh_status load_hup(void *ctx, sh_config *fresh, char *err)
+{
+    (void)ctx;
+    return config_with(fresh, hup_text, err);
+}
+
+/* Runs a daemon started on start_text (over the replay's config) that reloads hup_text at its
+ * first frame and publishes 2; returns its log (stderr) in log. */
+static void run_reload(const char *start_text, const char *hup, char *log, size_t cap)
+{
+    char path[160], err[SH_CONFIG_ERR], stats[512];
+    snprintf(path, sizeof path, "%s/log", tmp);
+    hup_text = hup;
+    fflush(stderr);
+    int saved = dup(2), fd = open(path, O_WRONLY | O_CREAT | O_TRUNC, 0600);
+    assert_true(saved >= 0 && fd >= 0);
+    dup2(fd, 2);
+    close(fd);
+    sh_log_set_level(SH_LOG_INFO); /* "config reloaded" */
+    sh_config cfg;
+    assert_int_equal(config_with(&cfg, start_text, err), SH_OK);
+    sh_daemon_signals sig = {.reload = 1};
+    sh_daemon_options o = {.max_frames = 2, .load = load_hup};
+    sh_daemon *d = NULL;
+    assert_int_equal(sh_daemon_create(&cfg, &o, &d), SH_OK);
+    assert_int_equal(sh_daemon_start(d), SH_OK);
+    assert_int_equal(sh_daemon_run(d, &sig), SH_OK);
+    sh_daemon_stats(d, stats, sizeof stats);
+    assert_int_equal(sh_daemon_destroy(d), SH_OK);
+    sh_log_set_level(SH_LOG_WARN);
+    fflush(stderr);
+    dup2(saved, 2);
+    close(saved);
+    assert_memory_equal(stats, "stats: 2 published (2 raw, 0 degraded)", 38);
+    FILE *f = fopen(path, "r");
+    assert_non_null(f);
+    size_t n = fread(log, 1, cap - 1, f);
+    log[n] = 0;
+    fclose(f);
+    unlink(path);
+}
+
+/* Issue 16: a [method] that no model can come from on these 64x48 frames, even with [gating]
+ * min_markers markers spread evenly over them, is refused at start (SH_EINVAL: `stillheart run`
+ * exits 2) and at a reload (the running config kept), naming the file and line. The Gaussian's
+ * bounds here: with 6 markers its system is singular from sigma 1e4 (rcond < 1e-15), not at 3000;
+ * with 16 from 316, not at 100 (measured with sh_interp_create on that layout). A reload that
+ * changes only min_markers is checked as well. */
+static void test_model_the_frames_cannot_give(void **state)
+{
+    (void)state;
+    char err[SH_CONFIG_ERR], log[8192];
+    sh_config cfg;
+    assert_int_equal(config_with(&cfg, "[method]\nname = gaussian\nsigma = 1e4\n", err), SH_OK);
+    sh_daemon_options o = {0};
+    sh_daemon *d = NULL;
+    assert_int_equal(sh_daemon_create(&cfg, &o, &d), SH_EINVAL);
+    assert_null(d);
+    const char *want = "hup.ini:3: [method] sigma: no model on 64x48 frames, not even from [gating] min_markers = 6 "
+                       "markers spread evenly over the frame: gaussian: the interpolation system is singular";
+    if (strncmp(sh_error_message(), want, strlen(want))) fail_msg("got '%s'", sh_error_message());
+
+    run_reload("", "[method]\nname = gaussian\nsigma = 1e6\n", log, sizeof log);
+    if (!strstr(log, "reload refused, keeping the running config: hup.ini:3: [method] sigma: no model on 64x48 frames"))
+        fail_msg("sigma 1e6 reload: %s", log);
+    run_reload("[method]\nname = gaussian\nsigma = 1000\n",
+               "[method]\nname = gaussian\nsigma = 1000\n[gating]\nmin_markers = 16\n", log, sizeof log);
+    if (!strstr(log, "reload refused, keeping the running config: hup.ini:3: [method] sigma: no model on 64x48 "
+                     "frames, not even from [gating] min_markers = 16 markers"))
+        fail_msg("min_markers 16 reload: %s", log);
+    /* the nearest valid values: applied */
+    run_reload("", "[method]\nname = gaussian\nsigma = 3000\n", log, sizeof log);
+    if (strstr(log, "refused") || !strstr(log, "config reloaded: method tps -> gaussian, sigma -1 -> 3000"))
+        fail_msg("sigma 3000 reload: %s", log);
+    run_reload("[method]\nname = gaussian\nsigma = 100\n",
+               "[method]\nname = gaussian\nsigma = 100\n[gating]\nmin_markers = 16\n", log, sizeof log);
+    if (strstr(log, "refused") || !strstr(log, "config reloaded"))
+        fail_msg("min_markers 16 at sigma 100 reload: %s", log);
+}
+
 /* A replay without loop ends: the loop stops after its last frame, every frame published. */
 static void test_replay_ends(void **state)
 {
@@ -160,6 +252,7 @@ int main(void)
         cmocka_unit_test(test_stop_before),
         cmocka_unit_test(test_reload_refused),
         cmocka_unit_test(test_replay_ends),
+        cmocka_unit_test(test_model_the_frames_cannot_give),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }

@@ -421,6 +421,30 @@ static void test_params(void **state)
     assert_null(it);
 }
 
+/* The B-spline level bound: the finest of L levels has at least (2^(L-1) + 3)^2 control points
+ * (one coarse cell each way), so with 2^20 of them at most 10 levels (1027^2 = 1054729 > 2^20 at
+ * 11): refused before any point is seen, with the count; 10 levels on a square layout build. */
+static void test_bspline_level_bound(void **state)
+{
+    (void)state;
+    assert_int_equal(SH_INTERP_BSPLINE_MAX_CONTROL, 1048576);
+    assert_int_equal(sh_interp_bspline_max_levels(), 10);
+    sh_interp_params p;
+    sh_interp_params_default(&p, SH_METHOD_BSPLINE);
+    p.levels = 11;
+    assert_int_equal(sh_interp_params_check(&p), SH_EINVAL);
+    assert_non_null(strstr(sh_error_message(), "11 levels make a lattice of at least 1054729 control points"));
+    p.levels = 16;
+    assert_int_equal(sh_interp_params_check(&p), SH_EINVAL);
+    assert_non_null(strstr(sh_error_message(), "at least 1073938441 control points"));
+    p.levels = 10;
+    assert_int_equal(sh_interp_params_check(&p), SH_OK);
+    const double square[] = {100, 100, 400, 100, 100, 400, 400, 400, 250, 250};
+    sh_interp *it = NULL;
+    assert_int_equal(sh_interp_create(&p, square, 5, &it), SH_OK);
+    sh_interp_destroy(it);
+}
+
 /* The local RBF's basis is sparse: only points closer than sigma, within max_terms. */
 static void test_local_sparse(void **state)
 {
@@ -494,6 +518,7 @@ int main(void)
         cmocka_unit_test(test_pwlinear_outside),
         cmocka_unit_test(test_degenerate),
         cmocka_unit_test(test_params),
+        cmocka_unit_test(test_bspline_level_bound),
         cmocka_unit_test(test_local_sparse),
         cmocka_unit_test(test_gaussian_factors),
     };
