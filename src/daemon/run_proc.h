@@ -8,15 +8,15 @@
 
 typedef struct run_proc run_proc;
 
-/* Tracker and detector from [detect], models from [method] (built on a helper thread), markers
- * from [run] points in test mode. fps: the stream's (0: 30). With [method] calibration (as many
- * cameras as configured, 2+): tracking in 3D over every camera's frames and warp3d. */
 /* What the frame size decides of a 2D config (docs/daemon.md, "What a config must imply"): the
  * [method] makes a model from [gating] min_markers markers spread evenly over width x height
  * frames, the most favourable layout they allow; SH_EINVAL naming the key and where it was set
  * when it does not (a Gaussian so wide that the system is singular). run_proc_create checks it;
  * a reload that changes only gating keys calls it itself. */
 sh_status run_proc_check(const sh_config *cfg, const sh_y4m_header *hdr);
+/* Tracker and detector from [detect], models from [method] (built on a helper thread), markers
+ * from [run] points in test mode. fps: the stream's (0: 30). With [method] calibration (as many
+ * cameras as configured, 2+): tracking in 3D over every camera's frames and warp3d. */
 sh_status run_proc_create(const sh_config *cfg, const sh_y4m_header *hdr, double fps, int cameras, run_proc **out);
 void run_proc_destroy(run_proc *p);
 /* SIGHUP: the keys of effect SH_CONFIG_GATING take effect from the next frame. */
