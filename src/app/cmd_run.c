@@ -64,8 +64,8 @@ static void usage(FILE *out)
         "  1  a fault a restart can mend: a device or the display's name unavailable at start, a\n"
         "     reload that left no camera, a record or trace file that could not be written\n"
         "  2  what no restart mends: a bad config or command line; a missing or bad points,\n"
-        "     calibration or replayed camera file at start; a replay damaged where frames lie behind\n"
-        "     the damage\n"
+        "     calibration or replayed camera file at start; a camera whose frames are over [source]\n"
+        "     max_frame_pixels; a replay damaged where frames lie behind the damage\n"
         "  6  not configured: no camera named\n");
 }
 
