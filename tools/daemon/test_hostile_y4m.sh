@@ -100,6 +100,8 @@ fails = []
 # 16 MiB: allocator and thread start-up slack between runs. A hostile header that reached a single
 # allocation of the frame it asks for (16384x16384: 256 MiB grey, 384 MiB I420) would be over the
 # bound many times, even at 4096x2160 (8.4 MiB grey, 13 MiB I420, times the 8 pool buffers).
+# wait4's peak is an upper bound: it counts the forked python's pages before the exec too (about
+# 15 MiB, what every refusal shows; /usr/bin/time -v gives such a run 11 MiB).
 st, err, control = run("y4m:" + good, ["--no-loop"])
 if st != 0: fails.append("control run: exit %d: %s" % (st, err[-300:]))
 bound = control + 16 * 1024
