@@ -30,6 +30,11 @@ typedef enum {
 #define SH_IMAGE_MAX_PLANES 3
 /* Largest width or height: the warp's 16.16 fixed-point positions cover +-16384 px. */
 #define SH_IMAGE_MAX_SIZE 16384
+/* The most pixels (width x height) one stream's frame may have unless a caller sets its own
+ * bound (the daemon's [source] max_frame_pixels): the largest camera stillheart supports, a 4K
+ * UHD endoscope tower's 3840x2160 (issue 20). SH_IMAGE_MAX_SIZE alone would let a header ask
+ * for 16384x16384, 768 MiB a 4:4:4 frame. */
+#define SH_FRAME_PIXELS_DEFAULT (3840 * 2160)
 
 typedef struct {
     uint8_t *data;
@@ -53,6 +58,11 @@ const char *sh_pixfmt_name(sh_pixfmt format);
 
 /* Bytes one frame of this format occupies when its planes are packed without padding. */
 size_t sh_image_packed_size(sh_pixfmt format, int width, int height);
+
+/* SH_OK when width x height is at most max_pixels; else SH_ERANGE with a message naming `name`,
+ * the size and the bound. Called where a stream's size becomes known, before its frames are
+ * allocated. */
+sh_status sh_image_check_pixels(const char *name, int width, int height, long long max_pixels);
 
 /* Allocates an image (rows 32-byte aligned, contents zeroed). */
 sh_status sh_image_create(sh_image *img, sh_pixfmt format, int width, int height);

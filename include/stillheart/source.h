@@ -37,6 +37,8 @@ typedef struct {
     int fps_num, fps_den;  /* requested rate (frames per second = num/den); 0 = leave */
     int buffers;           /* V4L2 buffers asked for (>= 2 accepted); 0 = 4 */
     int timeout_ms;        /* no frame for this long = camera lost; 0 = 1000 */
+    int max_frame_pixels;  /* a stream of larger frames (width x height) is refused at open with
+                            * SH_ERANGE, before any frame is allocated; 0 = SH_FRAME_PIXELS_DEFAULT */
     int backoff_min_ms, backoff_max_ms; /* reopen back-off; 0 = 100 and 5000 */
     /* Controls, set when not SH_SOURCE_CTRL_UNSET, the automatic one switched off first where
      * the camera has it; a control the camera does not list, or a value outside its range,

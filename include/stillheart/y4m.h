@@ -45,8 +45,13 @@ typedef struct sh_y4m_reader sh_y4m_reader;
 /* path "-" reads stdin. A bad header fails here with a message naming the file, and so does,
  * for a regular file, a header whose frame size is more than the file holds after it (a header
  * only, no frame, is a clean empty stream). Width and height are at most SH_IMAGE_MAX_SIZE, so
- * a frame's byte count never overflows. */
+ * a frame's byte count never overflows, and a frame of more than SH_FRAME_PIXELS_DEFAULT pixels
+ * (width x height, image.h) is refused (SH_ERANGE, naming the size and the bound), on a pipe
+ * too, before anyone allocates one. */
 sh_status sh_y4m_reader_open(const char *path, sh_y4m_reader **out);
+/* sh_y4m_reader_open with the caller's bound on a frame's pixels instead of the default (the
+ * daemon's [source] max_frame_pixels). */
+sh_status sh_y4m_reader_open_max(const char *path, long long max_pixels, sh_y4m_reader **out);
 const sh_y4m_header *sh_y4m_reader_header(const sh_y4m_reader *reader);
 /* Reads the next frame into img (created by the caller with the header's format and size).
  * Returns SH_EEOF at a clean end; a damaged FRAME line or a truncated frame returns SH_EFORMAT
@@ -68,7 +73,8 @@ typedef struct {
 int sh_y4m_reader_damage(const sh_y4m_reader *reader, sh_y4m_damage *damage);
 void sh_y4m_reader_close(sh_y4m_reader *reader);
 /* Reads from a stream the caller opened (a pipe, fmemopen); name is used in messages. The
- * caller keeps the FILE and closes it after sh_y4m_reader_close. */
+ * caller keeps the FILE and closes it after sh_y4m_reader_close. Frames are bounded as by
+ * sh_y4m_reader_open. */
 sh_status sh_y4m_reader_open_file(FILE *file, const char *name, sh_y4m_reader **out);
 
 typedef struct sh_y4m_writer sh_y4m_writer;

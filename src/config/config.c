@@ -2,6 +2,7 @@
  * comparing configs key by key, the command-line names, the checks across keys and writing back.
  * The kinds of value (text to value and back) are in value.c, reading INI text and files in ini.c. */
 #include "stillheart/config.h"
+#include "stillheart/image.h"
 #include "stillheart/track.h"
 
 #include "config_internal.h"
@@ -46,6 +47,8 @@ static const keydef keys[] = {
     {"source", "sync_tolerance_ms", "sync-tolerance-ms", K_DOUBLE, SRC, F(sync_tolerance_ms), 0, 0, 1000, "frames this close form a set (0: a quarter frame period)"},
     {"source", "sync_wait_ms", "sync-wait-ms", K_DOUBLE, SRC, F(sync_wait_ms), 0, 0, 10000, "a set waits this long for a missing frame (0: two frame periods)"},
     {"source", "camera_timeout_ms", "camera-timeout-ms", K_INT, SRC, F(camera_timeout_ms), 0, 10, 60000, "no frame for this long: the camera is reopened"},
+    {"source", "max_frame_pixels", "max-frame-pixels", K_INT, SRC, F(max_frame_pixels), 0, 1, SH_IMAGE_MAX_SIZE * SH_IMAGE_MAX_SIZE,
+     "a camera's frames of more pixels (width x height) are refused at open, before any is allocated (default: 3840x2160)"},
     CAMERA_KEYS(0),
     CAMERA_KEYS(1),
     CAMERA_KEYS(2),
@@ -102,6 +105,7 @@ void sh_config_default(sh_config *cfg)
     cfg->realtime = 1;
     cfg->loop = 1;
     cfg->camera_timeout_ms = 1000;
+    cfg->max_frame_pixels = SH_FRAME_PIXELS_DEFAULT;
     snprintf(cfg->trigger_chip, sizeof cfg->trigger_chip, "gpiochip0");
     cfg->trigger_pulse_us = 1000;
     snprintf(cfg->family, sizeof cfg->family, "tag36h11");

@@ -104,9 +104,10 @@ sh_status run_pipeline_open(run_pipeline *p, const sh_config *cfg)
     p->cfg = *cfg;
     stamps(p); /* before the files are read: one rewritten meanwhile is read again at a reload */
     sh_status st = run_source_open(cfg, &p->src);
-    /* input a restart cannot mend: replayed files (every camera a y4m: or rec: file), and what
-     * processing reads (points, calibration) */
-    int input = st != SH_OK && all_replays(cfg);
+    /* input a restart cannot mend: replayed files (every camera a y4m: or rec: file), a camera
+     * whose frames are over [source] max_frame_pixels, and what processing reads (points,
+     * calibration) */
+    int input = st != SH_OK && (all_replays(cfg) || st == SH_ERANGE);
     if (st == SH_OK) {
         p->hdr = *run_source_header(p->src);
         st = run_proc_create(cfg, &p->hdr, run_source_fps(p->src), run_source_cameras(p->src), &p->proc);

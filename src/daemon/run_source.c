@@ -14,6 +14,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <time.h>
 
 #include "stillheart/log.h"
@@ -284,13 +285,23 @@ static void *trigger_thread(void *arg)
     return NULL;
 }
 
+/* A y4m: camera's file opened a second time (its header, its frame count) is read from the
+ * start only when it is a regular file: a FIFO or stdin would block for a writer that has gone,
+ * or take bytes from the stream the camera reads. */
+static int regular_file(const char *path)
+{
+    struct stat sb;
+    return stat(path, &sb) == 0 && S_ISREG(sb.st_mode);
+}
+
 /* Frames in a Y4M file (for the points test mode, whose frame numbers restart with each loop):
  * from its size when every frame header is a bare "FRAME" (so a long 1080p file is not read
- * through at start), else by reading it. */
-static int count_y4m_frames(const char *path)
+ * through at start), else by reading it; 0 (unknown) for a pipe. */
+static int count_y4m_frames(const char *path, int max_pixels)
 {
     sh_y4m_reader *r;
-    if (sh_y4m_reader_open(path, &r) != SH_OK) return 0;
+    if (!regular_file(path)) return 0;
+    if (sh_y4m_reader_open_max(path, max_pixels, &r) != SH_OK) return 0;
     const sh_y4m_header *h = sh_y4m_reader_header(r);
     size_t frame = sh_image_packed_size(h->format, h->width, h->height) + 6; /* "FRAME\n" */
     int n = 0;
@@ -330,13 +341,17 @@ static sh_status open_camera(run_source *rs, const sh_config *cfg, int i)
     sh_status st = sh_source_open(spec, &o, &k->src);
     char what[32];
     snprintf(what, sizeof what, "[camera%d] spec", i);
+    if (st == SH_ERANGE) /* the bound, not the camera, may be what is wrong: name it */
+        return sh_error_set(st, "%s: %s ([source] max_frame_pixels = %d)", what, sh_error_message(),
+                            cfg->max_frame_pixels);
     if (st != SH_OK) return sh_error_set(st, "%s: %s", what, sh_error_message());
     sh_source_format(k->src, &k->format, &k->width, &k->height, &k->fps_num, &k->fps_den);
     if (k->format == SH_RAW_MJPEG && (st = sh_pixconv_create(k->width, k->height, &k->conv)) != SH_OK) return st;
     sh_pixfmt pf = k->format == SH_RAW_GREY ? SH_PIX_GRAY8 : SH_PIX_I420;
     for (int b = 0; b < POOL; b++)
         if ((st = sh_image_create(&k->pool[b], pf, k->width, k->height)) != SH_OK) return st;
-    if (cfg->points[0] && !strncmp(spec, "y4m:", 4)) k->nframes = count_y4m_frames(spec + 4);
+    if (cfg->points[0] && !strncmp(spec, "y4m:", 4))
+        k->nframes = count_y4m_frames(spec + 4, cfg->max_frame_pixels);
     return SH_OK;
 }
 
@@ -383,7 +398,8 @@ sh_status run_source_open(const sh_config *cfg, run_source **out)
      * the input; cameras get one from their format */
     sh_y4m_reader *r = NULL;
     const char *ospec = cfg->camera[rs->out].spec;
-    if (!strncmp(ospec, "y4m:", 4) && sh_y4m_reader_open(ospec + 4, &r) == SH_OK) {
+    if (!strncmp(ospec, "y4m:", 4) && regular_file(ospec + 4) &&
+        sh_y4m_reader_open_max(ospec + 4, cfg->max_frame_pixels, &r) == SH_OK) {
         rs->hdr = *sh_y4m_reader_header(r);
         rs->hdr.format = ko->pool[0].format;
         sh_y4m_reader_close(r);

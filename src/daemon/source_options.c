@@ -24,6 +24,7 @@ void sh_daemon_camera_options(const sh_config *cfg, int i, sh_source_options *o)
     o->fps_num = c->fps_num;
     o->fps_den = c->fps_den;
     o->timeout_ms = cfg->camera_timeout_ms;
+    o->max_frame_pixels = cfg->max_frame_pixels;
     o->exposure = c->exposure;
     o->gain = c->gain;
     o->white_balance = c->white_balance;

@@ -58,6 +58,14 @@ size_t sh_image_packed_size(sh_pixfmt format, int width, int height)
     return total;
 }
 
+sh_status sh_image_check_pixels(const char *name, int width, int height, long long max_pixels)
+{
+    long long px = (long long)width * (long long)height;
+    if (px <= max_pixels) return SH_OK;
+    return sh_error_set(SH_ERANGE, "%s: %dx%d frames (%lld pixels) are more than the %lld pixels a stream may have",
+                        name, width, height, px, max_pixels);
+}
+
 static void describe(sh_image *img, sh_pixfmt format, int width, int height)
 {
     memset(img, 0, sizeof *img);

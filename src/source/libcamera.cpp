@@ -570,6 +570,10 @@ sh_status open_camera(const char *name, const sh_source_options *o, Impl **out, 
         destroy(m);
         return st;
     }
+    if ((st = sh_source_check_pixels(o, "libcamera", name, (int)sc.size.width, (int)sc.size.height)) != SH_OK) {
+        destroy(m); /* before the allocator: the buffers would be this size */
+        return st;
+    }
     if (m->camera->configure(m->config.get()) != 0) {
         st = sh_error_set(SH_EIO, "libcamera:%s: configure %s failed", name, sc.toString().c_str());
         destroy(m);

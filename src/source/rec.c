@@ -171,6 +171,10 @@ sh_status sh_source_open_rec(const char *path, const sh_source_options *opts, sh
         r_close(&r->rp.base);
         return sh_error_set(SH_EINVAL, "rec:%s: no camera %d in the recording", path, opts->camera);
     }
+    if ((st = sh_source_check_pixels(opts, "rec", path, s->width, s->height)) != SH_OK) {
+        r_close(&r->rp.base);
+        return st;
+    }
     r->stream = *s;
     r->rp.base.format = s->format;
     r->rp.base.width = s->width;

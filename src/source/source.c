@@ -12,6 +12,20 @@ void sh_source_options_default(sh_source_options *o)
     o->format = -1;
     o->exposure = o->gain = o->white_balance = SH_SOURCE_CTRL_UNSET;
     o->realtime = 1;
+    o->max_frame_pixels = SH_FRAME_PIXELS_DEFAULT;
+}
+
+long long sh_source_max_pixels(const sh_source_options *o)
+{
+    return o->max_frame_pixels > 0 ? o->max_frame_pixels : SH_FRAME_PIXELS_DEFAULT;
+}
+
+sh_status sh_source_check_pixels(const sh_source_options *o, const char *kind, const char *path, int width,
+                                 int height)
+{
+    char name[300];
+    snprintf(name, sizeof name, "%s:%s", kind, path);
+    return sh_image_check_pixels(name, width, height, sh_source_max_pixels(o));
 }
 
 void sh_source_sleep_until(int64_t t)

@@ -67,6 +67,13 @@ sh_status sh_replay_stop(sh_source *s);
 /* Closes the timer (the backend frees the rest). */
 void sh_replay_close(sh_replay *rp);
 
+/* opts->max_frame_pixels, or the default where it is 0. */
+long long sh_source_max_pixels(const sh_source_options *opts);
+/* A stream's size against that bound, where the backend learns it and before it
+ * allocates or maps a frame: SH_ERANGE naming kind:path, the size and the bound. */
+sh_status sh_source_check_pixels(const sh_source_options *opts, const char *kind, const char *path, int width,
+                                 int height);
+
 /* t0 + k frames at num/den frames per second, exact in integers (no overflow for any k). */
 int64_t sh_source_schedule_ns(int64_t t0, uint64_t k, int fps_num, int fps_den);
 /* Sleeps until the absolute CLOCK_MONOTONIC time (ns). */

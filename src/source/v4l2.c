@@ -157,6 +157,8 @@ static sh_status open_device(v4l2_source *v, int first)
                           fmt.fmt.pix.height, sh_rawfmt_name(got));
         goto out;
     }
+    if ((st = sh_source_check_pixels(o, "v4l2", v->path, (int)fmt.fmt.pix.width, (int)fmt.fmt.pix.height)) != SH_OK)
+        goto out; /* before REQBUFS: the driver allocates the buffers we would map */
     if (fmt.fmt.pix.field != V4L2_FIELD_NONE && fmt.fmt.pix.field != V4L2_FIELD_ANY) {
         st = sh_error_set(SH_EUNSUPPORTED, "v4l2:%s: interlaced field order %u not supported", v->path,
                           fmt.fmt.pix.field);

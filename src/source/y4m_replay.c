@@ -4,7 +4,8 @@
  * the sequence and the schedule going on; the first frame of the new pass is flagged a
  * discontinuity unless the header says the end joins the start (XLOOP=SEAMLESS). The pollable
  * fd is a timerfd armed at the next due time. Two frame slots, allocated at open, after the
- * reader checked the header's frame size against the file's. Damage: met_damage. */
+ * reader checked the header's frame size against the file's and against the options' bound on
+ * a frame's pixels (a pipe's size cannot be known). Damage: met_damage. */
 #include "source_internal.h"
 
 #include <errno.h>
@@ -43,7 +44,7 @@ static sh_status rewind_reader(y4m_source *y)
 {
     sh_y4m_reader_close(y->reader);
     y->reader = NULL;
-    sh_status st = sh_y4m_reader_open(y->path, &y->reader);
+    sh_status st = sh_y4m_reader_open_max(y->path, sh_source_max_pixels(&y->rp.base.opts), &y->reader);
     if (st != SH_OK) return st;
     const sh_y4m_header *h = sh_y4m_reader_header(y->reader);
     if (h->width != y->rp.base.width || h->height != y->rp.base.height || h->format != y->pixfmt)
@@ -129,7 +130,7 @@ sh_status sh_source_open_y4m(const char *path, const sh_source_options *opts, sh
     if (!y) return sh_error_set(SH_ENOMEM, "y4m:%s: out of memory", path);
     sh_replay_init(&y->rp, &ops, opts);
     snprintf(y->path, sizeof y->path, "%s", path);
-    sh_status st = sh_y4m_reader_open(path, &y->reader);
+    sh_status st = sh_y4m_reader_open_max(path, sh_source_max_pixels(opts), &y->reader);
     if (st != SH_OK) {
         y_close(&y->rp.base);
         return st;

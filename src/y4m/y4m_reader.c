@@ -1,7 +1,9 @@
 /* Y4M reader. Works on pipes: nothing here seeks, and a frame is read with fread straight into
  * the caller's planes, so a frame costs a few large reads and no copy. On a regular file the
  * header's frame size is checked against the file's size at open, before a caller allocates a
- * frame: a 184 KB file cannot make anyone allocate 16384x16384 frames. */
+ * frame: a 184 KB file cannot make anyone allocate 16384x16384 frames. On a pipe, where that
+ * cannot be known, the bound on a frame's pixels (the caller's, or SH_FRAME_PIXELS_DEFAULT)
+ * does it, on files too. */
 #include "y4m_internal.h"
 
 #include <errno.h>
@@ -45,7 +47,7 @@ static long read_line(FILE *f, char *buf, size_t cap)
     }
 }
 
-static sh_status open_common(FILE *f, const char *name, int owns, char *vbuf,
+static sh_status open_common(FILE *f, const char *name, int owns, char *vbuf, long long max_pixels,
                              sh_y4m_reader **out)
 {
     sh_y4m_reader *r = calloc(1, sizeof *r);
@@ -86,6 +88,9 @@ static sh_status open_common(FILE *f, const char *name, int owns, char *vbuf,
                               "after its header: not one whole frame (a damaged header or a cut file)",
                               name, h->width, h->height, sh_pixfmt_name(h->format), frame - 6, rest);
     }
+    /* a pipe's size is unknown, and a file large enough for one frame may still ask for more
+     * than anyone should allocate for a stream */
+    if (st == SH_OK) st = sh_image_check_pixels(name, r->header.width, r->header.height, max_pixels);
     if (st != SH_OK) {
         sh_y4m_reader_close(r);
         return st;
@@ -95,6 +100,11 @@ static sh_status open_common(FILE *f, const char *name, int owns, char *vbuf,
 }
 
 sh_status sh_y4m_reader_open(const char *path, sh_y4m_reader **out)
+{
+    return sh_y4m_reader_open_max(path, SH_FRAME_PIXELS_DEFAULT, out);
+}
+
+sh_status sh_y4m_reader_open_max(const char *path, long long max_pixels, sh_y4m_reader **out)
 {
     if (!path || !out) return sh_error_set(SH_EINVAL, "y4m: missing argument");
     *out = NULL;
@@ -107,14 +117,14 @@ sh_status sh_y4m_reader_open(const char *path, sh_y4m_reader **out)
         free(vbuf);
         vbuf = NULL;
     }
-    return open_common(f, is_stdin ? "<stdin>" : path, !is_stdin, vbuf, out);
+    return open_common(f, is_stdin ? "<stdin>" : path, !is_stdin, vbuf, max_pixels, out);
 }
 
 sh_status sh_y4m_reader_open_file(FILE *file, const char *name, sh_y4m_reader **out)
 {
     if (!file || !out) return sh_error_set(SH_EINVAL, "y4m: missing argument");
     *out = NULL;
-    return open_common(file, name ? name : "y4m", 0, NULL, out);
+    return open_common(file, name ? name : "y4m", 0, NULL, SH_FRAME_PIXELS_DEFAULT, out);
 }
 
 const sh_y4m_header *sh_y4m_reader_header(const sh_y4m_reader *reader)

@@ -1,7 +1,9 @@
 /* libFuzzer: arbitrary bytes as a Y4M stream. Reads every frame, and checks that whatever was
  * read writes back and reads again to the same header and pixels (a round-trip oracle, so the
  * fuzzer finds wrong answers as well as crashes). The same bytes as a regular file (a memfd)
- * take the path that measures the header's frame size against the file and the damage. */
+ * take the path that measures the header's frame size against the file and the damage, and,
+ * opened by name with a bound on a frame's pixels taken from the input's length, the bound's
+ * refusal: every accepted header is within its bound, every refused one over it. */
 #define _GNU_SOURCE
 #include <stdint.h>
 #include <stdio.h>
@@ -67,9 +69,46 @@ static void as_file(const uint8_t *data, size_t size)
     fclose(f);
 }
 
+/* The header's pixels when its first line parses, else -1. */
+static long long header_pixels(const uint8_t *data, size_t size)
+{
+    const char *nl = memchr(data, '\n', size);
+    sh_y4m_header h;
+    if (!nl || sh_y4m_header_parse((const char *)data, (size_t)(nl - (const char *)data), &h) != SH_OK) return -1;
+    return (long long)h.width * h.height;
+}
+
+/* Opened by name with a caller's bound (the input's length: as often over as under it): an
+ * accepted stream is within it, a refusal for it (SH_ERANGE) names the file and comes from a
+ * header that parsed and is over it. Streams of unknown size take the default bound. */
+static void bounded(const uint8_t *data, size_t size)
+{
+    int fd = memfd_create("fuzz.y4m", 0);
+    if (fd < 0) return;
+    if (write(fd, data, size) != (ssize_t)size) {
+        close(fd);
+        return;
+    }
+    char path[64];
+    snprintf(path, sizeof path, "/proc/self/fd/%d", fd);
+    long long bound = (long long)size, px = header_pixels(data, size);
+    sh_y4m_reader *r = NULL;
+    sh_status st = sh_y4m_reader_open_max(path, bound, &r);
+    if (st == SH_OK) {
+        const sh_y4m_header *h = sh_y4m_reader_header(r);
+        check((long long)h->width * h->height <= bound && (long long)h->width * h->height == px);
+        sh_y4m_reader_close(r);
+    } else {
+        check(r == NULL && strstr(sh_error_message(), path) != NULL);
+        if (st == SH_ERANGE) check(px > bound);
+    }
+    close(fd);
+}
+
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {
     as_file(data, size);
+    bounded(data, size);
     if (size == 0) return 0; /* fmemopen refuses an empty buffer */
     const char *nl = memchr(data, '\n', size);
     sh_y4m_header parsed;
@@ -85,7 +124,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     }
     const sh_y4m_header *h = sh_y4m_reader_header(r);
     size_t bytes = sh_image_packed_size(h->format, h->width, h->height);
-    check(bytes > 0);
+    check(bytes > 0 && (long long)h->width * h->height <= SH_FRAME_PIXELS_DEFAULT);
     sh_image img, back;
     if (bytes > MAX_FRAME_BYTES || sh_image_create(&img, h->format, h->width, h->height) != SH_OK) {
         sh_y4m_reader_close(r);

@@ -353,6 +353,22 @@ static void test_hostile_headers(void **state)
         snprintf(want, sizeof want, why[i], 184000 - n);
         expect_in(sh_error_message(), want);
     }
+    /* a file that holds its frame: the options' bound, not the file, refuses it (at its size: accepted) */
+    size_t n = strlen(heads[4]);
+    memcpy(buf, heads[4], n);
+    memcpy(buf + n, "FRAME\n", 6);
+    put_file(buf, n + 6 + 32 * 16 * 3 / 2);
+    sh_source_options o;
+    sh_source_options_default(&o);
+    assert_int_equal(o.max_frame_pixels, 3840 * 2160);
+    sh_source *s = NULL;
+    o.max_frame_pixels = 32 * 16 - 1;
+    assert_int_equal(sh_source_open(spec, &o, &s), SH_ERANGE);
+    assert_null(s);
+    expect_in(sh_error_message(), "32x16 frames (512 pixels) are more than the 511 pixels a stream may have");
+    o.max_frame_pixels = 32 * 16;
+    assert_int_equal(sh_source_open(spec, &o, &s), SH_OK);
+    sh_source_close(s);
     getrusage(RUSAGE_SELF, &ru);
     print_message("peak RSS %ld KiB before the hostile headers, %ld KiB after\n", before, ru.ru_maxrss);
     assert_true(ru.ru_maxrss - before < 16 * 1024);

@@ -360,6 +360,53 @@ static void test_frame_size_against_file(void **state)
     fclose(mem);
 }
 
+/* The bound on a frame's pixels, where the file's size cannot help (a stream of unknown size,
+ * fmemopen here as a pipe) and where it does not (a file holding the frames): 3840x2160 is the
+ * default bound exactly (image.h), one more column is refused, and a caller's bound replaces it. */
+static sh_status open_mem(const char *text, sh_y4m_reader **r)
+{
+    static char buf[128];
+    snprintf(buf, sizeof buf, "%s", text);
+    FILE *mem = fmemopen(buf, strlen(buf), "rb");
+    assert_non_null(mem);
+    sh_status st = sh_y4m_reader_open_file(mem, "pipe", r);
+    if (st == SH_OK) sh_y4m_reader_close(*r);
+    fclose(mem);
+    return st;
+}
+
+static void expect_in_message(const char *needle)
+{
+    if (!strstr(sh_error_message(), needle)) {
+        print_error("message '%s' lacks '%s'\n", sh_error_message(), needle);
+        fail();
+    }
+}
+
+static void test_frame_pixels_bounded(void **state)
+{
+    (void)state;
+    sh_y4m_reader *r;
+    assert_int_equal(open_mem("YUV4MPEG2 W16384 H16384 C444\nFRAME\n0123", &r), SH_ERANGE);
+    expect_in_message("pipe: 16384x16384 frames (268435456 pixels) are more than the 8294400 pixels a stream may have");
+    assert_int_equal(open_mem("YUV4MPEG2 W3841 H2160 Cmono\nFRAME\n0123", &r), SH_ERANGE);
+    expect_in_message("3841x2160 frames (8296560 pixels)");
+    assert_int_equal(open_mem("YUV4MPEG2 W3840 H2160 C444\nFRAME\n0123", &r), SH_OK);
+    assert_int_equal(open_mem("YUV4MPEG2 W2160 H3840\n", &r), SH_OK);
+    /* a regular file that holds its frames: the file's size is no bound, the caller's is */
+    const char data[] = "YUV4MPEG2 W4 H2 Cmono\nFRAME\n12345678FRAME\n12345678";
+    const char *p = tmp_path("bounded.y4m");
+    write_bytes(p, data, sizeof data - 1);
+    r = (sh_y4m_reader *)1;
+    assert_int_equal(sh_y4m_reader_open_max(p, 7, &r), SH_ERANGE);
+    assert_null(r);
+    expect_in_message(p);
+    expect_in_message("4x2 frames (8 pixels) are more than the 7 pixels");
+    assert_int_equal(sh_y4m_reader_open_max(p, 8, &r), SH_OK);
+    assert_int_equal(sh_y4m_reader_whole_frames(r), 2);
+    sh_y4m_reader_close(r);
+}
+
 static void test_frame_parameters_skipped(void **state)
 {
     (void)state;
@@ -506,6 +553,7 @@ int main(void)
         cmocka_unit_test(test_damaged_headers),
         cmocka_unit_test(test_truncated_and_damaged_frames),
         cmocka_unit_test(test_frame_size_against_file),
+        cmocka_unit_test(test_frame_pixels_bounded),
         cmocka_unit_test(test_frame_parameters_skipped),
         cmocka_unit_test(test_wrong_image_refused),
         cmocka_unit_test(test_stdin_pipe),

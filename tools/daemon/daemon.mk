@@ -22,6 +22,13 @@ $(BUILD)/tests/test_record_kill: tools/daemon/test_record_kill.sh $(APP)
 	chmod +x $@
 TOOL_TESTS += $(BUILD)/tests/test_record_kill
 
+# Memory bounded by the config, not by an input: hostile Y4M headers and damaged streams (issue 16).
+$(BUILD)/tests/test_hostile_y4m: tools/daemon/test_hostile_y4m.sh $(APP)
+	@mkdir -p $(dir $@)
+	cp $< $@
+	chmod +x $@
+TOOL_TESTS += $(BUILD)/tests/test_hostile_y4m
+
 # make run-demo: a short phantom, the daemon on it in real time for a few seconds, and
 # stillheart-cat showing that frames arrive (docs/daemon.md). 960x540 (as make demo): at 1080p a
 # busy 2-core machine drops frames before the tracker has locked the heart rate, and the demo
