@@ -63,14 +63,10 @@ static void usage(FILE *out)
         "  0  stopped by a signal, --max-frames or the end of a replay\n"
         "  1  a fault a restart can mend: a device or the display's name unavailable at start, a\n"
         "     reload that left no camera, a record or trace file that could not be written\n"
-        "  2  what no restart mends: a bad config or command line (also one from which no model can
-"
-        "     come on the frames: docs/daemon.md); a missing or bad points, calibration or replayed
-"
-        "     camera file at start; a camera whose frames are over [source] max_frame_pixels; a
-"
-        "     replay damaged where frames lie behind the damage
-"
+        "  2  what no restart mends: a bad config or command line (also one from which no model can\n"
+        "     come on the frames: docs/daemon.md); a missing or bad points, calibration or replayed\n"
+        "     camera file at start; a camera whose frames are over [source] max_frame_pixels; a\n"
+        "     replay damaged where frames lie behind the damage\n"
         "  6  not configured: no camera named\n");
 }
 
