@@ -16,6 +16,10 @@ int cmd_record(int argc, char **argv);
 int cmd_run(int argc, char **argv);
 int cmd_ctl(int argc, char **argv);
 
+/* What a subcommand's parse_options returns when the command goes on; anything else is the exit
+ * code (0 after --help). */
+#define APP_GO_ON (-1)
+
 /* Parses a whole decimal number / a finite real; on failure prints "OPTION: reason" and
  * returns 0. */
 int app_parse_int(const char *option, const char *text, int min, int max, int *out);

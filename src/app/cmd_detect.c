@@ -81,9 +81,18 @@ static int windows_from(const sh_detection *d, int n, double scale, sh_window *w
     return k;
 }
 
-int cmd_detect(int argc, char **argv)
+/* What the command line asks for; filled by parse_options only (the options/runtime split of
+ * ustreamer: detect_job below holds what the run opens). */
+typedef struct {
+    sh_detector_options det;
+    int use_windows;
+    double scale; /* --window-scale */
+    const char *in;
+} detect_options;
+
+/* Fills o from argv: APP_GO_ON, or the exit code (usage and refusals printed). */
+static int parse_options(int argc, char **argv, detect_options *o)
 {
-    sh_log_setup(SH_LOG_TOOL, "stillheart detect", SH_LOG_INFO);
     static const struct option options[] = {
         {"family", required_argument, 0, 'f'},     {"full-frame", no_argument, 0, 'F'},
         {"windows", no_argument, 0, 'w'},          {"window-scale", required_argument, 0, 'W'},
@@ -91,24 +100,23 @@ int cmd_detect(int argc, char **argv)
         {"sharpening", required_argument, 0, 'S'}, {"no-refine-edges", no_argument, 0, 'R'},
         {"max-hamming", required_argument, 0, 'H'}, {"threads", required_argument, 0, 't'},
         {"help", no_argument, 0, 'h'},             {0, 0, 0, 0}};
-    sh_detector_options o;
-    sh_detector_options_default(&o);
-    int use_windows = 0;
-    double scale = 1.6;
+    sh_detector_options_default(&o->det);
+    o->use_windows = 0;
+    o->scale = 1.6;
     int opt;
     optind = 1;
     while ((opt = getopt_long(argc, argv, "", options, NULL)) != -1) {
         switch (opt) {
-        case 'f': o.family = optarg; break;
-        case 'F': use_windows = 0; break;
-        case 'w': use_windows = 1; break;
-        case 'W': if (!app_parse_double("--window-scale", optarg, 1.0, 10.0, &scale)) return 2; break;
-        case 'd': if (!app_parse_double("--decimate", optarg, 1.0, 16.0, &o.quad_decimate)) return 2; break;
-        case 's': if (!app_parse_double("--sigma", optarg, -10.0, 10.0, &o.quad_sigma)) return 2; break;
-        case 'S': if (!app_parse_double("--sharpening", optarg, 0.0, 10.0, &o.decode_sharpening)) return 2; break;
-        case 'R': o.refine_edges = 0; break;
-        case 'H': if (!app_parse_int("--max-hamming", optarg, 0, 3, &o.max_hamming)) return 2; break;
-        case 't': if (!app_parse_int("--threads", optarg, 1, 64, &o.threads)) return 2; break;
+        case 'f': o->det.family = optarg; break;
+        case 'F': o->use_windows = 0; break;
+        case 'w': o->use_windows = 1; break;
+        case 'W': if (!app_parse_double("--window-scale", optarg, 1.0, 10.0, &o->scale)) return 2; break;
+        case 'd': if (!app_parse_double("--decimate", optarg, 1.0, 16.0, &o->det.quad_decimate)) return 2; break;
+        case 's': if (!app_parse_double("--sigma", optarg, -10.0, 10.0, &o->det.quad_sigma)) return 2; break;
+        case 'S': if (!app_parse_double("--sharpening", optarg, 0.0, 10.0, &o->det.decode_sharpening)) return 2; break;
+        case 'R': o->det.refine_edges = 0; break;
+        case 'H': if (!app_parse_int("--max-hamming", optarg, 0, 3, &o->det.max_hamming)) return 2; break;
+        case 't': if (!app_parse_int("--threads", optarg, 1, 64, &o->det.threads)) return 2; break;
         case 'h': usage(stdout); return 0;
         default: usage(stderr); return 2;
         }
@@ -118,61 +126,118 @@ int cmd_detect(int argc, char **argv)
         usage(stderr);
         return 2;
     }
-    const char *in = argv[optind];
-    sh_detector *det = NULL;
-    if (sh_detector_create(&o, &det) != SH_OK) {
+    o->in = argv[optind];
+    return APP_GO_ON;
+}
+
+/* The detector and its buffers, from detect_open to detect_close. */
+typedef struct {
+    sh_detector *det;
+    sh_detection *found, *prev; /* this frame's detections, the last frame's (--windows) */
+    sh_window *win;
+    int nprev, full_count;      /* full_count: tags found at the last whole-frame scan */
+} detect_job;
+
+/* 0, or 1 with the reason printed (detect_close frees either way). */
+static int detect_open(detect_job *j, const detect_options *o)
+{
+    memset(j, 0, sizeof *j);
+    if (sh_detector_create(&o->det, &j->det) != SH_OK) {
         sh_log_error("%s", sh_error_message());
         return 1;
     }
-    sh_detection *found = malloc(MAX_DETECTIONS * sizeof *found);
-    sh_detection *prev = malloc(MAX_DETECTIONS * sizeof *prev);
-    sh_window *win = malloc(SH_DETECT_MAX_WINDOWS * sizeof *win);
-    int rc = 0;
-    if (!found || !prev || !win) {
+    j->found = malloc(MAX_DETECTIONS * sizeof *j->found);
+    j->prev = malloc(MAX_DETECTIONS * sizeof *j->prev);
+    j->win = malloc(SH_DETECT_MAX_WINDOWS * sizeof *j->win);
+    if (!j->found || !j->prev || !j->win) {
         sh_log_error("out of memory");
-        rc = 1;
-        goto done;
+        return 1;
     }
-    printf("frame,id,cx,cy,x0,y0,x1,y1,x2,y2,x3,y3,margin\n");
+    return 0;
+}
 
-    int is_video = !strcmp(in, "-") || ends_with(in, ".y4m");
-    if (!is_video) {
-        FILE *f = fopen(in, "rb");
-        char magic[9] = {0};
-        if (f) {
-            is_video = fread(magic, 1, 9, f) == 9 && !memcmp(magic, "YUV4MPEG2", 9);
-            fclose(f);
-        }
-    }
-    if (!is_video) {
-        sh_image img;
-        int n = 0;
-        if (sh_imageio_read_gray(in, &img) != SH_OK ||
-            sh_detector_detect(det, &img, found, MAX_DETECTIONS, &n) != SH_OK) {
-            sh_log_error("%s", sh_error_message());
-            rc = 1;
-        } else {
-            print_detections(0, found, n < MAX_DETECTIONS ? n : MAX_DETECTIONS);
-        }
-        sh_image_destroy(&img);
-        goto done;
-    }
+static void detect_close(detect_job *j)
+{
+    free(j->found);
+    free(j->prev);
+    free(j->win);
+    sh_detector_destroy(j->det);
+}
 
-    sh_y4m_reader *reader = NULL;
-    if (sh_y4m_reader_open(in, &reader) != SH_OK) {
+/* A Y4M file by its name or its first bytes (anything else is read as an image). */
+static int is_video(const char *path)
+{
+    if (!strcmp(path, "-") || ends_with(path, ".y4m")) return 1;
+    int video = 0;
+    FILE *f = fopen(path, "rb");
+    char magic[9] = {0};
+    if (f) {
+        video = fread(magic, 1, 9, f) == 9 && !memcmp(magic, "YUV4MPEG2", 9);
+        fclose(f);
+    }
+    return video;
+}
+
+/* A still image: its detections as frame 0. 0, or 1 with the reason printed. */
+static int detect_image(detect_job *j, const char *path)
+{
+    sh_image img;
+    int n = 0, rc = 0;
+    if (sh_imageio_read_gray(path, &img) != SH_OK ||
+        sh_detector_detect(j->det, &img, j->found, MAX_DETECTIONS, &n) != SH_OK) {
         sh_log_error("%s", sh_error_message());
         rc = 1;
-        goto done;
+    } else {
+        print_detections(0, j->found, n < MAX_DETECTIONS ? n : MAX_DETECTIONS);
+    }
+    sh_image_destroy(&img);
+    return rc;
+}
+
+/* One video frame: whole, or in windows around the last frame's tags (--windows) and whole
+ * again when some were lost. 0, or 1 with the reason printed. */
+static int detect_frame(detect_job *j, const detect_options *o, const sh_image *frame, int index)
+{
+    int n = 0;
+    sh_status st;
+    if (o->use_windows && j->nprev > 0) {
+        int nw = windows_from(j->prev, j->nprev, o->scale, j->win);
+        st = sh_detector_detect_windows(j->det, frame, j->win, nw, j->found, MAX_DETECTIONS, &n);
+        if (st == SH_OK && n < j->full_count) /* lost some: look everywhere again */
+            st = sh_detector_detect(j->det, frame, j->found, MAX_DETECTIONS, &n), j->full_count = n;
+    } else {
+        st = sh_detector_detect(j->det, frame, j->found, MAX_DETECTIONS, &n);
+        j->full_count = n;
+    }
+    if (st != SH_OK) {
+        sh_log_error("%s: frame %d: %s", o->in, index,
+                     sh_error_message());
+        return 1;
+    }
+    if (n > MAX_DETECTIONS) n = MAX_DETECTIONS;
+    print_detections(index, j->found, n);
+    memcpy(j->prev, j->found, (size_t)n * sizeof *j->found);
+    j->nprev = n;
+    return 0;
+}
+
+/* Every frame of a Y4M video: 0, or 1 with the reason printed (the frames before it are
+ * printed). */
+static int detect_video(detect_job *j, const detect_options *o)
+{
+    sh_y4m_reader *reader = NULL;
+    if (sh_y4m_reader_open(o->in, &reader) != SH_OK) {
+        sh_log_error("%s", sh_error_message());
+        return 1;
     }
     const sh_y4m_header *hdr = sh_y4m_reader_header(reader);
     sh_image frame;
     if (sh_image_create(&frame, hdr->format, hdr->width, hdr->height) != SH_OK) {
         sh_log_error("%s", sh_error_message());
         sh_y4m_reader_close(reader);
-        rc = 1;
-        goto done;
+        return 1;
     }
-    int nprev = 0, full_count = 0;
+    int rc = 0;
     for (int index = 0;; index++) {
         sh_status st = sh_y4m_reader_read(reader, &frame);
         if (st == SH_EEOF) break;
@@ -181,37 +246,28 @@ int cmd_detect(int argc, char **argv)
             rc = 1;
             break;
         }
-        int n = 0;
-        if (use_windows && nprev > 0) {
-            int nw = windows_from(prev, nprev, scale, win);
-            st = sh_detector_detect_windows(det, &frame, win, nw, found, MAX_DETECTIONS, &n);
-            if (st == SH_OK && n < full_count) /* lost some: look everywhere again */
-                st = sh_detector_detect(det, &frame, found, MAX_DETECTIONS, &n), full_count = n;
-        } else {
-            st = sh_detector_detect(det, &frame, found, MAX_DETECTIONS, &n);
-            full_count = n;
-        }
-        if (st != SH_OK) {
-            sh_log_error("%s: frame %d: %s", in, index,
-                         sh_error_message());
-            rc = 1;
-            break;
-        }
-        if (n > MAX_DETECTIONS) n = MAX_DETECTIONS;
-        print_detections(index, found, n);
-        memcpy(prev, found, (size_t)n * sizeof *found);
-        nprev = n;
+        if ((rc = detect_frame(j, o, &frame, index))) break;
     }
     sh_image_destroy(&frame);
     sh_y4m_reader_close(reader);
-done:
+    return rc;
+}
+
+int cmd_detect(int argc, char **argv)
+{
+    sh_log_setup(SH_LOG_TOOL, "stillheart detect", SH_LOG_INFO);
+    detect_options o;
+    int rc = parse_options(argc, argv, &o);
+    if (rc != APP_GO_ON) return rc;
+    detect_job j;
+    if (!(rc = detect_open(&j, &o))) {
+        printf("frame,id,cx,cy,x0,y0,x1,y1,x2,y2,x3,y3,margin\n");
+        rc = is_video(o.in) ? detect_video(&j, &o) : detect_image(&j, o.in);
+    }
     if (fflush(stdout) != 0) {
         sh_log_error("cannot write the output");
         rc = 1;
     }
-    free(found);
-    free(prev);
-    free(win);
-    sh_detector_destroy(det);
+    detect_close(&j);
     return rc;
 }

@@ -67,16 +67,6 @@ static int parse_ids(const char *text, int *ids, int *n)
     return *n > 0;
 }
 
-typedef struct {
-    const char *in[SH_TRACK_MAX_CAMERAS];
-    int ncam;
-    sh_calib calib;
-    int have_calib;
-    sh_detector *det;
-    sh_track_options topts;
-    int measured_only, stats;
-} track_job;
-
 /* Same id, same place (within 1 px): one tag found by two overlapping windows. */
 static int dedupe(sh_detection *d, int n)
 {
@@ -90,40 +80,157 @@ static int dedupe(sh_detection *d, int n)
     return w;
 }
 
-/* One pass: max_frames (< 0: all). out NULL: no output; confirmed (when not NULL) gets the ids
- * confirmed at the end. Returns 0 on success. */
-static int run_pass(track_job *job, int max_frames, FILE *out, int *confirmed, int *nconfirmed)
+/* What the command line asks for; filled by parse_options only (the options/runtime split of
+ * ustreamer: track_job and track_pass below hold what the run opens). */
+typedef struct {
+    const char *in[SH_TRACK_MAX_CAMERAS];
+    int ncam;
+    const char *calib_path, *family;
+    int ids[SH_TRACK_MAX_MARKERS], nids; /* --ids; none: found by a first pass */
+    double fps;
+    sh_track_options topts; /* --noise, --lost-after, --spatial */
+    int measured_only, stats;
+} track_options;
+
+/* Fills o from argv: APP_GO_ON, or the exit code (usage and refusals printed). */
+static int parse_options(int argc, char **argv, track_options *o)
 {
-    int rc = 1;
-    sh_y4m_reader *rd[SH_TRACK_MAX_CAMERAS] = {0};
+    static const struct option longopts[] = {
+        {"cameras", required_argument, 0, 'c'}, {"ids", required_argument, 0, 'i'},
+        {"family", required_argument, 0, 'f'},  {"fps", required_argument, 0, 'r'},
+        {"noise", required_argument, 0, 'n'},   {"lost-after", required_argument, 0, 'l'},
+        {"spatial", required_argument, 0, 's'}, {"measured-only", no_argument, 0, 'm'},
+        {"stats", no_argument, 0, 'S'},         {"help", no_argument, 0, 'h'},
+        {0, 0, 0, 0}};
+    memset(o, 0, sizeof *o);
+    sh_track_options_default(&o->topts);
+    optind = 1;
+    int ch;
+    while ((ch = getopt_long(argc, argv, "", longopts, NULL)) != -1) {
+        switch (ch) {
+        case 'c': o->calib_path = optarg; break;
+        case 'i':
+            if (!parse_ids(optarg, o->ids, &o->nids)) {
+                fprintf(stderr, "--ids: '%s' is not a list like 0-15 or 1,4,7 (at most %d ids)\n",
+                        optarg, SH_TRACK_MAX_MARKERS);
+                return 2;
+            }
+            break;
+        case 'f': o->family = optarg; break;
+        case 'r': if (!app_parse_double("--fps", optarg, 0.1, 1000, &o->fps)) return 2; break;
+        case 'n': if (!app_parse_double("--noise", optarg, 0.01, 20, &o->topts.meas_sigma)) return 2; break;
+        case 'l': if (!app_parse_double("--lost-after", optarg, 0.1, 60, &o->topts.lost_after)) return 2; break;
+        case 's':
+            if (!strcmp(optarg, "off")) o->topts.spatial = SH_SPATIAL_OFF;
+            else if (!strcmp(optarg, "fuse")) o->topts.spatial = SH_SPATIAL_FUSE;
+            else {
+                fprintf(stderr, "--spatial: off or fuse, not '%s'\n", optarg);
+                return 2;
+            }
+            break;
+        case 'm': o->measured_only = 1; break;
+        case 'S': o->stats = 1; break;
+        case 'h': usage(stdout); return 0;
+        default: usage(stderr); return 2;
+        }
+    }
+    o->ncam = argc - optind;
+    if (o->ncam < 1 || o->ncam > SH_TRACK_MAX_CAMERAS) {
+        usage(stderr);
+        return 2;
+    }
+    for (int c = 0; c < o->ncam; c++) o->in[c] = argv[optind + c];
+    return APP_GO_ON;
+}
+
+/* What both passes share, from track_open to track_close. */
+typedef struct {
+    const track_options *o;
+    sh_calib calib;
+    int have_calib;
+    sh_detector *det;
+    sh_track_options topts; /* the options' with the frame rate, then the ids */
+    int ids[SH_TRACK_MAX_MARKERS], nids;
+} track_job;
+
+/* The calibration (--cameras) and the detector: 0, or the exit code with the reason printed. */
+static int track_open(track_job *job, const track_options *o)
+{
+    memset(job, 0, sizeof *job);
+    job->o = o;
+    job->topts = o->topts;
+    memcpy(job->ids, o->ids, sizeof job->ids);
+    job->nids = o->nids;
+    if (o->calib_path) {
+        if (sh_calib_read(o->calib_path, &job->calib) != SH_OK) {
+            sh_log_error("%s", sh_error_message());
+            return 1;
+        }
+        if (job->calib.num_cameras != o->ncam) {
+            sh_log_error("%s has %d cameras, %d videos given", o->calib_path,
+                         job->calib.num_cameras, o->ncam);
+            return 2;
+        }
+        job->have_calib = o->ncam > 1;
+        if (o->ncam == 1)
+            sh_log_info("one camera: tracking in pixels (the calibration's "
+                            "3D needs two or more)");
+    } else if (o->ncam > 1) {
+        sh_log_error("%d videos need --cameras (their calibration)", o->ncam);
+        return 2;
+    }
+    job->topts.fps = o->fps;
+    sh_detector_options dopts;
+    sh_detector_options_default(&dopts);
+    if (o->family) dopts.family = o->family;
+    if (sh_detector_create(&dopts, &job->det) != SH_OK) {
+        sh_log_error("%s", sh_error_message());
+        return 1;
+    }
+    return 0;
+}
+
+static void track_close(track_job *job) { sh_detector_destroy(job->det); }
+
+/* One pass's readers and tracker, from pass_open to pass_close. */
+typedef struct {
+    sh_y4m_reader *rd[SH_TRACK_MAX_CAMERAS];
     sh_image img[SH_TRACK_MAX_CAMERAS];
-    memset(img, 0, sizeof img);
-    sh_tracker *t = NULL;
-    static sh_detection dets[SH_TRACK_MAX_CAMERAS][MAX_DET];
+    sh_tracker *t;
     sh_window win[SH_TRACK_MAX_CAMERAS][SH_TRACK_MAX_MARKERS + 1];
     sh_track_estimate est[SH_TRACK_MAX_MARKERS];
-    static sh_point rows[SH_TRACK_MAX_MARKERS];
+} track_pass;
+
+/* Each camera's detections of the current frame (static: too large for the stack). */
+static sh_detection dets[SH_TRACK_MAX_CAMERAS][MAX_DET];
+
+/* The library's message for a failed call: 1. */
+static int fail(void)
+{
+    sh_log_error("%s", sh_error_message());
+    return 1;
+}
+
+/* The videos (of one size), their frame buffers and the tracker: 0, or 1 with the reason
+ * printed (pass_close frees either way). */
+static int pass_open(const track_job *job, track_pass *p)
+{
+    memset(p, 0, sizeof *p);
     int width = 0, height = 0;
     double fps = 0;
-    for (int c = 0; c < job->ncam; c++) {
-        if (sh_y4m_reader_open(job->in[c], &rd[c]) != SH_OK) {
-            sh_log_error("%s", sh_error_message());
-            goto done;
-        }
-        const sh_y4m_header *h = sh_y4m_reader_header(rd[c]);
+    for (int c = 0; c < job->o->ncam; c++) {
+        if (sh_y4m_reader_open(job->o->in[c], &p->rd[c]) != SH_OK) return fail();
+        const sh_y4m_header *h = sh_y4m_reader_header(p->rd[c]);
         if (c == 0) {
             width = h->width;
             height = h->height;
             if (h->fps_num > 0 && h->fps_den > 0) fps = (double)h->fps_num / h->fps_den;
         } else if (h->width != width || h->height != height) {
             sh_log_error("%s is %dx%d, %s is %dx%d: the cameras must match",
-                         job->in[c], h->width, h->height, job->in[0], width, height);
-            goto done;
+                         job->o->in[c], h->width, h->height, job->o->in[0], width, height);
+            return 1;
         }
-        if (sh_image_create(&img[c], h->format, h->width, h->height) != SH_OK) {
-            sh_log_error("%s", sh_error_message());
-            goto done;
-        }
+        if (sh_image_create(&p->img[c], h->format, h->width, h->height) != SH_OK) return fail();
     }
     if (job->have_calib && (job->calib.width != width || job->calib.height != height))
         sh_log_warn("warning: calibration is for %dx%d, video is %dx%d",
@@ -133,213 +240,189 @@ static int run_pass(track_job *job, int max_frames, FILE *out, int *confirmed, i
     if (o.fps <= 0) o.fps = 30;
     o.width = width;
     o.height = height;
-    if (sh_tracker_create(&o, job->have_calib ? &job->calib : NULL, &t) != SH_OK) {
-        sh_log_error("%s", sh_error_message());
-        goto done;
+    if (sh_tracker_create(&o, job->have_calib ? &job->calib : NULL, &p->t) != SH_OK) return fail();
+    return 0;
+}
+
+static void pass_close(const track_job *job, track_pass *p)
+{
+    sh_tracker_destroy(p->t);
+    for (int c = 0; c < job->o->ncam; c++) {
+        sh_image_destroy(&p->img[c]);
+        if (p->rd[c]) sh_y4m_reader_close(p->rd[c]);
     }
-    for (int f = 0; max_frames < 0 || f < max_frames; f++) {
-        int eof = 0;
-        for (int c = 0; c < job->ncam; c++) {
-            sh_status st = sh_y4m_reader_read(rd[c], &img[c]);
-            if (st == SH_EEOF) {
-                if (c > 0 && !eof)
-                    sh_log_warn("warning: %s ends at frame %d before %s",
-                                job->in[c], f, job->in[0]);
-                eof = 1;
-            } else if (st != SH_OK) {
-                sh_log_error("%s", sh_error_message());
-                goto done;
-            }
-        }
-        if (eof) break;
-        if (sh_tracker_predict(t, f) != SH_OK) goto fail;
-        const sh_detection *dp[SH_TRACK_MAX_CAMERAS];
-        int count[SH_TRACK_MAX_CAMERAS];
-        for (int c = 0; c < job->ncam; c++) {
-            int nw = 0, nb = 0, n = 0;
-            if (sh_tracker_windows(t, c, win[c], SH_TRACK_MAX_MARKERS, &nw) != SH_OK) goto fail;
-            if (sh_tracker_reacquire(t, c, &win[c][nw], &nb) != SH_OK) goto fail;
-            sh_status st;
-            if (f == 0 || nw == 0) st = sh_detector_detect(job->det, &img[c], dets[c], MAX_DET, &n);
-            else st = sh_detector_detect_windows(job->det, &img[c], win[c], nw + nb, dets[c], MAX_DET, &n);
-            if (st == SH_OK && f > 0 && nw > 0 && sh_tracker_rescan(t, c, dets[c], n < MAX_DET ? n : MAX_DET))
-                st = sh_detector_detect(job->det, &img[c], dets[c], MAX_DET, &n);
-            if (st != SH_OK) {
-                sh_log_error("%s: frame %d: %s", job->in[c], f, sh_error_message());
-                goto done;
-            }
-            if (n > MAX_DET) n = MAX_DET;
-            count[c] = dedupe(dets[c], n);
-            dp[c] = dets[c];
-        }
-        if (sh_tracker_update(t, dp, count, job->ncam) != SH_OK) goto fail;
-        if (out) {
-            int n = sh_tracker_estimates(t, est, SH_TRACK_MAX_MARKERS), nr = 0;
-            for (int k = 0; k < n; k++) {
-                const sh_track_estimate *e = &est[k];
-                if (!e->confirmed || e->status == SH_TRACK_LOST || !e->in_view[0]) continue;
-                if (job->measured_only && e->status != SH_TRACK_MEASURED) continue;
-                sh_point *p = &rows[nr++];
-                p->frame = f;
-                p->id = e->id;
-                p->x = e->xy[0][0];
-                p->y = e->xy[0][1];
-                p->X = e->dim == 3 ? e->pos[0] : NAN;
-                p->Y = e->dim == 3 ? e->pos[1] : NAN;
-                p->Z = e->dim == 3 ? e->pos[2] : NAN;
-            }
-            if (f == 0 && fprintf(out, "frame,id,x,y%s\n", job->have_calib ? ",X,Y,Z" : "") < 0) goto wfail;
-            for (int k = 0; k < nr; k++) {
-                const sh_point *p = &rows[k];
-                int w = job->have_calib
-                            ? fprintf(out, "%d,%d,%.4f,%.4f,%.5f,%.5f,%.5f\n", p->frame, p->id, p->x, p->y, p->X, p->Y, p->Z)
-                            : fprintf(out, "%d,%d,%.4f,%.4f\n", p->frame, p->id, p->x, p->y);
-                if (w < 0) goto wfail;
-            }
+}
+
+/* Camera c's tags in frame f, into dets[c]: in the tracker's windows, whole when it has none or
+ * asks for a rescan. 0, or 1 with the reason printed. */
+static int detect_camera(const track_job *job, track_pass *p, int c, int f, int *count)
+{
+    int nw = 0, nb = 0, n = 0;
+    sh_window *win = p->win[c];
+    if (sh_tracker_windows(p->t, c, win, SH_TRACK_MAX_MARKERS, &nw) != SH_OK) return fail();
+    if (sh_tracker_reacquire(p->t, c, &win[nw], &nb) != SH_OK) return fail();
+    sh_status st;
+    if (f == 0 || nw == 0) st = sh_detector_detect(job->det, &p->img[c], dets[c], MAX_DET, &n);
+    else st = sh_detector_detect_windows(job->det, &p->img[c], win, nw + nb, dets[c], MAX_DET, &n);
+    if (st == SH_OK && f > 0 && nw > 0 && sh_tracker_rescan(p->t, c, dets[c], n < MAX_DET ? n : MAX_DET))
+        st = sh_detector_detect(job->det, &p->img[c], dets[c], MAX_DET, &n);
+    if (st != SH_OK) {
+        sh_log_error("%s: frame %d: %s", job->o->in[c], f, sh_error_message());
+        return 1;
+    }
+    if (n > MAX_DET) n = MAX_DET;
+    *count = dedupe(dets[c], n);
+    return 0;
+}
+
+/* Frame f's rows of the points file (the header before frame 0): 0, or 1 with the reason
+ * printed. */
+static int write_rows(const track_job *job, track_pass *p, int f, FILE *out)
+{
+    static sh_point rows[SH_TRACK_MAX_MARKERS];
+    int n = sh_tracker_estimates(p->t, p->est, SH_TRACK_MAX_MARKERS), nr = 0;
+    for (int k = 0; k < n; k++) {
+        const sh_track_estimate *e = &p->est[k];
+        if (!e->confirmed || e->status == SH_TRACK_LOST || !e->in_view[0]) continue;
+        if (job->o->measured_only && e->status != SH_TRACK_MEASURED) continue;
+        sh_point *r = &rows[nr++];
+        r->frame = f;
+        r->id = e->id;
+        r->x = e->xy[0][0];
+        r->y = e->xy[0][1];
+        r->X = e->dim == 3 ? e->pos[0] : NAN;
+        r->Y = e->dim == 3 ? e->pos[1] : NAN;
+        r->Z = e->dim == 3 ? e->pos[2] : NAN;
+    }
+    int ok = f != 0 || fprintf(out, "frame,id,x,y%s\n", job->have_calib ? ",X,Y,Z" : "") >= 0;
+    for (int k = 0; k < nr && ok; k++) {
+        const sh_point *r = &rows[k];
+        ok = (job->have_calib
+                  ? fprintf(out, "%d,%d,%.4f,%.4f,%.5f,%.5f,%.5f\n", r->frame, r->id, r->x, r->y, r->X, r->Y, r->Z)
+                  : fprintf(out, "%d,%d,%.4f,%.4f\n", r->frame, r->id, r->x, r->y)) >= 0;
+    }
+    if (!ok) sh_log_error("writing the points: write error");
+    return !ok;
+}
+
+enum { FRAME_DONE, FRAME_FAILED, FRAME_END };
+
+/* Frame f of every camera through the tracker, its rows to out (when not NULL): FRAME_DONE,
+ * FRAME_END when a video has ended, FRAME_FAILED with the reason printed. */
+static int pass_frame(const track_job *job, track_pass *p, int f, FILE *out)
+{
+    int eof = 0, ncam = job->o->ncam;
+    for (int c = 0; c < ncam; c++) {
+        sh_status st = sh_y4m_reader_read(p->rd[c], &p->img[c]);
+        if (st == SH_EEOF) {
+            if (c > 0 && !eof)
+                sh_log_warn("warning: %s ends at frame %d before %s",
+                            job->o->in[c], f, job->o->in[0]);
+            eof = 1;
+        } else if (st != SH_OK) {
+            fail();
+            return FRAME_FAILED;
         }
     }
+    if (eof) return FRAME_END;
+    if (sh_tracker_predict(p->t, f) != SH_OK) {
+        fail();
+        return FRAME_FAILED;
+    }
+    const sh_detection *dp[SH_TRACK_MAX_CAMERAS];
+    int count[SH_TRACK_MAX_CAMERAS];
+    for (int c = 0; c < ncam; c++) {
+        if (detect_camera(job, p, c, f, &count[c])) return FRAME_FAILED;
+        dp[c] = dets[c];
+    }
+    if (sh_tracker_update(p->t, dp, count, ncam) != SH_OK) {
+        fail();
+        return FRAME_FAILED;
+    }
+    return out && write_rows(job, p, f, out) ? FRAME_FAILED : FRAME_DONE;
+}
+
+/* The end of a pass: the confirmed ids (when asked for) and, with --stats on the writing pass,
+ * the tracking figures. */
+static void pass_report(const track_job *job, track_pass *p, FILE *out, int *confirmed, int *nconfirmed)
+{
     if (confirmed) {
-        int n = sh_tracker_estimates(t, est, SH_TRACK_MAX_MARKERS);
+        int n = sh_tracker_estimates(p->t, p->est, SH_TRACK_MAX_MARKERS);
         *nconfirmed = 0;
         for (int k = 0; k < n; k++)
-            if (est[k].confirmed) confirmed[(*nconfirmed)++] = est[k].id;
+            if (p->est[k].confirmed) confirmed[(*nconfirmed)++] = p->est[k].id;
     }
-    if (job->stats && out) {
-        sh_track_stats s;
-        sh_tracker_stats(t, &s);
-        sh_log_info("%ld frames, heart %.3f Hz, respiration %.3f Hz; detections used %ld, "
-                    "gated %ld, duplicated ids %ld, unknown ids %ld, inconsistent 3D %ld, taken on their "
-                    "neighbours' agreement %ld; markers lost %ld; camera moved in %ld frames",
-                    s.frames, s.heart_hz, s.resp_hz, s.accepted, s.gated, s.duplicates, s.unknown,
-                    s.inconsistent, s.jumped, s.lost, s.camera_moves);
-        sh_track_calibration cc;
-        sh_tracker_calibration(t, &cc);
-        if (cc.samples)
-            sh_log_info("calibration: reprojection median %.3f px over the last %d markers seen by two or more "
-                        "cameras, camera %d's views %.3f px, %.0f %% behind a camera",
-                        cc.median_px, cc.samples, cc.worst_camera, cc.worst_px, 100 * cc.failed);
+    if (!job->o->stats || !out) return;
+    sh_track_stats s;
+    sh_tracker_stats(p->t, &s);
+    sh_log_info("%ld frames, heart %.3f Hz, respiration %.3f Hz; detections used %ld, "
+                "gated %ld, duplicated ids %ld, unknown ids %ld, inconsistent 3D %ld, taken on their "
+                "neighbours' agreement %ld; markers lost %ld; camera moved in %ld frames",
+                s.frames, s.heart_hz, s.resp_hz, s.accepted, s.gated, s.duplicates, s.unknown,
+                s.inconsistent, s.jumped, s.lost, s.camera_moves);
+    sh_track_calibration cc;
+    sh_tracker_calibration(p->t, &cc);
+    if (cc.samples)
+        sh_log_info("calibration: reprojection median %.3f px over the last %d markers seen by two or more "
+                    "cameras, camera %d's views %.3f px, %.0f %% behind a camera",
+                    cc.median_px, cc.samples, cc.worst_camera, cc.worst_px, 100 * cc.failed);
+}
+
+/* One pass: max_frames (< 0: all). out NULL: no output; confirmed (when not NULL) gets the ids
+ * confirmed at the end. Returns 0 on success. */
+static int run_pass(const track_job *job, int max_frames, FILE *out, int *confirmed, int *nconfirmed)
+{
+    track_pass p;
+    int rc = pass_open(job, &p);
+    for (int f = 0; !rc && (max_frames < 0 || f < max_frames); f++) {
+        int step = pass_frame(job, &p, f, out);
+        if (step == FRAME_END) break;
+        rc = step == FRAME_FAILED;
     }
-    rc = 0;
-    goto done;
-wfail:
-    sh_log_error("writing the points: write error");
-    goto done;
-fail:
-    sh_log_error("%s", sh_error_message());
-done:
-    sh_tracker_destroy(t);
-    for (int c = 0; c < job->ncam; c++) {
-        sh_image_destroy(&img[c]);
-        if (rd[c]) sh_y4m_reader_close(rd[c]);
-    }
+    if (!rc) pass_report(job, &p, out, confirmed, nconfirmed);
+    pass_close(job, &p);
     return rc;
+}
+
+/* Without --ids: the tags that move with the heart in the first 10 s, by a first pass. 0, or
+ * the exit code with the reason printed. */
+static int find_ids(track_job *job)
+{
+    const track_options *o = job->o;
+    for (int c = 0; c < o->ncam; c++)
+        if (!strcmp(o->in[c], "-")) {
+            sh_log_error("standard input needs --ids (the markers are found "
+                            "in a first pass over the file)");
+            return 2;
+        }
+    double f0 = o->fps > 0 ? o->fps : 30;
+    if (run_pass(job, (int)(f0 * 10), NULL, job->ids, &job->nids) != 0) return 1;
+    if (job->nids == 0) {
+        sh_log_error("no tag moves with a heartbeat in the first 10 s of %s "
+                        "(give the markers with --ids)", o->in[0]);
+        return 1;
+    }
+    return 0;
 }
 
 int cmd_track(int argc, char **argv)
 {
     sh_log_setup(SH_LOG_TOOL, "stillheart track", SH_LOG_INFO);
-    static const struct option longopts[] = {
-        {"cameras", required_argument, 0, 'c'}, {"ids", required_argument, 0, 'i'},
-        {"family", required_argument, 0, 'f'},  {"fps", required_argument, 0, 'r'},
-        {"noise", required_argument, 0, 'n'},   {"lost-after", required_argument, 0, 'l'},
-        {"spatial", required_argument, 0, 's'}, {"measured-only", no_argument, 0, 'm'},
-        {"stats", no_argument, 0, 'S'},         {"help", no_argument, 0, 'h'},
-        {0, 0, 0, 0}};
+    track_options o;
+    int rc = parse_options(argc, argv, &o);
+    if (rc != APP_GO_ON) return rc;
     track_job job;
-    memset(&job, 0, sizeof job);
-    sh_track_options_default(&job.topts);
-    const char *calib_path = NULL, *family = NULL;
-    int ids[SH_TRACK_MAX_MARKERS], nids = 0;
-    double fps = 0;
-    optind = 1;
-    int ch;
-    while ((ch = getopt_long(argc, argv, "", longopts, NULL)) != -1) {
-        switch (ch) {
-        case 'c': calib_path = optarg; break;
-        case 'i':
-            if (!parse_ids(optarg, ids, &nids)) {
-                fprintf(stderr, "--ids: '%s' is not a list like 0-15 or 1,4,7 (at most %d ids)\n",
-                        optarg, SH_TRACK_MAX_MARKERS);
-                return 2;
-            }
-            break;
-        case 'f': family = optarg; break;
-        case 'r': if (!app_parse_double("--fps", optarg, 0.1, 1000, &fps)) return 2; break;
-        case 'n': if (!app_parse_double("--noise", optarg, 0.01, 20, &job.topts.meas_sigma)) return 2; break;
-        case 'l': if (!app_parse_double("--lost-after", optarg, 0.1, 60, &job.topts.lost_after)) return 2; break;
-        case 's':
-            if (!strcmp(optarg, "off")) job.topts.spatial = SH_SPATIAL_OFF;
-            else if (!strcmp(optarg, "fuse")) job.topts.spatial = SH_SPATIAL_FUSE;
-            else {
-                fprintf(stderr, "--spatial: off or fuse, not '%s'\n", optarg);
-                return 2;
-            }
-            break;
-        case 'm': job.measured_only = 1; break;
-        case 'S': job.stats = 1; break;
-        case 'h': usage(stdout); return 0;
-        default: usage(stderr); return 2;
-        }
-    }
-    job.ncam = argc - optind;
-    if (job.ncam < 1 || job.ncam > SH_TRACK_MAX_CAMERAS) {
-        usage(stderr);
-        return 2;
-    }
-    for (int c = 0; c < job.ncam; c++) job.in[c] = argv[optind + c];
-    if (calib_path) {
-        if (sh_calib_read(calib_path, &job.calib) != SH_OK) {
-            sh_log_error("%s", sh_error_message());
-            return 1;
-        }
-        if (job.calib.num_cameras != job.ncam) {
-            sh_log_error("%s has %d cameras, %d videos given", calib_path,
-                         job.calib.num_cameras, job.ncam);
-            return 2;
-        }
-        job.have_calib = job.ncam > 1;
-        if (job.ncam == 1)
-            sh_log_info("one camera: tracking in pixels (the calibration's "
-                            "3D needs two or more)");
-    } else if (job.ncam > 1) {
-        sh_log_error("%d videos need --cameras (their calibration)", job.ncam);
-        return 2;
-    }
-    job.topts.fps = fps;
-    sh_detector_options dopts;
-    sh_detector_options_default(&dopts);
-    if (family) dopts.family = family;
-    if (sh_detector_create(&dopts, &job.det) != SH_OK) {
-        sh_log_error("%s", sh_error_message());
-        return 1;
-    }
-    int rc = 0;
-    if (nids == 0) {
-        for (int c = 0; c < job.ncam; c++)
-            if (!strcmp(job.in[c], "-")) {
-                sh_log_error("standard input needs --ids (the markers are found "
-                                "in a first pass over the file)");
-                sh_detector_destroy(job.det);
-                return 2;
-            }
-        /* first pass: which tags move with the heart */
-        double f0 = fps > 0 ? fps : 30;
-        if (run_pass(&job, (int)(f0 * 10), NULL, ids, &nids) != 0) rc = 1;
-        else if (nids == 0) {
-            sh_log_error("no tag moves with a heartbeat in the first 10 s of %s "
-                            "(give the markers with --ids)", job.in[0]);
-            rc = 1;
-        }
-    }
+    if ((rc = track_open(&job, &o))) return rc;
+    if (job.nids == 0) rc = find_ids(&job);
     if (rc == 0) {
-        job.topts.ids = ids;
-        job.topts.num_ids = nids;
+        job.topts.ids = job.ids;
+        job.topts.num_ids = job.nids;
         rc = run_pass(&job, -1, stdout, NULL, NULL);
         if (rc == 0 && fflush(stdout) != 0) {
             sh_log_error("writing the points: write error");
             rc = 1;
         }
     }
-    sh_detector_destroy(job.det);
+    track_close(&job);
     return rc;
 }

@@ -3,13 +3,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "app.h"
+#include "stab.h"
 #include "stillheart/log.h"
-#include "stillheart/metrics.h"
-#include "stillheart/modelcache.h"
-#include "stillheart/points.h"
-#include "stillheart/warp.h"
-#include "stillheart/y4m.h"
 
 #define CACHE_SLOTS 8
 
@@ -65,16 +60,18 @@ static int start_metrics(sh_warp_model *model, const double *ref_xy, sh_warp *wa
            sh_metric_create(scratch, sh_warp_model_hull(model), full_range, out) == SH_OK;
 }
 
-static int fail(const char *what)
-{
-    sh_log_error("%s%s%s", what, *sh_error_message() ? ": " : "",
-                 sh_error_message());
-    return 1;
-}
+/* What the command line asks for; filled by parse_options only (the options/runtime split of
+ * ustreamer: warp_job below holds what the run opens and counts). */
+typedef struct {
+    const char *points_path, *method, *map_out, *in_path, *out_path;
+    sh_interp_params params; /* --method with --sigma, --levels and --smoothing applied */
+    double max_error;
+    int reference, threads, quiet;
+} warp_options;
 
-int cmd_warp(int argc, char **argv)
+/* Fills o from argv: APP_GO_ON, or the exit code (usage and refusals printed). */
+static int parse_options(int argc, char **argv, warp_options *o)
 {
-    sh_log_setup(SH_LOG_TOOL, "stillheart warp", SH_LOG_INFO);
     static const struct option options[] = {
         {"points", required_argument, 0, 'p'}, {"method", required_argument, 0, 'm'},
         {"sigma", required_argument, 0, 's'},  {"levels", required_argument, 0, 'l'},
@@ -82,181 +79,193 @@ int cmd_warp(int argc, char **argv)
         {"threads", required_argument, 0, 't'}, {"max-error", required_argument, 0, 'e'},
         {"map-out", required_argument, 0, 'M'}, {"quiet", no_argument, 0, 'q'},
         {"help", no_argument, 0, 'h'},          {0, 0, 0, 0}};
-    const char *points_path = NULL, *method = "bspline", *map_out = NULL;
-    double sigma = 0, smoothing = 0, max_error = 0.05;
-    int levels = 0, reference = 0, threads = 1, quiet = 0, have_sigma = 0;
-    int opt;
+    memset(o, 0, sizeof *o);
+    o->method = "bspline";
+    o->max_error = 0.05;
+    o->threads = 1;
+    double sigma = 0, smoothing = 0;
+    int levels = 0, have_sigma = 0, opt;
     optind = 1;
     while ((opt = getopt_long(argc, argv, "", options, NULL)) != -1) {
         switch (opt) {
-        case 'p': points_path = optarg; break;
-        case 'm': method = optarg; break;
+        case 'p': o->points_path = optarg; break;
+        case 'm': o->method = optarg; break;
         case 's': if (!app_parse_double("--sigma", optarg, 1e-6, 1e9, &sigma)) return 2;
                   have_sigma = 1; break;
         case 'l': if (!app_parse_int("--levels", optarg, 1, 20, &levels)) return 2; break;
         case 'S': if (!app_parse_double("--smoothing", optarg, 0, 1e12, &smoothing)) return 2; break;
-        case 'r': if (!app_parse_int("--reference", optarg, 0, 1 << 30, &reference)) return 2; break;
-        case 't': if (!app_parse_int("--threads", optarg, 1, 256, &threads)) return 2; break;
-        case 'e': if (!app_parse_double("--max-error", optarg, 1e-4, 100, &max_error)) return 2; break;
-        case 'M': map_out = optarg; break;
-        case 'q': quiet = 1; break;
+        case 'r': if (!app_parse_int("--reference", optarg, 0, 1 << 30, &o->reference)) return 2; break;
+        case 't': if (!app_parse_int("--threads", optarg, 1, 256, &o->threads)) return 2; break;
+        case 'e': if (!app_parse_double("--max-error", optarg, 1e-4, 100, &o->max_error)) return 2; break;
+        case 'M': o->map_out = optarg; break;
+        case 'q': o->quiet = 1; break;
         case 'h': usage(stdout); return 0;
         default: usage(stderr); return 2;
         }
     }
-    if (argc - optind != 2 || !points_path) {
+    if (argc - optind != 2 || !o->points_path) {
         sh_log_error("need --points and the input and output videos");
         usage(stderr);
         return 2;
     }
-    const char *in_path = argv[optind], *out_path = argv[optind + 1];
-    if (reference > 0 && !strcmp(in_path, "-")) {
+    o->in_path = argv[optind];
+    o->out_path = argv[optind + 1];
+    if (o->reference > 0 && !strcmp(o->in_path, "-")) {
         sh_log_error("--reference %d needs a file, not standard input",
-                     reference);
+                     o->reference);
         return 2;
     }
+    /* an unknown method is refused with 1, not 2, as it always was */
+    if (sh_interp_params_parse(o->method, &o->params) != SH_OK) return app_fail("--method");
+    if (have_sigma) o->params.sigma = sigma;
+    o->params.levels = levels;
+    o->params.smoothing = smoothing;
+    return APP_GO_ON;
+}
 
+/* What one run opens and counts, from warp_open to warp_close. */
+typedef struct {
+    const warp_options *o;
+    app_stab s;
     sh_modelcache_recipe recipe;
-    memset(&recipe, 0, sizeof recipe);
-    if (sh_interp_params_parse(method, &recipe.params) != SH_OK) return fail("--method");
-    if (have_sigma) recipe.params.sigma = sigma;
-    recipe.params.levels = levels;
-    recipe.params.smoothing = smoothing;
-    sh_warp_options_default(&recipe.wopts);
-    recipe.wopts.max_error = max_error;
-    sh_modelcache *cache = NULL;
+    sh_warp_model *model, *last_model; /* the current frame's; the last one that warped */
+} warp_job;
 
-    int rc = 1;
-    sh_points points = {0};
-    sh_y4m_reader *reader = NULL;
-    sh_y4m_writer *writer = NULL;
-    sh_warp *warp = NULL;
-    sh_metric *metric_in = NULL, *metric_out = NULL;
-    sh_image in = {0}, out = {0}, ref = {0};
-    int *ids = NULL;
-    double *cur_xy = NULL;
-    float *map = NULL;
-    sh_warp_model *model = NULL, *last_model = NULL;
+/* The points, the input, the reference frame's markers and the model cache over them: 0, or 1
+ * with the reason printed. */
+static int open_input(warp_job *j)
+{
+    const warp_options *o = j->o;
+    app_stab *s = &j->s;
+    if (sh_points_read(o->points_path, &s->points) != SH_OK) return app_fail("points");
+    if (sh_y4m_reader_open(o->in_path, &s->reader) != SH_OK) return app_fail("input");
+    const sh_y4m_header *hdr = sh_y4m_reader_header(s->reader);
+    j->recipe.width = hdr->width;
+    j->recipe.height = hdr->height;
+    s->ref_rows = sh_points_frame(&s->points, o->reference, &s->ref_count);
+    if (s->ref_count < 3) {
+        sh_log_error("%s: the reference frame %d has %d markers, need 3", o->points_path, o->reference, s->ref_count);
+        return 1;
+    }
+    s->ids = malloc(sizeof(int) * (size_t)s->ref_count);
+    s->cur = malloc(sizeof(double) * 2 * (size_t)s->ref_count);
+    if (!s->ids || !s->cur) return app_fail("out of memory");
+    if (sh_modelcache_create(&j->recipe, s->ref_rows, s->ref_count, CACHE_SLOTS, &s->cache) != SH_OK)
+        return app_fail("models");
+    return 0;
+}
 
-    if (sh_points_read(points_path, &points) != SH_OK) { fail("points"); goto done; }
-    if (sh_y4m_reader_open(in_path, &reader) != SH_OK) { fail("input"); goto done; }
-    const sh_y4m_header *hdr = sh_y4m_reader_header(reader);
-    recipe.width = hdr->width;
-    recipe.height = hdr->height;
-    int ref_count;
-    const sh_point *ref_rows = sh_points_frame(&points, reference, &ref_count);
-    if (ref_count < 3) {
-        sh_log_error("%s: the reference frame %d has %d markers, need 3", points_path, reference, ref_count);
-        goto done;
-    }
-    ids = malloc(sizeof(int) * (size_t)ref_count);
-    cur_xy = malloc(sizeof(double) * 2 * (size_t)ref_count);
-    if (!ids || !cur_xy) { fail("out of memory"); goto done; }
-    if (sh_modelcache_create(&recipe, ref_rows, ref_count, CACHE_SLOTS, &cache) != SH_OK) { fail("models"); goto done; }
-    if (sh_image_create(&in, hdr->format, hdr->width, hdr->height) != SH_OK ||
-        sh_image_create(&out, hdr->format, hdr->width, hdr->height) != SH_OK ||
-        sh_image_create(&ref, hdr->format, hdr->width, hdr->height) != SH_OK) {
-        fail("frame buffers");
-        goto done;
-    }
-    if (sh_warp_create(threads, &warp) != SH_OK) { fail("threads"); goto done; }
+/* Everything the frame loop needs: 0, or 1 with the reason printed (warp_close frees either
+ * way). */
+static int warp_open(warp_job *j, const warp_options *o)
+{
+    memset(j, 0, sizeof *j);
+    j->o = o;
+    app_stab *s = &j->s;
+    j->recipe.params = o->params;
+    sh_warp_options_default(&j->recipe.wopts);
+    j->recipe.wopts.max_error = o->max_error;
+    if (open_input(j)) return 1;
+    const sh_y4m_header *hdr = sh_y4m_reader_header(s->reader);
+    if (sh_image_create(&s->in, hdr->format, hdr->width, hdr->height) != SH_OK ||
+        sh_image_create(&s->out, hdr->format, hdr->width, hdr->height) != SH_OK ||
+        sh_image_create(&s->ref, hdr->format, hdr->width, hdr->height) != SH_OK)
+        return app_fail("frame buffers");
+    if (sh_warp_create(o->threads, &s->warp) != SH_OK) return app_fail("threads");
 
     /* The reference model (all reference markers) and both metrics' reference frames. */
-    int from_stdin = !strcmp(in_path, "-");
+    s->from_stdin = !strcmp(o->in_path, "-");
     /* From standard input (reference 0 only) the reference frame is the first one read below. */
-    if (!from_stdin && !app_read_frame_at(in_path, reference, &ref)) { fail("reference frame"); goto done; }
-    int nref = sh_points_match(ref_rows, ref_count, ref_rows, ref_count, ids, cur_xy);
-    if (cache_get(cache, ids, nref, &model) != SH_OK) { fail("reference markers"); goto done; }
-    int fr = sh_y4m_header_full_range(hdr);
-    if (!from_stdin && !start_metrics(model, cur_xy, warp, &ref, &out, fr, &metric_in, &metric_out)) {
-        fail("reference frame");
-        goto done;
-    }
-    if (sh_y4m_writer_open(out_path, hdr, &writer) != SH_OK) { fail("output"); goto done; }
+    if (!s->from_stdin && !app_read_frame_at(o->in_path, o->reference, &s->ref))
+        return app_fail("reference frame");
+    int nref = sh_points_match(s->ref_rows, s->ref_count, s->ref_rows, s->ref_count, s->ids, s->cur);
+    if (cache_get(s->cache, s->ids, nref, &j->model) != SH_OK) return app_fail("reference markers");
+    s->full_range = sh_y4m_header_full_range(hdr);
+    if (!s->from_stdin && !start_metrics(j->model, s->cur, s->warp, &s->ref, &s->out, s->full_range,
+                                         &s->metric_in, &s->metric_out))
+        return app_fail("reference frame");
+    return app_stab_start(s, o->out_path, hdr, o->quiet);
+}
 
-    app_progress progress;
-    app_progress_start(&progress);
-    if (quiet) progress.enabled = 0;
-    int frames = 0, raw_frames = 0;
-    double warp_seconds = 0;
+/* Warps, writes and measures the frame just read into s.in (job: the warp_job): 0, or 1 with
+ * the reason printed. */
+static int warp_frame(void *job)
+{
+    warp_job *j = job;
+    app_stab *s = &j->s;
+    if (s->frames == j->o->reference && !s->metric_in) { /* standard input, reference 0 */
+        sh_image_copy(&s->ref, &s->in);
+        if (!start_metrics(j->model, s->cur, s->warp, &s->ref, &s->out, s->full_range, &s->metric_in,
+                           &s->metric_out))
+            return app_fail("reference frame");
+    }
+    int ncur;
+    const sh_point *cur = sh_points_frame(&s->points, s->frames, &ncur);
+    int n = sh_points_match(s->ref_rows, s->ref_count, cur, ncur, s->ids, s->cur);
+    double t0 = app_now();
+    const sh_image *shown = &s->out;
+    if (n < 3 || cache_get(s->cache, s->ids, n, &j->model) != SH_OK ||
+        sh_warp_model_update(j->model, s->cur) != SH_OK ||
+        sh_warp_apply(s->warp, j->model, &s->in, &s->out) != SH_OK) {
+        shown = &s->in; /* nothing trustworthy to warp with: pass the frame through, counted */
+        app_stab_raw(s, "warp", n, 3, j->o->quiet);
+    } else {
+        j->last_model = j->model;
+    }
+    s->warp_seconds += app_now() - t0;
+    if (sh_y4m_writer_write(s->writer, shown) != SH_OK) return app_fail("output");
+    if (s->metric_in && (sh_metric_add(s->metric_in, &s->in) != SH_OK ||
+                         sh_metric_add(s->metric_out, shown) != SH_OK))
+        return app_fail("metric");
+    s->frames++;
+    app_progress_update(&s->progress, "warp", s->frames, 0);
+    return 0;
+}
+
+/* --map-out: the last stabilized frame's map: 0, or 1 with the reason printed. */
+static int write_map(const warp_job *j, const char *path)
+{
+    if (!j->last_model) {
+        sh_log_error("--map-out: no frame was stabilized");
+        return 1;
+    }
+    float *map = malloc(sizeof(float) * 2 * (size_t)j->recipe.width * j->recipe.height);
+    int rc = !map || sh_warp_model_map(j->last_model, map) != SH_OK
+                 ? app_fail("map")
+                 : !app_write_npy(path, map, j->recipe.height, j->recipe.width, 2);
+    free(map);
+    return rc;
+}
+
+/* The summary on stderr and the metric e. */
+static void report(const warp_job *j)
+{
+    const app_stab *s = &j->s;
+    fprintf(stderr, "method %s: %d frames (%d unstabilized), %d marker sets built in %.1f ms, "
+                    "warp %.2f ms/frame\n",
+            j->o->method, s->frames, s->raw_frames, sh_modelcache_builds(s->cache),
+            sh_modelcache_build_seconds(s->cache) * 1e3,
+            s->frames ? s->warp_seconds * 1e3 / s->frames : 0.0);
+    if (j->last_model && sh_warp_model_grid_spacing(j->last_model))
+        fprintf(stderr, "grid spacing %d px, map error bound %.4f px\n",
+                sh_warp_model_grid_spacing(j->last_model), sh_warp_model_error_bound(j->last_model));
+    app_stab_print_e(s, j->o->out_path);
+}
+
+int cmd_warp(int argc, char **argv)
+{
+    sh_log_setup(SH_LOG_TOOL, "stillheart warp", SH_LOG_INFO);
+    warp_options o;
+    int rc = parse_options(argc, argv, &o);
+    if (rc != APP_GO_ON) return rc;
+    warp_job j;
     sh_status st;
-    while ((st = sh_y4m_reader_read(reader, &in)) == SH_OK) {
-        if (frames == reference && !metric_in) { /* standard input, reference 0 */
-            sh_image_copy(&ref, &in);
-            if (!start_metrics(model, cur_xy, warp, &ref, &out, fr, &metric_in, &metric_out)) {
-                fail("reference frame");
-                goto done;
-            }
-        }
-        int ncur;
-        const sh_point *cur = sh_points_frame(&points, frames, &ncur);
-        int n = sh_points_match(ref_rows, ref_count, cur, ncur, ids, cur_xy);
-        double t0 = app_now();
-        const sh_image *shown = &out;
-        if (n < 3 || cache_get(cache, ids, n, &model) != SH_OK ||
-            sh_warp_model_update(model, cur_xy) != SH_OK ||
-            sh_warp_apply(warp, model, &in, &out) != SH_OK) {
-            shown = &in; /* nothing trustworthy to warp with: pass the frame through, counted */
-            raw_frames++;
-            if (!quiet)
-                fprintf(stderr, "%sstillheart warp: frame %d left unstabilized (%d markers%s%s)\n",
-                        progress.enabled ? "\n" : "", frames, n,
-                        n >= 3 ? ": " : "", n >= 3 ? sh_error_message() : "");
-        } else {
-            last_model = model;
-        }
-        warp_seconds += app_now() - t0;
-        if (sh_y4m_writer_write(writer, shown) != SH_OK) { fail("output"); goto done; }
-        if (metric_in && (sh_metric_add(metric_in, &in) != SH_OK ||
-                          sh_metric_add(metric_out, shown) != SH_OK)) {
-            fail("metric");
-            goto done;
-        }
-        frames++;
-        app_progress_update(&progress, "warp", frames, 0);
-    }
-    app_progress_end(&progress);
-    if (st != SH_EEOF) fail("input"); /* frames before the damage were written */
-    if (sh_y4m_writer_close(writer) != SH_OK) { writer = NULL; fail("output"); goto done; }
-    writer = NULL;
-
-    if (map_out) {
-        if (!last_model) {
-            sh_log_error("--map-out: no frame was stabilized");
-            goto done;
-        }
-        map = malloc(sizeof(float) * 2 * (size_t)recipe.width * recipe.height);
-        if (!map || sh_warp_model_map(last_model, map) != SH_OK) { fail("map"); goto done; }
-        if (!app_write_npy(map_out, map, recipe.height, recipe.width, 2)) goto done;
-    }
-    if (!quiet) {
-        fprintf(stderr, "method %s: %d frames (%d unstabilized), %d marker sets built in %.1f ms, "
-                        "warp %.2f ms/frame\n",
-                method, frames, raw_frames, sh_modelcache_builds(cache), sh_modelcache_build_seconds(cache) * 1e3,
-                frames ? warp_seconds * 1e3 / frames : 0.0);
-        if (last_model && sh_warp_model_grid_spacing(last_model))
-            fprintf(stderr, "grid spacing %d px, map error bound %.4f px\n",
-                    sh_warp_model_grid_spacing(last_model), sh_warp_model_error_bound(last_model));
-        /* stdout carries the video when OUT is "-": the figures go to stderr then */
-        if (metric_in)
-            fprintf(strcmp(out_path, "-") ? stdout : stderr,
-                    "e input %.6f output %.6f (%d frames, %d hull pixels)\n", sh_metric_e(metric_in),
-                    sh_metric_e(metric_out), sh_metric_frames(metric_in), sh_metric_pixels(metric_in));
-    }
+    rc = 1;
+    if (warp_open(&j, &o) || app_stab_run(&j.s, warp_frame, &j, &st)) goto done;
+    if (o.map_out && write_map(&j, o.map_out)) goto done;
+    if (!o.quiet) report(&j);
     rc = st == SH_EEOF ? 0 : 1;
 done:
-    if (writer) sh_y4m_writer_close(writer);
-    sh_modelcache_destroy(cache);
-    sh_y4m_reader_close(reader);
-    sh_points_destroy(&points);
-    sh_warp_destroy(warp);
-    sh_metric_destroy(metric_in);
-    sh_metric_destroy(metric_out);
-    sh_image_destroy(&in);
-    sh_image_destroy(&out);
-    sh_image_destroy(&ref);
-    free(ids);
-    free(cur_xy);
-    free(map);
+    app_stab_close(&j.s);
     return rc;
 }

@@ -7,14 +7,10 @@
 #include <string.h>
 #include <sys/stat.h>
 
-#include "app.h"
+#include "stab.h"
 #include "stillheart/calib.h"
 #include "stillheart/log.h"
-#include "stillheart/metrics.h"
-#include "stillheart/modelcache.h"
-#include "stillheart/points.h"
 #include "stillheart/warp3d.h"
-#include "stillheart/y4m.h"
 
 #define CACHE_SLOTS 4
 
@@ -93,13 +89,6 @@ static int common_markers(const sh_point *ref, int nref, const sh_point *cur, in
     return n;
 }
 
-static int fail(const char *what)
-{
-    sh_log_error("%s%s%s", what, *sh_error_message() ? ": " : "",
-                 sh_error_message());
-    return 1;
-}
-
 /* pose:RX,RY,RZ[,TX,TY,TZ] */
 static int parse_pose(const char *text, double rvec[3], double tvec[3])
 {
@@ -158,9 +147,58 @@ static sh_status render(sh_warp *warp, const sh_modelcache_entry *s, int nviews,
     return SH_OK;
 }
 
-int cmd_warp3d(int argc, char **argv)
+/* What the command line asks for; filled by parse_options only (the options/runtime split of
+ * ustreamer: warp3d_job below holds what the run opens and counts). */
+typedef struct {
+    const char *calib_path, *points_path, *method, *view, *layout, *ply_dir, *in_path, *out_path;
+    sh_warp3d_params p3; /* --method, --surface-method, --displacement-method and --sigma */
+    double baseline, depth_scale, max_error, ply_spacing;
+    int camera, reference, threads, quiet, ply_mesh, ply_every, ply_texture;
+    int stereo, tb, half, pose; /* --view and --layout */
+    double rvec[3], tvec[3];    /* --view pose: */
+} warp3d_options;
+
+/* --view and --layout: APP_GO_ON, or the exit code with the refusal printed. */
+static int parse_view(warp3d_options *o)
 {
-    sh_log_setup(SH_LOG_TOOL, "stillheart warp3d", SH_LOG_INFO);
+    if (!strcmp(o->view, "stereo")) o->stereo = 1;
+    else if (!strncmp(o->view, "pose:", 5)) {
+        if (!parse_pose(o->view + 5, o->rvec, o->tvec)) {
+            sh_log_error("--view %s: want pose:RX,RY,RZ[,TX,TY,TZ]", o->view);
+            return 2;
+        }
+        o->pose = 1;
+    } else if (strcmp(o->view, "reference")) {
+        sh_log_error("--view %s: reference, stereo or pose:...", o->view);
+        return 2;
+    }
+    if (!strcmp(o->layout, "tb") || !strcmp(o->layout, "tb-half")) o->tb = 1;
+    o->half = !strcmp(o->layout, "sbs-half") || !strcmp(o->layout, "tb-half");
+    if (!o->tb && !o->half && strcmp(o->layout, "sbs")) {
+        sh_log_error("--layout %s: sbs, tb, sbs-half or tb-half", o->layout);
+        return 2;
+    }
+    return APP_GO_ON;
+}
+
+/* The interpolants: --method, or --surface-method / --displacement-method for one of them;
+ * APP_GO_ON, or the exit code with the refusal printed. */
+static int parse_methods(warp3d_options *o, const char *smethod, const char *dmethod, int have_sigma,
+                         double sigma)
+{
+    sh_warp3d_params_default(&o->p3);
+    if (sh_interp_params_parse(smethod ? smethod : o->method, &o->p3.surface) != SH_OK ||
+        sh_interp_params_parse(dmethod ? dmethod : o->method, &o->p3.displacement) != SH_OK) {
+        app_fail("--method");
+        return 2;
+    }
+    if (have_sigma) o->p3.surface.sigma = o->p3.displacement.sigma = sigma;
+    return APP_GO_ON;
+}
+
+/* Fills o from argv: APP_GO_ON, or the exit code (usage and refusals printed). */
+static int parse_options(int argc, char **argv, warp3d_options *o)
+{
     static const struct option options[] = {
         {"cameras", required_argument, 0, 'C'}, {"points", required_argument, 0, 'p'},
         {"camera", required_argument, 0, 'k'}, {"method", required_argument, 0, 'm'},
@@ -172,283 +210,296 @@ int cmd_warp3d(int argc, char **argv)
         {"export-ply", required_argument, 0, 'P'}, {"ply-spacing", required_argument, 0, 'S'},
         {"ply-mesh", no_argument, 0, 'M'}, {"ply-texture", no_argument, 0, 'T'}, {"ply-every", required_argument, 0, 'E'},
         {"quiet", no_argument, 0, 'q'}, {"help", no_argument, 0, 'h'}, {0, 0, 0, 0}};
-    const char *calib_path = NULL, *points_path = NULL, *method = "bspline", *smethod = NULL,
-               *dmethod = NULL, *view = "reference", *layout = "sbs", *ply_dir = NULL;
-    double sigma = 0, baseline = 10, depth_scale = 1, max_error = 0.05, ply_spacing = 1;
-    int camera = 0, reference = 0, threads = 1, quiet = 0, have_sigma = 0, ply_mesh = 0, ply_every = 1, ply_texture = 0;
-    int opt;
+    memset(o, 0, sizeof *o);
+    o->method = "bspline", o->view = "reference", o->layout = "sbs";
+    o->baseline = 10, o->depth_scale = 1, o->max_error = 0.05, o->ply_spacing = 1;
+    o->threads = 1, o->ply_every = 1;
+    const char *smethod = NULL, *dmethod = NULL;
+    double sigma = 0;
+    int have_sigma = 0, opt;
     optind = 1;
     while ((opt = getopt_long(argc, argv, "", options, NULL)) != -1) {
         switch (opt) {
-        case 'C': calib_path = optarg; break;
-        case 'p': points_path = optarg; break;
-        case 'k': if (!app_parse_int("--camera", optarg, 0, SH_CALIB_MAX_CAMERAS - 1, &camera)) return 2; break;
-        case 'm': method = optarg; break;
+        case 'C': o->calib_path = optarg; break;
+        case 'p': o->points_path = optarg; break;
+        case 'k': if (!app_parse_int("--camera", optarg, 0, SH_CALIB_MAX_CAMERAS - 1, &o->camera)) return 2; break;
+        case 'm': o->method = optarg; break;
         case 'A': smethod = optarg; break;
         case 'D': dmethod = optarg; break;
         case 's': if (!app_parse_double("--sigma", optarg, 1e-6, 1e9, &sigma)) return 2;
                   have_sigma = 1; break;
-        case 'r': if (!app_parse_int("--reference", optarg, 0, 1 << 30, &reference)) return 2; break;
-        case 'v': view = optarg; break;
-        case 'b': if (!app_parse_double("--baseline", optarg, 0, 1e4, &baseline)) return 2; break;
-        case 'L': layout = optarg; break;
-        case 'z': if (!app_parse_double("--depth-scale", optarg, 0.01, 100, &depth_scale)) return 2; break;
-        case 't': if (!app_parse_int("--threads", optarg, 1, 256, &threads)) return 2; break;
-        case 'e': if (!app_parse_double("--max-error", optarg, 1e-4, 100, &max_error)) return 2; break;
-        case 'P': ply_dir = optarg; break;
-        case 'S': if (!app_parse_double("--ply-spacing", optarg, 1e-3, 1e4, &ply_spacing)) return 2; break;
-        case 'M': ply_mesh = 1; break;
-        case 'T': ply_texture = ply_mesh = 1; break;
-        case 'E': if (!app_parse_int("--ply-every", optarg, 1, 1 << 30, &ply_every)) return 2; break;
-        case 'q': quiet = 1; break;
+        case 'r': if (!app_parse_int("--reference", optarg, 0, 1 << 30, &o->reference)) return 2; break;
+        case 'v': o->view = optarg; break;
+        case 'b': if (!app_parse_double("--baseline", optarg, 0, 1e4, &o->baseline)) return 2; break;
+        case 'L': o->layout = optarg; break;
+        case 'z': if (!app_parse_double("--depth-scale", optarg, 0.01, 100, &o->depth_scale)) return 2; break;
+        case 't': if (!app_parse_int("--threads", optarg, 1, 256, &o->threads)) return 2; break;
+        case 'e': if (!app_parse_double("--max-error", optarg, 1e-4, 100, &o->max_error)) return 2; break;
+        case 'P': o->ply_dir = optarg; break;
+        case 'S': if (!app_parse_double("--ply-spacing", optarg, 1e-3, 1e4, &o->ply_spacing)) return 2; break;
+        case 'M': o->ply_mesh = 1; break;
+        case 'T': o->ply_texture = o->ply_mesh = 1; break;
+        case 'E': if (!app_parse_int("--ply-every", optarg, 1, 1 << 30, &o->ply_every)) return 2; break;
+        case 'q': o->quiet = 1; break;
         case 'h': usage(stdout); return 0;
         default: usage(stderr); return 2;
         }
     }
-    if (argc - optind != 2 || !calib_path || !points_path) {
+    if (argc - optind != 2 || !o->calib_path || !o->points_path) {
         sh_log_error("need --cameras, --points and the input and output videos");
         usage(stderr);
         return 2;
     }
-    const char *in_path = argv[optind], *out_path = argv[optind + 1];
-    if (!strcmp(in_path, "-") && reference > 0) {
-        sh_log_error("--reference %d needs a file, not standard input", reference);
+    o->in_path = argv[optind];
+    o->out_path = argv[optind + 1];
+    if (!strcmp(o->in_path, "-") && o->reference > 0) {
+        sh_log_error("--reference %d needs a file, not standard input", o->reference);
         return 2;
     }
-    int stereo = 0, tb = 0, half = 0, pose = 0;
-    double rvec[3] = {0, 0, 0}, tvec[3] = {0, 0, 0};
-    if (!strcmp(view, "stereo")) stereo = 1;
-    else if (!strncmp(view, "pose:", 5)) {
-        if (!parse_pose(view + 5, rvec, tvec)) {
-            sh_log_error("--view %s: want pose:RX,RY,RZ[,TX,TY,TZ]", view);
-            return 2;
-        }
-        pose = 1;
-    } else if (strcmp(view, "reference")) {
-        sh_log_error("--view %s: reference, stereo or pose:...", view);
-        return 2;
-    }
-    if (!strcmp(layout, "tb") || !strcmp(layout, "tb-half")) tb = 1;
-    half = !strcmp(layout, "sbs-half") || !strcmp(layout, "tb-half");
-    if (!tb && !half && strcmp(layout, "sbs")) {
-        sh_log_error("--layout %s: sbs, tb, sbs-half or tb-half", layout);
-        return 2;
-    }
+    int rc = parse_view(o);
+    return rc != APP_GO_ON ? rc : parse_methods(o, smethod, dmethod, have_sigma, sigma);
+}
 
+/* What one run opens and counts, from warp3d_open to warp3d_close. */
+typedef struct {
+    const warp3d_options *o;
+    app_stab s;
     sh_modelcache_recipe recipe;
-    memset(&recipe, 0, sizeof recipe);
-    recipe.three_d = 1;
-    sh_warp3d_params_default(&recipe.p3);
-    if (sh_interp_params_parse(smethod ? smethod : method, &recipe.p3.surface) != SH_OK ||
-        sh_interp_params_parse(dmethod ? dmethod : method, &recipe.p3.displacement) != SH_OK) {
-        fail("--method");
-        return 2;
-    }
-    if (have_sigma) recipe.p3.surface.sigma = recipe.p3.displacement.sigma = sigma;
-    sh_warp3d_view_options_default(&recipe.vopts);
-    recipe.vopts.warp.max_error = max_error;
-    recipe.vopts.depth_scale = depth_scale;
-    sh_modelcache *cache = NULL;
-
-    int rc = 1;
+    sh_modelcache_entry *slot; /* the models of the current frame's marker set */
     sh_calib calib;
-    sh_points points = {0};
-    sh_y4m_reader *reader = NULL;
-    sh_y4m_writer *writer = NULL;
-    sh_warp *warp = NULL;
-    sh_metric *metric_in = NULL, *metric_out = NULL;
-    sh_image in = {0}, out = {0}, ref = {0}, rgb = {0}, eye = {0};
-    int *ids = NULL;
-    double *cur_xyz = NULL;
+    int nref;                  /* the reference frame's markers with X,Y,Z */
+    sh_y4m_header out_hdr;
+    sh_image rgb, eye;         /* --export-ply's colours; a half layout's eye */
+    int measure, exported;
+} warp3d_job;
 
-    if (sh_calib_read(calib_path, &calib) != SH_OK) { fail("cameras"); goto done; }
-    if (camera >= calib.num_cameras) {
-        sh_log_error("--camera %d: %s has %d cameras", camera, calib_path,
-                     calib.num_cameras);
-        goto done;
+/* The calibration, the points, the input and the reference frame's 3D markers (their
+ * positions left in cur_xyz): 0, or 1 with the reason printed. */
+static int open_input(warp3d_job *j)
+{
+    const warp3d_options *o = j->o;
+    app_stab *s = &j->s;
+    if (sh_calib_read(o->calib_path, &j->calib) != SH_OK) return app_fail("cameras");
+    if (o->camera >= j->calib.num_cameras) {
+        sh_log_error("--camera %d: %s has %d cameras", o->camera, o->calib_path,
+                     j->calib.num_cameras);
+        return 1;
     }
-    if (sh_points_read(points_path, &points) != SH_OK) { fail("points"); goto done; }
-    if (!points.has_3d) {
-        sh_log_error("%s has no X,Y,Z columns", points_path);
-        goto done;
+    if (sh_points_read(o->points_path, &s->points) != SH_OK) return app_fail("points");
+    if (!s->points.has_3d) {
+        sh_log_error("%s has no X,Y,Z columns", o->points_path);
+        return 1;
     }
-    if (sh_y4m_reader_open(in_path, &reader) != SH_OK) { fail("input"); goto done; }
-    const sh_y4m_header *hdr = sh_y4m_reader_header(reader);
-    if (calib.width != hdr->width || calib.height != hdr->height) {
-        sh_log_error("%s is %dx%d, the calibration %s is for %dx%d", in_path,
-                     hdr->width, hdr->height, calib_path, calib.width, calib.height);
-        goto done;
+    if (sh_y4m_reader_open(o->in_path, &s->reader) != SH_OK) return app_fail("input");
+    const sh_y4m_header *hdr = sh_y4m_reader_header(s->reader);
+    if (j->calib.width != hdr->width || j->calib.height != hdr->height) {
+        sh_log_error("%s is %dx%d, the calibration %s is for %dx%d", o->in_path,
+                     hdr->width, hdr->height, o->calib_path, j->calib.width, j->calib.height);
+        return 1;
     }
-    recipe.width = hdr->width;
-    recipe.height = hdr->height;
-    recipe.source_cam = calib.cam[camera];
-    int ref_count;
-    const sh_point *ref_rows = sh_points_frame(&points, reference, &ref_count);
-    ids = malloc(sizeof(int) * ((size_t)ref_count + 1));
-    cur_xyz = malloc(sizeof(double) * 3 * ((size_t)ref_count + 1));
-    if (!ids || !cur_xyz) { fail("out of memory"); goto done; }
-    int nref = common_markers(ref_rows, ref_count, ref_rows, ref_count, ids, cur_xyz);
-    if (nref < 4) {
+    j->recipe.width = hdr->width;
+    j->recipe.height = hdr->height;
+    j->recipe.source_cam = j->calib.cam[o->camera];
+    s->ref_rows = sh_points_frame(&s->points, o->reference, &s->ref_count);
+    s->ids = malloc(sizeof(int) * ((size_t)s->ref_count + 1));
+    s->cur = malloc(sizeof(double) * 3 * ((size_t)s->ref_count + 1));
+    if (!s->ids || !s->cur) return app_fail("out of memory");
+    j->nref = common_markers(s->ref_rows, s->ref_count, s->ref_rows, s->ref_count, s->ids, s->cur);
+    if (j->nref < 4) {
         sh_log_error("%s: the reference frame %d has %d markers with X,Y,Z, need 4",
-                     points_path, reference, nref);
-        goto done;
+                     o->points_path, o->reference, j->nref);
+        return 1;
     }
-    double *ref_xyz = malloc(sizeof(double) * 3 * (size_t)nref);
-    if (!ref_xyz) { fail("out of memory"); goto done; }
-    memcpy(ref_xyz, cur_xyz, sizeof(double) * 3 * (size_t)nref);
-    if (stereo) {
-        sh_warp3d_stereo_cameras(&recipe.source_cam, baseline, &recipe.view_cam[0], &recipe.view_cam[1]);
-        recipe.nviews = 2;
-    } else if (pose) {
+    return 0;
+}
+
+/* The cameras the output is seen from (--view), posed from the reference markers: 0, or 1 with
+ * the reason printed. */
+static int set_views(warp3d_job *j)
+{
+    const warp3d_options *o = j->o;
+    app_stab *s = &j->s;
+    sh_modelcache_recipe *r = &j->recipe;
+    double *ref_xyz = malloc(sizeof(double) * 3 * (size_t)j->nref);
+    if (!ref_xyz) return app_fail("out of memory");
+    memcpy(ref_xyz, s->cur, sizeof(double) * 3 * (size_t)j->nref);
+    if (o->stereo) {
+        sh_warp3d_stereo_cameras(&r->source_cam, o->baseline, &r->view_cam[0], &r->view_cam[1]);
+        r->nviews = 2;
+    } else if (o->pose) {
         double c[3] = {0, 0, 0};
-        for (int i = 0; i < nref; i++)
-            for (int k = 0; k < 3; k++) c[k] += ref_xyz[3 * i + k] / nref;
-        sh_warp3d_pose_camera(&recipe.source_cam, c, rvec, tvec, &recipe.view_cam[0]);
-        recipe.nviews = 1;
+        for (int i = 0; i < j->nref; i++)
+            for (int k = 0; k < 3; k++) c[k] += ref_xyz[3 * i + k] / j->nref;
+        sh_warp3d_pose_camera(&r->source_cam, c, o->rvec, o->tvec, &r->view_cam[0]);
+        r->nviews = 1;
     } else {
-        recipe.view_cam[0] = recipe.source_cam;
-        recipe.nviews = 1;
+        r->view_cam[0] = r->source_cam;
+        r->nviews = 1;
     }
     free(ref_xyz);
+    return 0;
+}
 
-    sh_y4m_header out_hdr = *hdr;
-    if (stereo && !half) {
-        if (tb) out_hdr.height *= 2;
-        else out_hdr.width *= 2;
+/* The output's size (--view stereo, --layout), the frame buffers, the warp's threads and the PLY
+ * folder: 0, or 1 with the reason printed. */
+static int open_output(warp3d_job *j)
+{
+    const warp3d_options *o = j->o;
+    app_stab *s = &j->s;
+    const sh_y4m_header *hdr = sh_y4m_reader_header(s->reader);
+    j->out_hdr = *hdr;
+    if (o->stereo && !o->half) {
+        if (o->tb) j->out_hdr.height *= 2;
+        else j->out_hdr.width *= 2;
     }
-    if (stereo && half && (tb ? hdr->height : hdr->width) % (hdr->format == SH_PIX_I420 ? 4 : 2)) {
-        sh_log_error("--layout %s: the frame's %s (%d) must be a multiple of %d", layout,
-                     tb ? "height" : "width", tb ? hdr->height : hdr->width, hdr->format == SH_PIX_I420 ? 4 : 2);
-        goto done;
+    if (o->stereo && o->half && (o->tb ? hdr->height : hdr->width) % (hdr->format == SH_PIX_I420 ? 4 : 2)) {
+        sh_log_error("--layout %s: the frame's %s (%d) must be a multiple of %d", o->layout,
+                     o->tb ? "height" : "width", o->tb ? hdr->height : hdr->width, hdr->format == SH_PIX_I420 ? 4 : 2);
+        return 1;
     }
-    if (out_hdr.width > SH_IMAGE_MAX_SIZE || out_hdr.height > SH_IMAGE_MAX_SIZE) {
-        sh_log_error("the stereo frame %dx%d is too large", out_hdr.width,
-                     out_hdr.height);
-        goto done;
+    if (j->out_hdr.width > SH_IMAGE_MAX_SIZE || j->out_hdr.height > SH_IMAGE_MAX_SIZE) {
+        sh_log_error("the stereo frame %dx%d is too large", j->out_hdr.width,
+                     j->out_hdr.height);
+        return 1;
     }
-    if (sh_image_create(&in, hdr->format, hdr->width, hdr->height) != SH_OK ||
-        sh_image_create(&out, hdr->format, out_hdr.width, out_hdr.height) != SH_OK ||
-        sh_image_create(&ref, hdr->format, hdr->width, hdr->height) != SH_OK ||
-        (ply_dir && sh_image_create(&rgb, SH_PIX_RGB24, hdr->width, hdr->height) != SH_OK) ||
-        (stereo && half && sh_image_create(&eye, hdr->format, hdr->width, hdr->height) != SH_OK)) {
-        fail("frame buffers");
-        goto done;
-    }
-    if (sh_warp_create(threads, &warp) != SH_OK) { fail("threads"); goto done; }
-    if (ply_dir) {
-        if (mkdir(ply_dir, 0777) != 0 && errno != EEXIST) {
-            sh_log_error("--export-ply %s: cannot create the folder", ply_dir);
-            goto done;
+    if (sh_image_create(&s->in, hdr->format, hdr->width, hdr->height) != SH_OK ||
+        sh_image_create(&s->out, hdr->format, j->out_hdr.width, j->out_hdr.height) != SH_OK ||
+        sh_image_create(&s->ref, hdr->format, hdr->width, hdr->height) != SH_OK ||
+        (o->ply_dir && sh_image_create(&j->rgb, SH_PIX_RGB24, hdr->width, hdr->height) != SH_OK) ||
+        (o->stereo && o->half && sh_image_create(&j->eye, hdr->format, hdr->width, hdr->height) != SH_OK))
+        return app_fail("frame buffers");
+    if (sh_warp_create(o->threads, &s->warp) != SH_OK) return app_fail("threads");
+    if (o->ply_dir) {
+        if (mkdir(o->ply_dir, 0777) != 0 && errno != EEXIST) {
+            sh_log_error("--export-ply %s: cannot create the folder", o->ply_dir);
+            return 1;
         }
-        recipe.ply_spacing = ply_spacing;
-        recipe.ply_mesh = ply_mesh;
+        j->recipe.ply_spacing = o->ply_spacing;
+        j->recipe.ply_mesh = o->ply_mesh;
     }
-    if (sh_modelcache_create(&recipe, ref_rows, ref_count, CACHE_SLOTS, &cache) != SH_OK) { fail("models"); goto done; }
-    sh_modelcache_entry *slot;
-    if (sh_modelcache_get(cache, ids, nref, &slot) != SH_OK) { fail("reference markers"); goto done; }
-    int fr = sh_y4m_header_full_range(hdr);
-    int from_stdin = !strcmp(in_path, "-");
-    int measure = !stereo && !pose;
-    if (measure && !from_stdin) {
-        if (!app_read_frame_at(in_path, reference, &ref)) { fail("reference frame"); goto done; }
-        if (sh_warp3d_model_update(slot->m3, cur_xyz) != SH_OK ||
-            sh_warp3d_view_update(slot->view[0]) != SH_OK ||
-            render(warp, slot, 1, 0, 0, NULL, &ref, &out, 0) != SH_OK ||
-            sh_metric_create(&ref, sh_warp3d_view_hull(slot->view[0]), fr, &metric_in) != SH_OK ||
-            sh_metric_create(&out, sh_warp3d_view_hull(slot->view[0]), fr, &metric_out) != SH_OK) {
-            fail("reference frame");
-            goto done;
-        }
-    }
-    if (sh_y4m_writer_open(out_path, &out_hdr, &writer) != SH_OK) { fail("output"); goto done; }
+    return 0;
+}
 
-    app_progress progress;
-    app_progress_start(&progress);
-    if (quiet) progress.enabled = 0;
-    int frames = 0, raw_frames = 0, exported = 0;
-    double warp_seconds = 0;
+/* Everything the frame loop needs, up to the reference frame's models and metrics and the open
+ * output: 0, or 1 with the reason printed (warp3d_close frees either way). */
+static int warp3d_open(warp3d_job *j, const warp3d_options *o)
+{
+    memset(j, 0, sizeof *j);
+    j->o = o;
+    app_stab *s = &j->s;
+    j->recipe.three_d = 1;
+    j->recipe.p3 = o->p3;
+    sh_warp3d_view_options_default(&j->recipe.vopts);
+    j->recipe.vopts.warp.max_error = o->max_error;
+    j->recipe.vopts.depth_scale = o->depth_scale;
+    if (open_input(j) || set_views(j) || open_output(j)) return 1;
+    if (sh_modelcache_create(&j->recipe, s->ref_rows, s->ref_count, CACHE_SLOTS, &s->cache) != SH_OK)
+        return app_fail("models");
+    if (sh_modelcache_get(s->cache, s->ids, j->nref, &j->slot) != SH_OK) return app_fail("reference markers");
+    s->full_range = sh_y4m_header_full_range(sh_y4m_reader_header(s->reader));
+    s->from_stdin = !strcmp(o->in_path, "-");
+    j->measure = !o->stereo && !o->pose;
+    if (j->measure && !s->from_stdin) {
+        if (!app_read_frame_at(o->in_path, o->reference, &s->ref)) return app_fail("reference frame");
+        if (sh_warp3d_model_update(j->slot->m3, s->cur) != SH_OK ||
+            sh_warp3d_view_update(j->slot->view[0]) != SH_OK ||
+            render(s->warp, j->slot, 1, 0, 0, NULL, &s->ref, &s->out, 0) != SH_OK ||
+            sh_metric_create(&s->ref, sh_warp3d_view_hull(j->slot->view[0]), s->full_range, &s->metric_in) != SH_OK ||
+            sh_metric_create(&s->out, sh_warp3d_view_hull(j->slot->view[0]), s->full_range, &s->metric_out) != SH_OK)
+            return app_fail("reference frame");
+    }
+    return app_stab_start(s, o->out_path, &j->out_hdr, o->quiet);
+}
+
+/* --export-ply of the frame just stabilized: 0, or 1 with the reason printed. */
+static int export_ply(warp3d_job *j)
+{
+    const warp3d_options *o = j->o;
+    const app_stab *s = &j->s;
+    const sh_modelcache_entry *e = j->slot;
+    char path[4096];
+    snprintf(path, sizeof path, "%s/frame_%06d.ply", o->ply_dir, s->frames);
+    if (sh_image_to_rgb(&s->in, &j->rgb, s->full_range) != SH_OK ||
+        sh_warp3d_ply_write(e->ply, e->m3, 1, &j->rgb, &j->recipe.source_cam, path) != SH_OK)
+        return app_fail("--export-ply");
+    snprintf(path, sizeof path, "%s/frame_%06d", o->ply_dir, s->frames);
+    if (o->ply_texture && sh_warp3d_obj_write(e->ply, e->m3, 1, &j->rgb, &j->recipe.source_cam, path) != SH_OK)
+        return app_fail("--export-ply");
+    j->exported++;
+    return 0;
+}
+
+/* Stabilizes, writes, measures and exports the frame just read into s.in (job: the warp3d_job):
+ * 0, or 1 with the reason printed. */
+static int warp3d_frame(void *job)
+{
+    warp3d_job *j = job;
+    const warp3d_options *o = j->o;
+    app_stab *s = &j->s;
+    int ncur, nviews = j->recipe.nviews;
+    const sh_point *cur = sh_points_frame(&s->points, s->frames, &ncur);
+    int n = common_markers(s->ref_rows, s->ref_count, cur, ncur, s->ids, s->cur);
+    double t0 = app_now();
+    int raw = n < 4 || sh_modelcache_get(s->cache, s->ids, n, &j->slot) != SH_OK ||
+              sh_warp3d_model_update(j->slot->m3, s->cur) != SH_OK;
+    for (int v = 0; v < nviews && !raw; v++)
+        raw = sh_warp3d_view_update(j->slot->view[v]) != SH_OK;
+    if (!raw && render(s->warp, j->slot, nviews, o->tb, o->half, &j->eye, &s->in, &s->out, 0) != SH_OK) raw = 1;
+    if (raw) {
+        app_stab_raw(s, "warp3d", n, 4, o->quiet);
+        render(s->warp, j->slot, nviews, o->tb, o->half, &j->eye, &s->in, &s->out, 1);
+    }
+    s->warp_seconds += app_now() - t0;
+    if (s->frames == o->reference && s->from_stdin && j->measure && !s->metric_in && !raw) {
+        sh_image_copy(&s->ref, &s->in);
+        if (sh_metric_create(&s->ref, sh_warp3d_view_hull(j->slot->view[0]), s->full_range, &s->metric_in) != SH_OK ||
+            sh_metric_create(&s->out, sh_warp3d_view_hull(j->slot->view[0]), s->full_range, &s->metric_out) != SH_OK)
+            return app_fail("reference frame");
+    }
+    if (sh_y4m_writer_write(s->writer, &s->out) != SH_OK) return app_fail("output");
+    if (s->metric_in && (sh_metric_add(s->metric_in, &s->in) != SH_OK || sh_metric_add(s->metric_out, &s->out) != SH_OK))
+        return app_fail("metric");
+    if (o->ply_dir && !raw && s->frames % o->ply_every == 0 && export_ply(j)) return 1;
+    s->frames++;
+    app_progress_update(&s->progress, "warp3d", s->frames, 0);
+    return 0;
+}
+
+/* The summary on stderr and the metric e. */
+static void report(const warp3d_job *j)
+{
+    const warp3d_options *o = j->o;
+    const app_stab *s = &j->s;
+    fprintf(stderr, "warp3d %s view, %s: %d frames (%d unstabilized), %d marker sets built in "
+                    "%.1f ms, %.2f ms/frame",
+            o->stereo ? "stereo" : o->pose ? "pose" : "reference", o->method, s->frames, s->raw_frames,
+            sh_modelcache_builds(s->cache), sh_modelcache_build_seconds(s->cache) * 1e3,
+            s->frames ? s->warp_seconds * 1e3 / s->frames : 0.0);
+    if (o->ply_dir) fprintf(stderr, ", %d PLY files", j->exported);
+    fprintf(stderr, "\n");
+    app_stab_print_e(s, o->out_path);
+}
+
+static void warp3d_close(warp3d_job *j)
+{
+    app_stab_close(&j->s);
+    sh_image_destroy(&j->rgb);
+    sh_image_destroy(&j->eye);
+}
+
+int cmd_warp3d(int argc, char **argv)
+{
+    sh_log_setup(SH_LOG_TOOL, "stillheart warp3d", SH_LOG_INFO);
+    warp3d_options o;
+    int rc = parse_options(argc, argv, &o);
+    if (rc != APP_GO_ON) return rc;
+    warp3d_job j;
     sh_status st;
-    char ply_path[4096];
-    while ((st = sh_y4m_reader_read(reader, &in)) == SH_OK) {
-        int ncur;
-        const sh_point *cur = sh_points_frame(&points, frames, &ncur);
-        int n = common_markers(ref_rows, ref_count, cur, ncur, ids, cur_xyz);
-        double t0 = app_now();
-        int raw = n < 4 || sh_modelcache_get(cache, ids, n, &slot) != SH_OK ||
-                  sh_warp3d_model_update(slot->m3, cur_xyz) != SH_OK;
-        for (int v = 0; v < recipe.nviews && !raw; v++)
-            raw = sh_warp3d_view_update(slot->view[v]) != SH_OK;
-        if (!raw && render(warp, slot, recipe.nviews, tb, half, &eye, &in, &out, 0) != SH_OK) raw = 1;
-        if (raw) {
-            raw_frames++;
-            if (!quiet)
-                fprintf(stderr, "%sstillheart warp3d: frame %d left unstabilized (%d markers%s%s)\n",
-                        progress.enabled ? "\n" : "", frames, n, n >= 4 ? ": " : "",
-                        n >= 4 ? sh_error_message() : "");
-            render(warp, slot, recipe.nviews, tb, half, &eye, &in, &out, 1);
-        }
-        warp_seconds += app_now() - t0;
-        if (frames == reference && from_stdin && measure && !metric_in && !raw) {
-            sh_image_copy(&ref, &in);
-            if (sh_metric_create(&ref, sh_warp3d_view_hull(slot->view[0]), fr, &metric_in) != SH_OK ||
-                sh_metric_create(&out, sh_warp3d_view_hull(slot->view[0]), fr, &metric_out) != SH_OK) {
-                fail("reference frame");
-                goto done;
-            }
-        }
-        if (sh_y4m_writer_write(writer, &out) != SH_OK) { fail("output"); goto done; }
-        if (metric_in && (sh_metric_add(metric_in, &in) != SH_OK || sh_metric_add(metric_out, &out) != SH_OK)) {
-            fail("metric");
-            goto done;
-        }
-        if (ply_dir && !raw && frames % ply_every == 0) {
-            snprintf(ply_path, sizeof ply_path, "%s/frame_%06d.ply", ply_dir, frames);
-            if (sh_image_to_rgb(&in, &rgb, fr) != SH_OK ||
-                sh_warp3d_ply_write(slot->ply, slot->m3, 1, &rgb, &recipe.source_cam, ply_path) != SH_OK) {
-                fail("--export-ply");
-                goto done;
-            }
-            snprintf(ply_path, sizeof ply_path, "%s/frame_%06d", ply_dir, frames);
-            if (ply_texture && sh_warp3d_obj_write(slot->ply, slot->m3, 1, &rgb, &recipe.source_cam, ply_path) != SH_OK) {
-                fail("--export-ply");
-                goto done;
-            }
-            exported++;
-        }
-        frames++;
-        app_progress_update(&progress, "warp3d", frames, 0);
-    }
-    app_progress_end(&progress);
-    if (st != SH_EEOF) fail("input");
-    if (sh_y4m_writer_close(writer) != SH_OK) { writer = NULL; fail("output"); goto done; }
-    writer = NULL;
-    if (!quiet) {
-        fprintf(stderr, "warp3d %s view, %s: %d frames (%d unstabilized), %d marker sets built in "
-                        "%.1f ms, %.2f ms/frame",
-                stereo ? "stereo" : pose ? "pose" : "reference", method, frames, raw_frames,
-                sh_modelcache_builds(cache), sh_modelcache_build_seconds(cache) * 1e3, frames ? warp_seconds * 1e3 / frames : 0.0);
-        if (ply_dir) fprintf(stderr, ", %d PLY files", exported);
-        fprintf(stderr, "\n");
-        if (metric_in)
-            fprintf(strcmp(out_path, "-") ? stdout : stderr,
-                    "e input %.6f output %.6f (%d frames, %d hull pixels)\n", sh_metric_e(metric_in),
-                    sh_metric_e(metric_out), sh_metric_frames(metric_in), sh_metric_pixels(metric_in));
-    }
+    rc = 1;
+    if (warp3d_open(&j, &o) || app_stab_run(&j.s, warp3d_frame, &j, &st)) goto done;
+    if (!o.quiet) report(&j);
     rc = st == SH_EEOF ? 0 : 1;
 done:
-    if (writer) sh_y4m_writer_close(writer);
-    sh_modelcache_destroy(cache);
-    sh_y4m_reader_close(reader);
-    sh_points_destroy(&points);
-    sh_warp_destroy(warp);
-    sh_metric_destroy(metric_in);
-    sh_metric_destroy(metric_out);
-    sh_image_destroy(&in);
-    sh_image_destroy(&out);
-    sh_image_destroy(&ref);
-    sh_image_destroy(&rgb);
-    sh_image_destroy(&eye);
-    free(ids);
-    free(cur_xyz);
+    warp3d_close(&j);
     return rc;
 }

@@ -11,6 +11,18 @@ ok()  { echo "[       OK ] $1"; pass=$((pass + 1)); }
 bad() { echo "[  FAILED  ] $1: $2"; fail=$((fail + 1)); }
 SHM=/sh-dtest-$$
 RUN="$B/stillheart run --group= --quiet"
+# What a daemon frame may differ from warp's in the two comparisons below (their python imports
+# it: PYTHONPATH=$T). The warp's grid is refined when a frame's map needs it and stays refined,
+# so a frame after dropped ones can see a coarser grid than warp's run through every frame:
+# either map is within max_error (0.05 px) of the exact one, so the two differ by at most 0.1 px
+# times the steepest step between neighbouring luma pixels of the camera frame f (w x h), and 1
+# for rounding.
+cat > "$T/bound.py" <<'PY'
+def bound(f, w, h):
+    g = max(max(abs(f[y * w + x] - f[y * w + x + 1]) for x in range(w - 1)) for y in range(h))
+    g = max(g, max(abs(f[y * w + x] - f[y * w + w + x]) for y in range(h - 1) for x in range(w)))
+    return 1 + -(-g // 10)
+PY
 
 "$B/stillheart-render" --preset exvivo --frames 40 --cameras 1 --width 640 --height 360 --out "$T/ph" >/dev/null 2>&1 || { bad render "stillheart-render failed"; }
 "$B/stillheart" track --ids 0-15 "$T/ph/cam0.y4m" > "$T/points.csv" 2>/dev/null || bad track "stillheart track failed"
@@ -37,28 +49,22 @@ python3 -c 'import re, sys; h, r = open(sys.argv[1], "rb").read().split(b"\n", 1
     "$T/ph/cam0.y4m" "$T/fast.y4m"
 "$B/stillheart" run --group= --source "y4m:$T/fast.y4m" --no-loop --realtime --sink none --points "$T/points.csv" \
     --method tps --threads 2 --record "$T/fast-rec.y4m" --trace "$T/fast.csv" --min-markers 3 2> "$T/fast.log"
-warp_as_logged "$T/fast.log" "$T/fast-warp.y4m" && python3 - "$T/fast-rec.y4m" "$T/fast-warp.y4m" "$T/fast.csv" "$T/ph/cam0.y4m" <<'PY' \
+warp_as_logged "$T/fast.log" "$T/fast-warp.y4m" && PYTHONPATH="$T" python3 - "$T/fast-rec.y4m" "$T/fast-warp.y4m" "$T/fast.csv" "$T/ph/cam0.y4m" <<'PY' \
     && ok "a daemon behind its camera from the first frame: record equals warp onto its reference" \
     || bad "a daemon behind its camera from the first frame: record equals warp onto its reference" "see above"
-import csv, math, sys
+import csv, sys
 def frames(p):
     hdr, rest = open(p, 'rb').read().split(b'\n', 1)
     w = int([t for t in hdr.split() if t.startswith(b'W')][0][1:]); h = int([t for t in hdr.split() if t.startswith(b'H')][0][1:])
     return [rest[i + 6:i + 6 + w * h * 3 // 2] for i in range(0, len(rest), 6 + w * h * 3 // 2)], w, h
 (rec, w, h), (warp, _, _), (raw, _, _) = frames(sys.argv[1]), frames(sys.argv[2]), frames(sys.argv[4])
 shown = [int(r['index']) for r in csv.DictReader(open(sys.argv[3]))]
-# The warp's grid is refined when a frame's map needs it and stays refined, so a frame after
-# dropped ones can see a coarser grid than warp's run through every frame: either map is within
-# max_error (0.05 px) of the exact one, so the two differ by at most 0.1 px times the steepest
-# step between neighbouring luma pixels of the camera frame, and 1 for rounding.
-def bound(f):
-    g = max(max(abs(f[y * w + x] - f[y * w + x + 1]) for x in range(w - 1)) for y in range(h))
-    g = max(g, max(abs(f[y * w + x] - f[y * w + w + x]) for y in range(h - 1) for x in range(w)))
-    return 1 + math.ceil(0.1 * g)
+# a frame after dropped ones can see a coarser grid than warp's run through every frame (bound.py)
+from bound import bound
 bad = []
 for f, i in zip(rec, shown):
     d = max(abs(a - b) for a, b in zip(f, warp[i]))
-    if d > 1 and d > bound(raw[i]): bad.append("frame %d: max diff %d > %d" % (i, d, bound(raw[i])))
+    if d > 1 and d > bound(raw[i], w, h): bad.append("frame %d: max diff %d > %d" % (i, d, bound(raw[i], w, h)))
 old = [i for f, i in zip(rec, shown) if min(max(abs(x - y) for x, y in zip(f[::97], g[::97])) for g in frames(sys.argv[2].replace("fast-warp", "warp"))[0]) > 1]
 if len(rec) != len(shown) or not rec or bad: print(len(rec), "frames recorded,", len(shown), "traced;", bad); sys.exit(1)
 print("frames %s shown; against reference 0, as the test assumed before, %d of them would match nothing" % (shown, len(old)))
@@ -70,7 +76,7 @@ for i in 1 2 3 4 5 6 7 8 9 10; do [ -e "/dev/shm$SHM" ] && break; sleep 0.1; don
 "$B/stillheart-cat" --name "$SHM" --count 20 --timeout 5 -v > "$T/cat.y4m" 2> "$T/cat.log"
 wait $pid
 warp_as_logged "$T/shm.log" "$T/warp-shm.y4m"
-python3 - "$T/cat.y4m" "$T/warp-shm.y4m" "$T/ph/cam0.y4m" "$T/cat.log" <<'PY' && ok "shm frames equal stillheart warp" || bad "shm frames equal stillheart warp" "see above"
+PYTHONPATH="$T" python3 - "$T/cat.y4m" "$T/warp-shm.y4m" "$T/ph/cam0.y4m" "$T/cat.log" <<'PY' && ok "shm frames equal stillheart warp" || bad "shm frames equal stillheart warp" "see above"
 import re, sys
 log = open(sys.argv[4]).read()
 def frames(p):
@@ -96,17 +102,14 @@ def where(f, g):  # the largest difference over the whole frame, and its place
     return "%d at %s x=%d y=%d" % (d, plane, k % pw, k // pw)
 # a frame shown before the reference's models are ready is the camera's own (raw): on a slow
 # machine (qemu-aarch64 under load) that can be several; every other one is warp's, within what a
-# grid refined at other frames makes of it (the bound below, as for the forced case above)
-def bound(f):
-    g = max(max(abs(f[y * w + x] - f[y * w + x + 1]) for x in range(w - 1)) for y in range(h))
-    g = max(g, max(abs(f[y * w + x] - f[y * w + w + x]) for y in range(h - 1) for x in range(w)))
-    return 1 + -(-g // 10)
+# grid refined at other frames makes of it (bound.py, as for the forced case above)
+from bound import bound
 warped = 0
 for i, f in enumerate(a):
     diffs = [max(abs(x - y) for x, y in zip(f[::97], g[::97])) for g in b]
     best = min(diffs)
     j = diffs.index(best)
-    if best <= 1 or max(abs(x - y) for x, y in zip(f, b[j])) <= bound(raw[j]):
+    if best <= 1 or max(abs(x - y) for x, y in zip(f, b[j])) <= bound(raw[j], w, h):
         warped += 1
     elif not any(f == g for g in raw):
         seq, status = shown[i] if i < len(shown) else ("?", "? (no -v line)")

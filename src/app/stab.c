@@ -1,0 +1,64 @@
+#include <stdlib.h>
+#include <string.h>
+
+#include "stab.h"
+#include "stillheart/log.h"
+
+int app_fail(const char *what)
+{
+    sh_log_error("%s%s%s", what, *sh_error_message() ? ": " : "",
+                 sh_error_message());
+    return 1;
+}
+
+int app_stab_start(app_stab *s, const char *out_path, const sh_y4m_header *hdr, int quiet)
+{
+    if (sh_y4m_writer_open(out_path, hdr, &s->writer) != SH_OK) return app_fail("output");
+    app_progress_start(&s->progress);
+    if (quiet) s->progress.enabled = 0;
+    return 0;
+}
+
+int app_stab_run(app_stab *s, int (*step)(void *job), void *job, sh_status *st)
+{
+    while ((*st = sh_y4m_reader_read(s->reader, &s->in)) == SH_OK)
+        if (step(job)) return 1;
+    app_progress_end(&s->progress);
+    if (*st != SH_EEOF) app_fail("input"); /* frames before the damage were written */
+    sh_status closed = sh_y4m_writer_close(s->writer);
+    s->writer = NULL;
+    return closed != SH_OK ? app_fail("output") : 0;
+}
+
+void app_stab_raw(app_stab *s, const char *command, int n, int min, int quiet)
+{
+    s->raw_frames++;
+    if (!quiet)
+        fprintf(stderr, "%sstillheart %s: frame %d left unstabilized (%d markers%s%s)\n",
+                s->progress.enabled ? "\n" : "", command, s->frames, n, n >= min ? ": " : "",
+                n >= min ? sh_error_message() : "");
+}
+
+void app_stab_print_e(const app_stab *s, const char *out_path)
+{
+    if (s->metric_in)
+        fprintf(strcmp(out_path, "-") ? stdout : stderr,
+                "e input %.6f output %.6f (%d frames, %d hull pixels)\n", sh_metric_e(s->metric_in),
+                sh_metric_e(s->metric_out), sh_metric_frames(s->metric_in), sh_metric_pixels(s->metric_in));
+}
+
+void app_stab_close(app_stab *s)
+{
+    if (s->writer) sh_y4m_writer_close(s->writer);
+    sh_modelcache_destroy(s->cache);
+    sh_y4m_reader_close(s->reader);
+    sh_points_destroy(&s->points);
+    sh_warp_destroy(s->warp);
+    sh_metric_destroy(s->metric_in);
+    sh_metric_destroy(s->metric_out);
+    sh_image_destroy(&s->in);
+    sh_image_destroy(&s->out);
+    sh_image_destroy(&s->ref);
+    free(s->ids);
+    free(s->cur);
+}
