@@ -5,7 +5,8 @@
 #                     few seconds (fuzz-check), the VM and aarch64 suites
 #   make bench        benchmarks beside their peers (OpenCV cv::remap, ...)
 #   make fuzz         every libFuzzer harness for FUZZ_SECONDS each
-#   make install      PREFIX=/usr/local DESTDIR=
+#   make install      PREFIX=/usr/local DESTDIR= (the programs, their man pages, the library)
+#   make man          the man pages (man/) into $(BUILD)/man
 # Optional backends are built only when pkg-config (or the header) finds their library: every
 # library feature flag (SH_HAVE_*) is set in "library feature flags" below, and nowhere else.
 
@@ -259,9 +260,13 @@ demo: deps
 		$(DEMO_DIR)/video.y4m $(DEMO_DIR)/stabilized.y4m --map-out $(DEMO_DIR)/map.npy
 	@echo "stabilized video: $(DEMO_DIR)/stabilized.y4m (e.g. ffplay $(DEMO_DIR)/stabilized.y4m)"
 
+# The programs for users, installed where they are built (stillheart-calib needs OpenCV); not
+# stillheart-vmprobe, which runs inside make vmtest's guest only.
+USER_TOOLS := stillheart-cat stillheart-render stillheart-eval stillheart-trackeval stillheart-synth \
+	stillheart-calib
 install: all
 	install -d $(DESTDIR)$(PREFIX)/bin $(DESTDIR)$(PREFIX)/include/stillheart $(DESTDIR)$(PREFIX)/lib
-	install -m 0755 $(APP) $(DESTDIR)$(PREFIX)/bin/stillheart
+	install -m 0755 $(APP) $(filter $(addprefix $(BUILD)/,$(USER_TOOLS)),$(TOOLS)) $(DESTDIR)$(PREFIX)/bin/
 	install -m 0644 include/stillheart/*.h $(DESTDIR)$(PREFIX)/include/stillheart/
 	install -m 0644 $(LIB) $(DESTDIR)$(PREFIX)/lib/
 

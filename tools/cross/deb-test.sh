@@ -66,6 +66,9 @@ check "system user stillheart, member of video" sh -c "chroot '$root' id -nG sti
 check "no login shell for stillheart" sh -c "chroot '$root' getent passwd stillheart | grep -q nologin"
 check "example config is a conffile" grep -qx /etc/stillheart/stillheart.ini "$root/var/lib/dpkg/info/stillheart.conffiles"
 check "udev rules installed" test -s "$root/lib/udev/rules.d/99-stillheart.rules"
+check "a man page for each program and the config file" sh -c "for p in \$(cd '$root/usr/bin' && ls stillheart*); do \
+    test -s '$root/usr/share/man/man1/'\$p.1.gz || { echo \"no man page for \$p\"; exit 1; }; done; \
+    test -s '$root/usr/share/man/man5/stillheart.ini.5.gz'"
 check "unit not enabled by installation" sh -c "! ls '$root'/etc/systemd/system/*/stillheart.service 2>/dev/null | grep -q ."
 check "stillheart --help from the root's libraries" in_root stillheart --help
 check "stillheart-render --help (tools package)" in_root stillheart-render --help
