@@ -14,7 +14,7 @@ ARM64_CACHE="${ARM64_CACHE:-/var/cache/stillheart/arm64}"
 pkgs="build-essential pkg-config libcmocka-dev libqhull-dev libeigen3-dev libkissfft-dev libpng-dev
       libopencv-core-dev libopencv-imgproc-dev clang llvm libclang-rt-14-dev
       libosmesa6-dev libapriltag-dev libopencv-calib3d-dev libturbojpeg0-dev libgpiod-dev libcamera-dev
-      libinih-dev libsystemd-dev python3 strace"
+      libinih-dev libsystemd-dev python3 strace groff-base"
 for arg in "$@"; do
     case "$arg" in
         --bench) ;;   # the bench peer (cv::remap) lives in opencv-imgproc, already listed
