@@ -33,6 +33,25 @@ static void on_signal(int s)
     else sig.stop = 1;
 }
 
+/* Before anything slow (a config on a slow disk, a camera that takes seconds to open, a FIFO
+ * with no writer yet): a SIGHUP or SIGUSR1 of an operator's script in that time must not end
+ * the daemon by their default action, and a SIGTERM is a stop once it can run. SA_RESTART: an
+ * open() or read() of the start-up that a signal interrupts goes on instead of failing with
+ * EINTR; the loop still wakes at once, as poll() and nanosleep() are never restarted. */
+static void catch_signals(void)
+{
+    struct sigaction sa;
+    memset(&sa, 0, sizeof sa);
+    sa.sa_handler = on_signal;
+    sa.sa_flags = SA_RESTART;
+    sigemptyset(&sa.sa_mask);
+    sigaction(SIGTERM, &sa, NULL);
+    sigaction(SIGINT, &sa, NULL);
+    sigaction(SIGHUP, &sa, NULL);
+    sigaction(SIGUSR1, &sa, NULL);
+    signal(SIGPIPE, SIG_IGN);
+}
+
 /* ---- configuration: defaults, file, command line (which wins) ---- */
 static void usage(FILE *out)
 {
@@ -163,6 +182,7 @@ int cmd_run(int argc, char **argv)
     /* Refusals of the command line and the config are worded as every command's
      * ("stillheart run: ..."); once the daemon runs, its lines are log lines (docs/daemon.md). */
     sh_log_setup(SH_LOG_TOOL, "stillheart run", SH_LOG_INFO);
+    catch_signals();
     sh_config_default(&cfg);
     int a = apply_cli(&cfg, &ro, argc, argv, err); /* first pass: --config and run-only options */
     if (a == 1) { usage(stdout); return 0; }
@@ -198,16 +218,6 @@ int cmd_run(int argc, char **argv)
         fprintf(stderr, "stillheart run: %s\n", sh_error_message());
         return cst == SH_EINVAL ? 2 : 1;
     }
-
-    struct sigaction sa;
-    memset(&sa, 0, sizeof sa);
-    sa.sa_handler = on_signal;
-    sigemptyset(&sa.sa_mask);
-    sigaction(SIGTERM, &sa, NULL);
-    sigaction(SIGINT, &sa, NULL);
-    sigaction(SIGHUP, &sa, NULL);
-    sigaction(SIGUSR1, &sa, NULL);
-    signal(SIGPIPE, SIG_IGN);
 
     if (sh_daemon_start(d) != SH_OK) {
         fprintf(stderr, "stillheart run: %s\n", sh_error_message());
