@@ -143,6 +143,43 @@ static int parse_int(const char *s, int *out)
     return 1;
 }
 
+/* rows, cols, dt or data (whose numbers may go on over the next lines) of the matrix being read;
+ * another key is ignored. 0: a bad value. */
+static int matrix_field(matrix *mx, const char *key, const char *val)
+{
+    int ok = 1;
+    if (!strcmp(key, "rows")) ok = parse_int(val, &mx->rows) && mx->rows <= MAX_DATA;
+    else if (!strcmp(key, "cols")) ok = parse_int(val, &mx->cols) && mx->cols <= MAX_DATA;
+    else if (!strcmp(key, "dt")) ok = (val[0] == 'd' || val[0] == 'f') && (mx->have_dt = 1);
+    else if (!strcmp(key, "data")) {
+        ok = val[0] == '[' && !mx->closed;
+        mx->in_data = ok;
+        ok = ok && scan_data(mx, val + 1);
+    }
+    return ok;
+}
+
+/* The whole file read: the sizes and each camera's K, R and t must be there; P is computed
+ * where the file has none. */
+static sh_status complete(sh_calib *calib, const int *have, const char *name)
+{
+    if (calib->num_cameras < 1 || calib->num_cameras > SH_CALIB_MAX_CAMERAS)
+        return sh_error_set(SH_EFORMAT, "%s: num_cameras missing or not 1..%d", name, SH_CALIB_MAX_CAMERAS);
+    if (calib->width < 1 || calib->height < 1)
+        return sh_error_set(SH_EFORMAT, "%s: image_width/image_height missing", name);
+    for (int c = 0; c < calib->num_cameras; c++) {
+        if ((have[c] & (HAVE_K | HAVE_R | HAVE_T)) != (HAVE_K | HAVE_R | HAVE_T))
+            return sh_error_set(SH_EFORMAT, "%s: camera %d lacks K_%d, R_%d or t_%d", name, c, c, c, c);
+        if (!(have[c] & HAVE_DIST)) calib->cam[c].num_dist = 0;
+    }
+    double P[SH_CALIB_MAX_CAMERAS][12];
+    for (int c = 0; c < calib->num_cameras; c++) memcpy(P[c], calib->cam[c].P, sizeof P[c]);
+    sh_calib_compute_p(calib);
+    for (int c = 0; c < calib->num_cameras; c++) /* a P from the file wins: it may be rectified */
+        if (have[c] & HAVE_P) memcpy(calib->cam[c].P, P[c], sizeof P[c]);
+    return SH_OK;
+}
+
 sh_status sh_calib_parse(const char *text, size_t len, const char *name, sh_calib *calib)
 {
     memset(calib, 0, sizeof *calib);
@@ -196,35 +233,13 @@ sh_status sh_calib_parse(const char *text, size_t len, const char *name, sh_cali
             continue;
         }
         if (!mx.key[0]) continue; /* inside some other structure */
-        int ok = 1;
-        if (!strcmp(key, "rows")) ok = parse_int(val, &mx.rows) && mx.rows <= MAX_DATA;
-        else if (!strcmp(key, "cols")) ok = parse_int(val, &mx.cols) && mx.cols <= MAX_DATA;
-        else if (!strcmp(key, "dt")) ok = (val[0] == 'd' || val[0] == 'f') && (mx.have_dt = 1);
-        else if (!strcmp(key, "data")) {
-            ok = val[0] == '[' && !mx.closed;
-            mx.in_data = ok;
-            ok = ok && scan_data(&mx, val + 1);
-        }
-        if (!ok) return sh_error_set(SH_EFORMAT, "%s:%d: bad matrix field '%s'", name, lineno, key);
+        if (!matrix_field(&mx, key, val))
+            return sh_error_set(SH_EFORMAT, "%s:%d: bad matrix field '%s'", name, lineno, key);
     }
     if (st != SH_EEOF) return st;
     if (mx.in_data) return sh_error_set(SH_EFORMAT, "%s: matrix '%s' not closed", name, mx.key);
     if ((st = finish_matrix(&mx, name, calib, have)) != SH_OK) return st;
-    if (calib->num_cameras < 1 || calib->num_cameras > SH_CALIB_MAX_CAMERAS)
-        return sh_error_set(SH_EFORMAT, "%s: num_cameras missing or not 1..%d", name, SH_CALIB_MAX_CAMERAS);
-    if (calib->width < 1 || calib->height < 1)
-        return sh_error_set(SH_EFORMAT, "%s: image_width/image_height missing", name);
-    for (int c = 0; c < calib->num_cameras; c++) {
-        if ((have[c] & (HAVE_K | HAVE_R | HAVE_T)) != (HAVE_K | HAVE_R | HAVE_T))
-            return sh_error_set(SH_EFORMAT, "%s: camera %d lacks K_%d, R_%d or t_%d", name, c, c, c, c);
-        if (!(have[c] & HAVE_DIST)) calib->cam[c].num_dist = 0;
-    }
-    double P[SH_CALIB_MAX_CAMERAS][12];
-    for (int c = 0; c < calib->num_cameras; c++) memcpy(P[c], calib->cam[c].P, sizeof P[c]);
-    sh_calib_compute_p(calib);
-    for (int c = 0; c < calib->num_cameras; c++) /* a P from the file wins: it may be rectified */
-        if (have[c] & HAVE_P) memcpy(calib->cam[c].P, P[c], sizeof P[c]);
-    return SH_OK;
+    return complete(calib, have, name);
 }
 
 sh_status sh_calib_read(const char *path, sh_calib *calib) { return sh_calib_load(path, NULL, calib); }

@@ -2,7 +2,7 @@
  * (run_source.h). Frame buffers live in a small pool per camera; a buffer is free, being filled
  * by its camera's thread, in a pending set (sync.h holds its index as `user`), in the waiting set
  * or in the set processing holds.
- * About 620 lines, on purpose: the pool, the grouping, the mailbox and the camera threads share
+ * About 650 lines, on purpose: the pool, the grouping, the mailbox and the camera threads share
  * one lock and one buffer life cycle, and split across files each would have to know the
  * others' invariants (the options that are not, source_options.c, already went). */
 #include "run_source.h"
@@ -176,6 +176,34 @@ static int stopping(run_source *rs)
     return s;
 }
 
+/* Buffer b, filled (cst: how its conversion went), goes to the grouping, or back to the pool when
+ * it is bad, late or a duplicate. */
+static void settle(run_source *rs, camera *k, int b, sh_status cst, uint64_t seq, int64_t ts)
+{
+    pthread_mutex_lock(&rs->mu);
+    if (cst != SH_OK) {
+        k->st.bad++;
+        k->state[b] = FREE;
+    } else {
+        k->st.converted++;
+        k->seq[b] = seq;
+        k->epoch[b] = k->discontinuities;
+        sh_sync_disposition d = SH_SYNC_LATE;
+        k->state[b] = PENDING;
+        k->inflight++;
+        sh_sync_push(rs->sync, k->index, seq, ts, (void *)(intptr_t)b, &d);
+        if (d != SH_SYNC_ADDED) {
+            if (d == SH_SYNC_LATE) k->st.late++;
+            else k->st.duplicates++;
+            k->state[b] = FREE;
+            k->inflight--;
+        }
+        drain(rs);
+        if (rs->nended) flush(rs); /* a camera is gone for good: its frame will not come */
+    }
+    pthread_mutex_unlock(&rs->mu);
+}
+
 static void *camera_thread(void *arg)
 {
     camera *k = arg;
@@ -232,29 +260,7 @@ static void *camera_thread(void *arg)
         int64_t ts = f.timestamp_ns;
         k->discontinuities += f.discontinuity != 0; /* counted even for a frame not kept */
         sh_source_release(k->src, &f);
-        if (b < 0) continue;
-        pthread_mutex_lock(&rs->mu);
-        if (cst != SH_OK) {
-            k->st.bad++;
-            k->state[b] = FREE;
-        } else {
-            k->st.converted++;
-            k->seq[b] = seq;
-            k->epoch[b] = k->discontinuities;
-            sh_sync_disposition d = SH_SYNC_LATE;
-            k->state[b] = PENDING;
-            k->inflight++;
-            sh_sync_push(rs->sync, k->index, seq, ts, (void *)(intptr_t)b, &d);
-            if (d != SH_SYNC_ADDED) {
-                if (d == SH_SYNC_LATE) k->st.late++;
-                else k->st.duplicates++;
-                k->state[b] = FREE;
-                k->inflight--;
-            }
-            drain(rs);
-            if (rs->nended) flush(rs); /* a camera is gone for good: its frame will not come */
-        }
-        pthread_mutex_unlock(&rs->mu);
+        if (b >= 0) settle(rs, k, b, cst, seq, ts);
     }
     return NULL;
 }

@@ -252,19 +252,9 @@ int sh_interp_bspline_max_levels(void)
     return levels;
 }
 
-sh_status sh_interp_bspline_init(sh_interp *it)
+/* The points' bounding box with its margin, and the coarsest level's cells. */
+static void coarse_lattice(mba_impl *b, const double *p, int n)
 {
-    int n = it->n;
-    const double *p = it->ref;
-    sh_status st = sh_interp_check_distinct(p, n, "bspline");
-    if (st != SH_OK) return st;
-    mba_impl *b = calloc(1, sizeof *b);
-    double *M = malloc(sizeof(double) * (size_t)n * n);
-    if (!b || !M) {
-        free(b);
-        free(M);
-        return sh_error_set(SH_ENOMEM, "interp bspline: out of memory");
-    }
     b->x0 = b->x1 = p[0], b->y0 = b->y1 = p[1];
     for (int i = 1; i < n; i++) {
         b->x0 = fmin(b->x0, p[2 * i]), b->x1 = fmax(b->x1, p[2 * i]);
@@ -282,22 +272,57 @@ sh_status sh_interp_bspline_init(sh_interp *it)
     if (!(b->h0 > 0)) b->h0 = 1.0;
     b->m0 = (int)fmax(1, ceil(wx / b->h0));
     b->n0 = (int)fmax(1, ceil(wy / b->h0));
+}
+
+/* With spacing <= dmin / 4 no control point (support 4 cells wide) sees two points: that level
+ * reproduces its residual exactly. Often a level earlier already does; the residual operator
+ * tells, and sh_interp_bspline_init's loop stops there. Returns that level count (one more than
+ * MBA_MAX_LEVELS when even those are too coarse); closest and dmin: the closest pair. */
+static int automatic_levels(const mba_impl *b, const double *p, int n, int closest[2], double *dmin)
+{
+    for (int i = 0; i < n; i++)
+        for (int j = i + 1; j < n; j++) {
+            double d = fmax(fabs(p[2 * i] - p[2 * j]), fabs(p[2 * i + 1] - p[2 * j + 1]));
+            if (d < *dmin) *dmin = d, closest[0] = i, closest[1] = j;
+        }
+    int target = 1;
+    while (target <= MBA_MAX_LEVELS && ldexp(b->h0, -(target - 1)) > *dmin / 4) target++;
+    return target;
+}
+
+/* The refusal when the levels asked (or needed: automatic) outgrow MBA_MAX_CONTROL. */
+static sh_status too_many_levels(const mba_impl *b, int automatic, int target, const int closest[2], double dmin)
+{
+    double wx = b->x1 - b->x0, wy = b->y1 - b->y0;
+    if (automatic)
+        return sh_error_set(SH_EDEGENERATE,
+                            "interp bspline: points %d and %d are %g px apart in a %g x %g "
+                            "box: exact interpolation needs a lattice of more than %d "
+                            "control points", closest[0], closest[1], dmin, wx, wy,
+                            MBA_MAX_CONTROL);
+    return sh_error_set(SH_EINVAL, "interp bspline: %d levels make a lattice of more "
+                        "than %d control points", target, MBA_MAX_CONTROL);
+}
+
+sh_status sh_interp_bspline_init(sh_interp *it)
+{
+    int n = it->n;
+    const double *p = it->ref;
+    sh_status st = sh_interp_check_distinct(p, n, "bspline");
+    if (st != SH_OK) return st;
+    mba_impl *b = calloc(1, sizeof *b);
+    double *M = malloc(sizeof(double) * (size_t)n * n);
+    if (!b || !M) {
+        free(b);
+        free(M);
+        return sh_error_set(SH_ENOMEM, "interp bspline: out of memory");
+    }
+    coarse_lattice(b, p, n);
 
     int automatic = it->params.levels == 0, target = it->params.levels;
     int closest[2] = {0, 0};
     double dmin = INFINITY;
-    if (automatic) {
-        /* With spacing <= dmin / 4 no control point (support 4 cells wide) sees two points:
-         * that level reproduces its residual exactly. Often a level earlier already does; the
-         * residual operator tells, and the loop below stops there. */
-        for (int i = 0; i < n; i++)
-            for (int j = i + 1; j < n; j++) {
-                double d = fmax(fabs(p[2 * i] - p[2 * j]), fabs(p[2 * i + 1] - p[2 * j + 1]));
-                if (d < dmin) dmin = d, closest[0] = i, closest[1] = j;
-            }
-        target = 1;
-        while (target <= MBA_MAX_LEVELS && ldexp(b->h0, -(target - 1)) > dmin / 4) target++;
-    }
+    if (automatic) target = automatic_levels(b, p, n, closest, &dmin);
     int cap = target < MBA_MAX_LEVELS ? target : MBA_MAX_LEVELS;
     b->cell = malloc(sizeof(int) * 2 * (size_t)cap * n);
     b->w = malloc(sizeof(double) * 16 * (size_t)cap * n);
@@ -310,15 +335,7 @@ sh_status sh_interp_bspline_init(sh_interp *it)
     int levels = 0;
     for (int k = 0; !levels; k++) {
         if (k >= MBA_MAX_LEVELS || lattice_size(b, k + 1) > MBA_MAX_CONTROL) {
-            if (automatic)
-                st = sh_error_set(SH_EDEGENERATE,
-                                  "interp bspline: points %d and %d are %g px apart in a %g x %g "
-                                  "box: exact interpolation needs a lattice of more than %d "
-                                  "control points", closest[0], closest[1], dmin, wx, wy,
-                                  MBA_MAX_CONTROL);
-            else
-                st = sh_error_set(SH_EINVAL, "interp bspline: %d levels make a lattice of more "
-                                  "than %d control points", target, MBA_MAX_CONTROL);
+            st = too_many_levels(b, automatic, target, closest, dmin);
             goto fail;
         }
         if ((st = level_setup(it, b, k)) != SH_OK) goto fail;

@@ -449,6 +449,68 @@ static sh_status mjpeg_convert(sh_pixconv *c, const sh_raw *s, sh_image *d)
 
 /* ---- dispatch ---- */
 
+/* The dispatch's own loops, moved out as they were. Not cloned (SH_CLONES) and always inlined:
+ * gcc builds sh_pixconv_convert as when they were written in it (objdump: the same instructions,
+ * a few registers aside). */
+
+/* YUYV's chroma, each pair of rows averaged: I420 with the 4:2:2 samples' left siting. */
+ROW void frame_yuyv_chroma(const uint8_t *src, int ss, uint8_t *U, int us, uint8_t *V, int vs, int cw, int ch)
+{
+    for (int y = 0; y < ch; y++) {
+        const uint8_t *r0 = src + (size_t)(2 * y) * ss, *r1 = r0 + ss;
+        uint8_t *u = U + (size_t)y * us, *v = V + (size_t)y * vs;
+        for (int x = 0; x < cw; x++) {
+            u[x] = (uint8_t)((r0[4 * x + 1] + r1[4 * x + 1] + 1) >> 1);
+            v[x] = (uint8_t)((r0[4 * x + 3] + r1[4 * x + 3] + 1) >> 1);
+        }
+    }
+}
+
+/* 4:2:0 chroma already at I420's size: copied, or de-interleaved (NV12: step 2). */
+ROW void frame_yuv420_chroma(const uint8_t *cb, const uint8_t *cr, int cs, int step, uint8_t *U, int us,
+                             uint8_t *V, int vs, int cw, int ch)
+{
+    for (int y = 0; y < ch; y++) {
+        const uint8_t *b = cb + (size_t)y * cs, *r = cr + (size_t)y * cs;
+        uint8_t *u = U + (size_t)y * us, *v = V + (size_t)y * vs;
+        for (int x = 0; x < cw; x++) {
+            u[x] = b[x * step];
+            v[x] = r[x * step];
+        }
+    }
+}
+
+ROW void frame_yuv444_rgb(const uint8_t *src, const uint8_t *cb, const uint8_t *cr, int ss, uint8_t *Y, int ys,
+                          int w, int h)
+{
+    for (int y = 0; y < h; y++) {
+        const uint8_t *yr = src + (size_t)y * ss, *ur = cb + (size_t)y * ss, *vr = cr + (size_t)y * ss;
+        uint8_t *o = Y + (size_t)y * ys;
+        for (int x = 0; x < w; x++) yuv_pair_rgb(o + 3 * x, yr[x], ur[x], vr[x]);
+    }
+}
+
+/* 4:4:4 chroma to I420: each 2x2 block averaged (centre siting). */
+ROW void frame_yuv444_chroma(const uint8_t *cb, const uint8_t *cr, int ss, uint8_t *U, int us, uint8_t *V, int vs,
+                             int cw, int ch)
+{
+    for (int p = 0; p < 2; p++) {
+        const uint8_t *pl = p ? cr : cb;
+        uint8_t *o = p ? V : U;
+        int os = p ? vs : us;
+        for (int y = 0; y < ch; y++) {
+            const uint8_t *r0 = pl + (size_t)(2 * y) * ss, *r1 = r0 + ss;
+            uint8_t *q = o + (size_t)y * os;
+            for (int x = 0; x < cw; x++)
+                q[x] = (uint8_t)((r0[2 * x] + r0[2 * x + 1] + r1[2 * x] + r1[2 * x + 1] + 2) >> 2);
+        }
+    }
+}
+
+/* About 95 lines on purpose: the checks, the plane set-up, then one flat case per camera format,
+ * each the same steps (the RGB24 loop, else the luma plane, then I420's chroma and its siting).
+ * Split per format, each piece would repeat the set-up; the checks in a function of their own,
+ * even an inlined one, change gcc's register allocation of the whole function, loops included. */
 sh_status sh_pixconv_convert(sh_pixconv *conv, const sh_raw *s, sh_image *d)
 {
     sh_status st = sh_raw_check(s);
@@ -495,14 +557,7 @@ sh_status sh_pixconv_convert(sh_pixconv *conv, const sh_raw *s, sh_image *d)
         for (int y = 0; y < h; y++) yuyv_row_gray(src + (size_t)y * ss, Y + (size_t)y * ys, w);
         if (d->format == SH_PIX_I420) {
             d->siting = SH_CHROMA_LEFT;
-            for (int y = 0; y < ch; y++) {
-                const uint8_t *r0 = src + (size_t)(2 * y) * ss, *r1 = r0 + ss;
-                uint8_t *u = U + (size_t)y * us, *v = V + (size_t)y * vs;
-                for (int x = 0; x < cw; x++) {
-                    u[x] = (uint8_t)((r0[4 * x + 1] + r1[4 * x + 1] + 1) >> 1);
-                    v[x] = (uint8_t)((r0[4 * x + 3] + r1[4 * x + 3] + 1) >> 1);
-                }
-            }
+            frame_yuyv_chroma(src, ss, U, us, V, vs, cw, ch);
         }
         return SH_OK;
     case SH_RAW_NV12:
@@ -518,41 +573,20 @@ sh_status sh_pixconv_convert(sh_pixconv *conv, const sh_raw *s, sh_image *d)
         copy_rows(src, ss, Y, ys, w, h);
         if (d->format == SH_PIX_I420) {
             d->siting = s->format == SH_RAW_NV12 ? SH_CHROMA_LEFT : SH_CHROMA_CENTER;
-            for (int y = 0; y < ch; y++) {
-                const uint8_t *b = cb + (size_t)y * cs, *r = cr + (size_t)y * cs;
-                uint8_t *u = U + (size_t)y * us, *v = V + (size_t)y * vs;
-                for (int x = 0; x < cw; x++) {
-                    u[x] = b[x * step];
-                    v[x] = r[x * step];
-                }
-            }
+            frame_yuv420_chroma(cb, cr, cs, step, U, us, V, vs, cw, ch);
         }
         return SH_OK;
     }
     case SH_RAW_YUV444: {
         const uint8_t *cb = src + (size_t)ss * h, *cr = cb + (size_t)ss * h;
         if (d->format == SH_PIX_RGB24) {
-            for (int y = 0; y < h; y++) {
-                const uint8_t *yr = src + (size_t)y * ss, *ur = cb + (size_t)y * ss, *vr = cr + (size_t)y * ss;
-                uint8_t *o = Y + (size_t)y * ys;
-                for (int x = 0; x < w; x++) yuv_pair_rgb(o + 3 * x, yr[x], ur[x], vr[x]);
-            }
+            frame_yuv444_rgb(src, cb, cr, ss, Y, ys, w, h);
             return SH_OK;
         }
         copy_rows(src, ss, Y, ys, w, h);
         if (d->format == SH_PIX_I420) {
             d->siting = SH_CHROMA_CENTER;
-            for (int p = 0; p < 2; p++) {
-                const uint8_t *pl = p ? cr : cb;
-                uint8_t *o = p ? V : U;
-                int os = p ? vs : us;
-                for (int y = 0; y < ch; y++) {
-                    const uint8_t *r0 = pl + (size_t)(2 * y) * ss, *r1 = r0 + ss;
-                    uint8_t *q = o + (size_t)y * os;
-                    for (int x = 0; x < cw; x++)
-                        q[x] = (uint8_t)((r0[2 * x] + r0[2 * x + 1] + r1[2 * x] + r1[2 * x + 1] + 2) >> 2);
-                }
-            }
+            frame_yuv444_chroma(cb, cr, ss, U, us, V, vs, cw, ch);
         }
         return SH_OK;
     }

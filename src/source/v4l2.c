@@ -102,33 +102,30 @@ static sh_status set_ctrl(v4l2_source *v, uint32_t id, int32_t value, const char
     return SH_OK;
 }
 
-/* Opens, configures and maps; on failure everything is closed again. first: the geometry is
- * negotiated (else it must match what was negotiated before). */
-static sh_status open_device(v4l2_source *v, int first)
+/* QUERYCAP: a single-planar capture device that streams. */
+static sh_status check_caps(v4l2_source *v)
 {
-    const sh_source_options *o = &v->base.opts;
-    sh_status st = SH_OK;
-    v->fd = open(v->path, O_RDWR | O_NONBLOCK | O_CLOEXEC);
-    if (v->fd < 0) return fail(v, "open", errno);
     struct v4l2_capability cap;
     memset(&cap, 0, sizeof cap);
-    if (xioctl(v->fd, VIDIOC_QUERYCAP, &cap) < 0) {
-        st = sh_error_set(SH_EUNSUPPORTED, "v4l2:%s: not a V4L2 device (%s)", v->path, strerror(errno));
-        goto out;
-    }
+    if (xioctl(v->fd, VIDIOC_QUERYCAP, &cap) < 0)
+        return sh_error_set(SH_EUNSUPPORTED, "v4l2:%s: not a V4L2 device (%s)", v->path, strerror(errno));
     uint32_t caps = cap.capabilities & V4L2_CAP_DEVICE_CAPS ? cap.device_caps : cap.capabilities;
-    if (!(caps & V4L2_CAP_VIDEO_CAPTURE) || !(caps & V4L2_CAP_STREAMING)) {
-        st = sh_error_set(SH_EUNSUPPORTED, "v4l2:%s (%s): not a streaming single-planar capture device",
-                          v->path, (const char *)cap.card);
-        goto out;
-    }
+    if (!(caps & V4L2_CAP_VIDEO_CAPTURE) || !(caps & V4L2_CAP_STREAMING))
+        return sh_error_set(SH_EUNSUPPORTED, "v4l2:%s (%s): not a streaming single-planar capture device",
+                            v->path, (const char *)cap.card);
+    return SH_OK;
+}
+
+/* S_FMT and the re-read of what the driver chose, which must be what was asked (first: the
+ * options; after a loss: what was negotiated before); sets the source's geometry and sizeimage. */
+static sh_status negotiate_format(v4l2_source *v, int first)
+{
+    const sh_source_options *o = &v->base.opts;
+    sh_status st;
     struct v4l2_format fmt;
     memset(&fmt, 0, sizeof fmt);
     fmt.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
-    if (xioctl(v->fd, VIDIOC_G_FMT, &fmt) < 0) {
-        st = fail(v, "VIDIOC_G_FMT", errno);
-        goto out;
-    }
+    if (xioctl(v->fd, VIDIOC_G_FMT, &fmt) < 0) return fail(v, "VIDIOC_G_FMT", errno);
     int want_w = first ? o->width : v->base.width, want_h = first ? o->height : v->base.height;
     int want_f = first ? o->format : (int)v->base.format;
     if (want_w > 0) fmt.fmt.pix.width = (uint32_t)want_w;
@@ -136,64 +133,51 @@ static sh_status open_device(v4l2_source *v, int first)
     if (want_f >= 0) fmt.fmt.pix.pixelformat = sh_rawfmt_fourcc((sh_rawfmt)want_f);
     fmt.fmt.pix.field = V4L2_FIELD_NONE;
     fmt.fmt.pix.bytesperline = 0; /* the driver's choice */
-    if (xioctl(v->fd, VIDIOC_S_FMT, &fmt) < 0) {
-        st = fail(v, "VIDIOC_S_FMT", errno);
-        goto out;
-    }
+    if (xioctl(v->fd, VIDIOC_S_FMT, &fmt) < 0) return fail(v, "VIDIOC_S_FMT", errno);
     /* the driver may change everything: read it back */
-    if (xioctl(v->fd, VIDIOC_G_FMT, &fmt) < 0) {
-        st = fail(v, "VIDIOC_G_FMT", errno);
-        goto out;
-    }
+    if (xioctl(v->fd, VIDIOC_G_FMT, &fmt) < 0) return fail(v, "VIDIOC_G_FMT", errno);
     sh_rawfmt got;
-    if (sh_rawfmt_from_fourcc(fmt.fmt.pix.pixelformat, &got) != SH_OK) {
-        st = sh_error_set(SH_EUNSUPPORTED, "v4l2:%s: %s", v->path, sh_error_message());
-        goto out;
-    }
+    if (sh_rawfmt_from_fourcc(fmt.fmt.pix.pixelformat, &got) != SH_OK)
+        return sh_error_set(SH_EUNSUPPORTED, "v4l2:%s: %s", v->path, sh_error_message());
     if ((want_f >= 0 && (int)got != want_f) || (want_w > 0 && (int)fmt.fmt.pix.width != want_w) ||
-        (want_h > 0 && (int)fmt.fmt.pix.height != want_h)) {
-        st = sh_error_set(SH_EUNSUPPORTED, "v4l2:%s: asked %dx%d %s, the driver gives %ux%u %s", v->path, want_w,
-                          want_h, want_f >= 0 ? sh_rawfmt_name((sh_rawfmt)want_f) : "any", fmt.fmt.pix.width,
-                          fmt.fmt.pix.height, sh_rawfmt_name(got));
-        goto out;
-    }
+        (want_h > 0 && (int)fmt.fmt.pix.height != want_h))
+        return sh_error_set(SH_EUNSUPPORTED, "v4l2:%s: asked %dx%d %s, the driver gives %ux%u %s", v->path, want_w,
+                            want_h, want_f >= 0 ? sh_rawfmt_name((sh_rawfmt)want_f) : "any", fmt.fmt.pix.width,
+                            fmt.fmt.pix.height, sh_rawfmt_name(got));
     if ((st = sh_source_check_pixels(o, "v4l2", v->path, (int)fmt.fmt.pix.width, (int)fmt.fmt.pix.height)) != SH_OK)
-        goto out; /* before REQBUFS: the driver allocates the buffers we would map */
-    if (fmt.fmt.pix.field != V4L2_FIELD_NONE && fmt.fmt.pix.field != V4L2_FIELD_ANY) {
-        st = sh_error_set(SH_EUNSUPPORTED, "v4l2:%s: interlaced field order %u not supported", v->path,
-                          fmt.fmt.pix.field);
-        goto out;
-    }
+        return st; /* before REQBUFS: the driver allocates the buffers we would map */
+    if (fmt.fmt.pix.field != V4L2_FIELD_NONE && fmt.fmt.pix.field != V4L2_FIELD_ANY)
+        return sh_error_set(SH_EUNSUPPORTED, "v4l2:%s: interlaced field order %u not supported", v->path,
+                            fmt.fmt.pix.field);
     int w = (int)fmt.fmt.pix.width, h = (int)fmt.fmt.pix.height, stride = (int)fmt.fmt.pix.bytesperline;
     if (got != SH_RAW_MJPEG) {
         if (stride < sh_rawfmt_min_stride(got, w)) stride = sh_rawfmt_min_stride(got, w);
         size_t need = sh_raw_frame_size(got, w, h, stride);
-        if (!need || fmt.fmt.pix.sizeimage < need) {
-            st = sh_error_set(SH_EUNSUPPORTED, "v4l2:%s: %dx%d %s with bytesperline %d, sizeimage %u: inconsistent",
-                              v->path, w, h, sh_rawfmt_name(got), stride, fmt.fmt.pix.sizeimage);
-            goto out;
-        }
+        if (!need || fmt.fmt.pix.sizeimage < need)
+            return sh_error_set(SH_EUNSUPPORTED, "v4l2:%s: %dx%d %s with bytesperline %d, sizeimage %u: inconsistent",
+                                v->path, w, h, sh_rawfmt_name(got), stride, fmt.fmt.pix.sizeimage);
     }
     v->base.format = got;
     v->base.width = w;
     v->base.height = h;
     v->base.stride = stride;
     v->sizeimage = fmt.fmt.pix.sizeimage;
+    return SH_OK;
+}
 
+/* S_PARM when a rate is asked, then the rate the driver runs at (0/0 when it does not say). */
+static sh_status set_rate(v4l2_source *v)
+{
+    const sh_source_options *o = &v->base.opts;
     struct v4l2_streamparm parm;
     memset(&parm, 0, sizeof parm);
     parm.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
     if (o->fps_num > 0 && o->fps_den > 0) {
-        if (xioctl(v->fd, VIDIOC_G_PARM, &parm) < 0 || !(parm.parm.capture.capability & V4L2_CAP_TIMEPERFRAME)) {
-            st = sh_error_set(SH_EUNSUPPORTED, "v4l2:%s: the frame rate cannot be set", v->path);
-            goto out;
-        }
+        if (xioctl(v->fd, VIDIOC_G_PARM, &parm) < 0 || !(parm.parm.capture.capability & V4L2_CAP_TIMEPERFRAME))
+            return sh_error_set(SH_EUNSUPPORTED, "v4l2:%s: the frame rate cannot be set", v->path);
         parm.parm.capture.timeperframe.numerator = (uint32_t)o->fps_den;
         parm.parm.capture.timeperframe.denominator = (uint32_t)o->fps_num;
-        if (xioctl(v->fd, VIDIOC_S_PARM, &parm) < 0) {
-            st = fail(v, "VIDIOC_S_PARM", errno);
-            goto out;
-        }
+        if (xioctl(v->fd, VIDIOC_S_PARM, &parm) < 0) return fail(v, "VIDIOC_S_PARM", errno);
     }
     memset(&parm, 0, sizeof parm);
     parm.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
@@ -202,41 +186,52 @@ static sh_status open_device(v4l2_source *v, int first)
         v->base.fps_num = (int)parm.parm.capture.timeperframe.denominator;
         v->base.fps_den = (int)parm.parm.capture.timeperframe.numerator;
     }
-    /* controls: switch the automatic one off first where there is one (absent is fine) */
+    return SH_OK;
+}
+
+/* The controls asked for: switch the automatic one off first where there is one (absent is fine). */
+static sh_status set_controls(v4l2_source *v)
+{
+    const sh_source_options *o = &v->base.opts;
+    sh_status st;
     if (o->exposure != SH_SOURCE_CTRL_UNSET) {
         struct v4l2_control c = {.id = V4L2_CID_EXPOSURE_AUTO, .value = V4L2_EXPOSURE_MANUAL};
         xioctl(v->fd, VIDIOC_S_CTRL, &c);
         if ((st = set_ctrl(v, V4L2_CID_EXPOSURE_ABSOLUTE, o->exposure, "exposure", "V4L2_CID_EXPOSURE_ABSOLUTE")) !=
             SH_OK)
-            goto out;
+            return st;
     }
     if (o->gain != SH_SOURCE_CTRL_UNSET) {
         struct v4l2_control c = {.id = V4L2_CID_AUTOGAIN, .value = 0};
         xioctl(v->fd, VIDIOC_S_CTRL, &c);
-        if ((st = set_ctrl(v, V4L2_CID_GAIN, o->gain, "gain", "V4L2_CID_GAIN")) != SH_OK) goto out;
+        if ((st = set_ctrl(v, V4L2_CID_GAIN, o->gain, "gain", "V4L2_CID_GAIN")) != SH_OK) return st;
     }
     if (o->white_balance != SH_SOURCE_CTRL_UNSET) {
         struct v4l2_control c = {.id = V4L2_CID_AUTO_WHITE_BALANCE, .value = 0};
         xioctl(v->fd, VIDIOC_S_CTRL, &c);
         if ((st = set_ctrl(v, V4L2_CID_WHITE_BALANCE_TEMPERATURE, o->white_balance, "white balance",
                            "V4L2_CID_WHITE_BALANCE_TEMPERATURE")) != SH_OK)
-            goto out;
+            return st;
     }
+    return SH_OK;
+}
 
+/* REQBUFS (mmap, options.buffers, at least 2), then QUERYBUF and mmap each; each buffer must hold
+ * a frame of the negotiated geometry. What is mapped so far stays for unmap_close. */
+static sh_status map_buffers(v4l2_source *v)
+{
+    const sh_source_options *o = &v->base.opts;
+    sh_rawfmt got = v->base.format;
+    int w = v->base.width, h = v->base.height, stride = v->base.stride;
     struct v4l2_requestbuffers rb;
     memset(&rb, 0, sizeof rb);
     rb.count = (uint32_t)(o->buffers > 0 ? o->buffers : 4);
     if (rb.count > MAX_BUFFERS) rb.count = MAX_BUFFERS;
     rb.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
     rb.memory = V4L2_MEMORY_MMAP;
-    if (xioctl(v->fd, VIDIOC_REQBUFS, &rb) < 0) {
-        st = fail(v, "VIDIOC_REQBUFS (mmap)", errno);
-        goto out;
-    }
-    if (rb.count < 2) {
-        st = sh_error_set(SH_EUNSUPPORTED, "v4l2:%s: the driver gives %u buffer(s), 2 needed", v->path, rb.count);
-        goto out;
-    }
+    if (xioctl(v->fd, VIDIOC_REQBUFS, &rb) < 0) return fail(v, "VIDIOC_REQBUFS (mmap)", errno);
+    if (rb.count < 2)
+        return sh_error_set(SH_EUNSUPPORTED, "v4l2:%s: the driver gives %u buffer(s), 2 needed", v->path, rb.count);
     v->nbuf = (int)(rb.count > MAX_BUFFERS ? MAX_BUFFERS : rb.count);
     for (int i = 0; i < v->nbuf; i++) {
         struct v4l2_buffer b;
@@ -244,25 +239,32 @@ static sh_status open_device(v4l2_source *v, int first)
         b.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
         b.memory = V4L2_MEMORY_MMAP;
         b.index = (uint32_t)i;
-        if (xioctl(v->fd, VIDIOC_QUERYBUF, &b) < 0) {
-            st = fail(v, "VIDIOC_QUERYBUF", errno);
-            goto out;
-        }
+        if (xioctl(v->fd, VIDIOC_QUERYBUF, &b) < 0) return fail(v, "VIDIOC_QUERYBUF", errno);
         v->length[i] = b.length;
         v->start[i] = mmap(NULL, b.length, PROT_READ | PROT_WRITE, MAP_SHARED, v->fd, b.m.offset);
         if (v->start[i] == MAP_FAILED) {
             v->start[i] = NULL;
-            st = fail(v, "mmap", errno);
-            goto out;
+            return fail(v, "mmap", errno);
         }
-        if (got != SH_RAW_MJPEG && b.length < sh_raw_frame_size(got, w, h, stride)) {
-            st = sh_error_set(SH_EUNSUPPORTED, "v4l2:%s: buffer of %u bytes holds no frame", v->path, b.length);
-            goto out;
-        }
+        if (got != SH_RAW_MJPEG && b.length < sh_raw_frame_size(got, w, h, stride))
+            return sh_error_set(SH_EUNSUPPORTED, "v4l2:%s: buffer of %u bytes holds no frame", v->path, b.length);
     }
-    v->mapped = 1;
     return SH_OK;
-out:
+}
+
+/* Opens, configures and maps, in that order (the header's open sequence); on failure everything
+ * is closed again. first: the geometry is negotiated (else it must match what was negotiated
+ * before). */
+static sh_status open_device(v4l2_source *v, int first)
+{
+    v->fd = open(v->path, O_RDWR | O_NONBLOCK | O_CLOEXEC);
+    if (v->fd < 0) return fail(v, "open", errno);
+    sh_status st;
+    if ((st = check_caps(v)) == SH_OK && (st = negotiate_format(v, first)) == SH_OK && (st = set_rate(v)) == SH_OK &&
+        (st = set_controls(v)) == SH_OK && (st = map_buffers(v)) == SH_OK) {
+        v->mapped = 1;
+        return SH_OK;
+    }
     unmap_close(v);
     return st;
 }
@@ -340,6 +342,48 @@ static void try_reopen(v4l2_source *v, int64_t now)
     v->retry_at = now + (int64_t)v->backoff_ms * 1000000;
 }
 
+/* Drops are the gaps in the driver's sequence. */
+static void count_sequence(v4l2_source *v, uint32_t sequence)
+{
+    sh_source *s = &v->base;
+    if (v->have_seq && sequence > v->last_driver_seq + 1)
+        s->stats.drops += sequence - v->last_driver_seq - 1;
+    /* A driver sequence that does not rise (vivid under load ticks twice on one count) moves
+     * the base so that ours still does. */
+    if (v->have_seq && sequence <= v->last_driver_seq) v->seq_base += v->last_driver_seq - sequence + 1;
+    v->have_seq = 1;
+    v->last_driver_seq = sequence;
+}
+
+/* The dequeued buffer b, of which bytes are a frame, becomes f and is held until released. */
+static void hand_out(v4l2_source *v, const struct v4l2_buffer *b, size_t bytes, int64_t now, sh_source_frame *f)
+{
+    sh_source *s = &v->base;
+    memset(f, 0, sizeof *f);
+    f->camera = s->opts.camera;
+    f->sequence = v->seq_base + b->sequence;
+    v->next_seq = f->sequence + 1;
+    if ((b->flags & V4L2_BUF_FLAG_TIMESTAMP_MASK) == V4L2_BUF_FLAG_TIMESTAMP_MONOTONIC)
+        f->timestamp_ns = (int64_t)b->timestamp.tv_sec * 1000000000 + (int64_t)b->timestamp.tv_usec * 1000;
+    else
+        f->timestamp_ns = now;
+    /* A driver stamp that is not after the last one is stale: vivid (6.12) completes a
+     * buffer before it writes its timestamp, so a prompt DQBUF can see the stamp of the
+     * buffer's previous use. The dequeue time replaces it: sets need rising times. */
+    if (f->timestamp_ns <= v->last_stamp && v->last_stamp) f->timestamp_ns = now;
+    v->last_stamp = f->timestamp_ns;
+    f->raw.format = s->format;
+    f->raw.width = s->width;
+    f->raw.height = s->height;
+    f->raw.stride = s->stride;
+    f->raw.data = v->start[b->index];
+    f->raw.bytes = bytes;
+    f->slot = (int)((v->generation & 0xffffff) << 6 | b->index);
+    v->held[b->index] = 1;
+    v->nheld++;
+    s->stats.frames++;
+}
+
 static sh_status v_dequeue(sh_source *s, int timeout_ms, sh_source_frame *f, int *got)
 {
     v4l2_source *v = (v4l2_source *)s;
@@ -393,13 +437,7 @@ static sh_status v_dequeue(sh_source *s, int timeout_ms, sh_source_frame *f, int
             continue;
         }
         v->last_frame = now;
-        if (v->have_seq && b.sequence > v->last_driver_seq + 1)
-            s->stats.drops += b.sequence - v->last_driver_seq - 1;
-        /* A driver sequence that does not rise (vivid under load ticks twice on one count) moves
-         * the base so that ours still does. */
-        if (v->have_seq && b.sequence <= v->last_driver_seq) v->seq_base += v->last_driver_seq - b.sequence + 1;
-        v->have_seq = 1;
-        v->last_driver_seq = b.sequence;
+        count_sequence(v, b.sequence);
         size_t bytes = b.bytesused ? b.bytesused : v->length[b.index];
         if (bytes > v->length[b.index]) bytes = v->length[b.index];
         int bad = (b.flags & V4L2_BUF_FLAG_ERROR) != 0;
@@ -410,29 +448,7 @@ static sh_status v_dequeue(sh_source *s, int timeout_ms, sh_source_frame *f, int
             if (xioctl(v->fd, VIDIOC_QBUF, &b) < 0) lose(v);
             continue;
         }
-        memset(f, 0, sizeof *f);
-        f->camera = s->opts.camera;
-        f->sequence = v->seq_base + b.sequence;
-        v->next_seq = f->sequence + 1;
-        if ((b.flags & V4L2_BUF_FLAG_TIMESTAMP_MASK) == V4L2_BUF_FLAG_TIMESTAMP_MONOTONIC)
-            f->timestamp_ns = (int64_t)b.timestamp.tv_sec * 1000000000 + (int64_t)b.timestamp.tv_usec * 1000;
-        else
-            f->timestamp_ns = now;
-        /* A driver stamp that is not after the last one is stale: vivid (6.12) completes a
-         * buffer before it writes its timestamp, so a prompt DQBUF can see the stamp of the
-         * buffer's previous use. The dequeue time replaces it: sets need rising times. */
-        if (f->timestamp_ns <= v->last_stamp && v->last_stamp) f->timestamp_ns = now;
-        v->last_stamp = f->timestamp_ns;
-        f->raw.format = s->format;
-        f->raw.width = s->width;
-        f->raw.height = s->height;
-        f->raw.stride = s->stride;
-        f->raw.data = v->start[b.index];
-        f->raw.bytes = bytes;
-        f->slot = (int)((v->generation & 0xffffff) << 6 | b.index);
-        v->held[b.index] = 1;
-        v->nheld++;
-        s->stats.frames++;
+        hand_out(v, &b, bytes, now, f);
         *got = 1;
         return SH_OK;
     }
