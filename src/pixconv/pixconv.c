@@ -4,7 +4,12 @@
  *   Y' = (Y - 16) 255/219,  Cb = (U - 128) 255/224,  Cr = (V - 128) 255/224
  *   R = Y' + 2(1-Kr) Cr,  G = Y' - (2Kb(1-Kb) Cb + 2Kr(1-Kr) Cr) / Kg,  B = Y' + 2(1-Kb) Cb
  * and the inverse for RGB input. Fixed point with 14 fractional bits: every product fits in
- * int32 and the loops are plain element-wise code gcc vectorizes at -O3. */
+ * int32 and the loops are plain element-wise code gcc vectorizes at -O3.
+ *
+ * About 610 lines in one file, on purpose: every row loop is a static function that the
+ * dispatch (sh_pixconv_convert) must see to inline, and gcc's code for those loops changes
+ * with what it sees around them (measured with objdump when the dispatch was split); one
+ * translation unit per format would cut the loops from the dispatch or copy the plane set-up. */
 #include "stillheart/pixconv.h"
 
 #include <stdlib.h>
