@@ -36,6 +36,17 @@ $(BUILD)/tests/test_figures: $(BUILD)/tools/eval/tests/test_figures.o $(BUILD)/t
 
 TOOL_TESTS += $(BUILD)/tests/test_figures
 
+# The README's "Stabilize your own video" run as written (skipped without ffmpeg).
+$(BUILD)/tools/eval/tests/test_readme_video.o: CFLAGS_ALL += -DREADME='"$(abspath README.md)"' \
+	-DAPP_BIN='"$(abspath $(APP))"' -DEVAL_BIN='"$(abspath $(EVAL_BIN))"' \
+	-DRENDER_BIN='"$(abspath $(BUILD))/stillheart-render"' -Itests/unit
+$(BUILD)/tests/test_readme_video: $(BUILD)/tools/eval/tests/test_readme_video.o $(BUILD)/tests/unit/shell.o \
+		$(LIB) $(APP) $(EVAL_BIN) $(BUILD)/stillheart-render
+	@mkdir -p $(dir $@)
+	$(CC) $(LDFLAGS) $< $(BUILD)/tests/unit/shell.o $(LIB) $(shell $(PKG_CONFIG) --libs cmocka) $(LDLIBS_ALL) -o $@
+
+TOOL_TESTS += $(BUILD)/tests/test_readme_video
+
 # ---- Table II: both presets at the paper's length, one camera, every 2D method ----
 TABLE2_DIR ?= out/table2
 .PHONY: table2
