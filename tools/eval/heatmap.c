@@ -110,7 +110,8 @@ static void legend(sh_image *img, const int *hull_rows, double max, int levels)
 sh_status eval_heatmap_write(const char *path, const float *grey, int w, int h, double max,
                              int levels, double scale)
 {
-    if (!(max > 0)) return sh_error_set(SH_EINVAL, "heatmap: scale %g must be positive", max);
+    if (!(max > 0))
+        return sh_error_set(SH_EINVAL, "heatmap: the colour scale's top %g must be positive", max);
     int ow = (int)lrint(w * scale), oh = (int)lrint(h * scale);
     if (!(scale > 0) || ow < 1 || oh < 1 || ow > SH_IMAGE_MAX_SIZE || oh > SH_IMAGE_MAX_SIZE)
         return sh_error_set(SH_EINVAL, "heatmap: %dx%d at scale %g is no picture (1..%d px a side)",
