@@ -12,6 +12,10 @@
 sh_status y4m_header_parse_named(const char *line, size_t len, const char *name,
                                  sh_y4m_header *header);
 
+/* The refusal of a stream whose first n bytes (head) lack the magic: what it looks like (MP4,
+ * Matroska, PNG...) and the ffmpeg command that converts it, for name ("<stdin>": a pipe). */
+sh_status y4m_refuse_not_y4m(const unsigned char *head, size_t n, const char *name);
+
 /* Writes the header line (with its newline) for header into out; returns its length, or -1 when
  * the header cannot be written (bad size or format, extra with a newline). */
 int y4m_header_format(const sh_y4m_header *header, char *out, size_t cap);

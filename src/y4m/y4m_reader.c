@@ -14,6 +14,9 @@
 /* A larger stdio buffer keeps the syscall count per frame low when rows are padded (one fread
  * per row then, served from this buffer). */
 #define READ_BUFFER (1u << 20)
+/* Bytes read before the magic is checked: enough for the signatures y4m_sniff.c knows, fewer
+ * than the shortest valid header ("YUV4MPEG2 W1 H1\n"), so a valid stream has no newline in them. */
+#define Y4M_SNIFF 12
 
 struct sh_y4m_reader {
     FILE *file;
@@ -63,9 +66,24 @@ static sh_status open_common(FILE *f, const char *name, int owns, char *vbuf, lo
     r->buffer = vbuf;
     r->name = copy;
 
-    long n = read_line(f, r->line, Y4M_MAX_HEADER);
+    /* The magic first, on its own: another format's bytes are refused as that format, not as a
+     * Y4M header that is too long or has no newline. A newline ends the line only while the bytes
+     * still agree with the magic: a PNG's signature holds one. */
+    size_t k = 0;
+    int c = 0;
+    while (k < Y4M_SNIFF && (c = getc(f)) != EOF) {
+        if (c == '\n' && !memcmp(r->line, "YUV4MPEG2 ", k < 10 ? k : 10)) break;
+        r->line[k++] = (char)c;
+    }
+    long n;
+    if (k == 0 && c == EOF) n = ferror(f) ? -4 : -1;
+    else if (k < 10 || memcmp(r->line, "YUV4MPEG2 ", 10)) n = -5;
+    else if (k < Y4M_SNIFF) n = c == '\n' ? (long)k : ferror(f) ? -4 : -3;
+    else if ((n = read_line(f, r->line + k, Y4M_MAX_HEADER - k)) >= 0) n += (long)k;
+    else if (n == -1) n = -3;
     sh_status st = SH_OK;
-    if (n == -1) st = sh_error_set(SH_EFORMAT, "%s: empty file, no Y4M header", name);
+    if (n == -5) st = y4m_refuse_not_y4m((const unsigned char *)r->line, k, name);
+    else if (n == -1) st = sh_error_set(SH_EFORMAT, "%s: empty file, no Y4M header", name);
     else if (n == -2) st = sh_error_set(SH_EFORMAT, "%s: Y4M header longer than %d bytes", name,
                                         Y4M_MAX_HEADER);
     else if (n == -3) st = sh_error_set(SH_EFORMAT, "%s: Y4M header not terminated", name);

@@ -438,6 +438,62 @@ static void test_wrong_image_refused(void **state)
     sh_image_destroy(&img);
 }
 
+/* Another format's first bytes: the refusal names what it looks like and the ffmpeg command that
+ * converts it (issue 18's wording), instead of a Y4M header that is too long or not terminated. */
+static void expect_not_y4m(const char *file, const void *head, size_t n, const char *kind,
+                           const char *command)
+{
+    char bytes[4096] = {0}; /* the rest as a container would go on: binary, no newline soon */
+    memcpy(bytes, head, n);
+    for (size_t i = n; i < sizeof bytes; i++) bytes[i] = (char)(0x80 + i % 61);
+    const char *p = tmp_path(file);
+    write_bytes(p, bytes, sizeof bytes);
+    sh_y4m_reader *r = (sh_y4m_reader *)1;
+    assert_int_equal(sh_y4m_reader_open(p, &r), SH_EFORMAT);
+    assert_null(r);
+    char want[1024];
+    snprintf(want, sizeof want, "%s is not a Y4M video (%s); convert it: %s", p, kind, command);
+    assert_string_equal(sh_error_message(), want);
+}
+
+static void test_other_formats_name_ffmpeg(void **state)
+{
+    (void)state;
+    char cmd[1024];
+    /* an MP4's first box: size, "ftyp", brand */
+    snprintf(cmd, sizeof cmd, "ffmpeg -i %s/clip.mp4 -pix_fmt yuv420p -f yuv4mpegpipe %s/clip.y4m",
+             tmpdir, tmpdir);
+    expect_not_y4m("clip.mp4", "\0\0\0\x20" "ftypisom\0\0\2\0", 16, "it looks like MP4", cmd);
+    snprintf(cmd, sizeof cmd, "ffmpeg -i %s/a.mov -pix_fmt yuv420p -f yuv4mpegpipe %s/a.y4m",
+             tmpdir, tmpdir);
+    expect_not_y4m("a.mov", "\0\0\0\x14" "ftypqt  ", 12, "it looks like QuickTime MOV", cmd);
+    /* EBML's magic, quoted because of the space; a name already ending .y4m gets another */
+    snprintf(cmd, sizeof cmd,
+             "ffmpeg -i '%s/my clip.y4m' -pix_fmt yuv420p -f yuv4mpegpipe '%s/my clip-yuv.y4m'",
+             tmpdir, tmpdir);
+    expect_not_y4m("my clip.y4m", "\x1a\x45\xdf\xa3\x01\0\0\0", 8,
+                   "it looks like Matroska or WebM", cmd);
+    snprintf(cmd, sizeof cmd, "ffmpeg -i %s/shot.png -pix_fmt yuv420p -f yuv4mpegpipe %s/shot.y4m",
+             tmpdir, tmpdir);
+    expect_not_y4m("shot.png", "\x89PNG\r\n\x1a\n\0\0\0\x0dIHDR", 16, "it looks like a PNG image", cmd);
+    snprintf(cmd, sizeof cmd, "ffmpeg -i %s/v.avi -pix_fmt yuv420p -f yuv4mpegpipe %s/v.y4m",
+             tmpdir, tmpdir);
+    expect_not_y4m("v.avi", "RIFF\x10\0\0\0AVI LIST", 16, "it looks like AVI", cmd);
+    /* unknown bytes: no guess, still the command; a name without an extension */
+    snprintf(cmd, sizeof cmd, "ffmpeg -i %s/raw -pix_fmt yuv420p -f yuv4mpegpipe %s/raw.y4m",
+             tmpdir, tmpdir);
+    expect_not_y4m("raw", "\x10\x20\x30\x40", 4, "it does not begin with the YUV4MPEG2 magic",
+                   cmd);
+    /* short files: as much as there is decides */
+    write_bytes(tmp_path("short.mp4"), "\0\0\0\x18" "ftyp", 8);
+    sh_y4m_reader *r;
+    assert_int_equal(sh_y4m_reader_open(tmp_path("short.mp4"), &r), SH_EFORMAT);
+    assert_non_null(strstr(sh_error_message(), "(it looks like MP4); convert it: ffmpeg -i "));
+    /* a Y4M header cut inside its magic, or that ends right after it, is still a Y4M matter */
+    expect_error("YUV4MPEG2 W4", SH_EFORMAT, "not terminated");
+    expect_error("YUV4MPEG2 \n", SH_EFORMAT, "lacks");
+}
+
 /* Reading "-" from a pipe: large frames arrive in pieces and nothing may seek. */
 static void test_stdin_pipe(void **state)
 {
@@ -557,6 +613,7 @@ int main(void)
         cmocka_unit_test(test_frame_parameters_skipped),
         cmocka_unit_test(test_wrong_image_refused),
         cmocka_unit_test(test_stdin_pipe),
+        cmocka_unit_test(test_other_formats_name_ffmpeg),
         cmocka_unit_test(test_writer_errors),
         cmocka_unit_test(test_full_range_tag),
     };

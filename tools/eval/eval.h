@@ -50,9 +50,28 @@ sh_status eval_geo_result_get(eval_geo *geo, eval_geo_result *res);
 /* ---- heatmap (heatmap.c) ---- */
 
 /* Colour-maps the I_error grey image (NaN outside the hull) with contour lines at
- * levels * max / (levels + 1), writes a PNG. */
+ * k * max / (levels + 1), k = 1..levels, resamples it by scale (nearest pixel) and draws the
+ * colour scale with its numbers in a strip along its top or bottom edge; writes a PNG. */
 sh_status eval_heatmap_write(const char *path, const float *grey, int width, int height,
-                             double max, int levels);
+                             double max, int levels, double scale);
+
+/* The viridis colour of s in [0, 1] (clamped). */
+void eval_viridis(double s, unsigned char rgb[3]);
+
+/* ---- drawing on RGB24 pictures (draw.c) ---- */
+
+#define FONT_W 5
+#define FONT_H 7
+
+/* The glyph of c (upper case drawn as lower case): FONT_H rows of FONT_W characters, '#' ink,
+ * '.' paper; NULL for a space or a character the face lacks (drawn blank). */
+const char (*font_glyph(char c))[FONT_W + 1];
+/* Width in pixels of s drawn at scale: FONT_W + 1 columns a character, less the last gap. */
+int font_width(const char *s, int scale);
+/* s with its top-left corner at (x, y), every font pixel a scale x scale square, clipped. */
+void draw_text(sh_image *img, int x, int y, const char *s, int scale, const unsigned char rgb[3]);
+/* The box [x0, x1) x [y0, y1), clipped to the picture. */
+void draw_box(sh_image *img, int x0, int y0, int x1, int y1, const unsigned char rgb[3]);
 
 /* ---- ground-truth points (export.c) ---- */
 

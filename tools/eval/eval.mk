@@ -20,8 +20,35 @@ $(BUILD)/tests/test_eval: $(BUILD)/tools/eval/tests/test_eval.o $(BUILD)/libphan
 
 TOOL_TESTS += $(BUILD)/tests/test_eval
 
+# The Table II figure (tools/eval/plot): built for make table2 and its test, not installed.
+PLOT_BIN := $(BUILD)/tools/eval/table2-plot
+$(BUILD)/tools/eval/plot/%.o: CFLAGS_ALL += -Itools/eval
+$(PLOT_BIN): $(BUILD)/tools/eval/plot/table2_plot.o $(BUILD)/tools/eval/draw.o $(LIB)
+	$(CC) $(LDFLAGS) $^ $(LDLIBS_ALL) -o $@
+
+# The figures read back: the heatmap's size, scale and numbers; the plot's bars.
+$(BUILD)/tools/eval/tests/test_figures.o: CFLAGS_ALL += -DEVAL_BIN='"$(abspath $(BUILD))/stillheart-eval"' \
+	-DPLOT_BIN='"$(abspath $(PLOT_BIN))"' -Itools/eval -Itests/unit
+$(BUILD)/tests/test_figures: $(BUILD)/tools/eval/tests/test_figures.o $(BUILD)/tools/eval/draw.o \
+		$(BUILD)/tests/unit/shell.o $(LIB) $(EVAL_BIN) $(PLOT_BIN)
+	@mkdir -p $(dir $@)
+	$(CC) $(LDFLAGS) $< $(BUILD)/tools/eval/draw.o $(BUILD)/tests/unit/shell.o $(LIB) $(shell $(PKG_CONFIG) --libs cmocka) $(LDLIBS_ALL) -o $@
+
+TOOL_TESTS += $(BUILD)/tests/test_figures
+
+# The README's "Stabilize your own video" run as written (skipped without ffmpeg).
+$(BUILD)/tools/eval/tests/test_readme_video.o: CFLAGS_ALL += -DREADME='"$(abspath README.md)"' \
+	-DAPP_BIN='"$(abspath $(APP))"' -DEVAL_BIN='"$(abspath $(EVAL_BIN))"' \
+	-DRENDER_BIN='"$(abspath $(BUILD))/stillheart-render"' -Itests/unit
+$(BUILD)/tests/test_readme_video: $(BUILD)/tools/eval/tests/test_readme_video.o $(BUILD)/tests/unit/shell.o \
+		$(LIB) $(APP) $(EVAL_BIN) $(BUILD)/stillheart-render
+	@mkdir -p $(dir $@)
+	$(CC) $(LDFLAGS) $< $(BUILD)/tests/unit/shell.o $(LIB) $(shell $(PKG_CONFIG) --libs cmocka) $(LDLIBS_ALL) -o $@
+
+TOOL_TESTS += $(BUILD)/tests/test_readme_video
+
 # ---- Table II: both presets at the paper's length, one camera, every 2D method ----
 TABLE2_DIR ?= out/table2
 .PHONY: table2
-table2: $(EVAL_BIN) $(BUILD)/stillheart-render $(APP)
+table2: $(EVAL_BIN) $(PLOT_BIN) $(BUILD)/stillheart-render $(APP)
 	@sh tools/eval/table2.sh $(BUILD) $(TABLE2_DIR)

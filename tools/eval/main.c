@@ -33,7 +33,12 @@ static void usage(FILE *f)
         "  --heatmap OUT.png  I_error averaged over the channels (grey in [0, 1]) in the viridis\n"
         "                     colour map, with contour lines (white) of its local mean at\n"
         "                     --contours levels evenly spaced below --heatmap-max; dark grey\n"
-        "                     outside the hull, cropped to the hull's bounding box\n"
+        "                     outside the hull; the video's size times --heatmap-scale, with the\n"
+        "                     colour scale and its numbers (0, the contour levels, the top) in a\n"
+        "                     strip along the bottom edge, or the top one if fewer hull pixels\n"
+        "                     lie under it there (left out of a picture too small for it)\n"
+        "  --heatmap-scale S  the heatmap's size as a multiple of the video's, 1/64..8 (default 1:\n"
+        "                     it stacks beside the video, e.g. with ffmpeg's hstack)\n"
         "  --heatmap-max V    grey value shown as the top of the map (default 0.2; larger\n"
         "                     values saturate), fixed so that heatmaps compare\n"
         "  --contours L       number of contour levels (default 4; 0: none)\n"
@@ -209,7 +214,7 @@ static void json_number(double v)
 typedef struct {
     const char *points_path, *truth_dir, *heatmap, *method, *export_out;
     int reference, camera, stride, json, quiet, contours;
-    double heatmap_max;
+    double heatmap_max, heatmap_scale;
     eval_geo_options geo;
 } options;
 
@@ -349,7 +354,7 @@ static int evaluate(options *o, const char *stab_path, const char *orig_path)
         if (!grey) { fail("out of memory"); goto done; }
         if (sh_metric_error_image(stab.metric, grey) != SH_OK ||
             eval_heatmap_write(o->heatmap, grey, f->width, f->height, o->heatmap_max,
-                               o->contours) != SH_OK) {
+                               o->contours, o->heatmap_scale) != SH_OK) {
             fail("--heatmap");
             goto done;
         }
@@ -380,9 +385,11 @@ int main(int argc, char **argv)
         {"max-error", required_argument, 0, 'e'}, {"geo-stride", required_argument, 0, 'g'},
         {"heatmap", required_argument, 0, 'H'},  {"heatmap-max", required_argument, 0, 'X'},
         {"contours", required_argument, 0, 'C'}, {"export-points", required_argument, 0, 'E'},
+        {"heatmap-scale", required_argument, 0, 'Z'},
         {"json", no_argument, 0, 'j'},           {"quiet", no_argument, 0, 'q'},
         {"help", no_argument, 0, 'h'},           {0, 0, 0, 0}};
-    options o = {.method = "bspline", .stride = 4, .heatmap_max = 0.2, .contours = 4};
+    options o = {.method = "bspline", .stride = 4, .heatmap_max = 0.2, .heatmap_scale = 1,
+                 .contours = 4};
     double sigma = 0, smoothing = 0, max_error = 0.05;
     int levels = 0, have_sigma = 0, opt;
     while ((opt = getopt_long(argc, argv, "", long_opts, NULL)) != -1) {
@@ -400,6 +407,7 @@ int main(int argc, char **argv)
         case 'g': if (!parse_int("--geo-stride", optarg, 1, 4096, &o.stride)) return 2; break;
         case 'H': o.heatmap = optarg; break;
         case 'X': if (!parse_double("--heatmap-max", optarg, 1e-6, 1, &o.heatmap_max)) return 2; break;
+        case 'Z': if (!parse_double("--heatmap-scale", optarg, 1.0 / 64, 8, &o.heatmap_scale)) return 2; break;
         case 'C': if (!parse_int("--contours", optarg, 0, 32, &o.contours)) return 2; break;
         case 'E': o.export_out = optarg; break;
         case 'j': o.json = 1; break;

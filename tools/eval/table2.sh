@@ -3,7 +3,8 @@
 # every 2D method of `stillheart warp` fed the ground-truth marker centres, evaluated with
 # stillheart-eval (e over the hull, geometric error against the truth, heatmaps).
 #   sh tools/eval/table2.sh BUILD OUTDIR
-# Writes OUTDIR/table2.md, OUTDIR/<preset>-<method>.png and the evaluator's JSON per run in
+# Writes OUTDIR/table2.md, its figure OUTDIR/table2.png (e per method and preset, from the
+# numbers in OUTDIR/table2.csv), OUTDIR/<preset>-<method>.png and the evaluator's JSON per run in
 # OUTDIR/json/. The renders stay in OUTDIR/work/<preset>/ (about 2.3 GB) unless KEEP_RENDERS=0;
 # stabilized videos are deleted as soon as they are measured. RENDER_ARGS adds renderer options
 # for a quick trial (e.g. RENDER_ARGS="--frames 20 --width 640 --height 360").
@@ -13,7 +14,8 @@ OUT=${2:?usage: table2.sh BUILD OUTDIR}
 METHODS="affine pwlinear bspline rbf-local tps gaussian"
 PRESETS="exvivo invivo"
 RENDER=$BUILD/stillheart-render EVAL=$BUILD/stillheart-eval WARP=$BUILD/stillheart
-for b in "$RENDER" "$EVAL" "$WARP"; do
+PLOT=$BUILD/tools/eval/table2-plot
+for b in "$RENDER" "$EVAL" "$WARP" "$PLOT"; do
     [ -x "$b" ] || { echo "table2: $b is not built" >&2; exit 1; }
 done
 mkdir -p "$OUT/work" "$OUT/json"
@@ -44,6 +46,14 @@ num() { sed -n "s/.*\"$2\": \([-0-9.eE+]*\).*/\1/p" "$OUT/json/$1.json" | head -
 fmt() { [ -n "$1" ] && printf '%.3f' "$1" || printf 'n/a'; }
 fmt2() { [ -n "$1" ] && printf '%.2f' "$1" || printf 'n/a'; }
 
+{
+    echo "preset,method,e"
+    for p in $PRESETS; do
+        for m in unstabilized $METHODS; do echo "$p,$m,$(num "$p-$m" e_stabilized)"; done
+    done
+} > "$OUT/table2.csv"
+"$PLOT" "$OUT/table2.csv" "$OUT/table2.png"
+
 secs=$(( $(date +%s) - start ))
 md=$OUT/table2.md
 {
@@ -72,6 +82,8 @@ md=$OUT/table2.md
     echo
     echo "Hull pixels: ex-vivo $(num exvivo-bspline pixels) over $(num exvivo-bspline frames) frames,"
     echo "in-vivo $(num invivo-bspline pixels) over $(num invivo-bspline frames) frames."
+    echo "![e per method and preset](table2.png)"
+    echo
     echo "Heatmaps (I_error, viridis up to 0.2, contours every 0.04): <preset>-<method>.png."
     echo "Made by \`make table2\` in ${secs} s."
 } > "$md"
