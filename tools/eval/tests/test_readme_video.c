@@ -2,9 +2,8 @@
  * between the own-video markers (so the two cannot drift apart) and run by sh in an empty folder
  * on a rendered phantom clip encoded to MP4 with ffmpeg, as a user's clip would come; then what
  * they made is read back: the Y4M, the points, both stabilized videos, the heatmaps at the clip's
- * size, and the side-by-side MP4 three clips wide with every frame. Needs ffmpeg, which `make
- * check` does not install (scripts/install-deps.sh --extras does): without it the test is
- * skipped, and says so. */
+ * size, and the side-by-side MP4 three clips wide with every frame. Needs ffmpeg, which
+ * scripts/install-deps.sh installs: where it is missing the test is skipped, and says so. */
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -75,7 +74,7 @@ static void test_readme_section_runs(void **state)
 {
     (void)state;
     if (test_run("command -v ffmpeg && command -v ffprobe") != 0) {
-        print_message("skipped: ffmpeg not installed (scripts/install-deps.sh --extras)\n");
+        print_message("skipped: ffmpeg not installed (sh scripts/install-deps.sh installs it)\n");
         skip();
     }
     /* under qemu-aarch64 (tools/cross/run-lanes.sh) the same commands cost minutes and show
