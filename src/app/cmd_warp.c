@@ -211,6 +211,8 @@ static int warp_frame(void *job)
         j->last_model = j->model;
     }
     s->warp_seconds += app_now() - t0;
+    sh_log_debug("frame %d: %d of the reference frame's %d markers, %s", s->frames, n, s->ref_count,
+                 shown == &s->in ? "written unstabilized" : "warped");
     if (sh_y4m_writer_write(s->writer, shown) != SH_OK) return app_fail("output");
     if (s->metric_in && (sh_metric_add(s->metric_in, &s->in) != SH_OK ||
                          sh_metric_add(s->metric_out, shown) != SH_OK))

@@ -33,7 +33,7 @@ int main(int argc, char **argv)
 {
     sh_log_setup(SH_LOG_TOOL, "stillheart", SH_LOG_INFO);
     if (argc < 2) {
-        usage(stderr);
+        sh_log_error("no command given; try 'stillheart --help'");
         return 2;
     }
     if (!strcmp(argv[1], "--help") || !strcmp(argv[1], "-h") || !strcmp(argv[1], "help")) {
