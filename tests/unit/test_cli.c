@@ -354,7 +354,7 @@ static void last_line(const char *from, const char *to)
     fclose(f);
 }
 
-/* --json of detect, track --stats and run --stats: JSON python3 reads, with the figures of the
+/* --json of detect, stillheart-eval, track --stats and run --stats: JSON python3 reads, with the figures of the
  * video made in setup (FRAMES frames, no tags in it). */
 static void test_json_outputs(void **state)
 {
@@ -365,6 +365,13 @@ static void test_json_outputs(void **state)
     rename(path("stdout"), path("detect.json"));
     snprintf(expr, sizeof expr, "d[\"frames\"] == %d and d[\"detections\"] == [] and d[\"error\"] is None", FRAMES);
     assert_json(path("detect.json"), expr);
+
+    snprintf(args, sizeof args, "--json --points=%s %s", path("points.csv"), path("in.y4m"));
+    assert_int_equal(run_tool("stillheart-eval", args), 0);
+    rename(path("stdout"), path("eval.json"));
+    snprintf(expr, sizeof expr, "d[\"frames\"] == %d and d[\"e_original\"] is None and d[\"geometric\"] is None and "
+             "d[\"e_stabilized\"] > 0", FRAMES);
+    assert_json(path("eval.json"), expr);
 
     snprintf(args, sizeof args, "track --ids 0-3 --stats --json %s", path("in.y4m"));
     int rc = run(args);
