@@ -36,19 +36,6 @@ static void usage(FILE *out)
         SH_CLI_USAGE);
 }
 
-static int parse_int(const char *opt, const char *text, int lo, int hi, int *out)
-{
-    char *end;
-    errno = 0;
-    long v = strtol(text, &end, 10);
-    if (errno || *end || end == text || v < lo || v > hi) {
-        sh_log_error("%s: '%s' is not a whole number in %d..%d", opt, text, lo, hi);
-        return 0;
-    }
-    *out = (int)v;
-    return 1;
-}
-
 /* mkdir -p */
 static int make_dirs(const char *path)
 {
@@ -81,12 +68,12 @@ int main(int argc, char **argv)
     opterr = 0;
     while ((opt = getopt_long(argc, argv, ":h", options, NULL)) != -1) {
         switch (opt) {
-        case 'w': if (!parse_int("--width", optarg, 16, SH_IMAGE_MAX_SIZE, &width)) return 2; break;
-        case 'y': if (!parse_int("--height", optarg, 16, SH_IMAGE_MAX_SIZE, &height)) return 2; break;
-        case 'n': if (!parse_int("--frames", optarg, 1, 100000, &frames)) return 2; break;
-        case 'm': if (!parse_int("--markers", optarg, 3, 1000, &markers)) return 2; break;
-        case 'a': if (!parse_int("--amplitude", optarg, 0, 1000, &amplitude)) return 2; break;
-        case 's': if (!parse_int("--seed", optarg, 0, 1 << 30, &seed)) return 2; break;
+        case 'w': if (!sh_cli_parse_int("--width", optarg, 16, SH_IMAGE_MAX_SIZE, &width)) return 2; break;
+        case 'y': if (!sh_cli_parse_int("--height", optarg, 16, SH_IMAGE_MAX_SIZE, &height)) return 2; break;
+        case 'n': if (!sh_cli_parse_int("--frames", optarg, 1, 100000, &frames)) return 2; break;
+        case 'm': if (!sh_cli_parse_int("--markers", optarg, 3, 1000, &markers)) return 2; break;
+        case 'a': if (!sh_cli_parse_int("--amplitude", optarg, 0, 1000, &amplitude)) return 2; break;
+        case 's': if (!sh_cli_parse_int("--seed", optarg, 0, 1 << 30, &seed)) return 2; break;
         case 'f':
             if (!strcmp(optarg, "i420")) format = SH_PIX_I420;
             else if (!strcmp(optarg, "gray8")) format = SH_PIX_GRAY8;
