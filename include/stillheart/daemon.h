@@ -24,6 +24,7 @@
 
 #include <signal.h>
 #include <stddef.h>
+#include <stdio.h>
 
 #include "stillheart/config.h"
 #include "stillheart/core.h"
@@ -75,6 +76,10 @@ sh_status sh_daemon_run(sh_daemon *d, sh_daemon_signals *sig);
  * published, raw, degraded, dropped, latency median / p99 / max, RSS, models built, black
  * frames. */
 void sh_daemon_stats(sh_daemon *d, char *line, size_t cap);
+/* The same as one JSON object and a newline on out (`stillheart run --stats --json`): published,
+ * raw, degraded, dropped, latency_ms {median, p99, max}, rss_kb {start, at_1_min, max, end},
+ * models_built, black_frames; a figure never measured is null. */
+void sh_daemon_stats_json(sh_daemon *d, FILE *out);
 /* Stops every thread, closes the pipeline (the display segment marked closed) and the trace
  * files. SH_OK unless the record or a trace file could not be written (logged). NULL: nothing. */
 sh_status sh_daemon_destroy(sh_daemon *d);

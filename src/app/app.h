@@ -4,9 +4,8 @@
 
 #include <stdio.h>
 
+#include "stillheart/cli.h"
 #include "stillheart/image.h"
-
-#define STILLHEART_VERSION "0.1.0"
 
 int cmd_warp(int argc, char **argv);
 int cmd_detect(int argc, char **argv);
@@ -17,22 +16,8 @@ int cmd_run(int argc, char **argv);
 int cmd_ctl(int argc, char **argv);
 
 /* What a subcommand's parse_options returns when the command goes on; anything else is the exit
- * code (0 after --help). */
+ * code (0 after --help or --version). */
 #define APP_GO_ON (-1)
-
-/* Parses a whole decimal number / a finite real; on failure prints "OPTION: reason" and
- * returns 0. */
-int app_parse_int(const char *option, const char *text, int min, int max, int *out);
-int app_parse_double(const char *option, const char *text, double min, double max, double *out);
-
-/* A progress line on stderr when it is a terminal: "label  done/total  rate". */
-typedef struct {
-    int enabled;
-    double start, last;
-} app_progress;
-void app_progress_start(app_progress *p);
-void app_progress_update(app_progress *p, const char *label, int done, int total);
-void app_progress_end(app_progress *p);
 
 /* Monotonic seconds (sh_monotonic_ns), for the commands' timings. */
 double app_now(void);

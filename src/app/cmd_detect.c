@@ -12,6 +12,8 @@
 
 #define MAX_DETECTIONS 4096
 
+static const sh_cli cli = {"stillheart detect"};
+
 static void usage(FILE *out)
 {
     fprintf(out,
@@ -42,7 +44,11 @@ static void usage(FILE *out)
         "  --no-refine-edges do not snap edges to gradients after decimation\n"
         "  --max-hamming N   bit errors corrected at most, 0..3 (default 2)\n"
         "  --threads T       libapriltag worker threads (default 1)\n"
-        "  --help            this text\n"
+        "  --json            one JSON object on stdout instead of the CSV: {\"input\", \"family\",\n"
+        "                    \"frames\" (read), \"detections\": [{\"frame\", \"id\", \"cx\", \"cy\",\n"
+        "                    \"corners\": [[x0, y0], .. [x3, y3]], \"margin\"}, ...]}, the CSV's\n"
+        "                    numbers; \"error\" (null, or why the run stopped) last\n"
+        SH_CLI_USAGE
         "IN may be '-' for a Y4M stream on standard input.\n",
         sh_detector_families());
 }
@@ -53,9 +59,27 @@ static int ends_with(const char *s, const char *suffix)
     return n >= m && !strcasecmp(s + n - m, suffix);
 }
 
-static void print_detections(int frame, const sh_detection *d, int n)
+/* The CSV rows, or with json the members of the "detections" array. */
+static void print_detections(sh_cli_json *json, int frame, const sh_detection *d, int n)
 {
-    for (int i = 0; i < n; i++) {
+    for (int i = 0; i < n && json; i++) {
+        sh_cli_json_object(json, NULL);
+        sh_cli_json_int(json, "frame", frame);
+        sh_cli_json_int(json, "id", d[i].id);
+        sh_cli_json_number(json, "cx", d[i].cx);
+        sh_cli_json_number(json, "cy", d[i].cy);
+        sh_cli_json_array(json, "corners");
+        for (int k = 0; k < 4; k++) {
+            sh_cli_json_array(json, NULL);
+            sh_cli_json_number(json, NULL, d[i].corner[k][0]);
+            sh_cli_json_number(json, NULL, d[i].corner[k][1]);
+            sh_cli_json_end(json);
+        }
+        sh_cli_json_end(json);
+        sh_cli_json_number(json, "margin", d[i].margin);
+        sh_cli_json_end(json);
+    }
+    for (int i = 0; i < n && !json; i++) {
         printf("%d,%d,%.4f,%.4f", frame, d[i].id, d[i].cx, d[i].cy);
         for (int k = 0; k < 4; k++) printf(",%.4f,%.4f", d[i].corner[k][0], d[i].corner[k][1]);
         printf(",%.3f\n", d[i].margin);
@@ -85,7 +109,7 @@ static int windows_from(const sh_detection *d, int n, double scale, sh_window *w
  * ustreamer: detect_job below holds what the run opens). */
 typedef struct {
     sh_detector_options det;
-    int use_windows;
+    int use_windows, json;
     double scale; /* --window-scale */
     const char *in;
 } detect_options;
@@ -99,33 +123,31 @@ static int parse_options(int argc, char **argv, detect_options *o)
         {"decimate", required_argument, 0, 'd'},   {"sigma", required_argument, 0, 's'},
         {"sharpening", required_argument, 0, 'S'}, {"no-refine-edges", no_argument, 0, 'R'},
         {"max-hamming", required_argument, 0, 'H'}, {"threads", required_argument, 0, 't'},
-        {"help", no_argument, 0, 'h'},             {0, 0, 0, 0}};
+        {"json", no_argument, 0, 'j'},             SH_CLI_OPTIONS, {0, 0, 0, 0}};
     sh_detector_options_default(&o->det);
-    o->use_windows = 0;
+    o->use_windows = o->json = 0;
     o->scale = 1.6;
     int opt;
     optind = 1;
-    while ((opt = getopt_long(argc, argv, "", options, NULL)) != -1) {
+    opterr = 0;
+    while ((opt = getopt_long(argc, argv, ":h", options, NULL)) != -1) {
         switch (opt) {
         case 'f': o->det.family = optarg; break;
         case 'F': o->use_windows = 0; break;
         case 'w': o->use_windows = 1; break;
-        case 'W': if (!app_parse_double("--window-scale", optarg, 1.0, 10.0, &o->scale)) return 2; break;
-        case 'd': if (!app_parse_double("--decimate", optarg, 1.0, 16.0, &o->det.quad_decimate)) return 2; break;
-        case 's': if (!app_parse_double("--sigma", optarg, -10.0, 10.0, &o->det.quad_sigma)) return 2; break;
-        case 'S': if (!app_parse_double("--sharpening", optarg, 0.0, 10.0, &o->det.decode_sharpening)) return 2; break;
+        case 'W': if (!sh_cli_parse_double("--window-scale", optarg, 1.0, 10.0, &o->scale)) return 2; break;
+        case 'd': if (!sh_cli_parse_double("--decimate", optarg, 1.0, 16.0, &o->det.quad_decimate)) return 2; break;
+        case 's': if (!sh_cli_parse_double("--sigma", optarg, -10.0, 10.0, &o->det.quad_sigma)) return 2; break;
+        case 'S': if (!sh_cli_parse_double("--sharpening", optarg, 0.0, 10.0, &o->det.decode_sharpening)) return 2; break;
         case 'R': o->det.refine_edges = 0; break;
-        case 'H': if (!app_parse_int("--max-hamming", optarg, 0, 3, &o->det.max_hamming)) return 2; break;
-        case 't': if (!app_parse_int("--threads", optarg, 1, 64, &o->det.threads)) return 2; break;
+        case 'H': if (!sh_cli_parse_int("--max-hamming", optarg, 0, 3, &o->det.max_hamming)) return 2; break;
+        case 't': if (!sh_cli_parse_int("--threads", optarg, 1, 64, &o->det.threads)) return 2; break;
+        case 'j': o->json = 1; break;
         case 'h': usage(stdout); return 0;
-        default: usage(stderr); return 2;
+        default: { int rc = sh_cli_option(&cli, opt, argv); if (rc >= 0) return rc; } break;
         }
     }
-    if (optind != argc - 1) {
-        sh_log_error("expected one input file");
-        usage(stderr);
-        return 2;
-    }
+    if (optind != argc - 1) return sh_cli_usage_error(&cli, "expected one input file");
     o->in = argv[optind];
     return APP_GO_ON;
 }
@@ -136,6 +158,8 @@ typedef struct {
     sh_detection *found, *prev; /* this frame's detections, the last frame's (--windows) */
     sh_window *win;
     int nprev, full_count;      /* full_count: tags found at the last whole-frame scan */
+    sh_cli_json json, *out;     /* out: &json with --json, else NULL (CSV) */
+    int frames;                 /* read */
 } detect_job;
 
 /* 0, or 1 with the reason printed (detect_close frees either way). */
@@ -188,7 +212,8 @@ static int detect_image(detect_job *j, const char *path)
         sh_log_error("%s", sh_error_message());
         rc = 1;
     } else {
-        print_detections(0, j->found, n < MAX_DETECTIONS ? n : MAX_DETECTIONS);
+        print_detections(j->out, 0, j->found, n < MAX_DETECTIONS ? n : MAX_DETECTIONS);
+        j->frames = 1;
     }
     sh_image_destroy(&img);
     return rc;
@@ -215,7 +240,8 @@ static int detect_frame(detect_job *j, const detect_options *o, const sh_image *
         return 1;
     }
     if (n > MAX_DETECTIONS) n = MAX_DETECTIONS;
-    print_detections(index, j->found, n);
+    print_detections(j->out, index, j->found, n);
+    j->frames = index + 1;
     memcpy(j->prev, j->found, (size_t)n * sizeof *j->found);
     j->nprev = n;
     return 0;
@@ -261,8 +287,24 @@ int cmd_detect(int argc, char **argv)
     if (rc != APP_GO_ON) return rc;
     detect_job j;
     if (!(rc = detect_open(&j, &o))) {
-        printf("frame,id,cx,cy,x0,y0,x1,y1,x2,y2,x3,y3,margin\n");
+        if (o.json) {
+            /* the document stays whole when a frame fails: "error" says why it ends early */
+            j.out = &j.json;
+            sh_cli_json_start(j.out, stdout);
+            sh_cli_json_object(j.out, NULL);
+            sh_cli_json_string(j.out, "input", o.in);
+            sh_cli_json_string(j.out, "family", o.det.family);
+            sh_cli_json_array(j.out, "detections");
+        } else {
+            printf("frame,id,cx,cy,x0,y0,x1,y1,x2,y2,x3,y3,margin\n");
+        }
         rc = is_video(o.in) ? detect_video(&j, &o) : detect_image(&j, o.in);
+        if (o.json) {
+            sh_cli_json_end(j.out);
+            sh_cli_json_int(j.out, "frames", j.frames);
+            sh_cli_json_string(j.out, "error", rc ? sh_error_message() : NULL);
+            sh_cli_json_end(j.out);
+        }
     }
     if (fflush(stdout) != 0) {
         sh_log_error("cannot write the output");

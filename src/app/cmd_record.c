@@ -5,6 +5,7 @@
 #include <signal.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 
 #include "app.h"
 #include "stillheart/config.h"
@@ -17,6 +18,8 @@
 #include "stillheart/y4m.h"
 
 #define MAX_SOURCES SH_SYNC_MAX_CAMERAS
+
+static const sh_cli cli = {"stillheart record"};
 
 static void usage(FILE *out)
 {
@@ -55,8 +58,9 @@ static void usage(FILE *out)
         "                     --config, else 1000; 0: after every record)\n"
         "  --to-y4m REC OUT.y4m  convert camera --camera C (default 0) of recording REC to Y4M\n"
         "                     (a damaged recording: every good record converted, then what was\n"
-        "                     lost said and exit status 1)\n"
-        "  --help             this text\n");
+        "                     lost said and exit status 1); a progress line (MB of the\n"
+        "                     recording read, ETA) on standard error when it is a terminal\n"
+        SH_CLI_USAGE);
 }
 
 static volatile sig_atomic_t stop_requested;
@@ -92,7 +96,19 @@ static int to_y4m(const char *rec_path, const char *out_path, int camera)
     }
     sh_rec_record rec;
     long frames = 0, bad = 0;
+    /* the recording's frames of every camera in MB: the bytes behind the progress line's ETA */
+    struct stat fst;
+    char file[4096];
+    snprintf(file, sizeof file, "%s/" SH_REC_FILE, rec_path);
+    double read_mb = 0;
+    sh_cli_progress progress;
+    sh_cli_progress_start(&progress, "record --to-y4m",
+                          stat(file, &fst) && stat(rec_path, &fst) ? 0 : (int)(fst.st_size >> 20), "MB");
     while (sh_rec_reader_next(r, &rec) == SH_OK) {
+        if (rec.type == SH_REC_FRAME) { /* 40: the record's header */
+            read_mb += (double)(rec.raw.bytes + 40) / (1 << 20);
+            sh_cli_progress_update(&progress, (int)read_mb);
+        }
         if (rec.type != SH_REC_FRAME || rec.camera != camera) continue;
         if (sh_pixconv_convert(conv, &rec.raw, &img) != SH_OK) {
             sh_log_warn("%s: frame %llu skipped: %s", rec_path,
@@ -106,6 +122,7 @@ static int to_y4m(const char *rec_path, const char *out_path, int camera)
         }
         frames++;
     }
+    sh_cli_progress_end(&progress);
     sh_log_info("%ld frames of camera %d written to %s (%ld not convertible)", frames, camera, out_path, bad);
     rc = 0;
     if (sh_rec_reader_lost_bytes(r)) { /* every good record is converted; the loss is still an error */
@@ -141,7 +158,7 @@ typedef struct {
 static int parse_value(record_options *o, int ch, const char *arg)
 {
     switch (ch) {
-    case 'n': return app_parse_int("--frames", arg, 1, 100000000, &o->frames);
+    case 'n': return sh_cli_parse_int("--frames", arg, 1, 100000000, &o->frames);
     case 'f': {
         sh_rawfmt f;
         if (sh_rawfmt_parse(arg, &f) != SH_OK) {
@@ -160,16 +177,16 @@ static int parse_value(record_options *o, int ch, const char *arg)
         return 1;
     case 'r':
         o->src.fps_den = 1;
-        return app_parse_int("--fps", arg, 1, 1000, &o->src.fps_num);
-    case 'e': return app_parse_int("--exposure", arg, 0, 100000000, &o->src.exposure);
-    case 'g': return app_parse_int("--gain", arg, 0, 100000000, &o->src.gain);
-    case 'w': return app_parse_int("--white-balance", arg, 1000, 20000, &o->src.white_balance);
-    case 't': return app_parse_int("--tolerance-ms", arg, 1, 1000, &o->tol_ms);
-    case 'm': return app_parse_int("--max-wait-ms", arg, 1, 100000, &o->wait_ms);
-    case 'C': return app_parse_int("--camera", arg, 0, MAX_SOURCES - 1, &o->camera);
-    case 'p': return app_parse_int("--pulse-ms", arg, 1, 1000, &o->pulse_ms);
-    case 'x': return app_parse_int("--trigger-offset-ms", arg, -1000, 1000, &o->offset_ms);
-    case 'S': return app_parse_int("--sync-ms", arg, 0, 60000, &o->sync_ms);
+        return sh_cli_parse_int("--fps", arg, 1, 1000, &o->src.fps_num);
+    case 'e': return sh_cli_parse_int("--exposure", arg, 0, 100000000, &o->src.exposure);
+    case 'g': return sh_cli_parse_int("--gain", arg, 0, 100000000, &o->src.gain);
+    case 'w': return sh_cli_parse_int("--white-balance", arg, 1000, 20000, &o->src.white_balance);
+    case 't': return sh_cli_parse_int("--tolerance-ms", arg, 1, 1000, &o->tol_ms);
+    case 'm': return sh_cli_parse_int("--max-wait-ms", arg, 1, 100000, &o->wait_ms);
+    case 'C': return sh_cli_parse_int("--camera", arg, 0, MAX_SOURCES - 1, &o->camera);
+    case 'p': return sh_cli_parse_int("--pulse-ms", arg, 1, 1000, &o->pulse_ms);
+    case 'x': return sh_cli_parse_int("--trigger-offset-ms", arg, -1000, 1000, &o->offset_ms);
+    case 'S': return sh_cli_parse_int("--sync-ms", arg, 0, 60000, &o->sync_ms);
     }
     return 0;
 }
@@ -187,15 +204,16 @@ static int parse_options(int argc, char **argv, record_options *o)
         {"to-y4m", required_argument, 0, 'y'},   {"camera", required_argument, 0, 'C'},
         {"trigger-out", required_argument, 0, 'O'}, {"trigger-in", required_argument, 0, 'I'},
         {"pulse-ms", required_argument, 0, 'p'}, {"trigger-offset-ms", required_argument, 0, 'x'},
-        {"sync-ms", required_argument, 0, 'S'},  {"help", no_argument, 0, 'h'},
+        {"sync-ms", required_argument, 0, 'S'},  SH_CLI_OPTIONS,
         {0, 0, 0, 0}};
     memset(o, 0, sizeof *o);
     o->tol_ms = 5, o->wait_ms = 100, o->pulse_ms = 1, o->sync_ms = -1;
     sh_source_options_default(&o->src);
     optind = 1;
+    opterr = 0;
     int ch;
-    while ((ch = getopt_long(argc, argv, "", longopts, NULL)) != -1) {
-        o->camera_opts += strchr("sfzregwtmFOIpx", ch) != NULL;
+    while ((ch = getopt_long(argc, argv, ":h", longopts, NULL)) != -1) {
+        o->camera_opts += ch > 0 && ch < 0x100 && strchr("sfzregwtmFOIpx", ch) != NULL;
         switch (ch) {
         case 's':
             if (o->nspec >= MAX_SOURCES) {
@@ -210,7 +228,11 @@ static int parse_options(int argc, char **argv, record_options *o)
         case 'O': o->trigger_spec = optarg, o->trigger_out = 1; break;
         case 'I': o->trigger_spec = optarg, o->trigger_out = 0; break;
         case 'h': usage(stdout); return 0;
-        case '?': usage(stderr); return 2;
+        case '?': case ':': case SH_CLI_VERSION: case SH_CLI_LOG_LEVEL: case SH_CLI_QUIET: {
+            int rc = sh_cli_option(&cli, ch, argv);
+            if (rc >= 0) return rc;
+            break;
+        }
         default: if (!parse_value(o, ch, optarg)) return 2;
         }
     }
@@ -451,18 +473,13 @@ int cmd_record(int argc, char **argv)
     int rc = parse_options(argc, argv, &o);
     if (rc >= 0) return rc;
     if (o.to_y4m_rec) {
-        if (optind != argc - 1) {
-            fprintf(stderr, "stillheart record --to-y4m REC OUT.y4m: one output file\n");
-            return 2;
-        }
+        if (optind != argc - 1) return sh_cli_usage_error(&cli, "--to-y4m REC OUT.y4m: one output file");
         return to_y4m(o.to_y4m_rec, argv[optind], o.camera);
     }
     static sh_config cfg; /* the specs point into it */
     if (o.config_path && !load_config(&o, &cfg)) return 2;
-    if (!o.nspec || !o.frames || optind != argc - 1) {
-        usage(stderr);
-        return 2;
-    }
+    if (!o.nspec || !o.frames || optind != argc - 1)
+        return sh_cli_usage_error(&cli, "need --source (or --config), --frames and the output folder");
     o.out_dir = argv[optind];
     record_job j = {.opt = &o, .cfg = o.config_path ? &cfg : NULL, .nspec = o.nspec};
     j.go = (sh_gpio_options){j.chip, 0, 0, o.trigger_out, 0, (int64_t)o.pulse_ms * 1000000};

@@ -66,12 +66,19 @@ static void usage(FILE *out)
         "  --config FILE      INI file (keys above; the command line wins)\n"
         "  --max-frames N     stop after N published frames (tests, bench)\n"
         "  --stats            print a summary line at exit (fps, latency, drops, RSS)\n"
+        "  --json             with --stats: the summary as one JSON object on standard output:\n"
+        "                     published, raw, degraded, dropped, latency_ms {median, p99, max},\n"
+        "                     rss_kb {start, at_1_min, max, end}, models_built, black_frames\n"
+        "                     (null: never measured)\n"
         "  --trace FILE       one CSV line per published frame: index, status, markers, residual, reason,\n"
         "                     stage CPU times (markers, model, warp) and latency in ms\n"
         "  --trace-points FILE  the markers each warped frame's map was made from, as a points file\n"
         "                     (frame,id,x,y: the output camera's pixels; raw frames have no rows)\n"
         "  --print-config     print the resulting config as INI and exit\n"
-        "  --quiet            errors and warnings only\n"
+        SH_CLI_USAGE
+        "Every option takes its value as --KEY VALUE or --KEY=VALUE; a 0|1 key (and --stats, --json,\n"
+        "--print-config) also as --KEY (yes), --no-KEY (no), --KEY=yes|no|true|false|on|off|1|0 or\n"
+        "--KEY followed by one of those words.\n"
         "signals: SIGTERM/SIGINT stop (segment marked closed). SIGHUP reloads the config file and\n"
         "applies every key in place: changed cameras are closed and the new ones opened, changed\n"
         "processing starts again with a new reference, the display segment is kept unless its name,\n"
@@ -91,46 +98,94 @@ static void usage(FILE *out)
 
 typedef struct {
     const char *config_path;
-    int max_frames, stats, print_config;
+    int max_frames, stats, json, print_config;
     const char *trace_path, *trace_points_path;
 } run_opts;
 
-/* Applies argv over cfg; run-only options go to ro. Returns 0 ok, 2 usage error, 1 help. */
+/* A boolean option's value: "--NAME" (1), "--no-NAME" (0), "--NAME=V" or "--NAME V" with V one
+ * of cli.h's boolean words (the next argument only when it is one: run takes no operands). *i
+ * steps over a value taken from the next argument. 0 when the value is not a boolean. */
+static int flag_value(const char *name, const char *val, int negated, int argc, char **argv, int *i, int *out,
+                      char *err)
+{
+    if (negated && val) {
+        snprintf(err, SH_CONFIG_ERR, "--no-%s takes no value; try 'stillheart run --help'", name);
+        return 0;
+    }
+    if (!val && !negated && *i + 1 < argc && sh_cli_parse_bool(argv[*i + 1], out)) {
+        ++*i;
+        return 1;
+    }
+    if (!val) {
+        *out = !negated;
+        return 1;
+    }
+    if (sh_cli_parse_bool(val, out)) return 1;
+    snprintf(err, SH_CONFIG_ERR, "--%s: '%s' is not yes/no, true/false, on/off or 1/0", name, val);
+    return 0;
+}
+
+/* Applies argv over cfg; run-only options go to ro. Returns 0 ok, 2 usage error, 1 help, 3
+ * --version. Every option takes "--NAME VALUE" and "--NAME=VALUE"; booleans as flag_value. */
 static int apply_cli(sh_config *cfg, run_opts *ro, int argc, char **argv, char *err)
 {
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i];
+        if (!strcmp(a, "-h")) return 1;
         if (strncmp(a, "--", 2)) {
-            snprintf(err, SH_CONFIG_ERR, "command line: '%s': not an option", a);
+            snprintf(err, SH_CONFIG_ERR, "'%s': not an option; try 'stillheart run --help'", a);
             return 2;
         }
         char name[64];
         const char *val = NULL;
         const char *eq = strchr(a + 2, '=');
         size_t n = eq ? (size_t)(eq - a - 2) : strlen(a + 2);
-        if (n >= sizeof name) { snprintf(err, SH_CONFIG_ERR, "command line: '%s': unknown option", a); return 2; }
+        if (n >= sizeof name) {
+            snprintf(err, SH_CONFIG_ERR, "unknown option '%.80s'; try 'stillheart run --help'", a);
+            return 2;
+        }
         memcpy(name, a + 2, n);
         name[n] = 0;
         if (eq) val = eq + 1;
         if (!strcmp(name, "help")) return 1;
-        if (!strcmp(name, "quiet")) { sh_log_set_level(SH_LOG_WARN); continue; }
-        if (!strcmp(name, "stats")) { if (ro) ro->stats = 1; continue; }
-        if (!strcmp(name, "print-config")) { if (ro) ro->print_config = 1; continue; }
+        if (!strcmp(name, "version")) return 3;
         const char *section, *key;
-        int flag;
+        int flag, on;
         int is_cfg = sh_config_option(name, &section, &key, &flag);
         int negated = 0;
-        if (!is_cfg && !strncmp(name, "no-", 3) && sh_config_option(name + 3, &section, &key, &flag) && flag)
-            is_cfg = negated = 1;
-        if (!is_cfg && strcmp(name, "config") && strcmp(name, "max-frames") && strcmp(name, "trace") &&
-            strcmp(name, "trace-points")) {
-            snprintf(err, SH_CONFIG_ERR, "command line: --%s: unknown option (stillheart run --help)", name);
+        int run_flag = !strcmp(name, "stats") || !strcmp(name, "print-config") || !strcmp(name, "json") ||
+                       !strcmp(name, "quiet");
+        if (!is_cfg && !run_flag && !strncmp(name, "no-", 3)) {
+            if (sh_config_option(name + 3, &section, &key, &flag) && flag) is_cfg = negated = 1;
+            else if (strcmp(name + 3, "quiet") && (!strcmp(name + 3, "stats") || !strcmp(name + 3, "print-config") ||
+                                                   !strcmp(name + 3, "json")))
+                run_flag = negated = 1;
+            if (negated) memmove(name, name + 3, strlen(name + 3) + 1);
+        }
+        if (!is_cfg && !run_flag && strcmp(name, "config") && strcmp(name, "max-frames") && strcmp(name, "trace") &&
+            strcmp(name, "trace-points") && strcmp(name, "log-level")) {
+            snprintf(err, SH_CONFIG_ERR, "unknown option '--%s'; try 'stillheart run --help'", name);
             return 2;
         }
+        if (run_flag || (is_cfg && flag)) {
+            if (!flag_value(name, val, negated, argc, argv, &i, &on, err)) return 2;
+            if (is_cfg) val = on ? "1" : "0";
+            else {
+                if (!strcmp(name, "quiet")) { if (on) sh_log_set_level(SH_LOG_WARN); }
+                else if (ro && !strcmp(name, "stats")) ro->stats = on;
+                else if (ro && !strcmp(name, "json")) ro->json = on;
+                else if (ro && !strcmp(name, "print-config")) ro->print_config = on;
+                continue;
+            }
+        }
         if (!val) {
-            if (flag) val = negated ? "0" : "1";
-            else if (i + 1 < argc) val = argv[++i];
-            else { snprintf(err, SH_CONFIG_ERR, "command line: --%s needs a value", name); return 2; }
+            if (i + 1 < argc) val = argv[++i];
+            else { snprintf(err, SH_CONFIG_ERR, "option '--%s' needs a value; try 'stillheart run --help'", name); return 2; }
+        }
+        if (!strcmp(name, "log-level")) {
+            if (sh_cli_set_log_level(val)) continue;
+            snprintf(err, SH_CONFIG_ERR, "--log-level: '%s' is not error, warning, info or debug", val);
+            return 2;
         }
         if (!strcmp(name, "config")) { if (ro) ro->config_path = val; continue; }
         if (!strcmp(name, "trace")) { if (ro) ro->trace_path = val; continue; }
@@ -186,7 +241,9 @@ int cmd_run(int argc, char **argv)
     sh_config_default(&cfg);
     int a = apply_cli(&cfg, &ro, argc, argv, err); /* first pass: --config and run-only options */
     if (a == 1) { usage(stdout); return 0; }
+    if (a == 3) { printf("stillheart run %s\n", SH_VERSION); return 0; }
     if (a == 2) { sh_log_error("%s", err); return 2; }
+    if (ro.json && !ro.stats) { sh_log_error("--json goes with --stats; try 'stillheart run --help'"); return 2; }
     int unconfigured = 0;
     if (load_config(&cfg, ro.config_path, argc, argv, err, &unconfigured) != SH_OK) {
         if (unconfigured) { /* an unedited install: one line, and an exit status the unit does not restart on */
@@ -227,7 +284,9 @@ int cmd_run(int argc, char **argv)
         sh_status st = sh_daemon_run(d, &sig);
         rc = st == SH_OK ? 0 : st == SH_EFORMAT ? 2 : 1; /* 2: RestartPreventExitStatus */
         if (st == SH_EFORMAT) sh_log_error("%s: exit status 2", sh_error_message());
-        if (ro.stats || sh_log_get_level() >= SH_LOG_INFO) {
+        if (ro.stats && ro.json) {
+            sh_daemon_stats_json(d, stdout);
+        } else if (ro.stats || sh_log_get_level() >= SH_LOG_INFO) {
             char line[512];
             sh_daemon_stats(d, line, sizeof line);
             fprintf(ro.stats ? stdout : stderr, "%s\n", line);

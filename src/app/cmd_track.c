@@ -15,6 +15,8 @@
 
 #define MAX_DET SH_TRACK_MAX_DETECTIONS
 
+static const sh_cli cli = {"stillheart track"};
+
 static void usage(FILE *out)
 {
     fprintf(out,
@@ -38,7 +40,14 @@ static void usage(FILE *out)
         "  --spatial off|fuse occluded markers from time only, or also from neighbours (default fuse)\n"
         "  --measured-only    write only markers detected in that frame\n"
         "  --stats            tracking figures on standard error at the end\n"
-        "  --help             this text\n");
+        "  --json             with --stats: the figures as one JSON object, the last line on\n"
+        "                     standard error (standard output carries the points): frames,\n"
+        "                     heart_hz and respiration_hz (null before an estimate), detections\n"
+        "                     {used, gated, duplicated, unknown, inconsistent_3d, misshapen, held,\n"
+        "                     jumped}, markers_lost, camera_moved_frames, ids [...], calibration\n"
+        "                     {samples, median_px, worst_camera, worst_px, behind} (null in 2D)\n"
+        SH_CLI_USAGE
+        "A progress line (frames, ETA) is shown on standard error when it is a terminal.\n");
 }
 
 static int parse_ids(const char *text, int *ids, int *n)
@@ -89,7 +98,7 @@ typedef struct {
     int ids[SH_TRACK_MAX_MARKERS], nids; /* --ids; none: found by a first pass */
     double fps;
     sh_track_options topts; /* --noise, --lost-after, --spatial */
-    int measured_only, stats;
+    int measured_only, stats, json;
 } track_options;
 
 /* Fills o from argv: APP_GO_ON, or the exit code (usage and refusals printed). */
@@ -100,45 +109,41 @@ static int parse_options(int argc, char **argv, track_options *o)
         {"family", required_argument, 0, 'f'},  {"fps", required_argument, 0, 'r'},
         {"noise", required_argument, 0, 'n'},   {"lost-after", required_argument, 0, 'l'},
         {"spatial", required_argument, 0, 's'}, {"measured-only", no_argument, 0, 'm'},
-        {"stats", no_argument, 0, 'S'},         {"help", no_argument, 0, 'h'},
-        {0, 0, 0, 0}};
+        {"stats", no_argument, 0, 'S'},         {"json", no_argument, 0, 'j'},
+        SH_CLI_OPTIONS,                         {0, 0, 0, 0}};
     memset(o, 0, sizeof *o);
     sh_track_options_default(&o->topts);
     optind = 1;
+    opterr = 0;
     int ch;
-    while ((ch = getopt_long(argc, argv, "", longopts, NULL)) != -1) {
+    while ((ch = getopt_long(argc, argv, ":h", longopts, NULL)) != -1) {
         switch (ch) {
         case 'c': o->calib_path = optarg; break;
         case 'i':
-            if (!parse_ids(optarg, o->ids, &o->nids)) {
-                fprintf(stderr, "--ids: '%s' is not a list like 0-15 or 1,4,7 (at most %d ids)\n",
-                        optarg, SH_TRACK_MAX_MARKERS);
-                return 2;
-            }
+            if (!parse_ids(optarg, o->ids, &o->nids))
+                return sh_cli_usage_error(&cli, "--ids: '%s' is not a list like 0-15 or 1,4,7 (at most %d ids)",
+                                          optarg, SH_TRACK_MAX_MARKERS);
             break;
         case 'f': o->family = optarg; break;
-        case 'r': if (!app_parse_double("--fps", optarg, 0.1, 1000, &o->fps)) return 2; break;
-        case 'n': if (!app_parse_double("--noise", optarg, 0.01, 20, &o->topts.meas_sigma)) return 2; break;
-        case 'l': if (!app_parse_double("--lost-after", optarg, 0.1, 60, &o->topts.lost_after)) return 2; break;
+        case 'r': if (!sh_cli_parse_double("--fps", optarg, 0.1, 1000, &o->fps)) return 2; break;
+        case 'n': if (!sh_cli_parse_double("--noise", optarg, 0.01, 20, &o->topts.meas_sigma)) return 2; break;
+        case 'l': if (!sh_cli_parse_double("--lost-after", optarg, 0.1, 60, &o->topts.lost_after)) return 2; break;
         case 's':
             if (!strcmp(optarg, "off")) o->topts.spatial = SH_SPATIAL_OFF;
             else if (!strcmp(optarg, "fuse")) o->topts.spatial = SH_SPATIAL_FUSE;
-            else {
-                fprintf(stderr, "--spatial: off or fuse, not '%s'\n", optarg);
-                return 2;
-            }
+            else return sh_cli_usage_error(&cli, "--spatial: off or fuse, not '%s'", optarg);
             break;
         case 'm': o->measured_only = 1; break;
         case 'S': o->stats = 1; break;
+        case 'j': o->json = 1; break;
         case 'h': usage(stdout); return 0;
-        default: usage(stderr); return 2;
+        default: { int rc = sh_cli_option(&cli, ch, argv); if (rc >= 0) return rc; } break;
         }
     }
+    if (o->json && !o->stats) return sh_cli_usage_error(&cli, "--json goes with --stats");
     o->ncam = argc - optind;
-    if (o->ncam < 1 || o->ncam > SH_TRACK_MAX_CAMERAS) {
-        usage(stderr);
-        return 2;
-    }
+    if (o->ncam < 1 || o->ncam > SH_TRACK_MAX_CAMERAS)
+        return sh_cli_usage_error(&cli, "need one to %d videos", SH_TRACK_MAX_CAMERAS);
     for (int c = 0; c < o->ncam; c++) o->in[c] = argv[optind + c];
     return APP_GO_ON;
 }
@@ -342,6 +347,48 @@ static int pass_frame(const track_job *job, track_pass *p, int f, FILE *out)
     return out && write_rows(job, p, f, out) ? FRAME_FAILED : FRAME_DONE;
 }
 
+/* --stats --json: the figures of pass_report as one JSON object on stderr. */
+static void stats_json(const track_job *job, track_pass *p)
+{
+    sh_track_stats s;
+    sh_tracker_stats(p->t, &s);
+    sh_track_calibration cc;
+    sh_tracker_calibration(p->t, &cc);
+    sh_cli_json j;
+    sh_cli_json_start(&j, stderr);
+    sh_cli_json_object(&j, NULL);
+    sh_cli_json_int(&j, "frames", s.frames);
+    sh_cli_json_number(&j, "heart_hz", s.heart_hz > 0 ? s.heart_hz : NAN);
+    sh_cli_json_number(&j, "respiration_hz", s.resp_hz > 0 ? s.resp_hz : NAN);
+    sh_cli_json_object(&j, "detections");
+    sh_cli_json_int(&j, "used", s.accepted);
+    sh_cli_json_int(&j, "gated", s.gated);
+    sh_cli_json_int(&j, "duplicated", s.duplicates);
+    sh_cli_json_int(&j, "unknown", s.unknown);
+    sh_cli_json_int(&j, "inconsistent_3d", s.inconsistent);
+    sh_cli_json_int(&j, "misshapen", s.misshapen);
+    sh_cli_json_int(&j, "held", s.held);
+    sh_cli_json_int(&j, "jumped", s.jumped);
+    sh_cli_json_end(&j);
+    sh_cli_json_int(&j, "markers_lost", s.lost);
+    sh_cli_json_int(&j, "camera_moved_frames", s.camera_moves);
+    sh_cli_json_array(&j, "ids");
+    for (int k = 0; k < job->nids; k++) sh_cli_json_int(&j, NULL, job->ids[k]);
+    sh_cli_json_end(&j);
+    if (cc.samples) {
+        sh_cli_json_object(&j, "calibration");
+        sh_cli_json_int(&j, "samples", cc.samples);
+        sh_cli_json_number(&j, "median_px", cc.median_px);
+        sh_cli_json_int(&j, "worst_camera", cc.worst_camera);
+        sh_cli_json_number(&j, "worst_px", cc.worst_px);
+        sh_cli_json_number(&j, "behind", cc.failed);
+        sh_cli_json_end(&j);
+    } else {
+        sh_cli_json_null(&j, "calibration");
+    }
+    sh_cli_json_end(&j);
+}
+
 /* The end of a pass: the confirmed ids (when asked for) and, with --stats on the writing pass,
  * the tracking figures. */
 static void pass_report(const track_job *job, track_pass *p, FILE *out, int *confirmed, int *nconfirmed)
@@ -353,6 +400,10 @@ static void pass_report(const track_job *job, track_pass *p, FILE *out, int *con
             if (p->est[k].confirmed) confirmed[(*nconfirmed)++] = p->est[k].id;
     }
     if (!job->o->stats || !out) return;
+    if (job->o->json) {
+        stats_json(job, p);
+        return;
+    }
     sh_track_stats s;
     sh_tracker_stats(p->t, &s);
     sh_log_info("%ld frames, heart %.3f Hz, respiration %.3f Hz; detections used %ld, "
@@ -374,11 +425,18 @@ static int run_pass(const track_job *job, int max_frames, FILE *out, int *confir
 {
     track_pass p;
     int rc = pass_open(job, &p);
+    sh_cli_progress progress;
+    long long total = rc ? -1 : sh_y4m_reader_whole_frames(p.rd[0]);
+    if (max_frames >= 0 && (total < 0 || total > max_frames)) total = max_frames;
+    sh_cli_progress_start(&progress, out ? "track" : "track: finding the markers",
+                          total < 0 || total > 1 << 30 ? 0 : (int)total, "frames");
     for (int f = 0; !rc && (max_frames < 0 || f < max_frames); f++) {
         int step = pass_frame(job, &p, f, out);
         if (step == FRAME_END) break;
         rc = step == FRAME_FAILED;
+        sh_cli_progress_update(&progress, f + 1);
     }
+    sh_cli_progress_end(&progress);
     if (!rc) pass_report(job, &p, out, confirmed, nconfirmed);
     pass_close(job, &p);
     return rc;

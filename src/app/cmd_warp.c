@@ -8,6 +8,8 @@
 
 #define CACHE_SLOTS 8
 
+static const sh_cli cli = {"stillheart warp"};
+
 static void usage(FILE *out)
 {
     fprintf(out,
@@ -32,8 +34,7 @@ static void usage(FILE *out)
         "  --max-error PX     largest tolerated error of the interpolated map (default 0.05)\n"
         "  --map-out FILE     write the last frame's map as .npy float32 H x W x 2\n"
         "                     (x, y in the current frame; NaN outside the hull)\n"
-        "  --quiet            no progress line, no summary\n"
-        "  --help             this text\n"
+        SH_CLI_USAGE
         "IN or OUT may be '-' for standard input / output (IN only with --reference 0; with\n"
         "OUT '-' the e figures go to standard error).\n");
 }
@@ -77,8 +78,7 @@ static int parse_options(int argc, char **argv, warp_options *o)
         {"sigma", required_argument, 0, 's'},  {"levels", required_argument, 0, 'l'},
         {"smoothing", required_argument, 0, 'S'}, {"reference", required_argument, 0, 'r'},
         {"threads", required_argument, 0, 't'}, {"max-error", required_argument, 0, 'e'},
-        {"map-out", required_argument, 0, 'M'}, {"quiet", no_argument, 0, 'q'},
-        {"help", no_argument, 0, 'h'},          {0, 0, 0, 0}};
+        {"map-out", required_argument, 0, 'M'}, SH_CLI_OPTIONS, {0, 0, 0, 0}};
     memset(o, 0, sizeof *o);
     o->method = "bspline";
     o->max_error = 0.05;
@@ -86,28 +86,26 @@ static int parse_options(int argc, char **argv, warp_options *o)
     double sigma = 0, smoothing = 0;
     int levels = 0, have_sigma = 0, opt;
     optind = 1;
-    while ((opt = getopt_long(argc, argv, "", options, NULL)) != -1) {
+    opterr = 0;
+    while ((opt = getopt_long(argc, argv, ":h", options, NULL)) != -1) {
         switch (opt) {
         case 'p': o->points_path = optarg; break;
         case 'm': o->method = optarg; break;
-        case 's': if (!app_parse_double("--sigma", optarg, 1e-6, 1e9, &sigma)) return 2;
+        case 's': if (!sh_cli_parse_double("--sigma", optarg, 1e-6, 1e9, &sigma)) return 2;
                   have_sigma = 1; break;
-        case 'l': if (!app_parse_int("--levels", optarg, 1, 20, &levels)) return 2; break;
-        case 'S': if (!app_parse_double("--smoothing", optarg, 0, 1e12, &smoothing)) return 2; break;
-        case 'r': if (!app_parse_int("--reference", optarg, 0, 1 << 30, &o->reference)) return 2; break;
-        case 't': if (!app_parse_int("--threads", optarg, 1, 256, &o->threads)) return 2; break;
-        case 'e': if (!app_parse_double("--max-error", optarg, 1e-4, 100, &o->max_error)) return 2; break;
+        case 'l': if (!sh_cli_parse_int("--levels", optarg, 1, 20, &levels)) return 2; break;
+        case 'S': if (!sh_cli_parse_double("--smoothing", optarg, 0, 1e12, &smoothing)) return 2; break;
+        case 'r': if (!sh_cli_parse_int("--reference", optarg, 0, 1 << 30, &o->reference)) return 2; break;
+        case 't': if (!sh_cli_parse_int("--threads", optarg, 1, 256, &o->threads)) return 2; break;
+        case 'e': if (!sh_cli_parse_double("--max-error", optarg, 1e-4, 100, &o->max_error)) return 2; break;
         case 'M': o->map_out = optarg; break;
-        case 'q': o->quiet = 1; break;
         case 'h': usage(stdout); return 0;
-        default: usage(stderr); return 2;
+        default: { int rc = sh_cli_option(&cli, opt, argv); if (rc >= 0) return rc; } break;
         }
     }
-    if (argc - optind != 2 || !o->points_path) {
-        sh_log_error("need --points and the input and output videos");
-        usage(stderr);
-        return 2;
-    }
+    o->quiet = sh_log_get_level() < SH_LOG_INFO;
+    if (argc - optind != 2 || !o->points_path)
+        return sh_cli_usage_error(&cli, "need --points and the input and output videos");
     o->in_path = argv[optind];
     o->out_path = argv[optind + 1];
     if (o->reference > 0 && !strcmp(o->in_path, "-")) {
@@ -184,7 +182,7 @@ static int warp_open(warp_job *j, const warp_options *o)
     if (!s->from_stdin && !start_metrics(j->model, s->cur, s->warp, &s->ref, &s->out, s->full_range,
                                          &s->metric_in, &s->metric_out))
         return app_fail("reference frame");
-    return app_stab_start(s, o->out_path, hdr, o->quiet);
+    return app_stab_start(s, "warp", o->out_path, hdr);
 }
 
 /* Warps, writes and measures the frame just read into s.in (job: the warp_job): 0, or 1 with
@@ -213,12 +211,14 @@ static int warp_frame(void *job)
         j->last_model = j->model;
     }
     s->warp_seconds += app_now() - t0;
+    sh_log_debug("frame %d: %d of the reference frame's %d markers, %s", s->frames, n, s->ref_count,
+                 shown == &s->in ? "written unstabilized" : "warped");
     if (sh_y4m_writer_write(s->writer, shown) != SH_OK) return app_fail("output");
     if (s->metric_in && (sh_metric_add(s->metric_in, &s->in) != SH_OK ||
                          sh_metric_add(s->metric_out, shown) != SH_OK))
         return app_fail("metric");
     s->frames++;
-    app_progress_update(&s->progress, "warp", s->frames, 0);
+    sh_cli_progress_update(&s->progress, s->frames);
     return 0;
 }
 

@@ -14,6 +14,8 @@
 
 #define CACHE_SLOTS 4
 
+static const sh_cli cli = {"stillheart warp3d"};
+
 static void usage(FILE *out)
 {
     fprintf(out,
@@ -57,8 +59,7 @@ static void usage(FILE *out)
         "  --ply-texture      also write each exported surface as a textured mesh beside its PLY:\n"
         "                     frame_NNNNNN.obj, .mtl and .png (IN's frame; implies --ply-mesh)\n"
         "  --ply-every N      export every N-th frame (default 1)\n"
-        "  --quiet            no progress line, no summary\n"
-        "  --help             this text\n"
+        SH_CLI_USAGE
         "With --view reference the paper's metric e is printed for the input and the output.\n");
 }
 
@@ -209,7 +210,7 @@ static int parse_options(int argc, char **argv, warp3d_options *o)
         {"threads", required_argument, 0, 't'}, {"max-error", required_argument, 0, 'e'},
         {"export-ply", required_argument, 0, 'P'}, {"ply-spacing", required_argument, 0, 'S'},
         {"ply-mesh", no_argument, 0, 'M'}, {"ply-texture", no_argument, 0, 'T'}, {"ply-every", required_argument, 0, 'E'},
-        {"quiet", no_argument, 0, 'q'}, {"help", no_argument, 0, 'h'}, {0, 0, 0, 0}};
+        SH_CLI_OPTIONS, {0, 0, 0, 0}};
     memset(o, 0, sizeof *o);
     o->method = "bspline", o->view = "reference", o->layout = "sbs";
     o->baseline = 10, o->depth_scale = 1, o->max_error = 0.05, o->ply_spacing = 1;
@@ -218,38 +219,36 @@ static int parse_options(int argc, char **argv, warp3d_options *o)
     double sigma = 0;
     int have_sigma = 0, opt;
     optind = 1;
-    while ((opt = getopt_long(argc, argv, "", options, NULL)) != -1) {
+    opterr = 0;
+    while ((opt = getopt_long(argc, argv, ":h", options, NULL)) != -1) {
         switch (opt) {
         case 'C': o->calib_path = optarg; break;
         case 'p': o->points_path = optarg; break;
-        case 'k': if (!app_parse_int("--camera", optarg, 0, SH_CALIB_MAX_CAMERAS - 1, &o->camera)) return 2; break;
+        case 'k': if (!sh_cli_parse_int("--camera", optarg, 0, SH_CALIB_MAX_CAMERAS - 1, &o->camera)) return 2; break;
         case 'm': o->method = optarg; break;
         case 'A': smethod = optarg; break;
         case 'D': dmethod = optarg; break;
-        case 's': if (!app_parse_double("--sigma", optarg, 1e-6, 1e9, &sigma)) return 2;
+        case 's': if (!sh_cli_parse_double("--sigma", optarg, 1e-6, 1e9, &sigma)) return 2;
                   have_sigma = 1; break;
-        case 'r': if (!app_parse_int("--reference", optarg, 0, 1 << 30, &o->reference)) return 2; break;
+        case 'r': if (!sh_cli_parse_int("--reference", optarg, 0, 1 << 30, &o->reference)) return 2; break;
         case 'v': o->view = optarg; break;
-        case 'b': if (!app_parse_double("--baseline", optarg, 0, 1e4, &o->baseline)) return 2; break;
+        case 'b': if (!sh_cli_parse_double("--baseline", optarg, 0, 1e4, &o->baseline)) return 2; break;
         case 'L': o->layout = optarg; break;
-        case 'z': if (!app_parse_double("--depth-scale", optarg, 0.01, 100, &o->depth_scale)) return 2; break;
-        case 't': if (!app_parse_int("--threads", optarg, 1, 256, &o->threads)) return 2; break;
-        case 'e': if (!app_parse_double("--max-error", optarg, 1e-4, 100, &o->max_error)) return 2; break;
+        case 'z': if (!sh_cli_parse_double("--depth-scale", optarg, 0.01, 100, &o->depth_scale)) return 2; break;
+        case 't': if (!sh_cli_parse_int("--threads", optarg, 1, 256, &o->threads)) return 2; break;
+        case 'e': if (!sh_cli_parse_double("--max-error", optarg, 1e-4, 100, &o->max_error)) return 2; break;
         case 'P': o->ply_dir = optarg; break;
-        case 'S': if (!app_parse_double("--ply-spacing", optarg, 1e-3, 1e4, &o->ply_spacing)) return 2; break;
+        case 'S': if (!sh_cli_parse_double("--ply-spacing", optarg, 1e-3, 1e4, &o->ply_spacing)) return 2; break;
         case 'M': o->ply_mesh = 1; break;
         case 'T': o->ply_texture = o->ply_mesh = 1; break;
-        case 'E': if (!app_parse_int("--ply-every", optarg, 1, 1 << 30, &o->ply_every)) return 2; break;
-        case 'q': o->quiet = 1; break;
+        case 'E': if (!sh_cli_parse_int("--ply-every", optarg, 1, 1 << 30, &o->ply_every)) return 2; break;
         case 'h': usage(stdout); return 0;
-        default: usage(stderr); return 2;
+        default: { int rc = sh_cli_option(&cli, opt, argv); if (rc >= 0) return rc; } break;
         }
     }
-    if (argc - optind != 2 || !o->calib_path || !o->points_path) {
-        sh_log_error("need --cameras, --points and the input and output videos");
-        usage(stderr);
-        return 2;
-    }
+    o->quiet = sh_log_get_level() < SH_LOG_INFO;
+    if (argc - optind != 2 || !o->calib_path || !o->points_path)
+        return sh_cli_usage_error(&cli, "need --cameras, --points and the input and output videos");
     o->in_path = argv[optind];
     o->out_path = argv[optind + 1];
     if (!strcmp(o->in_path, "-") && o->reference > 0) {
@@ -408,7 +407,7 @@ static int warp3d_open(warp3d_job *j, const warp3d_options *o)
             sh_metric_create(&s->out, sh_warp3d_view_hull(j->slot->view[0]), s->full_range, &s->metric_out) != SH_OK)
             return app_fail("reference frame");
     }
-    return app_stab_start(s, o->out_path, &j->out_hdr, o->quiet);
+    return app_stab_start(s, "warp3d", o->out_path, &j->out_hdr);
 }
 
 /* --export-ply of the frame just stabilized: 0, or 1 with the reason printed. */
@@ -461,7 +460,7 @@ static int warp3d_frame(void *job)
         return app_fail("metric");
     if (o->ply_dir && !raw && s->frames % o->ply_every == 0 && export_ply(j)) return 1;
     s->frames++;
-    app_progress_update(&s->progress, "warp3d", s->frames, 0);
+    sh_cli_progress_update(&s->progress, s->frames);
     return 0;
 }
 

@@ -33,7 +33,7 @@ int main(int argc, char **argv)
 {
     sh_log_setup(SH_LOG_TOOL, "stillheart", SH_LOG_INFO);
     if (argc < 2) {
-        usage(stderr);
+        sh_log_error("no command given; try 'stillheart --help'");
         return 2;
     }
     if (!strcmp(argv[1], "--help") || !strcmp(argv[1], "-h") || !strcmp(argv[1], "help")) {
@@ -41,12 +41,12 @@ int main(int argc, char **argv)
         return 0;
     }
     if (!strcmp(argv[1], "--version")) {
-        printf("stillheart %s\n", STILLHEART_VERSION);
+        printf("stillheart %s\n", SH_VERSION);
         return 0;
     }
     for (size_t i = 0; i < sizeof commands / sizeof commands[0]; i++)
         if (!strcmp(argv[1], commands[i].name)) return commands[i].run(argc - 1, argv + 1);
-    sh_log_error("unknown command '%s'", argv[1]);
-    usage(stderr);
+    if (argv[1][0] == '-') sh_log_error("unknown option '%s'; try 'stillheart --help'", argv[1]);
+    else sh_log_error("unknown command '%s'; try 'stillheart --help'", argv[1]);
     return 2;
 }

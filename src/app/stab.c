@@ -11,11 +11,13 @@ int app_fail(const char *what)
     return 1;
 }
 
-int app_stab_start(app_stab *s, const char *out_path, const sh_y4m_header *hdr, int quiet)
+int app_stab_start(app_stab *s, const char *command, const char *out_path, const sh_y4m_header *hdr)
 {
     if (sh_y4m_writer_open(out_path, hdr, &s->writer) != SH_OK) return app_fail("output");
-    app_progress_start(&s->progress);
-    if (quiet) s->progress.enabled = 0;
+    /* a file's size says how many frames are to come; a pipe's does not (no total, no ETA) */
+    long long rest = sh_y4m_reader_whole_frames(s->reader);
+    long long total = rest < 0 ? 0 : sh_y4m_reader_frame_index(s->reader) + rest;
+    sh_cli_progress_start(&s->progress, command, total > 1 << 30 ? 0 : (int)total, "frames");
     return 0;
 }
 
@@ -23,7 +25,7 @@ int app_stab_run(app_stab *s, int (*step)(void *job), void *job, sh_status *st)
 {
     while ((*st = sh_y4m_reader_read(s->reader, &s->in)) == SH_OK)
         if (step(job)) return 1;
-    app_progress_end(&s->progress);
+    sh_cli_progress_end(&s->progress);
     if (*st != SH_EEOF) app_fail("input"); /* frames before the damage were written */
     sh_status closed = sh_y4m_writer_close(s->writer);
     s->writer = NULL;

@@ -26,7 +26,7 @@ typedef struct {
     int *ids;     /* the current frame's markers ... */
     double *cur;  /* ... and their positions (x, y or X, Y, Z each) */
     int full_range, from_stdin;
-    app_progress progress;
+    sh_cli_progress progress;
     int frames, raw_frames;
     double warp_seconds;
 } app_stab;
@@ -34,9 +34,10 @@ typedef struct {
 /* "stillheart CMD: WHAT: the library's message" (WHAT alone without one); returns 1. */
 int app_fail(const char *what);
 
-/* Opens the output with the header hdr and starts the progress line (none with quiet): 0, or 1
- * with the reason printed. */
-int app_stab_start(app_stab *s, const char *out_path, const sh_y4m_header *hdr, int quiet);
+/* Opens the output with the header hdr and starts the progress line, labelled command, over the
+ * frames the input holds (cli.h: none with --quiet or off a terminal): 0, or 1 with the reason
+ * printed. */
+int app_stab_start(app_stab *s, const char *command, const char *out_path, const sh_y4m_header *hdr);
 
 /* Reads every frame into s->in and calls step(job) on it (0: go on; 1: it printed why the run
  * stops), then closes the output. *st: how the input ended (SH_EEOF: whole; anything else is

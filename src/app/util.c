@@ -8,34 +8,6 @@
 #include "app.h"
 #include "stillheart/y4m.h"
 
-int app_parse_int(const char *option, const char *text, int min, int max, int *out)
-{
-    char *end;
-    errno = 0;
-    long v = strtol(text, &end, 10);
-    if (errno || end == text || *end || v < min || v > max) {
-        fprintf(stderr, "stillheart: %s: '%s' is not a whole number in %d..%d\n", option, text,
-                min, max);
-        return 0;
-    }
-    *out = (int)v;
-    return 1;
-}
-
-int app_parse_double(const char *option, const char *text, double min, double max, double *out)
-{
-    char *end;
-    errno = 0;
-    double v = strtod(text, &end);
-    if (errno || end == text || *end || !isfinite(v) || v < min || v > max) {
-        fprintf(stderr, "stillheart: %s: '%s' is not a number in %g..%g\n", option, text, min,
-                max);
-        return 0;
-    }
-    *out = v;
-    return 1;
-}
-
 double app_now(void) { return (double)sh_monotonic_ns() * 1e-9; }
 
 int app_read_frame_at(const char *path, int index, sh_image *img)
@@ -47,33 +19,6 @@ int app_read_frame_at(const char *path, int index, sh_image *img)
     sh_y4m_reader_close(r);
     if (st == SH_EEOF) sh_error_set(SH_EINVAL, "%s has no frame %d", path, index);
     return st == SH_OK;
-}
-
-void app_progress_start(app_progress *p)
-{
-    p->enabled = isatty(STDERR_FILENO);
-    p->start = p->last = app_now();
-}
-
-void app_progress_update(app_progress *p, const char *label, int done, int total)
-{
-    if (!p->enabled) return;
-    double now = app_now();
-    if (now - p->last < 0.1 && done != total) return;
-    p->last = now;
-    double rate = done / fmax(now - p->start, 1e-9);
-    if (total > 0) {
-        int width = 30, fill = (int)((long)width * done / total);
-        fprintf(stderr, "\r%s [%.*s%*s] %d/%d  %.1f frames/s ", label, fill,
-                "##############################", width - fill, "", done, total, rate);
-    } else {
-        fprintf(stderr, "\r%s %d frames  %.1f frames/s ", label, done, rate);
-    }
-}
-
-void app_progress_end(app_progress *p)
-{
-    if (p->enabled) fputc('\n', stderr);
 }
 
 int app_write_npy(const char *path, const float *data, int h, int w, int depth)

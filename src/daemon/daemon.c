@@ -5,6 +5,7 @@
  * run_source.c; one frame's processing run_proc.c (run_track.c: tracker and selection,
  * run_model.c: models and residual). */
 #include <errno.h>
+#include <math.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -12,6 +13,7 @@
 #include <unistd.h>
 
 #include "run_pipeline.h"
+#include "stillheart/cli.h"
 #include "stillheart/daemon.h"
 #include "stillheart/display.h"
 #include "stillheart/log.h"
@@ -39,6 +41,7 @@ struct sh_daemon {
     uint32_t last_status_shown;    /* 99: none yet, the next frame is logged */
     char last_reason[44];
     char status_line[160];
+    char status_json[RUN_CTL_STATUS_MAX]; /* the same as one JSON object (status-json) */
     sh_display_frame_info shown_info; /* the last published frame's, for STATUS */
 
     /* systemd */
@@ -139,6 +142,7 @@ sh_status sh_daemon_start(sh_daemon *d)
     d->last_ping = d->last_status = d->t_start = sh_monotonic_ns();
     d->last_status_shown = 99;
     snprintf(d->status_line, sizeof d->status_line, "starting: no frame yet");
+    snprintf(d->status_json, sizeof d->status_json, "{\"state\": \"starting\"}");
     d->period = frame_period(pl->src);
     return SH_OK;
 }
@@ -270,6 +274,38 @@ static void publish(sh_daemon *d, const sh_image *shown, const sh_display_frame_
     }
 }
 
+/* status-json: what status_line says, as one JSON object on one line. state "running" with the
+ * last published frame (info, index), or "camera lost" with the black frames' reason. A text
+ * that does not fit keeps the last one. */
+static void set_status_json(sh_daemon *d, const char *state, int index, const sh_display_frame_info *info)
+{
+    char *text = NULL;
+    size_t len = 0;
+    FILE *f = open_memstream(&text, &len);
+    if (!f) return;
+    sh_cli_json j;
+    sh_cli_json_start(&j, f);
+    sh_cli_json_object(&j, NULL);
+    sh_cli_json_string(&j, "state", state);
+    if (d->lost) sh_cli_json_string(&j, "lost", d->lost_text);
+    if (info && !d->lost) {
+        sh_cli_json_int(&j, "frame", index);
+        sh_cli_json_string(&j, "status", status_names[info->status]);
+        sh_cli_json_string(&j, "reason", info->reason[0] ? info->reason : NULL);
+        sh_cli_json_int(&j, "markers", info->markers_used);
+        sh_cli_json_number(&j, "residual_px", info->residual_px >= 0 ? (double)info->residual_px : NAN);
+    }
+    sh_cli_json_int(&j, "published", (long long)d->published);
+    sh_cli_json_int(&j, "black_frames", (long long)d->black_count);
+    sh_cli_json_int(&j, "dropped", (long long)run_pipeline_dropped(&d->pl));
+    sh_cli_json_end(&j);
+    if (fclose(f) == 0 && len > 0 && len < sizeof d->status_json) {
+        text[len - 1] = 0; /* the newline: the reply is one line */
+        memcpy(d->status_json, text, len);
+    }
+    free(text);
+}
+
 /* No set to show: when the output camera is lost (or no set holds its frame), a black raw frame
  * per frame period, with the reason the display shows. */
 static void output_lost(sh_daemon *d)
@@ -297,6 +333,7 @@ static void output_lost(sh_daemon *d)
                  d->lost_text, (unsigned long long)d->published,
                  (unsigned long long)run_pipeline_dropped(&d->pl)) < 0)
         d->status_line[0] = 0;
+    set_status_json(d, "camera lost", 0, NULL);
 }
 
 /* A change of status (or of a degraded or raw frame's reason) is one log line; a frame shown raw
@@ -368,6 +405,7 @@ static void camera_frame(sh_daemon *d, const run_frame *s)
              status_names[info.status], info.reason[0] ? ": " : "", info.reason, info.markers_used,
              (double)info.residual_px, (unsigned long long)d->published,
              (unsigned long long)run_pipeline_dropped(&d->pl));
+    set_status_json(d, "running", s->index, &info);
     trace_frame(d, s, &info, latency_ms);
     d->shown_info = info;
 }
@@ -391,7 +429,7 @@ sh_status sh_daemon_run(sh_daemon *d, sh_daemon_signals *sig)
         if (s) camera_frame(d, s);
         else if (run_source_ended(d->pl.src)) break;
         else output_lost(d);
-        if (d->pl.ctl) run_ctl_set_status(d->pl.ctl, d->status_line);
+        if (d->pl.ctl) run_ctl_set_status(d->pl.ctl, d->status_line, d->status_json);
         int64_t now = sh_monotonic_ns();
         notify_status(d, now);
         notify_watchdog(d, now);
@@ -404,26 +442,74 @@ sh_status sh_daemon_run(sh_daemon *d, sh_daemon_signals *sig)
     return SH_OK;
 }
 
+/* The figures of the stats line and of its JSON. */
+typedef struct {
+    int have_latency;
+    double lat_median, lat_p99, lat_max;
+    long rss_end;
+} stats_figures;
+
+static void stats_measure(sh_daemon *d, stats_figures *f)
+{
+    size_t n = d->nlat;
+    memset(f, 0, sizeof *f);
+    if (n) {
+        qsort(d->lat, n, sizeof *d->lat, cmp_float);
+        f->have_latency = 1;
+        f->lat_median = d->lat[n / 2];
+        f->lat_p99 = d->lat[(size_t)((double)(n - 1) * 0.99)];
+        f->lat_max = d->lat[n - 1];
+    }
+    f->rss_end = rss_kb();
+    if (f->rss_end > d->rss_max) d->rss_max = f->rss_end;
+}
+
 /* Numbers that were never measured are not printed as 0: no latency before a frame is published,
  * no one-minute RSS in a run shorter than a minute. */
 void sh_daemon_stats(sh_daemon *d, char *line, size_t cap)
 {
-    size_t n = d->nlat;
+    stats_figures f;
+    stats_measure(d, &f);
     char lat[96] = "latency: no frame published", at1[40] = "";
-    if (n) {
-        qsort(d->lat, n, sizeof *d->lat, cmp_float);
-        snprintf(lat, sizeof lat, "latency ms median %.2f p99 %.2f max %.2f", d->lat[n / 2],
-                 d->lat[(size_t)((double)(n - 1) * 0.99)], d->lat[n - 1]);
-    }
-    long r = rss_kb();
-    if (r > d->rss_max) d->rss_max = r;
+    if (f.have_latency)
+        snprintf(lat, sizeof lat, "latency ms median %.2f p99 %.2f max %.2f", f.lat_median, f.lat_p99, f.lat_max);
     if (d->rss_1min) snprintf(at1, sizeof at1, " at 1 min %ld", d->rss_1min);
     snprintf(line, cap,
              "stats: %llu published (%llu raw, %llu degraded), %llu dropped, %s, RSS kB start %ld%s max %ld "
              "end %ld, %d models built, %llu black frames (output camera lost)",
              (unsigned long long)d->published, (unsigned long long)d->raw_count,
              (unsigned long long)d->degraded_count, (unsigned long long)run_pipeline_dropped(&d->pl), lat,
-             d->rss_start, at1, d->rss_max, r, run_pipeline_builds(&d->pl), (unsigned long long)d->black_count);
+             d->rss_start, at1, d->rss_max, f.rss_end, run_pipeline_builds(&d->pl), (unsigned long long)d->black_count);
+}
+
+/* The same figures; what was never measured is null. */
+void sh_daemon_stats_json(sh_daemon *d, FILE *out)
+{
+    stats_figures f;
+    stats_measure(d, &f);
+    sh_cli_json j;
+    sh_cli_json_start(&j, out);
+    sh_cli_json_object(&j, NULL);
+    sh_cli_json_int(&j, "published", (long long)d->published);
+    sh_cli_json_int(&j, "raw", (long long)d->raw_count);
+    sh_cli_json_int(&j, "degraded", (long long)d->degraded_count);
+    sh_cli_json_int(&j, "dropped", (long long)run_pipeline_dropped(&d->pl));
+    sh_cli_json_object(&j, "latency_ms");
+    sh_cli_json_number(&j, "median", f.have_latency ? f.lat_median : NAN);
+    sh_cli_json_number(&j, "p99", f.have_latency ? f.lat_p99 : NAN);
+    sh_cli_json_number(&j, "max", f.have_latency ? f.lat_max : NAN);
+    sh_cli_json_end(&j);
+    sh_cli_json_object(&j, "rss_kb");
+    if (d->rss_start) sh_cli_json_int(&j, "start", d->rss_start);
+    else sh_cli_json_null(&j, "start");
+    if (d->rss_1min) sh_cli_json_int(&j, "at_1_min", d->rss_1min);
+    else sh_cli_json_null(&j, "at_1_min");
+    sh_cli_json_int(&j, "max", d->rss_max);
+    sh_cli_json_int(&j, "end", f.rss_end);
+    sh_cli_json_end(&j);
+    sh_cli_json_int(&j, "models_built", run_pipeline_builds(&d->pl));
+    sh_cli_json_int(&j, "black_frames", (long long)d->black_count);
+    sh_cli_json_end(&j);
 }
 
 sh_status sh_daemon_destroy(sh_daemon *d)

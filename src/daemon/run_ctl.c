@@ -57,7 +57,7 @@ struct run_ctl {
     int started;
     client c[CLIENTS];
     pthread_mutex_t mu; /* status, the groups */
-    char status[192];
+    char status[192], status_json[RUN_CTL_STATUS_MAX];
     gid_t control_gid, display_gid;
     int has_control;    /* a control group is configured */
     atomic_int refs;
@@ -158,7 +158,8 @@ static void log_drops(run_ctl *c, int64_t now)
     c->dropped_logged = now;
 }
 
-int run_ctl_command(const char *data, size_t len, int rights, const char *status_line, char *reply, size_t cap)
+int run_ctl_command(const char *data, size_t len, int rights, const char *status_line, const char *status_json,
+                    char *reply, size_t cap)
 {
     char line[128];
     size_t n = 0;
@@ -178,30 +179,32 @@ int run_ctl_command(const char *data, size_t len, int rights, const char *status
         snprintf(reply, cap, "ok: new reference requested");
         return RUN_CTL_REFERENCE;
     }
-    if (n == strlen("status") && !memcmp(line, "status", n)) {
+    int json = n == strlen("status-json") && !memcmp(line, "status-json", n);
+    if (json || (n == strlen("status") && !memcmp(line, "status", n))) {
         if (!(rights & RUN_CTL_STATUS)) {
-            snprintf(reply, cap, "error: status: not permitted (the service's user, root, [run] control_group and "
-                     "[sink] group only)");
+            snprintf(reply, cap, "error: %s: not permitted (the service's user, root, [run] control_group and "
+                     "[sink] group only)", line);
             return RUN_CTL_REFUSED;
         }
-        snprintf(reply, cap, "%s", status_line);
+        snprintf(reply, cap, "%s", json ? status_json : status_line);
         return RUN_CTL_STATUS;
     }
     /* echoed back on one line: anything but printable ASCII shows as '?' */
     for (size_t i = 0; i < n; i++)
         if (line[i] < 0x20 || line[i] > 0x7e) line[i] = '?';
-    snprintf(reply, cap, "error: '%.64s': unknown command (reference, status)", line);
+    snprintf(reply, cap, "error: '%.64s': unknown command (reference, status, status-json)", line);
     return RUN_CTL_BAD;
 }
 
 /* One client that sent its line (or closed, or filled its buffer): answered, logged, closed. */
 static void answer(run_ctl *c, client *k)
 {
-    char status[sizeof c->status], text[256];
+    char status[sizeof c->status], json[sizeof c->status_json], text[RUN_CTL_STATUS_MAX + 64];
     pthread_mutex_lock(&c->mu);
     memcpy(status, c->status, sizeof status);
+    memcpy(json, c->status_json, sizeof json);
     pthread_mutex_unlock(&c->mu);
-    int r = run_ctl_command(k->line, k->len, k->rights, status, text, sizeof text);
+    int r = run_ctl_command(k->line, k->len, k->rights, status, json, text, sizeof text);
     if (r == RUN_CTL_REFERENCE) {
         atomic_fetch_add(&c->refs, 1);
         sh_log_info("control: reference from uid %u pid %d: accepted", (unsigned)k->uid, (int)k->pid);
@@ -315,6 +318,7 @@ sh_status run_ctl_open(const char *path, const char *control_group, const char *
     c->wake[0] = c->wake[1] = -1;
     pthread_mutex_init(&c->mu, NULL);
     snprintf(c->status, sizeof c->status, "starting: no frame yet");
+    snprintf(c->status_json, sizeof c->status_json, "{\"state\": \"starting\"}");
     snprintf(c->path, sizeof c->path, "%s", path);
     memcpy(a.sun_path, path, strlen(path));
     sh_status st = run_ctl_groups(c, control_group, display_group);
@@ -381,10 +385,11 @@ void run_ctl_close(run_ctl *c)
     free(c);
 }
 
-void run_ctl_set_status(run_ctl *c, const char *status_line)
+void run_ctl_set_status(run_ctl *c, const char *status_line, const char *status_json)
 {
     pthread_mutex_lock(&c->mu);
     snprintf(c->status, sizeof c->status, "%s", status_line);
+    snprintf(c->status_json, sizeof c->status_json, "%s", status_json);
     pthread_mutex_unlock(&c->mu);
 }
 

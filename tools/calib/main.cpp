@@ -23,6 +23,8 @@
 
 extern "C" {
 #include "stillheart/calib.h"
+#include "stillheart/cli.h"
+#include "stillheart/log.h"
 }
 
 namespace {
@@ -59,8 +61,7 @@ void usage(FILE *f)
 "                     z up, as the renderer's world)\n"
 "  --corners-out FILE every corner found, as CSV frame,camera,corner,x,y (OpenCV pixels,\n"
 "                     corner r * COLS + c is board point (c, r) * SQUARE_MM)\n"
-"  --quiet            print only errors\n"
-"  --help             this text\n"
+SH_CLI_USAGE
 "\n"
 "Prints per camera the views used, K, distortion and reprojection RMS (px), and per camera\n"
 "pair the views used, stereo RMS, baseline and rotation. Exit status: 0 written, 1 failed\n"
@@ -290,15 +291,18 @@ bool parse_int(const char *s, int lo, int hi, int &out)
 int main(int argc, char **argv)
 {
     options o;
-    enum { O_BOARD = 256, O_OUT, O_EVERY, O_MIN, O_K3, O_CORNERS, O_QUIET, O_HELP, O_NOTAN, O_WORLD };
+    enum { O_BOARD = 256, O_OUT, O_EVERY, O_MIN, O_K3, O_CORNERS, O_NOTAN, O_WORLD };
     static const struct option opts[] = {
         {"board", 1, 0, O_BOARD}, {"out", 1, 0, O_OUT}, {"every", 1, 0, O_EVERY}, {"min-views", 1, 0, O_MIN},
-        {"k3", 0, 0, O_K3}, {"corners-out", 1, 0, O_CORNERS}, {"quiet", 0, 0, O_QUIET}, {"help", 0, 0, O_HELP},
+        {"k3", 0, 0, O_K3}, {"corners-out", 1, 0, O_CORNERS}, SH_CLI_OPTIONS,
         {"no-tangential", 0, 0, O_NOTAN}, {"world", 1, 0, O_WORLD}, {0, 0, 0, 0}};
     int ch;
     const char *board = nullptr;
 #define BAD(...) do { std::fprintf(stderr, "stillheart-calib: " __VA_ARGS__); std::fputc('\n', stderr); return 2; } while (0)
-    while ((ch = getopt_long(argc, argv, "", opts, nullptr)) != -1) {
+    static const sh_cli cli = {"stillheart-calib"};
+    sh_log_setup(SH_LOG_TOOL, "stillheart-calib", SH_LOG_INFO);
+    opterr = 0;
+    while ((ch = getopt_long(argc, argv, ":h", opts, nullptr)) != -1) {
         switch (ch) {
         case O_BOARD:
             board = optarg;
@@ -317,16 +321,16 @@ int main(int argc, char **argv)
                 BAD("--world '%s': camera0 or board:N (a frame index)", optarg);
             break;
         case O_CORNERS: o.corners_out = optarg; break;
-        case O_QUIET: o.quiet = 1; break;
-        case O_HELP: usage(stdout); return 0;
-        default: usage(stderr); return 2;
+        case 'h': usage(stdout); return 0;
+        default: { int rc = sh_cli_option(&cli, ch, argv); if (rc >= 0) return rc; } break;
         }
     }
+    o.quiet = sh_log_get_level() < SH_LOG_INFO;
     for (int i = optind; i < argc; i++) o.inputs.push_back(argv[i]);
-    if (!board) BAD("--board is required (see --help)");
-    if (!o.out) BAD("--out is required (see --help)");
+    if (!board) return sh_cli_usage_error(&cli, "--board is required");
+    if (!o.out) return sh_cli_usage_error(&cli, "--out is required");
     if (o.inputs.size() < 2 || o.inputs.size() > 3)
-        BAD("%zu camera inputs: give two or three (see --help)", o.inputs.size());
+        return sh_cli_usage_error(&cli, "%zu camera inputs: give two or three", o.inputs.size());
 #undef BAD
     try {
         return run(o);

@@ -32,6 +32,7 @@
 
 #include <linux/videodev2.h>
 
+#include "stillheart/cli.h"
 #include "stillheart/pixconv.h"
 #include "stillheart/source.h"
 #include "stillheart/sync.h"
@@ -654,8 +655,24 @@ static void libcamera_loss(const char *name, const char *size, const char *platd
            seq_ok ? "rising" : "not rising");
 }
 
+static void usage(FILE *out)
+{
+    fprintf(out, "usage: stillheart-vmprobe formats|controls|errors DEV | sets DEV0 DEV1 | loss DEV PLATDEV | "
+                 "gpio CHIP SYSDIR | libcamera|libcamera-controls NAME WxH | libcamera-loss NAME WxH PLATDEV | "
+                 "run DEV0 DEV1 PLATDEV CHIP LINE N\n"
+                 "The capture checks inside the QEMU guest of tests/vm/run.sh (tools/capture/vmprobe.c).\n");
+}
+
 int main(int argc, char **argv)
 {
+    if (argc == 2 && (!strcmp(argv[1], "-h") || !strcmp(argv[1], "--help"))) {
+        usage(stdout);
+        return 0;
+    }
+    if (argc == 2 && !strcmp(argv[1], "--version")) {
+        printf("stillheart-vmprobe %s\n", SH_VERSION);
+        return 0;
+    }
     if (argc >= 3 && !strcmp(argv[1], "formats")) formats(argv[2]);
     else if (argc >= 3 && !strcmp(argv[1], "controls")) controls(argv[2]);
     else if (argc >= 3 && !strcmp(argv[1], "errors")) errors(argv[2]);
@@ -668,9 +685,8 @@ int main(int argc, char **argv)
     else if (argc >= 8 && !strcmp(argv[1], "run"))
         run_daemon_check(argv[2], argv[3], argv[4], argv[5], argv[6], atoi(argv[7]));
     else {
-        fprintf(stderr, "usage: stillheart-vmprobe formats|controls|errors DEV | sets DEV0 DEV1 | loss DEV PLATDEV | "
-                        "gpio CHIP SYSDIR | libcamera|libcamera-controls NAME WxH | libcamera-loss NAME WxH PLATDEV | "
-                        "run DEV0 DEV1 PLATDEV CHIP LINE N\n");
+        fprintf(stderr, "stillheart-vmprobe: %s%s%s; try 'stillheart-vmprobe --help'\n", argc < 2 ? "no check named" : "'",
+                argc < 2 ? "" : argv[1], argc < 2 ? "" : "': unknown check or too few arguments");
         return 2;
     }
     return failures ? 1 : 0;

@@ -17,8 +17,12 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "stillheart/cli.h"
 #include "stillheart/display.h"
+#include "stillheart/log.h"
 #include "stillheart/y4m.h"
+
+static const sh_cli cli = {"stillheart-cat"};
 
 static void usage(FILE *out)
 {
@@ -41,8 +45,8 @@ static void usage(FILE *out)
         "  --follow        when the daemon stops cleanly, wait for the next one (within the\n"
         "                  timeout) instead of ending the stream\n"
         "  -v, --verbose   each frame's status (stabilized / degraded / raw and why) and the\n"
-        "                  segment's generation on stderr\n"
-        "  --help          this text\n\n"
+        "                  segment's generation on stderr (also with --log-level debug)\n"
+        SH_CLI_USAGE "\n"
         "Standard output must be a pipe or a file (a terminal is refused): stillheart-cat | ffplay -\n\n"
         "Exit status: 0 at --count or the daemon's clean stop (or a signal: SIGINT, SIGTERM end\n"
         "the frame in hand first), 1 an error or the timeout, 2 bad usage or a terminal as\n"
@@ -109,14 +113,16 @@ int main(int argc, char **argv)
         {"name", required_argument, 0, 'n'}, {"count", required_argument, 0, 'c'},
         {"timeout", required_argument, 0, 't'}, {"verbose", no_argument, 0, 'v'},
         {"owner", required_argument, 0, 'o'}, {"follow", no_argument, 0, 'f'},
-        {"help", no_argument, 0, 'h'}, {0, 0, 0, 0}};
+        SH_CLI_OPTIONS, {0, 0, 0, 0}};
     sh_display_reader_options ropt = {.owner_uid = SH_DISPLAY_OWNER_SELF, .follow = 0};
     const char *name = SH_DISPLAY_DEFAULT_NAME;
     long count = 0;
     double timeout = 5;
     int verbose = 0, opt;
     char *end;
-    while ((opt = getopt_long(argc, argv, "v", options, NULL)) != -1) {
+    sh_log_setup(SH_LOG_TOOL, "stillheart-cat", SH_LOG_INFO);
+    opterr = 0;
+    while ((opt = getopt_long(argc, argv, ":hv", options, NULL)) != -1) {
         switch (opt) {
         case 'n': name = optarg; break;
         case 'c':
@@ -149,13 +155,11 @@ int main(int argc, char **argv)
             break;
         }
         case 'h': usage(stdout); return 0;
-        default: usage(stderr); return 2;
+        default: { int rc = sh_cli_option(&cli, opt, argv); if (rc >= 0) return rc; } break;
         }
     }
-    if (optind != argc) {
-        usage(stderr);
-        return 2;
-    }
+    if (optind != argc) return sh_cli_usage_error(&cli, "'%s': no operands (the video goes to standard output)", argv[optind]);
+    if (sh_log_get_level() >= SH_LOG_DEBUG) verbose = 1;
     /* as gzip and ffmpeg do: binary video on a terminal only garbles it */
     if (isatty(STDOUT_FILENO)) {
         fprintf(stderr, "stillheart-cat: standard output is a terminal: pipe the video to a player or a file,\n"

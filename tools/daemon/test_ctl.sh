@@ -70,6 +70,28 @@ rc, out, err = ask("status")
 if rc or not (out.startswith("frame ") or out.startswith("starting")): f.append("root status: rc %d %r %r" % (rc, out, err))
 result("root: status answered", f)
 
+# status --json: the socket's status-json, one JSON object; the grey frames have no markers, so
+# every frame is shown raw with 0 markers; refused to whom status is refused
+import json
+def ask_json(who=None):
+    p = subprocess.run((who or []) + [exe, "ctl", "--socket", ctl, "--json", "status"], capture_output=True, text=True, timeout=10)
+    return p.returncode, p.stdout.strip(), p.stderr.strip()
+f = []
+for i in range(100):
+    rc, out, err = ask_json()
+    try: js = json.loads(out)
+    except ValueError as e: js = None; f.append("not JSON: rc %d %r %r (%s)" % (rc, out, err, e)); break
+    if rc or js.get("state") not in ("starting", "running"): f.append("rc %d %r" % (rc, out)); break
+    if js.get("state") == "running": break
+    time.sleep(0.05)
+if js and js.get("state") == "running":
+    if js.get("status") != "raw" or js.get("markers") != 0 or not js.get("published") or "dropped" not in js or "frame" not in js:
+        f.append("running: %r" % js)
+elif not f: f.append("never running: %r" % out)
+rc, out, err = ask_json(as_user([]))
+if rc != 1 or "not permitted" not in err or out: f.append("uid 65534 status --json: rc %d %r %r" % (rc, out, err))
+result("status --json: state, frame, status raw, 0 markers, published, dropped; refused as status is", f)
+
 f = []
 refs0 = daemon_log().count("new reference requested (control socket)")
 rc, out, err, lines = ask_logged("reference", as_user([]))

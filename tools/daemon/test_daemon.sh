@@ -186,7 +186,7 @@ msg=$($RUN --config "$T/bad.ini" 2>&1); rc=$?
 msg=$($RUN --config "$T/none.ini" 2>&1); rc=$?
 [ $rc -eq 2 ] && echo "$msg" | grep -q "none.ini: cannot open" && ok "missing file refused" || bad "missing file refused" "$msg"
 msg=$($RUN --frobnicate 3 2>&1); rc=$?
-[ $rc -eq 2 ] && echo "$msg" | grep -q -- "--frobnicate: unknown option" && ok "unknown option refused" || bad "unknown option refused" "$msg"
+[ $rc -eq 2 ] && echo "$msg" | grep -q -- "unknown option '--frobnicate'; try 'stillheart run --help'" && ok "unknown option refused" || bad "unknown option refused" "$msg"
 # an unedited install names no camera: one line and exit 6 (not configured), which the unit does
 # not restart on (RestartPreventExitStatus; make deb-test checks the two agree)
 printf '[camera0]\nspec =\n' > "$T/empty.ini"

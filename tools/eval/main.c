@@ -10,10 +10,13 @@
 #include <unistd.h>
 
 #include "eval.h"
+#include "stillheart/cli.h"
 #include "stillheart/log.h"
 #include "stillheart/y4m.h"
 
 #define PROG "stillheart-eval"
+
+static const sh_cli cli = {PROG};
 
 static void usage(FILE *f)
 {
@@ -46,8 +49,9 @@ static void usage(FILE *f)
         "                     e_original (null without ORIGINAL), frames, pixels, reference,\n"
         "                     geometric {method, camera, stride, mean, p95, max, samples,\n"
         "                     points, hidden, unmapped, raw_frames} (null without --truth)\n"
-        "  --quiet            no progress bar (shown only when stderr is a terminal anyway)\n"
-        "  --help             this text\n\n"
+        "  --quiet            no progress bar (shown, with the frames left and an ETA, only when\n"
+        "                     stderr is a terminal anyway); as --log-level warning\n"
+        SH_CLI_USAGE "\n"
         "Geometric error on phantom sequences (stillheart-render folders):\n"
         "  --truth DIR        the phantom folder (DIR/phantom.txt) the video was rendered from.\n"
         "                     For every hull pixel q of frame N on a lattice of --geo-stride px,\n"
@@ -78,32 +82,6 @@ double eval_now(void)
     struct timespec ts;
     clock_gettime(CLOCK_MONOTONIC, &ts);
     return (double)ts.tv_sec + ts.tv_nsec * 1e-9;
-}
-
-static int parse_int(const char *opt, const char *s, int min, int max, int *out)
-{
-    char *end;
-    errno = 0;
-    long v = strtol(s, &end, 10);
-    if (errno || end == s || *end || v < min || v > max) {
-        sh_log_error("%s: '%s' is not a whole number in %d..%d", opt, s, min, max);
-        return 0;
-    }
-    *out = (int)v;
-    return 1;
-}
-
-static int parse_double(const char *opt, const char *s, double min, double max, double *out)
-{
-    char *end;
-    errno = 0;
-    double v = strtod(s, &end);
-    if (errno || end == s || *end || !isfinite(v) || v < min || v > max) {
-        sh_log_error("%s: '%s' is not a number in %g..%g", opt, s, min, max);
-        return 0;
-    }
-    *out = v;
-    return 1;
 }
 
 static int fail(const char *what)
@@ -165,55 +143,9 @@ static sh_status video_next(video *v, const sh_hull *hull, int t)
     return sh_metric_add(v->metric, &v->frame);
 }
 
-/* Frames in a Y4M file, for the progress bar only (assumes bare FRAME lines; 0 if unknown). */
-static int frames_estimate(const char *path, const sh_image *img)
-{
-    struct stat sb;
-    if (!strcmp(path, "-") || stat(path, &sb) != 0) return 0;
-    return (int)(sb.st_size / (long long)(sh_image_packed_size(img->format, img->width, img->height) + 6));
-}
-
-static void progress(int enabled, double start, double *last, int done, int total)
-{
-    if (!enabled) return;
-    double now = eval_now();
-    if (now - *last < 0.1 && done != total) return;
-    *last = now;
-    double rate = done / fmax(now - start, 1e-9);
-    if (total >= done && total > 0) {
-        int w = 30, fill = (int)((long)w * done / total);
-        fprintf(stderr, "\reval [%.*s%*s] %d/%d  %.1f frames/s ", fill,
-                "##############################", w - fill, "", done, total, rate);
-    } else {
-        fprintf(stderr, "\reval %d frames  %.1f frames/s ", done, rate);
-    }
-}
-
-static void json_string(const char *s)
-{
-    if (!s) {
-        fputs("null", stdout);
-        return;
-    }
-    putchar('"');
-    for (; *s; s++) {
-        unsigned char c = (unsigned char)*s;
-        if (c == '"' || c == '\\') printf("\\%c", c);
-        else if (c < 0x20) printf("\\u%04x", c);
-        else putchar(c);
-    }
-    putchar('"');
-}
-
-static void json_number(double v)
-{
-    if (isfinite(v)) printf("%.17g", v);
-    else fputs("null", stdout);
-}
-
 typedef struct {
     const char *points_path, *truth_dir, *heatmap, *method, *export_out;
-    int reference, camera, stride, json, quiet, contours;
+    int reference, camera, stride, json, contours;
     double heatmap_max, heatmap_scale;
     eval_geo_options geo;
 } options;
@@ -223,36 +155,36 @@ static void report(const options *o, const video *stab, const video *orig, const
 {
     double e_orig = orig->metric ? sh_metric_e(orig->metric) : NAN;
     if (o->json) {
-        printf("{\"stabilized\": ");
-        json_string(stab->path);
-        printf(", \"original\": ");
-        json_string(orig->metric ? orig->path : NULL);
-        printf(", \"points\": ");
-        json_string(o->points_path);
-        printf(", \"reference\": %d, \"frames\": %d, \"pixels\": %d, \"e_stabilized\": ",
-               o->reference, sh_metric_frames(stab->metric), sh_metric_pixels(stab->metric));
-        json_number(sh_metric_e(stab->metric));
-        printf(", \"e_original\": ");
-        json_number(e_orig);
-        printf(", \"heatmap\": ");
-        json_string(o->heatmap);
-        printf(", \"geometric\": ");
+        sh_cli_json j;
+        sh_cli_json_start(&j, stdout);
+        sh_cli_json_object(&j, NULL);
+        sh_cli_json_string(&j, "stabilized", stab->path);
+        sh_cli_json_string(&j, "original", orig->metric ? orig->path : NULL);
+        sh_cli_json_string(&j, "points", o->points_path);
+        sh_cli_json_int(&j, "reference", o->reference);
+        sh_cli_json_int(&j, "frames", sh_metric_frames(stab->metric));
+        sh_cli_json_int(&j, "pixels", sh_metric_pixels(stab->metric));
+        sh_cli_json_number(&j, "e_stabilized", sh_metric_e(stab->metric));
+        sh_cli_json_number(&j, "e_original", e_orig);
+        sh_cli_json_string(&j, "heatmap", o->heatmap);
         if (geo) {
-            printf("{\"method\": ");
-            json_string(o->method);
-            printf(", \"camera\": %d, \"stride\": %d, \"mean\": ", o->camera, o->stride);
-            json_number(g->mean);
-            printf(", \"p95\": ");
-            json_number(g->p95);
-            printf(", \"max\": ");
-            json_number(g->max);
-            printf(", \"samples\": %lld, \"points\": %d, \"hidden\": %lld, \"unmapped\": %lld, "
-                   "\"raw_frames\": %d}",
-                   g->samples, g->points, g->hidden, g->unmapped, g->raw_frames);
+            sh_cli_json_object(&j, "geometric");
+            sh_cli_json_string(&j, "method", o->method);
+            sh_cli_json_int(&j, "camera", o->camera);
+            sh_cli_json_int(&j, "stride", o->stride);
+            sh_cli_json_number(&j, "mean", g->mean);
+            sh_cli_json_number(&j, "p95", g->p95);
+            sh_cli_json_number(&j, "max", g->max);
+            sh_cli_json_int(&j, "samples", g->samples);
+            sh_cli_json_int(&j, "points", g->points);
+            sh_cli_json_int(&j, "hidden", g->hidden);
+            sh_cli_json_int(&j, "unmapped", g->unmapped);
+            sh_cli_json_int(&j, "raw_frames", g->raw_frames);
+            sh_cli_json_end(&j);
         } else {
-            printf("null");
+            sh_cli_json_null(&j, "geometric");
         }
-        printf("}\n");
+        sh_cli_json_end(&j);
         return;
     }
     printf("%s: reference frame %d, %d frames, %d hull pixels\n", stab->path, o->reference,
@@ -319,26 +251,26 @@ static int evaluate(options *o, const char *stab_path, const char *orig_path)
         }
     }
 
-    int show = !o->quiet && isatty(STDERR_FILENO);
-    int total = frames_estimate(stab_path, f);
-    double start = eval_now(), last = start;
+    sh_cli_progress bar;
+    long long total = sh_y4m_reader_whole_frames(stab.reader);
+    sh_cli_progress_start(&bar, "eval", total < 0 || total > 1 << 30 ? 0 : (int)total, "frames");
     int t = 0;
     sh_status st;
     while ((st = video_next(&stab, &hull, t)) == SH_OK) {
         if (orig_path) {
             sh_status so = video_next(&orig, &hull, t);
             if (so == SH_EEOF) {
-                fprintf(stderr, "%s" PROG ": %s has %d frames, %s more\n", show ? "\n" : "",
-                        orig_path, t, stab_path);
+                sh_cli_progress_end(&bar);
+                sh_log_error("%s has %d frames, %s more", orig_path, t, stab_path);
                 goto done;
             }
             if (so != SH_OK) { fail("original video"); goto done; }
         }
         if (geo && eval_geo_frame(geo, t) != SH_OK) { fail("geometric error"); goto done; }
         t++;
-        progress(show, start, &last, t, total);
+        sh_cli_progress_update(&bar, t);
     }
-    if (show) fputc('\n', stderr);
+    sh_cli_progress_end(&bar);
     if (st != SH_EEOF) { fail("stabilized video"); goto done; }
     if (orig_path && video_next(&orig, &hull, t) != SH_EEOF) {
         sh_log_error("%s has more frames than %s (%d)", orig_path, stab_path, t);
@@ -386,41 +318,38 @@ int main(int argc, char **argv)
         {"heatmap", required_argument, 0, 'H'},  {"heatmap-max", required_argument, 0, 'X'},
         {"contours", required_argument, 0, 'C'}, {"export-points", required_argument, 0, 'E'},
         {"heatmap-scale", required_argument, 0, 'Z'},
-        {"json", no_argument, 0, 'j'},           {"quiet", no_argument, 0, 'q'},
-        {"help", no_argument, 0, 'h'},           {0, 0, 0, 0}};
-    options o = {.method = "bspline", .stride = 4, .heatmap_max = 0.2, .heatmap_scale = 1,
-                 .contours = 4};
+        {"json", no_argument, 0, 'j'},           SH_CLI_OPTIONS, {0, 0, 0, 0}};
+    options o = {.method = "bspline", .stride = 4, .heatmap_max = 0.2, .heatmap_scale = 1, .contours = 4};
     double sigma = 0, smoothing = 0, max_error = 0.05;
     int levels = 0, have_sigma = 0, opt;
-    while ((opt = getopt_long(argc, argv, "", long_opts, NULL)) != -1) {
+    opterr = 0;
+    while ((opt = getopt_long(argc, argv, ":h", long_opts, NULL)) != -1) {
         switch (opt) {
         case 'p': o.points_path = optarg; break;
-        case 'r': if (!parse_int("--reference", optarg, 0, SH_POINTS_MAX_FRAME, &o.reference)) return 2; break;
+        case 'r': if (!sh_cli_parse_int("--reference", optarg, 0, SH_POINTS_MAX_FRAME, &o.reference)) return 2; break;
         case 'T': o.truth_dir = optarg; break;
-        case 'c': if (!parse_int("--camera", optarg, 0, PHANTOM_MAX_CAMERAS - 1, &o.camera)) return 2; break;
+        case 'c': if (!sh_cli_parse_int("--camera", optarg, 0, PHANTOM_MAX_CAMERAS - 1, &o.camera)) return 2; break;
         case 'm': o.method = optarg; break;
-        case 's': if (!parse_double("--sigma", optarg, 1e-6, 1e9, &sigma)) return 2;
+        case 's': if (!sh_cli_parse_double("--sigma", optarg, 1e-6, 1e9, &sigma)) return 2;
                   have_sigma = 1; break;
-        case 'l': if (!parse_int("--levels", optarg, 1, 20, &levels)) return 2; break;
-        case 'S': if (!parse_double("--smoothing", optarg, 0, 1e12, &smoothing)) return 2; break;
-        case 'e': if (!parse_double("--max-error", optarg, 1e-4, 100, &max_error)) return 2; break;
-        case 'g': if (!parse_int("--geo-stride", optarg, 1, 4096, &o.stride)) return 2; break;
+        case 'l': if (!sh_cli_parse_int("--levels", optarg, 1, 20, &levels)) return 2; break;
+        case 'S': if (!sh_cli_parse_double("--smoothing", optarg, 0, 1e12, &smoothing)) return 2; break;
+        case 'e': if (!sh_cli_parse_double("--max-error", optarg, 1e-4, 100, &max_error)) return 2; break;
+        case 'g': if (!sh_cli_parse_int("--geo-stride", optarg, 1, 4096, &o.stride)) return 2; break;
         case 'H': o.heatmap = optarg; break;
-        case 'X': if (!parse_double("--heatmap-max", optarg, 1e-6, 1, &o.heatmap_max)) return 2; break;
-        case 'Z': if (!parse_double("--heatmap-scale", optarg, 1.0 / 64, 8, &o.heatmap_scale)) return 2; break;
-        case 'C': if (!parse_int("--contours", optarg, 0, 32, &o.contours)) return 2; break;
+        case 'X': if (!sh_cli_parse_double("--heatmap-max", optarg, 1e-6, 1, &o.heatmap_max)) return 2; break;
+        case 'Z': if (!sh_cli_parse_double("--heatmap-scale", optarg, 1.0 / 64, 8, &o.heatmap_scale)) return 2; break;
+        case 'C': if (!sh_cli_parse_int("--contours", optarg, 0, 32, &o.contours)) return 2; break;
         case 'E': o.export_out = optarg; break;
         case 'j': o.json = 1; break;
-        case 'q': o.quiet = 1; break;
         case 'h': usage(stdout); return 0;
-        default: usage(stderr); return 2;
+        default: { int rc = sh_cli_option(&cli, opt, argv); if (rc >= 0) return rc; } break;
         }
     }
 
     if (o.export_out) {
         if (!o.truth_dir || optind != argc) {
-            sh_log_error("--export-points needs --truth DIR and no videos");
-            return 2;
+            return sh_cli_usage_error(&cli, "--export-points needs --truth DIR and no videos");
         }
         int to_stdout = !strcmp(o.export_out, "-");
         FILE *out = to_stdout ? stdout : fopen(o.export_out, "w");
@@ -433,11 +362,8 @@ int main(int argc, char **argv)
             st = sh_error_set(SH_EIO, "%s: write failed", o.export_out);
         return st == SH_OK ? 0 : fail("--export-points");
     }
-    if (!o.points_path || argc - optind < 1 || argc - optind > 2) {
-        sh_log_error("need --points and the stabilized video (and optionally the original)");
-        usage(stderr);
-        return 2;
-    }
+    if (!o.points_path || argc - optind < 1 || argc - optind > 2)
+        return sh_cli_usage_error(&cli, "need --points and the stabilized video (and optionally the original)");
 
     /* The interpolant exactly as `stillheart warp` configures it from the same options. */
     o.geo.camera = o.camera;

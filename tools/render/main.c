@@ -17,8 +17,11 @@
 
 #include "render.h"
 #include "stillheart/calib.h"
+#include "stillheart/cli.h"
 #include "stillheart/log.h"
 #include "stillheart/y4m.h"
+
+static const sh_cli cli = {"stillheart-render"};
 
 static void usage(FILE *f)
 {
@@ -81,8 +84,8 @@ static void usage(FILE *f)
 "                     inner corner r * COLS + c at board (c, r) * SQUARE_MM, its pixel and world\n"
 "                     position), no markers.csv or phantom.txt\n"
 "  --quiet            no progress bar (shown only on a terminal anyway) and no closing\n"
-"                     line with the rendering speed\n"
-"  --help             this text\n"
+"                     line with the rendering speed (as --log-level warning)\n"
+SH_CLI_USAGE
 "\n"
 "Writes DIR/cam0.y4m (cam1, cam2: Y4M 4:2:0, BT.601 limited range), DIR/markers.csv\n"
 "(frame,camera,id,point,x,y,visible,X,Y,Z: point c = tag centre, 0-3 its corners in\n"
@@ -200,17 +203,6 @@ static double now(void)
     return ts.tv_sec + ts.tv_nsec * 1e-9;
 }
 
-static void progress(int done, int total, double t0)
-{
-    double el = now() - t0, fps = el > 0 ? done / el : 0;
-    int bar = 30, fill = total > 0 ? done * bar / total : bar;
-    double eta = fps > 0 ? (total - done) / fps : 0;
-    fprintf(stderr, "\rrender [%.*s%*s] %d/%d frames  %.1f fps  ETA %d:%02d ", fill,
-            "==============================", bar - fill, "", done, total, fps, (int)eta / 60,
-            (int)eta % 60);
-    if (done == total) fputc('\n', stderr);
-}
-
 static sh_status write_calibration(const phantom_model *m, const char *path)
 {
     sh_calib cal;
@@ -285,7 +277,7 @@ int main(int argc, char **argv)
     double dist[5];
     int ids[PHANTOM_MAX_MARKERS];
     enum { O_PRESET = 256, O_FRAMES, O_CAMERAS, O_WIDTH, O_HEIGHT, O_SEED, O_OCC, O_BPM, O_MARKERS,
-           O_TAG, O_FAMILY, O_IDS, O_FPS, O_DIST, O_NOISE, O_EXPOSURE, O_OUT, O_QUIET, O_HELP,
+           O_TAG, O_FAMILY, O_IDS, O_FPS, O_DIST, O_NOISE, O_EXPOSURE, O_OUT,
            O_TARGET, O_PERIODIC, O_CAM_MOTION, O_CAM_MOTION_AT, O_FIRST_BEAT, O_FIRST_BEAT_AT, O_RIG };
     static const struct option opts[] = {
         {"preset", 1, 0, O_PRESET}, {"frames", 1, 0, O_FRAMES}, {"cameras", 1, 0, O_CAMERAS},
@@ -293,8 +285,8 @@ int main(int argc, char **argv)
         {"occlusions", 0, 0, O_OCC}, {"bpm", 1, 0, O_BPM}, {"markers", 1, 0, O_MARKERS},
         {"tag-size", 1, 0, O_TAG}, {"family", 1, 0, O_FAMILY}, {"ids", 1, 0, O_IDS},
         {"fps", 1, 0, O_FPS}, {"distortion", 1, 0, O_DIST}, {"noise", 1, 0, O_NOISE},
-        {"exposure", 1, 0, O_EXPOSURE}, {"out", 1, 0, O_OUT}, {"quiet", 0, 0, O_QUIET},
-        {"help", 0, 0, O_HELP}, {"calib-target", 1, 0, O_TARGET},
+        {"exposure", 1, 0, O_EXPOSURE}, {"out", 1, 0, O_OUT}, SH_CLI_OPTIONS,
+        {"calib-target", 1, 0, O_TARGET},
         {"periodic", 0, 0, O_PERIODIC}, {"camera-motion", 1, 0, O_CAM_MOTION},
         {"camera-motion-at", 1, 0, O_CAM_MOTION_AT}, {"first-beat", 0, 0, O_FIRST_BEAT},
         {"first-beat-at", 1, 0, O_FIRST_BEAT_AT}, {"rig", 1, 0, O_RIG}, {0, 0, 0, 0}};
@@ -306,7 +298,8 @@ int main(int argc, char **argv)
     double dv;
 #define BAD(...) do { sh_log_error(__VA_ARGS__); return 2; } while (0)
     int idx;
-    while ((ch = getopt_long(argc, argv, "", opts, &idx)) != -1) {
+    opterr = 0;
+    while ((ch = getopt_long(argc, argv, ":h", opts, &idx)) != -1) {
         if (ch == O_PRESET || ch == O_OCC || ch == O_BPM || ch == O_MARKERS || ch == O_TAG || ch == O_FAMILY ||
             ch == O_IDS || ch == O_PERIODIC || ch == O_CAM_MOTION || ch == O_CAM_MOTION_AT || ch == O_FIRST_BEAT ||
             ch == O_FIRST_BEAT_AT)
@@ -352,7 +345,6 @@ int main(int argc, char **argv)
         case O_NOISE: if (!parse_double(optarg, &dv) || !(dv >= 0 && dv <= 100)) BAD("--noise '%s': 0 to 100 DN", optarg); o.noise = dv; break;
         case O_EXPOSURE: if (!parse_double(optarg, &dv) || !(dv > 0 && dv <= 16)) BAD("--exposure '%s': a gain in (0, 16]", optarg); o.exposure = dv; break;
         case O_OUT: out = optarg; break;
-        case O_QUIET: quiet = 1; break;
         case O_PERIODIC: o.periodic = 1; break;
         case O_CAM_MOTION:
             if (!strcmp(optarg, "pan")) o.camera_motion = PHANTOM_CAM_PAN;
@@ -366,12 +358,13 @@ int main(int argc, char **argv)
             if (rd_board_parse(optarg, &board) != SH_OK) BAD("%s", sh_error_message());
             board_mode = 1;
             break;
-        case O_HELP: usage(stdout); return 0;
-        default: usage(stderr); return 2;
+        case 'h': usage(stdout); return 0;
+        default: { int rc = sh_cli_option(&cli, ch, argv); if (rc >= 0) return rc; } break;
         }
     }
-    if (optind < argc) BAD("unexpected argument '%s' (see --help)", argv[optind]);
-    if (!out) BAD("--out DIR is required (see --help)");
+    quiet = sh_log_get_level() < SH_LOG_INFO;
+    if (optind < argc) return sh_cli_usage_error(&cli, "unexpected argument '%s'", argv[optind]);
+    if (!out) return sh_cli_usage_error(&cli, "--out DIR is required");
     if (board_mode && heart_option) BAD("--%s: the heart's option, not the board's (--calib-target)", heart_option);
     if (o.camera_motion_at > 0 && !o.camera_motion) BAD("--camera-motion-at: with --camera-motion pan|bump only");
     if (o.first_beat_at > 0 && !o.first_beat) BAD("--first-beat-at: with --first-beat only");
@@ -483,8 +476,8 @@ int main(int argc, char **argv)
         goto done;
     }
     thread_ok = 1;
-    int show = !quiet && isatty(2);
-    double t0 = now();
+    sh_cli_progress bar;
+    sh_cli_progress_start(&bar, "render", m.frames, "frames");
     int cur = 0;
     for (int f = 0; f < m.frames; f++) {
         if (!board_mode) rd_scene_update(scene, f / m.fps);
@@ -514,8 +507,9 @@ int main(int argc, char **argv)
                          strerror(errno));
             goto done;
         }
-        if (show) progress(f + 1, m.frames, t0);
+        sh_cli_progress_update(&bar, f + 1);
     }
+    sh_cli_progress_end(&bar);
     rc = 0;
 done:
     if (thread_ok) {

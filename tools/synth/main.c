@@ -9,10 +9,13 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include "stillheart/cli.h"
 #include "stillheart/log.h"
 #include "stillheart/points.h"
 #include "stillheart/y4m.h"
 #include "synth.h"
+
+static const sh_cli cli = {"stillheart-synth"};
 
 static void usage(FILE *out)
 {
@@ -30,20 +33,7 @@ static void usage(FILE *out)
         "  --format F       i420 (default), gray8 or yuv444\n"
         "  --seed S         marker layout (default 1)\n"
         "  --out DIR        output folder (created if missing)\n"
-        "  --help           this text\n");
-}
-
-static int parse_int(const char *opt, const char *text, int lo, int hi, int *out)
-{
-    char *end;
-    errno = 0;
-    long v = strtol(text, &end, 10);
-    if (errno || *end || end == text || v < lo || v > hi) {
-        sh_log_error("%s: '%s' is not a whole number in %d..%d", opt, text, lo, hi);
-        return 0;
-    }
-    *out = (int)v;
-    return 1;
+        SH_CLI_USAGE);
 }
 
 /* mkdir -p */
@@ -67,22 +57,23 @@ int main(int argc, char **argv)
 {
     sh_log_setup(SH_LOG_TOOL, "stillheart-synth", SH_LOG_INFO);
     static const struct option options[] = {
-        {"width", required_argument, 0, 'w'}, {"height", required_argument, 0, 'h'},
+        {"width", required_argument, 0, 'w'}, {"height", required_argument, 0, 'y'},
         {"frames", required_argument, 0, 'n'}, {"markers", required_argument, 0, 'm'},
         {"amplitude", required_argument, 0, 'a'}, {"format", required_argument, 0, 'f'},
         {"seed", required_argument, 0, 's'}, {"out", required_argument, 0, 'o'},
-        {"help", no_argument, 0, 'H'}, {0, 0, 0, 0}};
+        SH_CLI_OPTIONS, {0, 0, 0, 0}};
     int width = 640, height = 360, frames = 24, markers = 16, amplitude = 10, seed = 1, opt;
     const char *out_dir = NULL;
     sh_pixfmt format = SH_PIX_I420;
-    while ((opt = getopt_long(argc, argv, "", options, NULL)) != -1) {
+    opterr = 0;
+    while ((opt = getopt_long(argc, argv, ":h", options, NULL)) != -1) {
         switch (opt) {
-        case 'w': if (!parse_int("--width", optarg, 16, SH_IMAGE_MAX_SIZE, &width)) return 2; break;
-        case 'h': if (!parse_int("--height", optarg, 16, SH_IMAGE_MAX_SIZE, &height)) return 2; break;
-        case 'n': if (!parse_int("--frames", optarg, 1, 100000, &frames)) return 2; break;
-        case 'm': if (!parse_int("--markers", optarg, 3, 1000, &markers)) return 2; break;
-        case 'a': if (!parse_int("--amplitude", optarg, 0, 1000, &amplitude)) return 2; break;
-        case 's': if (!parse_int("--seed", optarg, 0, 1 << 30, &seed)) return 2; break;
+        case 'w': if (!sh_cli_parse_int("--width", optarg, 16, SH_IMAGE_MAX_SIZE, &width)) return 2; break;
+        case 'y': if (!sh_cli_parse_int("--height", optarg, 16, SH_IMAGE_MAX_SIZE, &height)) return 2; break;
+        case 'n': if (!sh_cli_parse_int("--frames", optarg, 1, 100000, &frames)) return 2; break;
+        case 'm': if (!sh_cli_parse_int("--markers", optarg, 3, 1000, &markers)) return 2; break;
+        case 'a': if (!sh_cli_parse_int("--amplitude", optarg, 0, 1000, &amplitude)) return 2; break;
+        case 's': if (!sh_cli_parse_int("--seed", optarg, 0, 1 << 30, &seed)) return 2; break;
         case 'f':
             if (!strcmp(optarg, "i420")) format = SH_PIX_I420;
             else if (!strcmp(optarg, "gray8")) format = SH_PIX_GRAY8;
@@ -93,14 +84,11 @@ int main(int argc, char **argv)
             }
             break;
         case 'o': out_dir = optarg; break;
-        case 'H': usage(stdout); return 0;
-        default: usage(stderr); return 2;
+        case 'h': usage(stdout); return 0;
+        default: { int rc = sh_cli_option(&cli, opt, argv); if (rc >= 0) return rc; } break;
         }
     }
-    if (!out_dir || optind != argc) {
-        usage(stderr);
-        return 2;
-    }
+    if (!out_dir || optind != argc) return sh_cli_usage_error(&cli, "need --out DIR and no operands");
     if (!make_dirs(out_dir)) {
         sh_log_error("%s: %s", out_dir, strerror(errno));
         return 1;
@@ -124,6 +112,8 @@ int main(int argc, char **argv)
         goto done;
     }
     synth_markers(&motion, markers, (unsigned)seed, ref);
+    sh_cli_progress progress;
+    sh_cli_progress_start(&progress, "stillheart-synth", frames, "frames");
     for (int t = 0; t < frames; t++) {
         double phase = (double)t / frames;
         synth_render(&motion, phase, &img);
@@ -136,9 +126,9 @@ int main(int argc, char **argv)
             *p = (sh_point){.frame = t, .id = i};
             synth_forward(&motion, phase, ref[2 * i], ref[2 * i + 1], &p->x, &p->y);
         }
-        if (isatty(STDERR_FILENO)) fprintf(stderr, "\rstillheart-synth: frame %d/%d", t + 1, frames);
+        sh_cli_progress_update(&progress, t + 1);
     }
-    if (isatty(STDERR_FILENO)) fputc('\n', stderr);
+    sh_cli_progress_end(&progress);
     sh_status st = sh_y4m_writer_close(w);
     w = NULL;
     FILE *f = fopen(points, "w");
