@@ -116,8 +116,9 @@ static void stillheart_tag(const sh_y4m_header *parsed)
         return;
     }
     check(sh_y4m_header_tag(&h, SH_Y4M_STILLHEART, value, sizeof value) && !strcmp(value, "method:tps"));
-    const char *last = strstr(h.extra, SH_Y4M_STILLHEART "=method:tps");
-    check(last && !strcmp(last, SH_Y4M_STILLHEART "=method:tps"));
+    static const char ours[] = SH_Y4M_STILLHEART "=method:tps"; /* the last tag, a whole word */
+    size_t n = strlen(h.extra), k = sizeof ours - 1;
+    check(n >= k && !strcmp(h.extra + n - k, ours) && (n == k || h.extra[n - k - 1] == ' '));
     FILE *mem = fmemopen(line, sizeof line, "wb");
     sh_y4m_writer *w;
     if (mem && sh_y4m_writer_open_file(mem, "mem", &h, &w) == SH_OK) sh_y4m_writer_close(w);
