@@ -252,7 +252,7 @@ tests: $(TOOL_TESTS) $(TOOLS)
 
 # make demo: a recording with a known motion, stabilized offline, e printed (README, make targets).
 DEMO_DIR ?= out/demo
-DEMO_METHOD ?= bspline
+DEMO_METHOD ?= tps
 demo: deps
 	$(MAKE) --no-print-directory all
 	$(BUILD)/stillheart-synth --width 960 --height 540 --frames 30 --markers 16 --out $(DEMO_DIR)

@@ -48,6 +48,9 @@ void sh_interp_params_default(sh_interp_params *params, sh_method method);
  * gaussian-pure. Fills params with that method's defaults. */
 sh_status sh_interp_params_parse(const char *name, sh_interp_params *params);
 const char *sh_interp_method_name(sh_method method);
+/* The name sh_interp_params_parse reads back as params' method and affine term (tps, tps-pure,
+ * ...), in out (cap bytes, truncated); sigma, levels and smoothing are not part of it. */
+void sh_interp_params_name(const sh_interp_params *params, char *out, size_t cap);
 /* The checks sh_interp_create makes of params before it sees a point (SH_EINVAL and a message
  * "interp METHOD: ..."): a value the method would ignore (sigma, levels, smoothing of another
  * method), sigma not > 0, and more B-spline levels than sh_interp_bspline_max_levels. */

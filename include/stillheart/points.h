@@ -1,6 +1,7 @@
 /* The points file: marker positions per frame, CSV with the header `frame,id,x,y`
- * (optionally followed by X,Y,Z columns for 3D markers), one row per visible marker per frame.
- * frame is the 0-based index into the video; id a non-negative marker id. */
+ * (optionally followed by X,Y,Z columns for 3D markers), or `frame,id,X,Y,Z` (3D markers from
+ * another tracker, no image positions: `stillheart warp3d` only), one row per visible marker
+ * per frame. frame is the 0-based index into the video; id a non-negative marker id. */
 #ifndef STILLHEART_POINTS_H
 #define STILLHEART_POINTS_H
 
@@ -19,14 +20,17 @@ extern "C" {
 typedef struct {
     int frame;
     int id;
-    double x, y;
+    double x, y;    /* NaN when the file has no 2D columns (SH_POINTS_XYZ_ONLY) */
     double X, Y, Z; /* NaN when the file has no 3D columns */
 } sh_point;
+
+/* has_3d of a `frame,id,X,Y,Z` file; has_3d is 1 for `frame,id,x,y,X,Y,Z`, 0 for 2D only. */
+#define SH_POINTS_XYZ_ONLY 2
 
 typedef struct {
     sh_point *rows;  /* sorted by frame, then id */
     int count;
-    int has_3d;
+    int has_3d;      /* 0, 1 or SH_POINTS_XYZ_ONLY (no x, y) */
     int max_frame;   /* -1 when empty */
     int *frame_start;/* max_frame + 2 entries: rows of frame f are [frame_start[f], frame_start[f+1]) */
 } sh_points;
@@ -39,6 +43,9 @@ sh_status sh_points_read(const char *path, sh_points *points);
 /* Parses a file already in memory (name used in messages). */
 sh_status sh_points_parse(const char *text, size_t len, const char *name, sh_points *points);
 void sh_points_destroy(sh_points *points);
+/* SH_OK when the points have image positions (x, y), else SH_EFORMAT naming the file (name) and
+ * its header: for whoever reads x, y (a 2D warp, a hull, test mode of the daemon). */
+sh_status sh_points_need_2d(const sh_points *points, const char *name);
 
 /* Rows of one frame (count 0 for frames beyond the file). */
 const sh_point *sh_points_frame(const sh_points *points, int frame, int *count);
@@ -49,7 +56,8 @@ const sh_point *sh_points_frame(const sh_points *points, int frame, int *count);
 int sh_points_match(const sh_point *ref, int nref, const sh_point *cur, int ncur, int *ids,
                     double *cur_xy);
 
-/* Writes rows as CSV with the header (and the 3D columns when has_3d). */
+/* Writes rows as CSV with the header: frame,id,x,y, and X,Y,Z when has_3d; has_3d
+ * SH_POINTS_XYZ_ONLY leaves out x,y. */
 sh_status sh_points_write(FILE *out, const sh_point *rows, int count, int has_3d);
 
 #ifdef __cplusplus

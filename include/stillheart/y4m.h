@@ -25,6 +25,14 @@ extern "C" {
  * stream is limited range (16..235), as Y4M has it. */
 #define SH_Y4M_FULL_RANGE "XCOLORRANGE=FULL"
 
+/* Our X tag saying which stillheart model stabilized a video, so that stillheart-eval measures
+ * the map that made it: XSTILLHEART=method:NAME (`stillheart warp`, `run`: the 2D interpolant,
+ * spelled as --method and [method] name take it, e.g. tps or gaussian-pure) or
+ * XSTILLHEART=method3d:NAME (`warp3d`, `run` with a calibration: the interpolant of the surface,
+ * then "/" and the displacement's when they differ). The method's sigma, levels and smoothing
+ * are not in it. */
+#define SH_Y4M_STILLHEART "XSTILLHEART"
+
 typedef struct {
     int width, height;
     sh_pixfmt format;          /* GRAY8, I420 or YUV444 */
@@ -39,6 +47,15 @@ typedef struct {
 int sh_y4m_header_has_tag(const sh_y4m_header *header, const char *tag);
 /* 1 when the header says its samples are full range (SH_Y4M_FULL_RANGE). */
 int sh_y4m_header_full_range(const sh_y4m_header *header);
+
+/* Sets the X tag KEY=VALUE (key e.g. SH_Y4M_STILLHEART), after removing every tag KEY or
+ * KEY=... the header had: a header copied from an input keeps one, the new one. SH_EINVAL for
+ * an empty key or value or one with a space or a control character, SH_ERANGE when the tags
+ * would no longer fit. */
+sh_status sh_y4m_header_set_tag(sh_y4m_header *header, const char *key, const char *value);
+/* 1 and the value of the first tag KEY=VALUE in out (NUL-terminated; cap bytes, longer values
+ * truncated), or 0 when the header has none. */
+int sh_y4m_header_tag(const sh_y4m_header *header, const char *key, char *out, size_t cap);
 
 typedef struct sh_y4m_reader sh_y4m_reader;
 

@@ -19,12 +19,14 @@ static void usage(FILE *out)
         "also appear in the reference frame; pixels outside the convex hull of the reference\n"
         "markers, or whose source lies outside the frame, are black. A frame with too few\n"
         "markers for the method is written unchanged and counted. At the end the paper's\n"
-        "metric e (section V) is printed for the input and the output.\n\n"
+        "metric e (section V) is printed for the input and the output. OUT's header names the\n"
+        "method (XSTILLHEART=method:NAME), which stillheart-eval reads.\n\n"
         "options:\n"
         "  --points FILE      marker positions, CSV 'frame,id,x,y' (required)\n"
         "  --method NAME      affine | pwlinear | bspline | rbf-local | tps | gaussian\n"
         "                     (RBFs with the affine term; add -pure for the form without it,\n"
-        "                     e.g. tps-pure). Default: bspline, the paper's recommendation\n"
+        "                     e.g. tps-pure). Default: tps, the least geometric error on the\n"
+        "                     rendered phantoms (docs/warp.md)\n"
         "  --sigma S          RBF scale in pixels (default 95 for rbf-local, 100 for gaussian)\n"
         "  --levels L         B-spline levels (default: as many as exact interpolation needs;\n"
         "                     fewer approximate)\n"
@@ -80,7 +82,7 @@ static int parse_options(int argc, char **argv, warp_options *o)
         {"threads", required_argument, 0, 't'}, {"max-error", required_argument, 0, 'e'},
         {"map-out", required_argument, 0, 'M'}, SH_CLI_OPTIONS, {0, 0, 0, 0}};
     memset(o, 0, sizeof *o);
-    o->method = "bspline";
+    o->method = "tps";
     o->max_error = 0.05;
     o->threads = 1;
     double sigma = 0, smoothing = 0;
@@ -135,7 +137,9 @@ static int open_input(warp_job *j)
 {
     const warp_options *o = j->o;
     app_stab *s = &j->s;
-    if (sh_points_read(o->points_path, &s->points) != SH_OK) return app_fail("points");
+    if (sh_points_read(o->points_path, &s->points) != SH_OK ||
+        sh_points_need_2d(&s->points, o->points_path) != SH_OK)
+        return app_fail("points");
     if (sh_y4m_reader_open(o->in_path, &s->reader) != SH_OK) return app_fail("input");
     const sh_y4m_header *hdr = sh_y4m_reader_header(s->reader);
     j->recipe.width = hdr->width;
@@ -182,7 +186,9 @@ static int warp_open(warp_job *j, const warp_options *o)
     if (!s->from_stdin && !start_metrics(j->model, s->cur, s->warp, &s->ref, &s->out, s->full_range,
                                          &s->metric_in, &s->metric_out))
         return app_fail("reference frame");
-    return app_stab_start(s, "warp", o->out_path, hdr);
+    sh_y4m_header out_hdr = *hdr;
+    if (app_stab_tag(&out_hdr, "method", &o->params, NULL)) return 1;
+    return app_stab_start(s, "warp", o->out_path, &out_hdr);
 }
 
 /* Warps, writes and measures the frame just read into s.in (job: the warp_job): 0, or 1 with

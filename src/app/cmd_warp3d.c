@@ -28,12 +28,13 @@ static void usage(FILE *out)
         "are black. A frame with fewer than 4 usable markers is written unchanged and counted.\n\n"
         "options:\n"
         "  --cameras FILE     calibration (OpenCV FileStorage YAML: K_i, dist_i, R_i, t_i)\n"
-        "  --points FILE      markers, CSV 'frame,id,x,y,X,Y,Z' (world mm; the X,Y,Z columns\n"
-        "                     are required)\n"
+        "  --points FILE      markers, CSV 'frame,id,x,y,X,Y,Z' or 'frame,id,X,Y,Z' (world\n"
+        "                     mm; x,y are not used, X,Y,Z are required)\n"
         "  --camera K         the camera IN comes from (default 0)\n"
         "  --method NAME      interpolant of the surface and of the displacement (over the\n"
         "                     surface's plane, mm): affine | pwlinear | bspline | rbf-local |\n"
-        "                     tps | gaussian (and -pure forms). Default bspline\n"
+        "                     tps | gaussian (and -pure forms). Default tps, as for\n"
+        "                     `stillheart warp`\n"
         "  --surface-method NAME, --displacement-method NAME\n"
         "                     set one of the two only\n"
         "  --sigma MM         RBF scale in mm (surface and displacement)\n"
@@ -60,7 +61,8 @@ static void usage(FILE *out)
         "                     frame_NNNNNN.obj, .mtl and .png (IN's frame; implies --ply-mesh)\n"
         "  --ply-every N      export every N-th frame (default 1)\n"
         SH_CLI_USAGE
-        "With --view reference the paper's metric e is printed for the input and the output.\n");
+        "With --view reference the paper's metric e is printed for the input and the output.\n"
+        "OUT's header names the interpolants (XSTILLHEART=method3d:NAME[/NAME]).\n");
 }
 
 static int has_xyz(const sh_point *p)
@@ -212,7 +214,7 @@ static int parse_options(int argc, char **argv, warp3d_options *o)
         {"ply-mesh", no_argument, 0, 'M'}, {"ply-texture", no_argument, 0, 'T'}, {"ply-every", required_argument, 0, 'E'},
         SH_CLI_OPTIONS, {0, 0, 0, 0}};
     memset(o, 0, sizeof *o);
-    o->method = "bspline", o->view = "reference", o->layout = "sbs";
+    o->method = "tps", o->view = "reference", o->layout = "sbs";
     o->baseline = 10, o->depth_scale = 1, o->max_error = 0.05, o->ply_spacing = 1;
     o->threads = 1, o->ply_every = 1;
     const char *smethod = NULL, *dmethod = NULL;
@@ -347,6 +349,7 @@ static int open_output(warp3d_job *j)
     app_stab *s = &j->s;
     const sh_y4m_header *hdr = sh_y4m_reader_header(s->reader);
     j->out_hdr = *hdr;
+    if (app_stab_tag(&j->out_hdr, "method3d", &o->p3.surface, &o->p3.displacement)) return 1;
     if (o->stereo && !o->half) {
         if (o->tb) j->out_hdr.height *= 2;
         else j->out_hdr.width *= 2;

@@ -43,10 +43,21 @@ void app_stab_raw(app_stab *s, const char *command, int n, int min, int quiet)
 
 void app_stab_print_e(const app_stab *s, const char *out_path)
 {
-    if (s->metric_in)
-        fprintf(strcmp(out_path, "-") ? stdout : stderr,
-                "e input %.6f output %.6f (%d frames, %d hull pixels)\n", sh_metric_e(s->metric_in),
-                sh_metric_e(s->metric_out), sh_metric_frames(s->metric_in), sh_metric_pixels(s->metric_in));
+    if (!s->metric_in) return;
+    double in = sh_metric_e(s->metric_in), out = sh_metric_e(s->metric_out);
+    FILE *f = strcmp(out_path, "-") ? stdout : stderr;
+    fprintf(f, "residual motion e (lower is better): %.6f -> %.6f", in, out);
+    if (in > 0) fprintf(f, ", %+.0f %%", 100 * (out - in) / in); /* a still input has no change to give */
+    fprintf(f, " (%d frames, %d hull pixels)\n", sh_metric_frames(s->metric_in), sh_metric_pixels(s->metric_in));
+}
+
+int app_stab_tag(sh_y4m_header *hdr, const char *kind, const sh_interp_params *a, const sh_interp_params *b)
+{
+    char na[32], nb[32], value[80];
+    sh_interp_params_name(a, na, sizeof na);
+    if (b) sh_interp_params_name(b, nb, sizeof nb);
+    snprintf(value, sizeof value, "%s:%s%s%s", kind, na, b && strcmp(na, nb) ? "/" : "", b && strcmp(na, nb) ? nb : "");
+    return sh_y4m_header_set_tag(hdr, SH_Y4M_STILLHEART, value) == SH_OK ? 0 : app_fail("output");
 }
 
 void app_stab_close(app_stab *s)

@@ -48,9 +48,14 @@ int app_stab_run(app_stab *s, int (*step)(void *job), void *job, sh_status *st);
  * stderr unless quiet, with the library's reason when there were markers enough. */
 void app_stab_raw(app_stab *s, const char *command, int n, int min, int quiet);
 
-/* The metric e of input and output, when measured: on stdout, or on stderr when out_path is "-"
- * (stdout carries the video then). */
+/* The metric e of input and output, when measured, and the change in per cent: on stdout, or
+ * on stderr when out_path is "-" (stdout carries the video then). */
 void app_stab_print_e(const app_stab *s, const char *out_path);
+
+/* The output's XSTILLHEART=KIND:NAME tag (y4m.h; KIND "method" or "method3d") over the tags hdr
+ * took from the input; b, the 3D displacement's interpolant, is added as /NAME when it differs
+ * from a. 0, or 1 with the reason printed. */
+int app_stab_tag(sh_y4m_header *hdr, const char *kind, const sh_interp_params *a, const sh_interp_params *b);
 
 void app_stab_close(app_stab *s);
 

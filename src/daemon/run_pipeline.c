@@ -24,6 +24,28 @@ static sh_status display_create(const sh_config *cfg, const sh_y4m_header *h, sh
     return st == SH_OK ? SH_OK : sh_error_set(st, "[sink] display: %s", sh_error_message());
 }
 
+/* The record's XSTILLHEART tag (y4m.h): the method that stabilizes what it holds, spelled as
+ * `stillheart warp` and `warp3d` tag theirs, so stillheart-eval measures the right map. */
+static void record_tag(const sh_config *cfg, char *value, size_t cap)
+{
+    sh_interp_params method;
+    char name[32];
+    sh_config_method(cfg, &method);
+    sh_interp_params_name(&method, name, sizeof name);
+    snprintf(value, cap, "%s:%s", cfg->calibration[0] ? "method3d" : "method", name);
+}
+
+/* [sink] record opened with the frames' header and its tag; the error says which key. */
+static sh_status record_open(const sh_config *cfg, const sh_y4m_header *hdr, run_record **out)
+{
+    sh_y4m_header tagged = *hdr;
+    char value[64];
+    record_tag(cfg, value, sizeof value);
+    sh_status st = sh_y4m_header_set_tag(&tagged, SH_Y4M_STILLHEART, value);
+    if (st == SH_OK) st = run_record_open(cfg->record, &tagged, cfg->record_sync_ms, out);
+    return st == SH_OK ? SH_OK : sh_error_set(st, "[sink] record: %s", sh_error_message());
+}
+
 /* The frame shown while the output camera is lost: black in the display's format and range. */
 static sh_status black_frame(const sh_y4m_header *hdr, sh_image *img)
 {
@@ -115,8 +137,7 @@ sh_status run_pipeline_open(run_pipeline *p, const sh_config *cfg)
     }
     if (st == SH_OK && shm_name(cfg)) st = display_create(cfg, &p->hdr, &p->disp);
     if (st == SH_OK) st = black_frame(&p->hdr, &p->black);
-    if (st == SH_OK && cfg->record[0] && (st = run_record_open(cfg->record, &p->hdr, cfg->record_sync_ms, &p->rec)) != SH_OK)
-        st = sh_error_set(st, "[sink] record: %s", sh_error_message());
+    if (st == SH_OK && cfg->record[0]) st = record_open(cfg, &p->hdr, &p->rec);
     if (st == SH_OK && p->rec) log_record(cfg, p->rec);
     if (st == SH_OK && cfg->control[0] &&
         (st = run_ctl_open(cfg->control, cfg->control_group, cfg->group, &p->ctl)) != SH_OK)
@@ -250,8 +271,7 @@ static sh_status reload_record_control(run_pipeline *p, run_pipeline *n, changes
     sh_status st = SH_OK;
     if (c->record) {
         n->rec = NULL;
-        if (fresh->record[0] && (st = run_record_open(fresh->record, &n->hdr, fresh->record_sync_ms, &n->rec)) != SH_OK)
-            return sh_error_set(st, "[sink] record: %s", sh_error_message());
+        if (fresh->record[0] && (st = record_open(fresh, &n->hdr, &n->rec)) != SH_OK) return st;
         if (n->rec) log_record(fresh, n->rec);
     }
     if (c->control) {
@@ -319,6 +339,14 @@ run_reload run_pipeline_reload(run_pipeline *p, const sh_config *fresh, char *wh
         st = sh_error_set(SH_EINVAL, "[sink] record %s: the frames change from %dx%d to %dx%d and a record keeps "
                           "one size (give [sink] record a new name)", fresh->record, p->hdr.width, p->hdr.height,
                           n.hdr.width, n.hdr.height);
+    char was[64], now[64];
+    record_tag(old, was, sizeof was);
+    record_tag(fresh, now, sizeof now);
+    if (st == SH_OK && !c.record && p->rec && strncmp(fresh->record, "png:", 4) && strcmp(was, now))
+        /* the header says how its frames were made and cannot be rewritten */
+        st = sh_error_set(SH_EINVAL, "[sink] record %s: its header says %s=%s, the frames from now on would be "
+                          "%s, and a record keeps one method (give [sink] record a new name)", run_record_path(p->rec),
+                          SH_Y4M_STILLHEART, was, now);
     if (st == SH_OK) st = reload_record_control(p, &n, &c);
     if (st == SH_OK && !c.same_name) {
         n.disp = NULL;

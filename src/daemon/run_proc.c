@@ -132,6 +132,7 @@ sh_status run_proc_create(const sh_config *cfg, const sh_y4m_header *hdr, double
     if (st == SH_OK) st = sh_warp_create(cfg->threads, &p->warp);
     if (st == SH_OK && cfg->points[0]) {
         st = sh_points_read(cfg->points, &p->points);
+        if (st == SH_OK) st = sh_points_need_2d(&p->points, cfg->points);
         if (st != SH_OK) st = sh_error_set(st, "[run] points: %s", sh_error_message());
     } else if (st == SH_OK) {
         st = run_tracker_create(cfg, p->three_d ? &p->calib : NULL, p->out_cam, hdr->width, hdr->height, p->fps,

@@ -2,6 +2,7 @@
 #include "interp_internal.h"
 
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -56,6 +57,13 @@ const char *sh_interp_method_name(sh_method method)
 {
     if ((int)method < 0 || method >= SH_METHOD_COUNT) return "unknown";
     return method_names[method];
+}
+
+void sh_interp_params_name(const sh_interp_params *p, char *out, size_t cap)
+{
+    if (!cap) return;
+    snprintf(out, cap, "%s%s", sh_interp_method_name(p->method),
+             is_rbf(p->method) && !p->affine_term ? "-pure" : "");
 }
 
 /* "Option does nothing" is refused: a value the method would ignore is a mistake upstream. */

@@ -1,4 +1,4 @@
-/* The points CSV: `frame,id,x,y[,X,Y,Z]`. Parsing is strict about content (every bad row is
+/* The points CSV: `frame,id,x,y[,X,Y,Z]` or `frame,id,X,Y,Z`. Parsing is strict about content (every bad row is
  * refused with its line number: a wrong marker position would give a wrong picture) and lenient
  * about layout (CRLF, blank lines, spaces around fields, a UTF-8 BOM). The last line must end in
  * a newline: a file cut inside "24.31" reads "2", a number that parses and is wrong, so a
@@ -97,10 +97,30 @@ static int cmp_rows(const void *a, const void *b)
 
 static const char *const column_names[MAX_FIELDS] = {"frame", "id", "x", "y", "X", "Y", "Z"};
 
-/* Parses one data row into r; on failure records "name:line: reason". */
-static sh_status parse_row(const span *fields, int nfields, int expect, const char *name,
+/* The headers a file may have: its columns as indices into column_names. */
+static const struct {
+    int count, has_3d;
+    int col[MAX_FIELDS];
+} layouts[] = {{4, 0, {0, 1, 2, 3}}, {7, 1, {0, 1, 2, 3, 4, 5, 6}}, {5, SH_POINTS_XYZ_ONLY, {0, 1, 4, 5, 6}}};
+#define NUM_LAYOUTS (int)(sizeof layouts / sizeof layouts[0])
+
+/* The layout whose header the n fields are, or -1. */
+static int header_layout(const span *fields, int n)
+{
+    for (int k = 0; k < NUM_LAYOUTS; k++) {
+        int ok = n == layouts[k].count;
+        for (int c = 0; ok && c < n; c++) ok = span_is(fields[c], column_names[layouts[k].col[c]]);
+        if (ok) return k;
+    }
+    return -1;
+}
+
+/* Parses one data row into r (the columns of layouts[k]); on failure records "name:line:
+ * reason". */
+static sh_status parse_row(const span *fields, int nfields, int k, const char *name,
                            int line, row_in *r)
 {
+    int expect = layouts[k].count;
     if (nfields != expect)
         return sh_error_set(SH_EFORMAT, "%s:%d: %s%d columns, the header has %d", name, line,
                             nfields > MAX_FIELDS ? "more than " : "",
@@ -120,13 +140,14 @@ static sh_status parse_row(const span *fields, int nfields, int expect, const ch
             return sh_error_set(SH_EFORMAT, "%s:%d: %s '%.*s' out of range (max %ld)", name,
                                 line, column_names[c], flen, fields[c].s, max);
     }
-    double v[5] = {0, 0, NAN, NAN, NAN};
+    double v[5] = {NAN, NAN, NAN, NAN, NAN};
     for (int c = 2; c < expect; c++) {
-        int e = parse_real(fields[c], &v[c - 2]);
+        int col = layouts[k].col[c];
+        int e = parse_real(fields[c], &v[col - 2]);
         int flen = fields[c].len > 32 ? 32 : (int)fields[c].len;
         if (e)
             return sh_error_set(SH_EFORMAT, "%s:%d: %s '%.*s' is %s", name, line,
-                                column_names[c], flen, fields[c].s,
+                                column_names[col], flen, fields[c].s,
                                 e == 1 ? "not a number" : "not finite");
     }
     r->p = (sh_point){ints[0], ints[1], v[0], v[1], v[2], v[3], v[4]};
@@ -185,7 +206,7 @@ sh_status sh_points_parse(const char *text, size_t len, const char *name, sh_poi
 
     row_in *rows = NULL;
     size_t count = 0, cap = 0;
-    int expect = 0; /* columns, 0 until the header was read */
+    int layout = -1; /* layouts[], -1 until the header was read */
     int line = 0;
     span fields[MAX_FIELDS + 1];
     size_t pos = 0;
@@ -205,17 +226,14 @@ sh_status sh_points_parse(const char *text, size_t len, const char *name, sh_poi
         }
         int n = split(whole.s, whole.len, fields);
 
-        if (!expect) {
-            int ok = (n == 4 || n == MAX_FIELDS);
-            for (int c = 0; ok && c < n; c++) ok = span_is(fields[c], column_names[c]);
-            if (!ok) {
+        if (layout < 0) {
+            if ((layout = header_layout(fields, n)) < 0) {
                 free(rows);
                 return sh_error_set(SH_EFORMAT,
-                                    "%s:%d: bad header, expected 'frame,id,x,y' or "
-                                    "'frame,id,x,y,X,Y,Z'",
+                                    "%s:%d: bad header, expected 'frame,id,x,y', "
+                                    "'frame,id,x,y,X,Y,Z' or 'frame,id,X,Y,Z'",
                                     name, line);
             }
-            expect = n;
             continue;
         }
         if (count == (size_t)INT_MAX) {
@@ -232,19 +250,26 @@ sh_status sh_points_parse(const char *text, size_t len, const char *name, sh_poi
             rows = grown;
             cap = ncap;
         }
-        sh_status st = parse_row(fields, n, expect, name, line, &rows[count]);
+        sh_status st = parse_row(fields, n, layout, name, line, &rows[count]);
         if (st != SH_OK) {
             free(rows);
             return st;
         }
         count++;
     }
-    if (!expect) {
+    if (layout < 0) {
         free(rows);
         return sh_error_set(SH_EFORMAT, "%s:%d: no header, expected 'frame,id,x,y'", name,
                             line ? line : 1);
     }
-    return finish(rows, (int)count, expect == MAX_FIELDS, name, points);
+    return finish(rows, (int)count, layouts[layout].has_3d, name, points);
+}
+
+sh_status sh_points_need_2d(const sh_points *points, const char *name)
+{
+    if (points->has_3d != SH_POINTS_XYZ_ONLY) return SH_OK;
+    return sh_error_set(SH_EFORMAT, "%s: 'frame,id,X,Y,Z' has 3D positions only; this needs the image "
+                        "positions x,y too ('frame,id,x,y' or 'frame,id,x,y,X,Y,Z')", name);
 }
 
 sh_status sh_points_read(const char *path, sh_points *points)
@@ -337,17 +362,19 @@ sh_status sh_points_write(FILE *out, const sh_point *rows, int count, int has_3d
         return sh_error_set(SH_EINVAL, "points: missing argument");
     for (int i = 0; i < count; i++) {
         const sh_point *p = &rows[i];
-        int finite = isfinite(p->x) && isfinite(p->y) &&
+        int finite = (has_3d == SH_POINTS_XYZ_ONLY || (isfinite(p->x) && isfinite(p->y))) &&
                      (!has_3d || (isfinite(p->X) && isfinite(p->Y) && isfinite(p->Z)));
         if (p->frame < 0 || p->id < 0 || !finite)
             return sh_error_set(SH_EINVAL, "points: row %d (frame %d id %d) cannot be written: "
                                 "negative index or non-finite coordinate", i, p->frame, p->id);
     }
-    int ok = fputs(has_3d ? "frame,id,x,y,X,Y,Z\n" : "frame,id,x,y\n", out) >= 0;
+    int xy = has_3d != SH_POINTS_XYZ_ONLY;
+    int ok = fputs(!has_3d ? "frame,id,x,y\n" : xy ? "frame,id,x,y,X,Y,Z\n" : "frame,id,X,Y,Z\n", out) >= 0;
     for (int i = 0; ok && i < count; i++) {
         const sh_point *p = &rows[i];
-        ok = fprintf(out, "%d,%d,", p->frame, p->id) > 0 && put_real(out, p->x) &&
-             fputc(',', out) != EOF && put_real(out, p->y);
+        ok = fprintf(out, "%d,%d", p->frame, p->id) > 0;
+        if (ok && xy)
+            ok = fputc(',', out) != EOF && put_real(out, p->x) && fputc(',', out) != EOF && put_real(out, p->y);
         if (ok && has_3d)
             ok = fputc(',', out) != EOF && put_real(out, p->X) && fputc(',', out) != EOF &&
                  put_real(out, p->Y) && fputc(',', out) != EOF && put_real(out, p->Z);

@@ -215,3 +215,65 @@ int sh_y4m_header_has_tag(const sh_y4m_header *h, const char *tag)
 }
 
 int sh_y4m_header_full_range(const sh_y4m_header *h) { return sh_y4m_header_has_tag(h, SH_Y4M_FULL_RANGE); }
+
+/* The tag of extra (total bytes) at or after *at, its length in *len; *at moves past it. NULL
+ * after the last. */
+static const char *next_tag(const char *extra, size_t total, size_t *at, size_t *len)
+{
+    size_t i = *at;
+    while (i < total && extra[i] == ' ') i++;
+    size_t end = i;
+    while (end < total && extra[end] != ' ') end++;
+    *at = end;
+    *len = end - i;
+    return *len ? extra + i : NULL;
+}
+
+/* The length of the key part of the tag at t (len bytes): up to its '=' or all of it. */
+static size_t tag_key_len(const char *t, size_t len)
+{
+    const char *eq = memchr(t, '=', len);
+    return eq ? (size_t)(eq - t) : len;
+}
+
+static int tag_text_ok(const char *s)
+{
+    if (!*s) return 0;
+    for (; *s; s++)
+        if ((unsigned char)*s <= ' ' || *s == 0x7f) return 0;
+    return 1;
+}
+
+sh_status sh_y4m_header_set_tag(sh_y4m_header *h, const char *key, const char *value)
+{
+    if (!tag_text_ok(key) || strchr(key, '=') || !tag_text_ok(value))
+        return sh_error_set(SH_EINVAL, "y4m tag '%s=%s': empty, or a space or control character in it", key, value);
+    char kept[SH_Y4M_MAX_EXTRA];
+    size_t n = 0, klen = strlen(key), total = strnlen(h->extra, sizeof h->extra);
+    size_t at = 0, len;
+    const char *t;
+    while ((t = next_tag(h->extra, total, &at, &len)))
+        if (!(tag_key_len(t, len) == klen && !memcmp(t, key, klen))) {
+            if (n) kept[n++] = ' ';
+            memcpy(kept + n, t, len); /* fits: no longer than what it came from */
+            n += len;
+        }
+    size_t need = n + (n ? 1 : 0) + klen + 1 + strlen(value);
+    if (need >= sizeof h->extra)
+        return sh_error_set(SH_ERANGE, "y4m tag %s: the header's tags would exceed %d bytes", key, SH_Y4M_MAX_EXTRA - 1);
+    snprintf(h->extra, sizeof h->extra, "%.*s%s%s=%s", (int)n, kept, n ? " " : "", key, value);
+    return SH_OK;
+}
+
+int sh_y4m_header_tag(const sh_y4m_header *h, const char *key, char *out, size_t cap)
+{
+    size_t klen = strlen(key), total = strnlen(h->extra, sizeof h->extra);
+    size_t at = 0, len;
+    const char *t;
+    while ((t = next_tag(h->extra, total, &at, &len)))
+        if (len > klen && t[klen] == '=' && !memcmp(t, key, klen)) {
+            if (cap) snprintf(out, cap, "%.*s", (int)(len - klen - 1), t + klen + 1);
+            return 1;
+        }
+    return 0;
+}

@@ -1,6 +1,6 @@
 /* libFuzzer: arbitrary bytes as a points CSV. Anything accepted must be sorted, indexed
- * consistently, free of duplicates and non-finite values, and must write and parse back to
- * exactly the same rows. */
+ * consistently, free of duplicates and non-finite values (x, y are NaN exactly in a
+ * `frame,id,X,Y,Z` file), and must write and parse back to exactly the same rows. */
 #include <math.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -36,7 +36,8 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     check(p.frame_start[0] == 0 && p.frame_start[p.max_frame + 1] == p.count);
     for (int i = 0; i < p.count; i++) {
         const sh_point *r = &p.rows[i];
-        check(r->frame >= 0 && r->id >= 0 && isfinite(r->x) && isfinite(r->y));
+        check(r->frame >= 0 && r->id >= 0);
+        check(p.has_3d == SH_POINTS_XYZ_ONLY ? isnan(r->x) && isnan(r->y) : isfinite(r->x) && isfinite(r->y));
         check(p.has_3d ? isfinite(r->X) && isfinite(r->Y) && isfinite(r->Z) : isnan(r->X));
         if (i) {
             const sh_point *q = &p.rows[i - 1];

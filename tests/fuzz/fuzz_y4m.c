@@ -105,6 +105,26 @@ static void bounded(const uint8_t *data, size_t size)
     close(fd);
 }
 
+/* Our tag set over whatever tags a parsed header has: read back as set, the only one of its key
+ * (sh_y4m_header_tag finds the first), the header still writable. */
+static void stillheart_tag(const sh_y4m_header *parsed)
+{
+    sh_y4m_header h = *parsed;
+    char value[32], line[SH_Y4M_MAX_EXTRA + 256];
+    if (sh_y4m_header_set_tag(&h, SH_Y4M_STILLHEART, "method:tps") != SH_OK) {
+        check(!memcmp(&h, parsed, sizeof h));
+        return;
+    }
+    check(sh_y4m_header_tag(&h, SH_Y4M_STILLHEART, value, sizeof value) && !strcmp(value, "method:tps"));
+    static const char ours[] = SH_Y4M_STILLHEART "=method:tps"; /* the last tag, a whole word */
+    size_t n = strlen(h.extra), k = sizeof ours - 1;
+    check(n >= k && !strcmp(h.extra + n - k, ours) && (n == k || h.extra[n - k - 1] == ' '));
+    FILE *mem = fmemopen(line, sizeof line, "wb");
+    sh_y4m_writer *w;
+    if (mem && sh_y4m_writer_open_file(mem, "mem", &h, &w) == SH_OK) sh_y4m_writer_close(w);
+    if (mem) fclose(mem);
+}
+
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {
     as_file(data, size);
@@ -112,7 +132,8 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     if (size == 0) return 0; /* fmemopen refuses an empty buffer */
     const char *nl = memchr(data, '\n', size);
     sh_y4m_header parsed;
-    sh_y4m_header_parse((const char *)data, nl ? (size_t)(nl - (const char *)data) : size, &parsed);
+    if (sh_y4m_header_parse((const char *)data, nl ? (size_t)(nl - (const char *)data) : size, &parsed) == SH_OK)
+        stillheart_tag(&parsed);
 
     FILE *in = fmemopen((void *)data, size, "rb");
     if (!in) return 0;

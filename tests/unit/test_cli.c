@@ -115,7 +115,7 @@ static void test_warp_end_to_end(void **state)
     int rc = run(args);
     if (rc != 0) fail_msg("exit %d: %s", rc, slurp(path("stderr")));
     double e_in, e_out;
-    assert_int_equal(sscanf(slurp(path("stdout")), "e input %lf output %lf", &e_in, &e_out), 2);
+    assert_int_equal(sscanf(slurp(path("stdout")), "residual motion e (lower is better): %lf -> %lf", &e_in, &e_out), 2);
     assert_true(e_out < 0.5 * e_in);
 
     sh_y4m_reader *r;

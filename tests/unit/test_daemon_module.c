@@ -2,7 +2,8 @@
  * trace file names itself and leaves nothing open; a replay of frames without markers publishes
  * max_frames raw frames; a stop flag set before the loop publishes nothing; a reload whose config
  * cannot be read is refused and the loop goes on; a [method] no model can come from on these
- * frames is refused at start and at a reload, naming its file and line. The counts come from the
+ * frames is refused at start and at a reload, naming its file and line; a Y4M record names its
+ * method in its header and keeps it across reloads. The counts come from the
  * input (N frames, no markers in them, max_frames), read back through the stats line. */
 #include <setjmp.h>
 #include <stdarg.h>
@@ -232,6 +233,47 @@ static void test_model_the_frames_cannot_give(void **state)
         fail_msg("min_markers 16 at sigma 100 reload: %s", log);
 }
 
+/* The first line of a file, in line (cap bytes). */
+static void first_line(const char *path, char *line, size_t cap)
+{
+    FILE *f = fopen(path, "rb");
+    assert_non_null(f);
+    assert_non_null(fgets(line, (int)cap, f));
+    fclose(f);
+}
+
+/* Issue 18: a Y4M record names the method its frames are stabilized with (XSTILLHEART, as
+ * `stillheart warp` tags its output) and keeps it: a reload to another method with the same
+ * record is refused, the running config kept; with a new record name it is applied, the new
+ * record naming the new method. */
+static void test_record_names_its_method(void **state)
+{
+    (void)state;
+    char start[256], hup[256], log[8192], line[256], rec[160];
+    snprintf(rec, sizeof rec, "%s/rec.y4m", tmp);
+    snprintf(start, sizeof start, "[method]\nname = tps\n[sink]\nrecord = %s\n", rec);
+    snprintf(hup, sizeof hup, "[method]\nname = gaussian-pure\n[sink]\nrecord = %s\n", rec);
+    run_reload(start, hup, log, sizeof log);
+    if (!strstr(log, "reload refused, keeping the running config: [sink] record ") ||
+        !strstr(log, "rec.y4m: its header says XSTILLHEART=method:tps, the frames from now on would be "
+                     "method:gaussian-pure, and a record keeps one method"))
+        fail_msg("same record, another method: %s", log);
+    first_line(rec, line, sizeof line);
+    assert_non_null(strstr(line, " XSTILLHEART=method:tps\n"));
+
+    snprintf(hup, sizeof hup, "[method]\nname = gaussian-pure\n[sink]\nrecord = %s/rec-b.y4m\n", tmp);
+    run_reload(start, hup, log, sizeof log);
+    if (strstr(log, "refused") || !strstr(log, "config reloaded")) fail_msg("new record, another method: %s", log);
+    snprintf(rec, sizeof rec, "%s/rec-b.y4m", tmp);
+    first_line(rec, line, sizeof line);
+    assert_non_null(strstr(line, " XSTILLHEART=method:gaussian-pure\n"));
+    static const char *const made[] = {"rec.y4m", "rec-2.y4m", "rec-b.y4m"}; /* the second start: rec-2 */
+    for (int i = 0; i < 3; i++) {
+        snprintf(rec, sizeof rec, "%s/%s", tmp, made[i]);
+        assert_int_equal(unlink(rec), 0);
+    }
+}
+
 /* A replay without loop ends: the loop stops after its last frame, every frame published. */
 static void test_replay_ends(void **state)
 {
@@ -253,6 +295,7 @@ int main(void)
         cmocka_unit_test(test_reload_refused),
         cmocka_unit_test(test_replay_ends),
         cmocka_unit_test(test_model_the_frames_cannot_give),
+        cmocka_unit_test(test_record_names_its_method),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }

@@ -77,7 +77,20 @@ static void test_3d_and_header_only(void **state)
     assert_int_equal(p.frame_start[2], 1);
     sh_points_destroy(&p);
 
+    /* 3D markers from another tracker: no image positions, which 2D users refuse */
+    assert_int_equal(parse("frame , id,X,Y,Z\r\n2,3,-4.5,5,6e-3\r\n0,3,1,2,3\r\n", &p), SH_OK);
+    assert_int_equal(p.has_3d, SH_POINTS_XYZ_ONLY);
+    assert_int_equal(p.count, 2);
+    assert_true(p.rows[1].frame == 2 && p.rows[1].X == -4.5 && p.rows[1].Y == 5.0 && p.rows[1].Z == 6e-3);
+    assert_true(p.rows[0].frame == 0 && p.rows[0].X == 1 && p.rows[0].Y == 2 && p.rows[0].Z == 3);
+    assert_true(isnan(p.rows[0].x) && isnan(p.rows[0].y) && isnan(p.rows[1].x));
+    assert_int_equal(sh_points_need_2d(&p, "xyz.csv"), SH_EFORMAT);
+    assert_non_null(strstr(sh_error_message(), "xyz.csv"));
+    assert_non_null(strstr(sh_error_message(), "x,y"));
+    sh_points_destroy(&p);
+
     assert_int_equal(parse("frame,id,x,y\n\n", &p), SH_OK);
+    assert_int_equal(sh_points_need_2d(&p, "xy.csv"), SH_OK);
     assert_int_equal(p.count, 0);
     assert_int_equal(p.max_frame, -1);
     int n = 7;
@@ -98,13 +111,16 @@ static void expect_error(const char *text, const char *message)
 static void test_refusals_name_the_line(void **state)
 {
     (void)state;
-    const char *hdr_msg = "bad header, expected 'frame,id,x,y' or 'frame,id,x,y,X,Y,Z'";
+    const char *hdr_msg = "bad header, expected 'frame,id,x,y', 'frame,id,x,y,X,Y,Z' or 'frame,id,X,Y,Z'";
     char want[200];
     snprintf(want, sizeof want, "pts.csv:1: %s", hdr_msg);
     expect_error("frame,id,x\n0,0,1\n", want);
     expect_error("frame,id,y,x\n", want);
     expect_error("Frame,id,x,y\n", want);
     expect_error("frame,id,x,y,X,Y\n", want);
+    expect_error("frame,id,X,Y\n", want);
+    expect_error("frame,id,X,Y,Z,x,y\n", want);
+    expect_error("frame,id,Z,Y,X\n", want);
     snprintf(want, sizeof want, "pts.csv:3: %s", hdr_msg);
     expect_error("\r\n\r\n0,0,1,2\r\n", want);
     expect_error("", "pts.csv:1: no header, expected 'frame,id,x,y'");
@@ -131,6 +147,9 @@ static void test_refusals_name_the_line(void **state)
     expect_error("frame,id,x,y\n0,0,1,-inf\n", "pts.csv:2: y '-inf' is not finite");
     expect_error("frame,id,x,y\n0,0,1,1e999\n", "pts.csv:2: y '1e999' is not finite");
     expect_error("frame,id,x,y,X,Y,Z\n0,0,1,2,3,4,NaN\n", "pts.csv:2: Z 'NaN' is not finite");
+    expect_error("frame,id,X,Y,Z\n0,0,1,2,3,4,5\n", "pts.csv:2: 7 columns, the header has 5");
+    expect_error("frame,id,X,Y,Z\n0,0,1,inf,3\n", "pts.csv:2: Y 'inf' is not finite");
+    expect_error("frame,id,X,Y,Z\n0,0,1,2,z\n", "pts.csv:2: Z 'z' is not a number");
     expect_error("frame,id,x,y\r\n3,1,1,2\r\n0,0,1,2\r\n3,1,5,6\r\n",
                  "pts.csv:4: duplicate marker: frame 3 id 1 (first at line 2)");
     /* numbers are whole fields: what strtod stops short of is refused, not dropped */
@@ -188,14 +207,15 @@ static void test_write_read_round_trip(void **state)
         {0, 7, 32766.999999999, -0.0, 1e300, -7, 0},
         {4, 2, 5, 6, 7, 8, 9},
     };
-    for (int has_3d = 0; has_3d <= 1; has_3d++) {
+    for (int has_3d = 0; has_3d <= SH_POINTS_XYZ_ONLY; has_3d++) {
         char *buf = NULL;
         size_t len = 0;
         FILE *mem = open_memstream(&buf, &len);
         assert_int_equal(sh_points_write(mem, rows, 3, has_3d), SH_OK);
         fclose(mem);
-        const char *head = has_3d ? "frame,id,x,y,X,Y,Z\n0,0,0.1,0.333333333333333"
-                                  : "frame,id,x,y\n0,0,0.1,0.333333333333333";
+        const char *heads[] = {"frame,id,x,y\n0,0,0.1,0.333333333333333",
+                               "frame,id,x,y,X,Y,Z\n0,0,0.1,0.333333333333333", "frame,id,X,Y,Z\n0,0,-2.5,1e-12,"};
+        const char *head = heads[has_3d];
         assert_true(strncmp(buf, head, strlen(head)) == 0);
         sh_points p;
         assert_int_equal(sh_points_parse(buf, len, "mem", &p), SH_OK);
@@ -204,10 +224,15 @@ static void test_write_read_round_trip(void **state)
         for (int i = 0; i < 3; i++) {
             assert_int_equal(p.rows[i].frame, rows[i].frame);
             assert_int_equal(p.rows[i].id, rows[i].id);
-            assert_memory_equal(&p.rows[i].x, &rows[i].x, sizeof(double)); /* bit-exact */
-            assert_memory_equal(&p.rows[i].y, &rows[i].y, sizeof(double));
+            if (has_3d == SH_POINTS_XYZ_ONLY) {
+                assert_true(isnan(p.rows[i].x) && isnan(p.rows[i].y));
+            } else {
+                assert_memory_equal(&p.rows[i].x, &rows[i].x, sizeof(double)); /* bit-exact */
+                assert_memory_equal(&p.rows[i].y, &rows[i].y, sizeof(double));
+            }
             if (has_3d) {
                 assert_memory_equal(&p.rows[i].X, &rows[i].X, sizeof(double));
+                assert_memory_equal(&p.rows[i].Y, &rows[i].Y, sizeof(double));
                 assert_memory_equal(&p.rows[i].Z, &rows[i].Z, sizeof(double));
             }
         }

@@ -600,6 +600,55 @@ static void test_full_range_tag(void **state)
     }
 }
 
+/* XSTILLHEART=method:NAME set over an input's tags: the input's own one replaced (never two),
+ * the others kept in order, and read back from the file a writer made. */
+static void test_stillheart_tag(void **state)
+{
+    (void)state;
+    sh_y4m_header h;
+    memset(&h, 0, sizeof h);
+    h.width = 4, h.height = 2, h.format = SH_PIX_GRAY8;
+    strcpy(h.extra, "XCOLORRANGE=FULL XSTILLHEART=method:bspline XSTILLHEARTX=1 XSTILLHEART");
+    assert_int_equal(sh_y4m_header_set_tag(&h, SH_Y4M_STILLHEART, "method:tps"), SH_OK);
+    assert_string_equal(h.extra, "XCOLORRANGE=FULL XSTILLHEARTX=1 XSTILLHEART=method:tps");
+    assert_int_equal(sh_y4m_header_set_tag(&h, SH_Y4M_STILLHEART, "method:gaussian-pure"), SH_OK);
+    assert_string_equal(h.extra, "XCOLORRANGE=FULL XSTILLHEARTX=1 XSTILLHEART=method:gaussian-pure");
+
+    const char *file = tmp_path("tagged.y4m");
+    sh_y4m_writer *w;
+    assert_int_equal(sh_y4m_writer_open(file, &h, &w), SH_OK);
+    assert_int_equal(sh_y4m_writer_close(w), SH_OK);
+    size_t len;
+    uint8_t *bytes = slurp(file, &len);
+    static const char line[] = "YUV4MPEG2 W4 H2 Cmono XCOLORRANGE=FULL XSTILLHEARTX=1 XSTILLHEART=method:gaussian-pure\n";
+    assert_int_equal(len, strlen(line));
+    assert_memory_equal(bytes, line, len);
+    free(bytes);
+    sh_y4m_reader *r;
+    assert_int_equal(sh_y4m_reader_open(file, &r), SH_OK);
+    char value[32];
+    assert_int_equal(sh_y4m_header_tag(sh_y4m_reader_header(r), SH_Y4M_STILLHEART, value, sizeof value), 1);
+    assert_string_equal(value, "method:gaussian-pure");
+    assert_int_equal(sh_y4m_header_tag(sh_y4m_reader_header(r), "XSTILLHEARTX", value, 4), 1);
+    assert_string_equal(value, "1");
+    assert_int_equal(sh_y4m_header_tag(sh_y4m_reader_header(r), "XSTILL", value, sizeof value), 0);
+    assert_int_equal(sh_y4m_header_full_range(sh_y4m_reader_header(r)), 1);
+    sh_y4m_reader_close(r);
+
+    /* a tag with nothing else; refusals leave the header as it was */
+    memset(h.extra, 0, sizeof h.extra);
+    assert_int_equal(sh_y4m_header_set_tag(&h, "XA", "1"), SH_OK);
+    assert_string_equal(h.extra, "XA=1");
+    assert_int_equal(sh_y4m_header_set_tag(&h, SH_Y4M_STILLHEART, "method:tps x"), SH_EINVAL);
+    assert_int_equal(sh_y4m_header_set_tag(&h, SH_Y4M_STILLHEART, ""), SH_EINVAL);
+    assert_int_equal(sh_y4m_header_set_tag(&h, "X=Y", "1"), SH_EINVAL);
+    assert_int_equal(sh_y4m_header_set_tag(&h, SH_Y4M_STILLHEART, "method:tps\nFRAME"), SH_EINVAL);
+    memset(h.extra, 'Z', sizeof h.extra - 20);
+    h.extra[sizeof h.extra - 20] = 0;
+    assert_int_equal(sh_y4m_header_set_tag(&h, SH_Y4M_STILLHEART, "method:tps"), SH_ERANGE);
+    assert_int_equal(strlen(h.extra), sizeof h.extra - 20);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -616,6 +665,7 @@ int main(void)
         cmocka_unit_test(test_other_formats_name_ffmpeg),
         cmocka_unit_test(test_writer_errors),
         cmocka_unit_test(test_full_range_tag),
+        cmocka_unit_test(test_stillheart_tag),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }

@@ -12,9 +12,10 @@ $(EVAL_BIN): $(EVAL_OBJ) $(BUILD)/libphantom.a $(LIB)
 TOOLS += $(EVAL_BIN)
 
 # The test drives the binary of the same build (the ASan build tests the ASan evaluator).
-$(BUILD)/tools/eval/tests/test_eval.o: CFLAGS_ALL += -DEVAL_BIN='"$(abspath $(BUILD))/stillheart-eval"' -Itests/ref
+$(BUILD)/tools/eval/tests/test_eval.o: CFLAGS_ALL += -DEVAL_BIN='"$(abspath $(BUILD))/stillheart-eval"' -Itests/ref \
+	-DAPP_BIN='"$(abspath $(BUILD))/stillheart"'
 
-$(BUILD)/tests/test_eval: $(BUILD)/tools/eval/tests/test_eval.o $(BUILD)/libphantom.a $(LIB) $(EVAL_BIN)
+$(BUILD)/tests/test_eval: $(BUILD)/tools/eval/tests/test_eval.o $(BUILD)/libphantom.a $(LIB) $(EVAL_BIN) $(APP)
 	@mkdir -p $(dir $@)
 	$(CC) $(LDFLAGS) $< $(BUILD)/libphantom.a $(LIB) $(shell $(PKG_CONFIG) --libs cmocka) $(LDLIBS_ALL) -o $@
 

@@ -49,8 +49,6 @@ static void usage(FILE *f)
         "                     e_original (null without ORIGINAL), frames, pixels, reference,\n"
         "                     geometric {method, camera, stride, mean, p95, max, samples,\n"
         "                     points, hidden, unmapped, raw_frames} (null without --truth)\n"
-        "  --quiet            no progress bar (shown, with the frames left and an ETA, only when\n"
-        "                     stderr is a terminal anyway); as --log-level warning\n"
         SH_CLI_USAGE "\n"
         "Geometric error on phantom sequences (stillheart-render folders):\n"
         "  --truth DIR        the phantom folder (DIR/phantom.txt) the video was rendered from.\n"
@@ -65,9 +63,12 @@ static void usage(FILE *f)
         "                     Frames the warp left raw (fewer than 3 markers) have f_t(q) = q.\n"
         "  --camera C         camera of the phantom the video shows (default 0)\n"
         "  --geo-stride S     sample spacing in pixels (default 4)\n"
-        "  --method M         the warp's method (default bspline): affine, pwlinear, bspline,\n"
-        "                     rbf-local, tps, gaussian, their -pure forms, or none (the map is\n"
-        "                     the identity: the geometric error of the unstabilized video)\n"
+        "  --method M         the warp's method: affine, pwlinear, bspline, rbf-local, tps,\n"
+        "                     gaussian, their -pure forms, or none (the map is the identity: the\n"
+        "                     geometric error of the unstabilized video). Default: the method\n"
+        "                     STABILIZED's header names (XSTILLHEART=method:NAME, as `stillheart\n"
+        "                     warp` and `run` write it); a video without it needs --method, and\n"
+        "                     one that names another method is refused (exit 2)\n"
         "  --sigma S, --levels L, --smoothing LAMBDA, --max-error PX\n"
         "                     as for `stillheart warp`; give the values the warp ran with\n"
         "  --export-points OUT.csv\n"
@@ -148,6 +149,9 @@ typedef struct {
     int reference, camera, stride, json, contours;
     double heatmap_max, heatmap_scale;
     eval_geo_options geo;
+    double sigma, smoothing, max_error; /* --sigma (when have_sigma), --smoothing, --max-error */
+    int levels, have_sigma;
+    char tagged_method[SH_Y4M_MAX_EXTRA]; /* the method the video's header named (o.method then) */
 } options;
 
 static void report(const options *o, const video *stab, const video *orig, const eval_geo *geo,
@@ -189,7 +193,7 @@ static void report(const options *o, const video *stab, const video *orig, const
     }
     printf("%s: reference frame %d, %d frames, %d hull pixels\n", stab->path, o->reference,
            sh_metric_frames(stab->metric), sh_metric_pixels(stab->metric));
-    printf("  %-28s %10s\n", "video", "e");
+    printf("  %-28s %10s  %s\n", "video", "e", "(residual motion, lower is better)");
     printf("  %-28s %10.6f\n", "stabilized", sh_metric_e(stab->metric));
     if (orig->metric) printf("  %-28s %10.6f\n", "original (unstabilized)", e_orig);
     if (geo) {
@@ -204,6 +208,64 @@ static void report(const options *o, const video *stab, const video *orig, const
     if (o->heatmap) printf("heatmap: %s\n", o->heatmap);
 }
 
+/* The method whose map --truth measures: --method, else the one the video's header names
+ * (XSTILLHEART=method:NAME, written by `stillheart warp` and `run`); given both, they must agree.
+ * 0, or 2 with the refusal printed. */
+static int resolve_method(options *o, const char *path, const sh_y4m_header *h)
+{
+    char tag[SH_Y4M_MAX_EXTRA];
+    int tagged = sh_y4m_header_tag(h, SH_Y4M_STILLHEART, tag, sizeof tag);
+    const char *named = tagged && !strncmp(tag, "method:", 7) ? tag + 7 : NULL;
+    if (tagged && !named) {
+        if (!o->truth_dir) return 0; /* e does not depend on the method */
+        sh_log_error("%s: its header says %s=%s, not a 2D warp's method:NAME; --truth measures the "
+                     "map of `stillheart warp`", path, SH_Y4M_STILLHEART, tag);
+        return 2;
+    }
+    sh_interp_params known;
+    if (named && strcmp(named, "none") && sh_interp_params_parse(named, &known) != SH_OK) {
+        sh_log_error("%s: its header names the method '%s', which this stillheart-eval does not know",
+                     path, named);
+        return 2;
+    }
+    if (o->method && named && strcmp(o->method, named)) {
+        sh_log_error("--method %s, but %s was stabilized with %s (its header: %s=%s); give the "
+                     "method it was made with, or none for an unstabilized video", o->method, path,
+                     named, SH_Y4M_STILLHEART, tag);
+        return 2;
+    }
+    if (!o->method && named) {
+        snprintf(o->tagged_method, sizeof o->tagged_method, "%s", named);
+        o->method = o->tagged_method;
+        if (o->truth_dir) sh_log_info("method %s, as %s's header says", o->method, path);
+    }
+    if (!o->method && o->truth_dir) {
+        sh_log_error("--truth: %s does not say which method stabilized it (no %s tag); give "
+                     "--method (none for an unstabilized video)", path, SH_Y4M_STILLHEART);
+        return 2;
+    }
+    return 0;
+}
+
+/* The interpolant exactly as `stillheart warp` configures it from the same options: 0, or 2
+ * with the refusal printed. */
+static int geo_method(options *o)
+{
+    o->geo.camera = o->camera;
+    o->geo.reference = o->reference;
+    o->geo.stride = o->stride;
+    o->geo.identity = !strcmp(o->method, "none");
+    if (!o->geo.identity) {
+        if (sh_interp_params_parse(o->method, &o->geo.params) != SH_OK) return 1 + fail("--method");
+        if (o->have_sigma) o->geo.params.sigma = o->sigma;
+        o->geo.params.levels = o->levels;
+        o->geo.params.smoothing = o->smoothing;
+    }
+    sh_warp_options_default(&o->geo.wopts);
+    o->geo.wopts.max_error = o->max_error;
+    return 0;
+}
+
 /* The measurement itself, once the options are known. */
 static int evaluate(options *o, const char *stab_path, const char *orig_path)
 {
@@ -216,7 +278,9 @@ static int evaluate(options *o, const char *stab_path, const char *orig_path)
     float *grey = NULL;
     sh_hull hull;
 
-    if (sh_points_read(o->points_path, &points) != SH_OK) return fail("points");
+    if (sh_points_read(o->points_path, &points) != SH_OK ||
+        sh_points_need_2d(&points, o->points_path) != SH_OK)
+        return fail("points");
     int nref;
     const sh_point *ref = sh_points_frame(&points, o->reference, &nref);
     if (nref < 3) {
@@ -233,6 +297,10 @@ static int evaluate(options *o, const char *stab_path, const char *orig_path)
         goto done;
     }
     if (video_open(&stab, stab_path, o->reference, &hull) != SH_OK) { fail("stabilized video"); goto done; }
+    if ((rc = resolve_method(o, stab_path, sh_y4m_reader_header(stab.reader))) ||
+        (o->truth_dir && (rc = geo_method(o))))
+        goto done;
+    rc = 1;
     const sh_image *f = &stab.frame;
     if (orig_path) {
         if (video_open(&orig, orig_path, o->reference, &hull) != SH_OK) { fail("original video"); goto done; }
@@ -319,9 +387,8 @@ int main(int argc, char **argv)
         {"contours", required_argument, 0, 'C'}, {"export-points", required_argument, 0, 'E'},
         {"heatmap-scale", required_argument, 0, 'Z'},
         {"json", no_argument, 0, 'j'},           SH_CLI_OPTIONS, {0, 0, 0, 0}};
-    options o = {.method = "bspline", .stride = 4, .heatmap_max = 0.2, .heatmap_scale = 1, .contours = 4};
-    double sigma = 0, smoothing = 0, max_error = 0.05;
-    int levels = 0, have_sigma = 0, opt;
+    options o = {.stride = 4, .heatmap_max = 0.2, .heatmap_scale = 1, .contours = 4, .max_error = 0.05};
+    int opt;
     opterr = 0;
     while ((opt = getopt_long(argc, argv, ":h", long_opts, NULL)) != -1) {
         switch (opt) {
@@ -330,11 +397,11 @@ int main(int argc, char **argv)
         case 'T': o.truth_dir = optarg; break;
         case 'c': if (!sh_cli_parse_int("--camera", optarg, 0, PHANTOM_MAX_CAMERAS - 1, &o.camera)) return 2; break;
         case 'm': o.method = optarg; break;
-        case 's': if (!sh_cli_parse_double("--sigma", optarg, 1e-6, 1e9, &sigma)) return 2;
-                  have_sigma = 1; break;
-        case 'l': if (!sh_cli_parse_int("--levels", optarg, 1, 20, &levels)) return 2; break;
-        case 'S': if (!sh_cli_parse_double("--smoothing", optarg, 0, 1e12, &smoothing)) return 2; break;
-        case 'e': if (!sh_cli_parse_double("--max-error", optarg, 1e-4, 100, &max_error)) return 2; break;
+        case 's': if (!sh_cli_parse_double("--sigma", optarg, 1e-6, 1e9, &o.sigma)) return 2;
+                  o.have_sigma = 1; break;
+        case 'l': if (!sh_cli_parse_int("--levels", optarg, 1, 20, &o.levels)) return 2; break;
+        case 'S': if (!sh_cli_parse_double("--smoothing", optarg, 0, 1e12, &o.smoothing)) return 2; break;
+        case 'e': if (!sh_cli_parse_double("--max-error", optarg, 1e-4, 100, &o.max_error)) return 2; break;
         case 'g': if (!sh_cli_parse_int("--geo-stride", optarg, 1, 4096, &o.stride)) return 2; break;
         case 'H': o.heatmap = optarg; break;
         case 'X': if (!sh_cli_parse_double("--heatmap-max", optarg, 1e-6, 1, &o.heatmap_max)) return 2; break;
@@ -364,19 +431,8 @@ int main(int argc, char **argv)
     }
     if (!o.points_path || argc - optind < 1 || argc - optind > 2)
         return sh_cli_usage_error(&cli, "need --points and the stabilized video (and optionally the original)");
-
-    /* The interpolant exactly as `stillheart warp` configures it from the same options. */
-    o.geo.camera = o.camera;
-    o.geo.reference = o.reference;
-    o.geo.stride = o.stride;
-    o.geo.identity = !strcmp(o.method, "none");
-    if (!o.geo.identity) {
-        if (sh_interp_params_parse(o.method, &o.geo.params) != SH_OK) return fail("--method");
-        if (have_sigma) o.geo.params.sigma = sigma;
-        o.geo.params.levels = levels;
-        o.geo.params.smoothing = smoothing;
-    }
-    sh_warp_options_default(&o.geo.wopts);
-    o.geo.wopts.max_error = max_error;
+    sh_interp_params named;
+    if (o.method && strcmp(o.method, "none") && sh_interp_params_parse(o.method, &named) != SH_OK)
+        return fail("--method");
     return evaluate(&o, argv[optind], argc - optind == 2 ? argv[optind + 1] : NULL);
 }

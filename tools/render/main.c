@@ -83,8 +83,6 @@ static void usage(FILE *f)
 "                     calibration.yaml (the truth) and board.csv (frame,camera,corner,x,y,X,Y,Z:\n"
 "                     inner corner r * COLS + c at board (c, r) * SQUARE_MM, its pixel and world\n"
 "                     position), no markers.csv or phantom.txt\n"
-"  --quiet            no progress bar (shown only on a terminal anyway) and no closing\n"
-"                     line with the rendering speed (as --log-level warning)\n"
 SH_CLI_USAGE
 "\n"
 "Writes DIR/cam0.y4m (cam1, cam2: Y4M 4:2:0, BT.601 limited range), DIR/markers.csv\n"

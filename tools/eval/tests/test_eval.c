@@ -10,12 +10,16 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/wait.h>
 
 #include "eval_ref.h"
 #include "phantom.h"
 
 #ifndef EVAL_BIN
 #error "EVAL_BIN must name the stillheart-eval binary of this build"
+#endif
+#ifndef APP_BIN
+#error "APP_BIN must name the stillheart binary of this build"
 #endif
 
 static char tmp[256];
@@ -307,6 +311,55 @@ static void test_geometric_beating(void **state)
     phantom_truth_close(truth);
 }
 
+/* The method comes from the video: `stillheart warp` tags its output (XSTILLHEART=method:NAME)
+ * and --truth without --method measures that method's map, the same figures as naming it; a
+ * --method the tag contradicts, and an untagged video without --method, are refused (exit 2)
+ * with both names, resp. the option to give. */
+static void test_method_from_header(void **state)
+{
+    (void)state;
+    char dir[512], pts[512], video[512], warped[512], cmd[4096], args[4096], out[8192], err[8192];
+    phantom_truth *truth = make_phantom("tagged", 2, 1, dir);
+    path(pts, "tagged.csv");
+    path(video, "tagged-in.y4m");
+    path(warped, "tagged-out.y4m");
+    write_truth_points(pts, truth, 2, 0, 1.5, -2.25);
+    phantom_truth_close(truth);
+    write_grey_video(video, 2);
+    snprintf(cmd, sizeof cmd, "'%s' warp --quiet --method gaussian --points '%s' '%s' '%s'", APP_BIN, pts,
+             video, warped);
+    assert_int_equal(system(cmd), 0);
+
+    double mean, p95, max, samples;
+    geo(dir, pts, warped, "gaussian", &mean, &p95, &max, &samples);
+    snprintf(args, sizeof args, "--json --truth '%s' --points '%s' '%s'", dir, pts, warped);
+    assert_int_equal(run(args, out, sizeof out, err, sizeof err), 0);
+    assert_non_null(strstr(out, "\"method\": \"gaussian\""));
+    assert_float_equal(json_num(out, "mean"), mean, 0);
+    assert_float_equal(json_num(out, "max"), max, 0);
+    assert_true(max > 2); /* the shift's hypot(1.5, 2.25): a map measured, not the identity */
+    assert_non_null(strstr(err, "gaussian"));
+
+    snprintf(args, sizeof args, "--json --truth '%s' --method tps --points '%s' '%s'", dir, pts, warped);
+    int rc = run(args, out, sizeof out, err, sizeof err);
+    assert_true(WIFEXITED(rc) && WEXITSTATUS(rc) == 2);
+    assert_non_null(strstr(err, "--method tps"));
+    assert_non_null(strstr(err, "with gaussian"));
+    assert_string_equal(out, "");
+    /* e alone does not need the method, but a contradiction is refused all the same */
+    snprintf(args, sizeof args, "--method none --points '%s' '%s'", pts, warped);
+    rc = run(args, out, sizeof out, err, sizeof err);
+    assert_true(WIFEXITED(rc) && WEXITSTATUS(rc) == 2);
+
+    snprintf(args, sizeof args, "--json --truth '%s' --points '%s' '%s'", dir, pts, video);
+    rc = run(args, out, sizeof out, err, sizeof err);
+    assert_true(WIFEXITED(rc) && WEXITSTATUS(rc) == 2);
+    assert_non_null(strstr(err, "give --method"));
+    assert_non_null(strstr(err, "tagged-in.y4m"));
+    snprintf(args, sizeof args, "--json --points '%s' '%s'", pts, video); /* e needs no method */
+    assert_int_equal(run(args, out, sizeof out, err, sizeof err), 0);
+}
+
 /* ---- the points export and the errors ---- */
 
 static void test_export_points(void **state)
@@ -368,7 +421,7 @@ static void test_errors_name_the_file(void **state)
     assert_int_not_equal(run(args, out, sizeof out, err, sizeof err), 0);
     assert_non_null(strstr(err, "err.csv"));
 
-    snprintf(args, sizeof args, "--points '%s' --truth '%s/nodir' '%s'", pts, tmp, video);
+    snprintf(args, sizeof args, "--points '%s' --method tps --truth '%s/nodir' '%s'", pts, tmp, video);
     assert_int_not_equal(run(args, out, sizeof out, err, sizeof err), 0);
     assert_non_null(strstr(err, "nodir"));
 
@@ -406,6 +459,7 @@ int main(void)
         cmocka_unit_test(test_geometric_reference_is_zero),
         cmocka_unit_test(test_geometric_known_shift),
         cmocka_unit_test(test_geometric_beating),
+        cmocka_unit_test(test_method_from_header),
         cmocka_unit_test(test_export_points),
         cmocka_unit_test(test_errors_name_the_file),
     };
