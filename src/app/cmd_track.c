@@ -25,9 +25,11 @@ static void usage(FILE *out)
         "around the tracker's predictions, with a full-frame scan spread over frames to find\n"
         "lost markers. A marker hidden for a while is still written (predicted from its own\n"
         "rhythm and its neighbours); one unseen for longer than --lost-after is not.\n\n"
-        "Markers: --ids lists them; without it a first pass over the first seconds finds the\n"
-        "tags that move with the heart (a still tag beside it is not a marker), then the\n"
-        "recording is tracked from its start with those ids (IN must then be files).\n\n"
+        "Markers: --ids lists them; without it a first pass over the first 10 s (or the whole of\n"
+        "a shorter file) keeps every tag seen consistently unless its motion says it is not on\n"
+        "the heart: still while its neighbours move, or moving unlike them (on an instrument).\n"
+        "What is left out, and why, is said on standard error. Then the recording is tracked\n"
+        "from its start with those ids (IN must then be files).\n\n"
         "options:\n"
         "  --cameras FILE     calibration YAML (OpenCV FileStorage): one IN per camera, 3D tracking\n"
         "  --ids LIST         marker ids, e.g. 0-15 or 1,4,7\n"
@@ -37,7 +39,8 @@ static void usage(FILE *out)
         "  --lost-after S     seconds unseen before a marker is dropped (default 2)\n"
         "  --spatial off|fuse occluded markers from time only, or also from neighbours (default fuse)\n"
         "  --measured-only    write only markers detected in that frame\n"
-        "  --stats            tracking figures on standard error at the end\n"
+        "  --stats            tracking figures on standard error at the end (and without --ids,\n"
+        "                     why each tag was kept)\n"
         "  --help             this text\n");
 }
 
@@ -90,9 +93,9 @@ static int dedupe(sh_detection *d, int n)
     return w;
 }
 
-/* One pass: max_frames (< 0: all). out NULL: no output; confirmed (when not NULL) gets the ids
- * confirmed at the end. Returns 0 on success. */
-static int run_pass(track_job *job, int max_frames, FILE *out, int *confirmed, int *nconfirmed)
+/* One pass: max_frames (< 0: all). out NULL: no output; judged (when not NULL) gets the verdicts
+ * on every tag seen (sh_tracker_judge_ids) at the end. Returns 0 on success. */
+static int run_pass(track_job *job, int max_frames, FILE *out, sh_track_id *judged, int *njudged)
 {
     int rc = 1;
     sh_y4m_reader *rd[SH_TRACK_MAX_CAMERAS] = {0};
@@ -198,12 +201,7 @@ static int run_pass(track_job *job, int max_frames, FILE *out, int *confirmed, i
             }
         }
     }
-    if (confirmed) {
-        int n = sh_tracker_estimates(t, est, SH_TRACK_MAX_MARKERS);
-        *nconfirmed = 0;
-        for (int k = 0; k < n; k++)
-            if (est[k].confirmed) confirmed[(*nconfirmed)++] = est[k].id;
-    }
+    if (judged) *njudged = sh_tracker_judge_ids(t, judged, SH_TRACK_MAX_MARKERS);
     if (job->stats && out) {
         sh_track_stats s;
         sh_tracker_stats(t, &s);
@@ -233,6 +231,33 @@ done:
         if (rd[c]) sh_y4m_reader_close(rd[c]);
     }
     return rc;
+}
+
+/* The first pass's verdicts on standard error: what is kept, and every tag left out or kept
+ * without a comparison (all: every tag), with why. The kept ids into ids; returns their count. */
+static int report_ids(const sh_track_id *v, int n, int *ids, const char *in, int all)
+{
+    char list[1024] = "", why[256];
+    int nk = 0;
+    size_t len = 0;
+    for (int k = 0; k < n; k++) {
+        if (!v[k].keep) continue;
+        ids[nk++] = v[k].id;
+        /* ranges: 0-15,17 */
+        int run_end = k + 1 < n && v[k + 1].keep && v[k + 1].id == v[k].id + 1;
+        int run_in = nk > 1 && ids[nk - 2] == v[k].id - 1;
+        if (run_in && run_end) continue;
+        if (len < sizeof list)
+            len += (size_t)snprintf(list + len, sizeof list - len, "%s%d", run_in ? "-" : nk > 1 ? "," : "", v[k].id);
+    }
+    sh_log_info("markers found in %s: %d of the %d tags seen (ids %s)", in, nk, n, nk ? list : "none");
+    for (int k = 0; k < n; k++) {
+        if (v[k].keep && v[k].verdict == SH_TRACK_ID_KEPT && !all) continue;
+        sh_track_id_text(&v[k], why, sizeof why);
+        if (v[k].keep) sh_log_info("tag %d kept as a marker, %s", v[k].id, why);
+        else sh_log_warn("warning: tag %d left out, %s", v[k].id, why);
+    }
+    return nk;
 }
 
 int cmd_track(int argc, char **argv)
@@ -322,12 +347,14 @@ int cmd_track(int argc, char **argv)
                 sh_detector_destroy(job.det);
                 return 2;
             }
-        /* first pass: which tags move with the heart */
+        /* first pass: which tags are markers on the heart (a short file is judged whole) */
         double f0 = fps > 0 ? fps : 30;
-        if (run_pass(&job, (int)(f0 * 10), NULL, ids, &nids) != 0) rc = 1;
-        else if (nids == 0) {
-            sh_log_error("no tag moves with a heartbeat in the first 10 s of %s "
-                            "(give the markers with --ids)", job.in[0]);
+        sh_track_id judged[SH_TRACK_MAX_MARKERS];
+        int nj = 0;
+        if (run_pass(&job, (int)(f0 * 10), NULL, judged, &nj) != 0) rc = 1;
+        else if ((nids = report_ids(judged, nj, ids, job.in[0], job.stats)) == 0) {
+            sh_log_error("no tag seen consistently in the first 10 s of %s (give the markers with --ids)",
+                         job.in[0]);
             rc = 1;
         }
     }
