@@ -48,7 +48,9 @@ typedef struct {
     double fps;              /* frame rate (required) */
     int width, height;       /* image size (windows are clipped to it; required) */
     const int *ids;          /* the marker ids to track (copied); NULL: any id seen, confirmed
-                              * only once it moves with the heart (a still tag is not on it) */
+                              * once seen for a second unless its motion is evidence that it is
+                              * not on the heart (sh_tracker_judge_ids, every half second: a
+                              * confirmation is withdrawn when the evidence comes later) */
     int num_ids;
     int heart_harmonics;     /* 1..SH_TRACK_MAX_HEART_HARMONICS (default 3) */
     int resp_harmonics;      /* 0..SH_TRACK_MAX_RESP_HARMONICS (default 1) */
@@ -61,7 +63,8 @@ typedef struct {
     double gate;             /* Mahalanobis^2 gate per camera (chi^2, 2 dof; default 16) */
     double max_reproj;       /* 3D: largest reprojection error of a triangulation, px (default 3) */
     double lost_after;       /* seconds unseen before a marker is lost (default 2) */
-    double min_motion;       /* auto ids: heart-band amplitude (px) a marker needs (default 2) */
+    double min_motion;       /* auto ids: the RMS motion (px) a tag's neighbours must predict for
+                              * it before its not following them counts (default 0.3) */
     double window_sigmas;    /* window half-size = tag extent + this x sigma (default 4) */
     int min_window;          /* smallest window side, px (default 48) */
     int reacquire_bands;     /* full frame scanned in this many bands, one per frame (default 4) */
@@ -83,7 +86,7 @@ typedef enum {
 typedef struct {
     int id;
     sh_track_status status;
-    int confirmed;             /* reported as a correspondence (auto ids: moves with the heart) */
+    int confirmed;             /* reported as a correspondence (auto ids: judged on the heart) */
     int dim;                   /* 2 or 3 */
     double pos[3];             /* 2D: x, y (px); 3D: X, Y, Z (calibration units) */
     double cov[9];             /* dim x dim covariance of pos */
@@ -170,6 +173,48 @@ void sh_tracker_stats(const sh_tracker *t, sh_track_stats *stats);
 /* A rate of the stats for people: "1.167 Hz", or "not estimated yet" for 0 (no estimate), never
  * a made-up "0.000 Hz". */
 void sh_track_rate_text(double hz, char *out, size_t cap);
+
+/* Auto ids: which of the tags seen so far are markers on the heart, and why a tag is not.
+ * The heart's surface is smooth, so each tag's motion over the history (the last 8 s or more) is
+ * compared with the motion its neighbours predict for it (their displacements weighted by
+ * distance). A tag seen consistently is kept unless that is evidence against it: it stays still
+ * while its neighbours move, or it moves in a way theirs does not explain (with an instrument):
+ * the surface stretches and turns between tags, so a heart tag's motion is a linear map of its
+ * neighbours' (other amplitude, other direction), but in step with it.
+ * "Still" is a motion not measurable above its detections' noise while its neighbours' is 4x
+ * larger: a heart tag moving a fifth as much as its neighbours, in step, is kept. With too few
+ * other tags, or too little motion (around it, or of its own when that is not evidence), nothing
+ * can be compared: it is kept, and the verdict says so. docs/tracking.md has the thresholds and why. */
+typedef enum {
+    SH_TRACK_ID_KEPT = 0,   /* moves as its neighbours predict */
+    SH_TRACK_ID_UNJUDGED,   /* kept: its neighbours move too little (or too rarely at the same
+                             * time) to tell */
+    SH_TRACK_ID_QUIET,      /* kept: it hardly moves itself, but neither do its neighbours 4x more */
+    SH_TRACK_ID_ALONE,      /* kept: fewer than 3 other tags seen consistently to compare with */
+    SH_TRACK_ID_RARE,       /* left out: seen in too few frames (a misread id, a glimpse) */
+    SH_TRACK_ID_STILL,      /* left out: still while its neighbours move */
+    SH_TRACK_ID_UNLIKE      /* left out: moves unlike its neighbours */
+} sh_track_id_verdict;
+
+typedef struct {
+    int id;
+    int keep;               /* a marker on the heart (KEPT, UNJUDGED, QUIET, ALONE) */
+    sh_track_id_verdict verdict;
+    int seen, frames;       /* frames of the history with a detection of it, of its frames
+                             * (counted in history samples: above 64 fps, one every few frames) */
+    double motion_px;       /* RMS of its own motion, px */
+    double predicted_px;    /* RMS of the motion its neighbours predict for it, px (0: none) */
+    double noise_px;        /* its detections' noise per coordinate, px (from second differences) */
+    double explained;       /* share of its motion's variance above the noise that a linear map of
+                             * the predicted motion explains (R^2; 0: none) */
+} sh_track_id;
+
+/* Every tag the tracker knows, in id order, at most max; returns how many were written. With
+ * an id list every listed marker is kept (verdict KEPT) unjudged. Reads only: callable any time. */
+int sh_tracker_judge_ids(const sh_tracker *t, sh_track_id *out, int max);
+/* One line for people: why a tag was kept or left out ("still (0.03 px) while its neighbours
+ * move 3.30 px"). */
+void sh_track_id_text(const sh_track_id *v, char *out, size_t cap);
 
 /* The unexpected motion of the last updated frame (all zero when there was none). */
 void sh_tracker_motion(const sh_tracker *t, sh_track_motion *out);

@@ -27,9 +27,11 @@ static void usage(FILE *out)
         "around the tracker's predictions, with a full-frame scan spread over frames to find\n"
         "lost markers. A marker hidden for a while is still written (predicted from its own\n"
         "rhythm and its neighbours); one unseen for longer than --lost-after is not.\n\n"
-        "Markers: --ids lists them; without it a first pass over the first seconds finds the\n"
-        "tags that move with the heart (a still tag beside it is not a marker), then the\n"
-        "recording is tracked from its start with those ids (IN must then be files).\n\n"
+        "Markers: --ids lists them; without it a first pass over the first 10 s (or the whole of\n"
+        "a shorter file) keeps every tag seen consistently unless its motion says it is not on\n"
+        "the heart: still while its neighbours move, or moving unlike them (on an instrument).\n"
+        "What is left out, and why, is said on standard error. Then the recording is tracked\n"
+        "from its start with those ids (IN must then be files).\n\n"
         "options:\n"
         "  --cameras FILE     calibration YAML (OpenCV FileStorage): one IN per camera, 3D tracking\n"
         "  --ids LIST         marker ids, e.g. 0-15 or 1,4,7\n"
@@ -389,16 +391,11 @@ static void stats_json(const track_job *job, track_pass *p)
     sh_cli_json_end(&j);
 }
 
-/* The end of a pass: the confirmed ids (when asked for) and, with --stats on the writing pass,
- * the tracking figures. */
-static void pass_report(const track_job *job, track_pass *p, FILE *out, int *confirmed, int *nconfirmed)
+/* The end of a pass: the verdicts on every tag seen (sh_tracker_judge_ids, when asked for) and,
+ * with --stats on the writing pass, the tracking figures. */
+static void pass_report(const track_job *job, track_pass *p, FILE *out, sh_track_id *judged, int *njudged)
 {
-    if (confirmed) {
-        int n = sh_tracker_estimates(p->t, p->est, SH_TRACK_MAX_MARKERS);
-        *nconfirmed = 0;
-        for (int k = 0; k < n; k++)
-            if (p->est[k].confirmed) confirmed[(*nconfirmed)++] = p->est[k].id;
-    }
+    if (judged) *njudged = sh_tracker_judge_ids(p->t, judged, SH_TRACK_MAX_MARKERS);
     if (!job->o->stats || !out) return;
     if (job->o->json) {
         stats_json(job, p);
@@ -406,10 +403,13 @@ static void pass_report(const track_job *job, track_pass *p, FILE *out, int *con
     }
     sh_track_stats s;
     sh_tracker_stats(p->t, &s);
-    sh_log_info("%ld frames, heart %.3f Hz, respiration %.3f Hz; detections used %ld, "
+    char heart[48], resp[48];
+    sh_track_rate_text(s.heart_hz, heart, sizeof heart);
+    sh_track_rate_text(s.resp_hz, resp, sizeof resp);
+    sh_log_info("%ld frames, heart %s, respiration %s; detections used %ld, "
                 "gated %ld, duplicated ids %ld, unknown ids %ld, inconsistent 3D %ld, taken on their "
                 "neighbours' agreement %ld; markers lost %ld; camera moved in %ld frames",
-                s.frames, s.heart_hz, s.resp_hz, s.accepted, s.gated, s.duplicates, s.unknown,
+                s.frames, heart, resp, s.accepted, s.gated, s.duplicates, s.unknown,
                 s.inconsistent, s.jumped, s.lost, s.camera_moves);
     sh_track_calibration cc;
     sh_tracker_calibration(p->t, &cc);
@@ -419,9 +419,9 @@ static void pass_report(const track_job *job, track_pass *p, FILE *out, int *con
                     cc.median_px, cc.samples, cc.worst_camera, cc.worst_px, 100 * cc.failed);
 }
 
-/* One pass: max_frames (< 0: all). out NULL: no output; confirmed (when not NULL) gets the ids
- * confirmed at the end. Returns 0 on success. */
-static int run_pass(const track_job *job, int max_frames, FILE *out, int *confirmed, int *nconfirmed)
+/* One pass: max_frames (< 0: all). out NULL: no output; judged (when not NULL) gets the verdicts
+ * on every tag seen at the end. Returns 0 on success. */
+static int run_pass(const track_job *job, int max_frames, FILE *out, sh_track_id *judged, int *njudged)
 {
     track_pass p;
     int rc = pass_open(job, &p);
@@ -437,13 +437,40 @@ static int run_pass(const track_job *job, int max_frames, FILE *out, int *confir
         sh_cli_progress_update(&progress, f + 1);
     }
     sh_cli_progress_end(&progress);
-    if (!rc) pass_report(job, &p, out, confirmed, nconfirmed);
+    if (!rc) pass_report(job, &p, out, judged, njudged);
     pass_close(job, &p);
     return rc;
 }
 
-/* Without --ids: the tags that move with the heart in the first 10 s, by a first pass. 0, or
- * the exit code with the reason printed. */
+/* The first pass's verdicts on standard error: what is kept, and every tag left out or kept
+ * without a comparison (all: every tag), with why. The kept ids into ids; returns their count. */
+static int report_ids(const sh_track_id *v, int n, int *ids, const char *in, int all)
+{
+    char list[1024] = "", why[256];
+    int nk = 0;
+    size_t len = 0;
+    for (int k = 0; k < n; k++) {
+        if (!v[k].keep) continue;
+        ids[nk++] = v[k].id;
+        /* ranges: 0-15,17 */
+        int run_end = k + 1 < n && v[k + 1].keep && v[k + 1].id == v[k].id + 1;
+        int run_in = nk > 1 && ids[nk - 2] == v[k].id - 1;
+        if (run_in && run_end) continue;
+        if (len < sizeof list)
+            len += (size_t)snprintf(list + len, sizeof list - len, "%s%d", run_in ? "-" : nk > 1 ? "," : "", v[k].id);
+    }
+    sh_log_info("markers found in %s: %d of the %d tags seen (ids %s)", in, nk, n, nk ? list : "none");
+    for (int k = 0; k < n; k++) {
+        if (v[k].keep && v[k].verdict == SH_TRACK_ID_KEPT && !all) continue;
+        sh_track_id_text(&v[k], why, sizeof why);
+        if (v[k].keep) sh_log_info("tag %d kept as a marker, %s", v[k].id, why);
+        else sh_log_warn("warning: tag %d left out, %s", v[k].id, why);
+    }
+    return nk;
+}
+
+/* Without --ids: the markers among the tags of the first 10 s (a short file is judged whole), by
+ * a first pass. 0, or the exit code with the reason printed. */
 static int find_ids(track_job *job)
 {
     const track_options *o = job->o;
@@ -454,10 +481,11 @@ static int find_ids(track_job *job)
             return 2;
         }
     double f0 = o->fps > 0 ? o->fps : 30;
-    if (run_pass(job, (int)(f0 * 10), NULL, job->ids, &job->nids) != 0) return 1;
-    if (job->nids == 0) {
-        sh_log_error("no tag moves with a heartbeat in the first 10 s of %s "
-                        "(give the markers with --ids)", o->in[0]);
+    sh_track_id judged[SH_TRACK_MAX_MARKERS];
+    int nj = 0;
+    if (run_pass(job, (int)(f0 * 10), NULL, judged, &nj) != 0) return 1;
+    if ((job->nids = report_ids(judged, nj, job->ids, o->in[0], o->stats)) == 0) {
+        sh_log_error("no tag seen consistently in the first 10 s of %s (give the markers with --ids)", o->in[0]);
         return 1;
     }
     return 0;

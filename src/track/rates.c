@@ -147,8 +147,7 @@ static double search_rate(sh_tracker *t, double *const *x, int ns, int n, double
     return f;
 }
 
-/* Cholesky solve of the m x m SPD system A c = b (A overwritten); 0 on failure. */
-static int chol_solve(double *A, double *b, int m, double *inv)
+int trk_chol_solve(double *A, double *b, int m, double *inv)
 {
     for (int j = 0; j < m; j++) {
         double d = A[j * m + j];
@@ -248,7 +247,7 @@ static double fit_series(const double *x, int n, const double *tab, int m, doubl
         if (cnt < 2 * m) return -1;
         for (int a = 0; a < m; a++)
             for (int c = 0; c < a; c++) A[c * m + a] = A[a * m + c];
-        if (!chol_solve(A, b, m, cov)) return -1;
+        if (!trk_chol_solve(A, b, m, cov)) return -1;
         memcpy(coef, b, sizeof(double) * m);
         double ss = 0;
         for (int j = 0; j < n; j++) {

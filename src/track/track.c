@@ -27,7 +27,7 @@ void sh_track_options_default(sh_track_options *o)
     o->gate = 16;
     o->max_reproj = 3;
     o->lost_after = 2;
-    o->min_motion = 2.0;
+    o->min_motion = 0.3;
     o->window_sigmas = 4;
     o->min_window = 48;
     o->reacquire_bands = 4;
@@ -389,21 +389,11 @@ sh_status sh_tracker_update(sh_tracker *t, const sh_detection *const *det, const
                 mk->spatial = 1;
             }
         }
-        /* confirmation: a listed id, or (auto) a marker that moves with the heart */
-        if (!mk->confirmed) {
-            if (t->num_ids > 0) mk->confirmed = 1;
-            else if (t->locked) {
-                double amp2 = 0;
-                for (int a = 0; a < t->dim; a++)
-                    for (int k = 0; k < t->nh; k++)
-                        amp2 += mk->f[a].x[2 + 2 * k] * mk->f[a].x[2 + 2 * k] +
-                                mk->f[a].x[3 + 2 * k] * mk->f[a].x[3 + 2 * k];
-                double u = t->unit > 0 ? t->unit : 1;
-                if (mk->seen > t->o.fps && sqrt(amp2) >= t->o.min_motion * u) mk->confirmed = 1;
-            }
-        }
+        /* confirmation: a listed id at once; with auto ids below, when judged */
+        if (!mk->confirmed && t->num_ids > 0) mk->confirmed = 1;
     }
     if (t->frame >= t->next_rates) {
+        if (t->num_ids == 0) trk_confirm_auto(t);
         trk_estimate_rates(t);
         t->next_rates = t->frame + (int)ceil(t->o.fps * 0.5);
     }

@@ -123,6 +123,9 @@ void trk_predict_filter(const sh_tracker *t, axis_filter *f, const double *F, do
 void trk_update_filter(const sh_tracker *t, axis_filter *f, double z, double r);
 void trk_init_filter(axis_filter *f, double z, double r, double vvar);
 void trk_estimate_rates(sh_tracker *t);
+/* Cholesky solve of the m x m (m <= NC) SPD system A c = b (A overwritten), and its inverse when
+ * inv is not NULL; 0 on failure. */
+int trk_chol_solve(double *A, double *b, int m, double *inv);
 /* The median of v[0..n) (sorts v in place); 0 when n = 0. */
 double trk_median(double *v, int n);
 /* The periodogram's FFT set-up (rates.c), at create; freed by trk_rates_free. */
@@ -131,6 +134,8 @@ void trk_rates_free(sh_tracker *t);
 float *trk_hist_at(sh_tracker *t, int mi, int a);
 /* track.c */
 void trk_marker_pos(const sh_tracker *t, const marker *mk, double *p, double *var);
+/* ids.c: auto ids, the markers seen for a second that sh_tracker_judge_ids keeps are confirmed */
+void trk_confirm_auto(sh_tracker *t);
 /* calcheck.c: this frame's detections (ndet / det counted) into the calibration window */
 void trk_calib_observe(sh_tracker *t, const sh_detection *const *det, int num_cameras);
 /* gate.c */

@@ -31,3 +31,10 @@ $(BUILD)/tests/test_track_cli: | $(BUILD)/stillheart-render
 endif
 
 TOOL_TESTS += $(BUILD)/tests/test_track_cli
+
+# Issue 18's whole bar for `stillheart track` without --ids: every heart marker and no decoy kept,
+# both presets with --occlusions, 30, 120 and 400 frames, seeds 1-8 (48 renders; `make check`
+# runs seed 1). Several minutes: docs/tracking.md has the figures.
+.PHONY: check-auto-ids
+check-auto-ids: $(BUILD)/tests/test_track_cli
+	SH_AUTO_IDS_SEEDS=8 $(BUILD)/tests/test_track_cli

@@ -89,7 +89,8 @@ static void test_all_hidden_half_second(void **state)
 }
 
 /* The decoy (a real tag off the heart) and duplicated ids: never reported, never used. Ids learnt
- * from the detections (no list), so the decoy is refused because it does not move with the heart. */
+ * from the detections (no list), so the decoy is refused because it stays still while its
+ * neighbours move (sh_tracker_judge_ids). */
 static void test_decoy_and_duplicates(void **state)
 {
     (void)state;
