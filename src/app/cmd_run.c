@@ -65,7 +65,9 @@ static void usage(FILE *out)
         "run-only options:\n"
         "  --config FILE      INI file (keys above; the command line wins)\n"
         "  --max-frames N     stop after N published frames (tests, bench)\n"
-        "  --stats            print a summary line at exit (fps, latency, drops, RSS)\n"
+        "  --stats            print a summary line at exit (fps, latency, drops, RSS) on standard\n"
+        "                     output, even with --quiet (at the info level it is printed there\n"
+        "                     anyway; the log is on standard error)\n"
         "  --json             with --stats: the summary as one JSON object on standard output:\n"
         "                     published, raw, degraded, dropped, latency_ms {median, p99, max},\n"
         "                     rss_kb {start, at_1_min, max, end}, models_built, black_frames\n"
@@ -289,7 +291,8 @@ int cmd_run(int argc, char **argv)
         } else if (ro.stats || sh_log_get_level() >= SH_LOG_INFO) {
             char line[512];
             sh_daemon_stats(d, line, sizeof line);
-            fprintf(ro.stats ? stdout : stderr, "%s\n", line);
+            /* one stream for the summary whether asked for or not (the log is on stderr) */
+            fprintf(stdout, "%s\n", line);
         }
     }
     if (sh_daemon_destroy(d) != SH_OK) rc = 1;
