@@ -43,7 +43,7 @@ def write_ini(control_group, group):
     with open(T + "/ctl.ini", "w") as f: f.write("[run]\ncontrol_group = %s\n[sink]\ngroup = %s\n" % (control_group, group))
 write_ini(cg.gr_name, dg.gr_name)
 d = subprocess.Popen([exe, "run", "--config", T + "/ctl.ini", "--source", "y4m:" + T + "/in.y4m", "--loop", "--realtime",
-                      "--sink", "none", "--control", ctl], stderr=log)
+                      "--sink", "none", "--control", ctl], stderr=log, stdout=subprocess.DEVNULL)
 # ready when the socket takes a connection: the stale one is there from the start (a loop on
 # its existence let the test in before the daemon listened: qemu-aarch64, issue 21's pattern)
 for i in range(400):

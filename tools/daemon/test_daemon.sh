@@ -271,7 +271,7 @@ sp = "/tmp/sh-notify-test-%d" % os.getpid()
 s = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM); s.bind(sp); s.settimeout(5)
 env = dict(os.environ, NOTIFY_SOCKET=sp, WATCHDOG_USEC="400000")
 p = subprocess.Popen([exe, "run", "--group=", "--config", ini, "--source", "y4m:" + video, "--realtime",
-                      "--loop", "--points", "", "--sink", "shm:" + shm], env=env, stderr=subprocess.PIPE)
+                      "--loop", "--points", "", "--sink", "shm:" + shm], env=env, stderr=subprocess.PIPE, stdout=subprocess.DEVNULL)
 # stderr read as it comes (a thread): the test waits for the new reference's line, whose models
 # are built beside the frames and take a while under qemu-aarch64 on a busy machine
 import threading
@@ -325,7 +325,7 @@ import os, signal, subprocess, sys, threading, time
 exe, video, tmp = sys.argv[1:4]
 fifo = os.path.join(tmp, "slow-start.fifo"); os.mkfifo(fifo)
 p = subprocess.Popen([exe, "run", "--group=", "--source", "y4m:" + fifo, "--no-loop", "--sink", "none"],
-                     stderr=subprocess.PIPE)
+                     stderr=subprocess.PIPE, stdout=subprocess.DEVNULL)
 def caught():  # SIGHUP (1) and SIGUSR1 (10) have handlers
     try: line = [l for l in open("/proc/%d/status" % p.pid) if l.startswith("SigCgt:")][0]
     except (OSError, IndexError): return False
@@ -371,7 +371,7 @@ if os.environ.get("SH_TEST_EMULATED"):
     video = video + ".8fps.y4m"
     open(video, "wb").write(re.sub(rb" F\d+:\d+", b" F8:1", head) + b"\n" + body)
 p = subprocess.Popen([exe, "run", "--group=", "--source", "y4m:" + video, "--realtime", "--no-loop", "--sink", "none",
-                      "--points", points, "--control", ctl, "--trace", trace], stderr=subprocess.PIPE)
+                      "--points", points, "--control", ctl, "--trace", trace], stderr=subprocess.PIPE, stdout=subprocess.DEVNULL)
 def ask(cmd):
     s = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM); s.settimeout(3); s.connect(ctl)
     s.sendall(cmd.encode() + b"\n"); out = b""
@@ -594,7 +594,7 @@ def reloaded(mark):  # RELOADING=1 and then READY=1 since message mark
 def result(name, fails):
     print("ok|" + name if not fails else "bad|%s|%s" % (name, "; ".join(fails).replace("\n", " / ")[:600]))
 config(big, "tps")
-p = subprocess.Popen([B + "/stillheart", "run", "--group=", "--config", ini], stderr=open(log, "w"),
+p = subprocess.Popen([B + "/stillheart", "run", "--group=", "--config", ini], stderr=open(log, "w"), stdout=subprocess.DEVNULL,
                      env=dict(os.environ, NOTIFY_SOCKET=sp, WATCHDOG_USEC="2000000"))
 up = wait(lambda: after("READY=1", 0) >= 0 and os.path.exists("/dev/shm" + shm))
 before = readback() if up else None
