@@ -115,8 +115,8 @@ static int parse_options(int argc, char **argv, warp_options *o)
                      o->reference);
         return 2;
     }
-    /* an unknown method is refused with 1, not 2, as it always was */
-    if (sh_interp_params_parse(o->method, &o->params) != SH_OK) return app_fail("--method");
+    /* an unknown method is a usage error, exit 2, as in warp3d and stillheart-eval */
+    if (sh_interp_params_parse(o->method, &o->params) != SH_OK) return 1 + app_fail("--method");
     if (have_sigma) o->params.sigma = sigma;
     o->params.levels = levels;
     o->params.smoothing = smoothing;

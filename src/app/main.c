@@ -26,7 +26,10 @@ static void usage(FILE *out)
                  "commands:\n");
     for (size_t i = 0; i < sizeof commands / sizeof commands[0]; i++)
         fprintf(out, "  %-8s %s\n", commands[i].name, commands[i].summary);
-    fprintf(out, "\n'stillheart COMMAND --help' documents each command.\n");
+    fprintf(out, "\noptions:\n"
+                 "  -h, --help   this text\n"
+                 "  --version    the version\n\n"
+                 "'stillheart COMMAND --help' documents each command.\n");
 }
 
 int main(int argc, char **argv)

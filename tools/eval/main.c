@@ -433,6 +433,6 @@ int main(int argc, char **argv)
         return sh_cli_usage_error(&cli, "need --points and the stabilized video (and optionally the original)");
     sh_interp_params named;
     if (o.method && strcmp(o.method, "none") && sh_interp_params_parse(o.method, &named) != SH_OK)
-        return fail("--method");
+        return 1 + fail("--method"); /* a usage error, exit 2, as in warp and warp3d */
     return evaluate(&o, argv[optind], argc - optind == 2 ? argv[optind + 1] : NULL);
 }
