@@ -175,15 +175,10 @@ static double inv3(const double M[9], double inv[9])
     return det;
 }
 
-sh_status sh_camera_triangulate(const sh_calib_camera *const *cams, const double *uv, int n,
-                                double sigma_px, int max_iter, sh_triangulation *out)
+/* The linear guess X: (x r3 - r1) . X = t1 - x t3, (y r3 - r2) . X = t2 - y t3 on undistorted
+ * coordinates, in least squares. */
+static sh_status triangulate_linear(const sh_calib_camera *const *cams, const double *uv, int n, double *X)
 {
-    if (!cams || !uv || !out || n < 2 || n > SH_CAMERA_MAX_VIEWS)
-        return sh_error_set(SH_EINVAL, "triangulate: need 2 to %d views, got %d",
-                            SH_CAMERA_MAX_VIEWS, n);
-    if (sigma_px <= 0) sigma_px = 1;
-    if (max_iter <= 0) max_iter = 10;
-    /* linear: (x r3 - r1) . X = t1 - x t3, (y r3 - r2) . X = t2 - y t3 on undistorted coords */
     double M[9] = {0}, b[3] = {0};
     for (int i = 0; i < n; i++) {
         double xn[2];
@@ -210,11 +205,16 @@ sh_status sh_camera_triangulate(const sh_calib_camera *const *cams, const double
     double det = inv3(M, Mi);
     if (!(det > 1e-12 * tr * tr * tr))
         return sh_error_set(SH_EDEGENERATE, "triangulate: rays are (nearly) parallel");
-    double X[3];
     for (int j = 0; j < 3; j++) X[j] = Mi[3 * j] * b[0] + Mi[3 * j + 1] * b[1] + Mi[3 * j + 2] * b[2];
+    return SH_OK;
+}
 
-    /* Gauss-Newton on the pixel reprojection error, distortion included */
-    double JtJ[9], JtJi[9];
+/* Gauss-Newton on the pixel reprojection error, distortion included, from X (refined in place):
+ * at most max_iter steps; JtJi the inverse normal matrix at the result. */
+static sh_status triangulate_refine(const sh_calib_camera *const *cams, const double *uv, int n, int max_iter,
+                                   double *X, double *JtJi, int *iterations)
+{
+    double JtJ[9];
     int it = 0;
     for (;; it++) {
         double g[3] = {0};
@@ -256,6 +256,24 @@ sh_status sh_camera_triangulate(const sh_calib_camera *const *cams, const double
             break;
         }
     }
+    *iterations = it;
+    return SH_OK;
+}
+
+sh_status sh_camera_triangulate(const sh_calib_camera *const *cams, const double *uv, int n,
+                                double sigma_px, int max_iter, sh_triangulation *out)
+{
+    if (!cams || !uv || !out || n < 2 || n > SH_CAMERA_MAX_VIEWS)
+        return sh_error_set(SH_EINVAL, "triangulate: need 2 to %d views, got %d",
+                            SH_CAMERA_MAX_VIEWS, n);
+    if (sigma_px <= 0) sigma_px = 1;
+    if (max_iter <= 0) max_iter = 10;
+    double X[3], JtJi[9];
+    int it = 0;
+    sh_status st = triangulate_linear(cams, uv, n, X);
+    if (st) return st;
+    st = triangulate_refine(cams, uv, n, max_iter, X, JtJi, &it);
+    if (st) return st;
     double ss = 0, mx = 0;
     for (int i = 0; i < n; i++) {
         double p[2];

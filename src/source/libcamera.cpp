@@ -499,6 +499,94 @@ sh_status camera_controls(Camera *cam, const char *name, const sh_source_options
     return SH_OK;
 }
 
+// The camera NAME names (an id, a substring of one or an index) into m->camera.
+sh_status find_camera(CameraManager *cm, const char *name, Impl *m)
+{
+    std::string want(name), ids;
+    {
+        // the list holds every camera: it must be gone before the manager can go
+        auto cams = cm->cameras();
+        for (size_t i = 0; i < cams.size(); i++) {
+            const std::string &id = cams[i]->id();
+            ids += (ids.empty() ? "" : ", ") + id;
+            if (!m->camera &&
+                (id == want || want == std::to_string(i) || (!want.empty() && id.find(want) != std::string::npos)))
+                m->camera = cams[i];
+        }
+    }
+    if (!m->camera)
+        return sh_error_set(SH_EIO, "libcamera:%s: no such camera (found: %s)", name, ids.empty() ? "none" : ids.c_str());
+    return SH_OK;
+}
+
+// Acquires and configures m's camera: one stream, the format and size asked kept by validation;
+// *got its format.
+sh_status configure_stream(Impl *m, const char *name, const sh_source_options *o, sh_rawfmt *got)
+{
+    if (m->camera->acquire() != 0) return sh_error_set(SH_EIO, "libcamera:%s: camera busy", name);
+    m->acquired = true;
+    m->config = m->camera->generateConfiguration({StreamRole::VideoRecording});
+    if (!m->config || m->config->size() < 1)
+        return sh_error_set(SH_EUNSUPPORTED, "libcamera:%s: no video configuration", name);
+    StreamConfiguration &sc = m->config->at(0);
+    if (o->format >= 0) {
+        PixelFormat pf = from_raw((sh_rawfmt)o->format);
+        if (!pf.isValid())
+            return sh_error_set(SH_EUNSUPPORTED, "libcamera:%s: format %s not supported", name,
+                                sh_rawfmt_name((sh_rawfmt)o->format));
+        sc.pixelFormat = pf;
+    }
+    if (o->width > 0 && o->height > 0) sc.size = Size((unsigned)o->width, (unsigned)o->height);
+    sc.bufferCount = (unsigned)(o->buffers > 0 ? o->buffers : 4);
+    CameraConfiguration::Status vs = m->config->validate();
+    if (vs == CameraConfiguration::Invalid || !to_raw(sc.pixelFormat, got) ||
+        (o->format >= 0 && (int)*got != o->format) ||
+        (o->width > 0 && (int)sc.size.width != o->width) || (o->height > 0 && (int)sc.size.height != o->height))
+        return sh_error_set(SH_EUNSUPPORTED, "libcamera:%s: asked %dx%d %s, the camera gives %s", name, o->width,
+                            o->height, o->format >= 0 ? sh_rawfmt_name((sh_rawfmt)o->format) : "any",
+                            sc.toString().c_str());
+    sh_status st;
+    // before the allocator: the buffers would be this size
+    if ((st = sh_source_check_pixels(o, "libcamera", name, (int)sc.size.width, (int)sc.size.height)) != SH_OK)
+        return st;
+    if (m->camera->configure(m->config.get()) != 0)
+        return sh_error_set(SH_EIO, "libcamera:%s: configure %s failed", name, sc.toString().c_str());
+    m->stream = sc.stream();
+    return SH_OK;
+}
+
+// Allocates m's buffers, maps each once (need: the bytes a frame takes at least) and makes one
+// request per buffer.
+sh_status map_buffers(Impl *m, const char *name, size_t need)
+{
+    m->alloc = std::make_unique<FrameBufferAllocator>(m->camera);
+    if (m->alloc->allocate(m->stream) < 2) return sh_error_set(SH_EIO, "libcamera:%s: fewer than 2 buffers", name);
+    const auto &bufs = m->alloc->buffers(m->stream);
+    for (size_t i = 0; i < bufs.size(); i++) {
+        const FrameBuffer *fb = bufs[i].get();
+        const auto &planes = fb->planes();
+        // all planes in one dmabuf, back to back: one mapping, one frame pointer
+        int fd = planes[0].fd.get();
+        size_t start = planes[0].offset, end = (size_t)planes[0].offset + planes[0].length;
+        for (size_t p = 1; p < planes.size(); p++) {
+            if (planes[p].fd.get() != fd || planes[p].offset != end)
+                return sh_error_set(SH_EUNSUPPORTED, "libcamera:%s: planes not contiguous in one buffer", name);
+            end += planes[p].length;
+        }
+        void *map = mmap(nullptr, end, PROT_READ, MAP_SHARED, fd, 0);
+        m->maps.push_back(map);
+        m->map_len.push_back(end);
+        if (map == MAP_FAILED || end - start < need)
+            return sh_error_set(SH_EIO, "libcamera:%s: cannot map buffer %zu", name, i);
+        m->data.push_back((uint8_t *)map + start);
+        std::unique_ptr<Request> req = m->camera->createRequest(i);
+        if (!req || req->addBuffer(m->stream, bufs[i].get()) != 0)
+            return sh_error_set(SH_EIO, "libcamera:%s: cannot create request %zu", name, i);
+        m->requests.push_back(std::move(req));
+    }
+    return SH_OK;
+}
+
 // Looks the camera up, configures, allocates and maps; *out is left null on failure.
 sh_status open_camera(const char *name, const sh_source_options *o, Impl **out, sh_rawfmt *format, int *width,
                       int *height, int *stride_out)
@@ -512,115 +600,22 @@ sh_status open_camera(const char *name, const sh_source_options *o, Impl **out, 
         return sh_error_set(SH_ENOMEM, "libcamera:%s: out of memory", name);
     }
     removed_device_fds(&m->removed_before);
-    sh_status st = SH_OK;
-    std::string want(name), ids;
-    {
-        // the list holds every camera: it must be gone before the manager can go
-        auto cams = cm->cameras();
-        for (size_t i = 0; i < cams.size(); i++) {
-            const std::string &id = cams[i]->id();
-            ids += (ids.empty() ? "" : ", ") + id;
-            if (!m->camera &&
-                (id == want || want == std::to_string(i) || (!want.empty() && id.find(want) != std::string::npos)))
-                m->camera = cams[i];
-        }
-    }
-    if (!m->camera) {
-        st = sh_error_set(SH_EIO, "libcamera:%s: no such camera (found: %s)", name, ids.empty() ? "none" : ids.c_str());
+    sh_status st;
+    sh_rawfmt got = SH_RAW_MJPEG; // set by configure_stream
+    if ((st = find_camera(cm, name, m)) != SH_OK ||
+        (st = camera_controls(m->camera.get(), name, o, &m->initial)) != SH_OK ||
+        (st = configure_stream(m, name, o, &got)) != SH_OK) {
         destroy(m);
         return st;
     }
-    if ((st = camera_controls(m->camera.get(), name, o, &m->initial)) != SH_OK) {
-        destroy(m);
-        return st;
-    }
-    if (m->camera->acquire() != 0) {
-        st = sh_error_set(SH_EIO, "libcamera:%s: camera busy", name);
-        destroy(m);
-        return st;
-    }
-    m->acquired = true;
-    m->config = m->camera->generateConfiguration({StreamRole::VideoRecording});
-    if (!m->config || m->config->size() < 1) {
-        st = sh_error_set(SH_EUNSUPPORTED, "libcamera:%s: no video configuration", name);
-        destroy(m);
-        return st;
-    }
-    StreamConfiguration &sc = m->config->at(0);
-    if (o->format >= 0) {
-        PixelFormat pf = from_raw((sh_rawfmt)o->format);
-        if (!pf.isValid()) {
-            st = sh_error_set(SH_EUNSUPPORTED, "libcamera:%s: format %s not supported", name,
-                              sh_rawfmt_name((sh_rawfmt)o->format));
-            destroy(m);
-            return st;
-        }
-        sc.pixelFormat = pf;
-    }
-    if (o->width > 0 && o->height > 0) sc.size = Size((unsigned)o->width, (unsigned)o->height);
-    sc.bufferCount = (unsigned)(o->buffers > 0 ? o->buffers : 4);
-    CameraConfiguration::Status vs = m->config->validate();
-    sh_rawfmt got;
-    if (vs == CameraConfiguration::Invalid || !to_raw(sc.pixelFormat, &got) ||
-        (o->format >= 0 && (int)got != o->format) ||
-        (o->width > 0 && (int)sc.size.width != o->width) || (o->height > 0 && (int)sc.size.height != o->height)) {
-        st = sh_error_set(SH_EUNSUPPORTED, "libcamera:%s: asked %dx%d %s, the camera gives %s", name, o->width,
-                          o->height, o->format >= 0 ? sh_rawfmt_name((sh_rawfmt)o->format) : "any",
-                          sc.toString().c_str());
-        destroy(m);
-        return st;
-    }
-    if ((st = sh_source_check_pixels(o, "libcamera", name, (int)sc.size.width, (int)sc.size.height)) != SH_OK) {
-        destroy(m); /* before the allocator: the buffers would be this size */
-        return st;
-    }
-    if (m->camera->configure(m->config.get()) != 0) {
-        st = sh_error_set(SH_EIO, "libcamera:%s: configure %s failed", name, sc.toString().c_str());
-        destroy(m);
-        return st;
-    }
-    m->stream = sc.stream();
-    m->alloc = std::make_unique<FrameBufferAllocator>(m->camera);
-    if (m->alloc->allocate(m->stream) < 2) {
-        st = sh_error_set(SH_EIO, "libcamera:%s: fewer than 2 buffers", name);
-        destroy(m);
-        return st;
-    }
+    const StreamConfiguration &sc = m->config->at(0);
     int stride = (int)sc.stride;
     if (got != SH_RAW_MJPEG && stride < sh_rawfmt_min_stride(got, (int)sc.size.width))
         stride = sh_rawfmt_min_stride(got, (int)sc.size.width);
     size_t need = got == SH_RAW_MJPEG ? 1 : sh_raw_frame_size(got, (int)sc.size.width, (int)sc.size.height, stride);
-    const auto &bufs = m->alloc->buffers(m->stream);
-    for (size_t i = 0; i < bufs.size(); i++) {
-        const FrameBuffer *fb = bufs[i].get();
-        const auto &planes = fb->planes();
-        // all planes in one dmabuf, back to back: one mapping, one frame pointer
-        int fd = planes[0].fd.get();
-        size_t start = planes[0].offset, end = (size_t)planes[0].offset + planes[0].length;
-        for (size_t p = 1; p < planes.size(); p++) {
-            if (planes[p].fd.get() != fd || planes[p].offset != end) {
-                st = sh_error_set(SH_EUNSUPPORTED, "libcamera:%s: planes not contiguous in one buffer", name);
-                destroy(m);
-                return st;
-            }
-            end += planes[p].length;
-        }
-        void *map = mmap(nullptr, end, PROT_READ, MAP_SHARED, fd, 0);
-        m->maps.push_back(map);
-        m->map_len.push_back(end);
-        if (map == MAP_FAILED || end - start < need) {
-            st = sh_error_set(SH_EIO, "libcamera:%s: cannot map buffer %zu", name, i);
-            destroy(m);
-            return st;
-        }
-        m->data.push_back((uint8_t *)map + start);
-        std::unique_ptr<Request> req = m->camera->createRequest(i);
-        if (!req || req->addBuffer(m->stream, bufs[i].get()) != 0) {
-            st = sh_error_set(SH_EIO, "libcamera:%s: cannot create request %zu", name, i);
-            destroy(m);
-            return st;
-        }
-        m->requests.push_back(std::move(req));
+    if ((st = map_buffers(m, name, need)) != SH_OK) {
+        destroy(m);
+        return st;
     }
     m->efd = eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC);
     if (m->efd < 0) {

@@ -153,18 +153,12 @@ static int confirmed_return(sh_tracker *t, marker *mk, int c, const sh_detection
     return mk->pend_agree[c] >= TRK_CONFIRM;
 }
 
-/* Gates, triangulates (3D) and applies this frame's detections of marker i. */
-void trk_update_marker(sh_tracker *t, int i, const sh_detection *const *det, int num_cameras)
+/* A marker unseen for a while: its prediction corrected by its neighbours, as reported, in
+ * shift with variance fvar; returns whether it is (not when its detection agrees with the other
+ * markers' detections: that is the better evidence, consensus.c). */
+static int fused_shift(sh_tracker *t, marker *mk, int i, double *shift, double *fvar)
 {
-    double sig2 = t->o.meas_sigma * t->o.meas_sigma;
-    marker *mk = &t->m[i];
-    double uv[2 * MAXC];
-    const sh_calib_camera *vc[MAXC];
-    int cam_of[MAXC], nv = 0, gated_now = 0;
-    /* a marker unseen for a while: its prediction corrected by its neighbours, as reported */
-    double shift[3] = {0, 0, 0}, fvar[3] = {0, 0, 0}, corr[3], vs[3];
-    /* (not when its detection agrees with the other markers' detections: that is the better
-     * evidence, consensus.c) */
+    double corr[3], vs[3];
     int fused = mk->cons != 1 && (!t->locked || t->frame < mk->cut_until) && t->o.spatial == SH_SPATIAL_FUSE &&
                 mk->init && mk->age > 1 &&
                 trk_spatial_estimate(t, mk, i, corr, vs);
@@ -176,6 +170,130 @@ void trk_update_marker(sh_tracker *t, int i, const sh_detection *const *det, int
             fvar[a] = var[a] * vs[a] / (var[a] + vs[a]);
         }
     }
+    return fused;
+}
+
+/* Whether detection d of marker mk in camera c passes the shape test, the gate and, for a lost
+ * or suspect marker, the confirmation; counts what it refuses. shift: the fused correction of
+ * the prediction or NULL; *gated_now: set once a detection of this frame failed the gate. */
+static int detection_accepted(sh_tracker *t, marker *mk, int c, const sh_detection *d, const double *shift,
+                              const double *fvar, int *gated_now)
+{
+    double sig2 = t->o.meas_sigma * t->o.meas_sigma;
+    double z[2] = {d->cx, d->cy};
+    /* Before the rates lock, a lost marker's constant-velocity prediction has drifted on for
+     * longer than it is worth (it is lost after 0.2 s), and neither it nor the offsets from it
+     * settle, so gating against it kept the marker lost for good: a start that drops frames
+     * (a busy box at 1080p) lost most markers that way and never stabilized. It starts
+     * afresh, as at its first sighting, from its next detection that passes the shape test. */
+    int well_shaped = trk_quad_check(t, mk, c, d);
+    if (!t->locked && mk->lost && t->dim == 2 && well_shaped) mk->init = 0;
+    if (!well_shaped) {
+        t->stats.misshapen++;
+        /* an occluder is cutting this tag: its next quads may be cut in ways the shape test
+         * cannot see (a side moved along itself), so they need confirming for a while */
+        mk->suspect_until = mk->cut_until = t->frame + (int)ceil(t->o.fps * TRK_SUSPECT_S);
+        return 0;
+    }
+    /* every detection of a known marker is gated, a lost one's too (its covariance has
+     * grown with the time unseen); only a run of rejections as long as the reacquire
+     * delay lets a lost marker restart from the detections alone */
+    int valve = 0;
+    if (mk->lost && mk->rejects >= (int)ceil(t->o.fps * 0.5)) {
+        /* ... and only when those detections agree with each other (a steady offset) */
+        double mx = mk->rej_sum[0] / mk->rejects, my = mk->rej_sum[1] / mk->rejects;
+        double spread2 = mk->rej_ss / mk->rejects - mx * mx - my * my;
+        valve = spread2 < 1.5 * 1.5;
+    }
+    if (!mk->init || valve) return 1;
+    double xy[2], S[4];
+    if (!trk_predicted_xy(t, mk, c, shift, fvar, xy, S)) {
+        t->stats.gated++;
+        return 0;
+    }
+    S[0] += sig2;
+    S[3] += sig2;
+    double e0 = z[0] - xy[0], e1 = z[1] - xy[1];
+    double dt = S[0] * S[3] - S[1] * S[2];
+    double m2 = (S[3] * e0 * e0 - (S[1] + S[2]) * e0 * e1 + S[0] * e1 * e1) / dt;
+    if (!(m2 <= t->o.gate)) {
+        t->stats.gated++;
+        if (!*gated_now) {
+            if (mk->rejects == 0) mk->rej_sum[0] = mk->rej_sum[1] = mk->rej_ss = 0;
+            mk->rej_sum[0] += e0;
+            mk->rej_sum[1] += e1;
+            mk->rej_ss += e0 * e0 + e1 * e1;
+        }
+        *gated_now = 1;
+        return 0;
+    }
+    if ((mk->lost || t->frame < mk->suspect_until) && !confirmed_return(t, mk, c, d, e0, e1)) {
+        t->stats.held++;
+        return 0;
+    }
+    return 1;
+}
+
+/* Keeps the extent of an accepted quad around its centre in camera c (a sane one only). */
+static void learn_extent(sh_tracker *t, marker *mk, int c, const sh_detection *d)
+{
+    double ext = 0;
+    for (int q = 0; q < 4; q++)
+        ext = fmax(ext, hypot(d->corner[q][0] - d->cx, d->corner[q][1] - d->cy));
+    if (isfinite(ext) && ext < 0.5 * t->o.width) {
+        mk->extent[c] = ext;
+        for (int a = 0; a < 2; a++) {
+            double h = 0;
+            for (int q = 0; q < 4; q++) h = fmax(h, fabs(d->corner[q][a] - (a ? d->cy : d->cx)));
+            mk->half[c][a] = h;
+        }
+    }
+}
+
+/* The measurement zm and its variances rm from the nv accepted views uv (cameras vc): the pixel
+ * itself in 2D, the triangulated point in 3D; 0 when the views do not make one. */
+static int measurement(sh_tracker *t, const sh_calib_camera *const *vc, const double *uv, int nv, double *zm,
+                       double *rm)
+{
+    double sig2 = t->o.meas_sigma * t->o.meas_sigma;
+    if (t->dim == 2) {
+        zm[0] = uv[0];
+        zm[1] = uv[1];
+        rm[0] = rm[1] = sig2;
+        return 1;
+    }
+    if (nv < 2) return 0; /* one view does not fix a point in space */
+    sh_triangulation tr;
+    int pair;
+    if (!trk_triangulate(t, vc, uv, nv, &tr, &pair)) {
+        t->stats.inconsistent++;
+        return 0;
+    }
+    t->stats.inconsistent += pair; /* one view of three dropped */
+    if (t->unit == 0) {
+        /* mm per pixel at this depth in camera 0: the scale of the pixel-valued options */
+        double C[3];
+        sh_camera_center(t->cams[0], C);
+        double dd = sqrt((tr.X[0] - C[0]) * (tr.X[0] - C[0]) + (tr.X[1] - C[1]) * (tr.X[1] - C[1]) +
+                         (tr.X[2] - C[2]) * (tr.X[2] - C[2]));
+        t->unit = dd / t->cams[0]->K[0];
+    }
+    for (int a = 0; a < 3; a++) {
+        zm[a] = tr.X[a];
+        rm[a] = tr.cov[4 * a];
+    }
+    return 1;
+}
+
+/* Gates, triangulates (3D) and applies this frame's detections of marker i. */
+void trk_update_marker(sh_tracker *t, int i, const sh_detection *const *det, int num_cameras)
+{
+    marker *mk = &t->m[i];
+    double uv[2 * MAXC];
+    const sh_calib_camera *vc[MAXC];
+    int cam_of[MAXC], nv = 0, gated_now = 0;
+    double shift[3] = {0, 0, 0}, fvar[3] = {0, 0, 0};
+    int fused = fused_shift(t, mk, i, shift, fvar);
     for (int c = 0; c < num_cameras; c++) {
         if (mk->ndet[c] == 0) continue;
         if (mk->ndet[c] > 1) {
@@ -183,71 +301,10 @@ void trk_update_marker(sh_tracker *t, int i, const sh_detection *const *det, int
             continue;
         }
         const sh_detection *d = &det[c][mk->det[c]];
-        double z[2] = {d->cx, d->cy};
-        /* Before the rates lock, a lost marker's constant-velocity prediction has drifted on for
-         * longer than it is worth (it is lost after 0.2 s), and neither it nor the offsets from it
-         * settle, so gating against it kept the marker lost for good: a start that drops frames
-         * (a busy box at 1080p) lost most markers that way and never stabilized. It starts
-         * afresh, as at its first sighting, from its next detection that passes the shape test. */
-        int well_shaped = trk_quad_check(t, mk, c, d);
-        if (!t->locked && mk->lost && t->dim == 2 && well_shaped) mk->init = 0;
-        if (!well_shaped) {
-            t->stats.misshapen++;
-            /* an occluder is cutting this tag: its next quads may be cut in ways the shape test
-             * cannot see (a side moved along itself), so they need confirming for a while */
-            mk->suspect_until = mk->cut_until = t->frame + (int)ceil(t->o.fps * TRK_SUSPECT_S);
-            continue;
-        }
-        /* every detection of a known marker is gated, a lost one's too (its covariance has
-         * grown with the time unseen); only a run of rejections as long as the reacquire
-         * delay lets a lost marker restart from the detections alone */
-        int valve = 0;
-        if (mk->lost && mk->rejects >= (int)ceil(t->o.fps * 0.5)) {
-            /* ... and only when those detections agree with each other (a steady offset) */
-            double mx = mk->rej_sum[0] / mk->rejects, my = mk->rej_sum[1] / mk->rejects;
-            double spread2 = mk->rej_ss / mk->rejects - mx * mx - my * my;
-            valve = spread2 < 1.5 * 1.5;
-        }
-        if (mk->init && !valve) {
-            double xy[2], S[4];
-            if (!trk_predicted_xy(t, mk, c, fused ? shift : NULL, fvar, xy, S)) {
-                t->stats.gated++;
-                continue;
-            }
-            S[0] += sig2;
-            S[3] += sig2;
-            double e0 = z[0] - xy[0], e1 = z[1] - xy[1];
-            double dt = S[0] * S[3] - S[1] * S[2];
-            double m2 = (S[3] * e0 * e0 - (S[1] + S[2]) * e0 * e1 + S[0] * e1 * e1) / dt;
-            if (!(m2 <= t->o.gate)) {
-                t->stats.gated++;
-                if (!gated_now) {
-                    if (mk->rejects == 0) mk->rej_sum[0] = mk->rej_sum[1] = mk->rej_ss = 0;
-                    mk->rej_sum[0] += e0;
-                    mk->rej_sum[1] += e1;
-                    mk->rej_ss += e0 * e0 + e1 * e1;
-                }
-                gated_now = 1;
-                continue;
-            }
-            if ((mk->lost || t->frame < mk->suspect_until) && !confirmed_return(t, mk, c, d, e0, e1)) {
-                t->stats.held++;
-                continue;
-            }
-        }
-        double ext = 0;
-        for (int q = 0; q < 4; q++)
-            ext = fmax(ext, hypot(d->corner[q][0] - d->cx, d->corner[q][1] - d->cy));
-        if (isfinite(ext) && ext < 0.5 * t->o.width) {
-            mk->extent[c] = ext;
-            for (int a = 0; a < 2; a++) {
-                double h = 0;
-                for (int q = 0; q < 4; q++) h = fmax(h, fabs(d->corner[q][a] - (a ? d->cy : d->cx)));
-                mk->half[c][a] = h;
-            }
-        }
-        uv[2 * nv] = z[0];
-        uv[2 * nv + 1] = z[1];
+        if (!detection_accepted(t, mk, c, d, fused ? shift : NULL, fvar, &gated_now)) continue;
+        learn_extent(t, mk, c, d);
+        uv[2 * nv] = d->cx;
+        uv[2 * nv + 1] = d->cy;
         vc[nv] = t->cams[c];
         cam_of[nv++] = c;
     }
@@ -256,36 +313,10 @@ void trk_update_marker(sh_tracker *t, int i, const sh_detection *const *det, int
         return;
     }
     double zm[3], rm[3];
-    if (t->dim == 2) {
-        zm[0] = uv[0];
-        zm[1] = uv[1];
-        rm[0] = rm[1] = sig2;
-    } else {
-        if (nv < 2) return; /* one view does not fix a point in space */
-        sh_triangulation tr;
-        int pair;
-        if (!trk_triangulate(t, vc, uv, nv, &tr, &pair)) {
-            t->stats.inconsistent++;
-            return;
-        }
-        t->stats.inconsistent += pair; /* one view of three dropped */
-        if (t->unit == 0) {
-            /* mm per pixel at this depth in camera 0: the scale of the pixel-valued options */
-            double C[3];
-            sh_camera_center(t->cams[0], C);
-            double dd = sqrt((tr.X[0] - C[0]) * (tr.X[0] - C[0]) + (tr.X[1] - C[1]) * (tr.X[1] - C[1]) +
-                             (tr.X[2] - C[2]) * (tr.X[2] - C[2]));
-            t->unit = dd / t->cams[0]->K[0];
-        }
-        for (int a = 0; a < 3; a++) {
-            zm[a] = tr.X[a];
-            rm[a] = tr.cov[4 * a];
-        }
-    }
+    if (!measurement(t, vc, uv, nv, zm, rm)) return;
     t->stats.accepted += nv;
     mk->rejects = 0;
     apply_measurement(t, i, zm, rm);
     for (int v = 0; v < nv; v++) mk->used[cam_of[v]] = 1;
     for (int v = 0; v < nv; v++) trk_quad_learn(t, mk, cam_of[v], &det[cam_of[v]][mk->det[cam_of[v]]]);
 }
-

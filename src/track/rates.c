@@ -346,16 +346,35 @@ static void filter_from_fit(sh_tracker *t, axis_filter *f, const double *coef, c
         }
 }
 
-void trk_estimate_rates(sh_tracker *t)
+/* Removes the mean and linear trend of x's valid samples in place; returns their variance. */
+static double detrend(double *x, int n)
 {
-    int n = SH_TRACK_HISTORY;
-    if (t->hist_last + 1 < n) n = (int)(t->hist_last + 1);
-    double ts = t->decim / t->o.fps;
-    if (n * ts < 4.0 || n < 32) return; /* at least 4 s of track */
-    /* candidate series: markers with >= 60% valid samples, detrended; keep the largest */
+    double s0 = 0, s1 = 0, s2 = 0, sx = 0, stx = 0;
+    for (int j = 0; j < n; j++)
+        if (!isnan(x[j])) {
+            s0 += 1;
+            s1 += j;
+            s2 += (double)j * j;
+            sx += x[j];
+            stx += j * x[j];
+        }
+    double det = s0 * s2 - s1 * s1;
+    double b = det > 0 ? (s0 * stx - s1 * sx) / det : 0, a0 = (sx - b * s1) / s0;
+    double v = 0;
+    for (int j = 0; j < n; j++)
+        if (!isnan(x[j])) {
+            x[j] -= a0 + b * j;
+            v += x[j] * x[j];
+        }
+    return v / s0;
+}
+
+/* Candidate series, detrended in t->scratch: every tracked (marker, axis) with >= 60 % valid
+ * samples; the RATE_SERIES of largest variance go to top. Returns how many went there. */
+static int top_series(sh_tracker *t, int n, double **top)
+{
     double *ser[MAXM * 3];
     double var[MAXM * 3];
-    int owner[MAXM * 3];
     int ns = 0;
     for (int mi = 0; mi < t->nm; mi++) {
         if (!t->m[mi].init) continue;
@@ -363,88 +382,67 @@ void trk_estimate_rates(sh_tracker *t)
             double *x = t->scratch + (size_t)ns * SH_TRACK_HISTORY;
             int valid = gather(t, mi, a, x, n);
             if (valid < 0.6 * n) continue;
-            /* remove mean and linear trend */
-            double s0 = 0, s1 = 0, s2 = 0, sx = 0, stx = 0;
-            for (int j = 0; j < n; j++)
-                if (!isnan(x[j])) {
-                    s0 += 1;
-                    s1 += j;
-                    s2 += (double)j * j;
-                    sx += x[j];
-                    stx += j * x[j];
-                }
-            double det = s0 * s2 - s1 * s1;
-            double b = det > 0 ? (s0 * stx - s1 * sx) / det : 0, a0 = (sx - b * s1) / s0;
-            double v = 0;
-            for (int j = 0; j < n; j++)
-                if (!isnan(x[j])) {
-                    x[j] -= a0 + b * j;
-                    v += x[j] * x[j];
-                }
-            var[ns] = v / s0;
-            owner[ns] = mi;
+            var[ns] = detrend(x, n);
             ser[ns++] = x;
         }
     }
-    if (ns < 1) return;
-    /* the RATE_SERIES series of largest variance */
-    double *top[RATE_SERIES];
     int ntop = 0;
-    {
-        unsigned char used[MAXM * 3] = {0};
-        for (; ntop < RATE_SERIES && ntop < ns; ntop++) {
-            int bi = -1;
-            for (int i = 0; i < ns; i++)
-                if (!used[i] && (bi < 0 || var[i] > var[bi])) bi = i;
-            used[bi] = 1;
-            top[ntop] = ser[bi];
-        }
+    unsigned char used[MAXM * 3] = {0};
+    for (; ntop < RATE_SERIES && ntop < ns; ntop++) {
+        int bi = -1;
+        for (int i = 0; i < ns; i++)
+            if (!used[i] && (bi < 0 || var[i] > var[bi])) bi = i;
+        used[bi] = 1;
+        top[ntop] = ser[bi];
     }
-    double u = t->unit > 0 ? t->unit : 1;
-    double noise2 = t->o.meas_sigma * t->o.meas_sigma * u * u, fl = sqrt(noise2);
-    double fh = search_rate(t, top, ntop, n, ts, t->o.heart_min_hz, t->o.heart_max_hz, t->o.heart_harmonics);
+    return ntop;
+}
+
+/* Respiration, searched on the residual of the heart fit (top is changed to it); kept only when
+ * it explains a good part of the motion, well above the noise. Returns its harmonics (0: none)
+ * and its rate in *fr. */
+static int search_resp(sh_tracker *t, double **top, int ntop, int n, double ts, double fh, const double *trend,
+                       int m_trend, double noise2, double *fr)
+{
     double coef[NC], cov[NC * NC];
-    int m, m_trend;
-    double fr = 0;
-    int nr = 0;
-    const double *trend = basis_table(t, 1, n, ts, 0, 0, 0, 0, &m_trend);
-    if (t->o.resp_harmonics > 0 && n * ts >= 6.0) {
-        /* respiration on the residual of the heart fit */
-        const double *heart = basis_table(t, 0, n, ts, fh, t->o.heart_harmonics, 0, 0, &m);
-        for (int i = 0; i < ntop; i++) {
-            double r = fit_series(top[i], n, heart, m, coef, cov, -1);
-            if (r < 0) continue;
-            for (int j = 0; j < n; j++) {
-                if (isnan(top[i][j])) continue;
-                const double *phi = heart + (size_t)j * NC;
-                double v = 0;
-                for (int k = 2; k < m; k++) v += phi[k] * coef[k];
-                top[i][j] -= v;
-            }
-        }
-        double lo = fmax(t->o.resp_min_hz, 1.5 / (n * ts));
-        if (lo < t->o.resp_max_hz) {
-            double f = search_rate(t, top, ntop, n, ts, lo, t->o.resp_max_hz, t->o.resp_harmonics);
-            double exr = 0, totr = 0;
-            int m_resp;
-            const double *resp = basis_table(t, 2, n, ts, 0, 0, f, t->o.resp_harmonics, &m_resp);
-            for (int i = 0; i < ntop; i++) {
-                double r0 = fit_series(top[i], n, trend, m_trend, coef, cov, -1);
-                double r1 = fit_series(top[i], n, resp, m_resp, coef, cov, -1);
-                if (r0 < 0 || r1 < 0) continue;
-                exr += r0 * r0 - r1 * r1;
-                totr += r0 * r0;
-            }
-            if (totr > 0 && exr > 0.3 * totr && exr / ntop > 4 * noise2) {
-                fr = f;
-                nr = t->o.resp_harmonics;
-            }
+    int m;
+    const double *heart = basis_table(t, 0, n, ts, fh, t->o.heart_harmonics, 0, 0, &m);
+    for (int i = 0; i < ntop; i++) {
+        double r = fit_series(top[i], n, heart, m, coef, cov, -1);
+        if (r < 0) continue;
+        for (int j = 0; j < n; j++) {
+            if (isnan(top[i][j])) continue;
+            const double *phi = heart + (size_t)j * NC;
+            double v = 0;
+            for (int k = 2; k < m; k++) v += phi[k] * coef[k];
+            top[i][j] -= v;
         }
     }
-    /* is there a heartbeat at all? the heart harmonics must carry motion well above the noise, and
-     * the whole model must explain most of the motion */
+    double lo = fmax(t->o.resp_min_hz, 1.5 / (n * ts));
+    if (!(lo < t->o.resp_max_hz)) return 0;
+    double f = search_rate(t, top, ntop, n, ts, lo, t->o.resp_max_hz, t->o.resp_harmonics);
+    double exr = 0, totr = 0;
+    int m_resp;
+    const double *resp = basis_table(t, 2, n, ts, 0, 0, f, t->o.resp_harmonics, &m_resp);
+    for (int i = 0; i < ntop; i++) {
+        double r0 = fit_series(top[i], n, trend, m_trend, coef, cov, -1);
+        double r1 = fit_series(top[i], n, resp, m_resp, coef, cov, -1);
+        if (r0 < 0 || r1 < 0) continue;
+        exr += r0 * r0 - r1 * r1;
+        totr += r0 * r0;
+    }
+    if (!(totr > 0 && exr > 0.3 * totr && exr / ntop > 4 * noise2)) return 0;
+    *fr = f;
+    return t->o.resp_harmonics;
+}
+
+/* Is there a heartbeat at all? The heart harmonics must carry motion well above the noise, and
+ * the whole model (full, m terms) must explain most of the motion. */
+static int heart_present(sh_tracker *t, int n, const double *full, int m, const double *trend, int m_trend,
+                         double fl, double noise2)
+{
+    double coef[NC], cov[NC * NC];
     double exh = 0, res = 0, tot = 0;
-    const double *full = basis_table(t, 3, n, ts, fh, t->o.heart_harmonics, fr, nr, &m);
     for (int mi = 0, q = 0; mi < t->nm && q < RATE_SERIES; mi++) {
         if (!t->m[mi].init) continue;
         for (int a = 0; a < t->dim && q < RATE_SERIES; a++) {
@@ -462,26 +460,20 @@ void trk_estimate_rates(sh_tracker *t)
             q++;
         }
     }
-    (void)owner;
-    if (!(tot > 0) || res > 0.5 * tot || exh / RATE_SERIES < 4 * noise2) return;
-    int restructure = !t->locked || nr != t->nr || fabs(fh - t->fh) > 0.05 * t->fh ||
-                      (nr && fabs(fr - t->fr) > 0.1 * t->fr);
-    t->fh = fh;
-    t->fr = fr;
-    t->nh = t->o.heart_harmonics;
-    t->nr = nr;
-    t->stats.heart_hz = fh;
-    t->stats.resp_hz = fr;
-    if (!restructure) return;
-    t->fresh_fit = 1;
-    /* (re)initialise every marker's filters from a fit of its own history */
-    int was_locked = t->locked;
-    t->locked = 1;
+    return !(!(tot > 0) || res > 0.5 * tot || exh / RATE_SERIES < 4 * noise2);
+}
+
+/* (Re)initialises every marker's filters from a fit of its own history (full, m terms) after the
+ * rates changed; was_locked: whether they were locked before. */
+static void refit_filters(sh_tracker *t, int n, double ts, const double *full, int m, double fl, double noise2,
+                          int was_locked)
+{
+    double coef[NC], cov[NC * NC];
+    double u = t->unit > 0 ? t->unit : 1;
     double tmid = 0.5 * (n - 1) * ts, tn = (n - 1) * ts;
     /* the newest sample is frame hist_last * decim; now is t->frame */
     double now = tn + (t->frame - t->hist_last * t->decim) / t->o.fps;
     double *x = t->scratch; /* reuse: the series are no longer needed */
-    (void)owner;
     for (int mi = 0; mi < t->nm; mi++) {
         marker *mk = &t->m[mi];
         if (!mk->init) continue;
@@ -511,5 +503,40 @@ void trk_estimate_rates(sh_tracker *t)
             /* locked before and too little history: keep the running filter */
         }
     }
+}
+
+void trk_estimate_rates(sh_tracker *t)
+{
+    int n = SH_TRACK_HISTORY;
+    if (t->hist_last + 1 < n) n = (int)(t->hist_last + 1);
+    double ts = t->decim / t->o.fps;
+    if (n * ts < 4.0 || n < 32) return; /* at least 4 s of track */
+    double *top[RATE_SERIES];
+    int ntop = top_series(t, n, top);
+    if (ntop < 1) return;
+    double u = t->unit > 0 ? t->unit : 1;
+    double noise2 = t->o.meas_sigma * t->o.meas_sigma * u * u, fl = sqrt(noise2);
+    double fh = search_rate(t, top, ntop, n, ts, t->o.heart_min_hz, t->o.heart_max_hz, t->o.heart_harmonics);
+    int m, m_trend;
+    double fr = 0;
+    int nr = 0;
+    const double *trend = basis_table(t, 1, n, ts, 0, 0, 0, 0, &m_trend);
+    if (t->o.resp_harmonics > 0 && n * ts >= 6.0)
+        nr = search_resp(t, top, ntop, n, ts, fh, trend, m_trend, noise2, &fr);
+    const double *full = basis_table(t, 3, n, ts, fh, t->o.heart_harmonics, fr, nr, &m);
+    if (!heart_present(t, n, full, m, trend, m_trend, fl, noise2)) return;
+    int restructure = !t->locked || nr != t->nr || fabs(fh - t->fh) > 0.05 * t->fh ||
+                      (nr && fabs(fr - t->fr) > 0.1 * t->fr);
+    t->fh = fh;
+    t->fr = fr;
+    t->nh = t->o.heart_harmonics;
+    t->nr = nr;
+    t->stats.heart_hz = fh;
+    t->stats.resp_hz = fr;
+    if (!restructure) return;
+    t->fresh_fit = 1;
+    int was_locked = t->locked;
+    t->locked = 1;
+    refit_filters(t, n, ts, full, m, fl, noise2, was_locked);
     t->stats.locked = 1;
 }

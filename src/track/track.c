@@ -276,22 +276,10 @@ int sh_tracker_rescan(const sh_tracker *t, int cam, const sh_detection *det, int
     return expected >= 3 && 2 * found < expected;
 }
 
-sh_status sh_tracker_update(sh_tracker *t, const sh_detection *const *det, const int *count,
-                            int num_cameras)
+/* Counts each marker's detections per camera (a negative or untracked id, or a centre not
+ * finite, counts as unknown); with auto ids an unseen id takes a new slot. */
+static void assign_detections(sh_tracker *t, const sh_detection *const *det, const int *count, int num_cameras)
 {
-    if (!t || (num_cameras > 0 && (!det || !count)))
-        return sh_error_set(SH_EINVAL, "tracker update: missing detections");
-    if (!t->started) return sh_error_set(SH_EINVAL, "tracker update: sh_tracker_predict first");
-    if (t->updated) return sh_error_set(SH_EINVAL, "tracker update: frame %d updated twice", t->frame);
-    if (num_cameras != t->ncam)
-        return sh_error_set(SH_EINVAL, "tracker update: %d cameras given, the tracker has %d",
-                            num_cameras, t->ncam);
-    for (int c = 0; c < num_cameras; c++)
-        if (count[c] < 0 || count[c] > SH_TRACK_MAX_DETECTIONS || (count[c] > 0 && !det[c]))
-            return sh_error_set(SH_ERANGE, "tracker update: camera %d: %d detections (at most %d)",
-                                c, count[c], SH_TRACK_MAX_DETECTIONS);
-    t->updated = 1;
-    t->stats.frames++;
     for (int i = 0; i < t->nm; i++)
         for (int c = 0; c < MAXC; c++) t->m[i].ndet[c] = t->m[i].used[c] = 0;
     /* ids: count per camera, new slots for unseen ids in auto mode */
@@ -314,23 +302,11 @@ sh_status sh_tracker_update(sh_tracker *t, const sh_detection *const *det, const
             }
             if (t->m[s].ndet[c]++ == 0) t->m[s].det[c] = k;
         }
-    trk_calib_observe(t, det, num_cameras);
-    /* the detections against each other first: a motion they agree on is taken at once */
-    trk_consensus(t, det, num_cameras);
-    /* markers the spatial model can vouch for are gated against it: first every marker whose own
-     * prediction is sure (seen last frame, or rates not locked yet), then the others against
-     * their prediction corrected by those neighbours (a marker unseen for a while has a wide
-     * gate of its own, which a partly hidden tag's quad would pass) */
-    for (int pass = 0; pass < 2; pass++)
-        for (int i = 0; i < t->nm; i++) {
-            marker *mk = &t->m[i];
-            int vouch = (!t->locked || t->frame < mk->cut_until) &&
-                        t->o.spatial == SH_SPATIAL_FUSE && mk->init && mk->age > 1;
-            if (vouch != pass) continue;
-            trk_update_marker(t, i, det, num_cameras);
-            if (pass == 0 && mk->measured) trk_marker_pos(t, mk, mk->pos, NULL);
-        }
-    /* the detections that are evidence, for a safety gate downstream */
+}
+
+/* The detections that are evidence, for a safety gate downstream. */
+static void keep_evidence(sh_tracker *t, const sh_detection *const *det)
+{
     for (int i = 0; i < t->nm; i++) {
         marker *mk = &t->m[i];
         for (int c = 0; c < t->ncam; c++) {
@@ -343,19 +319,26 @@ sh_status sh_tracker_update(sh_tracker *t, const sh_detection *const *det, const
             }
         }
     }
-    /* this frame's states for the spatial model */
-    {
-        int q = t->frame % t->ring_len;
-        t->ring_frame[q] = t->frame;
-        double *rx = t->ring_x + (size_t)q * MAXM * 3 * NS;
-        unsigned char *rok = t->ring_ok + (size_t)q * MAXM;
-        for (int j = 0; j < t->nm; j++) {
-            rok[j] = (unsigned char)(t->m[j].init && t->m[j].measured);
-            if (rok[j])
-                for (int a = 0; a < t->dim; a++) memcpy(rx + ((size_t)j * 3 + a) * NS, t->m[j].f[a].x, sizeof(double) * NS);
-        }
+}
+
+/* This frame's states, for the spatial model. */
+static void record_states(sh_tracker *t)
+{
+    int q = t->frame % t->ring_len;
+    t->ring_frame[q] = t->frame;
+    double *rx = t->ring_x + (size_t)q * MAXM * 3 * NS;
+    unsigned char *rok = t->ring_ok + (size_t)q * MAXM;
+    for (int j = 0; j < t->nm; j++) {
+        rok[j] = (unsigned char)(t->m[j].init && t->m[j].measured);
+        if (rok[j])
+            for (int a = 0; a < t->dim; a++) memcpy(rx + ((size_t)j * 3 + a) * NS, t->m[j].f[a].x, sizeof(double) * NS);
     }
-    /* reported estimates */
+}
+
+/* The reported estimates: every marker's position and variances, lost when unseen too long,
+ * else corrected by its neighbours when unseen this frame. */
+static void report_estimates(sh_tracker *t)
+{
     /* before the rates are known the constant-velocity model is no predictor worth reporting for
      * more than a fifth of a second */
     int lost_frames = (int)ceil((t->locked ? t->o.lost_after : fmin(0.2, t->o.lost_after)) * t->o.fps);
@@ -392,6 +375,44 @@ sh_status sh_tracker_update(sh_tracker *t, const sh_detection *const *det, const
         /* confirmation: a listed id at once; with auto ids below, when judged */
         if (!mk->confirmed && t->num_ids > 0) mk->confirmed = 1;
     }
+}
+
+sh_status sh_tracker_update(sh_tracker *t, const sh_detection *const *det, const int *count,
+                            int num_cameras)
+{
+    if (!t || (num_cameras > 0 && (!det || !count)))
+        return sh_error_set(SH_EINVAL, "tracker update: missing detections");
+    if (!t->started) return sh_error_set(SH_EINVAL, "tracker update: sh_tracker_predict first");
+    if (t->updated) return sh_error_set(SH_EINVAL, "tracker update: frame %d updated twice", t->frame);
+    if (num_cameras != t->ncam)
+        return sh_error_set(SH_EINVAL, "tracker update: %d cameras given, the tracker has %d",
+                            num_cameras, t->ncam);
+    for (int c = 0; c < num_cameras; c++)
+        if (count[c] < 0 || count[c] > SH_TRACK_MAX_DETECTIONS || (count[c] > 0 && !det[c]))
+            return sh_error_set(SH_ERANGE, "tracker update: camera %d: %d detections (at most %d)",
+                                c, count[c], SH_TRACK_MAX_DETECTIONS);
+    t->updated = 1;
+    t->stats.frames++;
+    assign_detections(t, det, count, num_cameras);
+    trk_calib_observe(t, det, num_cameras);
+    /* the detections against each other first: a motion they agree on is taken at once */
+    trk_consensus(t, det, num_cameras);
+    /* markers the spatial model can vouch for are gated against it: first every marker whose own
+     * prediction is sure (seen last frame, or rates not locked yet), then the others against
+     * their prediction corrected by those neighbours (a marker unseen for a while has a wide
+     * gate of its own, which a partly hidden tag's quad would pass) */
+    for (int pass = 0; pass < 2; pass++)
+        for (int i = 0; i < t->nm; i++) {
+            marker *mk = &t->m[i];
+            int vouch = (!t->locked || t->frame < mk->cut_until) &&
+                        t->o.spatial == SH_SPATIAL_FUSE && mk->init && mk->age > 1;
+            if (vouch != pass) continue;
+            trk_update_marker(t, i, det, num_cameras);
+            if (pass == 0 && mk->measured) trk_marker_pos(t, mk, mk->pos, NULL);
+        }
+    keep_evidence(t, det);
+    record_states(t);
+    report_estimates(t);
     if (t->frame >= t->next_rates) {
         if (t->num_ids == 0) trk_confirm_auto(t);
         trk_estimate_rates(t);

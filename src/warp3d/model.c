@@ -186,6 +186,67 @@ static sh_status trend_pinv(const double *a, int n, int terms, double *pinv, dou
     return sh_linalg_pinv(n, terms, a, pinv, rcond);
 }
 
+/* The surface: a trend of the markers' heights over (u, v) by least squares (the degree asked,
+ * lowered while the markers make it ill-conditioned), the residual interpolated. a, pinv: room
+ * for W3_MAX_TREND x n. */
+static sh_status fit_surface(sh_warp3d_model *m, const sh_warp3d_params *params, double *a, double *pinv)
+{
+    sh_status st;
+    int n = m->n;
+    double rcond = 0;
+    static const int terms_of_degree[4] = {0, 3, 6, 10};
+    int degree = params->surface_trend;
+    while (degree > 1 && n < terms_of_degree[degree] + 2) degree--;
+    m->s_terms = terms_of_degree[degree];
+    for (;;) {
+        for (int i = 0; i < n; i++) {
+            double q[W3_MAX_TREND];
+            s_basis(m, m->uv[2 * i], m->uv[2 * i + 1], q);
+            memcpy(a + (size_t)i * m->s_terms, q, sizeof(double) * (size_t)m->s_terms);
+        }
+        if ((st = trend_pinv(a, n, m->s_terms, pinv, &rcond)) != SH_OK) return st;
+        if (rcond > 1e-8 || m->s_terms == 3) break;
+        m->s_terms = terms_of_degree[--degree]; /* markers on a conic or cubic: a lower degree */
+    }
+    if (!(rcond > 1e-10))
+        return sh_error_set(SH_EDEGENERATE, "warp3d: reference markers too close to a line");
+    for (int k = 0; k < m->s_terms; k++) {
+        double s = 0;
+        for (int i = 0; i < n; i++) s += pinv[(size_t)k * n + i] * m->height[i];
+        m->s_trend[k] = s;
+    }
+    if ((st = sh_interp_create(&params->surface, m->uv, n, &m->s_interp)) != SH_OK) return st;
+    m->s_coef = calloc((size_t)sh_interp_num_coefs(m->s_interp), sizeof(double));
+    if (!m->s_coef) return sh_error_set(SH_ENOMEM, "warp3d: out of memory");
+    for (int i = 0; i < n; i++) {
+        double q[W3_MAX_TREND], s = 0;
+        s_basis(m, m->uv[2 * i], m->uv[2 * i + 1], q);
+        for (int k = 0; k < m->s_terms; k++) s += m->s_trend[k] * q[k];
+        m->resid[i] = m->height[i] - s;
+    }
+    return sh_interp_fit(m->s_interp, m->resid, 1, m->s_coef);
+}
+
+/* The displacement's trend: 1, u, v, s (an affine map of 3D space restricted to the surface);
+ * markers on a plane make s constant: then 1, u, v. Then its interpolant. */
+static sh_status fit_displacement(sh_warp3d_model *m, const sh_warp3d_params *params)
+{
+    sh_status st;
+    double rcond = 0;
+    int n = m->n;
+    m->h_terms = 4;
+    for (;;) {
+        for (int i = 0; i < n; i++) w3_h_basis(m, m->uv[2 * i], m->uv[2 * i + 1], m->h_basis + (size_t)i * m->h_terms);
+        if ((st = trend_pinv(m->h_basis, n, m->h_terms, m->h_pinv, &rcond)) != SH_OK) return st;
+        if (rcond > 1e-6 || m->h_terms == 3) break;
+        m->h_terms = 3;
+    }
+    if ((st = sh_interp_create(&params->displacement, m->uv, n, &m->h_interp)) != SH_OK) return st;
+    m->h_coef = calloc(3 * (size_t)sh_interp_num_coefs(m->h_interp), sizeof(double));
+    if (!m->h_coef) return sh_error_set(SH_ENOMEM, "warp3d: out of memory");
+    return SH_OK;
+}
+
 sh_status sh_warp3d_model_create(const sh_warp3d_params *params, const double *ref_xyz, int n,
                                  sh_warp3d_model **out)
 {
@@ -230,60 +291,8 @@ sh_status sh_warp3d_model_create(const sh_warp3d_params *params, const double *r
     }
     if ((st = sh_hull_compute(m->uv, n, &m->uv_hull)) != SH_OK) goto done;
 
-    /* the surface: quadric (or plane) trend by least squares, the residual interpolated */
-    double rcond = 0;
-    static const int terms_of_degree[4] = {0, 3, 6, 10};
-    int degree = params->surface_trend;
-    while (degree > 1 && n < terms_of_degree[degree] + 2) degree--;
-    m->s_terms = terms_of_degree[degree];
-    for (;;) {
-        for (int i = 0; i < n; i++) {
-            double q[W3_MAX_TREND];
-            s_basis(m, m->uv[2 * i], m->uv[2 * i + 1], q);
-            memcpy(a + (size_t)i * m->s_terms, q, sizeof(double) * (size_t)m->s_terms);
-        }
-        if ((st = trend_pinv(a, n, m->s_terms, pinv, &rcond)) != SH_OK) goto done;
-        if (rcond > 1e-8 || m->s_terms == 3) break;
-        m->s_terms = terms_of_degree[--degree]; /* markers on a conic or cubic: a lower degree */
-    }
-    if (!(rcond > 1e-10)) {
-        st = sh_error_set(SH_EDEGENERATE, "warp3d: reference markers too close to a line");
-        goto done;
-    }
-    for (int k = 0; k < m->s_terms; k++) {
-        double s = 0;
-        for (int i = 0; i < n; i++) s += pinv[(size_t)k * n + i] * m->height[i];
-        m->s_trend[k] = s;
-    }
-    if ((st = sh_interp_create(&params->surface, m->uv, n, &m->s_interp)) != SH_OK) goto done;
-    m->s_coef = calloc((size_t)sh_interp_num_coefs(m->s_interp), sizeof(double));
-    if (!m->s_coef) {
-        st = sh_error_set(SH_ENOMEM, "warp3d: out of memory");
-        goto done;
-    }
-    for (int i = 0; i < n; i++) {
-        double q[W3_MAX_TREND], s = 0;
-        s_basis(m, m->uv[2 * i], m->uv[2 * i + 1], q);
-        for (int k = 0; k < m->s_terms; k++) s += m->s_trend[k] * q[k];
-        m->resid[i] = m->height[i] - s;
-    }
-    if ((st = sh_interp_fit(m->s_interp, m->resid, 1, m->s_coef)) != SH_OK) goto done;
-
-    /* the displacement's trend: 1, u, v, s (an affine map of 3D space restricted to the
-     * surface); markers on a plane make s constant: then 1, u, v */
-    m->h_terms = 4;
-    for (;;) {
-        for (int i = 0; i < n; i++) w3_h_basis(m, m->uv[2 * i], m->uv[2 * i + 1], m->h_basis + (size_t)i * m->h_terms);
-        if ((st = trend_pinv(m->h_basis, n, m->h_terms, m->h_pinv, &rcond)) != SH_OK) goto done;
-        if (rcond > 1e-6 || m->h_terms == 3) break;
-        m->h_terms = 3;
-    }
-    if ((st = sh_interp_create(&params->displacement, m->uv, n, &m->h_interp)) != SH_OK) goto done;
-    m->h_coef = calloc(3 * (size_t)sh_interp_num_coefs(m->h_interp), sizeof(double));
-    if (!m->h_coef) {
-        st = sh_error_set(SH_ENOMEM, "warp3d: out of memory");
-        goto done;
-    }
+    if ((st = fit_surface(m, params, a, pinv)) != SH_OK) goto done;
+    if ((st = fit_displacement(m, params)) != SH_OK) goto done;
     st = sh_warp3d_model_update(m, ref_xyz); /* h = 0 until the first frame */
 done:
     free(a);

@@ -70,6 +70,70 @@ static int append_extra(sh_y4m_header *h, const char *tag, size_t len)
     return 1;
 }
 
+/* Which tags a header has given so far: each may appear once. */
+typedef struct {
+    int w, h, f, a, i, c;
+} seen_tags;
+
+/* One tag of a header line (tlen bytes from tag, its letter first) into header. */
+static sh_status parse_tag(const char *name, const char *tag, size_t tlen, seen_tags *seen, sh_y4m_header *header)
+{
+    const char *val = tag + 1;
+    size_t vlen = tlen - 1;
+    int tag_len = tlen > 64 ? 64 : (int)tlen; /* bounds the tag echoed in messages */
+    switch (tag[0]) {
+    case 'W':
+    case 'H': {
+        int *once = tag[0] == 'W' ? &seen->w : &seen->h;
+        int v;
+        if (*once) return sh_error_set(SH_EFORMAT, "%s: Y4M header repeats %c", name, tag[0]);
+        if (!parse_uint(val, vlen, &v) || v <= 0 || v > MAX_DIM)
+            return sh_error_set(SH_EFORMAT, "%s: bad Y4M size tag '%.*s' (1..%d)", name,
+                                tag_len, tag, MAX_DIM);
+        *once = 1;
+        if (tag[0] == 'W') header->width = v; else header->height = v;
+        break;
+    }
+    case 'F':
+        if (seen->f++) return sh_error_set(SH_EFORMAT, "%s: Y4M header repeats F", name);
+        if (!parse_ratio(val, vlen, &header->fps_num, &header->fps_den) ||
+            header->fps_num <= 0 || header->fps_den <= 0)
+            return sh_error_set(SH_EFORMAT, "%s: bad Y4M frame rate '%.*s'", name, tag_len,
+                                tag);
+        break;
+    case 'A':
+        if (seen->a++) return sh_error_set(SH_EFORMAT, "%s: Y4M header repeats A", name);
+        if (!parse_ratio(val, vlen, &header->aspect_num, &header->aspect_den) ||
+            (header->aspect_num == 0) != (header->aspect_den == 0))
+            return sh_error_set(SH_EFORMAT, "%s: bad Y4M aspect '%.*s'", name, tag_len, tag);
+        break;
+    case 'I':
+        if (seen->i++) return sh_error_set(SH_EFORMAT, "%s: Y4M header repeats I", name);
+        /* 'p','t','b','m' are the spec's; anything else ("I?") is passed through untouched. */
+        if (vlen == 1 && strchr("ptbm", val[0])) {
+            header->interlace = val[0];
+        } else if (!append_extra(header, tag, tlen)) {
+            return sh_error_set(SH_EFORMAT, "%s: Y4M extra tags exceed %d bytes", name,
+                                SH_Y4M_MAX_EXTRA - 1);
+        }
+        break;
+    case 'C':
+        if (seen->c++) return sh_error_set(SH_EFORMAT, "%s: Y4M header repeats C", name);
+        if (!parse_colour(val, vlen, header))
+            return sh_error_set(SH_EUNSUPPORTED,
+                                "%s: unsupported Y4M colour space '%.*s' (mono, 420jpeg, "
+                                "420mpeg2, 420paldv and 444 are read)",
+                                name, tag_len, tag);
+        break;
+    default: /* X tags and tags from a later spec: kept, never an error */
+        if (!append_extra(header, tag, tlen))
+            return sh_error_set(SH_EFORMAT, "%s: Y4M extra tags exceed %d bytes", name,
+                                SH_Y4M_MAX_EXTRA - 1);
+        break;
+    }
+    return SH_OK;
+}
+
 sh_status y4m_header_parse_named(const char *line, size_t len, const char *name,
                                  sh_y4m_header *header)
 {
@@ -85,7 +149,7 @@ sh_status y4m_header_parse_named(const char *line, size_t len, const char *name,
     if (memchr(line, '\0', len))
         return sh_error_set(SH_EFORMAT, "%s: NUL byte in the Y4M header", name);
 
-    int seen_w = 0, seen_h = 0, seen_f = 0, seen_a = 0, seen_i = 0, seen_c = 0;
+    seen_tags seen = {0, 0, 0, 0, 0, 0};
     size_t pos = mlen;
     while (pos < len) {
         if (line[pos] == ' ') { pos++; continue; } /* tolerate doubled spaces */
@@ -93,63 +157,12 @@ sh_status y4m_header_parse_named(const char *line, size_t len, const char *name,
         while (pos < len && line[pos] != ' ') pos++;
         const char *tag = line + start;
         size_t tlen = pos - start;
-        const char *val = tag + 1;
-        size_t vlen = tlen - 1;
-        int tag_len = tlen > 64 ? 64 : (int)tlen; /* bounds the tag echoed in messages */
-        switch (tag[0]) {
-        case 'W':
-        case 'H': {
-            int *seen = tag[0] == 'W' ? &seen_w : &seen_h;
-            int v;
-            if (*seen) return sh_error_set(SH_EFORMAT, "%s: Y4M header repeats %c", name, tag[0]);
-            if (!parse_uint(val, vlen, &v) || v <= 0 || v > MAX_DIM)
-                return sh_error_set(SH_EFORMAT, "%s: bad Y4M size tag '%.*s' (1..%d)", name,
-                                    tag_len, tag, MAX_DIM);
-            *seen = 1;
-            if (tag[0] == 'W') header->width = v; else header->height = v;
-            break;
-        }
-        case 'F':
-            if (seen_f++) return sh_error_set(SH_EFORMAT, "%s: Y4M header repeats F", name);
-            if (!parse_ratio(val, vlen, &header->fps_num, &header->fps_den) ||
-                header->fps_num <= 0 || header->fps_den <= 0)
-                return sh_error_set(SH_EFORMAT, "%s: bad Y4M frame rate '%.*s'", name, tag_len,
-                                    tag);
-            break;
-        case 'A':
-            if (seen_a++) return sh_error_set(SH_EFORMAT, "%s: Y4M header repeats A", name);
-            if (!parse_ratio(val, vlen, &header->aspect_num, &header->aspect_den) ||
-                (header->aspect_num == 0) != (header->aspect_den == 0))
-                return sh_error_set(SH_EFORMAT, "%s: bad Y4M aspect '%.*s'", name, tag_len, tag);
-            break;
-        case 'I':
-            if (seen_i++) return sh_error_set(SH_EFORMAT, "%s: Y4M header repeats I", name);
-            /* 'p','t','b','m' are the spec's; anything else ("I?") is passed through untouched. */
-            if (vlen == 1 && strchr("ptbm", val[0])) {
-                header->interlace = val[0];
-            } else if (!append_extra(header, tag, tlen)) {
-                return sh_error_set(SH_EFORMAT, "%s: Y4M extra tags exceed %d bytes", name,
-                                    SH_Y4M_MAX_EXTRA - 1);
-            }
-            break;
-        case 'C':
-            if (seen_c++) return sh_error_set(SH_EFORMAT, "%s: Y4M header repeats C", name);
-            if (!parse_colour(val, vlen, header))
-                return sh_error_set(SH_EUNSUPPORTED,
-                                    "%s: unsupported Y4M colour space '%.*s' (mono, 420jpeg, "
-                                    "420mpeg2, 420paldv and 444 are read)",
-                                    name, tag_len, tag);
-            break;
-        default: /* X tags and tags from a later spec: kept, never an error */
-            if (!append_extra(header, tag, tlen))
-                return sh_error_set(SH_EFORMAT, "%s: Y4M extra tags exceed %d bytes", name,
-                                    SH_Y4M_MAX_EXTRA - 1);
-            break;
-        }
+        sh_status st = parse_tag(name, tag, tlen, &seen, header);
+        if (st) return st;
     }
-    if (!seen_w || !seen_h)
+    if (!seen.w || !seen.h)
         return sh_error_set(SH_EFORMAT, "%s: Y4M header lacks the %s tag", name,
-                            !seen_w ? "W (width)" : "H (height)");
+                            !seen.w ? "W (width)" : "H (height)");
     return SH_OK;
 }
 
