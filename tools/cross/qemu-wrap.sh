@@ -1,14 +1,15 @@
 #!/bin/sh
 # Without binfmt_misc, an aarch64 program cannot be exec'd on this host, and the tests exec the
 # build's own programs (system(): the host's /bin/sh runs them). So every aarch64 program of the
-# build folder (stillheart*, tests/test_*) moves to BUILD/.qemu/ and leaves in its place a
-# script that runs it under qemu-aarch64, with argv[0] kept (tests find their siblings by it).
+# build folder (stillheart*, tests/test_*, and the helpers tests run: tools/eval/table2-plot)
+# moves to BUILD/.qemu/ and leaves in its place a script that runs it under qemu-aarch64, with
+# argv[0] kept (tests find their siblings by it).
 #   tools/cross/qemu-wrap.sh BUILD
 # Idempotent: a relinked program (an ELF again) is moved anew; wrappers are rewritten.
 set -eu
 build=$(cd "$1" && pwd)
 qemu=${QEMU_AARCH64:-qemu-aarch64}
-for f in "$build"/stillheart* "$build"/tests/test_*; do
+for f in "$build"/stillheart* "$build"/tests/test_* "$build"/tools/eval/table2-plot; do
     [ -f "$f" ] || continue
     case "$f" in *.a|*.o|*.d) continue ;; esac
     rel=${f#"$build"/}
