@@ -6,7 +6,11 @@
  * lens distortion included, and handed to GL as clip coordinates (w = camera depth, so texture
  * interpolation stays perspective-correct). So a vertex lands exactly where the truth says; only
  * the inside of each ~6 px triangle is linear. Shading is per vertex: Lambert plus a Blinn-Phong
- * highlight passed as the secondary colour, added after texturing as wet tissue reflects. */
+ * highlight passed as the secondary colour, added after texturing as wet tissue reflects.
+ *
+ * About 650 lines, on purpose: the meshes are made, moved and drawn through one rd_scene and one GL
+ * context, and their layout (struct mesh, the grids' sizes) is private to this file; split, it
+ * would have to go into a header shared by the parts. */
 #define GL_GLEXT_PROTOTYPES 1 /* libOSMesa exports the GL 1.4 / 3.0 entry points we use */
 #include <GL/osmesa.h>
 #include <GL/gl.h>
