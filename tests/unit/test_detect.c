@@ -455,6 +455,9 @@ static void check_against_truth(const sh_detection *d, int n, truth_tag *t, int 
     assert_true(fabs(mx) < 0.05 && fabs(my) < 0.05);
 }
 
+/* Over 80 lines: one rendered frame detected in full, then in windows (apart and merged) and
+ * through detect_plane, each compared with the full-frame result that all the steps share; the
+ * #else half is the skip where the renderer is not built. */
 static void test_phantom_windows_match_full_frame(void **state)
 {
     (void)state;

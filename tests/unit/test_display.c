@@ -1,6 +1,10 @@
 /* The shared-memory display buffer: round trip, no torn frame under a racing reader or a reader
  * held mid-copy while the writer laps it or a new writer takes the name, a stalled or late
- * reader, closing, hostile segments, and stillheart-cat writing whole frames only. */
+ * reader, closing, hostile segments, and stillheart-cat writing whole frames only.
+ *
+ * Over 600 lines: one binary for the display buffer, as each module has in tests/unit; the race and
+ * stall tests share the sealing, stalled-mapping and signal helpers in the middle, and the
+ * stillheart-cat tests share the whole-frame parser; a split would have to put them in a header. */
 #include <libgen.h>
 #include <pthread.h>
 #include <time.h>

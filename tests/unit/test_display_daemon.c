@@ -1,7 +1,10 @@
 /* The display segment against a running daemon (issue 14): a hostile writer with the segment
  * mapped read-write, daemon restarts followed by a reader, and a squatter on the name.
  * Each runs `stillheart run` (the sibling of this binary's folder) on a small Y4M replay this
- * test writes, with a NOTIFY_SOCKET the test opens and reads throughout, as systemd does. */
+ * test writes, with a NOTIFY_SOCKET the test opens and reads throughout, as systemd does.
+ *
+ * Over 600 lines: the three scenarios share the harness at the top (the replay written here, the
+ * daemon started, the NOTIFY_SOCKET reader thread); split, each file would carry a copy of it. */
 #include <errno.h>
 #include <fcntl.h>
 #include <grp.h>

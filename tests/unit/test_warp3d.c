@@ -222,6 +222,8 @@ static void dot_truth(const sh_calib_camera eye[2], int d, double *xl, double *y
     *depth = eye[0].R[6] * P[0] + eye[0].R[7] * P[1] + eye[0].R[8] * P[2] + eye[0].t[2];
 }
 
+/* Over 80 lines: for each of two baselines the side-by-side frame, then the sbs-half layout cut
+ * from that same frame, both against the closed-form disparity of the same dots. */
 static void test_stereo_disparity(void **state)
 {
     (void)state;
@@ -448,7 +450,9 @@ static void test_ply_on_surface(void **state)
 
 /* The textured mesh: every vertex on the paraboloid, its texture coordinate its pixel in the
  * camera (this file's closed-form projection) over the frame's size, the
- * lattice's triangles, and the texture the frame itself. */
+ * lattice's triangles, and the texture the frame itself.
+ * Over 80 lines: one export read back file by file in the order the files name each other (OBJ, its
+ * MTL, the PNG texture). */
 static void test_obj_textured(void **state)
 {
     (void)state;

@@ -1,5 +1,8 @@
 /* Y4M reader and writer. Expected bytes and pixel values are built here from the YUV4MPEG2
- * layout (header line, "FRAME\n", packed Y then U then V planes), independently of the code. */
+ * layout (header line, "FRAME\n", packed Y then U then V planes), independently of the code.
+ *
+ * Over 600 lines: the reader's and the writer's tests share the byte builders at the top (the
+ * expected bytes, made from the layout, not from the code): one file keeps one oracle for both. */
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>

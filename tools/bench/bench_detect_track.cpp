@@ -82,6 +82,9 @@ static void score(const sh_detection *d, int n, const std::vector<std::pair<int,
             }
 }
 
+// Over 80 lines: one benchmark read top to bottom: render, then three modes x PASSES replays in
+// which the full-frame detector and the tracked pipeline are timed interleaved in one frame loop
+// (the fairness of the comparison), then the table. It runs only in make bench.
 int main(int argc, char **argv)
 {
 #ifndef SH_HAVE_APRILTAG

@@ -144,7 +144,9 @@ struct options {
     std::vector<std::string> inputs;
 };
 
-int run(const options &o)
+// Reads every input frame by frame, finds the board in every --every-th frame of each camera
+// (writing --corners-out as it goes) and refuses a rig whose cameras saw it too seldom.
+void read_views(const options &o, std::vector<camera_views> &views, cv::Size &size)
 {
     size_t n = o.inputs.size();
     std::vector<std::unique_ptr<calib_input>> in;
@@ -154,8 +156,6 @@ int run(const options &o)
             throw std::runtime_error(in[c]->name() + " holds " + std::to_string(in[c]->count()) + " images, " +
                                      in[0]->name() + " " + std::to_string(in[0]->count()) +
                                      ": the cameras' views must pair up frame by frame");
-    std::vector<camera_views> views(n);
-    cv::Size size;
     int frames = 0;
     FILE *cf = nullptr;
     if (o.corners_out) {
@@ -204,17 +204,14 @@ int run(const options &o)
                                      " inner corners) found in " + std::to_string(views[c].found) + " of " +
                                      std::to_string(used) + " frames, at least " + std::to_string(o.min_views) +
                                      " needed (--min-views); check --board and that the whole board is in view");
+}
 
-    const std::vector<cv::Point3f> X = board_points(o.board);
+// Each camera's intrinsics from its own views (calibrateCamera).
+void calibrate_each(const options &o, const std::vector<camera_views> &views, const std::vector<cv::Point3f> &X,
+                    cv::Size size, const cv::TermCriteria &crit, std::vector<cv::Mat> &K, std::vector<cv::Mat> &D)
+{
     int flags = (o.k3 ? 0 : cv::CALIB_FIX_K3) | (o.no_tangential ? cv::CALIB_ZERO_TANGENT_DIST : 0);
-    cv::TermCriteria crit(cv::TermCriteria::COUNT + cv::TermCriteria::EPS, 100, 1e-12);
-    std::vector<cv::Mat> K(n), D(n), R(n), T(n);
-    sh_calib cal;
-    std::memset(&cal, 0, sizeof cal);
-    cal.num_cameras = (int)n;
-    cal.width = size.width;
-    cal.height = size.height;
-    for (size_t c = 0; c < n; c++) {
+    for (size_t c = 0; c < views.size(); c++) {
         std::vector<std::vector<cv::Point3f>> obj;
         std::vector<std::vector<cv::Point2f>> img;
         for (const auto &p : views[c].pts)
@@ -227,9 +224,17 @@ int run(const options &o)
                         "RMS %.4f px\n", c, obj.size(), k[0], k[4], k[2], k[5], d[0], d[1], d[2], d[3], d[4], rms);
         }
     }
+}
+
+// Every camera's pose relative to camera 0 from the frames both saw (stereoCalibrate, intrinsics
+// fixed); camera 0 is the identity.
+void calibrate_pairs(const options &o, const std::vector<camera_views> &views, const std::vector<cv::Point3f> &X,
+                     cv::Size size, const cv::TermCriteria &crit, std::vector<cv::Mat> &K, std::vector<cv::Mat> &D,
+                     std::vector<cv::Mat> &R, std::vector<cv::Mat> &T)
+{
     R[0] = cv::Mat::eye(3, 3, CV_64F);
     T[0] = cv::Mat::zeros(3, 1, CV_64F);
-    for (size_t c = 1; c < n; c++) {
+    for (size_t c = 1; c < views.size(); c++) {
         std::vector<std::vector<cv::Point3f>> obj;
         std::vector<std::vector<cv::Point2f>> img0, imgc;
         for (size_t f = 0; f < views[0].pts.size(); f++)
@@ -247,21 +252,46 @@ int run(const options &o)
                         "t %.3f %.3f %.3f\n", c, obj.size(), rms, cv::norm(T[c]), rotation_deg(R[c]),
                         T[c].at<double>(0), T[c].at<double>(1), T[c].at<double>(2));
     }
-    if (o.world_frame >= 0) {
-        // board -> camera 0 by solvePnP with the final intrinsics; F turns the board's z (into
-        // the board) round to point out of its face: X_board = F X_world
-        if ((size_t)o.world_frame >= views[0].pts.size() || views[0].pts[o.world_frame].empty())
-            throw std::runtime_error("--world board:" + std::to_string(o.world_frame) + ": camera 0 did not find the "
-                                     "board in that frame");
-        cv::Mat rv, tb, Rb;
-        cv::solvePnP(X, views[0].pts[o.world_frame], K[0], D[0], rv, tb);
-        cv::Rodrigues(rv, Rb);
-        cv::Mat F = cv::Mat::diag(cv::Mat(cv::Vec3d(1, -1, -1)));
-        for (size_t c = 0; c < n; c++) {
-            T[c] = R[c] * tb + T[c];
-            R[c] = R[c] * Rb * F;
-        }
+}
+
+// --world board:N: the poses moved into the board's frame of frame N.
+void to_board_world(const options &o, const std::vector<camera_views> &views, const std::vector<cv::Point3f> &X,
+                    const std::vector<cv::Mat> &K, const std::vector<cv::Mat> &D, std::vector<cv::Mat> &R,
+                    std::vector<cv::Mat> &T)
+{
+    // board -> camera 0 by solvePnP with the final intrinsics; F turns the board's z (into
+    // the board) round to point out of its face: X_board = F X_world
+    if ((size_t)o.world_frame >= views[0].pts.size() || views[0].pts[o.world_frame].empty())
+        throw std::runtime_error("--world board:" + std::to_string(o.world_frame) + ": camera 0 did not find the "
+                                 "board in that frame");
+    cv::Mat rv, tb, Rb;
+    cv::solvePnP(X, views[0].pts[o.world_frame], K[0], D[0], rv, tb);
+    cv::Rodrigues(rv, Rb);
+    cv::Mat F = cv::Mat::diag(cv::Mat(cv::Vec3d(1, -1, -1)));
+    for (size_t c = 0; c < views.size(); c++) {
+        T[c] = R[c] * tb + T[c];
+        R[c] = R[c] * Rb * F;
     }
+}
+
+int run(const options &o)
+{
+    size_t n = o.inputs.size();
+    std::vector<camera_views> views(n);
+    cv::Size size;
+    read_views(o, views, size);
+
+    const std::vector<cv::Point3f> X = board_points(o.board);
+    cv::TermCriteria crit(cv::TermCriteria::COUNT + cv::TermCriteria::EPS, 100, 1e-12);
+    std::vector<cv::Mat> K(n), D(n), R(n), T(n);
+    calibrate_each(o, views, X, size, crit, K, D);
+    calibrate_pairs(o, views, X, size, crit, K, D, R, T);
+    if (o.world_frame >= 0) to_board_world(o, views, X, K, D, R, T);
+    sh_calib cal;
+    std::memset(&cal, 0, sizeof cal);
+    cal.num_cameras = (int)n;
+    cal.width = size.width;
+    cal.height = size.height;
     for (size_t c = 0; c < n; c++) {
         sh_calib_camera &k = cal.cam[c];
         std::memcpy(k.K, K[c].ptr<double>(), sizeof k.K);

@@ -19,7 +19,11 @@
  *                                            by the simulator's pull and timestamped
  *   stillheart-vmprobe run DEV0 DEV1 PLATDEV CHIP LINE N   stillheart run on the two, trigger
  *                                            out on CHIP:LINE, camera 1 silenced, then both
- *                                            unbound and bound again (vmprobe_run.c) */
+ *                                            unbound and bound again (vmprobe_run.c)
+ *
+ * Over 600 lines: one program for the guest, one function per check family named above, all sharing
+ * result() and the sysfs helpers; the daemon run is already apart (vmprobe_run.c). Only vmtest runs
+ * it, so it is not split further where a split could not be checked. */
 #include <errno.h>
 #include <stdarg.h>
 #include <fcntl.h>
@@ -399,6 +403,10 @@ static int read_sys_int(const char *path)
     return r > 0 ? atoi(b) : -1;
 }
 
+/* Over 80 lines: the gpio-sim chip's checks in one sequence on its sysfs folder: a second request
+ * refused as busy, 400 ms of output pulses and their spacing, the input's edges, a missing chip.
+ * Kept whole also because only vmtest (tests/vm/run.sh) runs it: a split could not be checked
+ * outside the guest. */
 static void gpio(const char *chip, const char *sysdir)
 {
     /* output: 20 ms period, 5 ms pulses on line 0 */

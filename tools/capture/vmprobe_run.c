@@ -161,6 +161,10 @@ static int unplug(const char *plat, char *why, size_t cap)
     return 1;
 }
 
+/* Over 80 lines: one daemon run in the VM guest, scripted as it happens (start, camera 1 silenced
+ * and back, camera 0 unbound and rebound, max-frames), then its three results judged from the same
+ * logs, notify messages and the times taken during the run. Kept whole also because only vmtest
+ * (tests/vm/run.sh) runs it: a split could not be checked outside the guest. */
 void run_daemon_check(const char *dev0, const char *dev1, const char *plat, const char *chip, const char *line,
                       int max_frames)
 {

@@ -107,47 +107,57 @@ static void rgb_to_yuv444(const sh_image *rgb, sh_image *yuv)
     }
 }
 
-int main(int argc, char **argv)
+typedef struct {
+    sh_display_reader_options ropt;
+    const char *name;
+    long count;
+    double timeout;
+    int verbose;
+} cat_args;
+
+/* Fills *a from the command line; returns -1 to go on, or the exit status (0 after --help, 2 for
+ * a usage error). */
+static int parse_args(int argc, char **argv, cat_args *a)
 {
     static const struct option options[] = {
         {"name", required_argument, 0, 'n'}, {"count", required_argument, 0, 'c'},
         {"timeout", required_argument, 0, 't'}, {"verbose", no_argument, 0, 'v'},
         {"owner", required_argument, 0, 'o'}, {"follow", no_argument, 0, 'f'},
         SH_CLI_OPTIONS, {0, 0, 0, 0}};
-    sh_display_reader_options ropt = {.owner_uid = SH_DISPLAY_OWNER_SELF, .follow = 0};
-    const char *name = SH_DISPLAY_DEFAULT_NAME;
-    long count = 0;
-    double timeout = 5;
-    int verbose = 0, opt;
+    a->ropt = (sh_display_reader_options){.owner_uid = SH_DISPLAY_OWNER_SELF, .follow = 0};
+    a->name = SH_DISPLAY_DEFAULT_NAME;
+    a->count = 0;
+    a->timeout = 5;
+    a->verbose = 0;
+    int opt;
     char *end;
-    sh_log_setup(SH_LOG_TOOL, "stillheart-cat", SH_LOG_INFO);
     opterr = 0;
     while ((opt = getopt_long(argc, argv, ":hv", options, NULL)) != -1) {
         switch (opt) {
-        case 'n': name = optarg; break;
+        case 'n': a->name = optarg; break;
         case 'c':
-            count = strtol(optarg, &end, 10);
-            if (*end || count < 0) {
+            a->count = strtol(optarg, &end, 10);
+            if (*end || a->count < 0) {
                 fprintf(stderr, "stillheart-cat: --count: '%s' is not a whole number >= 0\n", optarg);
                 return 2;
             }
             break;
         case 't':
-            timeout = strtod(optarg, &end);
-            if (*end || !(timeout >= 0) || timeout > 86400) {
+            a->timeout = strtod(optarg, &end);
+            if (*end || !(a->timeout >= 0) || a->timeout > 86400) {
                 fprintf(stderr, "stillheart-cat: --timeout: '%s' is not a number of seconds in [0, 86400]\n", optarg);
                 return 2;
             }
             break;
-        case 'v': verbose = 1; break;
-        case 'f': ropt.follow = 1; break;
+        case 'v': a->verbose = 1; break;
+        case 'f': a->ropt.follow = 1; break;
         case 'o': {
             long uid = strtol(optarg, &end, 10);
             struct passwd *pw = getpwnam(optarg);
             if (pw) {
-                ropt.owner_uid = pw->pw_uid;
+                a->ropt.owner_uid = pw->pw_uid;
             } else if (*optarg && !*end && uid >= 0 && uid < 0x7fffffffL) {
-                ropt.owner_uid = uid;
+                a->ropt.owner_uid = uid;
             } else {
                 fprintf(stderr, "stillheart-cat: --owner: no user '%s'\n", optarg);
                 return 2;
@@ -159,7 +169,124 @@ int main(int argc, char **argv)
         }
     }
     if (optind != argc) return sh_cli_usage_error(&cli, "'%s': no operands (the video goes to standard output)", argv[optind]);
-    if (sh_log_get_level() >= SH_LOG_DEBUG) verbose = 1;
+    if (sh_log_get_level() >= SH_LOG_DEBUG) a->verbose = 1;
+    return -1;
+}
+
+/* The Y4M stream: frames are written into a memory buffer, then flushed to standard output. */
+typedef struct {
+    sh_pixfmt format;
+    sh_image frame, converted;
+    sh_y4m_writer *w;
+    FILE *mem;
+    unsigned char *buf;
+} cat_stream;
+
+/* Logs frame info (with -v), converts RGB and writes the frame to standard output; 0, or 1 after
+ * saying why. */
+static int emit_frame(const cat_args *a, sh_display_reader *r, cat_stream *s, const sh_display_frame_info *info)
+{
+    if (a->verbose)
+        fprintf(stderr, "frame %llu %s%s%s markers %u residual %.3f generation %016llx\n",
+                (unsigned long long)info->sequence,
+                info->status == SH_DISPLAY_STABILIZED ? "stabilized"
+                : info->status == SH_DISPLAY_DEGRADED ? "degraded" : "raw",
+                info->reason[0] ? ": " : "", info->reason, info->markers_used, (double)info->residual_px,
+                (unsigned long long)sh_display_reader_header(r)->generation);
+    if (s->format == SH_PIX_RGB24) rgb_to_yuv444(&s->frame, &s->converted);
+    if (sh_y4m_writer_write(s->w, s->format == SH_PIX_RGB24 ? &s->converted : &s->frame) != SH_OK) {
+        fprintf(stderr, "stillheart-cat: %s\n", sh_error_message());
+        return 1;
+    }
+    if (flush_stream(s->mem, s->buf) != 0) {
+        fprintf(stderr, "stillheart-cat: <stdout>: write error: %s\n", strerror(errno));
+        return 1;
+    }
+    return 0;
+}
+
+/* Copies frames until --count, the timeout, a signal or the daemon's clean end; the exit status. */
+static int copy_frames(const cat_args *a, sh_display_reader *r, cat_stream *s, const sh_y4m_header *yh)
+{
+    double last_frame = now_s();
+    for (long n = 0; (a->count == 0 || n < a->count) && !stop_signal;) {
+        sh_display_frame_info info;
+        /* short waits, so that a signal ends the wait at once; the timeout counts from the
+         * last frame */
+        sh_status st = sh_display_reader_next(r, &s->frame, &info, 100);
+        if (st == SH_EIO && !stop_signal && (a->timeout == 0 || now_s() - last_frame < a->timeout)) continue;
+        if (stop_signal) break;
+        if (st == SH_EEOF && a->count == 0) break; /* the daemon stopped cleanly */
+        if (st == SH_ERANGE) {
+            const sh_display_header *now = sh_display_reader_header(r);
+            fprintf(stderr, "stillheart-cat: %s: the daemon came back with %ux%u %s frames, this stream is %ux%u %s: "
+                    "ending it (start stillheart-cat again)\n", a->name, now->width, now->height,
+                    sh_pixfmt_name((sh_pixfmt)now->format), yh->width, yh->height, sh_pixfmt_name(s->format));
+            return 3;
+        }
+        if (st == SH_EIO) {
+            fprintf(stderr, "stillheart-cat: %s: no new frame in %g s\n", a->name, a->timeout);
+            return 1;
+        }
+        if (st != SH_OK) {
+            fprintf(stderr, "stillheart-cat: %s: %s\n", a->name, sh_error_message());
+            return 1;
+        }
+        last_frame = now_s();
+        if (emit_frame(a, r, s, &info) != 0) return 1;
+        n++;
+    }
+    return 0;
+}
+
+/* Opens the Y4M stream for the reader's format and copies frames; the exit status. */
+static int stream(const cat_args *a, sh_display_reader *r)
+{
+    const sh_display_header *h = sh_display_reader_header(r);
+    cat_stream s = {.format = (sh_pixfmt)h->format};
+    int rc = 1;
+    sh_y4m_header yh = {.width = (int)h->width, .height = (int)h->height,
+                        .format = s.format == SH_PIX_RGB24 ? SH_PIX_YUV444 : s.format,
+                        .siting = (sh_chroma_siting)h->siting, .interlace = 'p',
+                        .aspect_num = 1, .aspect_den = 1};
+    if (h->full_range || s.format == SH_PIX_RGB24) strcpy(yh.extra, "XCOLORRANGE=FULL");
+    /* room for the stream header (its tags are at most SH_Y4M_MAX_EXTRA bytes) or for one
+     * frame: its FRAME line and at most three full planes */
+    size_t cap = SH_Y4M_MAX_EXTRA + 512 + (size_t)h->width * (size_t)h->height * 3;
+    if (sh_image_create(&s.frame, s.format, (int)h->width, (int)h->height) != SH_OK ||
+        (s.format == SH_PIX_RGB24 &&
+         sh_image_create(&s.converted, SH_PIX_YUV444, (int)h->width, (int)h->height) != SH_OK)) {
+        fprintf(stderr, "stillheart-cat: %s\n", sh_error_message());
+        goto done;
+    }
+    if (!(s.buf = malloc(cap)) || !(s.mem = fmemopen(s.buf, cap, "w")) || setvbuf(s.mem, NULL, _IONBF, 0) != 0) {
+        fprintf(stderr, "stillheart-cat: cannot make a frame buffer: %s\n", strerror(errno));
+        goto done;
+    }
+    if (sh_y4m_writer_open_file(s.mem, "<stdout>", &yh, &s.w) != SH_OK) {
+        fprintf(stderr, "stillheart-cat: %s\n", sh_error_message());
+        goto done;
+    }
+    if (flush_stream(s.mem, s.buf) != 0) {
+        fprintf(stderr, "stillheart-cat: <stdout>: write error: %s\n", strerror(errno));
+        goto done;
+    }
+    rc = copy_frames(a, r, &s, &yh);
+done:
+    sh_y4m_writer_close(s.w); /* its stream is the memory buffer: nothing of it is left unwritten */
+    if (s.mem) fclose(s.mem);
+    free(s.buf);
+    sh_image_destroy(&s.frame);
+    sh_image_destroy(&s.converted);
+    return rc;
+}
+
+int main(int argc, char **argv)
+{
+    cat_args a;
+    sh_log_setup(SH_LOG_TOOL, "stillheart-cat", SH_LOG_INFO);
+    int prc = parse_args(argc, argv, &a);
+    if (prc >= 0) return prc;
     /* as gzip and ffmpeg do: binary video on a terminal only garbles it */
     if (isatty(STDOUT_FILENO)) {
         fprintf(stderr, "stillheart-cat: standard output is a terminal: pipe the video to a player or a file,\n"
@@ -176,98 +303,15 @@ int main(int argc, char **argv)
     /* the daemon may be starting: its segment appears, then becomes valid, within the timeout
      * (waited for in short steps, so that a signal ends the wait at once) */
     sh_display_reader *r = NULL;
-    double give_up = timeout > 0 ? now_s() + timeout : INFINITY;
+    double give_up = a.timeout > 0 ? now_s() + a.timeout : INFINITY;
     sh_status ost;
-    while ((ost = sh_display_reader_open(name, &ropt, 100, &r)) != SH_OK) {
+    while ((ost = sh_display_reader_open(a.name, &a.ropt, 100, &r)) != SH_OK) {
         if (ost == SH_EINVAL || stop_signal || now_s() >= give_up) {
             fprintf(stderr, "stillheart-cat: %s\n", sh_error_message());
             return stop_signal ? 128 + stop_signal : 1;
         }
     }
-    const sh_display_header *h = sh_display_reader_header(r);
-    sh_pixfmt format = (sh_pixfmt)h->format;
-    sh_image frame = {0}, converted = {0};
-    sh_y4m_writer *w = NULL;
-    FILE *mem = NULL;
-    unsigned char *buf = NULL;
-    int rc = 1;
-    sh_y4m_header yh = {.width = (int)h->width, .height = (int)h->height,
-                        .format = format == SH_PIX_RGB24 ? SH_PIX_YUV444 : format,
-                        .siting = (sh_chroma_siting)h->siting, .interlace = 'p',
-                        .aspect_num = 1, .aspect_den = 1};
-    if (h->full_range || format == SH_PIX_RGB24) strcpy(yh.extra, "XCOLORRANGE=FULL");
-    /* room for the stream header (its tags are at most SH_Y4M_MAX_EXTRA bytes) or for one
-     * frame: its FRAME line and at most three full planes */
-    size_t cap = SH_Y4M_MAX_EXTRA + 512 + (size_t)h->width * (size_t)h->height * 3;
-    if (sh_image_create(&frame, format, (int)h->width, (int)h->height) != SH_OK ||
-        (format == SH_PIX_RGB24 &&
-         sh_image_create(&converted, SH_PIX_YUV444, (int)h->width, (int)h->height) != SH_OK)) {
-        fprintf(stderr, "stillheart-cat: %s\n", sh_error_message());
-        goto done;
-    }
-    if (!(buf = malloc(cap)) || !(mem = fmemopen(buf, cap, "w")) || setvbuf(mem, NULL, _IONBF, 0) != 0) {
-        fprintf(stderr, "stillheart-cat: cannot make a frame buffer: %s\n", strerror(errno));
-        goto done;
-    }
-    if (sh_y4m_writer_open_file(mem, "<stdout>", &yh, &w) != SH_OK) {
-        fprintf(stderr, "stillheart-cat: %s\n", sh_error_message());
-        goto done;
-    }
-    if (flush_stream(mem, buf) != 0) {
-        fprintf(stderr, "stillheart-cat: <stdout>: write error: %s\n", strerror(errno));
-        goto done;
-    }
-    double last_frame = now_s();
-    for (long n = 0; (count == 0 || n < count) && !stop_signal;) {
-        sh_display_frame_info info;
-        /* short waits, so that a signal ends the wait at once; the timeout counts from the
-         * last frame */
-        sh_status st = sh_display_reader_next(r, &frame, &info, 100);
-        if (st == SH_EIO && !stop_signal && (timeout == 0 || now_s() - last_frame < timeout)) continue;
-        if (stop_signal) break;
-        if (st == SH_EEOF && count == 0) break; /* the daemon stopped cleanly */
-        if (st == SH_ERANGE) {
-            const sh_display_header *now = sh_display_reader_header(r);
-            fprintf(stderr, "stillheart-cat: %s: the daemon came back with %ux%u %s frames, this stream is %ux%u %s: "
-                    "ending it (start stillheart-cat again)\n", name, now->width, now->height,
-                    sh_pixfmt_name((sh_pixfmt)now->format), yh.width, yh.height, sh_pixfmt_name(format));
-            rc = 3;
-            goto done;
-        }
-        if (st == SH_EIO) {
-            fprintf(stderr, "stillheart-cat: %s: no new frame in %g s\n", name, timeout);
-            goto done;
-        }
-        if (st != SH_OK) {
-            fprintf(stderr, "stillheart-cat: %s: %s\n", name, sh_error_message());
-            goto done;
-        }
-        last_frame = now_s();
-        if (verbose)
-            fprintf(stderr, "frame %llu %s%s%s markers %u residual %.3f generation %016llx\n",
-                    (unsigned long long)info.sequence,
-                    info.status == SH_DISPLAY_STABILIZED ? "stabilized"
-                    : info.status == SH_DISPLAY_DEGRADED ? "degraded" : "raw",
-                    info.reason[0] ? ": " : "", info.reason, info.markers_used, (double)info.residual_px,
-                    (unsigned long long)sh_display_reader_header(r)->generation);
-        if (format == SH_PIX_RGB24) rgb_to_yuv444(&frame, &converted);
-        if (sh_y4m_writer_write(w, format == SH_PIX_RGB24 ? &converted : &frame) != SH_OK) {
-            fprintf(stderr, "stillheart-cat: %s\n", sh_error_message());
-            goto done;
-        }
-        if (flush_stream(mem, buf) != 0) {
-            fprintf(stderr, "stillheart-cat: <stdout>: write error: %s\n", strerror(errno));
-            goto done;
-        }
-        n++;
-    }
-    rc = 0;
-done:
-    sh_y4m_writer_close(w); /* its stream is the memory buffer: nothing of it is left unwritten */
-    if (mem) fclose(mem);
-    free(buf);
-    sh_image_destroy(&frame);
-    sh_image_destroy(&converted);
+    int rc = stream(&a, r);
     sh_display_reader_close(r);
     if (rc == 0 && stop_signal) {
         /* end as the signal would have ended it, for the shell and the process that sent it */

@@ -2,6 +2,9 @@
 # Daemon tests (run by make check as build/tests/test_daemon): end to end against
 # `stillheart warp`, gating on an occlusion sequence, bad configs refused, SIGTERM within 1 s,
 # sd_notify against a socket this test opens. Prints cmocka-style summary lines.
+# Over 600 lines: one script because its checks share one render, its points, warp's output, the
+# temporary folder and the pass/fail counters; make check runs it as the one test binary it stands
+# for.
 # links resolved: make check-arm64 runs the tests through links in lane folders
 B=${BUILD:-$(dirname "$(readlink -f "$0")")/..}
 T=$(mktemp -d /tmp/sh-daemon-test.XXXXXX)

@@ -268,6 +268,60 @@ static int geo_method(options *o)
 }
 
 /* The measurement itself, once the options are known. */
+/* Reads both videos frame by frame, feeding the metrics and the geometric error; 0, or -1 after
+ * saying why (a read error, or videos of different lengths or too short for the reference). */
+static int compare_frames(const options *o, video *stab, video *orig, const char *stab_path, const char *orig_path,
+                          eval_geo *geo, const sh_hull *hull)
+{
+    sh_cli_progress bar;
+    long long total = sh_y4m_reader_whole_frames(stab->reader);
+    sh_cli_progress_start(&bar, "eval", total < 0 || total > 1 << 30 ? 0 : (int)total, "frames");
+    int t = 0;
+    sh_status st;
+    while ((st = video_next(stab, hull, t)) == SH_OK) {
+        if (orig_path) {
+            sh_status so = video_next(orig, hull, t);
+            if (so == SH_EEOF) {
+                sh_cli_progress_end(&bar);
+                sh_log_error("%s has %d frames, %s more", orig_path, t, stab_path);
+                return -1;
+            }
+            if (so != SH_OK) { fail("original video"); return -1; }
+        }
+        if (geo && eval_geo_frame(geo, t) != SH_OK) { fail("geometric error"); return -1; }
+        t++;
+        sh_cli_progress_update(&bar, t);
+    }
+    sh_cli_progress_end(&bar);
+    if (st != SH_EEOF) { fail("stabilized video"); return -1; }
+    if (orig_path && video_next(orig, hull, t) != SH_EEOF) {
+        sh_log_error("%s has more frames than %s (%d)", orig_path, stab_path, t);
+        return -1;
+    }
+    if (t <= o->reference) {
+        sh_log_error("%s has no frame %d", stab_path, o->reference);
+        return -1;
+    }
+    return 0;
+}
+
+/* --heatmap: the stabilized video's per-pixel error as an image; 0, or -1 after saying why. */
+static int write_heatmap(const options *o, const video *stab)
+{
+    const sh_image *f = &stab->frame;
+    float *grey = malloc(sizeof(float) * (size_t)f->width * f->height);
+    if (!grey) { fail("out of memory"); return -1; }
+    int rc = 0;
+    if (sh_metric_error_image(stab->metric, grey) != SH_OK ||
+        eval_heatmap_write(o->heatmap, grey, f->width, f->height, o->heatmap_max,
+                           o->contours, o->heatmap_scale) != SH_OK) {
+        fail("--heatmap");
+        rc = -1;
+    }
+    free(grey);
+    return rc;
+}
+
 static int evaluate(options *o, const char *stab_path, const char *orig_path)
 {
     int rc = 1;
@@ -276,7 +330,6 @@ static int evaluate(options *o, const char *stab_path, const char *orig_path)
     phantom_truth *truth = NULL;
     eval_geo *geo = NULL;
     double *xy = NULL;
-    float *grey = NULL;
     sh_hull hull;
 
     if (sh_points_read(o->points_path, &points) != SH_OK ||
@@ -320,46 +373,9 @@ static int evaluate(options *o, const char *stab_path, const char *orig_path)
         }
     }
 
-    sh_cli_progress bar;
-    long long total = sh_y4m_reader_whole_frames(stab.reader);
-    sh_cli_progress_start(&bar, "eval", total < 0 || total > 1 << 30 ? 0 : (int)total, "frames");
-    int t = 0;
-    sh_status st;
-    while ((st = video_next(&stab, &hull, t)) == SH_OK) {
-        if (orig_path) {
-            sh_status so = video_next(&orig, &hull, t);
-            if (so == SH_EEOF) {
-                sh_cli_progress_end(&bar);
-                sh_log_error("%s has %d frames, %s more", orig_path, t, stab_path);
-                goto done;
-            }
-            if (so != SH_OK) { fail("original video"); goto done; }
-        }
-        if (geo && eval_geo_frame(geo, t) != SH_OK) { fail("geometric error"); goto done; }
-        t++;
-        sh_cli_progress_update(&bar, t);
-    }
-    sh_cli_progress_end(&bar);
-    if (st != SH_EEOF) { fail("stabilized video"); goto done; }
-    if (orig_path && video_next(&orig, &hull, t) != SH_EEOF) {
-        sh_log_error("%s has more frames than %s (%d)", orig_path, stab_path, t);
-        goto done;
-    }
-    if (t <= o->reference) {
-        sh_log_error("%s has no frame %d", stab_path, o->reference);
-        goto done;
-    }
+    if (compare_frames(o, &stab, &orig, stab_path, orig_path, geo, &hull) != 0) goto done;
 
-    if (o->heatmap) {
-        grey = malloc(sizeof(float) * (size_t)f->width * f->height);
-        if (!grey) { fail("out of memory"); goto done; }
-        if (sh_metric_error_image(stab.metric, grey) != SH_OK ||
-            eval_heatmap_write(o->heatmap, grey, f->width, f->height, o->heatmap_max,
-                               o->contours, o->heatmap_scale) != SH_OK) {
-            fail("--heatmap");
-            goto done;
-        }
-    }
+    if (o->heatmap && write_heatmap(o, &stab) != 0) goto done;
     eval_geo_result g = {0};
     if (geo) eval_geo_result_get(geo, &g);
     report(o, &stab, &orig, geo, &g);
@@ -371,7 +387,6 @@ done:
     video_close(&orig);
     sh_points_destroy(&points);
     free(xy);
-    free(grey);
     return rc;
 }
 

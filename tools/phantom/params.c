@@ -144,12 +144,85 @@ static sh_status validate(const phantom_model *m, const char *name, unsigned see
 #undef BAD
 }
 
+/* Which indexed lines and fields a file has given, to refuse repeats and find missing ones. */
+typedef struct {
+    unsigned field[NFIELDS];
+    unsigned pad, blob, cam;
+    uint64_t marker;
+} seen_set;
+
+/* A "pad|marker|blob|camera INDEX values" line; *ok says whether the values are good. */
+static sh_status parse_indexed(const char *key, const char *rest, const char *name, int lineno, phantom_model *m,
+                               seen_set *seen, int *ok)
+{
+    int idx = -1, used = 0;
+    if (sscanf(rest, " %d%n", &idx, &used) != 1 || idx < 0)
+        return sh_error_set(SH_EFORMAT, "%s:%d: bad %s index", name, lineno, key);
+    rest += used;
+    if (key[0] == 'p' && idx < PHANTOM_MAX_PADS && !(seen->pad >> idx & 1)) {
+        seen->pad |= 1u << idx;
+        *ok = get_doubles(rest, &m->pad[idx].u0, 4);
+    } else if (key[0] == 'm' && idx < PHANTOM_MAX_MARKERS && !(seen->marker >> idx & 1)) {
+        seen->marker |= 1ull << idx;
+        double v[3];
+        *ok = get_doubles(rest, v, 3) && v[0] >= 0 && v[0] < 1e6 && v[0] == floor(v[0]);
+        m->marker[idx].id = *ok ? (int)v[0] : 0;
+        m->marker[idx].u = v[1];
+        m->marker[idx].v = v[2];
+    } else if (key[0] == 'b' && idx < PHANTOM_MAX_BLOBS && !(seen->blob >> idx & 1)) {
+        seen->blob |= 1u << idx;
+        *ok = get_doubles(rest, &m->blob[idx].u, 5);
+    } else if (key[0] == 'c' && idx < PHANTOM_MAX_CAMERAS && !(seen->cam >> idx & 1)) {
+        seen->cam |= 1u << idx;
+        double v[21];
+        *ok = get_doubles(rest, v, 21);
+        phantom_camera *c = &m->cam[idx];
+        c->fx = v[0];
+        c->fy = v[1];
+        c->cx = v[2];
+        c->cy = v[3];
+        memcpy(c->dist, v + 4, sizeof c->dist);
+        memcpy(c->R, v + 9, sizeof c->R);
+        memcpy(c->t, v + 18, sizeof c->t);
+    } else {
+        return sh_error_set(SH_EFORMAT, "%s:%d: %s %d out of range or repeated", name, lineno, key, idx);
+    }
+    return SH_OK;
+}
+
+/* A "key values" line of the fields table; *ok says whether the values are good. */
+static sh_status parse_field(const char *key, const char *rest, const char *name, int lineno, phantom_model *m,
+                             seen_set *seen, int *ok)
+{
+    size_t k = 0;
+    while (k < NFIELDS && strcmp(fields[k].key, key) != 0) k++;
+    if (k == NFIELDS) return sh_error_set(SH_EFORMAT, "%s:%d: unknown key '%s'", name, lineno, key);
+    if (seen->field[k]++) return sh_error_set(SH_EFORMAT, "%s:%d: %s repeated", name, lineno, key);
+    char *p = (char *)m + fields[k].offset;
+    double v[3];
+    *ok = get_doubles(rest, v, fields[k].count);
+    if (*ok && fields[k].type == 'd') {
+        memcpy(p, v, sizeof(double) * (size_t)fields[k].count);
+    } else if (*ok && fields[k].type == 'i') {
+        *ok = v[0] == floor(v[0]) && fabs(v[0]) < 1e9;
+        *(int *)(void *)p = *ok ? (int)v[0] : 0;
+    } else if (*ok) {
+        /* the seed may exceed 2^53: read it as an integer, not through a double */
+        char *end;
+        errno = 0;
+        unsigned long long s = strtoull(rest, &end, 10);
+        while (*end == ' ' || *end == '\r') end++;
+        *ok = errno == 0 && *end == '\0' && strchr(rest, '-') == NULL;
+        *(uint64_t *)(void *)p = s;
+    }
+    return SH_OK;
+}
+
 sh_status phantom_model_parse(const char *text, size_t len, const char *name, phantom_model *m)
 {
     memset(m, 0, sizeof *m);
-    unsigned seen_field[NFIELDS] = {0};
-    unsigned seen_pad = 0, seen_blob = 0, seen_cam = 0;
-    uint64_t seen_marker = 0;
+    seen_set seen;
+    memset(&seen, 0, sizeof seen);
     char line[1024];
     sh_lines it;
     sh_lines_init(&it, text, len, name);
@@ -170,74 +243,25 @@ sh_status phantom_model_parse(const char *text, size_t len, const char *name, ph
         }
         key[kl] = '\0';
         const char *rest = line + kl;
-        int ok = 0, idx = -1, used = 0;
+        int ok = 0, used = 0;
+        sh_status lst = SH_OK;
         if (strcmp(key, "family") == 0) {
             ok = sscanf(rest, " %31s %n", m->family, &used) == 1 && rest[used] == '\0';
         } else if (!strcmp(key, "pad") || !strcmp(key, "marker") || !strcmp(key, "blob") ||
                    !strcmp(key, "camera")) {
-            if (sscanf(rest, " %d%n", &idx, &used) != 1 || idx < 0)
-                return sh_error_set(SH_EFORMAT, "%s:%d: bad %s index", name, lineno, key);
-            rest += used;
-            if (key[0] == 'p' && idx < PHANTOM_MAX_PADS && !(seen_pad >> idx & 1)) {
-                seen_pad |= 1u << idx;
-                ok = get_doubles(rest, &m->pad[idx].u0, 4);
-            } else if (key[0] == 'm' && idx < PHANTOM_MAX_MARKERS && !(seen_marker >> idx & 1)) {
-                seen_marker |= 1ull << idx;
-                double v[3];
-                ok = get_doubles(rest, v, 3) && v[0] >= 0 && v[0] < 1e6 && v[0] == floor(v[0]);
-                m->marker[idx].id = ok ? (int)v[0] : 0;
-                m->marker[idx].u = v[1];
-                m->marker[idx].v = v[2];
-            } else if (key[0] == 'b' && idx < PHANTOM_MAX_BLOBS && !(seen_blob >> idx & 1)) {
-                seen_blob |= 1u << idx;
-                ok = get_doubles(rest, &m->blob[idx].u, 5);
-            } else if (key[0] == 'c' && idx < PHANTOM_MAX_CAMERAS && !(seen_cam >> idx & 1)) {
-                seen_cam |= 1u << idx;
-                double v[21];
-                ok = get_doubles(rest, v, 21);
-                phantom_camera *c = &m->cam[idx];
-                c->fx = v[0];
-                c->fy = v[1];
-                c->cx = v[2];
-                c->cy = v[3];
-                memcpy(c->dist, v + 4, sizeof c->dist);
-                memcpy(c->R, v + 9, sizeof c->R);
-                memcpy(c->t, v + 18, sizeof c->t);
-            } else {
-                return sh_error_set(SH_EFORMAT, "%s:%d: %s %d out of range or repeated", name,
-                                    lineno, key, idx);
-            }
+            lst = parse_indexed(key, rest, name, lineno, m, &seen, &ok);
         } else {
-            size_t k = 0;
-            while (k < NFIELDS && strcmp(fields[k].key, key) != 0) k++;
-            if (k == NFIELDS) return sh_error_set(SH_EFORMAT, "%s:%d: unknown key '%s'", name, lineno, key);
-            if (seen_field[k]++) return sh_error_set(SH_EFORMAT, "%s:%d: %s repeated", name, lineno, key);
-            char *p = (char *)m + fields[k].offset;
-            double v[3];
-            ok = get_doubles(rest, v, fields[k].count);
-            if (ok && fields[k].type == 'd') {
-                memcpy(p, v, sizeof(double) * (size_t)fields[k].count);
-            } else if (ok && fields[k].type == 'i') {
-                ok = v[0] == floor(v[0]) && fabs(v[0]) < 1e9;
-                *(int *)(void *)p = ok ? (int)v[0] : 0;
-            } else if (ok) {
-                /* the seed may exceed 2^53: read it as an integer, not through a double */
-                char *end;
-                errno = 0;
-                unsigned long long s = strtoull(rest, &end, 10);
-                while (*end == ' ' || *end == '\r') end++;
-                ok = errno == 0 && *end == '\0' && strchr(rest, '-') == NULL;
-                *(uint64_t *)(void *)p = s;
-            }
+            lst = parse_field(key, rest, name, lineno, m, &seen, &ok);
         }
+        if (lst != SH_OK) return lst;
         if (!ok) return sh_error_set(SH_EFORMAT, "%s:%d: bad values for '%s'", name, lineno, key);
     }
     if (st != SH_EEOF) return st;
     if (it.lineno == 0) return sh_error_set(SH_EFORMAT, "%s: empty", name);
     for (size_t k = 0; k < NFIELDS; k++)
-        if (!seen_field[k] && group_on(m, fields[k].group))
+        if (!seen.field[k] && group_on(m, fields[k].group))
             return sh_error_set(SH_EFORMAT, "%s: missing '%s'", name, fields[k].key);
-    return validate(m, name, seen_pad, seen_marker, seen_blob, seen_cam);
+    return validate(m, name, seen.pad, seen.marker, seen.blob, seen.cam);
 }
 
 sh_status phantom_model_read(const char *path, phantom_model *m)

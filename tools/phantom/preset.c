@@ -201,27 +201,10 @@ static sh_status camera_motion(phantom_model *m, const phantom_options *o, doubl
     return SH_OK;
 }
 
-sh_status phantom_model_build(const phantom_options *o, phantom_model *m)
+/* The surface, the beat and the breath of the preset; with --periodic, rates rounded to whole
+ * cycles over the sequence. */
+static sh_status build_motion(const phantom_options *o, phantom_model *m, int invivo, uint64_t *rng)
 {
-    memset(m, 0, sizeof *m);
-    int invivo;
-    if (o->preset && strcmp(o->preset, "exvivo") == 0) invivo = 0;
-    else if (o->preset && strcmp(o->preset, "invivo") == 0) invivo = 1;
-    else return sh_error_set(SH_EINVAL, "unknown preset '%s' (exvivo or invivo)", o->preset ? o->preset : "");
-    if (o->cameras < 1 || o->cameras > PHANTOM_MAX_CAMERAS)
-        return sh_error_set(SH_EINVAL, "--cameras %d: 1 to %d", o->cameras, PHANTOM_MAX_CAMERAS);
-    if (o->width < 16 || o->height < 16 || o->width > 8192 || o->height > 8192 || (o->width & 1) ||
-        (o->height & 1))
-        return sh_error_set(SH_EINVAL, "image size %dx%d: even sizes from 16 to 8192", o->width,
-                            o->height);
-    uint64_t rng = o->seed ^ 0x5eedC0FFEEull;
-    m->seed = o->seed;
-    m->width = o->width;
-    m->height = o->height;
-    m->fps = o->fps > 0 ? o->fps : (invivo ? 31.0 : 23.0);
-    m->frames = o->frames > 0 ? o->frames : (invivo ? 337 : 400);
-    if (m->fps > 1000) return sh_error_set(SH_EINVAL, "--fps %g: at most 1000", m->fps);
-
     m->size_u = 100.0;
     m->size_v = 80.0;
     m->dome_height = 18.0;
@@ -231,7 +214,7 @@ sh_status phantom_model_build(const phantom_options *o, phantom_model *m)
     m->dome_v = -4.0;
     m->heart_hz = o->bpm > 0 ? o->bpm / 60.0 : (invivo ? 80.0 / 60.0 : 0.7);
     if (m->heart_hz > 5.0) return sh_error_set(SH_EINVAL, "--bpm %g: at most 300", o->bpm);
-    m->heart_phase = phantom_uniform(&rng, 0, 2 * PI);
+    m->heart_phase = phantom_uniform(rng, 0, 2 * PI);
     m->delay = 0.08;
     m->contraction = invivo ? 0.06 : 0.05;
     m->twist = invivo ? 0.07 : 0.06;
@@ -276,12 +259,12 @@ sh_status phantom_model_build(const phantom_options *o, phantom_model *m)
         m->heart_hz = heart;
         m->resp_hz = resp;
     }
+    return SH_OK;
+}
 
-    snprintf(m->family, sizeof m->family, "%s", o->family ? o->family : "tag36h11");
-    int codes = family_codes(m->family);
-    if (!codes)
-        return sh_error_set(SH_EINVAL, "--family %s: tag36h11, tag25h9, tag16h5 or tagStandard41h12",
-                            m->family);
+/* The tag family, size and ids, and the markers laid out on the surface. */
+static sh_status build_markers(const phantom_options *o, phantom_model *m, int invivo, int codes, uint64_t *rng)
+{
     m->tag_size = o->tag_size > 0 ? o->tag_size : (invivo ? 8.0 : 10.0);
     if (m->tag_size < 2.0 || m->tag_size > 40.0)
         return sh_error_set(SH_EINVAL, "--tag-size %g: 2 to 40 mm", m->tag_size);
@@ -299,10 +282,12 @@ sh_status phantom_model_build(const phantom_options *o, phantom_model *m)
     }
     if (!o->ids && m->num_markers > codes - 1)
         return sh_error_set(SH_EINVAL, "--markers %d: %s has %d codes", m->num_markers, m->family, codes);
-    sh_status st = layout_markers(m, o, &rng);
-    if (st != SH_OK) return st;
+    return layout_markers(m, o, rng);
+}
 
-    /* trinocular rig: a triangle of 90 mm sides, 50 cm above the patch, all looking at it */
+/* The trinocular rig: a triangle of 90 mm sides, 50 cm above the patch, all looking at it. */
+static sh_status build_cameras(const phantom_options *o, phantom_model *m)
+{
     static const double centers[3][3] = {{-45, 26, 500}, {45, 26, 500}, {0, -52, 500}};
     static const double rolls[3] = {0.012, -0.008, 0.02};
     static const double off[3][2] = {{3.7, -2.1}, {-4.4, 1.6}, {2.2, 3.3}};
@@ -320,7 +305,12 @@ sh_status phantom_model_build(const phantom_options *o, phantom_model *m)
             return sh_error_set(SH_EINVAL, "--distortion folds the image (radial part not monotonic "
                                            "over the view, or |p1|, |p2| >= 0.05)");
     }
+    return SH_OK;
+}
 
+/* The events that happen once (first beat, camera motion) and the sensor. */
+static sh_status build_events(const phantom_options *o, phantom_model *m)
+{
     double seconds = m->frames / m->fps;
     if (o->first_beat) {
         m->first_beat = 1;
@@ -330,21 +320,26 @@ sh_status phantom_model_build(const phantom_options *o, phantom_model *m)
                                 seconds);
     }
     if (o->camera_motion != PHANTOM_CAM_NONE) {
-        st = camera_motion(m, o, seconds);
+        sh_status st = camera_motion(m, o, seconds);
         if (st != SH_OK) return st;
     }
 
     m->noise = o->noise >= 0 ? o->noise : 1.5;
     m->exposure = o->exposure > 0 ? o->exposure : 1.0;
+    return SH_OK;
+}
 
+/* The instrument shaft, the blood blobs and the decoy tag (--occlusions). */
+static sh_status build_occlusions(const phantom_options *o, phantom_model *m, int codes, uint64_t *rng)
+{
     /* shaft period and blob times are drawn even without occlusions, so that turning them on
      * changes nothing else about a sequence */
     double dur = m->frames / m->fps;
-    double tip_u = phantom_uniform(&rng, -20, 20), tip_v = phantom_uniform(&rng, -15, 15);
+    double tip_u = phantom_uniform(rng, -20, 20), tip_v = phantom_uniform(rng, -15, 15);
     double when[PHANTOM_MAX_BLOBS];
-    for (int b = 0; b < PHANTOM_MAX_BLOBS; b++) when[b] = phantom_uniform(&rng, 0.05, 0.65);
-    uint64_t pick = phantom_splitmix(&rng);
-    double yaw = phantom_uniform(&rng, -0.3, 0.3);
+    for (int b = 0; b < PHANTOM_MAX_BLOBS; b++) when[b] = phantom_uniform(rng, 0.05, 0.65);
+    uint64_t pick = phantom_splitmix(rng);
+    double yaw = phantom_uniform(rng, -0.3, 0.3);
     if (o->occlusions) {
         m->shaft = 1;
         m->shaft_p0[0] = 150.0;
@@ -388,4 +383,39 @@ sh_status phantom_model_build(const phantom_options *o, phantom_model *m)
         m->decoy_yaw = yaw;
     }
     return SH_OK;
+}
+
+sh_status phantom_model_build(const phantom_options *o, phantom_model *m)
+{
+    memset(m, 0, sizeof *m);
+    int invivo;
+    if (o->preset && strcmp(o->preset, "exvivo") == 0) invivo = 0;
+    else if (o->preset && strcmp(o->preset, "invivo") == 0) invivo = 1;
+    else return sh_error_set(SH_EINVAL, "unknown preset '%s' (exvivo or invivo)", o->preset ? o->preset : "");
+    if (o->cameras < 1 || o->cameras > PHANTOM_MAX_CAMERAS)
+        return sh_error_set(SH_EINVAL, "--cameras %d: 1 to %d", o->cameras, PHANTOM_MAX_CAMERAS);
+    if (o->width < 16 || o->height < 16 || o->width > 8192 || o->height > 8192 || (o->width & 1) ||
+        (o->height & 1))
+        return sh_error_set(SH_EINVAL, "image size %dx%d: even sizes from 16 to 8192", o->width,
+                            o->height);
+    uint64_t rng = o->seed ^ 0x5eedC0FFEEull;
+    m->seed = o->seed;
+    m->width = o->width;
+    m->height = o->height;
+    m->fps = o->fps > 0 ? o->fps : (invivo ? 31.0 : 23.0);
+    m->frames = o->frames > 0 ? o->frames : (invivo ? 337 : 400);
+    if (m->fps > 1000) return sh_error_set(SH_EINVAL, "--fps %g: at most 1000", m->fps);
+
+    sh_status st = build_motion(o, m, invivo, &rng);
+    if (st != SH_OK) return st;
+
+    snprintf(m->family, sizeof m->family, "%s", o->family ? o->family : "tag36h11");
+    int codes = family_codes(m->family);
+    if (!codes)
+        return sh_error_set(SH_EINVAL, "--family %s: tag36h11, tag25h9, tag16h5 or tagStandard41h12",
+                            m->family);
+    if ((st = build_markers(o, m, invivo, codes, &rng)) != SH_OK) return st;
+    if ((st = build_cameras(o, m)) != SH_OK) return st;
+    if ((st = build_events(o, m)) != SH_OK) return st;
+    return build_occlusions(o, m, codes, &rng);
 }

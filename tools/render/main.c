@@ -265,15 +265,25 @@ const char *__lsan_default_options(void)
     return "print_suppressions=0";
 }
 
-int main(int argc, char **argv)
-{
-    sh_log_setup(SH_LOG_TOOL, "stillheart-render", SH_LOG_INFO);
+/* What the command line asks for; o.dist and o.ids point into it. */
+typedef struct {
     phantom_options o;
-    phantom_options_default(&o);
-    const char *out = NULL;
-    int quiet = 0;
+    const char *out;
     double dist[5];
     int ids[PHANTOM_MAX_MARKERS];
+    rd_board board;
+    int board_mode;
+} render_args;
+
+/* Fills *a from the command line; returns -1 to go on, or the exit status (0 after --help, 2 for
+ * a usage error). Over 80 lines because it is one case a line for 24 options, read as a table
+ * beside the option list: split, each option's check would sit away from its name. */
+static int parse_args(int argc, char **argv, render_args *a)
+{
+    phantom_options *o = &a->o;
+    phantom_options_default(o);
+    a->out = NULL;
+    a->board_mode = 0;
     enum { O_PRESET = 256, O_FRAMES, O_CAMERAS, O_WIDTH, O_HEIGHT, O_SEED, O_OCC, O_BPM, O_MARKERS,
            O_TAG, O_FAMILY, O_IDS, O_FPS, O_DIST, O_NOISE, O_EXPOSURE, O_OUT,
            O_TARGET, O_PERIODIC, O_CAM_MOTION, O_CAM_MOTION_AT, O_FIRST_BEAT, O_FIRST_BEAT_AT, O_RIG };
@@ -288,8 +298,7 @@ int main(int argc, char **argv)
         {"periodic", 0, 0, O_PERIODIC}, {"camera-motion", 1, 0, O_CAM_MOTION},
         {"camera-motion-at", 1, 0, O_CAM_MOTION_AT}, {"first-beat", 0, 0, O_FIRST_BEAT},
         {"first-beat-at", 1, 0, O_FIRST_BEAT_AT}, {"rig", 1, 0, O_RIG}, {0, 0, 0, 0}};
-    rd_board board;
-    int board_mode = 0, rig = -1, set_cameras = 0, set_width = 0, set_height = 0; /* rig: 0 small, 1 paper */
+    int rig = -1, set_cameras = 0, set_width = 0, set_height = 0; /* rig: 0 small, 1 paper */
     const char *heart_option = NULL; /* the last option that only the heart uses */
     int ch;
     long lv;
@@ -303,11 +312,11 @@ int main(int argc, char **argv)
             ch == O_FIRST_BEAT_AT)
             heart_option = opts[idx].name;
         switch (ch) {
-        case O_PRESET: o.preset = optarg; break;
-        case O_FRAMES: if (!parse_int(optarg, 1, 1000000, &lv)) BAD("--frames '%s': a count from 1", optarg); o.frames = (int)lv; break;
-        case O_CAMERAS: if (!parse_int(optarg, 1, 3, &lv)) BAD("--cameras '%s': 1, 2 or 3", optarg); o.cameras = (int)lv; set_cameras = 1; break;
-        case O_WIDTH: if (!parse_int(optarg, 16, 8192, &lv)) BAD("--width '%s': 16 to 8192", optarg); o.width = (int)lv; set_width = 1; break;
-        case O_HEIGHT: if (!parse_int(optarg, 16, 8192, &lv)) BAD("--height '%s': 16 to 8192", optarg); o.height = (int)lv; set_height = 1; break;
+        case O_PRESET: o->preset = optarg; break;
+        case O_FRAMES: if (!parse_int(optarg, 1, 1000000, &lv)) BAD("--frames '%s': a count from 1", optarg); o->frames = (int)lv; break;
+        case O_CAMERAS: if (!parse_int(optarg, 1, 3, &lv)) BAD("--cameras '%s': 1, 2 or 3", optarg); o->cameras = (int)lv; set_cameras = 1; break;
+        case O_WIDTH: if (!parse_int(optarg, 16, 8192, &lv)) BAD("--width '%s': 16 to 8192", optarg); o->width = (int)lv; set_width = 1; break;
+        case O_HEIGHT: if (!parse_int(optarg, 16, 8192, &lv)) BAD("--height '%s': 16 to 8192", optarg); o->height = (int)lv; set_height = 1; break;
         case O_RIG:
             if (!strcmp(optarg, "small")) rig = 0;
             else if (!strcmp(optarg, "paper")) rig = 1;
@@ -318,82 +327,247 @@ int main(int argc, char **argv)
             errno = 0;
             unsigned long long s = strtoull(optarg, &end, 10);
             if (end == optarg || *end || errno || optarg[0] == '-') BAD("--seed '%s': a non-negative integer", optarg);
-            o.seed = s;
+            o->seed = s;
             break;
         }
-        case O_OCC: o.occlusions = 1; break;
-        case O_BPM: if (!parse_double(optarg, &dv) || !(dv > 0 && dv <= 300)) BAD("--bpm '%s': 0 to 300", optarg); o.bpm = dv; break;
-        case O_MARKERS: if (!parse_int(optarg, 1, PHANTOM_MAX_MARKERS, &lv)) BAD("--markers '%s': 1 to %d", optarg, PHANTOM_MAX_MARKERS); o.markers = (int)lv; break;
-        case O_TAG: if (!parse_double(optarg, &dv) || !(dv > 0)) BAD("--tag-size '%s': millimetres > 0", optarg); o.tag_size = dv; break;
-        case O_FAMILY: o.family = optarg; break;
+        case O_OCC: o->occlusions = 1; break;
+        case O_BPM: if (!parse_double(optarg, &dv) || !(dv > 0 && dv <= 300)) BAD("--bpm '%s': 0 to 300", optarg); o->bpm = dv; break;
+        case O_MARKERS: if (!parse_int(optarg, 1, PHANTOM_MAX_MARKERS, &lv)) BAD("--markers '%s': 1 to %d", optarg, PHANTOM_MAX_MARKERS); o->markers = (int)lv; break;
+        case O_TAG: if (!parse_double(optarg, &dv) || !(dv > 0)) BAD("--tag-size '%s': millimetres > 0", optarg); o->tag_size = dv; break;
+        case O_FAMILY: o->family = optarg; break;
         case O_IDS: {
             double v[PHANTOM_MAX_MARKERS];
             int n = parse_list(optarg, v, PHANTOM_MAX_MARKERS);
             if (n <= 0) BAD("--ids '%s': comma-separated ids, at most %d", optarg, PHANTOM_MAX_MARKERS);
             for (int i = 0; i < n; i++) {
                 if (v[i] != (int)v[i]) BAD("--ids: '%g' is not an integer", v[i]);
-                ids[i] = (int)v[i];
+                a->ids[i] = (int)v[i];
             }
-            o.ids = ids;
-            o.num_ids = n;
+            o->ids = a->ids;
+            o->num_ids = n;
             break;
         }
-        case O_FPS: if (!parse_double(optarg, &dv) || !(dv > 0 && dv <= 1000)) BAD("--fps '%s': 0 to 1000", optarg); o.fps = dv; break;
-        case O_DIST: if (parse_list(optarg, dist, 5) != 5) BAD("--distortion '%s': five numbers k1,k2,p1,p2,k3", optarg); o.dist = dist; break;
-        case O_NOISE: if (!parse_double(optarg, &dv) || !(dv >= 0 && dv <= 100)) BAD("--noise '%s': 0 to 100 DN", optarg); o.noise = dv; break;
-        case O_EXPOSURE: if (!parse_double(optarg, &dv) || !(dv > 0 && dv <= 16)) BAD("--exposure '%s': a gain in (0, 16]", optarg); o.exposure = dv; break;
-        case O_OUT: out = optarg; break;
-        case O_PERIODIC: o.periodic = 1; break;
+        case O_FPS: if (!parse_double(optarg, &dv) || !(dv > 0 && dv <= 1000)) BAD("--fps '%s': 0 to 1000", optarg); o->fps = dv; break;
+        case O_DIST: if (parse_list(optarg, a->dist, 5) != 5) BAD("--distortion '%s': five numbers k1,k2,p1,p2,k3", optarg); o->dist = a->dist; break;
+        case O_NOISE: if (!parse_double(optarg, &dv) || !(dv >= 0 && dv <= 100)) BAD("--noise '%s': 0 to 100 DN", optarg); o->noise = dv; break;
+        case O_EXPOSURE: if (!parse_double(optarg, &dv) || !(dv > 0 && dv <= 16)) BAD("--exposure '%s': a gain in (0, 16]", optarg); o->exposure = dv; break;
+        case O_OUT: a->out = optarg; break;
+        case O_PERIODIC: o->periodic = 1; break;
         case O_CAM_MOTION:
-            if (!strcmp(optarg, "pan")) o.camera_motion = PHANTOM_CAM_PAN;
-            else if (!strcmp(optarg, "bump")) o.camera_motion = PHANTOM_CAM_BUMP;
+            if (!strcmp(optarg, "pan")) o->camera_motion = PHANTOM_CAM_PAN;
+            else if (!strcmp(optarg, "bump")) o->camera_motion = PHANTOM_CAM_BUMP;
             else BAD("--camera-motion '%s': pan or bump", optarg);
             break;
-        case O_CAM_MOTION_AT: if (!parse_double(optarg, &dv) || !(dv > 0 && dv < 1e6)) BAD("--camera-motion-at '%s': seconds > 0", optarg); o.camera_motion_at = dv; break;
-        case O_FIRST_BEAT: o.first_beat = 1; break;
-        case O_FIRST_BEAT_AT: if (!parse_double(optarg, &dv) || !(dv > 0 && dv < 1e6)) BAD("--first-beat-at '%s': seconds > 0", optarg); o.first_beat_at = dv; break;
+        case O_CAM_MOTION_AT: if (!parse_double(optarg, &dv) || !(dv > 0 && dv < 1e6)) BAD("--camera-motion-at '%s': seconds > 0", optarg); o->camera_motion_at = dv; break;
+        case O_FIRST_BEAT: o->first_beat = 1; break;
+        case O_FIRST_BEAT_AT: if (!parse_double(optarg, &dv) || !(dv > 0 && dv < 1e6)) BAD("--first-beat-at '%s': seconds > 0", optarg); o->first_beat_at = dv; break;
         case O_TARGET:
-            if (rd_board_parse(optarg, &board) != SH_OK) BAD("%s", sh_error_message());
-            board_mode = 1;
+            if (rd_board_parse(optarg, &a->board) != SH_OK) BAD("%s", sh_error_message());
+            a->board_mode = 1;
             break;
         case 'h': usage(stdout); return 0;
         default: { int rc = sh_cli_option(&cli, ch, argv); if (rc >= 0) return rc; } break;
         }
     }
-    quiet = sh_log_get_level() < SH_LOG_INFO;
     if (optind < argc) return sh_cli_usage_error(&cli, "unexpected argument '%s'", argv[optind]);
-    if (!out) return sh_cli_usage_error(&cli, "--out DIR is required");
-    if (board_mode && heart_option) BAD("--%s: the heart's option, not the board's (--calib-target)", heart_option);
-    if (o.camera_motion_at > 0 && !o.camera_motion) BAD("--camera-motion-at: with --camera-motion pan|bump only");
-    if (o.first_beat_at > 0 && !o.first_beat) BAD("--first-beat-at: with --first-beat only");
+    if (!a->out) return sh_cli_usage_error(&cli, "--out DIR is required");
+    if (a->board_mode && heart_option) BAD("--%s: the heart's option, not the board's (--calib-target)", heart_option);
+    if (o->camera_motion_at > 0 && !o->camera_motion) BAD("--camera-motion-at: with --camera-motion pan|bump only");
+    if (o->first_beat_at > 0 && !o->first_beat) BAD("--first-beat-at: with --first-beat only");
 #undef BAD
-    if (board_mode && o.frames <= 0) o.frames = 20;
-    if (rig < 0) rig = board_mode;
-    if (!set_cameras) o.cameras = rig ? 3 : 1;
-    if (!set_width) o.width = rig ? 1920 : 640;
-    if (!set_height) o.height = rig ? 1080 : 360;
+    if (a->board_mode && o->frames <= 0) o->frames = 20;
+    if (rig < 0) rig = a->board_mode;
+    if (!set_cameras) o->cameras = rig ? 3 : 1;
+    if (!set_width) o->width = rig ? 1920 : 640;
+    if (!set_height) o->height = rig ? 1080 : 360;
+    return -1;
+}
+
+/* One render's resources: everything that done() releases, zeroed before the first is taken. */
+typedef struct {
+    const render_args *a;
+    const phantom_model *m;
+    rd_board_pose *poses;
+    pipeline p;
+    FILE *csv;
+    rd_scene *scene;
+    rd_board_raster *raster[PHANTOM_MAX_CAMERAS];
+    rd_texture drape[PHANTOM_MAX_CAMERAS];
+    pthread_t thread;
+    int thread_ok;
+} render_run;
+
+#define FAIL() do { sh_log_error("%s", sh_error_message()); return -1; } while (0)
+
+/* The buffers, the files that do not depend on the frames, the Y4M writers, the backgrounds and
+ * the scene (or the board's rasterizers); 0, or -1 after logging why. */
+static int open_outputs(render_run *r)
+{
+    const phantom_model *m = r->m;
+    const char *out = r->a->out;
+    int board_mode = r->a->board_mode;
+    pipeline *p = &r->p;
+    char path[4200];
+    size_t frame_bytes = (size_t)m->width * m->height * 4;
+    p->slots[0].rgba = malloc(frame_bytes);
+    p->slots[1].rgba = malloc(frame_bytes);
+    p->i420 = malloc(sh_image_packed_size(SH_PIX_I420, m->width, m->height));
+    p->scratch = malloc((size_t)m->width * m->height);
+    if (!p->slots[0].rgba || !p->slots[1].rgba || !p->i420 || !p->scratch) {
+        sh_log_error("out of memory for %dx%d frames", m->width, m->height);
+        return -1;
+    }
+    snprintf(path, sizeof path, "%s/%s", out, PHANTOM_PARAMS_FILE);
+    if (!board_mode && phantom_model_write(m, path) != SH_OK) FAIL();
+    snprintf(path, sizeof path, "%s/calibration.yaml", out);
+    if (write_calibration(m, path) != SH_OK) FAIL();
+    snprintf(path, sizeof path, "%s/%s", out, board_mode ? "board.csv" : "markers.csv");
+    r->csv = fopen(path, "w");
+    if (!r->csv) {
+        sh_log_error("%s: %s", path, strerror(errno));
+        return -1;
+    }
+    fprintf(r->csv, "%s\n", board_mode ? "frame,camera,corner,x,y,X,Y,Z" : PHANTOM_CSV_HEADER);
+    sh_y4m_header hdr;
+    memset(&hdr, 0, sizeof hdr);
+    hdr.width = m->width;
+    hdr.height = m->height;
+    hdr.format = SH_PIX_I420;
+    hdr.siting = SH_CHROMA_CENTER;
+    hdr.fps_num = m->fps == (int)m->fps ? (int)m->fps : (int)(m->fps * 1000 + 0.5);
+    hdr.fps_den = m->fps == (int)m->fps ? 1 : 1000;
+    hdr.aspect_num = hdr.aspect_den = 1;
+    hdr.interlace = 'p';
+    if (r->a->o.periodic) snprintf(hdr.extra, sizeof hdr.extra, "%s", SH_Y4M_LOOP_SEAMLESS);
+    for (int c = 0; c < m->num_cameras; c++) {
+        snprintf(path, sizeof path, "%s/cam%d.y4m", out, c);
+        if (sh_y4m_writer_open(path, &hdr, &p->writers[c]) != SH_OK) FAIL();
+    }
+    for (int c = 0; c < m->num_cameras; c++) {
+        if (rd_texture_drape(m->seed, c, m->width, m->height, &r->drape[c]) != SH_OK) FAIL();
+        p->sensor.background[c] = r->drape[c].rgb;
+    }
+    if (board_mode) {
+        for (int c = 0; c < m->num_cameras; c++)
+            if (rd_board_raster_create(m, c, &r->raster[c]) != SH_OK) FAIL();
+    } else if (rd_scene_create(m, &r->scene) != SH_OK) {
+        FAIL();
+    }
+    return 0;
+}
+
+/* Draws frame f of every camera into the ring and writes its truth rows; 0, or -1 after logging. */
+static int render_frame(render_run *r, int f, int *cur)
+{
+    const phantom_model *m = r->m;
+    const render_args *a = r->a;
+    pipeline *p = &r->p;
+    if (!a->board_mode) rd_scene_update(r->scene, f / m->fps);
+    for (int c = 0; c < m->num_cameras; c++) {
+        pthread_mutex_lock(&p->mu);
+        while (p->slots[*cur].full) pthread_cond_wait(&p->cv, &p->mu);
+        sh_status wst = p->status;
+        pthread_mutex_unlock(&p->mu);
+        if (wst != SH_OK) {
+            sh_log_error("%s", p->error);
+            return -1;
+        }
+        sh_status dst = a->board_mode ? rd_board_draw(r->raster[c], &m->cam[c], &a->board, &r->poses[f],
+                                                      r->drape[c].rgb, p->slots[*cur].rgba)
+                                      : rd_scene_draw(r->scene, c, p->slots[*cur].rgba);
+        if (dst != SH_OK) FAIL();
+        pthread_mutex_lock(&p->mu);
+        p->slots[*cur].camera = c;
+        p->slots[*cur].frame = f;
+        p->slots[*cur].full = 1;
+        pthread_cond_broadcast(&p->cv);
+        pthread_mutex_unlock(&p->mu);
+        *cur ^= 1;
+    }
+    if ((a->board_mode ? write_board_corners(r->csv, m, &a->board, &r->poses[f], f) : write_markers(r->csv, m, f)) !=
+        0) {
+        sh_log_error("%s: write error: %s", a->board_mode ? "board.csv" : "markers.csv", strerror(errno));
+        return -1;
+    }
+    return 0;
+}
+
+#undef FAIL
+
+/* Stops the writer, closes the outputs and frees everything; returns rc, or 1 where a late write
+ * failed. */
+static int finish(render_run *r, int rc, int quiet, double t_start)
+{
+    const phantom_model *m = r->m;
+    pipeline *p = &r->p;
+    if (r->thread_ok) {
+        pthread_mutex_lock(&p->mu);
+        p->quit = 1;
+        pthread_cond_broadcast(&p->cv);
+        pthread_mutex_unlock(&p->mu);
+        pthread_join(r->thread, NULL);
+        if (rc == 0 && p->status != SH_OK) {
+            sh_log_error("%s", p->error);
+            rc = 1;
+        }
+    }
+    if (rc == 0 && !quiet) {
+        double el = now() - t_start;
+        sh_log_info("%d frames x %d cameras, %dx%d, in %.1f s (%.1f frames/s, %.1f "
+                    "images/s, setup included)", m->frames, m->num_cameras, m->width, m->height, el,
+                    m->frames / el, m->frames * m->num_cameras / el);
+    }
+    for (int c = 0; c < m->num_cameras; c++)
+        if (p->writers[c] && sh_y4m_writer_close(p->writers[c]) != SH_OK && rc == 0) {
+            sh_log_error("%s", sh_error_message());
+            rc = 1;
+        }
+    if (r->csv && (ferror(r->csv) | fclose(r->csv)) && rc == 0) {
+        sh_log_error("%s: write error", r->a->board_mode ? "board.csv" : "markers.csv");
+        rc = 1;
+    }
+    rd_scene_destroy(r->scene);
+    for (int c = 0; c < PHANTOM_MAX_CAMERAS; c++) rd_board_raster_destroy(r->raster[c]);
+    free(r->poses);
+    for (int c = 0; c < PHANTOM_MAX_CAMERAS; c++) rd_texture_free(&r->drape[c]);
+    free(p->slots[0].rgba);
+    free(p->slots[1].rgba);
+    free(p->i420);
+    free(p->scratch);
+    pthread_mutex_destroy(&p->mu);
+    pthread_cond_destroy(&p->cv);
+    return rc;
+}
+
+int main(int argc, char **argv)
+{
+    sh_log_setup(SH_LOG_TOOL, "stillheart-render", SH_LOG_INFO);
+    static render_args a;
+    int prc = parse_args(argc, argv, &a);
+    if (prc >= 0) return prc;
+    int quiet = sh_log_get_level() < SH_LOG_INFO;
 
     static phantom_model m;
-    if (phantom_model_build(&o, &m) != SH_OK) {
+    if (phantom_model_build(&a.o, &m) != SH_OK) {
         sh_log_error("%s", sh_error_message());
         return 2;
     }
     /* the board's poses before anything is written: a board too large for the view is refused */
     rd_board_pose *poses = NULL;
-    if (board_mode) {
+    if (a.board_mode) {
         poses = malloc(sizeof *poses * (size_t)m.frames);
         if (!poses) {
             sh_log_error("out of memory for %d poses", m.frames);
             return 1;
         }
-        if (rd_board_poses(&m, &board, m.frames, m.seed, poses) != SH_OK) {
+        if (rd_board_poses(&m, &a.board, m.frames, m.seed, poses) != SH_OK) {
             sh_log_error("%s", sh_error_message());
             free(poses);
             return 2;
         }
     }
-    if (make_dir(out) != 0) {
-        sh_log_error("%s: cannot create the folder: %s", out, strerror(errno));
+    if (make_dir(a.out) != 0) {
+        sh_log_error("%s: cannot create the folder: %s", a.out, strerror(errno));
         free(poses);
         return 1;
     }
@@ -406,146 +580,29 @@ int main(int argc, char **argv)
     rd_sensor_init();
     double t_start = now();
 
-    char path[4200];
-    int rc = 1;
-    pipeline p;
-    memset(&p, 0, sizeof p);
-    pthread_mutex_init(&p.mu, NULL);
-    pthread_cond_init(&p.cv, NULL);
-    p.m = &m;
-    p.sensor.gain = m.exposure;
-    p.sensor.read_noise = m.noise;
-    p.sensor.seed = m.seed;
-    FILE *csv = NULL;
-    rd_scene *scene = NULL;
-    rd_board_raster *raster[PHANTOM_MAX_CAMERAS] = {NULL};
-    rd_texture drape[PHANTOM_MAX_CAMERAS];
-    memset(drape, 0, sizeof drape);
-    pthread_t thread;
-    int thread_ok = 0;
-    size_t frame_bytes = (size_t)m.width * m.height * 4;
-    p.slots[0].rgba = malloc(frame_bytes);
-    p.slots[1].rgba = malloc(frame_bytes);
-    p.i420 = malloc(sh_image_packed_size(SH_PIX_I420, m.width, m.height));
-    p.scratch = malloc((size_t)m.width * m.height);
-    if (!p.slots[0].rgba || !p.slots[1].rgba || !p.i420 || !p.scratch) {
-        sh_log_error("out of memory for %dx%d frames", m.width, m.height);
-        goto done;
-    }
-#define FAIL() do { sh_log_error("%s", sh_error_message()); goto done; } while (0)
-    snprintf(path, sizeof path, "%s/%s", out, PHANTOM_PARAMS_FILE);
-    if (!board_mode && phantom_model_write(&m, path) != SH_OK) FAIL();
-    snprintf(path, sizeof path, "%s/calibration.yaml", out);
-    if (write_calibration(&m, path) != SH_OK) FAIL();
-    snprintf(path, sizeof path, "%s/%s", out, board_mode ? "board.csv" : "markers.csv");
-    csv = fopen(path, "w");
-    if (!csv) {
-        sh_log_error("%s: %s", path, strerror(errno));
-        goto done;
-    }
-    fprintf(csv, "%s\n", board_mode ? "frame,camera,corner,x,y,X,Y,Z" : PHANTOM_CSV_HEADER);
-    sh_y4m_header hdr;
-    memset(&hdr, 0, sizeof hdr);
-    hdr.width = m.width;
-    hdr.height = m.height;
-    hdr.format = SH_PIX_I420;
-    hdr.siting = SH_CHROMA_CENTER;
-    hdr.fps_num = m.fps == (int)m.fps ? (int)m.fps : (int)(m.fps * 1000 + 0.5);
-    hdr.fps_den = m.fps == (int)m.fps ? 1 : 1000;
-    hdr.aspect_num = hdr.aspect_den = 1;
-    hdr.interlace = 'p';
-    if (o.periodic) snprintf(hdr.extra, sizeof hdr.extra, "%s", SH_Y4M_LOOP_SEAMLESS);
-    for (int c = 0; c < m.num_cameras; c++) {
-        snprintf(path, sizeof path, "%s/cam%d.y4m", out, c);
-        if (sh_y4m_writer_open(path, &hdr, &p.writers[c]) != SH_OK) FAIL();
-    }
-    for (int c = 0; c < m.num_cameras; c++) {
-        if (rd_texture_drape(m.seed, c, m.width, m.height, &drape[c]) != SH_OK) FAIL();
-        p.sensor.background[c] = drape[c].rgb;
-    }
-    if (board_mode) {
-        for (int c = 0; c < m.num_cameras; c++)
-            if (rd_board_raster_create(&m, c, &raster[c]) != SH_OK) FAIL();
-    } else if (rd_scene_create(&m, &scene) != SH_OK) {
-        FAIL();
-    }
-    if (pthread_create(&thread, NULL, writer_main, &p) != 0) {
+    static render_run r;
+    r.a = &a;
+    r.m = &m;
+    r.poses = poses;
+    pthread_mutex_init(&r.p.mu, NULL);
+    pthread_cond_init(&r.p.cv, NULL);
+    r.p.m = &m;
+    r.p.sensor.gain = m.exposure;
+    r.p.sensor.read_noise = m.noise;
+    r.p.sensor.seed = m.seed;
+    if (open_outputs(&r) != 0) return finish(&r, 1, quiet, t_start);
+    if (pthread_create(&r.thread, NULL, writer_main, &r.p) != 0) {
         sh_log_error("cannot start the writer thread");
-        goto done;
+        return finish(&r, 1, quiet, t_start);
     }
-    thread_ok = 1;
+    r.thread_ok = 1;
     sh_cli_progress bar;
     sh_cli_progress_start(&bar, "render", m.frames, "frames");
     int cur = 0;
     for (int f = 0; f < m.frames; f++) {
-        if (!board_mode) rd_scene_update(scene, f / m.fps);
-        for (int c = 0; c < m.num_cameras; c++) {
-            pthread_mutex_lock(&p.mu);
-            while (p.slots[cur].full) pthread_cond_wait(&p.cv, &p.mu);
-            sh_status wst = p.status;
-            pthread_mutex_unlock(&p.mu);
-            if (wst != SH_OK) {
-                sh_log_error("%s", p.error);
-                goto done;
-            }
-            sh_status dst = board_mode ? rd_board_draw(raster[c], &m.cam[c], &board, &poses[f], drape[c].rgb,
-                                                       p.slots[cur].rgba)
-                                       : rd_scene_draw(scene, c, p.slots[cur].rgba);
-            if (dst != SH_OK) FAIL();
-            pthread_mutex_lock(&p.mu);
-            p.slots[cur].camera = c;
-            p.slots[cur].frame = f;
-            p.slots[cur].full = 1;
-            pthread_cond_broadcast(&p.cv);
-            pthread_mutex_unlock(&p.mu);
-            cur ^= 1;
-        }
-        if ((board_mode ? write_board_corners(csv, &m, &board, &poses[f], f) : write_markers(csv, &m, f)) != 0) {
-            sh_log_error("%s: write error: %s", board_mode ? "board.csv" : "markers.csv",
-                         strerror(errno));
-            goto done;
-        }
+        if (render_frame(&r, f, &cur) != 0) return finish(&r, 1, quiet, t_start);
         sh_cli_progress_update(&bar, f + 1);
     }
     sh_cli_progress_end(&bar);
-    rc = 0;
-done:
-    if (thread_ok) {
-        pthread_mutex_lock(&p.mu);
-        p.quit = 1;
-        pthread_cond_broadcast(&p.cv);
-        pthread_mutex_unlock(&p.mu);
-        pthread_join(thread, NULL);
-        if (rc == 0 && p.status != SH_OK) {
-            sh_log_error("%s", p.error);
-            rc = 1;
-        }
-    }
-    if (rc == 0 && !quiet) {
-        double el = now() - t_start;
-        sh_log_info("%d frames x %d cameras, %dx%d, in %.1f s (%.1f frames/s, %.1f "
-                    "images/s, setup included)", m.frames, m.num_cameras, m.width, m.height, el,
-                    m.frames / el, m.frames * m.num_cameras / el);
-    }
-    for (int c = 0; c < m.num_cameras; c++)
-        if (p.writers[c] && sh_y4m_writer_close(p.writers[c]) != SH_OK && rc == 0) {
-            sh_log_error("%s", sh_error_message());
-            rc = 1;
-        }
-    if (csv && (ferror(csv) | fclose(csv)) && rc == 0) {
-        sh_log_error("%s: write error", board_mode ? "board.csv" : "markers.csv");
-        rc = 1;
-    }
-    rd_scene_destroy(scene);
-    for (int c = 0; c < PHANTOM_MAX_CAMERAS; c++) rd_board_raster_destroy(raster[c]);
-    free(poses);
-    for (int c = 0; c < PHANTOM_MAX_CAMERAS; c++) rd_texture_free(&drape[c]);
-    free(p.slots[0].rgba);
-    free(p.slots[1].rgba);
-    free(p.i420);
-    free(p.scratch);
-    pthread_mutex_destroy(&p.mu);
-    pthread_cond_destroy(&p.cv);
-    return rc;
-#undef FAIL
+    return finish(&r, 0, quiet, t_start);
 }

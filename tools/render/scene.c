@@ -6,7 +6,11 @@
  * lens distortion included, and handed to GL as clip coordinates (w = camera depth, so texture
  * interpolation stays perspective-correct). So a vertex lands exactly where the truth says; only
  * the inside of each ~6 px triangle is linear. Shading is per vertex: Lambert plus a Blinn-Phong
- * highlight passed as the secondary colour, added after texturing as wet tissue reflects. */
+ * highlight passed as the secondary colour, added after texturing as wet tissue reflects.
+ *
+ * About 650 lines, on purpose: the meshes are made, moved and drawn through one rd_scene and one GL
+ * context, and their layout (struct mesh, the grids' sizes) is private to this file; split, it
+ * would have to go into a header shared by the parts. */
 #define GL_GLEXT_PROTOTYPES 1 /* libOSMesa exports the GL 1.4 / 3.0 entry points we use */
 #include <GL/osmesa.h>
 #include <GL/gl.h>
@@ -190,6 +194,169 @@ static double distortion_limit(const phantom_camera *c, int w, int h)
     return r;
 }
 
+/* The tissue texture and one texture per marker; *total and *border: a tag image's width and
+ * its black border's, in cells. */
+static sh_status make_textures(rd_scene *s, const phantom_model *m, int *total, int *border)
+{
+    GLint maxtex = 0;
+    glGetIntegerv(GL_MAX_TEXTURE_SIZE, &maxtex);
+    sh_status st;
+    rd_texture tex = {0};
+    /* two texels per pixel of the patch's width on screen: enough for the mip chain to
+     * filter, and small images start fast (tests render many) */
+    double patch_px = m->cam[0].fx * m->size_u / 500.0;
+    int tw = 512;
+    while (tw < 2 * patch_px && tw < 4096 && tw < maxtex) tw *= 2;
+    int th = (int)(tw * m->size_v / m->size_u);
+    if ((st = rd_texture_tissue(m, tw, th, &tex)) != SH_OK) return st;
+    s->tissue_tex = upload(&tex);
+    rd_texture_free(&tex);
+    *total = *border = 0;
+    for (int i = 0; i < m->num_markers; i++) {
+        if ((st = rd_texture_tag(m->family, m->marker[i].id, 16, &tex, total, border)) != SH_OK) return st;
+        s->tag_tex[i] = upload(&tex);
+        rd_texture_free(&tex);
+    }
+    return SH_OK;
+}
+
+/* The surface, a grid over the patch, and the tags, each a small grid over its whole image
+ * (white ring included); their positions come with rd_scene_update. */
+static sh_status make_surface_and_tags(rd_scene *s, const phantom_model *m)
+{
+    sh_status st;
+    if ((st = mesh_alloc(&s->surface, GRID_U * GRID_V, (GRID_U - 1) * (GRID_V - 1) * 6)) != SH_OK) return st;
+    grid_indices(&s->surface, GRID_U, GRID_V);
+    for (int j = 0; j < GRID_V; j++)
+        for (int i = 0; i < GRID_U; i++) {
+            s->surface.st[2 * (j * GRID_U + i)] = (float)i / (GRID_U - 1);
+            s->surface.st[2 * (j * GRID_U + i) + 1] = (float)j / (GRID_V - 1);
+        }
+    s->surface.tex = s->tissue_tex;
+    material(&s->surface, 1, 1, 1, 0.30f, 0.80f, 0.45f, 45);
+
+    for (int i = 0; i < m->num_markers; i++) {
+        mesh *me = &s->tags[i];
+        if ((st = mesh_alloc(me, TAG_GRID * TAG_GRID, (TAG_GRID - 1) * (TAG_GRID - 1) * 6)) != SH_OK) return st;
+        grid_indices(me, TAG_GRID, TAG_GRID);
+        for (int j = 0; j < TAG_GRID; j++)
+            for (int k = 0; k < TAG_GRID; k++) {
+                me->st[2 * (j * TAG_GRID + k)] = (float)k / (TAG_GRID - 1);
+                me->st[2 * (j * TAG_GRID + k) + 1] = (float)j / (TAG_GRID - 1);
+            }
+        me->tex = s->tag_tex[i];
+        me->offset = 1;
+        material(me, 1, 1, 1, 0.30f, 0.80f, 0.08f, 20);
+    }
+    return SH_OK;
+}
+
+/* The blood blobs: a fan of rings each, placed by rd_scene_update. */
+static sh_status make_blobs(rd_scene *s, const phantom_model *m)
+{
+    sh_status st;
+    for (int b = 0; b < m->num_blobs; b++) {
+        mesh *me = &s->blobs[b];
+        int n = 1 + BLOB_RINGS * BLOB_SEGS;
+        if ((st = mesh_alloc(me, n, BLOB_SEGS * 3 + (BLOB_RINGS - 1) * BLOB_SEGS * 6)) != SH_OK) return st;
+        int k = 0;
+        for (int j = 0; j < BLOB_SEGS; j++) {
+            me->idx[k++] = 0, me->idx[k++] = (uint32_t)(1 + j), me->idx[k++] = (uint32_t)(1 + (j + 1) % BLOB_SEGS);
+        }
+        for (int r = 0; r + 1 < BLOB_RINGS; r++)
+            for (int j = 0; j < BLOB_SEGS; j++) {
+                uint32_t a = (uint32_t)(1 + r * BLOB_SEGS + j), b2 = (uint32_t)(1 + r * BLOB_SEGS + (j + 1) % BLOB_SEGS);
+                uint32_t c = a + BLOB_SEGS, d = b2 + BLOB_SEGS;
+                me->idx[k++] = a, me->idx[k++] = c, me->idx[k++] = d;
+                me->idx[k++] = a, me->idx[k++] = d, me->idx[k++] = b2;
+            }
+        me->offset = 2;
+        material(me, 0.42f, 0.02f, 0.04f, 0.35f, 0.75f, 0.9f, 80);
+    }
+    return SH_OK;
+}
+
+/* The stabilizer pads, placed once at rest, and the instrument shaft. */
+static sh_status make_pads_and_shaft(rd_scene *s, const phantom_model *m)
+{
+    sh_status st;
+    for (int p = 0; p < m->num_pads; p++) {
+        double a[3], b[3];
+        int rings;
+        phantom_pad_axis(m, p, 0.0, a, b); /* rd_scene_update moves them with a camera motion */
+        double len = sqrt((b[0] - a[0]) * (b[0] - a[0]) + (b[1] - a[1]) * (b[1] - a[1]) + (b[2] - a[2]) * (b[2] - a[2]));
+        s->pad_len[p] = len;
+        if ((st = capsule_alloc(&s->pads[p], len, &rings)) != SH_OK) return st;
+        capsule_place(&s->pads[p], a, b, m->pad_radius, len);
+        material(&s->pads[p], 0.55f, 0.57f, 0.6f, 0.3f, 0.7f, 0.8f, 30);
+    }
+    if (m->shaft) {
+        int rings;
+        if ((st = capsule_alloc(&s->shaft, m->shaft_length, &rings)) != SH_OK) return st;
+        material(&s->shaft, 0.5f, 0.52f, 0.55f, 0.3f, 0.7f, 1.0f, 40);
+    }
+    return SH_OK;
+}
+
+/* The decoy: the card, and the tag on it (a quad each: they are flat and rigid). */
+static sh_status make_decoy(rd_scene *s, const phantom_model *m, int total, int border)
+{
+    sh_status st;
+    rd_texture tex = {0};
+    double half_card = 0.5 * phantom_decoy_card(m);
+    double half_tag = 0.5 * m->tag_size * total / border;
+    mesh *card = &s->card, *tag = &s->decoy;
+    if ((st = mesh_alloc(card, 4, 6)) != SH_OK || (st = mesh_alloc(tag, 4, 6)) != SH_OK) return st;
+    if ((st = rd_texture_tag(m->family, m->decoy_id, 16, &tex, &total, &border)) != SH_OK) return st;
+    s->decoy_tex = upload(&tex);
+    rd_texture_free(&tex);
+    static const double su[4] = {-1, 1, 1, -1}, sv[4] = {1, 1, -1, -1};
+    double c = cos(m->decoy_yaw), sn = sin(m->decoy_yaw);
+    for (int k = 0; k < 4; k++) {
+        double h2[2] = {half_card, half_tag};
+        mesh *me2[2] = {card, tag};
+        for (int q = 0; q < 2; q++) {
+            double a = su[k] * h2[q], b = sv[k] * h2[q];
+            me2[q]->P[3 * k] = m->decoy_center[0] + c * a - sn * b;
+            me2[q]->P[3 * k + 1] = m->decoy_center[1] + sn * a + c * b;
+            me2[q]->P[3 * k + 2] = m->decoy_center[2];
+            me2[q]->N[3 * k + 2] = 1;
+            me2[q]->st[2 * k] = su[k] > 0 ? 1.0f : 0.0f;
+            me2[q]->st[2 * k + 1] = sv[k] > 0 ? 0.0f : 1.0f;
+        }
+    }
+    memcpy(s->card_rest, card->P, sizeof s->card_rest);
+    memcpy(s->decoy_rest, tag->P, sizeof s->decoy_rest);
+    static const uint32_t quad[6] = {0, 1, 2, 0, 2, 3};
+    memcpy(card->idx, quad, sizeof quad);
+    memcpy(tag->idx, quad, sizeof quad);
+    material(card, 0.93f, 0.93f, 0.9f, 0.35f, 0.7f, 0.05f, 10);
+    material(tag, 1, 1, 1, 0.35f, 0.7f, 0.05f, 10);
+    tag->tex = s->decoy_tex;
+    tag->offset = 1;
+    return SH_OK;
+}
+
+/* The fixed GL state every draw relies on. */
+static void gl_setup(const phantom_model *m)
+{
+    glEnable(GL_DEPTH_TEST);
+    glDepthFunc(GL_LEQUAL);
+    glEnable(GL_COLOR_SUM);
+    glDisable(GL_LIGHTING);
+    glDisable(GL_CULL_FACE);
+    glTexEnvi(GL_TEXTURE_ENV, GL_TEXTURE_ENV_MODE, GL_MODULATE);
+    glMatrixMode(GL_PROJECTION);
+    glLoadIdentity();
+    glMatrixMode(GL_MODELVIEW);
+    glLoadIdentity();
+    glViewport(0, 0, m->width, m->height);
+    glEnableClientState(GL_VERTEX_ARRAY);
+    glEnableClientState(GL_COLOR_ARRAY);
+    glEnableClientState(GL_SECONDARY_COLOR_ARRAY);
+    glEnableClientState(GL_TEXTURE_COORD_ARRAY);
+}
+
 sh_status rd_scene_create(const phantom_model *m, rd_scene **out)
 {
     *out = NULL;
@@ -212,123 +379,13 @@ sh_status rd_scene_create(const phantom_model *m, rd_scene **out)
     }
     OSMesaPixelStore(OSMESA_Y_UP, 0);
     free(probe);
-    GLint maxtex = 0;
-    glGetIntegerv(GL_MAX_TEXTURE_SIZE, &maxtex);
-    sh_status st = SH_OK;
-
-    /* textures */
-    rd_texture tex = {0};
-    /* two texels per pixel of the patch's width on screen: enough for the mip chain to
-     * filter, and small images start fast (tests render many) */
-    double patch_px = m->cam[0].fx * m->size_u / 500.0;
-    int tw = 512;
-    while (tw < 2 * patch_px && tw < 4096 && tw < maxtex) tw *= 2;
-    int th = (int)(tw * m->size_v / m->size_u);
-    if ((st = rd_texture_tissue(m, tw, th, &tex)) != SH_OK) goto fail;
-    s->tissue_tex = upload(&tex);
-    rd_texture_free(&tex);
-    int total = 0, border = 0;
-    for (int i = 0; i < m->num_markers; i++) {
-        if ((st = rd_texture_tag(m->family, m->marker[i].id, 16, &tex, &total, &border)) != SH_OK) goto fail;
-        s->tag_tex[i] = upload(&tex);
-        rd_texture_free(&tex);
-    }
-
-    /* the surface: a grid over the patch */
-    if ((st = mesh_alloc(&s->surface, GRID_U * GRID_V, (GRID_U - 1) * (GRID_V - 1) * 6)) != SH_OK) goto fail;
-    grid_indices(&s->surface, GRID_U, GRID_V);
-    for (int j = 0; j < GRID_V; j++)
-        for (int i = 0; i < GRID_U; i++) {
-            s->surface.st[2 * (j * GRID_U + i)] = (float)i / (GRID_U - 1);
-            s->surface.st[2 * (j * GRID_U + i) + 1] = (float)j / (GRID_V - 1);
-        }
-    s->surface.tex = s->tissue_tex;
-    material(&s->surface, 1, 1, 1, 0.30f, 0.80f, 0.45f, 45);
-
-    /* tags: each a small grid over its whole image (white ring included) */
-    for (int i = 0; i < m->num_markers; i++) {
-        mesh *me = &s->tags[i];
-        if ((st = mesh_alloc(me, TAG_GRID * TAG_GRID, (TAG_GRID - 1) * (TAG_GRID - 1) * 6)) != SH_OK) goto fail;
-        grid_indices(me, TAG_GRID, TAG_GRID);
-        for (int j = 0; j < TAG_GRID; j++)
-            for (int k = 0; k < TAG_GRID; k++) {
-                me->st[2 * (j * TAG_GRID + k)] = (float)k / (TAG_GRID - 1);
-                me->st[2 * (j * TAG_GRID + k) + 1] = (float)j / (TAG_GRID - 1);
-            }
-        me->tex = s->tag_tex[i];
-        me->offset = 1;
-        material(me, 1, 1, 1, 0.30f, 0.80f, 0.08f, 20);
-    }
+    sh_status st;
+    int total, border;
+    if ((st = make_textures(s, m, &total, &border)) != SH_OK || (st = make_surface_and_tags(s, m)) != SH_OK)
+        goto fail;
     s->tag_half_extent = 0.5 * m->tag_size * total / border;
-
-    for (int b = 0; b < m->num_blobs; b++) {
-        mesh *me = &s->blobs[b];
-        int n = 1 + BLOB_RINGS * BLOB_SEGS;
-        if ((st = mesh_alloc(me, n, BLOB_SEGS * 3 + (BLOB_RINGS - 1) * BLOB_SEGS * 6)) != SH_OK) goto fail;
-        int k = 0;
-        for (int j = 0; j < BLOB_SEGS; j++) {
-            me->idx[k++] = 0, me->idx[k++] = (uint32_t)(1 + j), me->idx[k++] = (uint32_t)(1 + (j + 1) % BLOB_SEGS);
-        }
-        for (int r = 0; r + 1 < BLOB_RINGS; r++)
-            for (int j = 0; j < BLOB_SEGS; j++) {
-                uint32_t a = (uint32_t)(1 + r * BLOB_SEGS + j), b2 = (uint32_t)(1 + r * BLOB_SEGS + (j + 1) % BLOB_SEGS);
-                uint32_t c = a + BLOB_SEGS, d = b2 + BLOB_SEGS;
-                me->idx[k++] = a, me->idx[k++] = c, me->idx[k++] = d;
-                me->idx[k++] = a, me->idx[k++] = d, me->idx[k++] = b2;
-            }
-        me->offset = 2;
-        material(me, 0.42f, 0.02f, 0.04f, 0.35f, 0.75f, 0.9f, 80);
-    }
-
-    for (int p = 0; p < m->num_pads; p++) {
-        double a[3], b[3];
-        int rings;
-        phantom_pad_axis(m, p, 0.0, a, b); /* rd_scene_update moves them with a camera motion */
-        double len = sqrt((b[0] - a[0]) * (b[0] - a[0]) + (b[1] - a[1]) * (b[1] - a[1]) + (b[2] - a[2]) * (b[2] - a[2]));
-        s->pad_len[p] = len;
-        if ((st = capsule_alloc(&s->pads[p], len, &rings)) != SH_OK) goto fail;
-        capsule_place(&s->pads[p], a, b, m->pad_radius, len);
-        material(&s->pads[p], 0.55f, 0.57f, 0.6f, 0.3f, 0.7f, 0.8f, 30);
-    }
-    if (m->shaft) {
-        int rings;
-        if ((st = capsule_alloc(&s->shaft, m->shaft_length, &rings)) != SH_OK) goto fail;
-        material(&s->shaft, 0.5f, 0.52f, 0.55f, 0.3f, 0.7f, 1.0f, 40);
-    }
-    if (m->decoy) {
-        /* the card, and the tag on it (a quad each: they are flat and rigid) */
-        double half_card = 0.5 * phantom_decoy_card(m);
-        double half_tag = 0.5 * m->tag_size * total / border;
-        mesh *card = &s->card, *tag = &s->decoy;
-        if ((st = mesh_alloc(card, 4, 6)) != SH_OK || (st = mesh_alloc(tag, 4, 6)) != SH_OK) goto fail;
-        if ((st = rd_texture_tag(m->family, m->decoy_id, 16, &tex, &total, &border)) != SH_OK) goto fail;
-        s->decoy_tex = upload(&tex);
-        rd_texture_free(&tex);
-        static const double su[4] = {-1, 1, 1, -1}, sv[4] = {1, 1, -1, -1};
-        double c = cos(m->decoy_yaw), sn = sin(m->decoy_yaw);
-        for (int k = 0; k < 4; k++) {
-            double h2[2] = {half_card, half_tag};
-            mesh *me2[2] = {card, tag};
-            for (int q = 0; q < 2; q++) {
-                double a = su[k] * h2[q], b = sv[k] * h2[q];
-                me2[q]->P[3 * k] = m->decoy_center[0] + c * a - sn * b;
-                me2[q]->P[3 * k + 1] = m->decoy_center[1] + sn * a + c * b;
-                me2[q]->P[3 * k + 2] = m->decoy_center[2];
-                me2[q]->N[3 * k + 2] = 1;
-                me2[q]->st[2 * k] = su[k] > 0 ? 1.0f : 0.0f;
-                me2[q]->st[2 * k + 1] = sv[k] > 0 ? 0.0f : 1.0f;
-            }
-        }
-        memcpy(s->card_rest, card->P, sizeof s->card_rest);
-        memcpy(s->decoy_rest, tag->P, sizeof s->decoy_rest);
-        static const uint32_t quad[6] = {0, 1, 2, 0, 2, 3};
-        memcpy(card->idx, quad, sizeof quad);
-        memcpy(tag->idx, quad, sizeof quad);
-        material(card, 0.93f, 0.93f, 0.9f, 0.35f, 0.7f, 0.05f, 10);
-        material(tag, 1, 1, 1, 0.35f, 0.7f, 0.05f, 10);
-        tag->tex = s->decoy_tex;
-        tag->offset = 1;
-    }
+    if ((st = make_blobs(s, m)) != SH_OK || (st = make_pads_and_shaft(s, m)) != SH_OK) goto fail;
+    if (m->decoy && (st = make_decoy(s, m, total, border)) != SH_OK) goto fail;
     for (int c = 0; c < m->num_cameras; c++) s->rlim[c] = distortion_limit(&m->cam[c], m->width, m->height);
 
     int maxn = s->surface.n;
@@ -342,21 +399,7 @@ sh_status rd_scene_create(const phantom_model *m, rd_scene **out)
     }
     s->buf_n = maxn;
 
-    glEnable(GL_DEPTH_TEST);
-    glDepthFunc(GL_LEQUAL);
-    glEnable(GL_COLOR_SUM);
-    glDisable(GL_LIGHTING);
-    glDisable(GL_CULL_FACE);
-    glTexEnvi(GL_TEXTURE_ENV, GL_TEXTURE_ENV_MODE, GL_MODULATE);
-    glMatrixMode(GL_PROJECTION);
-    glLoadIdentity();
-    glMatrixMode(GL_MODELVIEW);
-    glLoadIdentity();
-    glViewport(0, 0, m->width, m->height);
-    glEnableClientState(GL_VERTEX_ARRAY);
-    glEnableClientState(GL_COLOR_ARRAY);
-    glEnableClientState(GL_SECONDARY_COLOR_ARRAY);
-    glEnableClientState(GL_TEXTURE_COORD_ARRAY);
+    gl_setup(m);
     *out = s;
     return SH_OK;
 fail:
@@ -385,10 +428,10 @@ static void surface_vertex(const phantom_model *m, double u, double v, double t,
     phantom_surface_normal(m, u, v, t, N);
 }
 
-void rd_scene_update(rd_scene *s, double t)
+/* The surface grid at time t, with shading normals from the grid itself: one surface evaluation
+ * per vertex, not five. */
+static void update_surface(rd_scene *s, const phantom_model *m, double t)
 {
-    const phantom_model *m = s->m;
-    s->t = t;
     mesh *sf = &s->surface;
     for (int j = 0; j < GRID_V; j++)
         for (int i = 0; i < GRID_U; i++) {
@@ -396,7 +439,6 @@ void rd_scene_update(rd_scene *s, double t)
             double v = -0.5 * m->size_v + m->size_v * j / (GRID_V - 1);
             phantom_surface(m, u, v, t, sf->P + 3 * (j * GRID_U + i));
         }
-    /* shading normals from the grid itself: one surface evaluation per vertex, not five */
     for (int j = 0; j < GRID_V; j++)
         for (int i = 0; i < GRID_U; i++) {
             int i0 = i > 0 ? i - 1 : i, i1 = i + 1 < GRID_U ? i + 1 : i;
@@ -412,6 +454,11 @@ void rd_scene_update(rd_scene *s, double t)
             double l = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
             n[0] /= l, n[1] /= l, n[2] /= l;
         }
+}
+
+/* Each tag's grid on its tangent frame at time t. */
+static void update_tags(rd_scene *s, const phantom_model *m, double t)
+{
     double H = s->tag_half_extent;
     for (int k = 0; k < m->num_markers; k++) {
         mesh *me = &s->tags[k];
@@ -430,6 +477,11 @@ void rd_scene_update(rd_scene *s, double t)
                 }
             }
     }
+}
+
+/* The blood blobs at time t: hidden outside their lifetime, otherwise fans on the surface. */
+static void update_blobs(rd_scene *s, const phantom_model *m, double t)
+{
     for (int b = 0; b < m->num_blobs; b++) {
         mesh *me = &s->blobs[b];
         double r = phantom_blob_radius(m, b, t);
@@ -444,6 +496,15 @@ void rd_scene_update(rd_scene *s, double t)
                                me->P + 3 * q, me->N + 3 * q);
             }
     }
+}
+
+void rd_scene_update(rd_scene *s, double t)
+{
+    const phantom_model *m = s->m;
+    s->t = t;
+    update_surface(s, m, t);
+    update_tags(s, m, t);
+    update_blobs(s, m, t);
     if (m->shaft) {
         double tip[3], end[3];
         phantom_shaft_axis(m, t, tip, end);

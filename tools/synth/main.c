@@ -53,76 +53,81 @@ static int make_dirs(const char *path)
     return mkdir(buf, 0777) == 0 || errno == EEXIST;
 }
 
-int main(int argc, char **argv)
+typedef struct {
+    int width, height, frames, markers, amplitude, seed;
+    sh_pixfmt format;
+    const char *out_dir;
+} synth_args;
+
+/* Fills *a from the command line; returns -1 to go on, or the exit status (0 after --help, 2 for
+ * a usage error). */
+static int parse_args(int argc, char **argv, synth_args *a)
 {
-    sh_log_setup(SH_LOG_TOOL, "stillheart-synth", SH_LOG_INFO);
     static const struct option options[] = {
         {"width", required_argument, 0, 'w'}, {"height", required_argument, 0, 'y'},
         {"frames", required_argument, 0, 'n'}, {"markers", required_argument, 0, 'm'},
         {"amplitude", required_argument, 0, 'a'}, {"format", required_argument, 0, 'f'},
         {"seed", required_argument, 0, 's'}, {"out", required_argument, 0, 'o'},
         SH_CLI_OPTIONS, {0, 0, 0, 0}};
-    int width = 640, height = 360, frames = 24, markers = 16, amplitude = 10, seed = 1, opt;
-    const char *out_dir = NULL;
-    sh_pixfmt format = SH_PIX_I420;
+    *a = (synth_args){.width = 640, .height = 360, .frames = 24, .markers = 16, .amplitude = 10, .seed = 1,
+                      .format = SH_PIX_I420, .out_dir = NULL};
+    int opt;
     opterr = 0;
     while ((opt = getopt_long(argc, argv, ":h", options, NULL)) != -1) {
         switch (opt) {
-        case 'w': if (!sh_cli_parse_int("--width", optarg, 16, SH_IMAGE_MAX_SIZE, &width)) return 2; break;
-        case 'y': if (!sh_cli_parse_int("--height", optarg, 16, SH_IMAGE_MAX_SIZE, &height)) return 2; break;
-        case 'n': if (!sh_cli_parse_int("--frames", optarg, 1, 100000, &frames)) return 2; break;
-        case 'm': if (!sh_cli_parse_int("--markers", optarg, 3, 1000, &markers)) return 2; break;
-        case 'a': if (!sh_cli_parse_int("--amplitude", optarg, 0, 1000, &amplitude)) return 2; break;
-        case 's': if (!sh_cli_parse_int("--seed", optarg, 0, 1 << 30, &seed)) return 2; break;
+        case 'w': if (!sh_cli_parse_int("--width", optarg, 16, SH_IMAGE_MAX_SIZE, &a->width)) return 2; break;
+        case 'y': if (!sh_cli_parse_int("--height", optarg, 16, SH_IMAGE_MAX_SIZE, &a->height)) return 2; break;
+        case 'n': if (!sh_cli_parse_int("--frames", optarg, 1, 100000, &a->frames)) return 2; break;
+        case 'm': if (!sh_cli_parse_int("--markers", optarg, 3, 1000, &a->markers)) return 2; break;
+        case 'a': if (!sh_cli_parse_int("--amplitude", optarg, 0, 1000, &a->amplitude)) return 2; break;
+        case 's': if (!sh_cli_parse_int("--seed", optarg, 0, 1 << 30, &a->seed)) return 2; break;
         case 'f':
-            if (!strcmp(optarg, "i420")) format = SH_PIX_I420;
-            else if (!strcmp(optarg, "gray8")) format = SH_PIX_GRAY8;
-            else if (!strcmp(optarg, "yuv444")) format = SH_PIX_YUV444;
+            if (!strcmp(optarg, "i420")) a->format = SH_PIX_I420;
+            else if (!strcmp(optarg, "gray8")) a->format = SH_PIX_GRAY8;
+            else if (!strcmp(optarg, "yuv444")) a->format = SH_PIX_YUV444;
             else {
                 sh_log_error("--format: '%s' is not i420, gray8 or yuv444", optarg);
                 return 2;
             }
             break;
-        case 'o': out_dir = optarg; break;
+        case 'o': a->out_dir = optarg; break;
         case 'h': usage(stdout); return 0;
         default: { int rc = sh_cli_option(&cli, opt, argv); if (rc >= 0) return rc; } break;
         }
     }
-    if (!out_dir || optind != argc) return sh_cli_usage_error(&cli, "need --out DIR and no operands");
-    if (!make_dirs(out_dir)) {
-        sh_log_error("%s: %s", out_dir, strerror(errno));
-        return 1;
-    }
-    char video[4096], points[4096];
-    snprintf(video, sizeof video, "%s/video.y4m", out_dir);
-    snprintf(points, sizeof points, "%s/points.csv", out_dir);
+    if (!a->out_dir || optind != argc) return sh_cli_usage_error(&cli, "need --out DIR and no operands");
+    return -1;
+}
 
-    synth_motion motion = {width, height, amplitude};
-    sh_y4m_header h = {.width = width, .height = height, .format = format, .fps_num = 25,
+/* Renders every frame into the video and keeps the markers' exact positions in rows; the exit
+ * status. */
+static int write_video(const synth_args *a, const char *video, sh_point *rows)
+{
+    synth_motion motion = {a->width, a->height, a->amplitude};
+    sh_y4m_header h = {.width = a->width, .height = a->height, .format = a->format, .fps_num = 25,
                        .fps_den = 1, .aspect_num = 1, .aspect_den = 1, .interlace = 'p'};
     strcpy(h.extra, SH_Y4M_FULL_RANGE); /* synth_render writes full-range BT.601 */
-    double *ref = malloc(sizeof(double) * 2 * markers);
-    sh_point *rows = malloc(sizeof(sh_point) * (size_t)markers * frames);
+    double *ref = malloc(sizeof(double) * 2 * a->markers);
     sh_image img = {0};
     sh_y4m_writer *w = NULL;
     int rc = 1;
-    if (!ref || !rows || sh_image_create(&img, format, width, height) != SH_OK ||
+    if (!ref || sh_image_create(&img, a->format, a->width, a->height) != SH_OK ||
         sh_y4m_writer_open(video, &h, &w) != SH_OK) {
         sh_log_error("%s", sh_error_message());
         goto done;
     }
-    synth_markers(&motion, markers, (unsigned)seed, ref);
+    synth_markers(&motion, a->markers, (unsigned)a->seed, ref);
     sh_cli_progress progress;
-    sh_cli_progress_start(&progress, "stillheart-synth", frames, "frames");
-    for (int t = 0; t < frames; t++) {
-        double phase = (double)t / frames;
+    sh_cli_progress_start(&progress, "stillheart-synth", a->frames, "frames");
+    for (int t = 0; t < a->frames; t++) {
+        double phase = (double)t / a->frames;
         synth_render(&motion, phase, &img);
         if (sh_y4m_writer_write(w, &img) != SH_OK) {
             sh_log_error("%s", sh_error_message());
             goto done;
         }
-        for (int i = 0; i < markers; i++) {
-            sh_point *p = &rows[(size_t)t * markers + i];
+        for (int i = 0; i < a->markers; i++) {
+            sh_point *p = &rows[(size_t)t * a->markers + i];
             *p = (sh_point){.frame = t, .id = i};
             synth_forward(&motion, phase, ref[2 * i], ref[2 * i + 1], &p->x, &p->y);
         }
@@ -131,17 +136,46 @@ int main(int argc, char **argv)
     sh_cli_progress_end(&progress);
     sh_status st = sh_y4m_writer_close(w);
     w = NULL;
-    FILE *f = fopen(points, "w");
-    if (st != SH_OK || !f || sh_points_write(f, rows, markers * frames, 0) != SH_OK || fclose(f) != 0) {
-        sh_log_error("%s: %s", points, st != SH_OK ? sh_error_message() : strerror(errno));
+    if (st != SH_OK) {
+        sh_log_error("%s: %s", video, sh_error_message());
         goto done;
     }
-    printf("%s\n%s\n", video, points);
     rc = 0;
 done:
     if (w) sh_y4m_writer_close(w);
     sh_image_destroy(&img);
     free(ref);
+    return rc;
+}
+
+int main(int argc, char **argv)
+{
+    sh_log_setup(SH_LOG_TOOL, "stillheart-synth", SH_LOG_INFO);
+    synth_args a;
+    int prc = parse_args(argc, argv, &a);
+    if (prc >= 0) return prc;
+    if (!make_dirs(a.out_dir)) {
+        sh_log_error("%s: %s", a.out_dir, strerror(errno));
+        return 1;
+    }
+    char video[4096], points[4096];
+    snprintf(video, sizeof video, "%s/video.y4m", a.out_dir);
+    snprintf(points, sizeof points, "%s/points.csv", a.out_dir);
+    sh_point *rows = malloc(sizeof(sh_point) * (size_t)a.markers * a.frames);
+    if (!rows) {
+        sh_log_error("out of memory for %d x %d points", a.markers, a.frames);
+        return 1;
+    }
+    int rc = write_video(&a, video, rows);
+    if (rc == 0) {
+        FILE *f = fopen(points, "w");
+        if (!f || sh_points_write(f, rows, a.markers * a.frames, 0) != SH_OK || fclose(f) != 0) {
+            sh_log_error("%s: %s", points, strerror(errno));
+            rc = 1;
+        } else {
+            printf("%s\n%s\n", video, points);
+        }
+    }
     free(rows);
     return rc;
 }
