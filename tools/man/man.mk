@@ -1,13 +1,13 @@
-# The manual pages (man/, troff): `make man` fills in the version (src/app/app.h) and writes them
+# The manual pages (man/, troff): `make man` fills in the version (include/stillheart/cli.h) and writes them
 # to $(BUILD)/man; make install and the Debian packages install them; test_man checks them
 # against the programs' --help and renders them (issue 18).
 MAN_SRC := $(wildcard man/*.[1-8])
 MAN_OUT := $(MAN_SRC:man/%=$(BUILD)/man/%)
-SH_VERSION := $(shell sed -n 's/^\#define STILLHEART_VERSION "\(.*\)"/\1/p' src/app/app.h)
+SH_VERSION := $(shell sed -n 's/^\#define SH_VERSION "\(.*\)"/\1/p' include/stillheart/cli.h)
 .PHONY: man install-man
 man: $(MAN_OUT)
 all: man
-$(BUILD)/man/%: man/% src/app/app.h
+$(BUILD)/man/%: man/% include/stillheart/cli.h
 	@mkdir -p $(dir $@)
 	sed 's/@VERSION@/$(SH_VERSION)/g' $< > $@
 
