@@ -112,6 +112,7 @@ static void note_start(void)
     snprintf(note.path, sizeof note.path, "%s", a.sun_path);
     note.fd = socket(AF_UNIX, SOCK_DGRAM | SOCK_CLOEXEC, 0);
     assert_true(note.fd >= 0);
+    unlink(a.sun_path); /* left by a case that failed before its note_stop: one failure, not two */
     assert_int_equal(bind(note.fd, (struct sockaddr *)&a, sizeof a), 0);
     note.n = 0;
     atomic_store(&note.stop, 0);
@@ -166,6 +167,25 @@ static pid_t start_daemon(const char *replay, const char *log, long wd_usec, con
         _exit(127);
     }
     return pid;
+}
+
+/* What became of a daemon that did not do what was waited for: a failure that names it explains
+ * itself (a daemon that died says how; one still running was slow or stuck). */
+static const char *daemon_state(pid_t pid)
+{
+    static char buf[64];
+    int status;
+    pid_t w = waitpid(pid, &status, WNOHANG);
+    if (w == 0)
+        snprintf(buf, sizeof buf, "still running");
+    else if (w < 0)
+        snprintf(buf, sizeof buf, "not waitable: %s", strerror(errno));
+    else if (WIFEXITED(status))
+        snprintf(buf, sizeof buf, "exited %d%s", WEXITSTATUS(status),
+                 WEXITSTATUS(status) == 127 ? " (could not be started)" : "");
+    else
+        snprintf(buf, sizeof buf, "killed by signal %d", WIFSIGNALED(status) ? WTERMSIG(status) : -1);
+    return buf;
 }
 
 static const char *slurp(const char *name)
@@ -297,7 +317,7 @@ static void test_hostile_writer(void **state)
     note_start();
     pid_t d = start_daemon("fast.y4m", "hostile.log", 1000000, "--stats");
     int ready = note_wait(0, "READY=1", 30);
-    if (ready < 0) fail_msg("no READY=1: %s", slurp("hostile.log"));
+    if (ready < 0) fail_msg("no READY=1 in 30 s, daemon %s: %s", daemon_state(d), slurp("hostile.log"));
     if (note_wait(ready, "STATUS=", 10) < 0) fail_msg("no STATUS=: %s", slurp("hostile.log"));
     struct sigaction sa, old;
     memset(&sa, 0, sizeof sa);
@@ -468,7 +488,8 @@ static void test_reader_follows_restarts(void **state)
         double t_exec = now_s();
         pid_t d = start_daemon(other ? "other.y4m" : "small.y4m", "restart.log", 0, NULL);
         int ready = note_wait(mark, "READY=1", 30);
-        if (ready < 0) fail_msg("restart %d: no READY=1: %s", k, slurp("restart.log"));
+        if (ready < 0)
+            fail_msg("restart %d: no READY=1 in 30 s, daemon %s: %s", k, daemon_state(d), slurp("restart.log"));
         double t_ready = note.t[ready];
         double end = now_s() + 10;
         while (gens_seen() < k + 1 && now_s() < end) pause_ms(1);
