@@ -94,19 +94,24 @@ def expected(raw, warp, poly, w, h):
             out += r
         at += pw * ph
     return bytes(out), unsure
-def reference_hull(points, frame):
-    return hull([(float(r['x']), float(r['y'])) for r in csv.DictReader(open(points)) if int(r['frame']) == frame])
+def model_hulls(points, reference=0):
+    """Per frame, the hull of its model: the reference positions of the markers the frame has."""
+    rows = list(csv.DictReader(open(points)))
+    ref = {r['id']: (float(r['x']), float(r['y'])) for r in rows if int(r['frame']) == reference}
+    ids = {}
+    for r in rows: ids.setdefault(int(r['frame']), set()).add(r['id'])
+    return {f: hull([ref[i] for i in s if i in ref]) for f, s in ids.items()}
 PY
 PYTHONPATH="$T" python3 - "$T/dim.y4m" "$T/warp.y4m" "$T/ph/cam0.y4m" "$T/points.csv" <<'PY' \
     && ok "outside = dimmed-raw: the warp's bytes inside the hull, the camera dimmed outside, a cyan boundary" \
     || bad "outside = dimmed-raw: the warp's bytes inside the hull, the camera dimmed outside, a cyan boundary" "see above"
 import sys
-from outside import frames, expected, reference_hull
+from outside import frames, expected, model_hulls
 (dim, w, h), (warp, _, _), (raw, _, _) = frames(sys.argv[1]), frames(sys.argv[2]), frames(sys.argv[3])
-poly = reference_hull(sys.argv[4], 0)  # every frame holds the 16 markers: the full set's model
+hulls = model_hulls(sys.argv[4])
 if len(dim) != len(warp) or len(dim) < 30: print(len(dim), "frames recorded,", len(warp), "by warp"); sys.exit(1)
 for i, (f, g, r) in enumerate(zip(dim, warp, raw)):
-    want, unsure = expected(r, g, poly, w, h)
+    want, unsure = expected(r, g, hulls[i], w, h)
     if unsure: print("frame %d: %d rows with a pixel centre on the hull's edge: not decided here" % (i, unsure)); sys.exit(1)
     if f != want:
         k = next(j for j, (x, y) in enumerate(zip(f, want)) if x != y)
