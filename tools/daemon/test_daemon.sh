@@ -603,6 +603,30 @@ PY
 CAMS="--source y4m:$T/s3/cam0.y4m --camera1-spec y4m:$T/s3/cam1.y4m --camera2-spec y4m:$T/s3/cam2.y4m --calibration $T/s3/calibration.yaml"
 $RUN $CAMS --no-loop --no-realtime --sink none --points "$T/p3.csv" --method tps --threads 2 --record "$T/r3.y4m" \
     && cmp -s "$T/r3.y4m" "$T/w3.y4m" && ok "3D: record equals stillheart warp3d" || bad "3D: record equals stillheart warp3d" "differs"
+# --outside dimmed-raw in 3D (the view's hull, the projected reference markers): a byte differs from
+# warp3d's only where warp3d left black (0 luma, 128 chroma), and is there the camera's dimmed or
+# the cyan line; every frame has such bytes (sampled every 7th byte: Python is slow)
+$RUN $CAMS --no-loop --no-realtime --sink none --points "$T/p3.csv" --method tps --threads 2 --record "$T/r3d.y4m" \
+    --outside dimmed-raw
+PYTHONPATH="$T" python3 - "$T/r3d.y4m" "$T/w3.y4m" "$T/s3/cam0.y4m" <<'PY' \
+    && ok "3D: outside = dimmed-raw changes only what warp3d left black" || bad "3D: outside = dimmed-raw changes only what warp3d left black" "see above"
+import sys
+from outside import frames
+(dim, w, h), (warp, _, _), (raw, _, _) = frames(sys.argv[1]), frames(sys.argv[2]), frames(sys.argv[3])
+n = w * h
+cyan = (round(16 + 219 * 0.701), round(128 + 224 * 0.299 / 1.772), round(128 - 224 * 0.701 / 1.402))  # BT.601 limited
+if len(dim) != len(warp) or len(dim) < 30: print(len(dim), "frames recorded,", len(warp), "by warp3d"); sys.exit(1)
+for i, (f, g, r) in enumerate(zip(dim, warp, raw)):
+    changed = 0
+    for k in range(0, len(f), 7):
+        if f[k] == g[k]: continue
+        p = 0 if k < n else 1 if k < n * 5 // 4 else 2
+        b = 16 if p == 0 else 128
+        if g[k] != (0 if p == 0 else 128) or f[k] not in ((r[k] + b + 1) // 2, cyan[p]):
+            print("frame %d byte %d (plane %d): %d, warp3d %d, camera %d" % (i, k, p, f[k], g[k], r[k])); sys.exit(1)
+        changed += 1
+    if changed < 1000: print("frame %d: only %d bytes of 1 in 7 changed" % (i, changed)); sys.exit(1)
+PY
 # Frames are shown raw while the reference's 3D models are built beside them (no frame waits for
 # a build); under qemu-aarch64 on a busy machine that build can outlast a 40-frame pass, so the
 # replay loops (the tracker starting afresh at each loop) for 160 frames: the first stabilized
