@@ -128,7 +128,8 @@ deps:
 	@sh scripts/install-deps.sh
 
 # ---- per-module optimisation: $(OPT) everywhere but in this table. -O3 lets gcc vectorize the
-# per-pixel loops, each measured in make bench: src/warp the position fill (bench_warp),
+# per-pixel loops, each measured in make bench: src/warp the position fill (bench_warp) and the
+# outside fill (bench_outside),
 # src/pixconv the pixel-format loops (bench_pixconv) ----
 $(BUILD)/src/warp/%.o:    CFLAGS_ALL += -O3
 $(BUILD)/src/pixconv/%.o: CFLAGS_ALL += -O3

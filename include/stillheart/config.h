@@ -96,6 +96,7 @@ typedef struct {
     char sink[SH_CONFIG_STR];        /* shm:NAME or none */
     int slots;
     char group[64];                  /* owner group of the segment ("" = the process's) */
+    int outside;                     /* SH_OUTSIDE_BLACK (0) or SH_OUTSIDE_DIMMED_RAW (1) */
     char record[SH_CONFIG_STR];      /* "", FILE.y4m or png:DIR: what is shown, also to files */
     int record_sync_ms;              /* Y4M record: flushed and synced this often (0: every frame) */
     int watchdog;                    /* 1: WATCHDOG=1 pings when systemd asks for them */
@@ -105,6 +106,10 @@ typedef struct {
 /* [reference] on_camera_motion: once a moved endoscope has settled, a new reference is taken
  * (new, the default) or the old one is kept (keep). */
 enum { SH_CAMERA_MOTION_NEW = 0, SH_CAMERA_MOTION_KEEP = 1 };
+
+/* [sink] outside: what a warped frame shows outside the markers' hull: black (the paper's) or
+ * the current, unstabilized frame dimmed, with a boundary line (sh_warp_outside, warp.h). */
+enum { SH_OUTSIDE_BLACK = 0, SH_OUTSIDE_DIMMED_RAW = 1 };
 
 /* When a key's change takes effect in the running daemon (SIGHUP: src/daemon/run_pipeline.c). The key
  * table gives every key exactly one; the reload acts on these classes, never on key names, so a

@@ -68,6 +68,36 @@ void sh_warp_destroy(sh_warp *warp);
 sh_status sh_warp_apply(sh_warp *warp, const sh_warp_model *model, const sh_image *current,
                         sh_image *out);
 
+/* Outside the hull (docs/warp.md, "Outside the hull"): the warp leaves it black, as the paper
+ * does. sh_warp_outside shows there the current, unstabilized frame instead, dimmed, with a
+ * boundary line, so that instruments approaching from the edge stay visible while the
+ * stabilized region stays unmistakable:
+ *  - dimmed: each sample halfway to black, (v + b + 1) >> 1, where b is black: 0 for RGB24 and
+ *    full-range luma, 16 for limited-range luma, 128 (neutral) for chroma;
+ *  - boundary: the outside pixels within SH_WARP_OUTSIDE_LINE full-resolution pixels of an
+ *    inside pixel of the same plane (Chebyshev distance, in that plane's pixels: 1 in 4:2:0
+ *    chroma), painted cyan, RGB (0, 255, 255): BT.601 Y 170 Cb 166 Cr 16 in limited range,
+ *    Y 179 Cb 171 Cr 1 in full range;
+ *  - inside: not touched; the bytes are the warp's.
+ * "Inside" is the warp's own test per plane (pixel centres in or on the hull, chroma at its
+ * siting), so the stabilized pixels are the warp's byte for byte. */
+#define SH_WARP_OUTSIDE_LINE 2
+
+typedef struct sh_warp_outside sh_warp_outside;
+
+/* For frames of this format and size; full_range: the frames' range (black and the colour's
+ * code values; ignored for RGB24). Everything a frame needs is allocated here. */
+sh_status sh_warp_outside_create(sh_pixfmt format, int width, int height, int full_range,
+                                 sh_warp_outside **out);
+void sh_warp_outside_destroy(sh_warp_outside *o);
+
+/* out holds sh_warp_apply's output of model for current: its pixels outside the hull become
+ * current's dimmed, or the boundary colour. The pixel runs of each row are made once per hull
+ * (again only when the model's hull or the frames' siting differs from the last call's);
+ * allocation-free. */
+sh_status sh_warp_outside_apply(sh_warp_outside *o, const sh_warp_model *model,
+                                const sh_image *current, sh_image *out);
+
 #ifdef __cplusplus
 }
 #endif

@@ -18,6 +18,7 @@ struct run_proc {
     run_tracker *tracker; /* NULL in test mode (points file) */
     sh_points points;
     sh_warp *warp;
+    sh_warp_outside *outside; /* [sink] outside = dimmed-raw: made at start, as a reload may turn it on */
     sh_image out;
     double fps;
     int want_ref;
@@ -130,6 +131,8 @@ sh_status run_proc_create(const sh_config *cfg, const sh_y4m_header *hdr, double
     if (st == SH_OK) st = run_models_create(&method, &wopts, hdr->width, hdr->height, cfg->points[0] != 0, &p->models);
     if (st == SH_OK && p->three_d) st = run_models_set_3d(p->models, &p->calib, p->out_cam);
     if (st == SH_OK) st = sh_warp_create(cfg->threads, &p->warp);
+    if (st == SH_OK)
+        st = sh_warp_outside_create(hdr->format, hdr->width, hdr->height, sh_y4m_header_full_range(hdr), &p->outside);
     if (st == SH_OK && cfg->points[0]) {
         st = sh_points_read(cfg->points, &p->points);
         if (st == SH_OK) st = sh_points_need_2d(&p->points, cfg->points);
@@ -158,6 +161,7 @@ void run_proc_destroy(run_proc *p)
     run_tracker_destroy(p->tracker);
     sh_points_destroy(&p->points);
     sh_warp_destroy(p->warp);
+    sh_warp_outside_destroy(p->outside);
     sh_image_destroy(&p->out);
     free(p);
 }
@@ -459,6 +463,8 @@ const sh_image *run_proc_frame(run_proc *p, const sh_image *img, const sh_image 
         return img;
     }
     sh_status wst = sh_warp_apply(p->warp, run_model_warp(md), img, &p->out);
+    if (wst == SH_OK && p->cfg.outside == SH_OUTSIDE_DIMMED_RAW)
+        wst = sh_warp_outside_apply(p->outside, run_model_warp(md), img, &p->out);
     p->ms[2] = now_ms() - t2;
     if (wst != SH_OK) {
         sh_log_limited(&p->model_err, SH_LOG_ERROR, "warp: %s", sh_error_message());

@@ -19,7 +19,8 @@ sh_status run_proc_check(const sh_config *cfg, const sh_y4m_header *hdr);
  * cameras as configured, 2+): tracking in 3D over every camera's frames and warp3d. */
 sh_status run_proc_create(const sh_config *cfg, const sh_y4m_header *hdr, double fps, int cameras, run_proc **out);
 void run_proc_destroy(run_proc *p);
-/* SIGHUP: the keys of effect SH_CONFIG_GATING take effect from the next frame. */
+/* SIGHUP: the keys of effect SH_CONFIG_GATING ([sink] outside among them) take effect from the
+ * next frame. */
 void run_proc_set_gating(run_proc *p, const sh_config *cfg);
 /* The next frame with at least min_markers detected markers becomes the reference (its models
  * are built beside the running ones and swapped in when ready). */
@@ -36,7 +37,7 @@ int run_proc_builds(const run_proc *p);
 int run_proc_markers(const run_proc *p, const int **ids, const double **xy);
 /* The processing thread's CPU time in the last frame's stages, ms (the warp's helper threads
  * not counted): markers (detection and tracker), model (selection,
- * model lookup, map update, residual), warp (0 when not warped). */
+ * model lookup, map update, residual), warp (with [sink] outside's fill; 0 when not warped). */
 void run_proc_times(const run_proc *p, double *markers_ms, double *model_ms, double *warp_ms);
 
 #endif

@@ -26,8 +26,7 @@ struct sh_warp {
     int32_t *row_coords;  /* per thread: fx[row_capacity], fy[row_capacity] */
 };
 
-/* Full-resolution position of a plane's pixel (0, 0): chroma siting of 4:2:0 planes. */
-static void plane_offsets(const sh_image *img, int p, plane_geometry *g)
+void warp_plane_offsets(const sh_image *img, int p, plane_geometry *g)
 {
     g->scale = 1;
     g->ox = g->oy = 0;
@@ -47,7 +46,7 @@ static void run_stripe(const warp_job *job, int stripe, int stripes, int32_t *fx
     int channels = sh_pixfmt_channels(cur->format);
     for (int p = 0; p < cur->num_planes; p++) {
         plane_geometry g;
-        plane_offsets(cur, p, &g);
+        warp_plane_offsets(cur, p, &g);
         g.width = out->plane[p].width;
         g.height = out->plane[p].height;
         uint8_t black = (p > 0 && cur->format != SH_PIX_RGB24) ? 128 : 0;

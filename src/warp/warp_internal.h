@@ -50,6 +50,10 @@ typedef struct {
     int width, height;
 } plane_geometry;
 
+/* The scale and offsets of plane p of img (chroma siting of 4:2:0 planes); width and height
+ * are left to the caller. */
+void warp_plane_offsets(const sh_image *img, int p, plane_geometry *g);
+
 /* Source positions are 16.16 fixed point; anything beyond +-2^14 px (outside every frame) is
  * clamped to that, so the int32 never overflows. */
 #define WARP_FRAC_BITS 16

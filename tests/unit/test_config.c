@@ -23,6 +23,7 @@ static void test_defaults_check(void **state)
     sh_interp_params m;
     sh_config_method(&c, &m);
     assert_int_equal(m.method, SH_METHOD_TPS);
+    assert_int_equal(c.outside, SH_OUTSIDE_BLACK); /* the paper's black: outputs as before the key */
 }
 
 static void test_parse_every_kind(void **state)
@@ -37,7 +38,7 @@ static void test_parse_every_kind(void **state)
                        "[method]\nname = gaussian\nsigma = 80\n"
                        "[gating]\nmin_markers = 4\nmax_residual_px = 2.5\ndropout_ms = 150\n"
                        "[run]\nthreads = 3\n"
-                       "[sink]\ndisplay = shm:/abc\nslots = 5\ngroup =\n";
+                       "[sink]\ndisplay = shm:/abc\nslots = 5\ngroup =\noutside = Dimmed-Raw\n";
     assert_int_equal(sh_config_parse_string(&c, text, "t.ini", err), SH_OK);
     assert_string_equal(c.camera[0].spec, "y4m:/tmp/x.y4m");
     assert_int_equal(c.realtime, 0);
@@ -60,6 +61,7 @@ static void test_parse_every_kind(void **state)
     assert_string_equal(c.sink, "shm:/abc");
     assert_int_equal(c.slots, 5);
     assert_string_equal(c.group, "");
+    assert_int_equal(c.outside, SH_OUTSIDE_DIMMED_RAW);
     assert_int_equal(sh_config_check(&c, err), SH_OK);
 }
 
@@ -97,6 +99,8 @@ static void test_refusals(void **state)
         {"[trigger]\nmode = sideways\n", "bad.ini:2: [trigger] mode: 'sideways' is not one of off|out|in"},
         {"[trigger]\npolarity = up\n", "bad.ini:2: [trigger] polarity:"},
         {"[trigger]\npulse_us = 0\n", "bad.ini:2: [trigger] pulse_us:"},
+        {"[sink]\n\noutside = grey\n", "bad.ini:3: [sink] outside: 'grey' is not one of black|dimmed-raw"},
+        {"[sink]\noutside =\n", "bad.ini:2: [sink] outside: '' is not one of black|dimmed-raw"},
     };
     for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
         sh_config c, before;
@@ -299,6 +303,7 @@ static void test_options_and_write_round_trip(void **state)
     sh_config_default(&a);
     assert_int_equal(sh_config_set(&a, "method", "name", "rbf-local", "x", 0, err), SH_OK);
     assert_int_equal(sh_config_set(&a, "method", "sigma", "123.5", "x", 0, err), SH_OK);
+    assert_int_equal(sh_config_set(&a, "sink", "outside", "dimmed-raw", "x", 0, err), SH_OK);
     char *buf = NULL;
     size_t len = 0;
     FILE *f = open_memstream(&buf, &len);
@@ -312,6 +317,7 @@ static void test_options_and_write_round_trip(void **state)
     sh_interp_params m;
     sh_config_method(&b, &m);
     assert_true(m.sigma == 123.5);
+    assert_int_equal(b.outside, SH_OUTSIDE_DIMMED_RAW);
     assert_int_equal(sh_config_changes(&a, &b), 0);
 }
 
@@ -375,7 +381,8 @@ static void test_changing_each_key_reports_its_effect(void **state)
     (void)state;
     static const char *const values[] = {"y4m:other.y4m", "nv12",  "640x480", "25",     "keep", "out",
                                          "low",           "no",    "7",       "2.5",    "gaussian",
-                                         "1,3",           "1",     "4600",    "0",      "yes"};
+                                         "1,3",           "1",     "4600",    "0",      "yes",
+                                         "dimmed-raw"};
     const char *section, *key;
     sh_config_effect effect;
     for (int i = 0; sh_config_key(i, &section, &key, &effect); i++) {

@@ -1,5 +1,5 @@
-// Helpers shared by the detection benchmarks (bench_detect, bench_detect_track): thread CPU time,
-// medians, and stopping on an error.
+// Helpers shared by the detection benchmarks (bench_detect, bench_detect_track) and bench_outside:
+// thread CPU time, medians, and stopping on an error.
 #ifndef STILLHEART_BENCH_DETECT_UTIL_H
 #define STILLHEART_BENCH_DETECT_UTIL_H
 

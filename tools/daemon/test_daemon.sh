@@ -35,6 +35,115 @@ PY
 $RUN --source "y4m:$T/ph/cam0.y4m" --no-loop --no-realtime --sink none --points "$T/points.csv" \
     --method tps --threads 2 --record "$T/rec.y4m" --min-markers 3 && cmp -s "$T/rec.y4m" "$T/warp.y4m" \
     && ok "record equals stillheart warp" || bad "record equals stillheart warp" "differs"
+# [sink] outside = dimmed-raw, every pixel against what docs/warp.md promises, computed here: inside
+# the hull of the frame's model (its markers' reference positions, frame 0's here) the bytes of
+# stillheart warp; outside it the camera's frame halfway to black, (v + b + 1) // 2 with b = 16 for
+# (limited-range) luma and 128 for chroma; within 2 luma pixels (1 chroma pixel) of the inside,
+# BT.601 cyan. Then in real time, the key reloaded from black to dimmed-raw (SIGHUP): each frame read
+# back from the segment equals the record's of its sequence number, and the record's warped frames
+# turn from black to lit outside once, without anything reopened.
+$RUN --source "y4m:$T/ph/cam0.y4m" --no-loop --no-realtime --sink none --points "$T/points.csv" \
+    --method tps --threads 2 --record "$T/dim.y4m" --min-markers 3 --outside dimmed-raw
+cat > "$T/outside.py" <<'PY'
+import csv, math
+def frames(p):
+    hdr, rest = open(p, 'rb').read().split(b'\n', 1)
+    w = int([t for t in hdr.split() if t.startswith(b'W')][0][1:]); h = int([t for t in hdr.split() if t.startswith(b'H')][0][1:])
+    n = w * h * 3 // 2
+    return [rest[i + 6:i + 6 + n] for i in range(0, len(rest), 6 + n)], w, h
+def hull(pts):  # Andrew's monotone chain, counter-clockwise in x right, y up
+    pts = sorted(set(pts))
+    def half(ps):
+        out = []
+        for p in ps:
+            while len(out) > 1 and (out[-1][0] - out[-2][0]) * (p[1] - out[-2][1]) - (out[-1][1] - out[-2][1]) * (p[0] - out[-2][0]) <= 0: out.pop()
+            out.append(p)
+        return out[:-1]
+    return half(pts) + half(pts[::-1])
+def extent(poly, Y):  # [lo, hi] of the line at height Y inside the convex polygon, None if it misses
+    lo, hi = -math.inf, math.inf
+    for (ax, ay), (bx, by) in zip(poly, poly[1:] + poly[:1]):
+        # inside: (bx - ax) (Y - ay) - (by - ay) (X - ax) >= 0
+        c, k = (bx - ax) * (Y - ay) + (by - ay) * ax, by - ay
+        if k == 0:
+            if c < -1e-9: return None
+        elif k > 0: hi = min(hi, c / k)
+        else: lo = max(lo, c / k)
+    return (lo, hi) if lo <= hi + 1e-9 else None
+def expected(raw, warp, poly, w, h):
+    """The frame dimmed-raw must be, and the pixels too near the hull's edge to decide."""
+    out, at, unsure = bytearray(), 0, 0
+    cw, ch = (w + 1) // 2, (h + 1) // 2
+    for p, (pw, ph, s, o, d, b, cyan) in enumerate([(w, h, 1, 0, 2, 16, 16 + 219 * 0.701),
+                                                     (cw, ch, 2, 0.5, 1, 128, 128 + 224 * 0.299 / 1.772),
+                                                     (cw, ch, 2, 0.5, 1, 128, 128 - 224 * 0.701 / 1.402)]):
+        dim = bytes((v + b + 1) // 2 for v in range(256))
+        rows = []
+        for y in range(ph):
+            e = extent(poly, s * y + o)
+            f, l = (0, -1) if e is None else (max(0, math.ceil((e[0] - o) / s)), min(pw - 1, math.floor((e[1] - o) / s)))
+            if e is not None and any(abs(s * x + o - v) < 1e-6 for x in (f - 1, f, l, l + 1) for v in e): unsure += 1
+            rows.append((f, l))
+        for y in range(ph):
+            r = bytearray(raw[at + y * pw:at + (y + 1) * pw].translate(dim))
+            for k in range(max(0, y - d), min(ph, y + d + 1)):
+                f, l = rows[k]
+                if f <= l: r[max(0, f - d):l + d + 1] = bytes([round(cyan)]) * (min(pw, l + d + 1) - max(0, f - d))
+            f, l = rows[y]
+            if f <= l: r[f:l + 1] = warp[at + y * pw + f:at + y * pw + l + 1]
+            out += r
+        at += pw * ph
+    return bytes(out), unsure
+def model_hulls(points, reference=0):
+    """Per frame, the hull of its model: the reference positions of the markers the frame has."""
+    rows = list(csv.DictReader(open(points)))
+    ref = {r['id']: (float(r['x']), float(r['y'])) for r in rows if int(r['frame']) == reference}
+    ids = {}
+    for r in rows: ids.setdefault(int(r['frame']), set()).add(r['id'])
+    return {f: hull([ref[i] for i in s if i in ref]) for f, s in ids.items()}
+PY
+PYTHONPATH="$T" python3 - "$T/dim.y4m" "$T/warp.y4m" "$T/ph/cam0.y4m" "$T/points.csv" <<'PY' \
+    && ok "outside = dimmed-raw: the warp's bytes inside the hull, the camera dimmed outside, a cyan boundary" \
+    || bad "outside = dimmed-raw: the warp's bytes inside the hull, the camera dimmed outside, a cyan boundary" "see above"
+import sys
+from outside import frames, expected, model_hulls
+(dim, w, h), (warp, _, _), (raw, _, _) = frames(sys.argv[1]), frames(sys.argv[2]), frames(sys.argv[3])
+hulls = model_hulls(sys.argv[4])
+if len(dim) != len(warp) or len(dim) < 30: print(len(dim), "frames recorded,", len(warp), "by warp"); sys.exit(1)
+for i, (f, g, r) in enumerate(zip(dim, warp, raw)):
+    want, unsure = expected(r, g, hulls[i], w, h)
+    if unsure: print("frame %d: %d rows with a pixel centre on the hull's edge: not decided here" % (i, unsure)); sys.exit(1)
+    if f != want:
+        k = next(j for j, (x, y) in enumerate(zip(f, want)) if x != y)
+        print("frame %d: byte %d (plane offset) is %d, want %d (warp %d, camera %d)" % (i, k, f[k], want[k], g[k], r[k])); sys.exit(1)
+PY
+printf '[sink]\noutside = black\n' > "$T/outside.ini"
+"$B/stillheart" run --group= --config "$T/outside.ini" --source "y4m:$T/ph/cam0.y4m" --loop --realtime --sink "shm:$SHM" \
+    --points "$T/points.csv" --method tps --threads 2 --min-markers 3 --record "$T/dim-rt.y4m" --record-sync-ms 0 \
+    2> "$T/dim-rt.log" & pid=$!
+for i in 1 2 3 4 5 6 7 8 9 10; do [ -e "/dev/shm$SHM" ] && break; sleep 0.1; done
+"$B/stillheart-cat" --name "$SHM" --count 40 --timeout 10 -v > "$T/dim-cat.y4m" 2> "$T/dim-cat.log" & cat_pid=$!
+# SIGHUP once 10 frames are recorded: the next warped frames are dimmed outside, nothing reopened
+for i in $(seq 100); do [ "$(grep -c FRAME "$T/dim-rt.y4m" 2>/dev/null)" -ge 10 ] && break; sleep 0.1; done
+printf '[sink]\noutside = dimmed-raw\n' > "$T/outside.ini"; kill -HUP $pid
+for i in $(seq 100); do grep -q "config reloaded" "$T/dim-rt.log" && break; sleep 0.1; done
+wait $cat_pid; kill $pid; wait $pid
+rm -f "/dev/shm$SHM" # closed, not unlinked: the next run's reader must not find it
+PYTHONPATH="$T" python3 - "$T/dim-cat.y4m" "$T/dim-rt.y4m" "$T/dim-cat.log" "$T/ph/cam0.y4m" "$T/dim-rt.log" <<'PY' \
+    && ok "outside reloaded black -> dimmed-raw in real time: the segment's frames are the record's" \
+    || bad "outside reloaded black -> dimmed-raw in real time: the segment's frames are the record's" "see above"
+import re, sys
+from outside import frames
+(a, w, h), (rec, _, _), (raw, _, _) = frames(sys.argv[1]), frames(sys.argv[2]), frames(sys.argv[4])
+seqs = [int(s) for s in re.findall(r'^frame (\d+) ', open(sys.argv[3]).read(), re.M)]
+log = open(sys.argv[5]).read()
+if len(a) < 30 or len(seqs) != len(a): print(len(a), "frames read back,", len(seqs), "-v lines"); sys.exit(1)
+differ = [s for f, s in zip(a, seqs) if s > len(rec) or rec[s - 1] != f]
+# the corner pixel lies outside the hull: black in a plain warp, the camera's dimmed after the reload
+corners = ''.join('L' if f[0] else 'B' for f in rec if f not in raw)
+if differ or not re.fullmatch('B{3,}L{3,}', corners) or "config reloaded (gating)" not in log or "cameras reopened" in log:
+    print("frames read back unlike the record's:", differ, "; warped frames' corners, B black, L lit:", corners, log[-300:]); sys.exit(1)
+PY
 # In real time the reference is the first frame processing takes, and the camera does not wait
 # for it: a daemon that starts behind its camera (qemu-aarch64 on a busy machine: issue 21) takes
 # frame 1 or later, and every frame it shows is warped onto that one. So its frames are compared
@@ -494,6 +603,30 @@ PY
 CAMS="--source y4m:$T/s3/cam0.y4m --camera1-spec y4m:$T/s3/cam1.y4m --camera2-spec y4m:$T/s3/cam2.y4m --calibration $T/s3/calibration.yaml"
 $RUN $CAMS --no-loop --no-realtime --sink none --points "$T/p3.csv" --method tps --threads 2 --record "$T/r3.y4m" \
     && cmp -s "$T/r3.y4m" "$T/w3.y4m" && ok "3D: record equals stillheart warp3d" || bad "3D: record equals stillheart warp3d" "differs"
+# --outside dimmed-raw in 3D (the view's hull, the projected reference markers): a byte differs from
+# warp3d's only where warp3d left black (0 luma, 128 chroma), and is there the camera's dimmed or
+# the cyan line; every frame has such bytes (sampled every 7th byte: Python is slow)
+$RUN $CAMS --no-loop --no-realtime --sink none --points "$T/p3.csv" --method tps --threads 2 --record "$T/r3d.y4m" \
+    --outside dimmed-raw
+PYTHONPATH="$T" python3 - "$T/r3d.y4m" "$T/w3.y4m" "$T/s3/cam0.y4m" <<'PY' \
+    && ok "3D: outside = dimmed-raw changes only what warp3d left black" || bad "3D: outside = dimmed-raw changes only what warp3d left black" "see above"
+import sys
+from outside import frames
+(dim, w, h), (warp, _, _), (raw, _, _) = frames(sys.argv[1]), frames(sys.argv[2]), frames(sys.argv[3])
+n = w * h
+cyan = (round(16 + 219 * 0.701), round(128 + 224 * 0.299 / 1.772), round(128 - 224 * 0.701 / 1.402))  # BT.601 limited
+if len(dim) != len(warp) or len(dim) < 30: print(len(dim), "frames recorded,", len(warp), "by warp3d"); sys.exit(1)
+for i, (f, g, r) in enumerate(zip(dim, warp, raw)):
+    changed = 0
+    for k in range(0, len(f), 7):
+        if f[k] == g[k]: continue
+        p = 0 if k < n else 1 if k < n * 5 // 4 else 2
+        b = 16 if p == 0 else 128
+        if g[k] != (0 if p == 0 else 128) or f[k] not in ((r[k] + b + 1) // 2, cyan[p]):
+            print("frame %d byte %d (plane %d): %d, warp3d %d, camera %d" % (i, k, p, f[k], g[k], r[k])); sys.exit(1)
+        changed += 1
+    if changed < 1000: print("frame %d: only %d bytes of 1 in 7 changed" % (i, changed)); sys.exit(1)
+PY
 # Frames are shown raw while the reference's 3D models are built beside them (no frame waits for
 # a build); under qemu-aarch64 on a busy machine that build can outlast a 40-frame pass, so the
 # replay loops (the tracker starting afresh at each loop) for 160 frames: the first stabilized
