@@ -189,11 +189,20 @@ check-asan:
 # ---- benchmarks (tools/bench): ours beside the peer, in one process ----
 BENCH_SRC := $(wildcard tools/bench/*.cpp)
 BENCH_BIN := $(BENCH_SRC:tools/bench/%.cpp=$(BUILD)/bench/%)
+# `stillheart warp`'s whole process beside a Python cv2.remap script (issue 20), which it carries
+BENCH_WARP_PROCESS := $(BUILD)/bench/bench_warp_process
+$(BENCH_WARP_PROCESS): tools/bench/bench_warp_process.sh tools/bench/warp_remap.py $(APP) $(BUILD)/stillheart-synth
+	@mkdir -p $(dir $@)
+	cp tools/bench/warp_remap.py $(dir $@)
+	cp $< $@
+	chmod +x $@
+BENCH_BIN += $(BENCH_WARP_PROCESS)
 $(BUILD)/bench/%: tools/bench/%.cpp $(BUILD)/tools/synth/synth.o $(LIB)
 	@mkdir -p $(dir $@)
 	$(CXX) $(CXXFLAGS_ALL) $(OPENCV_CFLAGS) $< $(BUILD)/tools/synth/synth.o $(LIB) $(OPENCV_LIBS) $(LDLIBS_ALL) -o $@
 
 bench: deps
+	@sh scripts/install-deps.sh --bench
 	$(MAKE) --no-print-directory $(BENCH_BIN)
 	@for b in $(BENCH_BIN); do echo "== $$b"; $$b || exit 1; done
 
@@ -257,7 +266,7 @@ DEMO_METHOD ?= tps
 demo: deps
 	$(MAKE) --no-print-directory all
 	$(BUILD)/stillheart-synth --width 960 --height 540 --frames 30 --markers 16 --out $(DEMO_DIR)
-	$(APP) warp --method $(DEMO_METHOD) --threads 2 --points $(DEMO_DIR)/points.csv \
+	$(APP) warp --method $(DEMO_METHOD) --threads 2 --metric --points $(DEMO_DIR)/points.csv \
 		$(DEMO_DIR)/video.y4m $(DEMO_DIR)/stabilized.y4m --map-out $(DEMO_DIR)/map.npy
 	@echo "stabilized video: $(DEMO_DIR)/stabilized.y4m (e.g. ffplay $(DEMO_DIR)/stabilized.y4m)"
 

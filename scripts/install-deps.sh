@@ -2,13 +2,18 @@
 # Installs the Debian 12 packages that stillheart's build, tests and benchmarks need.
 # Idempotent: packages already present are skipped without touching apt at all.
 #   scripts/install-deps.sh          build + tests
-#   scripts/install-deps.sh --bench  also OpenCV (benchmark peer)
+#   scripts/install-deps.sh --bench  also OpenCV (benchmark peer) and its Python binding (the
+#                                    whole-process peer of `stillheart warp`, bench_warp_process)
+#   scripts/install-deps.sh --profile  also perf (linux-perf), for the before/after profiles the
+#                                    issues ask for (docs/warp.md)
 #   scripts/install-deps.sh --arm64  also the aarch64 cross build and its tests under emulation:
 #                                    arm64 multiarch, crossbuild-essential-arm64, qemu-user, the
 #                                    arm64 -dev packages, and libapriltag-dev:arm64 unpacked into
 #                                    $ARM64_CACHE (it cannot co-install with the amd64 one)
 set -eu
 arm64=0
+bench=0
+profile=0
 ARM64_CACHE="${ARM64_CACHE:-/var/cache/stillheart/arm64}"
 
 pkgs="build-essential pkg-config libcmocka-dev libqhull-dev libeigen3-dev libkissfft-dev libpng-dev
@@ -20,7 +25,10 @@ pkgs="build-essential pkg-config libcmocka-dev libqhull-dev libeigen3-dev libkis
 # that is known to work)
 for arg in "$@"; do
     case "$arg" in
-        --bench) ;;   # the bench peer (cv::remap) lives in opencv-imgproc, already listed
+        # cv::remap lives in opencv-imgproc, already listed; the Python script that is
+        # `stillheart warp`'s whole-process peer needs the binding (it brings NumPy)
+        --bench) bench=1 ;;
+        --profile) profile=1 ;;
         --arm64) arm64=1 ;;
         *) echo "install-deps: unknown option '$arg'" >&2; exit 2 ;;
     esac
@@ -35,6 +43,12 @@ arm64_pkgs="crossbuild-essential-arm64 qemu-user libcmocka-dev:arm64 libqhull-de
       dpkg-dev debhelper fakeroot lintian"
 if [ "$arm64" = 1 ]; then
     pkgs="$pkgs $arm64_pkgs"
+fi
+if [ "$bench" = 1 ]; then
+    pkgs="$pkgs python3-opencv"
+fi
+if [ "$profile" = 1 ]; then
+    pkgs="$pkgs linux-perf"
 fi
 
 SUDO=""
