@@ -74,7 +74,15 @@ result("root: status answered", f)
 # every frame is shown raw with 0 markers; refused to whom status is refused
 import json
 def ask_json(who=None):
-    p = subprocess.run((who or []) + [exe, "ctl", "--socket", ctl, "--json", "status"], capture_output=True, text=True, timeout=10)
+    # a client that gets no answer in 10 s is a failure that says what the daemon logged
+    # meanwhile (the aarch64 loop once met one: issue 21), not a traceback that ends the suite
+    t0 = time.monotonic()
+    try:
+        p = subprocess.run((who or []) + [exe, "ctl", "--socket", ctl, "--json", "status"], capture_output=True, text=True, timeout=10)
+    except subprocess.TimeoutExpired as e:
+        tail = daemon_log().splitlines()[-6:]
+        return -1, "", "no answer in %.1f s (stdout %r, stderr %r); daemon %s, its last log lines: %r" % (
+            time.monotonic() - t0, e.stdout, e.stderr, "running" if d.poll() is None else "exited %s" % d.returncode, tail)
     return p.returncode, p.stdout.strip(), p.stderr.strip()
 f = []
 for i in range(100):
