@@ -5,8 +5,9 @@
 # 640x480, a writer publishing a known frame (tools/show/vmwriter.c) and stillheart-show; the host
 # (tests/vm/show_check.py) reads back what is on the screen with QEMU's screendump and compares
 # it with the frame: the picture region, the letterbox bars, the status frame and badge, the
-# reason line, NO SIGNAL before the first frame and within a second of the writer stopping, the
-# picture back when a writer returns, overlay off leaving the picture untouched. In the guest:
+# reason line, NO SIGNAL before the first frame and within a second of the writer stopping or
+# being killed, the picture back when a writer returns, overlay off leaving the picture
+# untouched. In the guest:
 # the refusals (DRM master held by the running instance, no such connector, mode, device) and
 # --stats' latency line. Uses the kernel tests/vm/run.sh caches (SH_VM_CACHE); without it, and
 # without qemu, it prints "vmtest: SKIP" and a skipped summary, as run.sh does.
@@ -34,21 +35,11 @@ R="$WORK/root"
 mkdir -p "$R/bin" "$R/proc" "$R/sys" "$R/dev" "$R/tmp" "$R/mods"
 cp "$BUSYBOX" "$R/bin/busybox"
 for a in sh mount insmod poweroff sleep ls cat echo mkdir kill grep stty tr head; do ln -s busybox "$R/bin/$a"; done
-i=0
-for m in $(/sbin/modprobe -d "$KDIR" -S "$KVER" --show-depends bochs | awk '$1 == "insmod" {print $2}'); do
-    i=$((i + 1))
-    case "$m" in
-        *.xz) xz -dc "$m" > "$R/mods/$(printf %02d $i)-$(basename "${m%.xz}")" ;;
-        *) cp "$m" "$R/mods/$(printf %02d $i)-$(basename "$m")" ;;
-    esac
-done
-[ "$i" -gt 0 ] || skip "no bochs module in $KDIR"
+. "$(dirname "$0")/initramfs.sh"
+vm_modules "$R" "$KDIR" "$KVER" bochs || skip "no bochs module in $KDIR"
 cp "$SHOW" "$R/bin/stillheart-show"
 cp "$WRITER" "$R/bin/show-vmwriter"
-for lib in $(ldd "$SHOW" "$WRITER" | awk '/=>/ {print $3} /^\t\// {print $1}' | sort -u); do
-    mkdir -p "$R$(dirname "$lib")"; cp -L "$lib" "$R$lib"
-done
-mkdir -p "$R/lib64"; [ -e "$R/lib64/ld-linux-x86-64.so.2" ] || cp -L /lib64/ld-linux-x86-64.so.2 "$R/lib64/"
+vm_libs "$R" "$SHOW" "$WRITER"
 cat > "$R/init" <<'INIT'
 #!/bin/sh
 mount -t proc proc /proc
@@ -83,11 +74,14 @@ wait $W
 sleep 1
 dump show-nosignal-stop
 # the writer returns: the picture comes back, now raw with its reason
-show-vmwriter $N 5 raw "markers lost: 5 of 16 visible" 2> /tmp/w2.log &
+show-vmwriter $N 30 raw "markers lost: 5 of 16 visible" 2> /tmp/w2.log &
 W=$!
 sleep 3
 dump show-full-raw
-wait $W
+# a writer that dies (its segment neither closed nor retired: only stale)
+kill -9 $W; wait $W
+sleep 1
+dump show-nosignal-killed
 kill $S; wait $S; rc=$?
 st=$(grep 'stats (end)' /tmp/show1.log)
 if [ $rc = 0 ] && echo "$st" | grep -q 'capture-to-scanout median [0-9.]* p99 [0-9.]* max [0-9.]* ms (n [1-9]'; then

@@ -170,6 +170,8 @@ def judge(name, path):
         check_no_signal(name, px, "no frame yet")
     elif name == "show-nosignal-stop":
         check_no_signal(name, px, "1 s after the writer stopped")
+    elif name == "show-nosignal-killed":
+        check_no_signal(name, px, "1 s after the writer was killed")
     elif name == "show-full-stabilized":
         check_picture(name, px, GREEN, "full", 0)
     elif name == "show-full-raw":
