@@ -136,9 +136,11 @@ deps:
 
 # ---- per-module optimisation: $(OPT) everywhere but in this table. -O3 lets gcc vectorize the
 # per-pixel loops, each measured in make bench: src/warp the position fill (bench_warp),
-# src/pixconv the pixel-format loops (bench_pixconv) ----
+# src/pixconv the pixel-format loops (bench_pixconv), src/screen the display's YUV to XRGB rows
+# (bench_screen) ----
 $(BUILD)/src/warp/%.o:    CFLAGS_ALL += -O3
 $(BUILD)/src/pixconv/%.o: CFLAGS_ALL += -O3
+$(BUILD)/src/screen/%.o:  CFLAGS_ALL += -O3
 
 $(BUILD)/%.o: %.c
 	@mkdir -p $(dir $@)

@@ -2,7 +2,9 @@
  * letterboxing, and the status overlay drawn over it (stillheart-show; docs/display.md).
  *
  * Pure pixel work on memory the caller owns (a KMS dumb buffer, or a test's array): no device,
- * no allocation, nothing printed, so that the host tests check every pixel.
+ * nothing printed, so that the host tests check every pixel. Each frame row is converted once
+ * (into the picture directly when the frame is as wide as the picture, else into one row
+ * allocated per call) and a row repeated by upscaling is copied.
  *
  * Scaling keeps the frame's aspect ratio (square pixels) and centres it: the picture rectangle is
  * the whole height or the whole width of the screen, the rest is black bars. Each screen pixel of
