@@ -7,7 +7,9 @@
 # it with the frame: the picture region, the letterbox bars, the status frame and badge, the
 # reason line, NO SIGNAL before the first frame and within a second of the writer stopping or
 # being killed, the picture back when a writer returns, overlay off leaving the picture
-# untouched. In the guest:
+# untouched; then the same with the daemon (stillheart run replaying that frame, published raw):
+# the picture and its reason, NO SIGNAL a second after the daemon stopped, the picture back when
+# it is started again. In the guest:
 # the refusals (DRM master held by the running instance, no such connector, mode, device) and
 # --stats' latency line. Uses the kernel tests/vm/run.sh caches (SH_VM_CACHE); without it, and
 # without qemu, it prints "vmtest: SKIP" and a skipped summary, as run.sh does.
@@ -18,7 +20,7 @@ KVER="${SH_VM_KVER:-6.12.95+deb12-amd64}"
 TIMEOUT="${SH_VM_TIMEOUT:-300}"
 SHOW="$BUILD/stillheart-show"
 WRITER="$BUILD/show-vmwriter"
-for b in "$SHOW" "$WRITER"; do [ -x "$b" ] || { echo "vmtest: $b missing (make $b)" >&2; exit 2; }; done
+for b in "$SHOW" "$WRITER" "$BUILD/stillheart"; do [ -x "$b" ] || { echo "vmtest: $b missing (make $b)" >&2; exit 2; }; done
 skip() {
     echo "vmtest: SKIP: $*"
     echo "vmtest: skipped (0 passed, 0 failed): $*"
@@ -39,7 +41,10 @@ for a in sh mount insmod poweroff sleep ls cat echo mkdir kill grep stty tr head
 vm_modules "$R" "$KDIR" "$KVER" bochs || skip "no bochs module in $KDIR"
 cp "$SHOW" "$R/bin/stillheart-show"
 cp "$WRITER" "$R/bin/show-vmwriter"
-vm_libs "$R" "$SHOW" "$WRITER"
+cp "$BUILD/stillheart" "$R/bin/stillheart"
+vm_libs "$R" "$SHOW" "$WRITER" "$BUILD/stillheart"
+# the daemon's input: vmwriter's frame 60 times (6 s at 10 fps), which it publishes raw
+python3 "$(dirname "$0")/show_check.py" --y4m 60 > "$R/pattern.y4m"
 cat > "$R/init" <<'INIT'
 #!/bin/sh
 mount -t proc proc /proc
@@ -74,7 +79,7 @@ wait $W
 sleep 1
 dump show-nosignal-stop
 # the writer returns: the picture comes back, now raw with its reason
-show-vmwriter $N 30 raw "markers lost: 5 of 16 visible" 2> /tmp/w2.log &
+show-vmwriter $N 120 raw "markers lost: 5 of 16 visible" 2> /tmp/w2.log &
 W=$!
 sleep 3
 dump show-full-raw
@@ -98,6 +103,26 @@ for ov in minimal off; do
     wait $W
     kill $S; wait $S
 done
+# the daemon itself: a replay of the pattern (no markers: published raw, "no reference yet"),
+# stopped, and started again
+stillheart-show --device $D --mode 640x480 --name $N > /tmp/show-d.log 2>&1 &
+S=$!
+run_daemon() {
+    stillheart run --group= --source y4m:/pattern.y4m --realtime=1 --sink shm:$N --quiet > /tmp/d.log 2>&1 &
+    W=$!
+}
+run_daemon
+sleep 3
+dump show-daemon-raw
+kill $W; wait $W
+sleep 1
+dump show-daemon-stopped
+run_daemon
+sleep 3
+dump show-daemon-back
+kill $W; wait $W
+kill $S; wait $S
+echo "VMTEST INFO show with the daemon: $(tr '\n' '|' < /tmp/show-d.log)"
 # refusals, each naming what it did not find
 stillheart-show --device $D --connector HDMI-A-9 > /tmp/r.log 2>&1; rc=$?
 if [ $rc = 1 ] && grep -q "no connector 'HDMI-A-9' (there are: Virtual-1 (connected))" /tmp/r.log; then
