@@ -92,6 +92,13 @@ ifeq ($(call have,inih),1)
 CFLAGS_ALL += -DSH_HAVE_INIH $(shell $(PKG_CONFIG) --cflags inih)
 LDLIBS_ALL += $(shell $(PKG_CONFIG) --libs inih)
 endif
+# libdrm: the KMS output (src/kms) of stillheart-show. Its library goes only on the link lines
+# that reach src/kms (DRM_LIBS, tools/show/show.mk): the daemon and the other programs never
+# call it and need not depend on it.
+ifeq ($(call have,libdrm),1)
+CFLAGS_ALL += -DSH_HAVE_DRM $(shell $(PKG_CONFIG) --cflags libdrm)
+DRM_LIBS   := $(shell $(PKG_CONFIG) --libs libdrm)
+endif
 # libapriltag: the detect stage (src/detect). Debian's apriltag.pc omits -lapriltag-utils, which
 # holds the image_u8_* helpers.
 ifeq ($(call have,apriltag),1)
@@ -129,10 +136,11 @@ deps:
 
 # ---- per-module optimisation: $(OPT) everywhere but in this table. -O3 lets gcc vectorize the
 # per-pixel loops, each measured in make bench: src/warp the position fill (bench_warp) and the
-# outside fill (bench_outside),
-# src/pixconv the pixel-format loops (bench_pixconv) ----
+# outside fill (bench_outside), src/pixconv the pixel-format loops (bench_pixconv), src/screen the
+# display's YUV to XRGB rows (bench_screen) ----
 $(BUILD)/src/warp/%.o:    CFLAGS_ALL += -O3
 $(BUILD)/src/pixconv/%.o: CFLAGS_ALL += -O3
+$(BUILD)/src/screen/%.o:  CFLAGS_ALL += -O3
 
 $(BUILD)/%.o: %.c
 	@mkdir -p $(dir $@)
@@ -272,7 +280,7 @@ demo: deps
 
 # The programs for users, installed where they are built (stillheart-calib needs OpenCV); not
 # stillheart-vmprobe, which runs inside make vmtest's guest only.
-USER_TOOLS := stillheart-cat stillheart-render stillheart-eval stillheart-trackeval stillheart-synth \
+USER_TOOLS := stillheart-cat stillheart-show stillheart-render stillheart-eval stillheart-trackeval stillheart-synth \
 	stillheart-calib
 install: all
 	install -d $(DESTDIR)$(PREFIX)/bin $(DESTDIR)$(PREFIX)/include/stillheart $(DESTDIR)$(PREFIX)/lib

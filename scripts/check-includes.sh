@@ -17,7 +17,7 @@ set -u
 ENGINE="core image linalg interp hull warp warp3d modelcache metrics camera calib track detect"
 FORMATS="y4m png imageio points"
 CAPTURE="source pixconv sync record"
-OUTPUT="display"
+OUTPUT="display screen kms"
 DAEMON="config notify log cli daemon app"
 # What the engine may not include, and what capture may not include besides.
 ENGINE_DENY="$CAPTURE $OUTPUT config notify log cli daemon app"

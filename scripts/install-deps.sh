@@ -19,7 +19,7 @@ ARM64_CACHE="${ARM64_CACHE:-/var/cache/stillheart/arm64}"
 pkgs="build-essential pkg-config libcmocka-dev libqhull-dev libeigen3-dev libkissfft-dev libpng-dev
       libopencv-core-dev libopencv-imgproc-dev clang llvm libclang-rt-14-dev
       libosmesa6-dev libapriltag-dev libopencv-calib3d-dev libturbojpeg0-dev libgpiod-dev libcamera-dev
-      libinih-dev libsystemd-dev python3 strace groff-base ffmpeg"
+      libinih-dev libsystemd-dev python3 strace groff-base ffmpeg libdrm-dev"
 # ffmpeg: the README's "Stabilize your own video" runs through it, and test_readme_video runs that
 # section as written (37 packages, about 27 MB to download on Debian 12: the price of a README
 # that is known to work)
@@ -39,7 +39,7 @@ done
 # below), and the emulator that runs the tests.
 arm64_pkgs="crossbuild-essential-arm64 qemu-user libcmocka-dev:arm64 libqhull-dev:arm64 libkissfft-dev:arm64
       libpng-dev:arm64 libturbojpeg0-dev:arm64 libapriltag3:arm64 libosmesa6-dev:arm64
-      libinih-dev:arm64 libgpiod-dev:arm64 libcamera-dev:arm64
+      libinih-dev:arm64 libgpiod-dev:arm64 libcamera-dev:arm64 libdrm-dev:arm64
       dpkg-dev debhelper fakeroot lintian"
 if [ "$arm64" = 1 ]; then
     pkgs="$pkgs $arm64_pkgs"
@@ -79,10 +79,15 @@ apriltag_cache() {
     echo "install-deps: libapriltag-dev:arm64 unpacked into $ARM64_CACHE" >&2
 }
 
+# A name without :ARCH means the native (or arch-independent) package: with arm64 multiarch, an
+# installed libdrm-dev:arm64 alone must not count as libdrm-dev.
+native=$(dpkg --print-architecture)
 missing=""
 for p in $pkgs; do
-    if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then
-        missing="$missing $p"
+    case "$p" in *:*) want="$p" ;; *) want="$p:$native" ;; esac
+    if ! dpkg-query -W -f='${Status} ${Architecture}\n' "${want%%:*}" 2>/dev/null |
+            grep -qE "^install ok installed (${want#*:}|all)\$"; then
+        missing="$missing $want"
     fi
 done
 if [ -z "$missing" ]; then

@@ -37,16 +37,20 @@ while [ $i -lt $n ]; do
     read -r p f c < "$work/$i.sum" || { p=0; f=1; c="(folder $i: no summary)"; }
     passed=$((passed + p)); failed=$((failed + f)); [ -n "${c:-}" ] && crashed="$crashed $c"
 done
-# make vmtest's own closing line ("vmtest: N passed, N failed"), when the suite ran it
+# make vmtest's closing lines ("vmtest: N passed, N failed": the capture guest's and the
+# display guest's, tests/vm/run.sh and show.sh), added up, when the suite ran it
 if [ -n "${VMTEST_OUT:-}" ]; then
-    line=$(grep -E '^vmtest: [0-9]+ passed, [0-9]+ failed' "$VMTEST_OUT" 2>/dev/null | tail -1)
+    lines=$(grep -E '^vmtest: [0-9]+ passed, [0-9]+ failed' "$VMTEST_OUT" 2>/dev/null || true)
     skipped=$(grep -E '^vmtest: skipped' "$VMTEST_OUT" 2>/dev/null | tail -1)
     if [ -n "$skipped" ]; then
         echo "$skipped"   # nothing could be fetched: not a failure, and said on its own line
-    elif [ -n "$line" ]; then
-        p=$(echo "$line" | sed 's/^vmtest: \([0-9]*\) passed.*/\1/')
-        f=$(echo "$line" | sed 's/.* \([0-9]*\) failed.*/\1/')
-        passed=$((passed + p)); failed=$((failed + f))
+    fi
+    if [ -n "$lines" ]; then
+        for line in $(echo "$lines" | sed 's/^vmtest: \([0-9]*\) passed, \([0-9]*\) failed.*/\1:\2/'); do
+            passed=$((passed + ${line%%:*})); failed=$((failed + ${line#*:}))
+        done
+    elif [ -n "$skipped" ]; then
+        :
     else
         failed=$((failed + 1)); crashed="$crashed vmtest(no summary: see $VMTEST_OUT)"
     fi

@@ -19,6 +19,7 @@
 #define STILLHEART_CLI_H
 
 #include <getopt.h>
+#include <stdint.h>
 #include <stdio.h>
 
 #ifdef __cplusplus
@@ -67,6 +68,9 @@ int sh_cli_parse_bool(const char *text, int *out);
  * line on stderr); 0 when text is not one, else 1 with *out set. */
 int sh_cli_parse_int(const char *option, const char *text, int min, int max, int *out);
 int sh_cli_parse_double(const char *option, const char *text, double min, double max, double *out);
+/* A user for option (--owner): a user name, or a uid as a whole number; 0 when it is neither
+ * (one line on stderr: "OPTION: no user 'TEXT'"), else 1 with *uid set. */
+int sh_cli_parse_user(const char *option, const char *text, int64_t *uid);
 
 /* A progress line on stderr, "label [#####     ] done/total  rate  ETA m:ss", redrawn at most
  * ten times a second; only when stderr is a terminal and the log level shows info (--quiet and

@@ -1,5 +1,6 @@
 /* The command-line conventions every program shares: include/stillheart/cli.h. */
 #include <errno.h>
+#include <pwd.h>
 #include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
@@ -58,6 +59,22 @@ int sh_cli_parse_int(const char *option, const char *text, int min, int max, int
         return 0;
     }
     *out = (int)v;
+    return 1;
+}
+
+int sh_cli_parse_user(const char *option, const char *text, int64_t *uid)
+{
+    char *end;
+    long v = strtol(text, &end, 10);
+    struct passwd *pw = getpwnam(text);
+    if (pw) {
+        *uid = pw->pw_uid;
+    } else if (*text && !*end && v >= 0 && v < 0x7fffffffL) {
+        *uid = v;
+    } else {
+        sh_log_error("%s: no user '%s'", option, text);
+        return 0;
+    }
     return 1;
 }
 

@@ -282,6 +282,7 @@ static const struct {
     {"stillheart", "run", "stillheart run", "--max-frames", "zero", 2},
     {"stillheart", "ctl", "stillheart ctl", "--socket", "/nonexistent/zero", 3},
     {"stillheart-cat", "", "stillheart-cat", "--count", "zero", 2},
+    {"stillheart-show", "", "stillheart-show", "--stale", "zero", 2},
     {"stillheart-eval", "", "stillheart-eval", "--reference", "zero", 2},
     {"stillheart-render", "", "stillheart-render", "--frames", "zero", 2},
     {"stillheart-synth", "", "stillheart-synth", "--frames", "zero", 2},

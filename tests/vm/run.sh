@@ -103,14 +103,8 @@ R="$WORK/root"
 mkdir -p "$R/bin" "$R/sbin" "$R/proc" "$R/sys" "$R/dev" "$R/tmp" "$R/mods"
 cp "$BUSYBOX" "$R/bin/busybox"
 for a in sh mount insmod poweroff sleep ls cat echo mkdir; do ln -s busybox "$R/bin/$a"; done
-i=0
-for m in $(/sbin/modprobe -d "$KDIR" -S "$KVER" --show-depends vivid | awk '$1 == "insmod" {print $2}'); do
-    i=$((i + 1))
-    case "$m" in
-        *.xz) xz -dc "$m" > "$R/mods/$(printf %02d $i)-$(basename "${m%.xz}")" ;;
-        *) cp "$m" "$R/mods/$(printf %02d $i)-$(basename "$m")" ;;
-    esac
-done
+. "$(dirname "$0")/initramfs.sh"
+vm_modules "$R" "$KDIR" "$KVER" vivid
 for m in $(/sbin/modprobe -d "$KDIR" -S "$KVER" --show-depends configfs | awk '$1 == "insmod" {print $2}'); do
     xz -dc "$m" > "$R/mods/00-configfs.ko"
 done
@@ -128,11 +122,7 @@ fi
 cp "$PROBE" "$R/bin/stillheart-vmprobe"
 [ -x "$BUILD/stillheart" ] && cp "$BUILD/stillheart" "$R/bin/stillheart"
 [ -x "$BUILD/stillheart-cat" ] && cp "$BUILD/stillheart-cat" "$R/bin/stillheart-cat"
-for lib in $(ldd "$PROBE" "$BUILD/stillheart" "$BUILD/stillheart-cat" 2>/dev/null | awk '/=>/ {print $3} /^\t\// {print $1}' | sort -u); do
-    mkdir -p "$R$(dirname "$lib")"; cp -L "$lib" "$R$lib"
-done
-# ld.so may be asked for by its /lib64 name
-mkdir -p "$R/lib64"; [ -e "$R/lib64/ld-linux-x86-64.so.2" ] || cp -L /lib64/ld-linux-x86-64.so.2 "$R/lib64/"
+vm_libs "$R" "$PROBE" "$BUILD/stillheart" "$BUILD/stillheart-cat"
 cat > "$R/init" <<'INIT'
 #!/bin/sh
 mount -t proc proc /proc

@@ -32,7 +32,9 @@ $(VMPROBE_BIN): $(BUILD)/tools/capture/vmprobe.o $(BUILD)/tools/capture/vmprobe_
 TOOLS += $(VMPROBE_BIN)
 
 # make vmtest: stillheart's capture code against the kernel's vivid driver in a QEMU guest
-# (tests/vm/run.sh; downloads the kernel once into /var/cache/stillheart/vm).
+# (tests/vm/run.sh; downloads the kernel once into /var/cache/stillheart/vm), then the display
+# on the kernel's bochs DRM driver (tests/vm/show.sh, tools/show/show.mk); each prints its own
+# "vmtest: N passed, N failed" (tests/run-tests.sh adds them up), both run whatever the first gives.
 .PHONY: vmtest
-vmtest: $(VMPROBE_BIN) $(APP) $(BUILD)/stillheart-cat
-	sh tests/vm/run.sh $(BUILD)
+vmtest: $(VMPROBE_BIN) $(APP) $(BUILD)/stillheart-cat $(BUILD)/stillheart-show $(BUILD)/show-vmwriter
+	@rc=0; sh tests/vm/run.sh $(BUILD) || rc=1; sh tests/vm/show.sh $(BUILD) || rc=1; exit $$rc

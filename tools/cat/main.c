@@ -13,7 +13,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <pwd.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -151,19 +150,9 @@ static int parse_args(int argc, char **argv, cat_args *a)
             break;
         case 'v': a->verbose = 1; break;
         case 'f': a->ropt.follow = 1; break;
-        case 'o': {
-            long uid = strtol(optarg, &end, 10);
-            struct passwd *pw = getpwnam(optarg);
-            if (pw) {
-                a->ropt.owner_uid = pw->pw_uid;
-            } else if (*optarg && !*end && uid >= 0 && uid < 0x7fffffffL) {
-                a->ropt.owner_uid = uid;
-            } else {
-                fprintf(stderr, "stillheart-cat: --owner: no user '%s'\n", optarg);
-                return 2;
-            }
+        case 'o':
+            if (!sh_cli_parse_user("--owner", optarg, &a->ropt.owner_uid)) return 2;
             break;
-        }
         case 'h': usage(stdout); return 0;
         default: { int rc = sh_cli_option(&cli, opt, argv); if (rc >= 0) return rc; } break;
         }
