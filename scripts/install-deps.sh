@@ -3,12 +3,17 @@
 # Idempotent: packages already present are skipped without touching apt at all.
 #   scripts/install-deps.sh          build + tests
 #   scripts/install-deps.sh --bench  also OpenCV (benchmark peer)
+#   scripts/install-deps.sh --vm     also what make vmtest's host side uses (tests/vm/run.sh installs
+#                                    them itself when missing): QEMU, busybox, and GStreamer's
+#                                    gst-launch-1.0 with v4l2src, which the guest runs on the
+#                                    daemon's v4l2loopback output
 #   scripts/install-deps.sh --arm64  also the aarch64 cross build and its tests under emulation:
 #                                    arm64 multiarch, crossbuild-essential-arm64, qemu-user, the
 #                                    arm64 -dev packages, and libapriltag-dev:arm64 unpacked into
 #                                    $ARM64_CACHE (it cannot co-install with the amd64 one)
 set -eu
 arm64=0
+vm=0
 ARM64_CACHE="${ARM64_CACHE:-/var/cache/stillheart/arm64}"
 
 pkgs="build-essential pkg-config libcmocka-dev libqhull-dev libeigen3-dev libkissfft-dev libpng-dev
@@ -22,6 +27,7 @@ for arg in "$@"; do
     case "$arg" in
         --bench) ;;   # the bench peer (cv::remap) lives in opencv-imgproc, already listed
         --arm64) arm64=1 ;;
+        --vm) vm=1 ;;
         *) echo "install-deps: unknown option '$arg'" >&2; exit 2 ;;
     esac
 done
@@ -35,6 +41,9 @@ arm64_pkgs="crossbuild-essential-arm64 qemu-user libcmocka-dev:arm64 libqhull-de
       dpkg-dev debhelper fakeroot lintian"
 if [ "$arm64" = 1 ]; then
     pkgs="$pkgs $arm64_pkgs"
+fi
+if [ "$vm" = 1 ]; then
+    pkgs="$pkgs qemu-system-x86 busybox-static kmod cpio xz-utils gstreamer1.0-tools gstreamer1.0-plugins-good"
 fi
 
 SUDO=""

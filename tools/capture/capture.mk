@@ -27,12 +27,13 @@ TOOL_TESTS += $(BUILD)/tests/test_record_cli
 
 # stillheart-vmprobe: the capture checks run inside the QEMU guest of tests/vm/run.sh.
 VMPROBE_BIN := $(BUILD)/stillheart-vmprobe
-$(VMPROBE_BIN): $(BUILD)/tools/capture/vmprobe.o $(BUILD)/tools/capture/vmprobe_run.o $(LIB)
+$(VMPROBE_BIN): $(BUILD)/tools/capture/vmprobe.o $(BUILD)/tools/capture/vmprobe_run.o \
+		$(BUILD)/tools/capture/vmprobe_loop.o $(LIB)
 	$(CC) $(LDFLAGS) $^ $(LDLIBS_ALL) -o $@
 TOOLS += $(VMPROBE_BIN)
 
 # make vmtest: stillheart's capture code against the kernel's vivid driver in a QEMU guest
 # (tests/vm/run.sh; downloads the kernel once into /var/cache/stillheart/vm).
 .PHONY: vmtest
-vmtest: $(VMPROBE_BIN) $(APP) $(BUILD)/stillheart-cat
+vmtest: $(VMPROBE_BIN) $(APP) $(BUILD)/stillheart-cat $(BUILD)/stillheart-render
 	sh tests/vm/run.sh $(BUILD)
