@@ -250,13 +250,7 @@ static void gstreamer_check(const char *out, const char *dir)
 /* Two grey frames of w x h in path. */
 static int grey_input(const char *path, int width, int height)
 {
-    sh_y4m_header h;
-    memset(&h, 0, sizeof h);
-    h.width = width;
-    h.height = height;
-    h.format = SH_PIX_I420;
-    h.fps_num = 10;
-    h.fps_den = 1;
+    sh_y4m_header h = {.width = width, .height = height, .format = SH_PIX_I420, .fps_num = 10, .fps_den = 1};
     sh_y4m_writer *wr;
     sh_image img;
     if (sh_y4m_writer_open(path, &h, &wr) != SH_OK) return -1;
