@@ -6,6 +6,10 @@
 #                                    whole-process peer of `stillheart warp`, bench_warp_process)
 #   scripts/install-deps.sh --profile  also perf (linux-perf), for the before/after profiles the
 #                                    issues ask for (docs/warp.md)
+#   scripts/install-deps.sh --vm     also what make vmtest's host side uses (tests/vm/run.sh installs
+#                                    them itself when missing): QEMU, busybox, and GStreamer's
+#                                    gst-launch-1.0 with v4l2src, which the guest runs on the
+#                                    daemon's v4l2loopback output
 #   scripts/install-deps.sh --arm64  also the aarch64 cross build and its tests under emulation:
 #                                    arm64 multiarch, crossbuild-essential-arm64, qemu-user, the
 #                                    arm64 -dev packages, and libapriltag-dev:arm64 unpacked into
@@ -14,6 +18,7 @@ set -eu
 arm64=0
 bench=0
 profile=0
+vm=0
 ARM64_CACHE="${ARM64_CACHE:-/var/cache/stillheart/arm64}"
 
 pkgs="build-essential pkg-config libcmocka-dev libqhull-dev libeigen3-dev libkissfft-dev libpng-dev
@@ -30,6 +35,7 @@ for arg in "$@"; do
         --bench) bench=1 ;;
         --profile) profile=1 ;;
         --arm64) arm64=1 ;;
+        --vm) vm=1 ;;
         *) echo "install-deps: unknown option '$arg'" >&2; exit 2 ;;
     esac
 done
@@ -49,6 +55,9 @@ if [ "$bench" = 1 ]; then
 fi
 if [ "$profile" = 1 ]; then
     pkgs="$pkgs linux-perf"
+fi
+if [ "$vm" = 1 ]; then
+    pkgs="$pkgs qemu-system-x86 busybox-static kmod cpio xz-utils gstreamer1.0-tools gstreamer1.0-plugins-good"
 fi
 
 SUDO=""

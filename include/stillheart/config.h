@@ -99,6 +99,7 @@ typedef struct {
     int outside;                     /* SH_OUTSIDE_BLACK (0) or SH_OUTSIDE_DIMMED_RAW (1) */
     char record[SH_CONFIG_STR];      /* "", FILE.y4m or png:DIR: what is shown, also to files */
     int record_sync_ms;              /* Y4M record: flushed and synced this often (0: every frame) */
+    char v4l2[SH_CONFIG_STR];        /* "" or a V4L2 output device (v4l2loopback): what is shown, also there */
     int watchdog;                    /* 1: WATCHDOG=1 pings when systemd asks for them */
     sh_config_origin origin;         /* where each key was set (sh_config_set records it) */
 } sh_config;
@@ -122,6 +123,7 @@ typedef enum {
     SH_CONFIG_DISPLAY = 1 << 4,    /* the display segment made again (or another one made) */
     SH_CONFIG_RECORD = 1 << 5,     /* the record file or folder closed and another opened */
     SH_CONFIG_CONTROL = 1 << 6,    /* the control socket closed and another opened */
+    SH_CONFIG_V4L2 = 1 << 7,       /* the V4L2 output closed and opened again */
 } sh_config_effect;
 
 /* The embedded defaults (the run demo's config): y4m:out/run-demo/cam0.y4m, tps, shm:/stillheart. */

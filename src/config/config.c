@@ -92,6 +92,8 @@ static const keydef keys[] = {
      "also write what is shown: FILE.y4m or png:DIR (\"\": no); taken: FILE-2.y4m, DIR-2, ..."},
     {"sink", "record_sync_ms", "record-sync-ms", K_INT, SH_CONFIG_RECORD, F(record_sync_ms), 0, 0, 60000,
      "Y4M record: handed to the kernel and synced to disk this often (a kill or power loss loses about this much)"},
+    {"sink", "v4l2", "v4l2", K_STR, SH_CONFIG_V4L2, F(v4l2), S(v4l2), 0, 0,
+     "also publish what is shown to a V4L2 output device, a v4l2loopback /dev/videoN (\"\": no)"},
     {"sink", "watchdog", "watchdog", K_BOOL, SH_CONFIG_LIVE, F(watchdog), 0, 0, 1, "send WATCHDOG=1 when systemd asks"},
 };
 #pragma GCC diagnostic pop
@@ -424,6 +426,10 @@ sh_status sh_config_check(const sh_config *cfg, char *err)
             snprintf(err, SH_CONFIG_ERR, "[sink] record: '%s': want FILE.y4m or png:DIR", cfg->record);
             return SH_EINVAL;
         }
+    }
+    if (cfg->v4l2[0] && cfg->v4l2[0] != '/') {
+        snprintf(err, SH_CONFIG_ERR, "[sink] v4l2: '%s': want a device path, /dev/videoN", cfg->v4l2);
+        return SH_EINVAL;
     }
     for (int i = 1; i < SH_CONFIG_MAX_CAMERAS; i++)
         if (cfg->camera[i].spec[0] && !cfg->camera[i - 1].spec[0]) {

@@ -261,8 +261,10 @@ static void display_publish(sh_display_writer *w, const sh_image *img, const sh_
 }
 
 /* What is shown, a camera frame or a black one: to the display (the writer stamps publish_ns),
- * then to the record, numbered as the display's frames. A record that cannot be written is
- * stopped; the display goes on. */
+ * then to the record, numbered as the display's frames, and to the V4L2 output. A record or a
+ * V4L2 device that cannot be written is stopped; the display goes on. The V4L2 output gets every
+ * shown frame whatever its status, as the segment does; the status itself is only in the
+ * segment's header (V4L2 frames carry none). */
 static void publish(sh_daemon *d, const sh_image *shown, const sh_display_frame_info *info)
 {
     run_pipeline *pl = &d->pl;
@@ -271,6 +273,11 @@ static void publish(sh_daemon *d, const sh_image *shown, const sh_display_frame_
         sh_log_error("[sink] record: %s; recording stopped", sh_error_message());
         run_record_close(pl->rec);
         pl->rec = NULL;
+    }
+    if (pl->v4l2 && run_v4l2out_write(pl->v4l2, shown) != SH_OK) {
+        sh_log_error("[sink] v4l2: %s; publishing there stopped", sh_error_message());
+        run_pipeline_v4l2_close(pl->v4l2);
+        pl->v4l2 = NULL;
     }
 }
 

@@ -46,6 +46,26 @@ static sh_status record_open(const sh_config *cfg, const sh_y4m_header *hdr, run
     return st == SH_OK ? SH_OK : sh_error_set(st, "[sink] record: %s", sh_error_message());
 }
 
+/* [sink] v4l2 opened for the frames; the error says which key. */
+static sh_status v4l2_open(const sh_config *cfg, const sh_y4m_header *hdr, run_v4l2out **out)
+{
+    sh_status st = run_v4l2out_open(cfg->v4l2, hdr, out);
+    if (st != SH_OK) return sh_error_set(st, "[sink] v4l2: %s", sh_error_message());
+    sh_log_info("[sink] v4l2: publishing %dx%d %s frames to %s", hdr->width, hdr->height, sh_pixfmt_name(hdr->format),
+                cfg->v4l2);
+    return SH_OK;
+}
+
+/* Closes the V4L2 output, saying how many frames it took and did not. */
+void run_pipeline_v4l2_close(run_v4l2out *o)
+{
+    if (!o) return;
+    unsigned long long taken = run_v4l2out_written(o), missed = run_v4l2out_not_taken(o);
+    sh_log_msg(missed ? SH_LOG_WARN : SH_LOG_INFO, "[sink] v4l2: %s: %llu frames written, %llu not taken by the device",
+               run_v4l2out_path(o), taken, missed);
+    run_v4l2out_close(o);
+}
+
 /* The frame shown while the output camera is lost: black in the display's format and range. */
 static sh_status black_frame(const sh_y4m_header *hdr, sh_image *img)
 {
@@ -139,6 +159,7 @@ sh_status run_pipeline_open(run_pipeline *p, const sh_config *cfg)
     if (st == SH_OK) st = black_frame(&p->hdr, &p->black);
     if (st == SH_OK && cfg->record[0]) st = record_open(cfg, &p->hdr, &p->rec);
     if (st == SH_OK && p->rec) log_record(cfg, p->rec);
+    if (st == SH_OK && cfg->v4l2[0]) st = v4l2_open(cfg, &p->hdr, &p->v4l2);
     if (st == SH_OK && cfg->control[0] &&
         (st = run_ctl_open(cfg->control, cfg->control_group, cfg->group, &p->ctl)) != SH_OK)
         st = sh_error_set(st, "[run] control: %s", sh_error_message());
@@ -204,6 +225,8 @@ typedef struct {
     int processing;      /* a new run_proc (processing keys or files, or new cameras: a new stream) */
     char proc_text[384]; /* the processing keys that changed, for the log */
     int record, control; /* SH_CONFIG_RECORD, SH_CONFIG_CONTROL */
+    int v4l2;            /* SH_CONFIG_V4L2, or new frames: the V4L2 output opened again ... */
+    int v4l2_closed;     /* ... and the running one closed first (the same device takes one format) */
     int ctl_groups;      /* the control socket is kept with other groups (SH_CONFIG_LIVE) */
     int same_name;       /* the display segment keeps its name ... */
     int keep_disp;       /* ... its geometry and format and every SH_CONFIG_DISPLAY key: kept as it is */
@@ -213,7 +236,7 @@ typedef struct {
 } changes;
 
 /* A piece of n failed to open: closes what n opened and puts back what was closed (the
- * previous cameras; the previous display). what says why. */
+ * previous cameras; the previous display; the previous V4L2 output). what says why. */
 static run_reload refuse(run_pipeline *p, run_pipeline *n, const changes *c, char *what, size_t cap)
 {
     char why[512], back[640] = "";
@@ -222,6 +245,11 @@ static run_reload refuse(run_pipeline *p, run_pipeline *n, const changes *c, cha
     if (n->rec != p->rec) run_record_close(n->rec); /* nothing was written to it */
     if (n->ctl != p->ctl) run_ctl_close(n->ctl);
     else if (c->ctl_groups) run_ctl_groups(p->ctl, p->cfg.control_group, p->cfg.group); /* they resolved before */
+    if (n->v4l2 != p->v4l2) run_v4l2out_close(n->v4l2); /* nothing was written to it */
+    if (c->v4l2_closed && v4l2_open(&p->cfg, &p->hdr, &p->v4l2) != SH_OK) {
+        sh_log_error("the previous %s; publishing there stopped", sh_error_message());
+        p->v4l2 = NULL;
+    }
     if (n->disp != p->disp && n->disp) sh_display_writer_destroy(n->disp, 1); /* it never showed a frame */
     if (c->black_made) sh_image_destroy(&n->black);
     if (c->cameras) {
@@ -258,13 +286,15 @@ static void describe(const run_pipeline *p, const run_pipeline *n, const changes
         add(what, cap, "sink %s made again for %dx%d frames", fresh->sink, n->hdr.width, n->hdr.height);
     else
         sh_config_describe(old, fresh, SH_CONFIG_DISPLAY, what, cap);
-    sh_config_describe(old, fresh, SH_CONFIG_RECORD | SH_CONFIG_CONTROL | SH_CONFIG_LIVE, what, cap);
+    sh_config_describe(old, fresh, SH_CONFIG_RECORD | SH_CONFIG_V4L2 | SH_CONFIG_CONTROL | SH_CONFIG_LIVE, what, cap);
+    if (c->v4l2 && !(c->effects & SH_CONFIG_V4L2) && fresh->v4l2[0]) add(what, cap, "v4l2 %s opened again", fresh->v4l2);
     if (what[0] && c->keep_disp) add(what, cap, "sink kept");
     if (what[0] && (c->effects & SH_CONFIG_GATING)) add(what, cap, "gating");
 }
 
-/* A reload's record and control socket: opened anew when their keys changed (n's then), else the
- * running socket takes the fresh groups. */
+/* A reload's record, V4L2 output and control socket: opened anew when their keys changed (n's
+ * then; the same V4L2 device is closed first: it takes one format), else the running socket takes
+ * the fresh groups. */
 static sh_status reload_record_control(run_pipeline *p, run_pipeline *n, changes *c)
 {
     const sh_config *old = &p->cfg, *fresh = &n->cfg;
@@ -273,6 +303,15 @@ static sh_status reload_record_control(run_pipeline *p, run_pipeline *n, changes
         n->rec = NULL;
         if (fresh->record[0] && (st = record_open(fresh, &n->hdr, &n->rec)) != SH_OK) return st;
         if (n->rec) log_record(fresh, n->rec);
+    }
+    if (c->v4l2) {
+        if (p->v4l2 && !strcmp(old->v4l2, fresh->v4l2)) {
+            run_pipeline_v4l2_close(p->v4l2);
+            p->v4l2 = NULL;
+            c->v4l2_closed = 1;
+        }
+        n->v4l2 = NULL;
+        if (fresh->v4l2[0] && (st = v4l2_open(fresh, &n->hdr, &n->v4l2)) != SH_OK) return st;
     }
     if (c->control) {
         n->ctl = NULL;
@@ -296,6 +335,7 @@ static void swap_in(run_pipeline *p, run_pipeline *n, const changes *c)
     }
     if (n->rec != p->rec) record_close(p->rec);
     if (n->ctl != p->ctl) run_ctl_close(p->ctl);
+    if (n->v4l2 != p->v4l2) run_pipeline_v4l2_close(p->v4l2);
     if (n->disp != p->disp && p->disp) sh_display_writer_destroy(p->disp, 0); /* marked closed, as at exit */
     if (c->black_made) sh_image_destroy(&p->black);
     n->dropped_before = p->dropped_before;
@@ -328,6 +368,7 @@ run_reload run_pipeline_reload(run_pipeline *p, const sh_config *fresh, char *wh
         if (st == SH_OK) n.hdr = *run_source_header(n.src);
     }
     c.new_frames = !same_frames(&n.hdr, &p->hdr);
+    c.v4l2 = (c.effects & SH_CONFIG_V4L2) || (c.new_frames && fresh->v4l2[0]);
     c.keep_disp = c.same_name && !c.new_frames && !(c.effects & SH_CONFIG_DISPLAY);
     if (st == SH_OK && c.processing)
         st = run_proc_create(fresh, &n.hdr, run_source_fps(n.src), run_source_cameras(n.src), &n.proc);
@@ -376,6 +417,7 @@ sh_status run_pipeline_close(run_pipeline *p)
 {
     run_source_destroy(p->src);
     sh_status st = record_close(p->rec);
+    run_pipeline_v4l2_close(p->v4l2);
     run_ctl_close(p->ctl);
     if (p->disp) sh_display_writer_destroy(p->disp, 0); /* marked closed; readers see the end */
     run_proc_destroy(p->proc);

@@ -1,5 +1,5 @@
 /* Private to the daemon (src/daemon): the pipeline's pieces (source, processing, shared-memory display,
- * record, control socket) opened together from one config at start and swapped together when
+ * record, V4L2 output, control socket) opened together from one config at start and swapped together when
  * SIGHUP brings a new one (run_pipeline.c). daemon.c drives the loop over them. */
 #ifndef STILLHEART_RUN_PIPELINE_H
 #define STILLHEART_RUN_PIPELINE_H
@@ -28,6 +28,7 @@ typedef struct {
     sh_display_writer *disp;  /* NULL: [sink] display = none */
     run_record *rec;          /* NULL: no record, or it was stopped by a write error */
     run_ctl *ctl;             /* NULL: no control socket */
+    run_v4l2out *v4l2;        /* NULL: no [sink] v4l2, or it was stopped by a write error */
     sh_y4m_header hdr;        /* the output camera's frames (a copy: the source's goes with it) */
     sh_image black;           /* shown while the output camera is lost, in hdr's geometry */
     uint64_t dropped_before;  /* dropped sets and models built by sources and processing */
@@ -60,6 +61,9 @@ run_reload run_pipeline_reload(run_pipeline *p, const sh_config *fresh, char *wh
 /* Sets dropped and models built since start, over every source and processing reloads replaced. */
 uint64_t run_pipeline_dropped(run_pipeline *p);
 int run_pipeline_builds(const run_pipeline *p);
+
+/* Closes a V4L2 output (NULL: none), logging the frames it took and those it did not. */
+void run_pipeline_v4l2_close(run_v4l2out *o);
 
 /* Closes everything (the display segment marked closed: readers see the end). SH_OK unless the
  * record could not be written (logged). */

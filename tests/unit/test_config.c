@@ -329,7 +329,8 @@ static unsigned effect_from_doc(const char *word)
         unsigned effect;
     } words[] = {{"live", SH_CONFIG_LIVE},       {"gating", SH_CONFIG_GATING}, {"cameras", SH_CONFIG_SOURCE},
                  {"processing", SH_CONFIG_PROCESSING}, {"display", SH_CONFIG_DISPLAY}, {"record", SH_CONFIG_RECORD},
-                 {"control", SH_CONFIG_CONTROL}};
+                 {"control", SH_CONFIG_CONTROL},
+                 {"output", SH_CONFIG_V4L2}};
     for (size_t i = 0; i < sizeof words / sizeof words[0]; i++)
         if (!strcmp(word, words[i].word))
             return words[i].effect;

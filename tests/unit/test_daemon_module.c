@@ -3,7 +3,7 @@
  * max_frames raw frames; a stop flag set before the loop publishes nothing; a reload whose config
  * cannot be read is refused and the loop goes on; a [method] no model can come from on these
  * frames is refused at start and at a reload, naming its file and line; a Y4M record names its
- * method in its header and keeps it across reloads. The counts come from the
+ * method in its header and keeps it across reloads; [sink] v4l2 refuses what is not a V4L2 output. The counts come from the
  * input (N frames, no markers in them, max_frames), read back through the stats line. */
 #include <setjmp.h>
 #include <stdarg.h>
@@ -22,6 +22,7 @@
 #include "stillheart/image.h"
 #include "stillheart/log.h"
 #include "stillheart/y4m.h"
+#include "../../src/daemon/run_sink.h"
 
 #define W 64
 #define H 48
@@ -274,6 +275,57 @@ static void test_record_names_its_method(void **state)
     }
 }
 
+/* Issue 17: [sink] v4l2 refuses, naming the key and saying which, what is not a V4L2 output
+ * device: a missing path, a plain file, a device that is not V4L2 (/dev/null), frames V4L2 has no
+ * single-buffer format for; at start (SH_EIO: a restart can mend a device that appears later,
+ * v4l2loopback loaded after the daemon) and at a reload (the running config kept). A device
+ * without a video output and a format the device changes need a V4L2 driver: make vmtest has
+ * them (tools/capture/vmprobe_loop.c). */
+static void test_v4l2_refusals(void **state)
+{
+    (void)state;
+    char path[160], err[SH_CONFIG_ERR], log[8192];
+    snprintf(path, sizeof path, "%s/plain", tmp);
+    FILE *f = fopen(path, "w");
+    assert_non_null(f);
+    fclose(f);
+    sh_y4m_header h;
+    memset(&h, 0, sizeof h);
+    h.width = W;
+    h.height = H;
+    h.format = SH_PIX_I420;
+    run_v4l2out *o = (run_v4l2out *)&h; /* must be reset */
+    assert_int_equal(run_v4l2out_open(path, &h, &o), SH_EINVAL);
+    assert_null(o);
+    if (!strstr(sh_error_message(), "/plain: not a device (a V4L2 output device such as a v4l2loopback /dev/videoN)"))
+        fail_msg("plain file: %s", sh_error_message());
+    assert_int_equal(run_v4l2out_open("/dev/null", &h, &o), SH_EINVAL);
+    assert_string_equal(sh_error_message(), "/dev/null: not a V4L2 device (VIDIOC_QUERYCAP: Inappropriate ioctl for device)");
+    assert_int_equal(run_v4l2out_open("/nonexistent/video9", &h, &o), SH_EIO);
+    assert_string_equal(sh_error_message(), "/nonexistent/video9: No such file or directory");
+    h.format = SH_PIX_YUV444;
+    assert_int_equal(run_v4l2out_open("/dev/null", &h, &o), SH_EINVAL);
+    assert_string_equal(sh_error_message(),
+                        "/dev/null: yuv444 frames have no single-buffer V4L2 format (GRAY8, RGB24 and I420 do)");
+
+    sh_config cfg;
+    assert_int_equal(config_with(&cfg, "[sink]\nv4l2 = video0\n", err), SH_EINVAL);
+    assert_string_equal(err, "[sink] v4l2: 'video0': want a device path, /dev/videoN");
+    assert_int_equal(config_with(&cfg, "[sink]\nv4l2 = /dev/null\n", err), SH_OK);
+    sh_daemon_options opt = {0};
+    sh_daemon *d = NULL;
+    assert_int_equal(sh_daemon_create(&cfg, &opt, &d), SH_EIO);
+    assert_null(d);
+    assert_string_equal(sh_error_message(), "[sink] v4l2: /dev/null: not a V4L2 device (VIDIOC_QUERYCAP: Inappropriate "
+                                            "ioctl for device)");
+    char hup[256];
+    snprintf(hup, sizeof hup, "[sink]\nv4l2 = %s\n", path);
+    run_reload("", hup, log, sizeof log);
+    if (!strstr(log, "reload refused, keeping the running config: [sink] v4l2: ") || !strstr(log, "/plain: not a device"))
+        fail_msg("reload to a plain file: %s", log);
+    assert_int_equal(unlink(path), 0);
+}
+
 /* A replay without loop ends: the loop stops after its last frame, every frame published. */
 static void test_replay_ends(void **state)
 {
@@ -296,6 +348,7 @@ int main(void)
         cmocka_unit_test(test_replay_ends),
         cmocka_unit_test(test_model_the_frames_cannot_give),
         cmocka_unit_test(test_record_names_its_method),
+        cmocka_unit_test(test_v4l2_refusals),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }

@@ -5,9 +5,12 @@
 # Downloads Debian 12's backports kernel once (pinned: SH_VM_KVER) into SH_VM_CACHE
 # (/var/cache/stillheart/vm), builds a busybox initramfs with the probe, its shared libraries,
 # libcamera's IPA modules, vivid (two instances), vimc and gpio-sim (these two built out of tree
-# from linux-source), boots it under TCG and reads "VMTEST PASS/FAIL" lines off the serial console.
+# from linux-source), v4l2loopback (built out of tree from Debian's v4l2loopback-dkms source, the
+# backports suite's, for the daemon's [sink] v4l2), boots it under TCG and reads "VMTEST
+# PASS/FAIL" lines off the serial console.
 # Host packages: qemu-system-x86 busybox-static kmod cpio xz-utils, libcamera-ipa when the probe
-# links libcamera (installed when missing).
+# links libcamera (installed when missing); gstreamer1.0-tools and gstreamer1.0-plugins-good for
+# the GStreamer check on the loopback device (scripts/install-deps.sh --vm; without them it is not run).
 # What cannot be fetched (no network, no mirror, no root for apt) is not a failure of stillheart:
 # the script then prints "vmtest: SKIP: why" and a "vmtest: skipped" summary and exits 0. A check
 # that fails in the guest, a module that does not build or a guest that does not finish fails.
@@ -96,6 +99,23 @@ CONF
     make -s -C "$H" M="$B" CONFIG_DEBUG_INFO_BTF_MODULES= modules >&2
     cp "$B/vimc.ko" "$MODS/"
 fi
+# v4l2loopback is in no Debian kernel: its DKMS source package (backports: one that builds on
+# 6.12), built against the same headers. Cached apart, so a cache made before it is kept.
+if [ ! -f "$MODS/v4l2loopback.ko" ]; then
+    exec 9> "$CACHE/.lock"
+    flock 9
+    rm -f "$CACHE"/deb/v4l2loopback-dkms_*.deb
+    if (cd "$CACHE/deb" && APT_CONFIG="$CACHE/apt/apt.conf" apt-get download -q v4l2loopback-dkms >&2); then
+        B="$CACHE/build-v4l2loopback"; rm -rf "$B"; mkdir -p "$B"
+        dpkg -x "$CACHE"/deb/v4l2loopback-dkms_*.deb "$B/x"
+        cp "$B"/x/usr/src/v4l2loopback-*/v4l2loopback*.[ch] "$B/"
+        printf 'obj-m := v4l2loopback.o\n' > "$B/Kbuild"
+        make -s -C "$CACHE/hdr/usr/src/linux-headers-$KVER" M="$B" CONFIG_DEBUG_INFO_BTF_MODULES= modules >&2
+        cp "$B/v4l2loopback.ko" "$MODS/"
+    else
+        echo "vmtest: v4l2loopback-dkms cannot be downloaded from $MIRROR: the [sink] v4l2 checks do not run" >&2
+    fi
+fi
 
 # ---- the initramfs ----
 WORK=$(mktemp -d); trap 'rm -rf "$WORK"' EXIT
@@ -110,6 +130,29 @@ for m in $(/sbin/modprobe -d "$KDIR" -S "$KVER" --show-depends configfs | awk '$
 done
 cp "$MODS/gpio-sim.ko" "$R/mods/99-gpio-sim.ko"
 cp "$MODS/vimc.ko" "$R/mods/98-vimc.ko"
+# loaded by the init with its parameters, after the others (it needs videodev)
+[ -f "$MODS/v4l2loopback.ko" ] && mkdir -p "$R/late" && cp "$MODS/v4l2loopback.ko" "$R/late/"
+# the loopback check's input, made here (emulation is slow): a 320x180 phantom, its points,
+# stillheart warp's output of it, and the same frames at 10 and 2 fps for the real-time runs
+if [ -x "$BUILD/stillheart-render" ]; then
+    mkdir -p "$R/data"
+    "$BUILD/stillheart-render" --preset exvivo --frames 30 --cameras 1 --width 320 --height 180 --out "$WORK/ph" >/dev/null 2>&1
+    cp "$WORK/ph/cam0.y4m" "$R/data/in.y4m"
+    "$BUILD/stillheart" track --ids 0-15 "$R/data/in.y4m" > "$R/data/points.csv" 2>/dev/null
+    "$BUILD/stillheart" warp --method tps --threads 2 --points "$R/data/points.csv" "$R/data/in.y4m" "$R/data/warp.y4m" --quiet
+    { head -1 "$R/data/in.y4m" | sed 's/ F[0-9]*:[0-9]*/ F10:1/'; tail -n +2 "$R/data/in.y4m"; } > "$R/data/slow.y4m"
+    { head -1 "$R/data/in.y4m" | sed 's/ F[0-9]*:[0-9]*/ F2:1/'; tail -n +2 "$R/data/in.y4m"; } > "$R/data/gst.y4m"
+fi
+# GStreamer's v4l2src for the README's pipeline on the loopback device: gst-launch-1.0 and the two
+# plugins it needs (scripts/install-deps.sh --vm installs them; without them that check says so)
+GSTDIR=/usr/lib/x86_64-linux-gnu/gstreamer-1.0
+GST=""
+if command -v gst-launch-1.0 >/dev/null 2>&1 && [ -f "$GSTDIR/libgstvideo4linux2.so" ]; then
+    mkdir -p "$R/gst"
+    cp "$(command -v gst-launch-1.0)" "$R/bin/gst-launch-1.0"
+    cp "$GSTDIR/libgstvideo4linux2.so" "$GSTDIR/libgstcoreelements.so" "$R/gst/"
+    GST="$R/bin/gst-launch-1.0 $R/gst/libgstvideo4linux2.so $R/gst/libgstcoreelements.so"
+fi
 # libcamera's IPA modules and data (the vimc pipeline handler loads ipa_vimc)
 LCDIR=/usr/lib/x86_64-linux-gnu/libcamera
 if [ -d "$LCDIR" ]; then
@@ -122,7 +165,7 @@ fi
 cp "$PROBE" "$R/bin/stillheart-vmprobe"
 [ -x "$BUILD/stillheart" ] && cp "$BUILD/stillheart" "$R/bin/stillheart"
 [ -x "$BUILD/stillheart-cat" ] && cp "$BUILD/stillheart-cat" "$R/bin/stillheart-cat"
-vm_libs "$R" "$PROBE" "$BUILD/stillheart" "$BUILD/stillheart-cat"
+vm_libs "$R" "$PROBE" "$BUILD/stillheart" "$BUILD/stillheart-cat" $GST
 cat > "$R/init" <<'INIT'
 #!/bin/sh
 mount -t proc proc /proc
@@ -169,6 +212,13 @@ fi
 # then vivid (both cameras) unbound and bound again; its display segment lives in /dev/shm
 mkdir -p /dev/shm && mount -t tmpfs shm /dev/shm
 /bin/stillheart-vmprobe run /dev/video0 /dev/video1 vivid.0 "$CHIP" 3 300
+# [sink] v4l2 on v4l2loopback (/dev/video10), as OBS wants it loaded (exclusive_caps=1); its
+# size limits make the format refusal (tools/capture/vmprobe_loop.c)
+if [ -f /late/v4l2loopback.ko ] && [ -d /data ]; then
+    insmod /late/v4l2loopback.ko devices=1 video_nr=10 exclusive_caps=1 max_width=320 max_height=180 \
+        max_buffers=8 card_label=stillheart || echo "VMTEST FAIL insmod v4l2loopback"
+    /bin/stillheart-vmprobe loopback /dev/video10 /dev/video0 /data
+fi
 echo "VMTEST-DONE"
 poweroff -f
 INIT

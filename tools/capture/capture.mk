@@ -27,7 +27,8 @@ TOOL_TESTS += $(BUILD)/tests/test_record_cli
 
 # stillheart-vmprobe: the capture checks run inside the QEMU guest of tests/vm/run.sh.
 VMPROBE_BIN := $(BUILD)/stillheart-vmprobe
-$(VMPROBE_BIN): $(BUILD)/tools/capture/vmprobe.o $(BUILD)/tools/capture/vmprobe_run.o $(LIB)
+$(VMPROBE_BIN): $(BUILD)/tools/capture/vmprobe.o $(BUILD)/tools/capture/vmprobe_run.o \
+		$(BUILD)/tools/capture/vmprobe_loop.o $(LIB)
 	$(CC) $(LDFLAGS) $^ $(LDLIBS_ALL) -o $@
 TOOLS += $(VMPROBE_BIN)
 
@@ -36,5 +37,5 @@ TOOLS += $(VMPROBE_BIN)
 # on the kernel's bochs DRM driver (tests/vm/show.sh, tools/show/show.mk); each prints its own
 # "vmtest: N passed, N failed" (tests/run-tests.sh adds them up), both run whatever the first gives.
 .PHONY: vmtest
-vmtest: $(VMPROBE_BIN) $(APP) $(BUILD)/stillheart-cat $(BUILD)/stillheart-show $(BUILD)/show-vmwriter
+vmtest: $(VMPROBE_BIN) $(APP) $(BUILD)/stillheart-cat $(BUILD)/stillheart-render $(BUILD)/stillheart-show $(BUILD)/show-vmwriter
 	@rc=0; sh tests/vm/run.sh $(BUILD) || rc=1; sh tests/vm/show.sh $(BUILD) || rc=1; exit $$rc

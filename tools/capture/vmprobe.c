@@ -17,6 +17,8 @@
  *   stillheart-vmprobe gpio CHIP SYSDIR      gpio-sim: output pulses read back from the
  *                                            simulator, a busy line refused, input edges made
  *                                            by the simulator's pull and timestamped
+ *   stillheart-vmprobe loopback OUT CAP DIR  the daemon's [sink] v4l2 on v4l2loopback's OUT, read
+ *                                            back; CAP (capture only) refused (vmprobe_loop.c)
  *   stillheart-vmprobe run DEV0 DEV1 PLATDEV CHIP LINE N   stillheart run on the two, trigger
  *                                            out on CHIP:LINE, camera 1 silenced, then both
  *                                            unbound and bound again (vmprobe_run.c)
@@ -667,7 +669,7 @@ static void usage(FILE *out)
 {
     fprintf(out, "usage: stillheart-vmprobe formats|controls|errors DEV | sets DEV0 DEV1 | loss DEV PLATDEV | "
                  "gpio CHIP SYSDIR | libcamera|libcamera-controls NAME WxH | libcamera-loss NAME WxH PLATDEV | "
-                 "run DEV0 DEV1 PLATDEV CHIP LINE N\n"
+                 "run DEV0 DEV1 PLATDEV CHIP LINE N | loopback OUT CAP DIR\n"
                  "The capture checks inside the QEMU guest of tests/vm/run.sh (tools/capture/vmprobe.c).\n");
 }
 
@@ -690,6 +692,7 @@ int main(int argc, char **argv)
     else if (argc >= 4 && !strcmp(argv[1], "libcamera")) libcamera(argv[2], argv[3]);
     else if (argc >= 4 && !strcmp(argv[1], "libcamera-controls")) libcamera_controls(argv[2], argv[3]);
     else if (argc >= 5 && !strcmp(argv[1], "libcamera-loss")) libcamera_loss(argv[2], argv[3], argv[4]);
+    else if (argc >= 5 && !strcmp(argv[1], "loopback")) loopback_check(argv[2], argv[3], argv[4]);
     else if (argc >= 8 && !strcmp(argv[1], "run"))
         run_daemon_check(argv[2], argv[3], argv[4], argv[5], argv[6], atoi(argv[7]));
     else {

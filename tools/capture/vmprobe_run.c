@@ -73,7 +73,7 @@ static int seen(const char *what)
     return 0;
 }
 
-static pid_t spawn(char *const argv[], const char *out, const char *err)
+pid_t spawn(char *const argv[], const char *out, const char *err)
 {
     pid_t pid = fork();
     if (pid) return pid;
@@ -84,7 +84,7 @@ static pid_t spawn(char *const argv[], const char *out, const char *err)
     _exit(127);
 }
 
-static char *slurp(const char *path)
+char *slurp(const char *path)
 {
     static char buf[4][1 << 18];
     static int next;

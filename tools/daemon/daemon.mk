@@ -29,6 +29,15 @@ $(BUILD)/tests/test_hostile_y4m: tools/daemon/test_hostile_y4m.sh $(APP)
 	chmod +x $@
 TOOL_TESTS += $(BUILD)/tests/test_hostile_y4m
 
+# The README's ffmpeg path on the live daemon (issue 17; skipped without ffmpeg). The README it
+# reads is this tree's, written into the copy.
+$(BUILD)/tests/test_video_tools: tools/daemon/test_video_tools.sh README.md $(APP) $(BUILD)/stillheart-cat \
+		$(BUILD)/stillheart-render
+	@mkdir -p $(dir $@)
+	sed 's|@README@|$(abspath README.md)|' $< > $@
+	chmod +x $@
+TOOL_TESTS += $(BUILD)/tests/test_video_tools
+
 # make run-demo: a short phantom, the daemon on it in real time for a few seconds, and
 # stillheart-cat showing that frames arrive (docs/daemon.md). 960x540 (as make demo): at 1080p a
 # busy 2-core machine drops frames before the tracker has locked the heart rate, and the demo
