@@ -12,6 +12,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <errno.h>
 #include <fcntl.h>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -63,6 +64,9 @@ static int teardown(void **state)
 {
     (void)state;
     unlink(video);
+    char plain[160]; /* test_v4l2_refusals' file, left when it failed: one failure, not two */
+    snprintf(plain, sizeof plain, "%s/plain", tmp);
+    unlink(plain);
     return rmdir(tmp);
 }
 
@@ -275,6 +279,19 @@ static void test_record_names_its_method(void **state)
     }
 }
 
+/* The refusal of a device that is not V4L2: the kernel answers VIDIOC_QUERYCAP on /dev/null with
+ * ENOTTY; qemu-aarch64 (the aarch64 suite) passes no ioctl it does not know and answers ENOSYS.
+ * Either is the refusal, said with the system's own words for it. */
+static int not_v4l2(const char *msg, const char *prefix)
+{
+    char a[256], b[256];
+    snprintf(a, sizeof a, "%s%s)", prefix, strerror(ENOTTY));
+    snprintf(b, sizeof b, "%s%s)", prefix, strerror(ENOSYS));
+    if (!strcmp(msg, a) || !strcmp(msg, b)) return 1;
+    printf("  got: %s\n", msg);
+    return 0;
+}
+
 /* Issue 17: [sink] v4l2 refuses, naming the key and saying which, what is not a V4L2 output
  * device: a missing path, a plain file, a device that is not V4L2 (/dev/null), frames V4L2 has no
  * single-buffer format for; at start (SH_EIO: a restart can mend a device that appears later,
@@ -300,7 +317,7 @@ static void test_v4l2_refusals(void **state)
     if (!strstr(sh_error_message(), "/plain: not a device (a V4L2 output device such as a v4l2loopback /dev/videoN)"))
         fail_msg("plain file: %s", sh_error_message());
     assert_int_equal(run_v4l2out_open("/dev/null", &h, &o), SH_EINVAL);
-    assert_string_equal(sh_error_message(), "/dev/null: not a V4L2 device (VIDIOC_QUERYCAP: Inappropriate ioctl for device)");
+    assert_true(not_v4l2(sh_error_message(), "/dev/null: not a V4L2 device (VIDIOC_QUERYCAP: "));
     assert_int_equal(run_v4l2out_open("/nonexistent/video9", &h, &o), SH_EIO);
     assert_string_equal(sh_error_message(), "/nonexistent/video9: No such file or directory");
     h.format = SH_PIX_YUV444;
@@ -316,8 +333,7 @@ static void test_v4l2_refusals(void **state)
     sh_daemon *d = NULL;
     assert_int_equal(sh_daemon_create(&cfg, &opt, &d), SH_EIO);
     assert_null(d);
-    assert_string_equal(sh_error_message(), "[sink] v4l2: /dev/null: not a V4L2 device (VIDIOC_QUERYCAP: Inappropriate "
-                                            "ioctl for device)");
+    assert_true(not_v4l2(sh_error_message(), "[sink] v4l2: /dev/null: not a V4L2 device (VIDIOC_QUERYCAP: "));
     char hup[256];
     snprintf(hup, sizeof hup, "[sink]\nv4l2 = %s\n", path);
     run_reload("", hup, log, sizeof log);
