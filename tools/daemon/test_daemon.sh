@@ -184,7 +184,9 @@ PY
 # shm: real time (23 fps) so the reader sees every frame; each frame read back equals warp's
 "$B/stillheart" run --group= --source "y4m:$T/ph/cam0.y4m" --no-loop --realtime --sink "shm:$SHM" --points "$T/points.csv" \
     --method tps --threads 2 --min-markers 3 2> "$T/shm.log" & pid=$!
-for i in 1 2 3 4 5 6 7 8 9 10; do [ -e "/dev/shm$SHM" ] && break; sleep 0.1; done
+# up to 30 s for the segment: one aarch64 run (qemu, a disk stalling for seconds) took longer than
+# the 1 s this waited before, and stillheart-cat found no segment (issue 21's loop, run 6)
+i=0; while [ $i -lt 300 ] && [ ! -e "/dev/shm$SHM" ]; do sleep 0.1; i=$((i + 1)); done
 "$B/stillheart-cat" --name "$SHM" --count 20 --timeout 5 -v > "$T/cat.y4m" 2> "$T/cat.log"
 wait $pid
 warp_as_logged "$T/shm.log" "$T/warp-shm.y4m"
