@@ -1,4 +1,5 @@
-// Helpers shared by the detection benchmarks (bench_detect, bench_detect_track) and bench_outside:
+// Helpers shared by the detection benchmarks (bench_detect, bench_detect_track), bench_outside and
+// bench_screen:
 // thread CPU time, medians, and stopping on an error.
 #ifndef STILLHEART_BENCH_DETECT_UTIL_H
 #define STILLHEART_BENCH_DETECT_UTIL_H

@@ -18,34 +18,21 @@ extern "C" {
 #include "stillheart/screen.h"
 #include "../synth/synth.h"
 }
-
-static double now_ms()
-{
-    timespec ts;
-    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-    return ts.tv_sec * 1e3 + ts.tv_nsec * 1e-6;
-}
+#include "bench_detect_util.h"
 
 static double time_ms(const std::function<void()> &f, int repeat)
 {
     f(); // warm
     std::vector<double> t;
     for (int i = 0; i < repeat; i++) {
-        double a = now_ms();
+        double a = bench_now_ms();
         f();
-        t.push_back(now_ms() - a);
+        t.push_back(bench_now_ms() - a);
     }
-    std::sort(t.begin(), t.end());
-    return t[t.size() / 2];
+    return bench_median(t);
 }
 
-static void check(sh_status st, const char *what)
-{
-    if (st != SH_OK) {
-        std::fprintf(stderr, "bench_screen: %s: %s\n", what, sh_error_message());
-        std::exit(1);
-    }
-}
+static void check(sh_status st, const char *what) { bench_check("bench_screen", st, what); }
 
 int main()
 {
