@@ -141,6 +141,7 @@ deps:
 $(BUILD)/src/warp/%.o:    CFLAGS_ALL += -O3
 $(BUILD)/src/pixconv/%.o: CFLAGS_ALL += -O3
 $(BUILD)/src/screen/%.o:  CFLAGS_ALL += -O3
+$(BUILD)/src/flow/%.o:    CFLAGS_ALL += -O3
 
 $(BUILD)/%.o: %.c
 	@mkdir -p $(dir $@)
@@ -165,6 +166,18 @@ $(BUILD)/tests/%: $(BUILD)/tests/unit/%.o $(TEST_SUPPORT) $(LIB)
 	$(CC) $(LDFLAGS) $< $(TEST_SUPPORT) $(LIB) $(shell $(PKG_CONFIG) --libs cmocka) $(LDLIBS_ALL) -o $@
 
 tests: $(TEST_BIN) $(APP)
+
+# Oracle tests (tests/oracle/*.cpp, C++): a module against the OpenCV function it stands in for,
+# on host builds that have OpenCV's headers (install-deps installs them; the aarch64 build has
+# no OpenCV, and its unit tests check the same code against closed forms).
+ifneq ($(wildcard $(OPENCV_INC)/opencv2/video/tracking.hpp),)
+ORACLE_BIN := $(patsubst tests/oracle/%.cpp,$(BUILD)/tests/%,$(wildcard tests/oracle/test_*.cpp))
+$(ORACLE_BIN): $(BUILD)/tests/%: tests/oracle/%.cpp $(BUILD)/tools/synth/synth.o $(LIB)
+	@mkdir -p $(dir $@)
+	$(CXX) $(CXXFLAGS_ALL) $(OPENCV_CFLAGS) -Itools/synth $< $(BUILD)/tools/synth/synth.o $(LIB) \
+		$(shell $(PKG_CONFIG) --libs cmocka) -lopencv_video $(OPENCV_LIBS) $(LDLIBS_ALL) -o $@
+tests: $(ORACLE_BIN)
+endif
 
 # The suite: the include and link rules of docs/architecture.md (scripts/check-includes.sh, which
 # first shows on planted violations that it catches them), unit tests plain, then under ASan+UBSan, then the capture code against the kernel's
@@ -208,6 +221,9 @@ BENCH_BIN += $(BENCH_WARP_PROCESS)
 $(BUILD)/bench/%: tools/bench/%.cpp $(BUILD)/tools/synth/synth.o $(LIB)
 	@mkdir -p $(dir $@)
 	$(CXX) $(CXXFLAGS_ALL) $(OPENCV_CFLAGS) $< $(BUILD)/tools/synth/synth.o $(LIB) $(OPENCV_LIBS) $(LDLIBS_ALL) -o $@
+
+# bench_flow's peer, cv::calcOpticalFlowPyrLK, lives in OpenCV's video module
+$(BUILD)/bench/bench_flow: OPENCV_LIBS += -lopencv_video
 
 bench: deps
 	@sh scripts/install-deps.sh --bench

@@ -1,0 +1,106 @@
+/* Sparse optical flow: the tissue's own points, chosen in one frame and followed into the next
+ * (issue 19, natural landmarks).
+ *
+ * Two jobs, both on 8-bit luma planes:
+ *  - sh_flow_corners picks well-textured points: the minimum eigenvalue of the gradients'
+ *    structure tensor (Shi and Tomasi, "Good features to track", CVPR 1994), local maxima only,
+ *    strongest first, no two closer than a given distance, only where the caller's mask allows
+ *    (away from the tags, inside the hull, off specular highlights: the caller decides).
+ *  - sh_flow_track follows points from one pyramid to the next with pyramidal Lucas-Kanade
+ *    (J.-Y. Bouguet, "Pyramidal implementation of the Lucas Kanade feature tracker", Intel 2000).
+ *
+ * OpenCV's cv::goodFeaturesToTrack and cv::calcOpticalFlowPyrLK implement the same two papers
+ * and are the oracle and the peer of this module (tests/oracle, tools/bench/bench_flow.cpp). The
+ * tracker follows OpenCV's arithmetic where it decides a result: the pyramid is the 5-tap
+ * binomial [1 4 6 4 1]/16 reduction, the gradients are Scharr's, the window's samples are
+ * bilinear with 14-bit integer weights, and its stopping rules and the minimum-eigenvalue test
+ * are the same, so the two agree to a few thousandths of a pixel on points both keep. The sums
+ * are exact integers here (OpenCV adds floats), so the result is the same on every architecture.
+ *
+ * Coordinates: pixel (x, y) has its centre at (x, y), as everywhere in stillheart.
+ * Nothing here allocates per frame: pyramids and scratch are sized at _create. */
+#ifndef STILLHEART_FLOW_H
+#define STILLHEART_FLOW_H
+
+#include <stdint.h>
+
+#include "stillheart/core.h"
+#include "stillheart/image.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define SH_FLOW_MAX_LEVELS 6  /* pyramid levels above the base */
+#define SH_FLOW_MAX_WIN 63    /* largest window side */
+
+typedef struct {
+    int win;          /* window side in pixels, odd, 5..SH_FLOW_MAX_WIN (21, as OpenCV's default) */
+    int levels;       /* pyramid levels above the base, 0..SH_FLOW_MAX_LEVELS (3) */
+    int max_iter;     /* Gauss-Newton steps per level, at least 1 (30) */
+    double eps;       /* px: a level stops when its step is shorter (0.01) */
+    double min_eig;   /* the window's smallest structure-tensor eigenvalue, normalized as
+                       * OpenCV's minEigThreshold, below which a point is lost (1e-4) */
+} sh_flow_params;
+
+/* OpenCV's defaults for calcOpticalFlowPyrLK: win 21, 3 levels, 30 steps, 0.01 px, 1e-4. */
+void sh_flow_params_default(sh_flow_params *p);
+
+/* A frame's image pyramid with each level's Scharr gradients, padded by the window so that
+ * windows reaching past the image edge read its mirror (the edge pixel not repeated). */
+typedef struct sh_flow_pyramid sh_flow_pyramid;
+
+/* For frames of width x height (each at least 2 px; at most SH_IMAGE_MAX_SIZE) and params'
+ * levels and window. A level smaller than the window is not built, as OpenCV does not build it:
+ * the pyramid then has fewer levels (sh_flow_pyramid_levels). */
+sh_status sh_flow_pyramid_create(int width, int height, const sh_flow_params *params,
+                                 sh_flow_pyramid **out);
+void sh_flow_pyramid_destroy(sh_flow_pyramid *pyr);
+/* Levels above the base actually built (at most params->levels). */
+int sh_flow_pyramid_levels(const sh_flow_pyramid *pyr);
+
+/* Fills the pyramid from a luma plane of the size it was created for; SH_EINVAL otherwise.
+ * gradients: also each level's gradients, which only a pyramid tracked *from* needs (a fixed
+ * reference frame's, built once; or every frame's when points go frame to frame). */
+sh_status sh_flow_pyramid_build(sh_flow_pyramid *pyr, const sh_plane *luma, int gradients);
+
+typedef enum {
+    SH_FLOW_OK = 0,     /* followed */
+    SH_FLOW_FLAT,       /* its window's texture is too weak to locate it (min_eig) */
+    SH_FLOW_OUTSIDE     /* its window left the image */
+} sh_flow_status;
+
+/* Follows n points from prev to next (pyramids of the same size and params; prev built with
+ * its gradients, else SH_EINVAL). xy: x0,y0,... in
+ * prev; out: their positions in next (out may alias nothing). status[i] says whether point i
+ * was followed; err[i] (may be NULL) is the mean absolute difference of the two windows at the
+ * result, in grey levels (OpenCV's default error measure). When guess is not NULL it holds a
+ * starting position in next for each point (OpenCV's OPTFLOW_USE_INITIAL_FLOW): the heartbeat
+ * model's prediction. Points whose status is not OK have out set to their last estimate. */
+sh_status sh_flow_track(const sh_flow_params *params, const sh_flow_pyramid *prev,
+                        const sh_flow_pyramid *next, int n, const float *xy, const float *guess,
+                        float *out, uint8_t *status, float *err);
+
+typedef struct {
+    int max_points;      /* at most this many, strongest first */
+    double quality;      /* relative to the strongest response in the mask (0.01) */
+    double min_distance; /* px between any two chosen points (10) */
+    int block;           /* side of the gradients' summing window, odd, 3..31 (3 as OpenCV) */
+} sh_flow_corner_params;
+
+void sh_flow_corner_params_default(sh_flow_corner_params *p);
+
+/* Chooses up to params->max_points corners of luma, writing x0,y0,... into xy (room for
+ * max_points pairs) and the count into *n. mask (may be NULL) is a plane of the same size: a
+ * pixel may become a corner only where it is non-zero. Responses are local maxima of the
+ * minimum eigenvalue over 3x3 pixels, at least quality times the strongest in the mask, taken
+ * strongest first (ties by position, so the choice is the same on every run) with no two
+ * closer than min_distance. Scratch of width x height floats is allocated per call: this runs
+ * once per reference or re-seeding, not per frame. */
+sh_status sh_flow_corners(const sh_plane *luma, const sh_plane *mask,
+                          const sh_flow_corner_params *params, float *xy, int *n);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

@@ -1,0 +1,62 @@
+/* The pyramid's layout, shared by its builder (pyramid.c) and the tracker (lk.c). */
+#ifndef STILLHEART_FLOW_INTERNAL_H
+#define STILLHEART_FLOW_INTERNAL_H
+
+#include "stillheart/flow.h"
+
+/* One level: its pixels and their Scharr gradients (dx and dy in two planes), each with `pad`
+ * samples of border on every side so that a window whose corner lies up to one window outside
+ * the level reads memory of the level: the pixels' border mirrors the level (OpenCV's
+ * BORDER_REFLECT_101), the gradients' border is zero (OpenCV's BORDER_CONSTANT). Each plane
+ * also has FLOW_SLACK bytes after its last row, which the 8-lane kernels may read (and ignore). */
+typedef struct {
+    int width, height;
+    int stride;         /* samples per row of every plane */
+    uint8_t *img;       /* pixel (0, 0): img_base + pad * stride + pad */
+    int16_t *gx, *gy;   /* gradient (0, 0) */
+} flow_level;
+
+#define FLOW_SLACK 64
+
+struct sh_flow_pyramid {
+    int levels;  /* built above the base */
+    int pad;     /* the window side */
+    int has_gradients;
+    flow_level level[SH_FLOW_MAX_LEVELS + 1];
+    uint16_t *rows; /* the reductions' scratch: one level row of column sums */
+    void *block;    /* every level's memory, one allocation */
+};
+
+/* A window's samples, rows FLOW_WROW(win) apart (the side rounded up to 8 lanes), the lanes
+ * past the side zero. */
+#define FLOW_WROW(win) (((win) + 7) & ~7)
+
+/* The previous frame's window at integer corner (ix, iy) of level l with bilinear weights w
+ * (14 bits, summing to 2^14): its pixels in 1/32 grey levels (I), its gradients (gx, gy), and
+ * the sums of gx^2, gx*gy, gy^2 (a). The lanes past the side are set to zero. */
+void flow_window_prev(const flow_level *l, int ix, int iy, const int w[4], int win, int16_t *I,
+                      int16_t *gx, int16_t *gy, int64_t a[3]);
+/* The next frame's window at (ix, iy) with weights w against the previous one: the sums of
+ * d * gx and d * gy, d being the difference in 1/32 grey levels (b). */
+void flow_window_mismatch(const flow_level *l, int ix, int iy, const int w[4], int win,
+                          const int16_t *I, const int16_t *gx, const int16_t *gy, int64_t b[2]);
+/* The C definitions both compute bit for bit (the SIMD ones are what the two above run on
+ * x86-64 and AArch64; test_flow_simd compares them). */
+void flow_window_prev_portable(const flow_level *l, int ix, int iy, const int w[4], int win,
+                               int16_t *I, int16_t *gx, int16_t *gy, int64_t a[3]);
+void flow_window_mismatch_portable(const flow_level *l, int ix, int iy, const int w[4], int win,
+                                   const int16_t *I, const int16_t *gx, const int16_t *gy,
+                                   int64_t b[2]);
+
+/* The index a mirror border (x -> -x, n-1+k -> n-1-k) gives to x, for any x and n >= 1. */
+static inline int flow_reflect101(int x, int n)
+{
+    if (n == 1) return 0;
+    while (x < 0 || x >= n) {
+        if (x < 0) x = -x;
+        if (x >= n) x = 2 * (n - 1) - x;
+    }
+    return x;
+}
+
+#endif

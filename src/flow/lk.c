@@ -1,0 +1,172 @@
+/* Pyramidal Lucas-Kanade (Bouguet 2000) for one point at a time, coarse to fine.
+ *
+ * Each level solves the 2x2 normal equations of the window's brightness constancy by
+ * Gauss-Newton steps. The numbers follow cv::calcOpticalFlowPyrLK (OpenCV's lkpyramid.cpp),
+ * its oracle: pixels sampled with 14-bit bilinear weights and kept as 1/32 grey levels, Scharr
+ * gradients, the structure tensor and the step's right-hand side scaled by 2^-20, the same
+ * stopping rules (a step shorter than eps; two steps that cancel, which is an oscillation
+ * across the minimum, halved), and the same minimum-eigenvalue test. The sums are 64-bit
+ * integers where OpenCV adds floats: exact, so every architecture gets the same result. */
+#include "flow_internal.h"
+
+#include <math.h>
+
+#define W_BITS 14
+#define W_ONE (1 << W_BITS)
+#define DESCALE(x, n) (((x) + (1 << ((n)-1))) >> (n))
+#define FLT_SCALE (1.0f / (1 << 20))
+
+/* Bilinear weights of the fractions (a, b) in 14 bits, summing to exactly 2^14: top-left,
+ * top-right, bottom-left, bottom-right. */
+static void bilinear(float a, float b, int w[4])
+{
+    w[0] = (int)lrintf((1.f - a) * (1.f - b) * W_ONE);
+    w[1] = (int)lrintf(a * (1.f - b) * W_ONE);
+    w[2] = (int)lrintf((1.f - a) * b * W_ONE);
+    w[3] = W_ONE - w[0] - w[1] - w[2];
+}
+
+/* Whether a window whose top-left corner is at (x, y) may be read on level l: its integer
+ * corner floor(x), floor(y) up to one window outside the level, which the pad holds. Tested on
+ * the float, before any conversion, so that a diverging step or NaN is refused, not truncated. */
+static int inside(const flow_level *l, float x, float y, int win)
+{
+    return x >= (float)-win && x < (float)l->width && y >= (float)-win && y < (float)l->height;
+}
+
+/* The previous frame's window, rows FLOW_WROW(win) apart. */
+typedef struct {
+    int16_t img[SH_FLOW_MAX_WIN * FLOW_WROW(SH_FLOW_MAX_WIN)]; /* 1/32 grey levels */
+    int16_t gx[SH_FLOW_MAX_WIN * FLOW_WROW(SH_FLOW_MAX_WIN)];  /* Scharr units */
+    int16_t gy[SH_FLOW_MAX_WIN * FLOW_WROW(SH_FLOW_MAX_WIN)];
+} window;
+
+/* The sum of |d| over the window: OpenCV's error measure, once per point (portable C). */
+static int64_t abs_mismatch(const flow_level *l, int ix, int iy, const int w[4], int win,
+                            const window *s)
+{
+    const int wr = FLOW_WROW(win);
+    int64_t sa = 0;
+    for (int y = 0; y < win; y++) {
+        const uint8_t *p = l->img + (ptrdiff_t)(iy + y) * l->stride + ix;
+        for (int x = 0; x < win; x++) {
+            int v = p[x] * w[0] + p[x + 1] * w[1] + p[x + l->stride] * w[2] +
+                    p[x + l->stride + 1] * w[3];
+            int d = DESCALE(v, W_BITS - 5) - s->img[y * wr + x];
+            sa += d < 0 ? -d : d;
+        }
+    }
+    return sa;
+}
+
+/* One point through every level. p: its position in prev; q: the starting position in next. */
+static uint8_t track_point(const sh_flow_params *prm, const sh_flow_pyramid *prev,
+                           const sh_flow_pyramid *next, int levels, float px, float py,
+                           float *qx, float *qy, float *err, window *s)
+{
+    const int win = prm->win;
+    const float half = (float)(win - 1) * 0.5f;
+    const double eps2 = prm->eps * prm->eps;
+    uint8_t status = SH_FLOW_OK;
+    float nx = *qx * (1.0f / (float)(1 << levels)), ny = *qy * (1.0f / (float)(1 << levels));
+    for (int lv = levels; lv >= 0; lv--) {
+        const flow_level *L0 = &prev->level[lv], *L1 = &next->level[lv];
+        if (lv != levels) {
+            nx *= 2.f;
+            ny *= 2.f;
+        }
+        float sx = px * (1.0f / (float)(1 << lv)) - half, sy = py * (1.0f / (float)(1 << lv)) - half;
+        if (!inside(L0, sx, sy, win)) {
+            if (lv == 0) status = SH_FLOW_OUTSIDE;
+            continue;
+        }
+        int ix = (int)floorf(sx), iy = (int)floorf(sy);
+        int w[4];
+        int64_t sum[3];
+        bilinear(sx - (float)ix, sy - (float)iy, w);
+        flow_window_prev(L0, ix, iy, w, win, s->img, s->gx, s->gy, sum);
+        const float a11 = (float)sum[0] * FLT_SCALE, a12 = (float)sum[1] * FLT_SCALE,
+                    a22 = (float)sum[2] * FLT_SCALE;
+        float det = a11 * a22 - a12 * a12;
+        float min_eig = (a22 + a11 - sqrtf((a11 - a22) * (a11 - a22) + 4.f * a12 * a12)) /
+                        (float)(2 * win * win);
+        if (min_eig < prm->min_eig || det < 1.1920929e-7f) { /* FLT_EPSILON, as OpenCV */
+            if (lv == 0) status = SH_FLOW_FLAT;
+            continue;
+        }
+        float inv = 1.f / det;
+        float cx = nx - half, cy = ny - half, ddx = 0.f, ddy = 0.f;
+        for (int j = 0; j < prm->max_iter; j++) {
+            if (!inside(L1, cx, cy, win)) {
+                if (lv == 0) status = SH_FLOW_OUTSIDE;
+                break;
+            }
+            int jx = (int)floorf(cx), jy = (int)floorf(cy);
+            bilinear(cx - (float)jx, cy - (float)jy, w);
+            flow_window_mismatch(L1, jx, jy, w, win, s->img, s->gx, s->gy, sum);
+            const float b1 = (float)sum[0] * FLT_SCALE, b2 = (float)sum[1] * FLT_SCALE;
+            float dx = (a12 * b2 - a22 * b1) * inv, dy = (a12 * b1 - a11 * b2) * inv;
+            cx += dx;
+            cy += dy;
+            nx = cx + half;
+            ny = cy + half;
+            if ((double)dx * dx + (double)dy * dy <= eps2) break;
+            if (j > 0 && fabsf(dx + ddx) < 0.01f && fabsf(dy + ddy) < 0.01f) {
+                nx -= dx * 0.5f;
+                ny -= dy * 0.5f;
+                break;
+            }
+            ddx = dx;
+            ddy = dy;
+        }
+        if (lv == 0 && status == SH_FLOW_OK && err) {
+            float ex = nx - half, ey = ny - half;
+            if (!inside(L1, ex, ey, win)) {
+                status = SH_FLOW_OUTSIDE;
+            } else {
+                int jx = (int)floorf(ex), jy = (int)floorf(ey);
+                bilinear(ex - (float)jx, ey - (float)jy, w);
+                *err = (float)abs_mismatch(L1, jx, jy, w, win, s) * (1.f / (float)(32 * win * win));
+            }
+        }
+    }
+    *qx = nx;
+    *qy = ny;
+    return status;
+}
+
+sh_status sh_flow_track(const sh_flow_params *params, const sh_flow_pyramid *prev,
+                        const sh_flow_pyramid *next, int n, const float *xy, const float *guess,
+                        float *out, uint8_t *status, float *err)
+{
+    if (!params || !prev || !next || n < 0 || (n > 0 && (!xy || !out || !status)))
+        return sh_error_set(SH_EINVAL, "flow: track: missing argument");
+    if (params->win != prev->pad || params->win != next->pad ||
+        prev->level[0].width != next->level[0].width ||
+        prev->level[0].height != next->level[0].height)
+        return sh_error_set(SH_EINVAL, "flow: track: the pyramids differ in size or window");
+    if (!prev->has_gradients)
+        return sh_error_set(SH_EINVAL, "flow: track: the previous pyramid has no gradients");
+    int levels = params->levels;
+    if (levels > prev->levels) levels = prev->levels;
+    if (levels > next->levels) levels = next->levels;
+    window s; /* 24 KB at the largest window: the stack, not the heap, in the per-frame path */
+    for (int i = 0; i < n; i++) {
+        float px = xy[2 * i], py = xy[2 * i + 1];
+        float qx = guess ? guess[2 * i] : px, qy = guess ? guess[2 * i + 1] : py;
+        if (err) err[i] = 0.f;
+        /* NaN or far outside any frame: refused before the levels' arithmetic sees it */
+        const float far = 4.f * SH_IMAGE_MAX_SIZE;
+        if (!(fabsf(px) < far && fabsf(py) < far && fabsf(qx) < far && fabsf(qy) < far)) {
+            out[2 * i] = px;
+            out[2 * i + 1] = py;
+            status[i] = SH_FLOW_OUTSIDE;
+            continue;
+        }
+        status[i] = track_point(params, prev, next, levels, px, py, &qx, &qy, err ? &err[i] : NULL,
+                                &s);
+        out[2 * i] = qx;
+        out[2 * i + 1] = qy;
+    }
+    return SH_OK;
+}

@@ -1,0 +1,297 @@
+/* The tracker's two window loops, where its time goes: sampling the previous frame's window
+ * (once per point and level) and comparing the next frame's with it (once per step). Each has a
+ * portable C definition and an 8-lane version for SSE2 (part of x86-64) and NEON (part of
+ * AArch64) that computes the same integers: every product and sum is exact, so the SIMD and
+ * the portable results are equal bit for bit (test_flow_simd), and make bench (bench_flow)
+ * shows what the lanes buy.
+ *
+ * Bounds that keep the lanes' 32-bit sums exact: a pixel is at most 255 and a gradient at most
+ * 16 * 255 = 4080 in magnitude, a bilinear weight at most 2^14, so one sample's weighted sum is
+ * below 2^27 and fits; a difference d is at most 32 * 255 = 8160, and one row's sum of d * g
+ * over at most FLOW_WROW(63) = 64 lanes is at most 64 * 8160 * 4080 < 2^31 (and of g * g less).
+ * Rows are added into 64-bit totals. */
+#include "flow_internal.h"
+
+#define W_BITS 14
+#define DESCALE(x, n) (((x) + (1 << ((n)-1))) >> (n))
+
+void flow_window_prev_portable(const flow_level *l, int ix, int iy, const int w[4], int win,
+                               int16_t *I, int16_t *gx, int16_t *gy, int64_t a[3])
+{
+    const int wr = FLOW_WROW(win), s = l->stride;
+    int64_t s11 = 0, s12 = 0, s22 = 0;
+    for (int y = 0; y < win; y++) {
+        const ptrdiff_t o = (ptrdiff_t)(iy + y) * s + ix;
+        const uint8_t *p = l->img + o;
+        const int16_t *dx = l->gx + o, *dy = l->gy + o;
+        int16_t *ri = I + y * wr, *rx = gx + y * wr, *ry = gy + y * wr;
+        for (int x = 0; x < win; x++) {
+            int v = p[x] * w[0] + p[x + 1] * w[1] + p[x + s] * w[2] + p[x + s + 1] * w[3];
+            int vx = dx[x] * w[0] + dx[x + 1] * w[1] + dx[x + s] * w[2] + dx[x + s + 1] * w[3];
+            int vy = dy[x] * w[0] + dy[x + 1] * w[1] + dy[x + s] * w[2] + dy[x + s + 1] * w[3];
+            vx = DESCALE(vx, W_BITS);
+            vy = DESCALE(vy, W_BITS);
+            ri[x] = (int16_t)DESCALE(v, W_BITS - 5);
+            rx[x] = (int16_t)vx;
+            ry[x] = (int16_t)vy;
+            s11 += vx * vx;
+            s12 += vx * vy;
+            s22 += vy * vy;
+        }
+        for (int x = win; x < wr; x++) ri[x] = rx[x] = ry[x] = 0;
+    }
+    a[0] = s11;
+    a[1] = s12;
+    a[2] = s22;
+}
+
+void flow_window_mismatch_portable(const flow_level *l, int ix, int iy, const int w[4], int win,
+                                   const int16_t *I, const int16_t *gx, const int16_t *gy,
+                                   int64_t b[2])
+{
+    const int wr = FLOW_WROW(win), s = l->stride;
+    int64_t s1 = 0, s2 = 0;
+    for (int y = 0; y < win; y++) {
+        const uint8_t *p = l->img + (ptrdiff_t)(iy + y) * s + ix;
+        const int16_t *ri = I + y * wr, *rx = gx + y * wr, *ry = gy + y * wr;
+        for (int x = 0; x < win; x++) {
+            int v = p[x] * w[0] + p[x + 1] * w[1] + p[x + s] * w[2] + p[x + s + 1] * w[3];
+            int d = DESCALE(v, W_BITS - 5) - ri[x];
+            s1 += d * rx[x];
+            s2 += d * ry[x];
+        }
+    }
+    b[0] = s1;
+    b[1] = s2;
+}
+
+#if defined(__SSE2__)
+#include <emmintrin.h>
+
+static int64_t hsum32(__m128i v)
+{
+    int32_t t[4];
+    _mm_storeu_si128((__m128i *)t, v);
+    return (int64_t)t[0] + t[1] + t[2] + t[3];
+}
+
+/* 8 bilinear samples of 16-bit values at a (row r0, columns x..x+7) and the row below,
+ * weights as pairs (w0, w1) and (w2, w3) in 16-bit lanes: madd multiplies and adds each pair.
+ * Returns the two halves' 32-bit sums, not yet descaled. */
+static inline void bilinear8(__m128i a, __m128i b, __m128i c, __m128i d, __m128i w01,
+                             __m128i w23, __m128i *lo, __m128i *hi)
+{
+    *lo = _mm_add_epi32(_mm_madd_epi16(_mm_unpacklo_epi16(a, b), w01),
+                        _mm_madd_epi16(_mm_unpacklo_epi16(c, d), w23));
+    *hi = _mm_add_epi32(_mm_madd_epi16(_mm_unpackhi_epi16(a, b), w01),
+                        _mm_madd_epi16(_mm_unpackhi_epi16(c, d), w23));
+}
+
+static inline __m128i load8u(const uint8_t *p)
+{
+    return _mm_unpacklo_epi8(_mm_loadl_epi64((const __m128i *)p), _mm_setzero_si128());
+}
+
+static inline __m128i load8s(const int16_t *p)
+{
+    return _mm_loadu_si128((const __m128i *)p);
+}
+
+/* (v + 2^(n-1)) >> n on both halves, packed back to 16 bits (the values fit: no saturation) */
+static inline __m128i descale_pack(__m128i lo, __m128i hi, int n)
+{
+    const __m128i r = _mm_set1_epi32(1 << (n - 1));
+    return _mm_packs_epi32(_mm_sra_epi32(_mm_add_epi32(lo, r), _mm_cvtsi32_si128(n)),
+                           _mm_sra_epi32(_mm_add_epi32(hi, r), _mm_cvtsi32_si128(n)));
+}
+
+void flow_window_prev(const flow_level *l, int ix, int iy, const int w[4], int win, int16_t *I,
+                      int16_t *gx, int16_t *gy, int64_t a[3])
+{
+    const int wr = FLOW_WROW(win), s = l->stride;
+    const __m128i w01 = _mm_set1_epi32((int)((uint32_t)w[1] << 16 | (uint32_t)w[0]));
+    const __m128i w23 = _mm_set1_epi32((int)((uint32_t)w[3] << 16 | (uint32_t)w[2]));
+    int64_t s11 = 0, s12 = 0, s22 = 0;
+    for (int y = 0; y < win; y++) {
+        const ptrdiff_t o = (ptrdiff_t)(iy + y) * s + ix;
+        const uint8_t *p = l->img + o;
+        const int16_t *dx = l->gx + o, *dy = l->gy + o;
+        int16_t *ri = I + y * wr, *rx = gx + y * wr, *ry = gy + y * wr;
+        __m128i q11 = _mm_setzero_si128(), q12 = q11, q22 = q11;
+        for (int x = 0; x < wr; x += 8) {
+            __m128i lo, hi;
+            /* lanes past the side: zero, so that they add nothing to any sum */
+            const int left = win - x;
+            const __m128i keep = left >= 8 ? _mm_set1_epi16(-1)
+                                           : _mm_cmpgt_epi16(_mm_set1_epi16((short)left),
+                                                             _mm_setr_epi16(0, 1, 2, 3, 4, 5, 6, 7));
+            bilinear8(load8u(p + x), load8u(p + x + 1), load8u(p + x + s), load8u(p + x + s + 1),
+                      w01, w23, &lo, &hi);
+            __m128i vi = _mm_and_si128(descale_pack(lo, hi, W_BITS - 5), keep);
+            bilinear8(load8s(dx + x), load8s(dx + x + 1), load8s(dx + x + s),
+                      load8s(dx + x + s + 1), w01, w23, &lo, &hi);
+            __m128i vx = _mm_and_si128(descale_pack(lo, hi, W_BITS), keep);
+            bilinear8(load8s(dy + x), load8s(dy + x + 1), load8s(dy + x + s),
+                      load8s(dy + x + s + 1), w01, w23, &lo, &hi);
+            __m128i vy = _mm_and_si128(descale_pack(lo, hi, W_BITS), keep);
+            _mm_storeu_si128((__m128i *)(ri + x), vi);
+            _mm_storeu_si128((__m128i *)(rx + x), vx);
+            _mm_storeu_si128((__m128i *)(ry + x), vy);
+            q11 = _mm_add_epi32(q11, _mm_madd_epi16(vx, vx));
+            q12 = _mm_add_epi32(q12, _mm_madd_epi16(vx, vy));
+            q22 = _mm_add_epi32(q22, _mm_madd_epi16(vy, vy));
+        }
+        s11 += hsum32(q11);
+        s12 += hsum32(q12);
+        s22 += hsum32(q22);
+    }
+    a[0] = s11;
+    a[1] = s12;
+    a[2] = s22;
+}
+
+void flow_window_mismatch(const flow_level *l, int ix, int iy, const int w[4], int win,
+                          const int16_t *I, const int16_t *gx, const int16_t *gy, int64_t b[2])
+{
+    const int wr = FLOW_WROW(win), s = l->stride;
+    const __m128i w01 = _mm_set1_epi32((int)((uint32_t)w[1] << 16 | (uint32_t)w[0]));
+    const __m128i w23 = _mm_set1_epi32((int)((uint32_t)w[3] << 16 | (uint32_t)w[2]));
+    int64_t s1 = 0, s2 = 0;
+    for (int y = 0; y < win; y++) {
+        const uint8_t *p = l->img + (ptrdiff_t)(iy + y) * s + ix;
+        const int16_t *ri = I + y * wr, *rx = gx + y * wr, *ry = gy + y * wr;
+        __m128i q1 = _mm_setzero_si128(), q2 = q1;
+        for (int x = 0; x < wr; x += 8) {
+            __m128i lo, hi;
+            bilinear8(load8u(p + x), load8u(p + x + 1), load8u(p + x + s), load8u(p + x + s + 1),
+                      w01, w23, &lo, &hi);
+            /* past the side the gradients are zero: d * 0 adds nothing */
+            __m128i d = _mm_sub_epi16(descale_pack(lo, hi, W_BITS - 5), load8s(ri + x));
+            q1 = _mm_add_epi32(q1, _mm_madd_epi16(d, load8s(rx + x)));
+            q2 = _mm_add_epi32(q2, _mm_madd_epi16(d, load8s(ry + x)));
+        }
+        s1 += hsum32(q1);
+        s2 += hsum32(q2);
+    }
+    b[0] = s1;
+    b[1] = s2;
+}
+
+#elif defined(__aarch64__) && defined(__ARM_NEON)
+#include <arm_neon.h>
+
+/* 8 bilinear samples of 16-bit values (a, b on this row, c, d on the next) as two 32-bit
+ * halves, not yet descaled: widening multiply-accumulates. */
+static inline void bilinear8(int16x8_t a, int16x8_t b, int16x8_t c, int16x8_t d,
+                             const int16x4_t w[4], int32x4_t *lo, int32x4_t *hi)
+{
+    int32x4_t l = vmull_s16(vget_low_s16(a), w[0]);
+    l = vmlal_s16(l, vget_low_s16(b), w[1]);
+    l = vmlal_s16(l, vget_low_s16(c), w[2]);
+    *lo = vmlal_s16(l, vget_low_s16(d), w[3]);
+    int32x4_t h = vmull_s16(vget_high_s16(a), w[0]);
+    h = vmlal_s16(h, vget_high_s16(b), w[1]);
+    h = vmlal_s16(h, vget_high_s16(c), w[2]);
+    *hi = vmlal_s16(h, vget_high_s16(d), w[3]);
+}
+
+static inline int16x8_t load8u(const uint8_t *p)
+{
+    return vreinterpretq_s16_u16(vmovl_u8(vld1_u8(p)));
+}
+
+/* (v + 2^(n-1)) >> n narrowed: vrshrn is exactly that (the values fit 16 bits) */
+#define DESCALE_PACK(lo, hi, n) vcombine_s16(vrshrn_n_s32((lo), (n)), vrshrn_n_s32((hi), (n)))
+
+/* d * g summed into 32-bit lanes */
+static inline int32x4_t dot8(int32x4_t acc, int16x8_t d, int16x8_t g)
+{
+    acc = vmlal_s16(acc, vget_low_s16(d), vget_low_s16(g));
+    return vmlal_s16(acc, vget_high_s16(d), vget_high_s16(g));
+}
+
+void flow_window_prev(const flow_level *l, int ix, int iy, const int w[4], int win, int16_t *I,
+                      int16_t *gx, int16_t *gy, int64_t a[3])
+{
+    static const int16_t lane[8] = {0, 1, 2, 3, 4, 5, 6, 7};
+    const int wr = FLOW_WROW(win), s = l->stride;
+    const int16x4_t wv[4] = {vdup_n_s16((int16_t)w[0]), vdup_n_s16((int16_t)w[1]),
+                             vdup_n_s16((int16_t)w[2]), vdup_n_s16((int16_t)w[3])};
+    const int16x8_t lanes = vld1q_s16(lane);
+    int64_t s11 = 0, s12 = 0, s22 = 0;
+    for (int y = 0; y < win; y++) {
+        const ptrdiff_t o = (ptrdiff_t)(iy + y) * s + ix;
+        const uint8_t *p = l->img + o;
+        const int16_t *dx = l->gx + o, *dy = l->gy + o;
+        int16_t *ri = I + y * wr, *rx = gx + y * wr, *ry = gy + y * wr;
+        int32x4_t q11 = vdupq_n_s32(0), q12 = q11, q22 = q11;
+        for (int x = 0; x < wr; x += 8) {
+            int32x4_t lo, hi;
+            /* lanes past the side: zero, so that they add nothing to any sum */
+            const int16x8_t keep =
+                vreinterpretq_s16_u16(vcltq_s16(lanes, vdupq_n_s16((int16_t)(win - x))));
+            bilinear8(load8u(p + x), load8u(p + x + 1), load8u(p + x + s), load8u(p + x + s + 1),
+                      wv, &lo, &hi);
+            int16x8_t vi = vandq_s16(DESCALE_PACK(lo, hi, W_BITS - 5), keep);
+            bilinear8(vld1q_s16(dx + x), vld1q_s16(dx + x + 1), vld1q_s16(dx + x + s),
+                      vld1q_s16(dx + x + s + 1), wv, &lo, &hi);
+            int16x8_t vx = vandq_s16(DESCALE_PACK(lo, hi, W_BITS), keep);
+            bilinear8(vld1q_s16(dy + x), vld1q_s16(dy + x + 1), vld1q_s16(dy + x + s),
+                      vld1q_s16(dy + x + s + 1), wv, &lo, &hi);
+            int16x8_t vy = vandq_s16(DESCALE_PACK(lo, hi, W_BITS), keep);
+            vst1q_s16(ri + x, vi);
+            vst1q_s16(rx + x, vx);
+            vst1q_s16(ry + x, vy);
+            q11 = dot8(q11, vx, vx);
+            q12 = dot8(q12, vx, vy);
+            q22 = dot8(q22, vy, vy);
+        }
+        s11 += vaddlvq_s32(q11);
+        s12 += vaddlvq_s32(q12);
+        s22 += vaddlvq_s32(q22);
+    }
+    a[0] = s11;
+    a[1] = s12;
+    a[2] = s22;
+}
+
+void flow_window_mismatch(const flow_level *l, int ix, int iy, const int w[4], int win,
+                          const int16_t *I, const int16_t *gx, const int16_t *gy, int64_t b[2])
+{
+    const int wr = FLOW_WROW(win), s = l->stride;
+    const int16x4_t wv[4] = {vdup_n_s16((int16_t)w[0]), vdup_n_s16((int16_t)w[1]),
+                             vdup_n_s16((int16_t)w[2]), vdup_n_s16((int16_t)w[3])};
+    int64_t s1 = 0, s2 = 0;
+    for (int y = 0; y < win; y++) {
+        const uint8_t *p = l->img + (ptrdiff_t)(iy + y) * s + ix;
+        const int16_t *ri = I + y * wr, *rx = gx + y * wr, *ry = gy + y * wr;
+        int32x4_t q1 = vdupq_n_s32(0), q2 = q1;
+        for (int x = 0; x < wr; x += 8) {
+            int32x4_t lo, hi;
+            bilinear8(load8u(p + x), load8u(p + x + 1), load8u(p + x + s), load8u(p + x + s + 1),
+                      wv, &lo, &hi);
+            /* past the side the gradients are zero: d * 0 adds nothing */
+            int16x8_t d = vsubq_s16(DESCALE_PACK(lo, hi, W_BITS - 5), vld1q_s16(ri + x));
+            q1 = dot8(q1, d, vld1q_s16(rx + x));
+            q2 = dot8(q2, d, vld1q_s16(ry + x));
+        }
+        s1 += vaddlvq_s32(q1);
+        s2 += vaddlvq_s32(q2);
+    }
+    b[0] = s1;
+    b[1] = s2;
+}
+
+#else
+void flow_window_prev(const flow_level *l, int ix, int iy, const int w[4], int win, int16_t *I,
+                      int16_t *gx, int16_t *gy, int64_t a[3])
+{
+    flow_window_prev_portable(l, ix, iy, w, win, I, gx, gy, a);
+}
+
+void flow_window_mismatch(const flow_level *l, int ix, int iy, const int w[4], int win,
+                          const int16_t *I, const int16_t *gx, const int16_t *gy, int64_t b[2])
+{
+    flow_window_mismatch_portable(l, ix, iy, w, win, I, gx, gy, b);
+}
+#endif

@@ -1,0 +1,368 @@
+/* src/flow against answers known without it: a texture moved by a known sub-pixel shift, a
+ * known large shift (which only the pyramid can follow), the synthetic sequence's exact
+ * deformation (tools/synth), a checkerboard's corners, and what must be refused. OpenCV's own
+ * tracker, the oracle, is compared in tests/oracle/test_flow_opencv.cpp (host builds). */
+#include <math.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include <cmocka.h>
+
+#include "stillheart/flow.h"
+#include "synth.h"
+
+/* The synthetic texture moved by (dx, dy): what sits at (x, y) in the texture sits at
+ * (x + dx, y + dy) in the image. */
+static void render_shifted(sh_image *img, double dx, double dy)
+{
+    for (int y = 0; y < img->height; y++)
+        for (int x = 0; x < img->width; x++) {
+            double v = synth_texture(x - dx, y - dy, 0);
+            img->plane[0].data[(size_t)y * img->plane[0].stride + x] = (uint8_t)lrint(v);
+        }
+}
+
+typedef struct {
+    sh_flow_params prm;
+    sh_flow_pyramid *a, *b;
+} pair;
+
+static void pair_make(pair *p, const sh_image *fa, const sh_image *fb, int levels)
+{
+    sh_flow_params_default(&p->prm);
+    p->prm.levels = levels;
+    assert_int_equal(sh_flow_pyramid_create(fa->width, fa->height, &p->prm, &p->a), SH_OK);
+    assert_int_equal(sh_flow_pyramid_create(fa->width, fa->height, &p->prm, &p->b), SH_OK);
+    assert_int_equal(sh_flow_pyramid_build(p->a, &fa->plane[0], 1), SH_OK);
+    assert_int_equal(sh_flow_pyramid_build(p->b, &fb->plane[0], 0), SH_OK);
+}
+
+static void pair_free(pair *p)
+{
+    sh_flow_pyramid_destroy(p->a);
+    sh_flow_pyramid_destroy(p->b);
+}
+
+/* A grid of points well inside a w x h frame: n = cols * rows. */
+static int grid(float *xy, int w, int h, int cols, int rows)
+{
+    int n = 0;
+    for (int r = 0; r < rows; r++)
+        for (int c = 0; c < cols; c++) {
+            xy[2 * n] = (float)(60 + (w - 120) * c / (cols - 1)) + 0.3f;
+            xy[2 * n + 1] = (float)(60 + (h - 120) * r / (rows - 1)) + 0.7f;
+            n++;
+        }
+    return n;
+}
+
+static int by_value(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+/* The median and largest distance of the followed points from p + (dx, dy); -1 and -1 when one
+ * was lost. */
+static void shift_error(const pair *p, int n, const float *xy, const float *guess, double dx,
+                        double dy, double *median, double *worst)
+{
+    float out[2 * 64], err[64];
+    uint8_t st[64];
+    double e[64];
+    assert_int_equal(sh_flow_track(&p->prm, p->a, p->b, n, xy, guess, out, st, err), SH_OK);
+    *median = *worst = -1;
+    for (int i = 0; i < n; i++) {
+        if (st[i] != SH_FLOW_OK) return;
+        e[i] = hypot(out[2 * i] - (xy[2 * i] + dx), out[2 * i + 1] - (xy[2 * i + 1] + dy));
+    }
+    qsort(e, (size_t)n, sizeof *e, by_value);
+    *median = e[n / 2];
+    *worst = e[n - 1];
+}
+
+/* A sub-pixel shift, recovered at every point of a grid. The bound: 8-bit rounding of a texture
+ * whose gradients are a few grey levels per pixel, over a 21x21 window, moves the solution by
+ * thousandths of a pixel; bilinear sampling of its shortest (15 px) waves by about 1/100. */
+static void test_subpixel_shift(void **state)
+{
+    (void)state;
+    sh_image fa, fb;
+    assert_int_equal(sh_image_create(&fa, SH_PIX_GRAY8, 320, 240), SH_OK);
+    assert_int_equal(sh_image_create(&fb, SH_PIX_GRAY8, 320, 240), SH_OK);
+    render_shifted(&fa, 0, 0);
+    render_shifted(&fb, 0.37, -0.61);
+    pair p;
+    pair_make(&p, &fa, &fb, 3);
+    float xy[2 * 64];
+    int n = grid(xy, 320, 240, 6, 5);
+    double median, worst;
+    shift_error(&p, n, xy, NULL, 0.37, -0.61, &median, &worst);
+    print_message("sub-pixel shift: error median %.4f px, largest %.4f px over %d points\n",
+                  median, worst, n);
+    assert_true(median >= 0 && median < 0.05);
+    assert_true(worst < 0.2);
+    pair_free(&p);
+    sh_image_destroy(&fa);
+    sh_image_destroy(&fb);
+}
+
+/* A shift of 16 px, past a 21 px window's reach and the 15 px waves' period: the pyramid
+ * follows it; the base level alone must not (it locks onto a wrong wave or loses the point),
+ * which shows the levels are used. A guess within a few pixels lets even the base level find it
+ * (the heartbeat model's prediction, OpenCV's OPTFLOW_USE_INITIAL_FLOW). */
+static void test_large_shift_needs_levels_or_guess(void **state)
+{
+    (void)state;
+    const double dx = 27.4, dy = -19.2;
+    sh_image fa, fb;
+    assert_int_equal(sh_image_create(&fa, SH_PIX_GRAY8, 320, 240), SH_OK);
+    assert_int_equal(sh_image_create(&fb, SH_PIX_GRAY8, 320, 240), SH_OK);
+    render_shifted(&fa, 0, 0);
+    render_shifted(&fb, dx, dy);
+    float xy[2 * 64], guess[2 * 64];
+    int n = grid(xy, 320, 240, 5, 4);
+    for (int i = 0; i < n; i++) {
+        guess[2 * i] = xy[2 * i] + (float)dx + 1.8f;
+        guess[2 * i + 1] = xy[2 * i + 1] + (float)dy - 1.5f;
+    }
+    pair p;
+    pair_make(&p, &fa, &fb, 3);
+    double pyr, pyr_worst, base, base_worst, guided, guided_worst;
+    shift_error(&p, n, xy, NULL, dx, dy, &pyr, &pyr_worst);
+    pair_free(&p);
+    pair_make(&p, &fa, &fb, 0);
+    shift_error(&p, n, xy, NULL, dx, dy, &base, &base_worst);
+    shift_error(&p, n, xy, guess, dx, dy, &guided, &guided_worst);
+    pair_free(&p);
+    print_message("%.0f px shift, error median / largest: pyramid %.4f / %.4f px, base level "
+                  "%.3f / %.3f px (-1: lost), base level with a guess %.4f / %.4f px\n",
+                  hypot(dx, dy), pyr, pyr_worst, base, base_worst, guided, guided_worst);
+    assert_true(pyr >= 0 && pyr < 0.05 && pyr_worst < 0.2);
+    assert_true(base < 0 || base_worst > 1.0);
+    assert_true(guided >= 0 && guided < 0.05 && guided_worst < 0.2);
+    sh_image_destroy(&fa);
+    sh_image_destroy(&fb);
+}
+
+/* How far the displacement anywhere in p's window strays from p's own: a translation fitted to
+ * the window (what Lucas-Kanade estimates: the window's displacements averaged, weighted by
+ * its gradients) cannot stray from p's displacement by more. */
+static double window_spread(const synth_motion *m, double t, double px, double py, int win)
+{
+    double fx, fy, worst = 0;
+    synth_forward(m, t, px, py, &fx, &fy);
+    const double h = (win - 1) / 2.0;
+    for (int j = 0; j <= 8; j++)
+        for (int i = 0; i <= 8; i++) {
+            double qx = px - h + 2 * h * i / 8, qy = py - h + 2 * h * j / 8, gx, gy;
+            synth_forward(m, t, qx, qy, &gx, &gy);
+            double d = hypot((gx - qx) - (fx - px), (gy - qy) - (fy - py));
+            if (d > worst) worst = d;
+        }
+    return worst;
+}
+
+/* Corners of the synthetic sequence's reference followed into a deformed frame, against the
+ * deformation's exact value (synth_forward). Within a 21 px window the deformation is not a
+ * shift (bulge, twist, rotation: strains of a few percent), so each point may be off by as much
+ * as its window's displacements differ, plus the 0.05 px of a pure shift. */
+static void test_deformation_against_truth(void **state)
+{
+    (void)state;
+    synth_motion m = {320, 240, 6.0};
+    sh_image f0, f1;
+    assert_int_equal(sh_image_create(&f0, SH_PIX_GRAY8, 320, 240), SH_OK);
+    assert_int_equal(sh_image_create(&f1, SH_PIX_GRAY8, 320, 240), SH_OK);
+    synth_render(&m, 0.0, &f0);
+    synth_render(&m, 0.2, &f1);
+    sh_flow_corner_params cp;
+    sh_flow_corner_params_default(&cp);
+    cp.max_points = 150;
+    float xy[2 * 150], out[2 * 150], err[150];
+    uint8_t st[150];
+    int n;
+    assert_int_equal(sh_flow_corners(&f0.plane[0], NULL, &cp, xy, &n), SH_OK);
+    assert_true(n >= 100);
+    pair p;
+    pair_make(&p, &f0, &f1, 3);
+    assert_int_equal(sh_flow_track(&p.prm, p.a, p.b, n, xy, NULL, out, st, err), SH_OK);
+    double e[150], worst_excess = -1e9;
+    int kept = 0, inner = 0;
+    for (int i = 0; i < n; i++) {
+        double fx, fy;
+        synth_forward(&m, 0.2, xy[2 * i], xy[2 * i + 1], &fx, &fy);
+        /* a window that reaches past the frame sees the mirrored border, not the texture */
+        if (fx < 11 || fy < 11 || fx > 320 - 12 || fy > 240 - 12) continue;
+        inner++;
+        if (st[i] != SH_FLOW_OK) continue;
+        e[kept] = hypot(out[2 * i] - fx, out[2 * i + 1] - fy);
+        double excess = e[kept] - window_spread(&m, 0.2, xy[2 * i], xy[2 * i + 1], p.prm.win);
+        if (excess > worst_excess) worst_excess = excess;
+        kept++;
+    }
+    qsort(e, (size_t)kept, sizeof *e, by_value);
+    print_message("deformation: %d of %d inner points kept, error median %.4f px, largest %.4f "
+                  "px, largest beyond its window's spread of displacements %.4f px\n",
+                  kept, inner, e[kept / 2], e[kept - 1], worst_excess);
+    assert_int_equal(kept, inner);
+    assert_true(worst_excess < 0.05);
+    pair_free(&p);
+    sh_image_destroy(&f0);
+    sh_image_destroy(&f1);
+}
+
+/* What cannot be followed is said so, never given a position as if it were followed. */
+static void test_flat_outside_and_bad_points(void **state)
+{
+    (void)state;
+    sh_image flat, tex;
+    assert_int_equal(sh_image_create(&flat, SH_PIX_GRAY8, 160, 120), SH_OK);
+    assert_int_equal(sh_image_create(&tex, SH_PIX_GRAY8, 160, 120), SH_OK);
+    for (int y = 0; y < 120; y++) memset(flat.plane[0].data + (size_t)y * flat.plane[0].stride, 90, 160);
+    render_shifted(&tex, 0, 0);
+    pair p;
+    pair_make(&p, &flat, &flat, 2);
+    float xy[2] = {80, 60}, out[2 * 4];
+    uint8_t st[4];
+    assert_int_equal(sh_flow_track(&p.prm, p.a, p.b, 1, xy, NULL, out, st, NULL), SH_OK);
+    assert_int_equal(st[0], SH_FLOW_FLAT);
+    pair_free(&p);
+    pair_make(&p, &tex, &tex, 2);
+    const float bad[2 * 4] = {-40, 60, 80, 1e30f, NAN, 60, 80, 60};
+    float guess[2 * 4] = {-40, 60, 80, 60, 80, 60, 80, INFINITY};
+    assert_int_equal(sh_flow_track(&p.prm, p.a, p.b, 4, bad, guess, out, st, NULL), SH_OK);
+    for (int i = 0; i < 4; i++) assert_int_equal(st[i], SH_FLOW_OUTSIDE);
+    /* the same texture: every point stays where it is */
+    const float here[2] = {57.5f, 33.25f};
+    assert_int_equal(sh_flow_track(&p.prm, p.a, p.b, 1, here, NULL, out, st, NULL), SH_OK);
+    assert_int_equal(st[0], SH_FLOW_OK);
+    assert_true(fabsf(out[0] - here[0]) < 1e-3f && fabsf(out[1] - here[1]) < 1e-3f);
+    pair_free(&p);
+    sh_image_destroy(&flat);
+    sh_image_destroy(&tex);
+}
+
+/* A checkerboard of 16 px squares has its corners where four squares meet, at 15.5 + 16 k; the
+ * strongest responses are the pixels next to them, and nothing else responds (edges have one
+ * eigenvalue zero). */
+static void test_corners_of_a_checkerboard(void **state)
+{
+    (void)state;
+    const int w = 160, h = 128, sq = 16;
+    sh_image img, mask;
+    assert_int_equal(sh_image_create(&img, SH_PIX_GRAY8, w, h), SH_OK);
+    assert_int_equal(sh_image_create(&mask, SH_PIX_GRAY8, w, h), SH_OK);
+    for (int y = 0; y < h; y++)
+        for (int x = 0; x < w; x++) {
+            img.plane[0].data[(size_t)y * img.plane[0].stride + x] =
+                ((x / sq + y / sq) % 2) ? 215 : 40;
+            mask.plane[0].data[(size_t)y * mask.plane[0].stride + x] = x >= w / 2;
+        }
+    sh_flow_corner_params cp;
+    sh_flow_corner_params_default(&cp);
+    cp.max_points = 500;
+    cp.min_distance = 8;
+    float xy[2 * 500];
+    int n;
+    assert_int_equal(sh_flow_corners(&img.plane[0], NULL, &cp, xy, &n), SH_OK);
+    const int inner = (w / sq - 1) * (h / sq - 1);
+    assert_int_equal(n, inner);
+    for (int i = 0; i < n; i++) {
+        double cx = 15.5 + sq * floor((xy[2 * i] - 15.5) / sq + 0.5);
+        double cy = 15.5 + sq * floor((xy[2 * i + 1] - 15.5) / sq + 0.5);
+        assert_true(fabs(xy[2 * i] - cx) <= 1.0 && fabs(xy[2 * i + 1] - cy) <= 1.0);
+    }
+    /* the mask: only the right half */
+    assert_int_equal(sh_flow_corners(&img.plane[0], &mask.plane[0], &cp, xy, &n), SH_OK);
+    assert_int_equal(n, (w / sq / 2) * (h / sq - 1));
+    for (int i = 0; i < n; i++) assert_true(xy[2 * i] >= w / 2);
+    /* the cap */
+    cp.max_points = 5;
+    assert_int_equal(sh_flow_corners(&img.plane[0], NULL, &cp, xy, &n), SH_OK);
+    assert_int_equal(n, 5);
+    /* a distance of two squares leaves every other corner in each direction at most */
+    cp.max_points = 500;
+    cp.min_distance = 2 * sq + 0.5;
+    assert_int_equal(sh_flow_corners(&img.plane[0], NULL, &cp, xy, &n), SH_OK);
+    for (int i = 0; i < n; i++)
+        for (int j = 0; j < i; j++)
+            assert_true(hypot(xy[2 * i] - xy[2 * j], xy[2 * i + 1] - xy[2 * j + 1]) >= 2 * sq + 0.5);
+    assert_true(n >= (w / sq - 1) / 2 * ((h / sq - 1) / 2));
+    sh_image_destroy(&img);
+    sh_image_destroy(&mask);
+}
+
+static void test_refusals(void **state)
+{
+    (void)state;
+    sh_flow_params prm;
+    sh_flow_params_default(&prm);
+    sh_flow_pyramid *a = NULL, *b = NULL, *c = NULL;
+    prm.win = 20;
+    assert_int_equal(sh_flow_pyramid_create(64, 64, &prm, &a), SH_EINVAL);
+    prm.win = 21;
+    prm.levels = SH_FLOW_MAX_LEVELS + 1;
+    assert_int_equal(sh_flow_pyramid_create(64, 64, &prm, &a), SH_EINVAL);
+    prm.levels = 3;
+    assert_int_equal(sh_flow_pyramid_create(1, 64, &prm, &a), SH_EINVAL);
+    assert_null(a);
+    /* 64 px: level 1 is 32 (> 21) and built, level 2 would be 16 (<= 21) and is not */
+    assert_int_equal(sh_flow_pyramid_create(64, 64, &prm, &a), SH_OK);
+    assert_int_equal(sh_flow_pyramid_levels(a), 1);
+    assert_int_equal(sh_flow_pyramid_create(64, 64, &prm, &b), SH_OK);
+    assert_int_equal(sh_flow_pyramid_create(64, 48, &prm, &c), SH_OK);
+    sh_image img;
+    assert_int_equal(sh_image_create(&img, SH_PIX_GRAY8, 64, 48), SH_OK);
+    assert_int_equal(sh_flow_pyramid_build(a, &img.plane[0], 1), SH_EINVAL);
+    assert_int_equal(sh_flow_pyramid_build(c, &img.plane[0], 1), SH_OK);
+    sh_image_destroy(&img);
+    assert_int_equal(sh_image_create(&img, SH_PIX_GRAY8, 64, 64), SH_OK);
+    assert_int_equal(sh_flow_pyramid_build(a, &img.plane[0], 0), SH_OK);
+    assert_int_equal(sh_flow_pyramid_build(b, &img.plane[0], 0), SH_OK);
+    float xy[2] = {30, 30}, out[2];
+    uint8_t st[1];
+    /* tracked from a pyramid built without its gradients */
+    assert_int_equal(sh_flow_track(&prm, a, b, 1, xy, NULL, out, st, NULL), SH_EINVAL);
+    assert_int_equal(sh_flow_pyramid_build(a, &img.plane[0], 1), SH_OK);
+    assert_int_equal(sh_flow_track(&prm, a, c, 1, xy, NULL, out, st, NULL), SH_EINVAL);
+    assert_int_equal(sh_flow_track(&prm, a, b, 1, xy, NULL, out, st, NULL), SH_OK);
+    sh_flow_corner_params cp;
+    sh_flow_corner_params_default(&cp);
+    int n;
+    cp.block = 4;
+    assert_int_equal(sh_flow_corners(&img.plane[0], NULL, &cp, xy, &n), SH_EINVAL);
+    cp.block = 3;
+    cp.quality = 0;
+    assert_int_equal(sh_flow_corners(&img.plane[0], NULL, &cp, xy, &n), SH_EINVAL);
+    cp.quality = 0.01;
+    sh_image small;
+    assert_int_equal(sh_image_create(&small, SH_PIX_GRAY8, 32, 64), SH_OK);
+    assert_int_equal(sh_flow_corners(&img.plane[0], &small.plane[0], &cp, xy, &n), SH_EINVAL);
+    /* a frame without texture has no corner */
+    cp.max_points = 1;
+    assert_int_equal(sh_flow_corners(&img.plane[0], NULL, &cp, xy, &n), SH_OK);
+    assert_int_equal(n, 0);
+    sh_image_destroy(&small);
+    sh_image_destroy(&img);
+    sh_flow_pyramid_destroy(a);
+    sh_flow_pyramid_destroy(b);
+    sh_flow_pyramid_destroy(c);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_subpixel_shift),
+        cmocka_unit_test(test_large_shift_needs_levels_or_guess),
+        cmocka_unit_test(test_deformation_against_truth),
+        cmocka_unit_test(test_flat_outside_and_bad_points),
+        cmocka_unit_test(test_corners_of_a_checkerboard),
+        cmocka_unit_test(test_refusals),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
