@@ -13,6 +13,10 @@ pass=0; fail=0
 ok()  { echo "[       OK ] $1"; pass=$((pass + 1)); }
 bad() { echo "[  FAILED  ] $1: $2"; fail=$((fail + 1)); }
 SHM=/sh-dtest-$$
+# Up to 30 s for the daemon's segment before a reader opens it: under qemu-aarch64 on a loaded
+# machine, with a disk stalling for seconds, a daemon took longer than the 1 s the cases waited
+# before, and stillheart-cat found no segment (issue 21's loops at 25e3aeb and 4a644ff).
+wait_segment() { i=0; while [ $i -lt 300 ] && [ ! -e "/dev/shm$SHM" ]; do sleep 0.1; i=$((i + 1)); done; }
 RUN="$B/stillheart run --group= --quiet"
 # What a daemon frame may differ from warp's in the two comparisons below (their python imports
 # it: PYTHONPATH=$T). The warp's grid is refined when a frame's map needs it and stays refined,
@@ -121,10 +125,11 @@ printf '[sink]\noutside = black\n' > "$T/outside.ini"
 "$B/stillheart" run --group= --config "$T/outside.ini" --source "y4m:$T/ph/cam0.y4m" --loop --realtime --sink "shm:$SHM" \
     --points "$T/points.csv" --method tps --threads 2 --min-markers 3 --record "$T/dim-rt.y4m" --record-sync-ms 0 \
     2> "$T/dim-rt.log" & pid=$!
-for i in 1 2 3 4 5 6 7 8 9 10; do [ -e "/dev/shm$SHM" ] && break; sleep 0.1; done
+wait_segment
 "$B/stillheart-cat" --name "$SHM" --count 40 --timeout 10 -v > "$T/dim-cat.y4m" 2> "$T/dim-cat.log" & cat_pid=$!
 # SIGHUP once 10 frames are recorded: the next warped frames are dimmed outside, nothing reopened
-for i in $(seq 100); do [ "$(grep -c FRAME "$T/dim-rt.y4m" 2>/dev/null)" -ge 10 ] && break; sleep 0.1; done
+# (up to 60 s: the record does not exist until the daemon has started, see wait_segment)
+for i in $(seq 600); do n=$(grep -c FRAME "$T/dim-rt.y4m" 2>/dev/null); [ "${n:-0}" -ge 10 ] && break; sleep 0.1; done
 printf '[sink]\noutside = dimmed-raw\n' > "$T/outside.ini"; kill -HUP $pid
 for i in $(seq 100); do grep -q "config reloaded" "$T/dim-rt.log" && break; sleep 0.1; done
 wait $cat_pid; kill $pid; wait $pid
@@ -184,9 +189,7 @@ PY
 # shm: real time (23 fps) so the reader sees every frame; each frame read back equals warp's
 "$B/stillheart" run --group= --source "y4m:$T/ph/cam0.y4m" --no-loop --realtime --sink "shm:$SHM" --points "$T/points.csv" \
     --method tps --threads 2 --min-markers 3 2> "$T/shm.log" & pid=$!
-# up to 30 s for the segment: one aarch64 run (qemu, a disk stalling for seconds) took longer than
-# the 1 s this waited before, and stillheart-cat found no segment (issue 21's loop, run 6)
-i=0; while [ $i -lt 300 ] && [ ! -e "/dev/shm$SHM" ]; do sleep 0.1; i=$((i + 1)); done
+wait_segment
 "$B/stillheart-cat" --name "$SHM" --count 20 --timeout 5 -v > "$T/cat.y4m" 2> "$T/cat.log"
 wait $pid
 warp_as_logged "$T/shm.log" "$T/warp-shm.y4m"
@@ -529,7 +532,7 @@ PY
 #    320x180: compressing is the slow part, and a loaded machine must still leave frames to compare
 "$B/stillheart-render" --preset exvivo --frames 40 --cameras 1 --width 320 --height 180 --out "$T/small" >/dev/null 2>&1
 $RUN --source "y4m:$T/small/cam0.y4m" --no-loop --realtime --sink "shm:$SHM" --record "png:$T/png" --min-markers 4 2> "$T/png.log" & pid=$!
-for i in 1 2 3 4 5 6 7 8 9 10; do [ -e "/dev/shm$SHM" ] && break; sleep 0.1; done
+wait_segment
 "$B/stillheart-cat" --name "$SHM" --count 25 --timeout 5 -v > "$T/catpng.y4m" 2> "$T/catpng.log"
 wait $pid
 python3 - "$T/catpng.y4m" "$T/catpng.log" "$T/png" <<'PY' && ok "PNG record equals the shm frames" || bad "PNG record equals the shm frames" "see above"
