@@ -71,12 +71,12 @@ typedef enum {
 } sh_flow_status;
 
 /* Follows n points from prev to next (pyramids of the same size and params; prev built with
- * its gradients, else SH_EINVAL). xy: x0,y0,... in
- * prev; out: their positions in next (out may alias nothing). status[i] says whether point i
- * was followed; err[i] (may be NULL) is the mean absolute difference of the two windows at the
+ * its gradients, else SH_EINVAL). xy: x0,y0,... in prev; out: their positions in next.
+ * status[i] says whether point i was followed; err[i] (may be NULL) is the mean absolute difference of the two windows at the
  * result, in grey levels (OpenCV's default error measure). When guess is not NULL it holds a
  * starting position in next for each point (OpenCV's OPTFLOW_USE_INITIAL_FLOW): the heartbeat
- * model's prediction. Points whose status is not OK have out set to their last estimate. */
+ * model's prediction. Points whose status is not OK have out set to their last estimate. out
+ * may be xy or guess: each point is read before its result is written. */
 sh_status sh_flow_track(const sh_flow_params *params, const sh_flow_pyramid *prev,
                         const sh_flow_pyramid *next, int n, const float *xy, const float *guess,
                         float *out, uint8_t *status, float *err);
@@ -95,8 +95,9 @@ void sh_flow_corner_params_default(sh_flow_corner_params *p);
  * pixel may become a corner only where it is non-zero. Responses are local maxima of the
  * minimum eigenvalue over 3x3 pixels, at least quality times the strongest in the mask, taken
  * strongest first (ties by position, so the choice is the same on every run) with no two
- * closer than min_distance. Scratch of width x height floats is allocated per call: this runs
- * once per reference or re-seeding, not per frame. */
+ * closer than min_distance. About 8 bytes of scratch a pixel (the gradients, then the
+ * responses) are allocated per call: this runs once per reference or re-seeding, not per
+ * frame. */
 sh_status sh_flow_corners(const sh_plane *luma, const sh_plane *mask,
                           const sh_flow_corner_params *params, float *xy, int *n);
 

@@ -87,7 +87,8 @@ static int allowed(const sh_plane *mask, int x, int y)
     return !mask || mask->data[(size_t)y * (size_t)mask->stride + (size_t)x] != 0;
 }
 
-/* Local maxima over 3x3 of the thresholded responses, inside the mask, off the frame's edge. */
+/* Local maxima over 3x3 of the thresholded responses, inside the mask, off the frame's edge,
+ * into out (NULL: only counted). */
 static int collect(const float *eig, int w, int h, const sh_plane *mask, candidate *out)
 {
     int n = 0;
@@ -103,9 +104,17 @@ static int collect(const float *eig, int w, int h, const sh_plane *mask, candida
                         peak = 0;
                         break;
                     }
-            if (peak) out[n++] = (candidate){v, y * w + x};
+            if (!peak) continue;
+            if (out) out[n] = (candidate){v, y * w + x};
+            n++;
         }
     return n;
+}
+
+/* The side of the distance grid's cells: the distance, or 0 (no grid, no check) below 1 px. */
+static int grid_cell(const sh_flow_corner_params *prm)
+{
+    return prm->min_distance >= 1.0 ? (int)lrint(prm->min_distance) : 0;
 }
 
 /* Takes candidates in order, skipping any closer than min_distance to one taken, with a grid
@@ -114,7 +123,7 @@ static int spread(const candidate *c, int nc, int w, int h, const sh_flow_corner
                   int *head, int *next, float *xy)
 {
     const double d2 = prm->min_distance * prm->min_distance;
-    const int cell = prm->min_distance >= 1.0 ? (int)lrint(prm->min_distance) : 0;
+    const int cell = grid_cell(prm);
     const int gw = cell ? (w + cell - 1) / cell : 1, gh = cell ? (h + cell - 1) / cell : 1;
     for (int i = 0; i < gw * gh; i++) head[i] = -1;
     int n = 0;
@@ -164,19 +173,19 @@ sh_status sh_flow_corners(const sh_plane *luma, const sh_plane *mask,
                             prm->max_points, prm->quality, prm->min_distance, prm->block,
                             MAX_CORNERS, w + h);
     const size_t px = (size_t)w * (size_t)h;
+    const int cell = grid_cell(prm);
+    const size_t cells = cell ? (size_t)((w + cell - 1) / cell) * (size_t)((h + cell - 1) / cell) : 1;
     int16_t *g = malloc(px * 2 * sizeof *g);
     float *eig = malloc(px * sizeof *eig);
     int64_t *colsum = malloc((size_t)w * 3 * sizeof *colsum);
-    /* a plateau of equal responses makes every pixel of it a maximum, as in OpenCV */
-    candidate *cand = malloc(px * sizeof *cand);
-    int *head = malloc(px * sizeof *head), *next = malloc((size_t)prm->max_points * sizeof *next);
+    int *head = malloc(cells * sizeof *head), *next = malloc((size_t)prm->max_points * sizeof *next);
+    candidate *cand = NULL;
     sh_status st = SH_OK;
-    if (!g || !eig || !colsum || !cand || !head || !next) {
-        st = sh_error_set(SH_ENOMEM, "flow: corners: out of memory for a %dx%d frame", w, h);
-        goto out;
-    }
+    if (!g || !eig || !colsum || !head || !next) goto nomem;
     sobel(luma, g);
     min_eigen(g, w, h, prm->block, colsum, eig);
+    free(g); /* the largest scratch: not needed past the responses */
+    g = NULL;
     float top = 0.f;
     for (int y = 0; y < h; y++)
         for (int x = 0; x < w; x++)
@@ -184,9 +193,17 @@ sh_status sh_flow_corners(const sh_plane *luma, const sh_plane *mask,
     const float floor_v = (float)(top * prm->quality);
     for (size_t i = 0; i < px; i++)
         if (!(eig[i] > floor_v)) eig[i] = 0.f;
-    int nc = collect(eig, w, h, mask, cand);
+    /* counted first: a plateau of equal responses makes every pixel of it a maximum (as in
+     * OpenCV), so the count has no useful bound short of the frame's size */
+    int nc = collect(eig, w, h, mask, NULL);
+    cand = malloc((size_t)(nc > 0 ? nc : 1) * sizeof *cand);
+    if (!cand) goto nomem;
+    collect(eig, w, h, mask, cand);
     qsort(cand, (size_t)nc, sizeof *cand, stronger);
     *n = spread(cand, nc, w, h, prm, head, next, xy);
+    goto out;
+nomem:
+    st = sh_error_set(SH_ENOMEM, "flow: corners: out of memory for a %dx%d frame", w, h);
 out:
     free(g);
     free(eig);
