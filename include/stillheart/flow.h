@@ -37,7 +37,7 @@ extern "C" {
 typedef struct {
     int win;          /* window side in pixels, odd, 5..SH_FLOW_MAX_WIN (21, as OpenCV's default) */
     int levels;       /* pyramid levels above the base, 0..SH_FLOW_MAX_LEVELS (3) */
-    int max_iter;     /* Gauss-Newton steps per level, at least 1 (30) */
+    int max_iter;     /* Gauss-Newton steps per level, 1..100 (30) */
     double eps;       /* px: a level stops when its step is shorter (0.01) */
     double min_eig;   /* the window's smallest structure-tensor eigenvalue, normalized as
                        * OpenCV's minEigThreshold, below which a point is lost (1e-4) */

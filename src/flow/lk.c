@@ -119,11 +119,12 @@ static uint8_t track_point(const sh_flow_params *prm, const sh_flow_pyramid *pre
             ddx = dx;
             ddy = dy;
         }
-        if (lv == 0 && status == SH_FLOW_OK && err) {
+        /* the last step may have left the image: said so whether or not err is asked for */
+        if (lv == 0 && status == SH_FLOW_OK) {
             float ex = nx - half, ey = ny - half;
             if (!inside(L1, ex, ey, win)) {
                 status = SH_FLOW_OUTSIDE;
-            } else {
+            } else if (err) {
                 int jx = (int)floorf(ex), jy = (int)floorf(ey);
                 bilinear(ex - (float)jx, ey - (float)jy, w);
                 *err = (float)abs_mismatch(L1, jx, jy, w, win, s) * (1.f / (float)(32 * win * win));

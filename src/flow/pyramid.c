@@ -28,8 +28,9 @@ static sh_status check_params(const sh_flow_params *p)
     if (p->levels < 0 || p->levels > SH_FLOW_MAX_LEVELS)
         return sh_error_set(SH_EINVAL, "flow: %d pyramid levels, need 0..%d", p->levels,
                             SH_FLOW_MAX_LEVELS);
-    if (p->max_iter < 1 || !(p->eps >= 0) || !(p->min_eig >= 0))
-        return sh_error_set(SH_EINVAL, "flow: steps %d, eps %g, min_eig %g: need steps >= 1 and "
+    /* 100 steps at most, as OpenCV clamps them: a point that has not settled by then will not */
+    if (p->max_iter < 1 || p->max_iter > 100 || !(p->eps >= 0) || !(p->min_eig >= 0))
+        return sh_error_set(SH_EINVAL, "flow: steps %d, eps %g, min_eig %g: need 1..100 steps and "
                             "eps, min_eig >= 0", p->max_iter, p->eps, p->min_eig);
     return SH_OK;
 }

@@ -309,6 +309,9 @@ static void test_refusals(void **state)
     prm.levels = SH_FLOW_MAX_LEVELS + 1;
     assert_int_equal(sh_flow_pyramid_create(64, 64, &prm, &a), SH_EINVAL);
     prm.levels = 3;
+    prm.max_iter = 101;
+    assert_int_equal(sh_flow_pyramid_create(64, 64, &prm, &a), SH_EINVAL);
+    prm.max_iter = 30;
     assert_int_equal(sh_flow_pyramid_create(1, 64, &prm, &a), SH_EINVAL);
     assert_null(a);
     /* 64 px: level 1 is 32 (> 21) and built, level 2 would be 16 (<= 21) and is not */
