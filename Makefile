@@ -137,7 +137,7 @@ deps:
 # ---- per-module optimisation: $(OPT) everywhere but in this table. -O3 lets gcc vectorize the
 # per-pixel loops, each measured in make bench: src/warp the position fill (bench_warp) and the
 # outside fill (bench_outside), src/pixconv the pixel-format loops (bench_pixconv), src/screen the
-# display's YUV to XRGB rows (bench_screen) ----
+# display's YUV to XRGB rows (bench_screen), src/flow the pyramid's 16-bit reduction (bench_flow) ----
 $(BUILD)/src/warp/%.o:    CFLAGS_ALL += -O3
 $(BUILD)/src/pixconv/%.o: CFLAGS_ALL += -O3
 $(BUILD)/src/screen/%.o:  CFLAGS_ALL += -O3

@@ -25,10 +25,10 @@ pkgs="build-essential pkg-config libcmocka-dev libqhull-dev libeigen3-dev libkis
       libopencv-core-dev libopencv-imgproc-dev clang llvm libclang-rt-14-dev
       libosmesa6-dev libapriltag-dev libopencv-calib3d-dev libturbojpeg0-dev libgpiod-dev libcamera-dev
       libinih-dev libsystemd-dev python3 strace groff-base ffmpeg libdrm-dev libopencv-video-dev"
-# libopencv-video-dev: cv::calcOpticalFlowPyrLK, the oracle of src/flow's tracker (test_flow_opencv)
 # ffmpeg: the README's "Stabilize your own video" runs through it, and test_readme_video runs that
 # section as written (37 packages, about 27 MB to download on Debian 12: the price of a README
 # that is known to work)
+# libopencv-video-dev: cv::calcOpticalFlowPyrLK, the oracle of src/flow's tracker (test_flow_opencv)
 for arg in "$@"; do
     case "$arg" in
         # cv::remap lives in opencv-imgproc, already listed; the Python script that is
