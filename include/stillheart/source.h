@@ -89,6 +89,12 @@ sh_status sh_source_format(const sh_source *src, sh_rawfmt *format, int *width, 
 /* Bytes per row of plane 0 of the frames (the driver's bytesperline; 0 for MJPEG). */
 int sh_source_stride(const sh_source *src);
 sh_status sh_source_start(sh_source *src);
+/* sh_source_start with the schedule of a replay (y4m:, rec:) starting at clock_ns
+ * (CLOCK_MONOTONIC, sh_monotonic_ns): replays started one after another with the same clock_ns
+ * stamp their frames alike (frame k of a y4m: at clock_ns + k/fps), so a rig of replays forms
+ * frame sets however long the starts between them took. Cameras ignore it: their frames carry
+ * the driver's times. sh_source_start is this with the time of the call. */
+sh_status sh_source_start_at(sh_source *src, int64_t clock_ns);
 /* A file descriptor that becomes readable when a frame may be ready; -1 while a camera is down. */
 int sh_source_fd(const sh_source *src);
 /* Waits up to timeout_ms (0: no wait, -1: until a frame or an error) for the next frame. *got is

@@ -328,10 +328,11 @@ static int job_open(record_job *j)
         sh_log_info("camera %d: %s, %dx%d %s at %d/%d fps", i, o->specs[i], s.width, s.height,
                     sh_rawfmt_name(s.format), s.fps_num, s.fps_den);
     }
-    /* started back to back, after the stream records are written: a replay's schedule starts at
-     * its start, so the gap between two starts would offset the cameras' stamps */
+    /* started after the stream records are written, every replay's schedule at one instant: a
+     * gap between two starts would offset the cameras' stamps */
+    int64_t t0 = sh_monotonic_ns();
     for (int i = 0; i < j->nspec; i++)
-        if (sh_source_start(j->src[i]) != SH_OK) {
+        if (sh_source_start_at(j->src[i], t0) != SH_OK) {
             sh_log_error("%s", sh_error_message());
             return 0;
         }

@@ -105,7 +105,7 @@ static void arm(rec_source *r) { sh_replay_arm(&r->rp, r->have_next ? due_of(r) 
 static sh_status r_start(sh_source *s)
 {
     rec_source *r = (rec_source *)s;
-    r->start = sh_monotonic_ns();
+    r->start = s->start_ns;
     arm(r);
     return SH_OK;
 }

@@ -80,10 +80,13 @@ sh_status sh_source_format(const sh_source *s, sh_rawfmt *format, int *width, in
 
 int sh_source_stride(const sh_source *s) { return s ? s->stride : 0; }
 
-sh_status sh_source_start(sh_source *s)
+sh_status sh_source_start(sh_source *s) { return sh_source_start_at(s, sh_monotonic_ns()); }
+
+sh_status sh_source_start_at(sh_source *s, int64_t clock_ns)
 {
     if (!s) return sh_error_set(SH_EINVAL, "source: NULL");
     if (s->started) return SH_OK;
+    s->start_ns = clock_ns;
     sh_status st = s->ops->start(s);
     if (st == SH_OK) s->started = 1;
     return st;

@@ -27,6 +27,7 @@ struct sh_source {
     int width, height, stride;
     int fps_num, fps_den;
     int started;
+    int64_t start_ns;        /* sh_source_start_at's clock: where a replay's schedule begins */
     char damage[640];        /* sh_source_damage */
 };
 

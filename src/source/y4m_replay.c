@@ -34,7 +34,7 @@ typedef struct {
 static sh_status y_start(sh_source *s)
 {
     y4m_source *y = (y4m_source *)s;
-    y->t0 = sh_monotonic_ns();
+    y->t0 = s->start_ns;
     y->k = 0;
     sh_replay_arm(&y->rp, y->t0);
     return SH_OK;

@@ -185,6 +185,45 @@ static void test_fast_replay(void **state)
     sh_source_close(s);
 }
 
+/* Two replays of one rig started 30 ms apart (as a loaded machine may start them): each one's
+ * own start puts its schedule 30 ms after the other's, more than the quarter period a frame set
+ * allows; sh_source_start_at with one clock gives frame k of both the stamp clock + k/fps
+ * exactly, however late the second start. */
+static void test_replays_share_a_start(void **state)
+{
+    (void)state;
+    write_y4m(25, 1); /* 40 ms a frame: sets take stamps within 10 ms */
+    sh_source_options o;
+    sh_source_options_default(&o);
+    o.realtime = 0;
+    for (int shared = 0; shared < 2; shared++) {
+        sh_source *s[2];
+        int64_t clock = sh_monotonic_ns();
+        for (int c = 0; c < 2; c++) {
+            assert_int_equal(sh_source_open(spec, &o, &s[c]), SH_OK);
+            if (c) usleep(30000);
+            assert_int_equal(shared ? sh_source_start_at(s[c], clock) : sh_source_start(s[c]), SH_OK);
+        }
+        for (int k = 0; k < N; k++) {
+            int64_t ts[2];
+            for (int c = 0; c < 2; c++) {
+                sh_source_frame fr;
+                int got;
+                assert_int_equal(sh_source_dequeue(s[c], 0, &fr, &got), SH_OK);
+                assert_int_equal(got, 1);
+                ts[c] = fr.timestamp_ns;
+                assert_int_equal(sh_source_release(s[c], &fr), SH_OK);
+            }
+            if (shared) {
+                assert_true(ts[0] == clock + (int64_t)k * 40000000 && ts[1] == ts[0]);
+            } else if (ts[1] - ts[0] < 30000000) {
+                fail_msg("frame %d: started 30 ms apart, the stamps differ by only %lld ns", k, (long long)(ts[1] - ts[0]));
+            }
+        }
+        for (int c = 0; c < 2; c++) sh_source_close(s[c]);
+    }
+}
+
 /* A loop flags the first frame of each new pass a discontinuity (the scene jumps there), and
  * only it; a file tagged XLOOP=SEAMLESS (its end joins its start) flags none, and the tag counts
  * only as a whole word (XLOOP=SEAMLESSLY is another tag). */
@@ -401,6 +440,7 @@ int main(void)
         cmocka_unit_test(test_realtime_schedule),
         cmocka_unit_test(test_ntsc_rate_and_poll),
         cmocka_unit_test(test_fast_replay),
+        cmocka_unit_test(test_replays_share_a_start),
         cmocka_unit_test(test_loop_discontinuity),
         cmocka_unit_test(test_damaged_replays),
         cmocka_unit_test(test_hostile_headers),
