@@ -78,6 +78,9 @@ typedef struct {
     double smoothing;
     double grid;                     /* warp grid spacing in px; 0 = from the error bound */
     char calibration[SH_CONFIG_STR]; /* the cameras' calibration YAML: 3D tracking and warp ("" = 2D) */
+    int view;                        /* 3D: SH_VIEW_REFERENCE (0, the output camera's own) or SH_VIEW_STEREO */
+    double baseline;                 /* stereo: mm between the virtual eyes */
+    int layout;                      /* stereo: sh_warp3d_layout (sbs, tb, sbs-half, tb-half) */
     /* [reference] */
     int reference_frame;             /* 0: first good frame; N: the N-th frame (1-based) */
     int on_camera_motion;            /* SH_CAMERA_MOTION_NEW (0) or _KEEP (1) */
@@ -107,6 +110,12 @@ typedef struct {
 /* [reference] on_camera_motion: once a moved endoscope has settled, a new reference is taken
  * (new, the default) or the old one is kept (keep). */
 enum { SH_CAMERA_MOTION_NEW = 0, SH_CAMERA_MOTION_KEEP = 1 };
+
+/* [method] view: what a calibrated rig's stabilized surface is shown as: the output camera's own
+ * view (reference) or the stereo pair of paper section IV, two virtual eyes [method] baseline
+ * apart around the output camera, in the frame [method] layout arranges (warp3d.h). */
+enum { SH_VIEW_REFERENCE = 0, SH_VIEW_STEREO = 1 };
+#define SH_CONFIG_BASELINE_DEFAULT 10.0 /* mm, as `stillheart warp3d --baseline` */
 
 /* [sink] outside: what a warped frame shows outside the markers' hull: black (the paper's) or
  * the current, unstabilized frame dimmed, with a boundary line (sh_warp_outside, warp.h). */

@@ -72,6 +72,11 @@ sh_status sh_image_wrap(sh_image *img, sh_pixfmt format, int width, int height, 
 
 void sh_image_destroy(sh_image *img);
 
+/* A view of the width x height window of img at (x, y): the same memory and strides, nothing
+ * allocated (view->owned is NULL: sh_image_destroy leaves img's pixels alone). I420 windows
+ * start at even offsets. SH_EINVAL when the window does not lie inside img. */
+sh_status sh_image_window(const sh_image *img, int x, int y, int width, int height, sh_image *view);
+
 /* Copies pixels between two images of the same format and size (strides may differ). */
 sh_status sh_image_copy(sh_image *dst, const sh_image *src);
 

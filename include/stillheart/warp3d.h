@@ -76,6 +76,12 @@ double sh_warp3d_model_height(const sh_warp3d_model *model, double u, double v);
 void sh_warp3d_model_point(const sh_warp3d_model *model, double u, double v, double depth_scale,
                            int current, double X[3]);
 
+/* Surface parameter (X', Y') where the ray through pixel (x, y) of cam first meets the
+ * reference surface with its height scaled by depth_scale: what sh_warp3d_view_locate answers
+ * for a view seen from cam, without building one. SH_ERANGE on a miss. */
+sh_status sh_warp3d_model_locate(const sh_warp3d_model *model, const sh_calib_camera *cam, double depth_scale,
+                                 double x, double y, double uv[2]);
+
 /* ---- cameras (OpenCV's pinhole + distortion model, as the calibration file holds it) ---- */
 
 /* Pixel of a world point, distortion applied. Returns 0 when the point is not in front. */
@@ -133,6 +139,42 @@ sh_status sh_warp3d_view_apply(sh_warp *warp, const sh_warp3d_view *view, const 
  * Same format; the halved size must be even (a multiple of 4 for I420, whose chroma is halved
  * too) and the window's offsets even for I420. */
 sh_status sh_warp3d_squeeze(const sh_image *full, int axis, sh_image *out, int ox, int oy);
+
+/* The stereo pair's frame (paper section IV: the two eyes of a 3D monitor), one of four layouts:
+ * side by side (2W x H), top and bottom (W x 2H), and the same squeezed into one W x H frame
+ * (each eye halved along x or y: what 3D televisions take). Eye 0 (left) comes first: left or
+ * top. `stillheart warp3d --layout` and the daemon's [method] layout name them alike. */
+typedef enum {
+    SH_WARP3D_SBS = 0,
+    SH_WARP3D_TB,
+    SH_WARP3D_SBS_HALF,
+    SH_WARP3D_TB_HALF,
+    SH_WARP3D_LAYOUT_COUNT
+} sh_warp3d_layout;
+
+/* "sbs", "tb", "sbs-half", "tb-half"; SH_EINVAL with the choices otherwise. */
+sh_status sh_warp3d_layout_parse(const char *name, sh_warp3d_layout *out);
+const char *sh_warp3d_layout_name(sh_warp3d_layout layout);
+/* 1 for the squeezed layouts, whose eyes are rendered at full size elsewhere and placed. */
+int sh_warp3d_layout_half(sh_warp3d_layout layout);
+/* The frame holding two width x height eyes of format. SH_EINVAL naming the rule when it cannot
+ * be made: a squeezed side not a multiple of 2 (4 for I420), or a side over SH_IMAGE_MAX_SIZE. */
+sh_status sh_warp3d_layout_size(sh_warp3d_layout layout, sh_pixfmt format, int width, int height, int *frame_width,
+                                int *frame_height);
+/* Full-size layouts only: the view (sh_image_window) of frame where eye's width x height
+ * picture goes, to render into directly. */
+sh_status sh_warp3d_layout_window(sh_warp3d_layout layout, int eye, const sh_image *frame, int width, int height,
+                                  sh_image *view);
+/* Puts eye's full-size picture eye_img in its place in frame: copied, or squeezed
+ * (sh_warp3d_squeeze) in the half layouts. */
+sh_status sh_warp3d_layout_place(sh_warp3d_layout layout, int eye, const sh_image *eye_img, sh_image *frame);
+/* Renders the two eyes' views (views[0] left, views[1] right, each of current's size) of current
+ * into frame in layout. outside (may be NULL, or either entry): the eye's pixels outside its
+ * hull filled by sh_warp_outside_apply (made for current's format and size) instead of left
+ * black. eye: a current-sized scratch image, needed by the squeezed layouts only (may be NULL
+ * otherwise). Allocation-free. */
+sh_status sh_warp3d_stereo_apply(sh_warp *warp, const sh_warp3d_view *const views[2], sh_warp_outside *const outside[2],
+                                 sh_warp3d_layout layout, const sh_image *current, sh_image *eye, sh_image *frame);
 
 /* ---- PLY export of the surface ---- */
 

@@ -117,37 +117,13 @@ static int parse_pose(const char *text, double rvec[3], double tvec[3])
 
 /* Writes the stabilized frame: one view, or the two eyes in their layout. Raw: the input in
  * every view's place. Half layouts render each eye into `eye` (W x H) and squeeze it. */
-static sh_status render(sh_warp *warp, const sh_modelcache_entry *s, int nviews, int tb, int half, sh_image *eye,
-                        const sh_image *in, sh_image *out, int raw)
+static sh_status render(sh_warp *warp, const sh_modelcache_entry *s, int nviews, sh_warp3d_layout layout,
+                        sh_image *eye, const sh_image *in, sh_image *out, int raw)
 {
-    if (half && nviews == 2) {
-        for (int v = 0; v < 2; v++) {
-            sh_status st = raw ? SH_OK : sh_warp3d_view_apply(warp, s->view[v], in, eye, 0, 0);
-            if (st == SH_OK)
-                st = sh_warp3d_squeeze(raw ? in : eye, tb, out, tb ? 0 : v * in->width / 2, tb ? v * in->height / 2 : 0);
-            if (st != SH_OK) return st;
-        }
-        return SH_OK;
-    }
-    for (int v = 0; v < nviews; v++) {
-        int ox = tb ? 0 : v * in->width, oy = tb ? v * in->height : 0;
-        sh_status st;
-        if (raw) {
-            if (nviews == 1) return sh_image_copy(out, in);
-            for (int p = 0; p < in->num_planes; p++) {
-                int sub = in->format == SH_PIX_I420 && p > 0;
-                int px = sub ? ox / 2 : ox, py = sub ? oy / 2 : oy;
-                size_t bpp = (size_t)(p == 0 ? sh_pixfmt_channels(in->format) : 1);
-                for (int y = 0; y < in->plane[p].height; y++)
-                    memcpy(out->plane[p].data + (size_t)(py + y) * out->plane[p].stride + px * bpp,
-                           in->plane[p].data + (size_t)y * in->plane[p].stride,
-                           (size_t)in->plane[p].width * bpp);
-            }
-            continue;
-        }
-        if ((st = sh_warp3d_view_apply(warp, s->view[v], in, out, ox, oy)) != SH_OK) return st;
-    }
-    return SH_OK;
+    if (nviews == 1) return raw ? sh_image_copy(out, in) : sh_warp3d_view_apply(warp, s->view[0], in, out, 0, 0);
+    if (!raw) return sh_warp3d_stereo_apply(warp, (const sh_warp3d_view *const *)s->view, NULL, layout, in, eye, out);
+    sh_status st = sh_warp3d_layout_place(layout, 0, in, out);
+    return st == SH_OK ? sh_warp3d_layout_place(layout, 1, in, out) : st;
 }
 
 /* What the command line asks for; filled by parse_options only (the options/runtime split of
@@ -157,7 +133,8 @@ typedef struct {
     sh_warp3d_params p3; /* --method, --surface-method, --displacement-method and --sigma */
     double baseline, depth_scale, max_error, ply_spacing;
     int camera, reference, threads, quiet, ply_mesh, ply_every, ply_texture;
-    int stereo, tb, half, pose; /* --view and --layout */
+    int stereo, pose;           /* --view ... */
+    sh_warp3d_layout layout_id; /* ... and --layout */
     double rvec[3], tvec[3];    /* --view pose: */
 } warp3d_options;
 
@@ -175,9 +152,7 @@ static int parse_view(warp3d_options *o)
         sh_log_error("--view %s: reference, stereo or pose:...", o->view);
         return 2;
     }
-    if (!strcmp(o->layout, "tb") || !strcmp(o->layout, "tb-half")) o->tb = 1;
-    o->half = !strcmp(o->layout, "sbs-half") || !strcmp(o->layout, "tb-half");
-    if (!o->tb && !o->half && strcmp(o->layout, "sbs")) {
+    if (sh_warp3d_layout_parse(o->layout, &o->layout_id) != SH_OK) {
         sh_log_error("--layout %s: sbs, tb, sbs-half or tb-half", o->layout);
         return 2;
     }
@@ -350,25 +325,14 @@ static int open_output(warp3d_job *j)
     const sh_y4m_header *hdr = sh_y4m_reader_header(s->reader);
     j->out_hdr = *hdr;
     if (app_stab_tag(&j->out_hdr, "method3d", &o->p3.surface, &o->p3.displacement)) return 1;
-    if (o->stereo && !o->half) {
-        if (o->tb) j->out_hdr.height *= 2;
-        else j->out_hdr.width *= 2;
-    }
-    if (o->stereo && o->half && (o->tb ? hdr->height : hdr->width) % (hdr->format == SH_PIX_I420 ? 4 : 2)) {
-        sh_log_error("--layout %s: the frame's %s (%d) must be a multiple of %d", o->layout,
-                     o->tb ? "height" : "width", o->tb ? hdr->height : hdr->width, hdr->format == SH_PIX_I420 ? 4 : 2);
-        return 1;
-    }
-    if (j->out_hdr.width > SH_IMAGE_MAX_SIZE || j->out_hdr.height > SH_IMAGE_MAX_SIZE) {
-        sh_log_error("the stereo frame %dx%d is too large", j->out_hdr.width,
-                     j->out_hdr.height);
-        return 1;
-    }
+    if (o->stereo && sh_warp3d_layout_size(o->layout_id, hdr->format, hdr->width, hdr->height, &j->out_hdr.width,
+                                           &j->out_hdr.height) != SH_OK)
+        return app_fail("--layout");
     if (sh_image_create(&s->in, hdr->format, hdr->width, hdr->height) != SH_OK ||
         sh_image_create(&s->out, hdr->format, j->out_hdr.width, j->out_hdr.height) != SH_OK ||
         sh_image_create(&s->ref, hdr->format, hdr->width, hdr->height) != SH_OK ||
         (o->ply_dir && sh_image_create(&j->rgb, SH_PIX_RGB24, hdr->width, hdr->height) != SH_OK) ||
-        (o->stereo && o->half && sh_image_create(&j->eye, hdr->format, hdr->width, hdr->height) != SH_OK))
+        (o->stereo && sh_warp3d_layout_half(o->layout_id) && sh_image_create(&j->eye, hdr->format, hdr->width, hdr->height) != SH_OK))
         return app_fail("frame buffers");
     if (sh_warp_create(o->threads, &s->warp) != SH_OK) return app_fail("threads");
     if (o->ply_dir) {
@@ -405,7 +369,7 @@ static int warp3d_open(warp3d_job *j, const warp3d_options *o)
         if (!app_read_frame_at(o->in_path, o->reference, &s->ref)) return app_fail("reference frame");
         if (sh_warp3d_model_update(j->slot->m3, s->cur) != SH_OK ||
             sh_warp3d_view_update(j->slot->view[0]) != SH_OK ||
-            render(s->warp, j->slot, 1, 0, 0, NULL, &s->ref, &s->out, 0) != SH_OK ||
+            render(s->warp, j->slot, 1, o->layout_id, NULL, &s->ref, &s->out, 0) != SH_OK ||
             sh_metric_create(&s->ref, sh_warp3d_view_hull(j->slot->view[0]), s->full_range, &s->metric_in) != SH_OK ||
             sh_metric_create(&s->out, sh_warp3d_view_hull(j->slot->view[0]), s->full_range, &s->metric_out) != SH_OK)
             return app_fail("reference frame");
@@ -446,10 +410,10 @@ static int warp3d_frame(void *job)
               sh_warp3d_model_update(j->slot->m3, s->cur) != SH_OK;
     for (int v = 0; v < nviews && !raw; v++)
         raw = sh_warp3d_view_update(j->slot->view[v]) != SH_OK;
-    if (!raw && render(s->warp, j->slot, nviews, o->tb, o->half, &j->eye, &s->in, &s->out, 0) != SH_OK) raw = 1;
+    if (!raw && render(s->warp, j->slot, nviews, o->layout_id, &j->eye, &s->in, &s->out, 0) != SH_OK) raw = 1;
     if (raw) {
         app_stab_raw(s, "warp3d", n, 4, o->quiet);
-        render(s->warp, j->slot, nviews, o->tb, o->half, &j->eye, &s->in, &s->out, 1);
+        render(s->warp, j->slot, nviews, o->layout_id, &j->eye, &s->in, &s->out, 1);
     }
     s->warp_seconds += app_now() - t0;
     if (s->frames == o->reference && s->from_stdin && j->measure && !s->metric_in && !raw) {

@@ -68,6 +68,11 @@ static const keydef keys[] = {
     {"method", "smoothing", "smoothing", K_DOUBLE, PROC, F(smoothing), 0, 0, 1e9, "RBF smoothing lambda (0: interpolate)"},
     {"method", "grid", "grid", K_DOUBLE, PROC, F(grid), 0, 0, 256, "warp grid spacing in px (0: from the error bound)"},
     {"method", "calibration", "calibration", K_STR, PROC, F(calibration), S(calibration), 0, 0, "cameras' calibration YAML: 3D tracking and warp (\"\": 2D)"},
+    {"method", "view", "view", K_ENUM, PROC, F(view), 0, 0, 0,
+     "3D: reference (the output camera's view) | stereo (the pair of virtual eyes of a 3D monitor)", "reference|stereo"},
+    {"method", "baseline", "baseline", K_DOUBLE, PROC, F(baseline), 0, 0.001, 1e4, "stereo: mm between the two eyes"},
+    {"method", "layout", "layout", K_ENUM, PROC, F(layout), 0, 0, 0,
+     "stereo: sbs (2W x H) | tb (W x 2H) | sbs-half | tb-half (each eye halved into W x H)", "sbs|tb|sbs-half|tb-half"},
     {"reference", "frame", "reference", K_INT, PROC, F(reference_frame), 0, 0, 1e9, "0: first good frame; N: the N-th frame"},
     {"reference", "on_camera_motion", "on-camera-motion", K_ENUM, SH_CONFIG_GATING, F(on_camera_motion), 0, 0, 0,
      "a moved camera, once settled: new (a new reference) | keep (the old one)", "new|keep"},
@@ -123,6 +128,9 @@ void sh_config_default(sh_config *cfg)
     cfg->levels = 0;
     cfg->smoothing = 0;
     cfg->grid = 0;
+    cfg->view = SH_VIEW_REFERENCE;
+    cfg->baseline = SH_CONFIG_BASELINE_DEFAULT;
+    cfg->layout = 0; /* sbs */
     cfg->reference_frame = 0;
     cfg->min_markers = 6;
     cfg->max_residual_px = 3.0;
@@ -380,6 +388,15 @@ static sh_status check_method(const sh_config *cfg, char *err)
     if (g != 0 && (g != floor(g) || g < 1 || ((long)g & ((long)g - 1))))
         return refuse(cfg, "method", "grid", err, "%g px is not a power of two (the warp's grid spacing: 1, 2, 4, "
                       "... 256; 0: from the error bound)", g);
+    /* the stereo pair is a view of the reconstructed surface: only a calibrated rig has one */
+    if (cfg->view == SH_VIEW_STEREO && !cfg->calibration[0])
+        return refuse(cfg, "method", "view", err, "stereo needs a calibrated rig ([method] calibration): the two eyes "
+                      "see the surface reconstructed in 3D");
+    if (cfg->view != SH_VIEW_STEREO && cfg->baseline != SH_CONFIG_BASELINE_DEFAULT)
+        return refuse(cfg, "method", "baseline", err, "%g mm, but only the stereo view has eyes ([method] view = stereo)",
+                      cfg->baseline);
+    if (cfg->view != SH_VIEW_STEREO && cfg->layout != 0)
+        return refuse(cfg, "method", "layout", err, "only the stereo view has a layout ([method] view = stereo)");
     sh_interp_params method;
     sh_config_method(cfg, &method);
     int need = method_min_markers(method.method);

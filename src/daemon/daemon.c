@@ -18,6 +18,7 @@
 #include "stillheart/display.h"
 #include "stillheart/log.h"
 #include "stillheart/notify.h"
+#include "stillheart/warp3d.h"
 
 #define LAT_CAP (1 << 20)
 
@@ -132,9 +133,13 @@ sh_status sh_daemon_start(sh_daemon *d)
     const sh_config *cfg = &pl->cfg;
     sh_status st = run_pipeline_start(pl);
     if (st != SH_OK) return st;
-    sh_log_info("source %s %dx%d %s %.3f fps (%s%s), sink %s, method %s, %s",
+    char shown[96] = "";
+    if (cfg->view == SH_VIEW_STEREO)
+        snprintf(shown, sizeof shown, " shown as a %dx%d stereo pair (%s, baseline %g mm)", pl->out_hdr.width,
+                 pl->out_hdr.height, sh_warp3d_layout_name((sh_warp3d_layout)cfg->layout), cfg->baseline);
+    sh_log_info("source %s %dx%d %s %.3f fps (%s%s), sink %s%s, method %s, %s",
          cfg->camera[0].spec, pl->hdr.width, pl->hdr.height, sh_pixfmt_name(pl->hdr.format), run_source_fps(pl->src),
-         cfg->realtime ? "real time" : "as fast as possible", cfg->loop ? ", looping" : "", cfg->sink,
+         cfg->realtime ? "real time" : "as fast as possible", cfg->loop ? ", looping" : "", cfg->sink, shown,
          cfg->method_name, cfg->points[0] ? "markers from the points file (test mode)" : "markers detected");
     sh_notify("READY=1\nSTATUS=started, waiting for the reference frame");
 

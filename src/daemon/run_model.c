@@ -22,7 +22,7 @@ enum { EMPTY = 0, BUILDING, READY, FAILED };
 
 /* A slot: the marker set's entry (modelcache.h: key, models, LRU stamp) and what the daemon adds. */
 struct run_model {
-    sh_modelcache_entry e; /* 3D: the surface and the output camera's view of it (view[0]) */
+    sh_modelcache_entry e; /* 3D: the surface and its views (the output camera's, or the two eyes) */
     double uv[2 * SH_TRACK_MAX_MARKERS]; /* 3D: each marker's surface parameter (for the residual; NaN
                                      * where the view's ray misses) */
     const run_models *owner; /* its camera, for the 3D residual */
@@ -42,7 +42,7 @@ typedef struct {
 } generation;
 
 struct run_models {
-    sh_modelcache_recipe recipe; /* 2D, or 3D after run_models_set_3d (one view: the camera's own) */
+    sh_modelcache_recipe recipe; /* 2D, or 3D after run_models_set_3d (the camera's own view, or two eyes) */
     int wait;
     pthread_mutex_t mu;
     pthread_cond_t cv;      /* the helper waits for work; waiters for results */
@@ -78,8 +78,11 @@ static sh_status model_build(const run_models *m, run_model *md)
     sh_status st = sh_modelcache_entry_build(&md->e, &m->recipe);
     if (st != SH_OK) return st;
     if (m->recipe.three_d) {
+        /* where the output camera's ray through the marker meets the surface: the residual is
+         * measured in that camera whichever cameras the views are seen from */
         for (int k = 0; k < e->n; k++)
-            if (sh_warp3d_view_locate(e->view[0], e->ref_xy[2 * k], e->ref_xy[2 * k + 1], &md->uv[2 * k]) != SH_OK)
+            if (sh_warp3d_model_locate(e->m3, &m->recipe.source_cam, m->recipe.vopts.depth_scale, e->ref_xy[2 * k],
+                                       e->ref_xy[2 * k + 1], &md->uv[2 * k]) != SH_OK)
                 md->uv[2 * k] = md->uv[2 * k + 1] = NAN;
         return SH_OK;
     }
@@ -94,7 +97,7 @@ static sh_status update_3d(const run_models *m, run_model *md, const double *cur
                            double *residual)
 {
     sh_status st = sh_warp3d_model_update(md->e.m3, cur_xyz);
-    if (st == SH_OK) st = sh_warp3d_view_update(md->e.view[0]);
+    for (int v = 0; v < m->recipe.nviews && st == SH_OK; v++) st = sh_warp3d_view_update(md->e.view[v]);
     if (st != SH_OK) return st;
     double worst = -1;
     for (int k = 0; k < md->e.n; k++) {
@@ -412,13 +415,25 @@ const sh_warp_model *run_model_warp(const run_model *md)
     return md->e.view[0] ? sh_warp3d_view_map_model(md->e.view[0]) : md->e.model;
 }
 
-sh_status run_models_set_3d(run_models *m, const sh_calib *calib, int camera)
+int run_model_views(const run_model *md, const sh_warp3d_view *views[2])
+{
+    int n = md->owner ? md->owner->recipe.nviews : 0;
+    for (int v = 0; v < 2; v++) views[v] = v < n ? md->e.view[v] : NULL;
+    return n;
+}
+
+sh_status run_models_set_3d(run_models *m, const sh_calib *calib, int camera, double baseline)
 {
     if (camera < 0 || camera >= calib->num_cameras)
         return sh_error_set(SH_EINVAL, "calibration: no camera %d (%d cameras)", camera, calib->num_cameras);
+    if (baseline < 0 || !isfinite(baseline)) return sh_error_set(SH_EINVAL, "stereo: baseline %g mm", baseline);
     sh_modelcache_recipe *r = &m->recipe;
     r->source_cam = r->view_cam[0] = calib->cam[camera];
     r->nviews = 1;
+    if (baseline > 0) {
+        sh_warp3d_stereo_cameras(&calib->cam[camera], baseline, &r->view_cam[0], &r->view_cam[1]);
+        r->nviews = 2;
+    }
     sh_warp3d_params_default(&r->p3);
     r->p3.surface = r->p3.displacement = r->params;
     sh_warp3d_view_options_default(&r->vopts);

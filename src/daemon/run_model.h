@@ -10,6 +10,7 @@
 #include "stillheart/points.h"
 #include "stillheart/track.h"
 #include "stillheart/warp.h"
+#include "stillheart/warp3d.h"
 
 /* ---- models (run_model.c) ----
  * Everything that depends on the reference (the interpolant, the warp's grid basis, and the n
@@ -25,8 +26,9 @@ sh_status run_models_create(const sh_interp_params *params, const sh_warp_option
                             int height, int wait, run_models **out);
 /* 3D (before the first reference): models are warp3d surfaces over the markers' world positions
  * (params: the interpolant of surface and displacement), seen by calibration camera `camera`,
- * which is also the one whose frames are warped. */
-sh_status run_models_set_3d(run_models *m, const sh_calib *calib, int camera);
+ * which is also the one whose frames are warped; with baseline > 0 (mm) seen instead by the two
+ * eyes of a stereo pair around it (sh_warp3d_stereo_cameras). */
+sh_status run_models_set_3d(run_models *m, const sh_calib *calib, int camera, double baseline);
 void run_models_destroy(run_models *m);
 /* Requests a new reference (markers sorted by id, n <= SH_TRACK_MAX_MARKERS); its full-set model is
  * built first. A reference still being built is replaced. frame: for the log. */
@@ -48,7 +50,11 @@ int run_models_get(run_models *m, const int *ids, int n, run_model **out);
  * evaluated at a marker. */
 sh_status run_model_update(run_model *md, const double *cur_xy, const double *cur_xyz, const double *det_xy,
                            double *residual);
+/* The map a frame is warped with: the 2D model's, or the first 3D view's. */
 const sh_warp_model *run_model_warp(const run_model *md);
+/* 3D: the model's views (views[v] NULL past their count): 1, the output camera's own, or 2, the
+ * left and right eyes. 0 in 2D. */
+int run_model_views(const run_model *md, const sh_warp3d_view *views[2]);
 const int *run_model_ids(const run_model *md, int *n);
 int run_models_builds(const run_models *m);
 /* The residual alone, on a model built here (tests). */

@@ -154,12 +154,13 @@ sh_status run_pipeline_open(run_pipeline *p, const sh_config *cfg)
         p->hdr = *run_source_header(p->src);
         st = run_proc_create(cfg, &p->hdr, run_source_fps(p->src), run_source_cameras(p->src), &p->proc);
         input = st != SH_OK;
+        if (st == SH_OK) p->out_hdr = *run_proc_header(p->proc);
     }
-    if (st == SH_OK && shm_name(cfg)) st = display_create(cfg, &p->hdr, &p->disp);
-    if (st == SH_OK) st = black_frame(&p->hdr, &p->black);
-    if (st == SH_OK && cfg->record[0]) st = record_open(cfg, &p->hdr, &p->rec);
+    if (st == SH_OK && shm_name(cfg)) st = display_create(cfg, &p->out_hdr, &p->disp);
+    if (st == SH_OK) st = black_frame(&p->out_hdr, &p->black);
+    if (st == SH_OK && cfg->record[0]) st = record_open(cfg, &p->out_hdr, &p->rec);
     if (st == SH_OK && p->rec) log_record(cfg, p->rec);
-    if (st == SH_OK && cfg->v4l2[0]) st = v4l2_open(cfg, &p->hdr, &p->v4l2);
+    if (st == SH_OK && cfg->v4l2[0]) st = v4l2_open(cfg, &p->out_hdr, &p->v4l2);
     if (st == SH_OK && cfg->control[0] &&
         (st = run_ctl_open(cfg->control, cfg->control_group, cfg->group, &p->ctl)) != SH_OK)
         st = sh_error_set(st, "[run] control: %s", sh_error_message());
@@ -231,6 +232,7 @@ typedef struct {
     int same_name;       /* the display segment keeps its name ... */
     int keep_disp;       /* ... its geometry and format and every SH_CONFIG_DISPLAY key: kept as it is */
     int new_frames;      /* the output camera's geometry or format changed */
+    int new_shown;       /* the shown frames' (the sinks'): the camera's, or the stereo layout's */
     int black_made;      /* n's black frame is new */
     char again[512];     /* why the previous display could not be made again ("" when it could) */
 } changes;
@@ -246,7 +248,7 @@ static run_reload refuse(run_pipeline *p, run_pipeline *n, const changes *c, cha
     if (n->ctl != p->ctl) run_ctl_close(n->ctl);
     else if (c->ctl_groups) run_ctl_groups(p->ctl, p->cfg.control_group, p->cfg.group); /* they resolved before */
     if (n->v4l2 != p->v4l2) run_v4l2out_close(n->v4l2); /* nothing was written to it */
-    if (c->v4l2_closed && v4l2_open(&p->cfg, &p->hdr, &p->v4l2) != SH_OK) {
+    if (c->v4l2_closed && v4l2_open(&p->cfg, &p->out_hdr, &p->v4l2) != SH_OK) {
         sh_log_error("the previous %s; publishing there stopped", sh_error_message());
         p->v4l2 = NULL;
     }
@@ -283,7 +285,7 @@ static void describe(const run_pipeline *p, const run_pipeline *n, const changes
         add(what, cap, "cameras reopened");
     if (c->proc_text[0]) add(what, cap, "%s", c->proc_text);
     if (c->same_name && !c->keep_disp)
-        add(what, cap, "sink %s made again for %dx%d frames", fresh->sink, n->hdr.width, n->hdr.height);
+        add(what, cap, "sink %s made again for %dx%d frames", fresh->sink, n->out_hdr.width, n->out_hdr.height);
     else
         sh_config_describe(old, fresh, SH_CONFIG_DISPLAY, what, cap);
     sh_config_describe(old, fresh, SH_CONFIG_RECORD | SH_CONFIG_V4L2 | SH_CONFIG_CONTROL | SH_CONFIG_LIVE, what, cap);
@@ -301,7 +303,7 @@ static sh_status reload_record_control(run_pipeline *p, run_pipeline *n, changes
     sh_status st = SH_OK;
     if (c->record) {
         n->rec = NULL;
-        if (fresh->record[0] && (st = record_open(fresh, &n->hdr, &n->rec)) != SH_OK) return st;
+        if (fresh->record[0] && (st = record_open(fresh, &n->out_hdr, &n->rec)) != SH_OK) return st;
         if (n->rec) log_record(fresh, n->rec);
     }
     if (c->v4l2) {
@@ -311,7 +313,7 @@ static sh_status reload_record_control(run_pipeline *p, run_pipeline *n, changes
             c->v4l2_closed = 1;
         }
         n->v4l2 = NULL;
-        if (fresh->v4l2[0] && (st = v4l2_open(fresh, &n->hdr, &n->v4l2)) != SH_OK) return st;
+        if (fresh->v4l2[0] && (st = v4l2_open(fresh, &n->out_hdr, &n->v4l2)) != SH_OK) return st;
     }
     if (c->control) {
         n->ctl = NULL;
@@ -368,18 +370,23 @@ run_reload run_pipeline_reload(run_pipeline *p, const sh_config *fresh, char *wh
         if (st == SH_OK) n.hdr = *run_source_header(n.src);
     }
     c.new_frames = !same_frames(&n.hdr, &p->hdr);
-    c.v4l2 = (c.effects & SH_CONFIG_V4L2) || (c.new_frames && fresh->v4l2[0]);
-    c.keep_disp = c.same_name && !c.new_frames && !(c.effects & SH_CONFIG_DISPLAY);
-    if (st == SH_OK && c.processing)
+    if (st == SH_OK && c.processing) {
         st = run_proc_create(fresh, &n.hdr, run_source_fps(n.src), run_source_cameras(n.src), &n.proc);
-    else if (st == SH_OK && (c.effects & SH_CONFIG_GATING))
+        if (st == SH_OK) n.out_hdr = *run_proc_header(n.proc);
+    } else if (st == SH_OK && (c.effects & SH_CONFIG_GATING)) {
         st = run_proc_check(fresh, &n.hdr); /* min_markers: the model the frames allow (run_proc_create's check) */
-    if (st == SH_OK && c.cameras && (st = black_frame(&n.hdr, &n.black)) == SH_OK) c.black_made = 1;
-    if (st == SH_OK && !c.record && p->rec && c.new_frames)
+    }
+    /* the sinks follow the shown frames: a new camera size, or a stereo view or layout turned on,
+     * off or changed */
+    c.new_shown = st == SH_OK && !same_frames(&n.out_hdr, &p->out_hdr);
+    c.v4l2 = (c.effects & SH_CONFIG_V4L2) || (c.new_shown && fresh->v4l2[0]);
+    c.keep_disp = c.same_name && !c.new_shown && !(c.effects & SH_CONFIG_DISPLAY);
+    if (st == SH_OK && (c.cameras || c.new_shown) && (st = black_frame(&n.out_hdr, &n.black)) == SH_OK) c.black_made = 1;
+    if (st == SH_OK && !c.record && p->rec && c.new_shown)
         /* reopening the file or folder would write over what it holds */
         st = sh_error_set(SH_EINVAL, "[sink] record %s: the frames change from %dx%d to %dx%d and a record keeps "
-                          "one size (give [sink] record a new name)", fresh->record, p->hdr.width, p->hdr.height,
-                          n.hdr.width, n.hdr.height);
+                          "one size (give [sink] record a new name)", fresh->record, p->out_hdr.width, p->out_hdr.height,
+                          n.out_hdr.width, n.out_hdr.height);
     char was[64], now[64];
     record_tag(old, was, sizeof was);
     record_tag(fresh, now, sizeof now);
@@ -391,7 +398,7 @@ run_reload run_pipeline_reload(run_pipeline *p, const sh_config *fresh, char *wh
     if (st == SH_OK) st = reload_record_control(p, &n, &c);
     if (st == SH_OK && !c.same_name) {
         n.disp = NULL;
-        if (nname) st = display_create(fresh, &n.hdr, &n.disp);
+        if (nname) st = display_create(fresh, &n.out_hdr, &n.disp);
     }
     if (st == SH_OK && c.cameras) st = run_source_start(n.src);
     if (st == SH_OK && c.same_name && !c.keep_disp) {
@@ -399,10 +406,10 @@ run_reload run_pipeline_reload(run_pipeline *p, const sh_config *fresh, char *wh
          * mapping the old one never touches pages a smaller segment would have cut off. */
         sh_display_writer_destroy(p->disp, 1);
         p->disp = n.disp = NULL;
-        if ((st = display_create(fresh, &n.hdr, &n.disp)) != SH_OK) {
+        if ((st = display_create(fresh, &n.out_hdr, &n.disp)) != SH_OK) {
             char m[512];
             snprintf(m, sizeof m, "%s", sh_error_message());
-            if (display_create(old, &p->hdr, &p->disp) != SH_OK) snprintf(c.again, sizeof c.again, "%s", sh_error_message());
+            if (display_create(old, &p->out_hdr, &p->disp) != SH_OK) snprintf(c.again, sizeof c.again, "%s", sh_error_message());
             st = sh_error_set(st, "%s", m);
         }
     }

@@ -30,7 +30,8 @@ typedef struct {
     run_ctl *ctl;             /* NULL: no control socket */
     run_v4l2out *v4l2;        /* NULL: no [sink] v4l2, or it was stopped by a write error */
     sh_y4m_header hdr;        /* the output camera's frames (a copy: the source's goes with it) */
-    sh_image black;           /* shown while the output camera is lost, in hdr's geometry */
+    sh_y4m_header out_hdr;    /* the shown frames, which the sinks are made for: hdr's, or a stereo layout's */
+    sh_image black;           /* shown while the output camera is lost, in out_hdr's geometry */
     uint64_t dropped_before;  /* dropped sets and models built by sources and processing */
     int builds_before;        /*   replaced by reloads, for the totals at exit */
     run_file_stamp calib_file, points_file; /* [method] calibration, [run] points when opened */

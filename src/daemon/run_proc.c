@@ -18,8 +18,12 @@ struct run_proc {
     run_tracker *tracker; /* NULL in test mode (points file) */
     sh_points points;
     sh_warp *warp;
-    sh_warp_outside *outside; /* [sink] outside = dimmed-raw: made at start, as a reload may turn it on */
-    sh_image out;
+    sh_warp_outside *outside[2]; /* [sink] outside = dimmed-raw (one per eye): made at start, as a reload may turn it on */
+    sh_image out;         /* what is shown when warped, and in stereo the raw frame in each eye's place */
+    sh_y4m_header out_hdr;/* the shown frames: the output camera's, or the stereo layout's */
+    int stereo;           /* [method] view = stereo */
+    sh_warp3d_layout layout;
+    sh_image eye;         /* stereo, squeezed layouts: one eye at full size before it is halved */
     double fps;
     int want_ref;
     run_marker mk[SH_TRACK_MAX_MARKERS];
@@ -96,6 +100,29 @@ sh_status run_proc_check(const sh_config *cfg, const sh_y4m_header *hdr)
                         strncmp(why, "interp ", 7) ? why : why + 7);
 }
 
+/* [method] layout's numbers are sh_warp3d_layout's (config.c's choices in the same order) */
+_Static_assert(SH_WARP3D_SBS == 0 && SH_WARP3D_TB == 1 && SH_WARP3D_SBS_HALF == 2 && SH_WARP3D_TB_HALF == 3,
+               "[method] layout: the config's choices follow sh_warp3d_layout");
+
+/* The shown frames' header: the output camera's, or with [method] view = stereo the layout's frame
+ * of two such eyes; a layout the frames cannot take is refused naming the key. */
+static sh_status out_frames(run_proc *p, const sh_config *cfg, const sh_y4m_header *hdr)
+{
+    p->out_hdr = *hdr;
+    p->stereo = p->three_d && cfg->view == SH_VIEW_STEREO;
+    p->layout = (sh_warp3d_layout)cfg->layout;
+    if (!p->stereo) return SH_OK;
+    if (sh_warp3d_layout_size(p->layout, hdr->format, hdr->width, hdr->height, &p->out_hdr.width,
+                              &p->out_hdr.height) == SH_OK)
+        return SH_OK;
+    char where[SH_CONFIG_ERR], why[512];
+    snprintf(why, sizeof why, "%s", sh_error_message());
+    sh_config_where(cfg, "method", "layout", where, sizeof where);
+    return sh_error_set(SH_EINVAL, "%s: %dx%d camera frames: %s", where, hdr->width, hdr->height, why);
+}
+
+const sh_y4m_header *run_proc_header(const run_proc *p) { return &p->out_hdr; }
+
 sh_status run_proc_create(const sh_config *cfg, const sh_y4m_header *hdr, double fps, int cameras,
                           run_proc **out)
 {
@@ -124,15 +151,18 @@ sh_status run_proc_create(const sh_config *cfg, const sh_y4m_header *hdr, double
     sh_warp_options wopts;
     sh_warp_options_default(&wopts);
     if (cfg->grid > 0) wopts.grid_spacing = (int)cfg->grid;
-    sh_status st = sh_image_create(&p->out, hdr->format, hdr->width, hdr->height);
+    sh_status st = out_frames(p, cfg, hdr);
+    if (st == SH_OK) st = sh_image_create(&p->out, hdr->format, p->out_hdr.width, p->out_hdr.height);
+    if (st == SH_OK && p->stereo && sh_warp3d_layout_half(p->layout))
+        st = sh_image_create(&p->eye, hdr->format, hdr->width, hdr->height);
     /* test mode waits for every model: its output must equal `stillheart warp`'s frame by frame */
     sh_interp_params method;
     sh_config_method(cfg, &method);
     if (st == SH_OK) st = run_models_create(&method, &wopts, hdr->width, hdr->height, cfg->points[0] != 0, &p->models);
-    if (st == SH_OK && p->three_d) st = run_models_set_3d(p->models, &p->calib, p->out_cam);
+    if (st == SH_OK && p->three_d) st = run_models_set_3d(p->models, &p->calib, p->out_cam, p->stereo ? cfg->baseline : 0);
     if (st == SH_OK) st = sh_warp_create(cfg->threads, &p->warp);
-    if (st == SH_OK)
-        st = sh_warp_outside_create(hdr->format, hdr->width, hdr->height, sh_y4m_header_full_range(hdr), &p->outside);
+    for (int v = 0; v < 1 + p->stereo && st == SH_OK; v++)
+        st = sh_warp_outside_create(hdr->format, hdr->width, hdr->height, sh_y4m_header_full_range(hdr), &p->outside[v]);
     if (st == SH_OK && cfg->points[0]) {
         st = sh_points_read(cfg->points, &p->points);
         if (st == SH_OK) st = sh_points_need_2d(&p->points, cfg->points);
@@ -161,8 +191,10 @@ void run_proc_destroy(run_proc *p)
     run_tracker_destroy(p->tracker);
     sh_points_destroy(&p->points);
     sh_warp_destroy(p->warp);
-    sh_warp_outside_destroy(p->outside);
+    sh_warp_outside_destroy(p->outside[0]);
+    sh_warp_outside_destroy(p->outside[1]);
     sh_image_destroy(&p->out);
+    sh_image_destroy(&p->eye);
     free(p);
 }
 
@@ -422,8 +454,47 @@ static void warped_status(const run_selection *sel, int building, sh_display_fra
     }
 }
 
+/* The warped frame into p->out: one view, or the two eyes in their layout; [sink] outside's fill. */
+static sh_status warp(run_proc *p, const run_model *md, const sh_image *img)
+{
+    int dimmed = p->cfg.outside == SH_OUTSIDE_DIMMED_RAW;
+    if (p->stereo) {
+        const sh_warp3d_view *views[2];
+        if (run_model_views(md, views) != 2) return sh_error_set(SH_EINVAL, "stereo: the model has no two eyes");
+        return sh_warp3d_stereo_apply(p->warp, views, dimmed ? p->outside : NULL, p->layout, img, &p->eye, &p->out);
+    }
+    sh_status st = sh_warp_apply(p->warp, run_model_warp(md), img, &p->out);
+    if (st == SH_OK && dimmed) st = sh_warp_outside_apply(p->outside[0], run_model_warp(md), img, &p->out);
+    return st;
+}
+
+/* A frame shown raw: the camera's as it is, or in stereo in each eye's place of the layout (both
+ * eyes see the unstabilized frame: nothing of it is passed off as depth). */
+static const sh_image *raw(run_proc *p, const sh_image *img)
+{
+    if (!p->stereo) return img;
+    if (sh_warp3d_layout_place(p->layout, 0, img, &p->out) != SH_OK ||
+        sh_warp3d_layout_place(p->layout, 1, img, &p->out) != SH_OK) {
+        /* cannot happen with the frames the layout was sized for: black rather than a stale pair */
+        sh_log_limited(&p->model_err, SH_LOG_ERROR, "stereo: %s", sh_error_message());
+        sh_image_clear(&p->out);
+    }
+    return &p->out;
+}
+
+static const sh_image *frame(run_proc *p, const sh_image *img, const sh_image *const *cams, int index,
+                             unsigned epoch, sh_display_frame_info *info);
+
 const sh_image *run_proc_frame(run_proc *p, const sh_image *img, const sh_image *const *cams, int index,
                                unsigned epoch, sh_display_frame_info *info)
+{
+    const sh_image *shown = frame(p, img, cams, index, epoch, info);
+    return info->status == SH_DISPLAY_RAW ? raw(p, img) : shown;
+}
+
+/* run_proc_frame's work: the warped frame, or img when the frame is shown raw (info says so). */
+static const sh_image *frame(run_proc *p, const sh_image *img, const sh_image *const *cams, int index,
+                             unsigned epoch, sh_display_frame_info *info)
 {
     double t0 = now_ms();
     p->ms[0] = p->ms[1] = p->ms[2] = 0;
@@ -462,9 +533,7 @@ const sh_image *run_proc_frame(run_proc *p, const sh_image *img, const sh_image 
         reason(info, "residual %.1f px > %.1f", residual, p->cfg.max_residual_px);
         return img;
     }
-    sh_status wst = sh_warp_apply(p->warp, run_model_warp(md), img, &p->out);
-    if (wst == SH_OK && p->cfg.outside == SH_OUTSIDE_DIMMED_RAW)
-        wst = sh_warp_outside_apply(p->outside, run_model_warp(md), img, &p->out);
+    sh_status wst = warp(p, md, img);
     p->ms[2] = now_ms() - t2;
     if (wst != SH_OK) {
         sh_log_limited(&p->model_err, SH_LOG_ERROR, "warp: %s", sh_error_message());

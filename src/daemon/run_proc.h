@@ -19,6 +19,9 @@ sh_status run_proc_check(const sh_config *cfg, const sh_y4m_header *hdr);
  * cameras as configured, 2+): tracking in 3D over every camera's frames and warp3d. */
 sh_status run_proc_create(const sh_config *cfg, const sh_y4m_header *hdr, double fps, int cameras, run_proc **out);
 void run_proc_destroy(run_proc *p);
+/* The frames run_proc_frame returns: the output camera's geometry, or with [method] view =
+ * stereo the layout's frame of two eyes ([method] layout). The sinks are made for these. */
+const sh_y4m_header *run_proc_header(const run_proc *p);
 /* SIGHUP: the keys of effect SH_CONFIG_GATING ([sink] outside among them) take effect from the
  * next frame. */
 void run_proc_set_gating(run_proc *p, const sh_config *cfg);
@@ -26,7 +29,8 @@ void run_proc_set_gating(run_proc *p, const sh_config *cfg);
  * are built beside the running ones and swapped in when ready). */
 void run_proc_request_reference(run_proc *p);
 /* Processes one frame (img: the output camera's; cams: every camera's frame of the set, NULL
- * where missing, read in 3D only; index and epoch as in run_frame): returns what to show (img itself when raw) and fills info's status,
+ * where missing, read in 3D only; index and epoch as in run_frame): returns what to show (img itself when raw,
+ * in stereo img in each eye's place) and fills info's status,
  * reason, markers_used and residual_px (-1 when not measured; never NaN). The returned image
  * stays valid until the next call. */
 const sh_image *run_proc_frame(run_proc *p, const sh_image *img, const sh_image *const *cams, int index,

@@ -123,6 +123,31 @@ void sh_image_destroy(sh_image *img)
     memset(img, 0, sizeof *img);
 }
 
+sh_status sh_image_window(const sh_image *img, int x, int y, int width, int height, sh_image *view)
+{
+    /* 4:2:0 chroma is shared by 2x2 luma pixels: a window must start on a pair, or its chroma
+     * plane would belong half to its neighbour */
+    int sub = img && img->format == SH_PIX_I420;
+    if (!img || !view || width < 1 || height < 1 || x < 0 || y < 0 || x > img->width - width ||
+        y > img->height - height || (sub && ((x | y) & 1)))
+        return sh_error_set(SH_EINVAL, "image: no %dx%d window at (%d, %d) of a %dx%d frame%s", width, height, x, y,
+                            img ? img->width : 0, img ? img->height : 0, sub ? " (I420: even offsets)" : "");
+    sh_image v;
+    describe(&v, img->format, width, height);
+    v.siting = img->siting;
+    int channels = sh_pixfmt_channels(img->format);
+    for (int p = 0; p < v.num_planes; p++) {
+        int px = sub && p > 0 ? x / 2 : x, py = sub && p > 0 ? y / 2 : y;
+        if (px + v.plane[p].width > img->plane[p].width || py + v.plane[p].height > img->plane[p].height)
+            return sh_error_set(SH_EINVAL, "image: the %dx%d window at (%d, %d) cuts a chroma sample of the %dx%d frame",
+                                width, height, x, y, img->width, img->height);
+        v.plane[p].stride = img->plane[p].stride;
+        v.plane[p].data = img->plane[p].data + (size_t)py * (size_t)img->plane[p].stride + (size_t)px * (size_t)(p ? 1 : channels);
+    }
+    *view = v;
+    return SH_OK;
+}
+
 sh_status sh_image_copy(sh_image *dst, const sh_image *src)
 {
     if (!dst || !src || dst->format != src->format || dst->width != src->width ||

@@ -40,3 +40,99 @@ sh_status sh_warp3d_squeeze(const sh_image *full, int axis, sh_image *out, int o
     }
     return SH_OK;
 }
+
+static const char *const layout_names[SH_WARP3D_LAYOUT_COUNT] = {"sbs", "tb", "sbs-half", "tb-half"};
+
+sh_status sh_warp3d_layout_parse(const char *name, sh_warp3d_layout *out)
+{
+    for (int l = 0; l < SH_WARP3D_LAYOUT_COUNT; l++)
+        if (name && !strcmp(name, layout_names[l])) {
+            *out = (sh_warp3d_layout)l;
+            return SH_OK;
+        }
+    return sh_error_set(SH_EINVAL, "stereo layout '%s': sbs, tb, sbs-half or tb-half", name ? name : "");
+}
+
+const char *sh_warp3d_layout_name(sh_warp3d_layout layout)
+{
+    return layout >= 0 && layout < SH_WARP3D_LAYOUT_COUNT ? layout_names[layout] : "?";
+}
+
+int sh_warp3d_layout_half(sh_warp3d_layout layout) { return layout == SH_WARP3D_SBS_HALF || layout == SH_WARP3D_TB_HALF; }
+
+/* 1 when the eyes are one above the other (tb, tb-half). */
+static int top_bottom(sh_warp3d_layout layout) { return layout == SH_WARP3D_TB || layout == SH_WARP3D_TB_HALF; }
+
+sh_status sh_warp3d_layout_size(sh_warp3d_layout layout, sh_pixfmt format, int width, int height, int *frame_width,
+                                int *frame_height)
+{
+    if (layout < 0 || layout >= SH_WARP3D_LAYOUT_COUNT || width < 2 || height < 2)
+        return sh_error_set(SH_EINVAL, "stereo layout: invalid layout or eye size %dx%d", width, height);
+    int tb = top_bottom(layout), halved = tb ? height : width;
+    int align = format == SH_PIX_I420 ? 4 : 2; /* sh_warp3d_squeeze's rule: halved chroma stays whole */
+    if (sh_warp3d_layout_half(layout) && halved % align)
+        return sh_error_set(SH_EINVAL, "stereo layout %s: the frame's %s (%d) must be a multiple of %d for %s frames",
+                            layout_names[layout], tb ? "height" : "width", halved, align, sh_pixfmt_name(format));
+    long fw = width, fh = height;
+    if (!sh_warp3d_layout_half(layout)) {
+        if (tb) fh *= 2;
+        else fw *= 2;
+    }
+    if (fw > SH_IMAGE_MAX_SIZE || fh > SH_IMAGE_MAX_SIZE)
+        return sh_error_set(SH_EINVAL, "stereo layout %s: the %ldx%ld frame of two %dx%d eyes is larger than %d px a side",
+                            layout_names[layout], fw, fh, width, height, SH_IMAGE_MAX_SIZE);
+    *frame_width = (int)fw;
+    *frame_height = (int)fh;
+    return SH_OK;
+}
+
+/* Where eye (0 left, 1 right) starts in the frame of a layout of width x height eyes. */
+static void eye_origin(sh_warp3d_layout layout, int eye, int width, int height, int *ox, int *oy)
+{
+    int half = sh_warp3d_layout_half(layout), tb = top_bottom(layout);
+    *ox = tb ? 0 : eye * (half ? width / 2 : width);
+    *oy = tb ? eye * (half ? height / 2 : height) : 0;
+}
+
+sh_status sh_warp3d_layout_window(sh_warp3d_layout layout, int eye, const sh_image *frame, int width, int height,
+                                  sh_image *view)
+{
+    if (sh_warp3d_layout_half(layout) || (eye != 0 && eye != 1))
+        return sh_error_set(SH_EINVAL, "stereo layout %s: no full-size window for eye %d", sh_warp3d_layout_name(layout), eye);
+    int ox, oy;
+    eye_origin(layout, eye, width, height, &ox, &oy);
+    return sh_image_window(frame, ox, oy, width, height, view);
+}
+
+sh_status sh_warp3d_layout_place(sh_warp3d_layout layout, int eye, const sh_image *eye_img, sh_image *frame)
+{
+    if (!eye_img || !frame || (eye != 0 && eye != 1) || layout < 0 || layout >= SH_WARP3D_LAYOUT_COUNT)
+        return sh_error_set(SH_EINVAL, "stereo layout: missing image or no eye %d", eye);
+    int ox, oy;
+    eye_origin(layout, eye, eye_img->width, eye_img->height, &ox, &oy);
+    if (sh_warp3d_layout_half(layout)) return sh_warp3d_squeeze(eye_img, top_bottom(layout), frame, ox, oy);
+    sh_image view;
+    sh_status st = sh_image_window(frame, ox, oy, eye_img->width, eye_img->height, &view);
+    return st == SH_OK ? sh_image_copy(&view, eye_img) : st;
+}
+
+sh_status sh_warp3d_stereo_apply(sh_warp *warp, const sh_warp3d_view *const views[2], sh_warp_outside *const outside[2],
+                                 sh_warp3d_layout layout, const sh_image *current, sh_image *eye, sh_image *frame)
+{
+    if (!views || !views[0] || !views[1] || !current || !frame || (sh_warp3d_layout_half(layout) && !eye))
+        return sh_error_set(SH_EINVAL, "warp3d stereo: missing view or image");
+    /* Eye 0 is done, outside fill included, before eye 1: whatever a row's last vector store of
+     * the left window reaches beyond it lies in the right window, which is written after it. */
+    for (int v = 0; v < 2; v++) {
+        sh_image win;
+        sh_status st = SH_OK;
+        if (sh_warp3d_layout_half(layout)) win = *eye;
+        else st = sh_warp3d_layout_window(layout, v, frame, current->width, current->height, &win);
+        if (st == SH_OK) st = sh_warp3d_view_apply(warp, views[v], current, &win, 0, 0);
+        if (st == SH_OK && outside && outside[v])
+            st = sh_warp_outside_apply(outside[v], sh_warp3d_view_map_model(views[v]), current, &win);
+        if (st == SH_OK && sh_warp3d_layout_half(layout)) st = sh_warp3d_layout_place(layout, v, eye, frame);
+        if (st != SH_OK) return st;
+    }
+    return SH_OK;
+}

@@ -71,12 +71,18 @@ static int intersect(const sh_warp3d_model *m, double k, const double C[3], cons
     return 0;
 }
 
-sh_status sh_warp3d_view_locate(const sh_warp3d_view *v, double x, double y, double uv[2])
+sh_status sh_warp3d_model_locate(const sh_warp3d_model *model, const sh_calib_camera *cam, double depth_scale,
+                                 double x, double y, double uv[2])
 {
     double C[3], d[3];
-    if (!sh_warp3d_ray(&v->vcam, x, y, C, d) || !intersect(v->model, v->opts.depth_scale, C, d, uv))
+    if (!sh_warp3d_ray(cam, x, y, C, d) || !intersect(model, depth_scale, C, d, uv))
         return sh_error_set(SH_ERANGE, "warp3d: the ray through (%g, %g) misses the surface", x, y);
     return SH_OK;
+}
+
+sh_status sh_warp3d_view_locate(const sh_warp3d_view *v, double x, double y, double uv[2])
+{
+    return sh_warp3d_model_locate(v->model, &v->vcam, v->opts.depth_scale, x, y, uv);
 }
 
 static void free_grid(sh_warp3d_view *v)
@@ -344,18 +350,7 @@ sh_status sh_warp3d_view_apply(sh_warp *warp, const sh_warp3d_view *v, const sh_
         return sh_error_set(SH_EINVAL, "warp3d: frame %dx%d, view %dx%d at (%d, %d) of output %dx%d",
                             current->width, current->height, v->width, v->height, ox, oy,
                             out->width, out->height);
-    sh_image window = *out;
-    window.owned = NULL;
-    window.width = v->width;
-    window.height = v->height;
-    int channels = sh_pixfmt_channels(out->format);
-    for (int p = 0; p < out->num_planes; p++) {
-        int sub = out->format == SH_PIX_I420 && p > 0;
-        int px = sub ? ox / 2 : ox, py = sub ? oy / 2 : oy;
-        window.plane[p].data = out->plane[p].data + (size_t)py * out->plane[p].stride +
-                               (size_t)px * (p == 0 ? channels : 1);
-        window.plane[p].width = current->plane[p].width;
-        window.plane[p].height = current->plane[p].height;
-    }
-    return sh_warp_apply(warp, v->wm, current, &window);
+    sh_image window;
+    sh_status st = sh_image_window(out, ox, oy, v->width, v->height, &window);
+    return st == SH_OK ? sh_warp_apply(warp, v->wm, current, &window) : st;
 }

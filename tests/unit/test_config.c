@@ -383,7 +383,7 @@ static void test_changing_each_key_reports_its_effect(void **state)
     static const char *const values[] = {"y4m:other.y4m", "nv12",  "640x480", "25",     "keep", "out",
                                          "low",           "no",    "7",       "2.5",    "gaussian",
                                          "1,3",           "1",     "4600",    "0",      "yes",
-                                         "dimmed-raw"};
+                                         "dimmed-raw",    "stereo", "tb"};
     const char *section, *key;
     sh_config_effect effect;
     for (int i = 0; sh_config_key(i, &section, &key, &effect); i++) {
@@ -480,6 +480,10 @@ static void test_method_refusals(void **state)
         {"bspline", "method", "smoothing", "0.5", "smoothing", "bspline: smoothing applies to the RBF methods only"},
         {"affine", "gating", "min_markers", "2", "min-markers", "2 is fewer than affine needs (3)"},
         {"gaussian-pure", "gating", "min_markers", "1", "min-markers", "1 is fewer than gaussian-pure needs (3)"},
+        /* the stereo pair: a view of the 3D surface, so only with a calibration; its keys only with it */
+        {"tps", "method", "view", "stereo", "view", "stereo needs a calibrated rig ([method] calibration)"},
+        {"tps", "method", "baseline", "20", "baseline", "20 mm, but only the stereo view has eyes"},
+        {"tps", "method", "layout", "tb-half", "layout", "only the stereo view has a layout"},
     };
     static const struct {
         const char *method, *section, *key, *value;
@@ -490,7 +494,8 @@ static void test_method_refusals(void **state)
         {"bspline", "method", "levels", "10"},   {"bspline", "method", "levels", "0"},
         {"gaussian", "method", "sigma", "0.001"}, {"rbf-local", "method", "sigma", "1e6"},
         {"tps", "method", "sigma", "-1"},        {"tps-pure", "method", "smoothing", "1"},
-        {"affine", "gating", "min_markers", "3"},
+        {"affine", "gating", "min_markers", "3"},  {"tps", "method", "view", "reference"},
+        {"tps", "method", "baseline", "10"},     {"tps", "method", "layout", "sbs"},
     };
     char err[SH_CONFIG_ERR], want[SH_CONFIG_ERR];
     for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {

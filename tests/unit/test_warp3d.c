@@ -355,6 +355,74 @@ static void test_squeeze(void **state)
     sh_image_destroy(&c);
 }
 
+/* The stereo layouts' frames and windows, from their definitions: sbs 2W x H, tb W x 2H, the
+ * halves W x H; eye 1 right of or below eye 0; a window is the same memory at the offset. */
+static void test_stereo_layouts(void **state)
+{
+    (void)state;
+    static const struct { const char *name; int w, h, x1, y1; } want[] = {
+        {"sbs", 2 * 8, 12, 8, 0}, {"tb", 8, 2 * 12, 0, 12}, {"sbs-half", 8, 12, 4, 0}, {"tb-half", 8, 12, 0, 6}};
+    for (int l = 0; l < 4; l++) {
+        sh_warp3d_layout layout;
+        int fw, fh;
+        assert_int_equal(sh_warp3d_layout_parse(want[l].name, &layout), SH_OK);
+        assert_string_equal(sh_warp3d_layout_name(layout), want[l].name);
+        assert_int_equal(sh_warp3d_layout_size(layout, SH_PIX_I420, 8, 12, &fw, &fh), SH_OK);
+        assert_int_equal(fw, want[l].w);
+        assert_int_equal(fh, want[l].h);
+        /* each eye's picture a constant: the frame holds eye 0's value left or above x1/y1 */
+        sh_image eye[2], frame;
+        assert_int_equal(sh_image_create(&frame, SH_PIX_I420, fw, fh), SH_OK);
+        for (int e = 0; e < 2; e++) {
+            assert_int_equal(sh_image_create(&eye[e], SH_PIX_I420, 8, 12), SH_OK);
+            for (int p = 0; p < 3; p++)
+                for (int y = 0; y < eye[e].plane[p].height; y++)
+                    memset(eye[e].plane[p].data + (size_t)y * eye[e].plane[p].stride, 50 + 100 * e + p,
+                           (size_t)eye[e].plane[p].width);
+            assert_int_equal(sh_warp3d_layout_place(layout, e, &eye[e], &frame), SH_OK);
+        }
+        for (int p = 0; p < 3; p++) {
+            int s = p ? 2 : 1;
+            for (int y = 0; y < frame.plane[p].height; y++)
+                for (int x = 0; x < frame.plane[p].width; x++) {
+                    int e = (want[l].x1 && x >= want[l].x1 / s) || (want[l].y1 && y >= want[l].y1 / s);
+                    assert_int_equal(frame.plane[p].data[(size_t)y * frame.plane[p].stride + x], 50 + 100 * e + p);
+                }
+        }
+        sh_image view;
+        if (sh_warp3d_layout_half(layout)) {
+            assert_int_equal(sh_warp3d_layout_window(layout, 1, &frame, 8, 12, &view), SH_EINVAL);
+        } else {
+            assert_int_equal(sh_warp3d_layout_window(layout, 1, &frame, 8, 12, &view), SH_OK);
+            assert_int_equal(view.width, 8);
+            assert_int_equal(view.height, 12);
+            assert_ptr_equal(view.plane[0].data, frame.plane[0].data + (size_t)want[l].y1 * frame.plane[0].stride + want[l].x1);
+            assert_ptr_equal(view.plane[1].data, frame.plane[1].data + (size_t)(want[l].y1 / 2) * frame.plane[1].stride + want[l].x1 / 2);
+            assert_int_equal(view.plane[2].stride, frame.plane[2].stride);
+            assert_null(view.owned);
+        }
+        for (int e = 0; e < 2; e++) sh_image_destroy(&eye[e]);
+        sh_image_destroy(&frame);
+    }
+    /* what cannot be made: a squeezed side that does not halve into whole chroma, oversize */
+    int fw, fh;
+    assert_int_equal(sh_warp3d_layout_size(SH_WARP3D_TB_HALF, SH_PIX_I420, 8, 6, &fw, &fh), SH_EINVAL);
+    assert_int_equal(sh_warp3d_layout_size(SH_WARP3D_TB_HALF, SH_PIX_GRAY8, 8, 6, &fw, &fh), SH_OK);
+    assert_int_equal(sh_warp3d_layout_size(SH_WARP3D_SBS_HALF, SH_PIX_GRAY8, 7, 6, &fw, &fh), SH_EINVAL);
+    assert_int_equal(sh_warp3d_layout_size(SH_WARP3D_SBS, SH_PIX_GRAY8, SH_IMAGE_MAX_SIZE / 2 + 1, 6, &fw, &fh), SH_EINVAL);
+    assert_int_equal(sh_warp3d_layout_size(SH_WARP3D_SBS, SH_PIX_GRAY8, SH_IMAGE_MAX_SIZE / 2, 6, &fw, &fh), SH_OK);
+    sh_warp3d_layout layout;
+    assert_int_equal(sh_warp3d_layout_parse("side-by-side", &layout), SH_EINVAL);
+    /* windows outside the frame, or on an odd 4:2:0 offset */
+    sh_image img, view;
+    assert_int_equal(sh_image_create(&img, SH_PIX_I420, 16, 8), SH_OK);
+    assert_int_equal(sh_image_window(&img, 1, 0, 8, 8, &view), SH_EINVAL);
+    assert_int_equal(sh_image_window(&img, 10, 0, 8, 8, &view), SH_EINVAL);
+    assert_int_equal(sh_image_window(&img, 8, 0, 8, 8, &view), SH_OK);
+    assert_int_equal(view.plane[1].width, 4);
+    sh_image_destroy(&img);
+}
+
 /* The reference view under the rigid motion gives back the reference picture. */
 static void test_reference_view_image(void **state)
 {
@@ -577,6 +645,7 @@ int main(void)
         cmocka_unit_test(test_rigid_motion_removed_exactly),
         cmocka_unit_test(test_stereo_disparity),
         cmocka_unit_test(test_squeeze),
+        cmocka_unit_test(test_stereo_layouts),
         cmocka_unit_test(test_reference_view_image),
         cmocka_unit_test(test_ply_on_surface),
         cmocka_unit_test(test_obj_textured),

@@ -674,6 +674,95 @@ PY
 msg=$($RUN --source "y4m:$T/s3/cam0.y4m" --calibration "$T/s3/calibration.yaml" --sink none 2>&1); rc=$?
 [ $rc -ne 0 ] && echo "$msg" | grep -q "calibration.*3 cameras, 1 configured" && ok "3D: calibration for other cameras refused" || bad "3D: calibration for other cameras refused" "$msg"
 
+# 7b. The stereo pair of a calibrated rig (issue 17; paper section IV): with [method] view = stereo
+#     the daemon shows the two virtual eyes in the layout, and in test mode its frames are
+#     byte-identical to `stillheart warp3d --view stereo --layout L` of the same points (all four
+#     layouts on the host; under qemu one full and one squeezed). Tracking, every frame after the
+#     first stabilized; the dimmed outside per eye; a reload to and from stereo remakes the
+#     segment at the pair's size; what cannot be shown so is refused naming the key.
+LAYOUTS="sbs tb sbs-half tb-half"; [ -n "${SH_TEST_EMULATED:-}" ] && LAYOUTS="sbs tb-half"
+same=""; differ=""
+for L in $LAYOUTS; do
+    "$B/stillheart" warp3d --cameras "$T/s3/calibration.yaml" --points "$T/p3.csv" --method tps --threads 2 --quiet \
+        --view stereo --layout $L "$T/s3/cam0.y4m" "$T/w3-$L.y4m"
+    $RUN $CAMS --no-loop --no-realtime --sink none --points "$T/p3.csv" --method tps --threads 2 --record "$T/r3-$L.y4m" \
+        --view stereo --layout $L
+    if cmp -s "$T/r3-$L.y4m" "$T/w3-$L.y4m" && [ -s "$T/r3-$L.y4m" ]; then same="$same $L"
+    else differ="$differ $L: $(cmp "$T/r3-$L.y4m" "$T/w3-$L.y4m" 2>&1 | head -c 200)"; fi
+done
+[ -z "$differ" ] && ok "stereo: record equals stillheart warp3d --view stereo (layouts$same)" || bad "stereo: record equals stillheart warp3d --view stereo" "$differ"
+$RUN $CAMS --loop --max-frames 80 --no-realtime --sink none --method tps --view stereo --layout sbs-half \
+    --trace "$T/ts.csv" --record "$T/ts.y4m"
+python3 - "$T/ts.csv" "$T/ts.y4m" <<'PY' && ok "stereo: tracked in 3D, every frame after the first stabilized, the pair in the camera's size (sbs-half)" || bad "stereo: tracked in 3D, sbs-half" "see above"
+import csv, sys
+rows = list(csv.DictReader(open(sys.argv[1])))
+hdr = open(sys.argv[2], 'rb').readline().split()
+first = next((i for i, r in enumerate(rows) if r['status'] == 'stabilized'), 999)
+off = [(r['index'], r['status'], r['reason']) for r in rows[first:] if r['status'] != 'stabilized']
+if off or len(rows) != 80 or first > 60 or b'W640' not in hdr or b'H360' not in hdr:
+    print(len(rows), "frames, first stabilized", first, "; off:", off[:5], "; header", hdr[:3]); sys.exit(1)
+PY
+# the dimmed outside in each eye: side by side, a byte differs from warp3d's only where warp3d
+# left black and is there the camera's dimmed (the same pixel of the camera frame in either eye)
+# or the cyan line
+$RUN $CAMS --no-loop --no-realtime --sink none --points "$T/p3.csv" --method tps --threads 2 --record "$T/r3d-sbs.y4m" \
+    --view stereo --layout sbs --outside dimmed-raw
+PYTHONPATH="$T" python3 - "$T/r3d-sbs.y4m" "$T/w3-sbs.y4m" "$T/s3/cam0.y4m" <<'PY' \
+    && ok "stereo: outside = dimmed-raw per eye changes only what warp3d left black" || bad "stereo: outside = dimmed-raw per eye" "see above"
+import sys
+from outside import frames
+(dim, w2, h), (warp, _, _), (raw, w, _) = frames(sys.argv[1]), frames(sys.argv[2]), frames(sys.argv[3])
+cyan = (round(16 + 219 * 0.701), round(128 + 224 * 0.299 / 1.772), round(128 - 224 * 0.701 / 1.402))  # BT.601 limited
+if w2 != 2 * w or len(dim) != len(warp) or len(dim) < 30: print(len(dim), "frames", w2, "wide, warp3d", len(warp)); sys.exit(1)
+def planes(f, W, H):  # (plane, width, offset) of 4:2:0
+    return [(0, W, 0), (1, W // 2, W * H), (2, W // 2, W * H * 5 // 4)]
+for i, (f, g, r) in enumerate(zip(dim, warp, raw)):
+    changed = 0
+    for (p, PW, off), (_, pw, roff) in zip(planes(f, w2, h), planes(r, w, h)):
+        rows = h if p == 0 else h // 2
+        for y in range(0, rows, 3):
+            for x in range(0, PW, 5):
+                k = off + y * PW + x
+                if f[k] == g[k]: continue
+                b = 16 if p == 0 else 128
+                c = r[roff + y * pw + x % pw]  # the camera's pixel under either eye
+                if g[k] != (0 if p == 0 else 128) or f[k] not in ((c + b + 1) // 2, cyan[p]):
+                    print("frame %d plane %d x %d y %d: %d, warp3d %d, camera %d" % (i, p, x, y, f[k], g[k], c)); sys.exit(1)
+                changed += 1
+    if changed < 300: print("frame %d: only %d sampled bytes changed" % (i, changed)); sys.exit(1)
+PY
+fails=""
+msg=$($RUN --source "y4m:$T/s3/cam0.y4m" --view stereo --sink none 2>&1); rc=$?
+{ [ $rc -eq 2 ] && echo "$msg" | grep -q -- "--view stereo: stereo needs a calibrated rig"; } || fails="$fails no calibration: rc $rc $msg;"
+msg=$($RUN $CAMS --layout tb --sink none 2>&1); rc=$?
+{ [ $rc -eq 2 ] && echo "$msg" | grep -q -- "--layout tb: only the stereo view has a layout"; } || fails="$fails layout without stereo: rc $rc $msg;"
+msg=$($RUN $CAMS --baseline 20 --sink none 2>&1); rc=$?
+{ [ $rc -eq 2 ] && echo "$msg" | grep -q -- "--baseline 20: 20 mm, but only the stereo view"; } || fails="$fails baseline without stereo: rc $rc $msg;"
+"$B/stillheart-render" --preset exvivo --frames 4 --cameras 2 --width 320 --height 182 --out "$T/odd" >/dev/null 2>&1
+msg=$($RUN --source "y4m:$T/odd/cam0.y4m" --camera1-spec "y4m:$T/odd/cam1.y4m" --calibration "$T/odd/calibration.yaml" \
+      --view stereo --layout tb-half --sink none --no-loop --no-realtime 2>&1); rc=$?
+{ [ $rc -eq 2 ] && echo "$msg" | grep -q -- "--layout tb-half: 320x182 camera frames: .*height (182) must be a multiple of 4"; } \
+    || fails="$fails tb-half of 182 rows: rc $rc $msg;"
+[ -z "$fails" ] && ok "stereo: refused without a rig, a layout or baseline without stereo, a height tb-half cannot halve" \
+    || bad "stereo: refusals" "$fails"
+# a reload turns the stereo pair off and on again: the segment is made anew at each size
+printf '[method]\nname = tps\ncalibration = %s\nview = stereo\nlayout = sbs\n' "$T/s3/calibration.yaml" > "$T/stereo.ini"
+rm -f "/dev/shm$SHM" # an earlier case's, closed: the reader must find this daemon's
+"$B/stillheart" run --group= --config "$T/stereo.ini" $CAMS --loop --realtime --sink "shm:$SHM" 2> "$T/stereo.log" & pid=$!
+wait_segment
+w1=$("$B/stillheart-cat" --name "$SHM" --count 2 --timeout 60 2>/dev/null | head -c 64 | head -1 | tr ' ' '\n' | grep '^W')
+sed -i 's/^view = stereo/view = reference/; /^layout/d' "$T/stereo.ini"
+kill -HUP $pid
+w2=""; i=0
+while [ $i -lt 60 ] && [ "$w2" != W640 ]; do
+    w2=$("$B/stillheart-cat" --name "$SHM" --count 1 --timeout 10 2>/dev/null | head -c 64 | head -1 | tr ' ' '\n' | grep '^W'); i=$((i + 1))
+done
+kill $pid; wait $pid; rc=$?
+[ "$w1" = W1280 ] && [ "$w2" = W640 ] && [ $rc -eq 0 ] && grep -q "sink shm:$SHM made again for 640x360 frames" "$T/stereo.log" \
+    && ok "stereo: a reload to the camera's own view remakes the segment (1280 -> 640 wide)" \
+    || bad "stereo: reload" "widths $w1 then $w2, exit $rc: $(grep -i 'reload\|error' "$T/stereo.log" | tail -3)"
+rm -f "/dev/shm$SHM"
+
 # 8. looping replays: a periodic recording (stillheart-render --periodic, tagged XLOOP=SEAMLESS)
 #    loops with the tracker running on, as on a live camera; the same heart rendered without the
 #    tag jumps at each loop, and the tracker starts afresh there (logged once). 129 frames at 23
