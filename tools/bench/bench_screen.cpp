@@ -18,7 +18,7 @@ extern "C" {
 #include "stillheart/screen.h"
 #include "../synth/synth.h"
 }
-#include "bench_detect_util.h"
+#include "bench_frames.h"
 
 static double time_ms(const std::function<void()> &f, int repeat)
 {
@@ -47,19 +47,9 @@ int main()
     const int sizes[][2] = {{1920, 1080}, {1280, 720}, {3840, 2160}};
     for (const auto &s : sizes) {
         int W = s[0], H = s[1];
-        synth_motion motion = {W, H, 12.0};
-        sh_image rgb, i420;
-        check(sh_image_create(&rgb, SH_PIX_RGB24, W, H), "image");
-        check(sh_image_create(&i420, SH_PIX_I420, W, H), "image");
-        synth_render(&motion, 0.3, &rgb);
-        cv::Mat mrgb(H, W, CV_8UC3, rgb.plane[0].data, (size_t)rgb.plane[0].stride), mi420;
-        cv::cvtColor(mrgb, mi420, cv::COLOR_RGB2YUV_I420);
-        for (int p = 0; p < 3; p++) {
-            const uint8_t *src = mi420.data + (p == 0 ? 0 : (size_t)W * H + (p - 1) * (size_t)W * H / 4);
-            int pw = p ? W / 2 : W;
-            for (int y = 0; y < i420.plane[p].height; y++)
-                std::copy(src + (size_t)y * pw, src + (size_t)(y + 1) * pw, i420.plane[p].data + (size_t)y * i420.plane[p].stride);
-        }
+        sh_image i420;
+        cv::Mat mi420;
+        bench_i420_frame(W, H, &i420, &mi420);
         sh_screen_layout l = sh_screen_layout_for(W, H, SW, SH);
         double ours = time_ms([&] { check(sh_screen_draw_frame(&b, &l, &i420, 0), "draw"); }, REPEAT);
         double peer = time_ms([&] {
@@ -74,7 +64,6 @@ int main()
         std::printf("%-28s %9.3f  %-36s %9.3f  %6.2f\n", name, ours,
                     W == SW && H == SH ? "cvtColor YUV2BGRA_I420" : "cvtColor YUV2BGRA_I420 + resize NN", peer,
                     ours / peer);
-        sh_image_destroy(&rgb);
         sh_image_destroy(&i420);
     }
     sh_screen_layout l = sh_screen_layout_for(SW, SH, SW, SH);
