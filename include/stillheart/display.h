@@ -74,7 +74,7 @@ typedef enum {
 typedef struct {
     uint64_t sequence;         /* 1, 2, 3, ... per published frame */
     int64_t capture_ns;        /* CLOCK_MONOTONIC of the camera frame */
-    int64_t publish_ns;        /* CLOCK_MONOTONIC when published */
+    int64_t publish_ns;        /* CLOCK_MONOTONIC when published: the frame whole in its slot */
     uint32_t status;           /* sh_display_status */
     uint32_t markers_used;
     float residual_px;         /* tracking residual behind the map (NaN when unknown) */

@@ -401,7 +401,10 @@ static void camera_frame(sh_daemon *d, const run_frame *s)
     }
     sh_display_frame_info info;
     memset(&info, 0, sizeof info);
-    info.capture_ns = s->avail_ns;
+    /* the set's capture time (the driver's timestamp, or the trigger edge), so that a display's
+     * capture-to-scanout counts the camera's delivery too; the time it reached processing where
+     * a source gives none */
+    info.capture_ns = s->capture_ns > 0 ? s->capture_ns : s->avail_ns;
     const sh_image *shown = run_proc_frame(d->pl.proc, &s->img, s->cam, s->index, s->epoch, &info);
     if (info.status == SH_DISPLAY_RAW) d->raw_count++;
     if (info.status == SH_DISPLAY_DEGRADED) d->degraded_count++;

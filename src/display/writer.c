@@ -280,6 +280,11 @@ static int copy_in(sh_display_writer *w, const sh_image *frame, const sh_display
             memcpy(pixels + h->plane_offset[p] + (size_t)y * h->stride[p],
                    frame->plane[p].data + (size_t)y * frame->plane[p].stride, row);
     }
+    /* publish_ns: the moment the frame is whole in the slot, still inside the odd count (a
+     * reader sees it with the frame or not at all). The copy above is the writer's cost, part
+     * of capture-to-publish; a reader's publish-to-flip starts when it could have the frame. */
+    const int64_t published = sh_monotonic_ns();
+    memcpy((uint8_t *)&sh->info + offsetof(sh_display_frame_info, publish_ns), &published, sizeof published);
     /* Release (STLR on aarch64): all of the frame is visible before the even count, and the
      * count before `latest` names the slot. */
     __atomic_store_n(&sh->lock, lock + 2, __ATOMIC_RELEASE);
@@ -306,7 +311,6 @@ sh_status sh_display_writer_publish(sh_display_writer *w, const sh_image *frame,
                             h->width, h->height, sh_pixfmt_name((sh_pixfmt)h->format));
     sh_display_frame_info copy = info ? *info : (sh_display_frame_info){0};
     copy.sequence = ++w->sequence;
-    copy.publish_ns = sh_monotonic_ns();
     copy.reason[sizeof copy.reason - 1] = 0;
     /* twice at most: a segment cut short during the copy is made again and the frame goes there */
     int cut_short = 0;

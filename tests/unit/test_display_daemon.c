@@ -6,6 +6,7 @@
  * Over 600 lines: the three scenarios share the harness at the top (the replay written here, the
  * daemon started, the NOTIFY_SOCKET reader thread); split, each file would carry a copy of it. */
 #include <errno.h>
+#include <math.h>
 #include <fcntl.h>
 #include <grp.h>
 #include <libgen.h>
@@ -553,6 +554,57 @@ static void test_reader_follows_restarts(void **state)
     shm_unlink(shm);
 }
 
+/* The capture time the daemon publishes is the camera's (the replay's schedule: frame k at its
+ * start + k / fps, as source.h states), not the moment processing took the frame: from one
+ * published frame to the next it moves by whole frame periods, and it precedes publish_ns. */
+static void test_capture_times_are_the_cameras(void **state)
+{
+    (void)state;
+    shm_unlink(shm);
+    note_start();
+    int mark = note.n;
+    pid_t d = start_daemon("small.y4m", "capture.log", 0, NULL);
+    if (note_wait(mark, "READY=1", ready_s) < 0)
+        fail_msg("no READY=1 in %.0f s, daemon %s: %s", ready_s, daemon_state(d), slurp("capture.log"));
+    sh_display_reader *r;
+    sh_display_reader_options o = {.owner_uid = SH_DISPLAY_OWNER_SELF, .follow = 0};
+    assert_int_equal(sh_display_reader_open(shm, &o, 30000, &r), SH_OK);
+    sh_image img;
+    assert_int_equal(sh_image_create(&img, SH_PIX_I420, SMALL_W, SMALL_H), SH_OK);
+    const double period_ns = 1e9 / FPS;
+    int64_t prev = 0;
+    int frames = 0, off_schedule = 0, after_publish = 0;
+    double worst = 0;
+    while (frames < 15) {
+        sh_display_frame_info info;
+        sh_status st = sh_display_reader_next(r, &img, &info, 5000);
+        if (st != SH_OK) fail_msg("frame %d: %s; daemon %s: %s", frames, sh_error_message(), daemon_state(d), slurp("capture.log"));
+        if (info.capture_ns >= info.publish_ns) after_publish++;
+        if (prev) {
+            double steps = (double)(info.capture_ns - prev) / period_ns, off = fabs(steps - round(steps)) * period_ns;
+            if (off > worst) worst = off;
+            if (off > 1e5 || round(steps) < 1) {
+                if (!off_schedule)
+                    printf("  sequence %llu: capture %lld ns, %.4f periods after the one before\n",
+                           (unsigned long long)info.sequence, (long long)info.capture_ns, steps);
+                off_schedule++;
+            }
+        }
+        prev = info.capture_ns;
+        frames++;
+    }
+    sh_image_destroy(&img);
+    sh_display_reader_close(r);
+    kill(d, SIGTERM);
+    waitpid(d, NULL, 0);
+    note_stop();
+    printf("  %d frames: capture times off the replay's schedule by at most %.0f ns, %d off it, %d not before their "
+           "publish time\n", frames, worst, off_schedule, after_publish);
+    assert_int_equal(off_schedule, 0);
+    assert_int_equal(after_publish, 0);
+    shm_unlink(shm);
+}
+
 /* ---- a squatter: the name created first by another uid ---- */
 static void test_squatter_refused(void **state)
 {
@@ -644,6 +696,7 @@ int main(int argc, char **argv)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_hostile_writer),
         cmocka_unit_test(test_reader_follows_restarts),
+        cmocka_unit_test(test_capture_times_are_the_cameras),
         cmocka_unit_test(test_squatter_refused),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
