@@ -7,7 +7,8 @@
 # libcamera's IPA modules, vivid (two instances), vimc and gpio-sim (these two built out of tree
 # from linux-source), v4l2loopback (built out of tree from Debian's v4l2loopback-dkms source, the
 # backports suite's, for the daemon's [sink] v4l2), boots it under TCG and reads "VMTEST
-# PASS/FAIL" lines off the serial console.
+# PASS/FAIL" lines off the serial console. It also builds vkms out of tree (cached), which the
+# display guest (tests/vm/show.sh) loads for its vblank timing.
 # Host packages: qemu-system-x86 busybox-static kmod cpio xz-utils, libcamera-ipa when the probe
 # links libcamera (installed when missing); gstreamer1.0-tools and gstreamer1.0-plugins-good for
 # the GStreamer check on the loopback device (scripts/install-deps.sh --vm; without them it is not run).
@@ -114,6 +115,24 @@ if [ ! -f "$MODS/v4l2loopback.ko" ]; then
         cp "$B/v4l2loopback.ko" "$MODS/"
     else
         echo "vmtest: v4l2loopback-dkms cannot be downloaded from $MIRROR: the [sink] v4l2 checks do not run" >&2
+    fi
+fi
+
+# vkms, the kernel's virtual KMS driver, for the display's vblank timing (tests/vm/show.sh: the
+# bochs driver sends a flip's event as soon as it is committed, vkms at the next vblank of an
+# hrtimer at the mode's refresh, as a monitor does). Debian builds it not: its sources from
+# linux-source, one module, cached apart as v4l2loopback is.
+if [ ! -f "$MODS/vkms.ko" ] && [ -f "$CACHE/deb/linux-source-6.12_"*.deb ] 2>/dev/null; then
+    exec 9> "$CACHE/.lock"
+    flock 9
+    if [ ! -f "$MODS/vkms.ko" ]; then
+        B="$CACHE/build-vkms"; rm -rf "$B" "$CACHE/src/linux-source-6.12/drivers/gpu/drm/vkms"; mkdir -p "$B"
+        dpkg-deb --fsys-tarfile "$CACHE"/deb/linux-source-6.12_*.deb | tar -xO ./usr/src/linux-source-6.12.tar.xz |
+            tar -xJ -C "$CACHE/src" linux-source-6.12/drivers/gpu/drm/vkms
+        cp "$CACHE"/src/linux-source-6.12/drivers/gpu/drm/vkms/*.[ch] "$B/"
+        printf 'obj-m := vkms.o\nvkms-y := %s\n' "$(cd "$B" && ls *.c | sed 's/\.c$/.o/' | tr '\n' ' ')" > "$B/Kbuild"
+        make -s -C "$CACHE/hdr/usr/src/linux-headers-$KVER" M="$B" CONFIG_DRM_VKMS=m CONFIG_DEBUG_INFO_BTF_MODULES= modules >&2
+        cp "$B/vkms.ko" "$MODS/"
     fi
 fi
 

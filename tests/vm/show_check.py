@@ -2,7 +2,9 @@
 """make vmtest, the display part (tests/vm/show.sh): boots the guest with QEMU's bochs-display
 (the kernel's bochs DRM driver), answers the guest's "VMSHOW DUMP NAME" lines by taking QEMU's
 screendump through the monitor and acknowledging on the guest's second serial port, so that the
-guest goes on; the screens are judged once the guest is done. Prints "VMTEST PASS|FAIL name: ..."
+guest goes on; the screens are judged once the guest is done, and so is the trace of the vkms run
+("VMSHOW TRACE" lines: stillheart-show --trace on the kernel's virtual KMS driver, whose flips
+complete at the vblanks of a timer at the mode's refresh). Prints "VMTEST PASS|FAIL name: ..."
 lines (the guest's own too) and "vmtest: N passed, N failed".
 
 The expected picture is computed here from the pattern tools/show/vmwriter.c documents, with
@@ -206,6 +208,41 @@ def judge(name, path):
         result(False, name, "no such check")
 
 
+def judge_vblank(mode, lines):
+    """The vkms run: flips only on vblanks (the driver's timestamps one refresh period apart, so
+    the time from each flip to the next is a whole number of periods), never two on one vblank,
+    each at the first vblank after the display asked for it (present to flip at most one period),
+    and publish-to-flip no more than publish-to-present plus one period, at the 99th percentile:
+    the display adds nothing to the wait for the vblank."""
+    try:
+        refresh = float(mode.split("@")[1])
+        rows = [[int(v) for v in l.split(",")] for l in lines if l and not l.startswith("sequence")]
+    except (IndexError, ValueError) as e:
+        result(False, "show-vblank", "no mode or an unreadable trace (%s): mode %r, %d lines" % (e, mode, len(lines)))
+        return
+    period = 1e9 / refresh
+    if len(rows) < 100:
+        result(False, "show-vblank", "%d frames shown in 10 s of a 60 fps writer (want at least 100)" % len(rows))
+        return
+    flips = [r[5] for r in rows]
+    # from flip to flip, not from the first: the mode line's refresh has two decimals
+    off_grid = [b for a, b in zip(flips, flips[1:]) if abs((b - a) - round((b - a) / period) * period) > 100e3]
+    steps = [round((b - a) / period) for a, b in zip(flips, flips[1:])]
+    late = [r for r in rows if not 0 < r[5] - r[4] <= period + 1e6]
+    p2f = sorted(r[5] - r[3] for r in rows)
+    p2p = sorted(r[4] - r[3] for r in rows)
+    p99 = lambda v: v[max(0, -(-99 * len(v) // 100) - 1)]
+    ok = not off_grid and min(steps) >= 1 and not late and p99(p2f) <= p99(p2p) + period + 1e6
+    result(ok, "show-vblank", (
+        "%s (period %.3f ms): %d frames shown (sequences %d..%d); flips off the vblank grid: %d; least "
+        "vblanks between flips: %d; flips later than one period after present: %d%s; publish-to-present "
+        "median %.2f p99 %.2f ms, publish-to-flip median %.2f p99 %.2f ms (at most p99 of the first + "
+        "one period + 1 ms)") % (
+        mode, period / 1e6, len(rows), rows[0][0], rows[-1][0], len(off_grid), min(steps), len(late),
+        " (first: seq %d present-to-flip %.3f ms)" % (late[0][0], (late[0][5] - late[0][4]) / 1e6) if late else "",
+        p2p[len(p2p) // 2] / 1e6, p99(p2p) / 1e6, p2f[len(p2f) // 2] / 1e6, p99(p2f) / 1e6))
+
+
 def connect(path):
     for _ in range(200):
         try:
@@ -239,6 +276,7 @@ def main():
         stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=open(os.path.join(work, "qemu.err"), "w"))
     done = False
     dumps = []
+    trace, mode, novkms = [], None, False
     try:
         mon, ack = connect(mon_path), connect(ack_path)
         banner = b""
@@ -266,6 +304,12 @@ def main():
                     # the guest goes on at once: judging takes seconds of Python, and the guest's
                     # programs run on in real time meanwhile
                     ack.sendall(b"ok\n")
+                elif line.startswith("VMSHOW TRACE "):
+                    trace.append(line[len("VMSHOW TRACE "):].strip())
+                elif line.startswith("VMSHOW MODE "):
+                    mode = line[len("VMSHOW MODE "):].strip()
+                elif line.startswith("VMSHOW NOVKMS"):
+                    novkms = True
                 elif line.startswith("VMTEST "):
                     print(line, flush=True)
                     if line.startswith(("VMTEST PASS", "VMTEST FAIL")):
@@ -284,6 +328,12 @@ def main():
                 qemu.wait()
     for name, path in dumps:
         judge(name, path)
+    if novkms:
+        print("vmtest: no vkms module in the cache (tests/vm/run.sh builds it): the vblank check did not run")
+    elif done and mode is not None:
+        judge_vblank(mode, trace)
+    elif done:
+        result(False, "show-vblank", "the guest gave no vkms mode line")
     if not done:
         print("vmtest: the display guest did not finish (timeout %g s or a crash): see %s" % (timeout, log_path),
               file=sys.stderr)

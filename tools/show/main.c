@@ -30,7 +30,8 @@ static void usage(FILE *out)
 {
     fprintf(out,
         "usage: stillheart-show [--device DEV] [--connector NAME] [--mode WxH[@R]] [--name NAME]\n"
-        "                       [--owner USER] [--overlay off|minimal|full] [--stale S] [--stats]\n\n"
+        "                       [--owner USER] [--overlay off|minimal|full] [--stale S] [--stats]\n"
+        "                       [--trace FILE]\n\n"
         "Shows the frames the stillheart daemon publishes (its shared-memory display buffer) on a\n"
         "monitor through DRM/KMS, without X or Wayland: the newest frame, scaled to the mode with\n"
         "black bars, page flips on vblank. The status is shown on the picture (--overlay); when no\n"
@@ -49,11 +50,18 @@ static void usage(FILE *out)
         "                     and the reason as a line of text\n"
         "  --stale S          seconds without a new frame before NO SIGNAL (default 0.5)\n"
         "  --stats            latency on stderr every 5 s and at the end: capture-to-scanout (the\n"
-        "                     flip's vblank time minus the frame's capture time) and\n"
-        "                     publish-to-flip, median / p99 / max in ms\n"
+        "                     flip's vblank time minus the frame's capture time),\n"
+        "                     publish-to-flip, and publish-to-present (the display's own part:\n"
+        "                     waking, copying and drawing, up to the flip's request; the rest of\n"
+        "                     publish-to-flip is the wait for the vblank), median / p99 / max in ms\n"
+        "  --trace FILE       one CSV line per frame shown: sequence,status,capture_ns,\n"
+        "                     publish_ns,present_ns,flip_ns (CLOCK_MONOTONIC); a file that cannot\n"
+        "                     be written is refused at start, and one that fails later is closed\n"
+        "                     with an error while the screen goes on\n"
         SH_CLI_USAGE "\n"
         "Exit status: 0 after SIGINT or SIGTERM, 1 the device refused (no such device,\n"
-        "connector or mode; DRM master held by another process) or failed, 2 bad usage.\n",
+        "connector or mode; DRM master held by another process) or failed, or the --trace\n"
+        "file could not be written, 2 bad usage.\n",
         SH_DISPLAY_DEFAULT_NAME);
 }
 
@@ -64,6 +72,7 @@ typedef struct {
     sh_screen_overlay overlay;
     double stale;
     int stats;
+    const char *trace;
 } show_args;
 
 /* Fills *a; -1 to go on, else the exit status (0 after --help, 2 a usage error). */
@@ -74,6 +83,7 @@ static int parse_args(int argc, char **argv, show_args *a)
         {"mode", required_argument, 0, 'm'}, {"name", required_argument, 0, 'n'},
         {"owner", required_argument, 0, 'o'}, {"overlay", required_argument, 0, 'O'},
         {"stale", required_argument, 0, 's'}, {"stats", no_argument, 0, 'S'},
+        {"trace", required_argument, 0, 't'},
         SH_CLI_OPTIONS, {0, 0, 0, 0}};
     memset(a, 0, sizeof *a);
     a->kms.device = "/dev/dri/card0";
@@ -103,6 +113,7 @@ static int parse_args(int argc, char **argv, show_args *a)
             if (!sh_cli_parse_double("--stale", optarg, 0.05, 3600, &a->stale)) return 2;
             break;
         case 'S': a->stats = 1; break;
+        case 't': a->trace = optarg; break;
         case 'h': usage(stdout); return 0;
         default: { int rc = sh_cli_option(&cli, opt, argv); if (rc >= 0) return rc; } break;
         }
@@ -114,12 +125,14 @@ static int parse_args(int argc, char **argv, show_args *a)
 static volatile sig_atomic_t stop_signal;
 static void on_stop(int sig) { stop_signal = sig; }
 
-static double now_s(void)
+static int64_t now_ns(void)
 {
     struct timespec ts;
     clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + (double)ts.tv_nsec / 1e9;
+    return (int64_t)ts.tv_sec * 1000000000 + ts.tv_nsec;
 }
+
+static double now_s(void) { return (double)now_ns() / 1e9; }
 
 /* The newest latency samples (ns), a ring; summarized as median / p99 / max. */
 #define LAT_CAP 65536
@@ -167,7 +180,8 @@ typedef struct {
     int no_signal;                 /* what the screen shows: 1 NO SIGNAL, 0 a frame */
     long long no_signal_secs;      /* the seconds NO SIGNAL shows */
     uint64_t last_seq, generation, frames, skipped;
-    lat_ring cap2scan, pub2flip;
+    lat_ring cap2scan, pub2flip, pub2present;
+    FILE *trace;                   /* --trace, NULL when not asked or after a write failed */
 } show_state;
 
 /* The back buffer as a screen.h buffer. */
@@ -178,9 +192,11 @@ static sh_screen_buffer back_buffer(show_state *s)
     return b;
 }
 
-/* Flips to the back buffer and waits for it; 0, or -1 after saying why. */
-static int flip(show_state *s, int64_t *flip_ns)
+/* Flips to the back buffer and waits for it; 0, or -1 after saying why. *present_ns (when not
+ * NULL): the time the flip was asked for. */
+static int flip(show_state *s, int64_t *present_ns, int64_t *flip_ns)
 {
+    if (present_ns) *present_ns = now_ns();
     if (sh_kms_present(s->kms) != SH_OK || sh_kms_wait(s->kms, 1000, flip_ns) != SH_OK) {
         sh_log_error("%s", sh_error_message());
         return -1;
@@ -197,8 +213,8 @@ static int show_frame(show_state *s, const sh_display_frame_info *info)
         return -1;
     }
     sh_screen_draw_status(&b, &l, s->a->overlay, info->status, info->reason, (int)sizeof info->reason);
-    int64_t flip_ns;
-    if (flip(s, &flip_ns) != 0) return -1;
+    int64_t present_ns, flip_ns;
+    if (flip(s, &present_ns, &flip_ns) != 0) return -1;
     if (s->no_signal) sh_log_info("signal: frame %llu shown", (unsigned long long)info->sequence);
     s->no_signal = 0;
     if (s->frames && s->generation == sh_display_reader_header(s->r)->generation && info->sequence > s->last_seq + 1)
@@ -207,7 +223,18 @@ static int show_frame(show_state *s, const sh_display_frame_info *info)
     s->last_seq = info->sequence;
     s->frames++;
     if (info->capture_ns > 0) lat_add(&s->cap2scan, flip_ns - info->capture_ns);
-    if (info->publish_ns > 0) lat_add(&s->pub2flip, flip_ns - info->publish_ns);
+    if (info->publish_ns > 0) {
+        lat_add(&s->pub2flip, flip_ns - info->publish_ns);
+        lat_add(&s->pub2present, present_ns - info->publish_ns);
+    }
+    if (s->trace && (fprintf(s->trace, "%llu,%u,%lld,%lld,%lld,%lld\n", (unsigned long long)info->sequence,
+                             info->status, (long long)info->capture_ns, (long long)info->publish_ns,
+                             (long long)present_ns, (long long)flip_ns) < 0 || fflush(s->trace) != 0)) {
+        /* the screen matters more than its trace: say so once and go on without it */
+        sh_log_error("--trace %s: %s; no more trace lines", s->a->trace, strerror(errno));
+        fclose(s->trace);
+        s->trace = NULL;
+    }
     return 0;
 }
 
@@ -223,7 +250,7 @@ static int show_no_signal(show_state *s, double now)
     sh_screen_draw_no_signal(&b, since);
     s->no_signal = 1;
     s->no_signal_secs = secs;
-    return flip(s, NULL);
+    return flip(s, NULL, NULL);
 }
 
 /* A frame sized from the reader's header (at open, and when the daemon came back at another
@@ -243,12 +270,14 @@ static int size_frame(show_state *s)
 
 static void report(show_state *s, const char *when)
 {
-    char c[96], p[96];
+    char c[96], p[96], d[96];
     lat_summary(&s->cap2scan, c, sizeof c);
     lat_summary(&s->pub2flip, p, sizeof p);
+    lat_summary(&s->pub2present, d, sizeof d);
     if (s->a->stats)
         fprintf(stderr, "stillheart-show: stats%s: %llu frames shown, %llu skipped; capture-to-scanout %s; "
-                "publish-to-flip %s\n", when, (unsigned long long)s->frames, (unsigned long long)s->skipped, c, p);
+                "publish-to-flip %s; publish-to-present %s\n", when, (unsigned long long)s->frames,
+                (unsigned long long)s->skipped, c, p, d);
     sh_notifyf("STATUS=%s, %llu frames shown; capture-to-scanout %s; publish-to-flip %s",
                s->no_signal ? "NO SIGNAL" : "showing", (unsigned long long)s->frames, c, p);
 }
@@ -290,10 +319,11 @@ static int step(show_state *s)
     return 0;
 }
 
-static int run(const show_args *a, sh_kms *kms)
+static int run(const show_args *a, sh_kms *kms, FILE *trace)
 {
     static show_state s; /* the latency rings are 1 MiB: not on the stack */
     s.a = a;
+    s.trace = trace;
     s.kms = kms;
     sh_kms_get_info(kms, &s.ki);
     s.started = now_s();
@@ -320,6 +350,10 @@ static int run(const show_args *a, sh_kms *kms)
         }
     }
     report(&s, " (end)");
+    if (s.trace && fclose(s.trace) != 0) {
+        sh_log_error("--trace %s: %s", a->trace, strerror(errno));
+        rc = 1;
+    }
     sh_display_reader_close(s.r);
     sh_image_destroy(&s.frame);
     return rc;
@@ -337,12 +371,23 @@ int main(int argc, char **argv)
     sigemptyset(&sa.sa_mask);
     sigaction(SIGINT, &sa, NULL);
     sigaction(SIGTERM, &sa, NULL);
+    /* the trace before the device: a path that cannot be written is refused before the screen
+     * is taken */
+    FILE *trace = NULL;
+    if (a.trace) {
+        if (!(trace = fopen(a.trace, "w"))) {
+            sh_log_error("--trace %s: %s", a.trace, strerror(errno));
+            return 1;
+        }
+        fprintf(trace, "sequence,status,capture_ns,publish_ns,present_ns,flip_ns\n");
+    }
     sh_kms *kms;
     if (sh_kms_create(&a.kms, &kms) != SH_OK) {
         sh_log_error("%s", sh_error_message());
+        if (trace) fclose(trace);
         return 1;
     }
-    int rc = run(&a, kms);
+    int rc = run(&a, kms, trace);
     sh_kms_destroy(kms);
     return rc;
 }

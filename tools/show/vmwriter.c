@@ -1,8 +1,10 @@
 /* show-vmwriter: the writer of make vmtest's display check (tests/vm/show.sh), in the QEMU guest
  * only, never installed. Publishes a known frame to a display segment as the daemon would:
- *   show-vmwriter NAME SECONDS STATUS [REASON]
- * 320x180 I420, limited range, 10 frames a second for SECONDS, status stabilized | degraded |
- * raw with REASON, capture_ns 5 ms before publishing; then closes the segment (a clean stop).
+ *   show-vmwriter NAME SECONDS STATUS [REASON [FPS]]
+ * 320x180 I420, limited range, FPS frames a second (default 10) for SECONDS, status stabilized |
+ * degraded | raw with REASON, capture_ns 5 ms before publishing; then closes the segment (a
+ * clean stop). Frames are due on a fixed schedule (start + k / FPS), not a sleep after each, so
+ * that their rate does not drift with the time publishing takes (the latency check at 60 fps).
  * The pattern (tests/vm/show_check.py makes it again, independently, to compare the screen):
  *   Y(x, y) = 16 + (7x + 3y) mod 220, U(i, j) = 16 + 5i mod 225, V(i, j) = 16 + 9j mod 225
  * with (i, j) the chroma sample (x / 2, y / 2). */
@@ -26,10 +28,14 @@ static int64_t now_ns(void)
 int main(int argc, char **argv)
 {
     if (argc < 4) {
-        fprintf(stderr, "usage: show-vmwriter NAME SECONDS stabilized|degraded|raw [REASON]\n");
+        fprintf(stderr, "usage: show-vmwriter NAME SECONDS stabilized|degraded|raw [REASON [FPS]]\n");
         return 2;
     }
-    double seconds = atof(argv[2]);
+    double seconds = atof(argv[2]), fps = argc > 5 ? atof(argv[5]) : 10;
+    if (!(fps > 0 && fps <= 1000)) {
+        fprintf(stderr, "show-vmwriter: FPS '%s' is not in (0, 1000]\n", argv[5]);
+        return 2;
+    }
     uint32_t status = !strcmp(argv[3], "stabilized") ? SH_DISPLAY_STABILIZED
                       : !strcmp(argv[3], "degraded") ? SH_DISPLAY_DEGRADED : SH_DISPLAY_RAW;
     sh_image f;
@@ -52,7 +58,7 @@ int main(int argc, char **argv)
     info.markers_used = 16;
     info.residual_px = 0.5f;
     if (argc > 4) snprintf(info.reason, sizeof info.reason, "%s", argv[4]);
-    int64_t end = now_ns() + (int64_t)(seconds * 1e9);
+    const int64_t start = now_ns(), end = start + (int64_t)(seconds * 1e9);
     int n = 0;
     while (now_ns() < end) {
         info.capture_ns = now_ns() - 5000000;
@@ -61,7 +67,8 @@ int main(int argc, char **argv)
             return 1;
         }
         n++;
-        nanosleep(&(struct timespec){0, 100000000}, NULL);
+        int64_t due = start + (int64_t)((double)n * 1e9 / fps), wait = due - now_ns();
+        if (wait > 0) nanosleep(&(struct timespec){(time_t)(wait / 1000000000), (long)(wait % 1000000000)}, NULL);
     }
     sh_display_writer_destroy(w, 0);
     sh_image_destroy(&f);

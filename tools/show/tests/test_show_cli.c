@@ -1,6 +1,7 @@
 /* stillheart-show, run as a program, where no display is needed: --help names every option,
  * and each refusal exits with its status and a line naming what was wrong (bad --mode,
- * --overlay, --stale, --owner, an operand: 2; a device that is not there or not a KMS device: 1).
+ * --overlay, --stale, --owner, an operand: 2; a device that is not there or not a KMS device, a
+ * --trace file that cannot be written: 1, the trace refused before the device is opened).
  * The display itself is tested on a real KMS driver in make vmtest (tests/vm/show.sh). */
 #include <setjmp.h>
 #include <stdarg.h>
@@ -25,7 +26,7 @@ static void test_help(void **state)
     (void)state;
     assert_int_equal(test_run("%s --help", SHOW_BIN), 0);
     const char *opts[] = {"--device DEV", "--connector NAME", "--mode WxH[@R]", "--name NAME", "--owner USER",
-                          "--overlay MODE", "--stale S", "--stats", "NO SIGNAL"};
+                          "--overlay MODE", "--stale S", "--stats", "--trace FILE", "NO SIGNAL"};
     for (size_t i = 0; i < sizeof opts / sizeof opts[0]; i++) assert_non_null(strstr(test_out, opts[i]));
 }
 
@@ -41,6 +42,14 @@ static void test_usage_refusals(void **state)
     expect(2, "/dev/dri/card0", "'/dev/dri/card0': no operands");
     expect(2, "--bogus", "--bogus");
     expect(2, "--device", "--device");
+    expect(2, "--trace", "--trace");
+}
+
+static void test_trace_refusal(void **state)
+{
+    (void)state;
+    expect(1, "--trace /nonexistent/dir/trace.csv --device /dev/null",
+           "--trace /nonexistent/dir/trace.csv: No such file or directory");
 }
 
 static void test_device_refusals(void **state)
@@ -63,6 +72,7 @@ int main(void)
         cmocka_unit_test(test_help),
         cmocka_unit_test(test_usage_refusals),
         cmocka_unit_test(test_device_refusals),
+        cmocka_unit_test(test_trace_refusal),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
