@@ -86,6 +86,21 @@ const char *sh_screen_status_word(uint32_t status);
 sh_status sh_screen_draw_frame(const sh_screen_buffer *dst, const sh_screen_layout *layout,
                                const sh_image *frame, int full_range);
 
+/* The same for the screen rows [y0, y1) only (clipped to the buffer), bars included: bands that
+ * tile the screen, drawn by as many threads, make the picture sh_screen_draw_frame makes, byte
+ * for byte (stillheart-show --threads). */
+sh_status sh_screen_draw_frame_band(const sh_screen_buffer *dst, const sh_screen_layout *layout,
+                                    const sh_image *frame, int full_range, int y0, int y1);
+
+/* A frame drawn by `threads` threads (1 to 8: the caller and threads - 1 helpers started at
+ * create), each a band of the screen: the same bytes as sh_screen_draw_frame. _draw returns once
+ * every band is drawn; SH_OK or the first band's failure with its message. One caller at a time. */
+typedef struct sh_screen_painter sh_screen_painter;
+sh_status sh_screen_painter_create(int threads, sh_screen_painter **out);
+sh_status sh_screen_painter_draw(sh_screen_painter *p, const sh_screen_buffer *dst, const sh_screen_layout *layout,
+                                 const sh_image *frame, int full_range);
+void sh_screen_painter_destroy(sh_screen_painter *p);
+
 /* The overlay for a frame of this status and reason (NUL terminated, at most reason_cap bytes
  * read: it comes from shared memory) drawn over the picture; nothing in SH_SCREEN_OVERLAY_OFF. */
 void sh_screen_draw_status(const sh_screen_buffer *dst, const sh_screen_layout *layout,

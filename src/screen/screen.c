@@ -180,6 +180,12 @@ static void sample_row(uint32_t *restrict out, int pw, const uint32_t *restrict 
 sh_status sh_screen_draw_frame(const sh_screen_buffer *dst, const sh_screen_layout *layout,
                                const sh_image *frame, int full_range)
 {
+    return sh_screen_draw_frame_band(dst, layout, frame, full_range, 0, dst->height);
+}
+
+sh_status sh_screen_draw_frame_band(const sh_screen_buffer *dst, const sh_screen_layout *layout,
+                                    const sh_image *frame, int full_range, int y0, int y1)
+{
     const sh_screen_rect p = layout->picture;
     if (!dst->pixels || dst->stride < dst->width * 4 || p.x < 0 || p.y < 0 || p.width < 1 || p.height < 1 ||
         p.x + p.width > dst->width || p.y + p.height > dst->height)
@@ -190,18 +196,24 @@ sh_status sh_screen_draw_frame(const sh_screen_buffer *dst, const sh_screen_layo
         return sh_error_set(SH_EINVAL, "screen: cannot show %s frames", sh_pixfmt_name(frame->format));
     if (frame->width < 1 || frame->height < 1)
         return sh_error_set(SH_EINVAL, "screen: empty frame");
+    y0 = imax(y0, 0);
+    y1 = imin(y1, dst->height);
+    if (y0 >= y1) return SH_OK;
     /* a frame as wide as the picture is converted straight into it; any other through one row */
     uint32_t *row = NULL;
     if (frame->width != p.width && !(row = malloc((size_t)frame->width * sizeof *row)))
         return sh_error_set(SH_ENOMEM, "screen: out of memory for a %d-pixel row", frame->width);
     const yuv_coeffs c = coeffs(full_range);
-    sh_screen_fill(dst, (sh_screen_rect){0, 0, dst->width, p.y}, SH_SCREEN_BLACK);
-    sh_screen_fill(dst, (sh_screen_rect){0, p.y + p.height, dst->width, dst->height - p.y - p.height}, SH_SCREEN_BLACK);
-    sh_screen_fill(dst, (sh_screen_rect){0, p.y, p.x, p.height}, SH_SCREEN_BLACK);
-    sh_screen_fill(dst, (sh_screen_rect){p.x + p.width, p.y, dst->width - p.x - p.width, p.height}, SH_SCREEN_BLACK);
+    /* the bars, clipped to the band's rows */
+    const int top = imin(p.y, y1), bottom = imax(p.y + p.height, y0);
+    sh_screen_fill(dst, (sh_screen_rect){0, y0, dst->width, top - y0}, SH_SCREEN_BLACK);
+    sh_screen_fill(dst, (sh_screen_rect){0, bottom, dst->width, y1 - bottom}, SH_SCREEN_BLACK);
+    const int py0 = imax(p.y, y0), py1 = imin(p.y + p.height, y1);
+    sh_screen_fill(dst, (sh_screen_rect){0, py0, p.x, py1 - py0}, SH_SCREEN_BLACK);
+    sh_screen_fill(dst, (sh_screen_rect){p.x + p.width, py0, dst->width - p.x - p.width, py1 - py0}, SH_SCREEN_BLACK);
     const uint32_t *prev = NULL;
     int prev_sy = -1;
-    for (int y = 0; y < p.height; y++) {
+    for (int y = py0 - p.y; y < py1 - p.y; y++) {
         int sy = (int)(((2LL * y + 1) * frame->height) / (2LL * p.height));
         uint32_t *out = (uint32_t *)((uint8_t *)dst->pixels + (size_t)(p.y + y) * (size_t)dst->stride) + p.x;
         if (sy == prev_sy) { /* upscaled: the same frame row again */

@@ -1,6 +1,7 @@
 /* The picture stillheart-show puts on the monitor (src/screen), checked pixel by pixel against
  * closed forms written here: the letterbox rectangle, BT.601 conversion of the nearest frame
- * sample (floating point here, fixed point there: within 1), black bars; overlay off leaves
+ * sample (floating point here, fixed point there: within 1), black bars, and the same bytes
+ * drawn in bands; overlay off leaves
  * every picture pixel as it was; the status frame, the badge and the reason band where
  * screen.h puts them and in the status colours; glyphs against drawings of the 5x7 font made
  * here; NO SIGNAL's two lines where screen.h centres them. */
@@ -130,6 +131,15 @@ static void check_scaled(sh_pixfmt fmt, int fw, int fh, int sw, int sh, int full
     assert_int_equal(off, 0);
     /* the padding after each row untouched */
     for (int y = 0; y < sh; y++) assert_int_equal(t.mem[(size_t)y * (size_t)(sw + 3) + (size_t)sw], 0x00123456u);
+    /* bands that tile the screen (cuts in the bars, in the picture, on repeated rows; one empty,
+     * one beyond the screen) make the same bytes, padding included */
+    const int cuts[][2] = {{-5, 1}, {1, p.y / 2}, {p.y / 2, p.y + 1}, {p.y + 1, p.y + 1}, {p.y + 1, sh / 2 + 1},
+                           {sh / 2 + 1, p.y + p.height - 1}, {p.y + p.height - 1, sh + 9}};
+    test_buf u = make_buf(sw, sh);
+    for (size_t k = 0; k < sizeof cuts / sizeof cuts[0]; k++)
+        assert_int_equal(sh_screen_draw_frame_band(&u.b, &l, &f, full, cuts[k][0], cuts[k][1]), SH_OK);
+    assert_memory_equal(u.mem, t.mem, (size_t)u.b.stride * (size_t)sh);
+    free(u.mem);
     free(t.mem);
     sh_image_destroy(&f);
 }
@@ -143,6 +153,43 @@ static void test_scale_convert(void **state)
     check_scaled(SH_PIX_YUV444, 40, 30, 90, 50, 0);
     check_scaled(SH_PIX_GRAY8, 30, 40, 50, 90, 1);
     check_scaled(SH_PIX_RGB24, 17, 9, 40, 40, 0);
+}
+
+/* The painter's threads draw the bytes one thread draws (the whole draw is checked above), frame
+ * after frame, at every thread count; counts outside 1..8 are refused. */
+static void test_painter(void **state)
+{
+    (void)state;
+    sh_image f;
+    assert_int_equal(sh_image_create(&f, SH_PIX_I420, 160, 90), SH_OK);
+    fill_frame(&f);
+    test_buf want = make_buf(203, 151), got = make_buf(203, 151);
+    sh_screen_layout l = sh_screen_layout_for(160, 90, 203, 151);
+    assert_int_equal(sh_screen_draw_frame(&want.b, &l, &f, 0), SH_OK);
+    for (int n = 1; n <= 8; n++) {
+        sh_screen_painter *p;
+        assert_int_equal(sh_screen_painter_create(n, &p), SH_OK);
+        for (int round = 0; round < 5; round++) {
+            memset(got.mem, round, (size_t)got.b.stride * 151);
+            for (int y = 0; y < 151; y++) /* the padding as make_buf leaves it: never drawn */
+                for (int x = 203; x < 206; x++) got.mem[(size_t)y * (203 + 3) + (size_t)x] = 0x00123456u;
+            assert_int_equal(sh_screen_painter_draw(p, &got.b, &l, &f, 0), SH_OK);
+            assert_memory_equal(got.mem, want.mem, (size_t)got.b.stride * 151);
+        }
+        sh_screen_painter_destroy(p);
+    }
+    sh_screen_painter *p;
+    assert_int_equal(sh_screen_painter_create(0, &p), SH_EINVAL);
+    assert_int_equal(sh_screen_painter_create(9, &p), SH_EINVAL);
+    /* a refusal of the frame comes back from the threads' round too */
+    assert_int_equal(sh_screen_painter_create(3, &p), SH_OK);
+    sh_image rgba = f;
+    rgba.format = (sh_pixfmt)99;
+    assert_int_equal(sh_screen_painter_draw(p, &got.b, &l, &rgba, 0), SH_EINVAL);
+    sh_screen_painter_destroy(p);
+    free(want.mem);
+    free(got.mem);
+    sh_image_destroy(&f);
 }
 
 static void test_refusals(void **state)
@@ -300,7 +347,7 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_layout),       cmocka_unit_test(test_scale_convert),
-        cmocka_unit_test(test_refusals),     cmocka_unit_test(test_overlay_off),
+        cmocka_unit_test(test_refusals),     cmocka_unit_test(test_painter),     cmocka_unit_test(test_overlay_off),
         cmocka_unit_test(test_overlay_minimal), cmocka_unit_test(test_overlay_full),
         cmocka_unit_test(test_glyphs),       cmocka_unit_test(test_no_signal),
     };
