@@ -1,6 +1,6 @@
 /* stillheart-show, run as a program, where no display is needed: --help names every option,
  * and each refusal exits with its status and a line naming what was wrong (bad --mode,
- * --overlay, --stale, --owner, an operand: 2; a device that is not there or not a KMS device, a
+ * --overlay, --stale, --owner, --threads, an operand: 2; a device that is not there or not a KMS device, a
  * --trace file that cannot be written: 1, the trace refused before the device is opened).
  * The display itself is tested on a real KMS driver in make vmtest (tests/vm/show.sh). */
 #include <setjmp.h>
@@ -26,7 +26,7 @@ static void test_help(void **state)
     (void)state;
     assert_int_equal(test_run("%s --help", SHOW_BIN), 0);
     const char *opts[] = {"--device DEV", "--connector NAME", "--mode WxH[@R]", "--name NAME", "--owner USER",
-                          "--overlay MODE", "--stale S", "--stats", "--trace FILE", "NO SIGNAL"};
+                          "--overlay MODE", "--stale S", "--stats", "--trace FILE", "--threads N", "NO SIGNAL"};
     for (size_t i = 0; i < sizeof opts / sizeof opts[0]; i++) assert_non_null(strstr(test_out, opts[i]));
 }
 
@@ -43,6 +43,8 @@ static void test_usage_refusals(void **state)
     expect(2, "--bogus", "--bogus");
     expect(2, "--device", "--device");
     expect(2, "--trace", "--trace");
+    expect(2, "--threads 0", "--threads");
+    expect(2, "--threads 9", "--threads");
 }
 
 static void test_trace_refusal(void **state)
