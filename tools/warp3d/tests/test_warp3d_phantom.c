@@ -528,6 +528,82 @@ static void test_cli(void **state)
     assert_int_equal(run(args), 1);
 }
 
+/* `warp3d ARGS`, its standard output in DIR/out.txt and its standard error in DIR/err.txt: the
+ * exit status. */
+static int run_to(const char *dir, const char *args)
+{
+    char cmd[16384];
+    snprintf(cmd, sizeof cmd, "'%s' warp3d %s >'%s/out.txt' 2>'%s/err.txt'", APP_BIN, args, dir, dir);
+    int rc = system(cmd);
+    return rc == -1 ? -1 : WEXITSTATUS(rc);
+}
+
+/* DIR/NAME's text (static storage, up to 64 KiB). */
+static const char *text_of(const char *dir, const char *name)
+{
+    static char text[1 << 16];
+    char path[4096];
+    snprintf(path, sizeof path, "%s/%s", dir, name);
+    FILE *f = fopen(path, "rb");
+    assert_non_null(f);
+    text[fread(text, 1, sizeof text - 1, f)] = '\0';
+    fclose(f);
+    return text;
+}
+
+/* --metric (issue 20: e converts every frame to RGB, so it is asked for, as in `stillheart
+ * warp`): the same video with and without it; e only with it, with --quiet too, and the figures
+ * stillheart-eval gives for the same videos; to standard output the video goes there and e to
+ * standard error; refused for a virtual view. The second case is a depth-scaled view whose grid
+ * refines on the reference frame's map: without that map made ahead of the frames, --metric or
+ * not, frame 0 differs from byte 68952 on. */
+static void test_cli_metric(void **state)
+{
+    (void)state;
+    const char *d = pt_render(3, "--preset exvivo --frames 30 --cameras 1 --width 640 --height 360");
+    assert_non_null(d);
+    char args[8192], common[4096], plain[1024], metric[1024];
+    snprintf(args, sizeof args, "'%s' --truth '%s' --export-points '%s/p3.csv'", EVAL_BIN, d, d);
+    assert_int_equal(system(args), 0);
+    snprintf(plain, sizeof plain, "%s/plain.y4m", d);
+    snprintf(metric, sizeof metric, "%s/metric.y4m", d);
+    static const char *cases[2] = {"", "--depth-scale 3 --reference 29 --max-error 0.02"};
+    double e_in, e_out;
+    for (int i = 1; i >= 0; i--) { /* the default last: its videos and e are checked below */
+        snprintf(common, sizeof common, "%s --cameras '%s/calibration.yaml' --points '%s/p3.csv' '%s/cam0.y4m'",
+                 cases[i], d, d, d);
+        snprintf(args, sizeof args, "%s '%s'", common, plain);
+        assert_int_equal(run_to(d, args), 0);
+        assert_string_equal(text_of(d, "out.txt"), "");
+        snprintf(args, sizeof args, "--quiet --metric %s '%s'", common, metric);
+        assert_int_equal(run_to(d, args), 0);
+        int frames, pixels;
+        assert_int_equal(sscanf(text_of(d, "out.txt"), "residual motion e (lower is better): %lf -> %lf, "
+                                "%*[^(](%d frames, %d hull pixels)", &e_in, &e_out, &frames, &pixels), 4);
+        assert_true(e_out < 0.5 * e_in);
+        assert_int_equal(frames, 30);
+        assert_true(pt_same_file(plain, metric));
+    }
+    snprintf(args, sizeof args, "'%s' --quiet --json --points '%s/p3.csv' '%s' '%s/cam0.y4m' >'%s/out.txt'",
+             EVAL_BIN, d, metric, d, d);
+    assert_int_equal(system(args), 0);
+    const char *json = text_of(d, "out.txt");
+    const char *out = strstr(json, "\"e_stabilized\": "), *orig = strstr(json, "\"e_original\": ");
+    assert_true(out && orig);
+    /* warp3d prints 6 decimals */
+    assert_float_equal(e_out, strtod(out + sizeof "\"e_stabilized\": " - 1, NULL), 5e-7);
+    assert_float_equal(e_in, strtod(orig + sizeof "\"e_original\": " - 1, NULL), 5e-7);
+
+    snprintf(args, sizeof args, "--quiet --metric %s -", common);
+    assert_int_equal(run_to(d, args), 0);
+    assert_non_null(strstr(text_of(d, "err.txt"), "residual motion e (lower is better): "));
+    snprintf(metric, sizeof metric, "%s/out.txt", d);
+    assert_true(pt_same_file(plain, metric));
+    snprintf(args, sizeof args, "--metric --view stereo %s '%s/x.y4m'", common, d);
+    assert_int_equal(run_to(d, args), 2);
+    assert_non_null(strstr(text_of(d, "err.txt"), "--metric: with --view reference only"));
+}
+
 static int teardown(void **state)
 {
     (void)state;
@@ -544,6 +620,7 @@ int main(void)
         cmocka_unit_test(test_ply_invivo),
         cmocka_unit_test(test_best_facing_colour),
         cmocka_unit_test(test_cli),
+        cmocka_unit_test(test_cli_metric),
     };
     return cmocka_run_group_tests(tests, NULL, teardown);
 }
