@@ -28,6 +28,13 @@ ARM64_LOOP ?= 10
 check-arm64-loop:
 	@sh tools/cross/check-arm64-loop.sh $(ARM64_LOOP)
 
+# build/tests/test_daemon LOAD_LOOP times in a row on the host with two busy loops beside it
+# (issue 21; tools/cross/daemon-load-loop.sh says why two).
+LOAD_LOOP ?= 10
+.PHONY: test-daemon-load-loop
+test-daemon-load-loop: tests
+	@BUILD=$(BUILD) sh tools/cross/daemon-load-loop.sh $(LOAD_LOOP)
+
 # ---- Debian packages (debian/): make deb [DEB_ARCHS="amd64 arm64"] -> build-deb/*.deb ----
 # Built from a copy of the working tree (dpkg-buildpackage writes beside the source folder).
 # arm64 is a cross build: -d because libapriltag-dev:arm64 cannot co-install with the amd64

@@ -6,8 +6,9 @@
  * One loop: wait for a frame newer than the one shown (never more than 100 ms, so that NO SIGNAL
  * and its clock appear on time), draw it into the buffer that is not scanned out, flip, and wait
  * for the flip's event before touching the other buffer. Frames that arrive meanwhile are not
- * queued: the next wait returns the newest. The drawing alone is shared, in horizontal bands,
- * with --threads - 1 helper threads: it is most of the display's own part of publish-to-flip. */
+ * queued: the next wait returns the newest. The drawing alone may be shared, in horizontal
+ * bands, with --threads - 1 helper threads: it is most of the display's own part of
+ * publish-to-flip. */
 #include <errno.h>
 #include <getopt.h>
 #include <math.h>
@@ -59,8 +60,10 @@ static void usage(FILE *out)
         "                     publish_ns,present_ns,flip_ns (CLOCK_MONOTONIC); a file that cannot\n"
         "                     be written is refused at start, and one that fails later is closed\n"
         "                     with an error while the screen goes on\n"
-        "  --threads N        threads that draw each frame, in bands (1-8, default 2): a 1080p\n"
-        "                     frame's conversion takes about 1 ms on one core of a desktop CPU\n"
+        "  --threads N        threads that draw each frame, in bands (1-8, default 1): a 1080p\n"
+        "                     frame's conversion takes about 1 ms on one core, 0.5 on two, but a\n"
+        "                     helper woken once a frame can cost what it saves (make bench:\n"
+        "                     bench_show measures both on the box)\n"
         SH_CLI_USAGE "\n"
         "Exit status: 0 after SIGINT or SIGTERM, 1 the device refused (no such device,\n"
         "connector or mode; DRM master held by another process) or failed, or the --trace\n"
@@ -95,7 +98,7 @@ static int parse_args(int argc, char **argv, show_args *a)
     a->name = SH_DISPLAY_DEFAULT_NAME;
     a->overlay = SH_SCREEN_OVERLAY_FULL;
     a->stale = 0.5;
-    a->threads = 2;
+    a->threads = 1;
     int opt;
     opterr = 0;
     while ((opt = getopt_long(argc, argv, ":h", options, NULL)) != -1) {
