@@ -343,6 +343,7 @@ static int run(const show_args *a, sh_kms *kms, FILE *trace)
     s.no_signal_secs = -2;
     if (sh_screen_painter_create(a->threads, &s.painter) != SH_OK) {
         sh_log_error("--threads %d: %s", a->threads, sh_error_message());
+        if (s.trace) fclose(s.trace);
         return 1;
     }
     sh_log_info("%s (%s): %s %dx%d@%.2f, overlay %s, %d drawing thread%s", a->kms.device, s.ki.driver, s.ki.connector,
@@ -351,6 +352,7 @@ static int run(const show_args *a, sh_kms *kms, FILE *trace)
     /* the screen at once, before the daemon's first frame: NO SIGNAL */
     if (show_no_signal(&s, s.started) != 0) {
         sh_screen_painter_destroy(s.painter);
+        if (s.trace) fclose(s.trace);
         return 1;
     }
     sh_notify("READY=1");
