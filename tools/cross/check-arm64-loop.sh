@@ -4,7 +4,9 @@
 # N passed, N failed HH:MM"), each run's whole output in build-arm64/loop/run-K.log. Stops at the
 # first failing run, so the count it ends with is the number in a row. Run it with nothing else
 # on the machine: the issue's question is whether the suite holds on a quiet box, and other
-# jobs' load (or their tests sharing /tmp and /dev/shm) is a different question.
+# jobs' load (or their tests sharing /tmp and /dev/shm) is a different question. Each run builds
+# from the tree it is started in: run it in a worktree at a fixed commit (git worktree add
+# ../loop HEAD) when you go on editing, or a later run tests your edits, not the commit.
 n=${1:-10}
 logs=build-arm64/loop
 mkdir -p "$logs"
