@@ -1,13 +1,15 @@
 /* Drawing a frame in bands on several threads (screen.h, sh_screen_painter): the conversion is
  * most of stillheart-show's own part of publish-to-flip, and it divides. Each frame is one round:
  * the caller posts it, every helper draws its band and counts itself done, the caller draws band
- * 0 and waits for the count. Nothing is queued: a round ends before the call returns. */
+ * 0 and waits for the count. Nothing is queued: a round ends before the call returns. Each band
+ * has its own row for scaled frames, kept from frame to frame and grown only when a wider frame
+ * comes (a daemon restarted at another size): no allocation per frame. */
 #include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
-#include "stillheart/screen.h"
+#include "screen_internal.h"
 
 #define MAX_THREADS 8
 
@@ -15,6 +17,7 @@ typedef struct {
     sh_screen_painter *p;
     int band;
     pthread_t th;
+    uint32_t *row;  /* the band's row for a scaled frame */
 } helper;
 
 struct sh_screen_painter {
@@ -30,13 +33,27 @@ struct sh_screen_painter {
     int full_range;
     sh_status status;            /* the first helper failure of the round, and its message */
     char message[256];
+    int row_cap;                 /* pixels each band's row holds */
 };
 
 static sh_status draw_band(const sh_screen_painter *p, int band)
 {
     long long h = p->dst->height;
-    return sh_screen_draw_frame_band(p->dst, p->layout, p->frame, p->full_range, (int)(h * band / p->n),
-                                     (int)(h * (band + 1) / p->n));
+    return screen_draw_band(p->dst, p->layout, p->frame, p->full_range, (int)(h * band / p->n),
+                            (int)(h * (band + 1) / p->n), p->h[band].row);
+}
+
+/* Every band's row as wide as the frame (before a round: no helper is drawing). */
+static sh_status grow_rows(sh_screen_painter *p, int width)
+{
+    if (width <= p->row_cap) return SH_OK;
+    for (int i = 0; i < p->n; i++) {
+        uint32_t *r = realloc(p->h[i].row, (size_t)width * sizeof *r);
+        if (!r) return sh_error_set(SH_ENOMEM, "screen: out of memory for a %d-pixel row", width);
+        p->h[i].row = r;
+    }
+    p->row_cap = width;
+    return SH_OK;
 }
 
 static void *helper_main(void *arg)
@@ -74,7 +91,7 @@ sh_status sh_screen_painter_create(int threads, sh_screen_painter **out)
     pthread_cond_init(&p->go, NULL);
     pthread_cond_init(&p->done, NULL);
     for (int i = 1; i < threads; i++) {
-        p->h[i] = (helper){p, i, 0};
+        p->h[i] = (helper){p, i, 0, NULL};
         int e = pthread_create(&p->h[i].th, NULL, helper_main, &p->h[i]);
         if (e) {
             sh_screen_painter_destroy(p);
@@ -89,6 +106,10 @@ sh_status sh_screen_painter_create(int threads, sh_screen_painter **out)
 sh_status sh_screen_painter_draw(sh_screen_painter *p, const sh_screen_buffer *dst, const sh_screen_layout *layout,
                                  const sh_image *frame, int full_range)
 {
+    if (frame->width != layout->picture.width) {
+        sh_status st = grow_rows(p, frame->width);
+        if (st != SH_OK) return st;
+    }
     pthread_mutex_lock(&p->mu);
     p->dst = dst;
     p->layout = layout;
@@ -118,5 +139,6 @@ void sh_screen_painter_destroy(sh_screen_painter *p)
     pthread_cond_destroy(&p->go);
     pthread_cond_destroy(&p->done);
     pthread_mutex_destroy(&p->mu);
+    for (int i = 0; i < MAX_THREADS; i++) free(p->h[i].row);
     free(p);
 }

@@ -5,6 +5,7 @@
 #include <string.h>
 
 #include "stillheart/screen.h"
+#include "screen_internal.h"
 
 static int imax(int a, int b) { return a > b ? a : b; }
 static int imin(int a, int b) { return a < b ? a : b; }
@@ -186,6 +187,19 @@ sh_status sh_screen_draw_frame(const sh_screen_buffer *dst, const sh_screen_layo
 sh_status sh_screen_draw_frame_band(const sh_screen_buffer *dst, const sh_screen_layout *layout,
                                     const sh_image *frame, int full_range, int y0, int y1)
 {
+    /* a frame as wide as the picture is converted straight into it; any other through one row */
+    uint32_t *row = NULL;
+    if (frame->width > 0 && frame->width != layout->picture.width &&
+        !(row = malloc((size_t)frame->width * sizeof *row)))
+        return sh_error_set(SH_ENOMEM, "screen: out of memory for a %d-pixel row", frame->width);
+    sh_status st = screen_draw_band(dst, layout, frame, full_range, y0, y1, row);
+    free(row);
+    return st;
+}
+
+sh_status screen_draw_band(const sh_screen_buffer *dst, const sh_screen_layout *layout, const sh_image *frame,
+                           int full_range, int y0, int y1, uint32_t *row)
+{
     const sh_screen_rect p = layout->picture;
     if (!dst->pixels || dst->stride < dst->width * 4 || p.x < 0 || p.y < 0 || p.width < 1 || p.height < 1 ||
         p.x + p.width > dst->width || p.y + p.height > dst->height)
@@ -199,10 +213,7 @@ sh_status sh_screen_draw_frame_band(const sh_screen_buffer *dst, const sh_screen
     y0 = imax(y0, 0);
     y1 = imin(y1, dst->height);
     if (y0 >= y1) return SH_OK;
-    /* a frame as wide as the picture is converted straight into it; any other through one row */
-    uint32_t *row = NULL;
-    if (frame->width != p.width && !(row = malloc((size_t)frame->width * sizeof *row)))
-        return sh_error_set(SH_ENOMEM, "screen: out of memory for a %d-pixel row", frame->width);
+    if (frame->width != p.width && !row) return sh_error_set(SH_EINVAL, "screen: no row to scale a frame through");
     const yuv_coeffs c = coeffs(full_range);
     /* the bars, clipped to the band's rows */
     const int top = imin(p.y, y1), bottom = imax(p.y + p.height, y0);
@@ -227,7 +238,6 @@ sh_status sh_screen_draw_frame_band(const sh_screen_buffer *dst, const sh_screen
         prev = out;
         prev_sy = sy;
     }
-    free(row);
     return SH_OK;
 }
 

@@ -156,25 +156,35 @@ static void test_scale_convert(void **state)
 }
 
 /* The painter's threads draw the bytes one thread draws (the whole draw is checked above), frame
- * after frame, at every thread count; counts outside 1..8 are refused. */
+ * after frame and size after size (its rows kept between frames and grown for a wider one), at
+ * every thread count; counts outside 1..8 are refused. */
 static void test_painter(void **state)
 {
     (void)state;
-    sh_image f;
-    assert_int_equal(sh_image_create(&f, SH_PIX_I420, 160, 90), SH_OK);
-    fill_frame(&f);
-    test_buf want = make_buf(203, 151), got = make_buf(203, 151);
-    sh_screen_layout l = sh_screen_layout_for(160, 90, 203, 151);
-    assert_int_equal(sh_screen_draw_frame(&want.b, &l, &f, 0), SH_OK);
+    /* frames of three sizes in turn: as wide as the picture (no row), scaled up, and wider than
+     * the screen (scaled down: the bands' rows grow for it) */
+    enum { SIZES = 3 };
+    const int fw[SIZES] = {203, 160, 400}, fh[SIZES] = {100, 90, 301};
+    sh_image f[SIZES];
+    sh_screen_layout l[SIZES];
+    test_buf want[SIZES], got = make_buf(203, 151);
+    for (int i = 0; i < SIZES; i++) {
+        assert_int_equal(sh_image_create(&f[i], SH_PIX_I420, fw[i], fh[i]), SH_OK);
+        fill_frame(&f[i]);
+        want[i] = make_buf(203, 151);
+        l[i] = sh_screen_layout_for(fw[i], fh[i], 203, 151);
+        assert_int_equal(sh_screen_draw_frame(&want[i].b, &l[i], &f[i], 0), SH_OK);
+    }
     for (int n = 1; n <= 8; n++) {
         sh_screen_painter *p;
         assert_int_equal(sh_screen_painter_create(n, &p), SH_OK);
-        for (int round = 0; round < 5; round++) {
+        for (int round = 0; round < 3 * SIZES; round++) {
+            const int i = round % SIZES;
             memset(got.mem, round, (size_t)got.b.stride * 151);
             for (int y = 0; y < 151; y++) /* the padding as make_buf leaves it: never drawn */
                 for (int x = 203; x < 206; x++) got.mem[(size_t)y * (203 + 3) + (size_t)x] = 0x00123456u;
-            assert_int_equal(sh_screen_painter_draw(p, &got.b, &l, &f, 0), SH_OK);
-            assert_memory_equal(got.mem, want.mem, (size_t)got.b.stride * 151);
+            assert_int_equal(sh_screen_painter_draw(p, &got.b, &l[i], &f[i], 0), SH_OK);
+            assert_memory_equal(got.mem, want[i].mem, (size_t)got.b.stride * 151);
         }
         sh_screen_painter_destroy(p);
     }
@@ -183,13 +193,15 @@ static void test_painter(void **state)
     assert_int_equal(sh_screen_painter_create(9, &p), SH_EINVAL);
     /* a refusal of the frame comes back from the threads' round too */
     assert_int_equal(sh_screen_painter_create(3, &p), SH_OK);
-    sh_image rgba = f;
+    sh_image rgba = f[1];
     rgba.format = (sh_pixfmt)99;
-    assert_int_equal(sh_screen_painter_draw(p, &got.b, &l, &rgba, 0), SH_EINVAL);
+    assert_int_equal(sh_screen_painter_draw(p, &got.b, &l[1], &rgba, 0), SH_EINVAL);
     sh_screen_painter_destroy(p);
-    free(want.mem);
+    for (int i = 0; i < SIZES; i++) {
+        free(want[i].mem);
+        sh_image_destroy(&f[i]);
+    }
     free(got.mem);
-    sh_image_destroy(&f);
 }
 
 static void test_refusals(void **state)
