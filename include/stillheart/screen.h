@@ -94,7 +94,10 @@ sh_status sh_screen_draw_frame_band(const sh_screen_buffer *dst, const sh_screen
 
 /* A frame drawn by `threads` threads (1 to 8: the caller and threads - 1 helpers started at
  * create), each a band of the screen: the same bytes as sh_screen_draw_frame. _draw returns once
- * every band is drawn; SH_OK or the first band's failure with its message. One caller at a time. */
+ * every band is drawn; SH_OK or the first band's failure with its message. One caller at a time.
+ * With one thread, the frame is read on the calling thread with no lock held and nothing
+ * allocated meanwhile (rows for a wider frame are grown before it is read): a draw from a view
+ * that sh_display_reader_view may abandon by a jump leaves the painter as it was. */
 typedef struct sh_screen_painter sh_screen_painter;
 sh_status sh_screen_painter_create(int threads, sh_screen_painter **out);
 sh_status sh_screen_painter_draw(sh_screen_painter *p, const sh_screen_buffer *dst, const sh_screen_layout *layout,

@@ -22,6 +22,13 @@ typedef struct {
 } display_slot_header;
 
 void display_sleep_us(long us);
+/* The word of the header a reader waits on for the next publish (a futex), and the two halves:
+ * a reader that saw `seen` there sleeps until the word changes, the writer wakes it, or `us`
+ * microseconds pass (the bound keeps a reader of a writer that never wakes, or of a kernel
+ * without the call, on its timed poll); the writer wakes every waiter after each publish. */
+const volatile uint32_t *display_latest_word(const volatile sh_display_header *h);
+void display_wait_latest(const volatile sh_display_header *h, uint32_t seen, long us);
+void display_wake_latest(volatile sh_display_header *h);
 /* The pixel layout of one slot for a format: planes packed, rows padded to 16 bytes. */
 sh_status display_layout(sh_display_header *h, sh_pixfmt format, int width, int height);
 /* "user NAME (uid N)" or "uid N" when the user has no name. */

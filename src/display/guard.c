@@ -21,8 +21,7 @@
 
 static _Thread_local display_guard *volatile current;
 static struct sigaction previous;
-static pthread_once_t once = PTHREAD_ONCE_INIT;
-static int installed;
+static pthread_mutex_t install_lock = PTHREAD_MUTEX_INITIALIZER;
 
 static void on_sigbus(int sig, siginfo_t *si, void *ctx)
 {
@@ -44,20 +43,27 @@ static void on_sigbus(int sig, siginfo_t *si, void *ctx)
     previous.sa_handler(sig);
 }
 
-static void install(void)
-{
-    struct sigaction sa;
-    memset(&sa, 0, sizeof sa);
-    sa.sa_sigaction = on_sigbus;
-    sa.sa_flags = SA_SIGINFO | SA_ONSTACK;
-    sigemptyset(&sa.sa_mask);
-    installed = sigaction(SIGBUS, &sa, &previous) == 0;
-}
-
+/* Checked at every create, open and attach, not once per process: code that replaced the handler
+ * without chaining to it (a test framework that puts back SIG_DFL after each test does) would
+ * leave every later guard without its handler, and the first fault in a segment would kill the
+ * process. Put back, it chains to whatever replaced it. */
 sh_status display_guard_install(void)
 {
-    pthread_once(&once, install);
-    return installed ? SH_OK : sh_error_set(SH_EIO, "display: cannot install the SIGBUS guard");
+    pthread_mutex_lock(&install_lock);
+    struct sigaction now, was;
+    int ok = sigaction(SIGBUS, NULL, &now) == 0;
+    if (ok && !((now.sa_flags & SA_SIGINFO) && now.sa_sigaction == on_sigbus)) {
+        struct sigaction sa;
+        memset(&sa, 0, sizeof sa);
+        sa.sa_sigaction = on_sigbus;
+        sa.sa_flags = SA_SIGINFO | SA_ONSTACK;
+        sigemptyset(&sa.sa_mask);
+        /* `previous` is set before the handler can run with it */
+        previous = now;
+        ok = sigaction(SIGBUS, &sa, &was) == 0;
+    }
+    pthread_mutex_unlock(&install_lock);
+    return ok ? SH_OK : sh_error_set(SH_EIO, "display: cannot install the SIGBUS guard");
 }
 
 void display_guard_enter(display_guard *g, const volatile void *lo, size_t len)

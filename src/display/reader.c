@@ -32,6 +32,7 @@ struct sh_display_reader {
     ino_t ino;
     sh_display_header geometry; /* validated copy: the segment's own fields are not trusted again */
     uint64_t last_sequence;
+    uint32_t seen;              /* the futex word (display_latest_word) at the last look */
     uint8_t *stage;             /* one slot's pixels: a copy is made here and kept only if whole */
     size_t stage_cap;
     int64_t next_name_check;
@@ -230,7 +231,27 @@ const sh_display_header *sh_display_reader_header(const sh_display_reader *r)
  * new writer, or a writer that remakes its segment, makes a new object), so an equal count means
  * the same frame. This is the only place a slot is read: every return of a frame (the newest, the
  * last before a close, the one in hand at a timeout, a reopen) goes through it. */
-static sh_status copy_slot(sh_display_reader *r, uint32_t slot, sh_display_frame_info *info)
+/* With a viewer (sh_display_reader_view) the copy of the pixels is the viewer's own work on them
+ * in place: the same fence follows it (the call is opaque to the compiler, and the fence orders
+ * the processor's loads inside it), so what the viewer read is kept only under the same proof. */
+typedef struct {
+    sh_display_view_fn fn; /* NULL: the pixels copied into r->stage */
+    void *ctx;
+    sh_status status;      /* fn's, from its last call */
+} viewer;
+
+/* The pixels of a slot where they lie, with the validated header's strides (read only: the
+ * mapping is PROT_READ). */
+static void slot_view(const sh_display_header *g, const uint8_t *pixels, sh_image *v)
+{
+    sh_image_wrap(v, (sh_pixfmt)g->format, (int)g->width, (int)g->height, (uint8_t *)pixels);
+    for (uint32_t p = 0; p < g->num_planes; p++) {
+        v->plane[p].data = (uint8_t *)pixels + g->plane_offset[p];
+        v->plane[p].stride = (int)g->stride[p];
+    }
+}
+
+static sh_status copy_slot(sh_display_reader *r, uint32_t slot, sh_display_frame_info *info, viewer *vw)
 {
     const sh_display_header *g = &r->geometry;
     const uint8_t *base = r->base + sizeof *g + (size_t)slot * g->slot_bytes;
@@ -238,18 +259,24 @@ static sh_status copy_slot(sh_display_reader *r, uint32_t slot, sh_display_frame
     uint64_t before = __atomic_load_n(&sh->lock, __ATOMIC_ACQUIRE);
     if (before & 1) return SH_EINVAL;
     memcpy(info, (const void *)&sh->info, sizeof *info);
-    memcpy(r->stage, base + SLOT_HEADER_BYTES, g->frame_bytes);
+    info->reason[sizeof info->reason - 1] = 0;
+    if (vw && vw->fn) {
+        sh_image view;
+        slot_view(g, base + SLOT_HEADER_BYTES, &view);
+        vw->status = vw->fn(vw->ctx, &view, info);
+    } else {
+        memcpy(r->stage, base + SLOT_HEADER_BYTES, g->frame_bytes);
+    }
     __atomic_thread_fence(__ATOMIC_ACQUIRE);
     if (__atomic_load_n(&sh->lock, __ATOMIC_RELAXED) != before) return SH_EINVAL;
-    info->reason[sizeof info->reason - 1] = 0;
     return SH_OK;
 }
 
 enum { POLL_NOTHING, POLL_FRAME, POLL_CLOSED, POLL_RETIRED, POLL_CUT_SHORT };
 
-/* One look at the segment, under the guard: a newer whole frame in r->stage and *copy, or what
- * became of the segment. */
-static int poll_segment(sh_display_reader *r, sh_display_frame_info *copy)
+/* One look at the segment, under the guard: a newer whole frame in r->stage (or seen by the
+ * viewer) and *copy, or what became of the segment. */
+static int poll_segment(sh_display_reader *r, sh_display_frame_info *copy, viewer *vw)
 {
     const sh_display_header *live = (const sh_display_header *)r->base;
     const sh_display_header *g = &r->geometry;
@@ -259,8 +286,9 @@ static int poll_segment(sh_display_reader *r, sh_display_frame_info *copy)
     int result = POLL_NOTHING;
     uint64_t latest = __atomic_load_n(&live->latest, __ATOMIC_ACQUIRE);
     uint32_t slot = (uint32_t)(latest & 0xff);
+    r->seen = (uint32_t)latest;
     if (latest != 0 && (latest >> 8) > r->last_sequence && slot < g->slot_count &&
-        copy_slot(r, slot, copy) == SH_OK && copy->sequence > r->last_sequence)
+        copy_slot(r, slot, copy, vw) == SH_OK && copy->sequence > r->last_sequence)
         result = POLL_FRAME;
     else if (__atomic_load_n(&live->magic, __ATOMIC_ACQUIRE) != SH_DISPLAY_MAGIC)
         result = POLL_RETIRED;
@@ -270,10 +298,10 @@ static int poll_segment(sh_display_reader *r, sh_display_frame_info *copy)
     return result;
 }
 
-sh_status sh_display_reader_next(sh_display_reader *r, sh_image *frame,
-                                 sh_display_frame_info *info, int timeout_ms)
+/* sh_display_reader_next (a frame to copy into) and _view (a viewer) in one loop. */
+static sh_status next_frame(sh_display_reader *r, sh_image *frame, viewer *vw, sh_display_frame_info *info,
+                            int timeout_ms)
 {
-    if (!frame) return sh_error_set(SH_EINVAL, "display: no frame to read into");
     const sh_display_header *g = &r->geometry;
     int64_t deadline = timeout_ms < 0 ? INT64_MAX : sh_monotonic_ns() + (int64_t)timeout_ms * 1000000;
     for (;;) {
@@ -283,16 +311,17 @@ sh_status sh_display_reader_next(sh_display_reader *r, sh_image *frame,
             if (st == SH_EINVAL) return st;
         }
         if (r->base) {
-            if (frame->format != (sh_pixfmt)g->format || frame->width != (int)g->width || frame->height != (int)g->height)
+            if (frame && (frame->format != (sh_pixfmt)g->format || frame->width != (int)g->width || frame->height != (int)g->height))
                 return sh_error_set(SH_ERANGE, "display: %s carries %ux%u %s frames (a daemon restarted with another "
                                     "size?): the frame must be made anew from its header", r->name[0] ? r->name : "the segment",
                                     g->width, g->height, sh_pixfmt_name((sh_pixfmt)g->format));
             sh_display_frame_info copy;
-            int what = poll_segment(r, &copy);
+            int what = poll_segment(r, &copy, vw);
             /* the caller's frame and info are written only from a whole copy of a newer frame:
              * on every other return (timeout, closed, replaced) they hold what they held */
+            if (what == POLL_FRAME && vw && vw->status != SH_OK) return vw->status;
             if (what == POLL_FRAME) {
-                for (uint32_t p = 0; p < g->num_planes; p++) {
+                for (uint32_t p = 0; frame && p < g->num_planes; p++) {
                     size_t row = (size_t)frame->plane[p].width * (size_t)sh_pixfmt_channels(frame->format);
                     for (int y = 0; y < frame->plane[p].height; y++)
                         memcpy(frame->plane[p].data + (size_t)y * frame->plane[p].stride,
@@ -323,10 +352,31 @@ sh_status sh_display_reader_next(sh_display_reader *r, sh_image *frame,
         }
         if (sh_monotonic_ns() >= deadline)
             return sh_error_set(SH_EIO, "display: no new frame in %d ms%s", timeout_ms, r->base ? "" : " (no segment)");
-        /* 0.5 ms: a frame period is 16 ms or more; 2 ms between two opens of the name, 5 ms
-         * between two looks at the name of a closed segment */
-        if (!left) display_sleep_us(!r->base ? 2000 : closed ? 5000 : 500);
+        /* Until the writer's wake, at most 0.5 ms (a frame period is 16 ms or more; the bound
+         * is the poll of a writer that does not wake, and the name's and the deadline's check);
+         * 2 ms between two opens of the name, 5 ms between two looks at the name of a closed
+         * segment. */
+        if (left) continue;
+        if (r->base && !closed)
+            display_wait_latest((const sh_display_header *)r->base, r->seen, 500);
+        else
+            display_sleep_us(!r->base ? 2000 : 5000);
     }
+}
+
+sh_status sh_display_reader_next(sh_display_reader *r, sh_image *frame, sh_display_frame_info *info,
+                                 int timeout_ms)
+{
+    if (!frame) return sh_error_set(SH_EINVAL, "display: no frame to read into");
+    return next_frame(r, frame, NULL, info, timeout_ms);
+}
+
+sh_status sh_display_reader_view(sh_display_reader *r, sh_display_view_fn fn, void *ctx,
+                                 sh_display_frame_info *info, int timeout_ms)
+{
+    if (!fn) return sh_error_set(SH_EINVAL, "display: no viewer");
+    viewer vw = {fn, ctx, SH_OK};
+    return next_frame(r, NULL, &vw, info, timeout_ms);
 }
 
 void sh_display_reader_close(sh_display_reader *r)

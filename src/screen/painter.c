@@ -110,11 +110,14 @@ sh_status sh_screen_painter_draw(sh_screen_painter *p, const sh_screen_buffer *d
         sh_status st = grow_rows(p, frame->width);
         if (st != SH_OK) return st;
     }
-    pthread_mutex_lock(&p->mu);
     p->dst = dst;
     p->layout = layout;
     p->frame = frame;
     p->full_range = full_range;
+    /* one thread: no round, no lock; the frame is read with nothing held (screen.h promises it
+     * to a caller that may abandon the draw by a jump, as sh_display_reader_view does) */
+    if (p->n == 1) return draw_band(p, 0);
+    pthread_mutex_lock(&p->mu);
     p->status = SH_OK;
     p->pending = p->n - 1;
     p->round++;

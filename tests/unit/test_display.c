@@ -28,31 +28,11 @@
 
 #include "stillheart/display.h"
 #include "stillheart/y4m.h"
+#include "display_paint.h"
 
 enum { W = 320, H = 240 };
 
 static char name[64];
-
-/* Frame n: every byte a function of n and its position, so any mix of two frames shows. */
-static void paint(sh_image *img, uint32_t n)
-{
-    for (int p = 0; p < img->num_planes; p++)
-        for (int y = 0; y < img->plane[p].height; y++)
-            for (int x = 0; x < img->plane[p].width; x++)
-                img->plane[p].data[(size_t)y * img->plane[p].stride + x] =
-                    (uint8_t)(n * 31u + (uint32_t)(x * 7 + y * 13 + p * 101));
-}
-
-static int painted_as(const sh_image *img, uint32_t n)
-{
-    for (int p = 0; p < img->num_planes; p++)
-        for (int y = 0; y < img->plane[p].height; y++)
-            for (int x = 0; x < img->plane[p].width; x++)
-                if (img->plane[p].data[(size_t)y * img->plane[p].stride + x] !=
-                    (uint8_t)(n * 31u + (uint32_t)(x * 7 + y * 13 + p * 101)))
-                    return 0;
-    return 1;
-}
 
 static int setup(void **state)
 {
@@ -99,25 +79,6 @@ static void test_round_trip(void **state)
     sh_image_destroy(&got);
 }
 
-typedef struct {
-    sh_display_writer *w;
-    int frames;
-} writer_job;
-
-static void *writer_main(void *arg)
-{
-    writer_job *job = arg;
-    sh_image img;
-    sh_image_create(&img, SH_PIX_GRAY8, W, H);
-    for (int n = 1; n <= job->frames; n++) {
-        paint(&img, (uint32_t)n);
-        sh_display_frame_info info = {.capture_ns = n};
-        sh_display_writer_publish(job->w, &img, &info);
-    }
-    sh_image_destroy(&img);
-    return NULL;
-}
-
 /* 10,000 frames written as fast as possible while a reader takes frames as fast as it can:
  * every frame it returns is whole (its pixels are all of one frame, the one its info names). */
 static void test_racing_reader_sees_no_torn_frame(void **state)
@@ -127,7 +88,7 @@ static void test_racing_reader_sees_no_torn_frame(void **state)
     assert_int_equal(sh_display_writer_create(name, SH_PIX_GRAY8, W, H, 3, 0, NULL, &w), SH_OK);
     sh_display_reader *r;
     assert_int_equal(sh_display_reader_open(name, NULL, 0, &r), SH_OK);
-    writer_job job = {w, 10000};
+    writer_job job = {w, 10000, W, H};
     pthread_t t;
     assert_int_equal(pthread_create(&t, NULL, writer_main, &job), 0);
     sh_image got;
@@ -172,7 +133,7 @@ static void test_stalled_and_late_readers(void **state)
         sh_image_create(&img, SH_PIX_GRAY8, W, H);
         for (;;) sh_display_reader_next(r, &img, NULL, 100);
     }
-    writer_job job = {w, 200};
+    writer_job job = {w, 200, W, H};
     writer_main(&job);
     kill(child, SIGSTOP); /* stalled wherever it was, possibly mid-copy */
     job.frames = 2000;
@@ -798,7 +759,8 @@ static void test_truncated_under_reader_and_writer(void **state)
     assert_true(fd >= 0);
     assert_int_equal(ftruncate(fd, 100), 0); /* not even the header left */
     close(fd);
-    /* the reader's next look at the segment faults under its guard: no frame, no crash */
+    /* no frame, no crash: the reader's next look finds the header and no newer frame (a fault
+     * under the reader's guard, in the middle of a frame: test_display_view) */
     assert_int_equal(sh_display_reader_next(r, &got, &info, 50), SH_EIO);
     seal(&img, 2);
     assert_int_equal(sh_display_writer_publish(w, &img, &(sh_display_frame_info){.capture_ns = 2}), SH_OK);

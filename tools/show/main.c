@@ -6,9 +6,11 @@
  * One loop: wait for a frame newer than the one shown (never more than 100 ms, so that NO SIGNAL
  * and its clock appear on time), draw it into the buffer that is not scanned out, flip, and wait
  * for the flip's event before touching the other buffer. Frames that arrive meanwhile are not
- * queued: the next wait returns the newest. The drawing alone may be shared, in horizontal
- * bands, with --threads - 1 helper threads: it is most of the display's own part of
- * publish-to-flip. */
+ * queued: the next wait returns the newest. On one thread the frame is drawn where it lies in
+ * the segment (sh_display_reader_view: no copy of it, and the drawing kept only when the writer
+ * stayed out of its slot); the drawing may instead be shared, in horizontal bands, with
+ * --threads - 1 helper threads, from a copy (a view is read on one thread only). The drawing is
+ * most of the display's own part of publish-to-flip. */
 #include <errno.h>
 #include <getopt.h>
 #include <math.h>
@@ -60,10 +62,12 @@ static void usage(FILE *out)
         "                     publish_ns,present_ns,flip_ns (CLOCK_MONOTONIC); a file that cannot\n"
         "                     be written is refused at start, and one that fails later is closed\n"
         "                     with an error while the screen goes on\n"
-        "  --threads N        threads that draw each frame, in bands (1-8, default 1): a 1080p\n"
-        "                     frame's conversion takes about 1 ms on one core, 0.5 on two, but a\n"
-        "                     helper woken once a frame can cost what it saves (make bench:\n"
-        "                     bench_show measures both on the box)\n"
+        "  --threads N        threads that draw each frame, in bands (1-8, default 1): one thread\n"
+        "                     draws the frame where it lies in the segment, more draw from a\n"
+        "                     copy of it (about 0.4 ms at 1080p); a 1080p frame's conversion\n"
+        "                     takes about 1 ms on one core, 0.5 on two, but a helper woken once\n"
+        "                     a frame can cost what it saves (make bench: bench_show measures\n"
+        "                     both on the box)\n"
         SH_CLI_USAGE "\n"
         "Exit status: 0 after SIGINT or SIGTERM, 1 the device refused (no such device,\n"
         "connector or mode; DRM master held by another process) or failed, or the --trace\n"
@@ -187,7 +191,7 @@ typedef struct {
     sh_kms_info ki;
     sh_display_reader *r;
     sh_image frame;
-    int full_range;
+    int draw_failed;               /* the painter failed: said, and the screen stops */
     double last_frame, started;    /* monotonic s; last_frame < 0: none yet */
     int no_signal;                 /* what the screen shows: 1 NO SIGNAL, 0 a frame */
     long long no_signal_secs;      /* the seconds NO SIGNAL shows */
@@ -216,14 +220,27 @@ static int flip(show_state *s, int64_t *present_ns, int64_t *flip_ns)
     return 0;
 }
 
+/* The frame into the back buffer: a view of it in the segment (sh_display_reader_view, one
+ * thread), or the reader's copy of it. The painter on one thread reads it holding nothing, so
+ * the reader may abandon it (display.h). */
+static sh_status draw_picture(void *ctx, const sh_image *frame, const sh_display_frame_info *info)
+{
+    (void)info;
+    show_state *s = ctx;
+    sh_screen_buffer b = back_buffer(s);
+    sh_screen_layout l = sh_screen_layout_for(frame->width, frame->height, b.width, b.height);
+    /* the header of the segment the frame is in: a daemon come back meanwhile may have another range */
+    sh_status st = sh_screen_painter_draw(s->painter, &b, &l, frame, (int)sh_display_reader_header(s->r)->full_range);
+    if (st != SH_OK) s->draw_failed = 1;
+    return st;
+}
+
+/* The frame is in the back buffer (draw_picture): its status over it, the flip, the figures. */
 static int show_frame(show_state *s, const sh_display_frame_info *info)
 {
+    const sh_display_header *h = sh_display_reader_header(s->r);
     sh_screen_buffer b = back_buffer(s);
-    sh_screen_layout l = sh_screen_layout_for(s->frame.width, s->frame.height, b.width, b.height);
-    if (sh_screen_painter_draw(s->painter, &b, &l, &s->frame, s->full_range) != SH_OK) {
-        sh_log_error("%s", sh_error_message());
-        return -1;
-    }
+    sh_screen_layout l = sh_screen_layout_for((int)h->width, (int)h->height, b.width, b.height);
     sh_screen_draw_status(&b, &l, s->a->overlay, info->status, info->reason, (int)sizeof info->reason);
     int64_t present_ns, flip_ns;
     if (flip(s, &present_ns, &flip_ns) != 0) return -1;
@@ -266,13 +283,15 @@ static int show_no_signal(show_state *s, double now)
 }
 
 /* A frame sized from the reader's header (at open, and when the daemon came back at another
- * size); 0 or -1. */
+ * size), for the copy of each frame that several drawing threads take; on one thread each frame
+ * is drawn where it lies in the segment (sh_display_reader_view), saving two copies of it (at
+ * 1080p, about 0.4 ms of publish-to-flip). 0 or -1. */
 static int size_frame(show_state *s)
 {
     const sh_display_header *h = sh_display_reader_header(s->r);
     sh_image_destroy(&s->frame);
-    s->full_range = (int)h->full_range;
-    if (sh_image_create(&s->frame, (sh_pixfmt)h->format, (int)h->width, (int)h->height) != SH_OK) {
+    if (s->a->threads > 1 &&
+        sh_image_create(&s->frame, (sh_pixfmt)h->format, (int)h->width, (int)h->height) != SH_OK) {
         sh_log_error("%s", sh_error_message());
         return -1;
     }
@@ -315,8 +334,19 @@ static int step(show_state *s)
     int wait_ms = (int)fmax(1, fmin(100, (due - now) * 1e3));
     if (s->no_signal) wait_ms = 100;
     sh_display_frame_info info;
-    sh_status st = sh_display_reader_next(s->r, &s->frame, &info, wait_ms);
+    uint64_t generation = sh_display_reader_header(s->r)->generation;
+    sh_status st = s->a->threads > 1 ? sh_display_reader_next(s->r, &s->frame, &info, wait_ms)
+                                     : sh_display_reader_view(s->r, draw_picture, s, &info, wait_ms);
     now = now_s();
+    if (st == SH_OK && s->a->threads > 1) st = draw_picture(s, &s->frame, &info);
+    if (s->draw_failed) {
+        sh_log_error("%s", sh_error_message());
+        return -1;
+    }
+    /* a daemon come back at another size: its frames are shown at once, the size said */
+    if (st == SH_OK && s->a->threads == 1 && sh_display_reader_header(s->r)->generation != generation &&
+        size_frame(s) != 0)
+        return -1;
     if (st == SH_OK) {
         s->last_frame = now;
         return show_frame(s, &info);
