@@ -14,7 +14,7 @@ set -u
 
 # The module lists are the ones docs/architecture.md states; a module folder in src/ that is in
 # none of them (a new one) is reported, so that it gets a place in the doc and here.
-ENGINE="core image linalg interp hull warp warp3d modelcache metrics camera calib track detect flow"
+ENGINE="core image linalg interp hull warp warp3d modelcache metrics camera calib track detect flow landmarks"
 FORMATS="y4m png imageio points"
 CAPTURE="source pixconv sync record"
 OUTPUT="display screen kms"

@@ -9,6 +9,7 @@
 #include "phantom.h"
 #include "stillheart/hull.h"
 #include "stillheart/interp.h"
+#include "stillheart/landmarks.h"
 #include "stillheart/metrics.h"
 #include "stillheart/points.h"
 #include "stillheart/warp.h"
@@ -46,6 +47,36 @@ typedef struct {
 
 /* Statistics over every frame added (sorts the errors: call once, at the end). */
 sh_status eval_geo_result_get(eval_geo *geo, eval_geo_result *res);
+
+/* ---- natural landmarks against the truth (landmarks.c) ---- */
+
+typedef struct {
+    const phantom_truth *truth;
+    int camera;
+    int reference;
+    sh_interp_params params;   /* the markers' map that predicts each landmark */
+    sh_landmarks_params lp;
+} eval_lm_options;
+
+typedef struct {
+    int seeded;                /* landmarks chosen in the reference */
+    int frames;                /* frames after the reference with a markers' map */
+    int unpredicted_frames;    /* frames without one (fewer than 3 markers shared) */
+    long long verdicts[SH_LANDMARK_VERDICTS]; /* landmark-frames by verdict */
+    long long measured;        /* accepted landmark-frames compared with the truth */
+    long long hidden;          /* landmark-frames the truth says are hidden (instrument, blood) */
+    long long accepted_hidden; /* of those, accepted: wrong */
+    long long unjudged;        /* accepted, but the reference pixel had no truth */
+    long long over_1px;        /* accepted more than 1 px from the truth */
+    double sum, mean, p99, max;        /* accepted landmarks' error (px) */
+    double map_sum, map_mean, map_p99; /* the markers' map at the same landmarks (px) */
+    double ms_median;          /* sh_landmarks_track per frame, thread CPU time */
+} eval_lm_result;
+
+/* Runs the landmarks over the unstabilized video (its frames from the reference on) with the
+ * markers of `points`. */
+sh_status eval_landmarks_run(const eval_lm_options *o, const sh_points *points, const char *video_path,
+                             eval_lm_result *r);
 
 /* ---- heatmap (heatmap.c) ---- */
 

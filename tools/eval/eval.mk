@@ -53,3 +53,13 @@ TABLE2_DIR ?= out/table2
 .PHONY: table2
 table2: $(EVAL_BIN) $(PLOT_BIN) $(BUILD)/stillheart-render $(APP)
 	@sh tools/eval/table2.sh $(BUILD) $(TABLE2_DIR)
+
+# --landmarks on a rendered phantom with occlusions, judged against its truth.
+$(BUILD)/tools/eval/tests/test_eval_landmarks.o: CFLAGS_ALL += -DEVAL_BIN='"$(abspath $(EVAL_BIN))"' \
+	-DRENDER_BIN='"$(abspath $(BUILD))/stillheart-render"' -Itests/unit
+$(BUILD)/tests/test_eval_landmarks: $(BUILD)/tools/eval/tests/test_eval_landmarks.o $(BUILD)/tests/unit/shell.o \
+		$(LIB) $(EVAL_BIN) $(BUILD)/stillheart-render
+	@mkdir -p $(dir $@)
+	$(CC) $(LDFLAGS) $< $(BUILD)/tests/unit/shell.o $(LIB) $(shell $(PKG_CONFIG) --libs cmocka) $(LDLIBS_ALL) -o $@
+
+TOOL_TESTS += $(BUILD)/tests/test_eval_landmarks

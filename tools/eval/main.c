@@ -23,6 +23,7 @@ static void usage(FILE *f)
     fprintf(f,
         "usage: " PROG " --points P.csv [options] STABILIZED.y4m [ORIGINAL.y4m]\n"
         "       " PROG " --truth DIR --export-points OUT.csv [--camera C]\n"
+        "       " PROG " --truth DIR --points P.csv --landmarks N [options] ORIGINAL.y4m\n"
         "Measures the residual motion of a stabilized video as the paper does (section V):\n"
         "  I_error(x,y,c) = 1/k sum_t |I_t(x,y,c) - I_N(x,y,c)|,  e = sum_c 1/p sum_(x,y) I_error\n"
         "over all k frames of the video (the reference frame N included, as `stillheart warp`\n"
@@ -76,6 +77,18 @@ static void usage(FILE *f)
         "                     with --truth: writes the points file of DIR/markers.csv's visible\n"
         "                     tag centres (point c) of --camera ('-' = standard output), the\n"
         "                     ground-truth correspondences for `stillheart warp`, and exits\n"
+        "Natural landmarks on phantom sequences (issue 19; docs/landmarks.md):\n"
+        "  --landmarks N      instead of the above: up to N landmarks of the tissue chosen in\n"
+        "                     ORIGINAL's frame N (--reference) inside its markers' hull, off the\n"
+        "                     tags and highlights, then found in every later frame starting from\n"
+        "                     the markers' map of --method (default tps) fitted to P.csv's\n"
+        "                     markers, and judged (accepted, lost, photometric, backward,\n"
+        "                     disagrees); the accepted ones against the truth: mean, p99 and max\n"
+        "                     px, how many more than 1 px off or hidden (both wrong), beside the\n"
+        "                     markers' map at the same points; the time per frame (one thread)\n"
+        "  --lm-photometric G, --lm-backward PX, --lm-disagreement PX\n"
+        "                     the tests' thresholds (defaults 12 grey levels, 0.5 px, 3 px;\n"
+        "                     --lm-backward 0: no backward test)\n"
         "STABILIZED may be '-' (standard input) with --reference 0.\n");
 }
 
@@ -153,6 +166,8 @@ typedef struct {
     double sigma, smoothing, max_error; /* --sigma (when have_sigma), --smoothing, --max-error */
     int levels, have_sigma;
     char tagged_method[SH_Y4M_MAX_EXTRA]; /* the method the video's header named (o.method then) */
+    int landmarks;                   /* --landmarks N: 0 when not asked */
+    sh_landmarks_params lp;
 } options;
 
 static void report(const options *o, const video *stab, const video *orig, const eval_geo *geo,
@@ -265,6 +280,75 @@ static int geo_method(options *o)
     sh_warp_options_default(&o->geo.wopts);
     o->geo.wopts.max_error = o->max_error;
     return 0;
+}
+
+/* --landmarks: the landmarks over the original video, judged against the truth. */
+static int landmarks(options *o, const char *video_path)
+{
+    eval_lm_options lo = {0};
+    if (sh_interp_params_parse(o->method ? o->method : "tps", &lo.params) != SH_OK) return 1 + fail("--method");
+    if (o->have_sigma) lo.params.sigma = o->sigma;
+    lo.params.levels = o->levels;
+    lo.params.smoothing = o->smoothing;
+    lo.lp = o->lp;
+    lo.camera = o->camera;
+    lo.reference = o->reference;
+    sh_points points;
+    phantom_truth *truth = NULL;
+    if (sh_points_read(o->points_path, &points) != SH_OK) return fail("--points");
+    int rc = 1;
+    eval_lm_result r;
+    if (phantom_truth_open(o->truth_dir, &truth) != SH_OK) {
+        fail("--truth");
+        goto done;
+    }
+    lo.truth = truth;
+    if (eval_landmarks_run(&lo, &points, video_path, &r) != SH_OK) {
+        fail(video_path);
+        goto done;
+    }
+    rc = 0;
+    if (o->json) {
+        sh_cli_json j;
+        sh_cli_json_start(&j, stdout);
+        sh_cli_json_object(&j, NULL);
+        sh_cli_json_int(&j, "seeded", r.seeded);
+        sh_cli_json_int(&j, "frames", r.frames);
+        sh_cli_json_int(&j, "unpredicted_frames", r.unpredicted_frames);
+        for (int v = 0; v < SH_LANDMARK_VERDICTS; v++)
+            sh_cli_json_int(&j, sh_landmark_verdict_name((sh_landmark_verdict)v), r.verdicts[v]);
+        sh_cli_json_int(&j, "measured", r.measured);
+        sh_cli_json_int(&j, "hidden", r.hidden);
+        sh_cli_json_int(&j, "accepted_hidden", r.accepted_hidden);
+        sh_cli_json_int(&j, "unjudged", r.unjudged);
+        sh_cli_json_int(&j, "over_1px", r.over_1px);
+        sh_cli_json_number(&j, "mean", r.mean);
+        sh_cli_json_number(&j, "p99", r.p99);
+        sh_cli_json_number(&j, "max", r.max);
+        sh_cli_json_number(&j, "map_mean", r.map_mean);
+        sh_cli_json_number(&j, "map_p99", r.map_p99);
+        sh_cli_json_number(&j, "ms_median", r.ms_median);
+        sh_cli_json_end(&j);
+    } else {
+        long long all = 0;
+        for (int v = 0; v < SH_LANDMARK_VERDICTS; v++) all += r.verdicts[v];
+        printf("%s: %d landmarks chosen in frame %d, %d frames after it (%d without a markers' map)\n", video_path,
+               r.seeded, o->reference, r.frames, r.unpredicted_frames);
+        printf("landmark-frames: %lld; accepted %lld, lost %lld, photometric %lld, backward %lld, disagrees %lld\n",
+               all, r.verdicts[SH_LANDMARK_ACCEPTED], r.verdicts[SH_LANDMARK_LOST],
+               r.verdicts[SH_LANDMARK_PHOTOMETRIC], r.verdicts[SH_LANDMARK_BACKWARD],
+               r.verdicts[SH_LANDMARK_DISAGREES]);
+        printf("accepted against the truth (px): mean %.4f, p99 %.4f, max %.4f over %lld; more than 1 px off: %lld; "
+               "accepted while hidden: %lld of %lld hidden\n", r.mean, r.p99, r.max, r.measured, r.over_1px,
+               r.accepted_hidden, r.hidden);
+        printf("the markers' map (%s) at the same landmarks (px): mean %.4f, p99 %.4f\n",
+               o->method ? o->method : "tps", r.map_mean, r.map_p99);
+        printf("landmark tracking per frame: %.2f ms (median, one thread)\n", r.ms_median);
+    }
+done:
+    phantom_truth_close(truth);
+    sh_points_destroy(&points);
+    return rc;
 }
 
 /* The measurement itself, once the options are known. */
@@ -402,8 +486,11 @@ int main(int argc, char **argv)
         {"heatmap", required_argument, 0, 'H'},  {"heatmap-max", required_argument, 0, 'X'},
         {"contours", required_argument, 0, 'C'}, {"export-points", required_argument, 0, 'E'},
         {"heatmap-scale", required_argument, 0, 'Z'},
+        {"landmarks", required_argument, 0, 'L'}, {"lm-photometric", required_argument, 0, 1001},
+        {"lm-backward", required_argument, 0, 1002}, {"lm-disagreement", required_argument, 0, 1003},
         {"json", no_argument, 0, 'j'},           SH_CLI_OPTIONS, {0, 0, 0, 0}};
     options o = {.stride = 4, .heatmap_max = 0.2, .heatmap_scale = 1, .contours = 4, .max_error = 0.05};
+    sh_landmarks_params_default(&o.lp);
     int opt;
     opterr = 0;
     while ((opt = getopt_long(argc, argv, ":h", long_opts, NULL)) != -1) {
@@ -425,6 +512,11 @@ int main(int argc, char **argv)
         case 'C': if (!sh_cli_parse_int("--contours", optarg, 0, 32, &o.contours)) return 2; break;
         case 'E': o.export_out = optarg; break;
         case 'j': o.json = 1; break;
+        case 'L': if (!sh_cli_parse_int("--landmarks", optarg, 1, 100000, &o.landmarks)) return 2;
+                  o.lp.max_points = o.landmarks; break;
+        case 1001: if (!sh_cli_parse_double("--lm-photometric", optarg, 1e-3, 255, &o.lp.max_photometric)) return 2; break;
+        case 1002: if (!sh_cli_parse_double("--lm-backward", optarg, 0, 1000, &o.lp.max_backward_px)) return 2; break;
+        case 1003: if (!sh_cli_parse_double("--lm-disagreement", optarg, 1e-3, 1000, &o.lp.max_disagreement_px)) return 2; break;
         case 'h': usage(stdout); return 0;
         default: { int rc = sh_cli_option(&cli, opt, argv); if (rc >= 0) return rc; } break;
         }
@@ -444,6 +536,11 @@ int main(int argc, char **argv)
         if (!to_stdout && fclose(out) != 0 && st == SH_OK)
             st = sh_error_set(SH_EIO, "%s: write failed", o.export_out);
         return st == SH_OK ? 0 : fail("--export-points");
+    }
+    if (o.landmarks) {
+        if (!o.truth_dir || !o.points_path || argc - optind != 1)
+            return sh_cli_usage_error(&cli, "--landmarks needs --truth DIR, --points and the original video");
+        return landmarks(&o, argv[optind]);
     }
     if (!o.points_path || argc - optind < 1 || argc - optind > 2)
         return sh_cli_usage_error(&cli, "need --points and the stabilized video (and optionally the original)");

@@ -1,0 +1,104 @@
+/* Natural landmarks (issue 19): points of the tissue's own texture, chosen in the reference
+ * frame and found again in each new frame, with every test a landmark must pass before a map
+ * may use it.
+ *
+ * Chosen once per reference (sh_landmarks_create): Shi-Tomasi corners of the reference luma
+ * (src/flow), strongest first and spread by a minimum distance, only where a tracking window
+ * sees tissue alone: inside the markers' hull (when one is given), off the tags (each tag's quad
+ * grown by its quiet zone, a margin and half a window, so no window sees a tag's sticker, which
+ * moves rigidly and not as the tissue), off specular highlights (no window holds a pixel at or above
+ * the highlight level: a highlight moves with the light and the view, not with the tissue), and
+ * half a window inside the image.
+ *
+ * Found per frame (sh_landmarks_track) against the reference itself, not the previous frame:
+ * errors do not accumulate, and a landmark hidden for a while (an instrument, blood) is found
+ * again when it shows, with nothing to re-seed. A new reference chooses anew. Pyramidal
+ * Lucas-Kanade starts from the caller's prediction (the markers' map evaluated at the
+ * landmark's reference position), so only the map's local error is left to find. A landmark is
+ * accepted only when all of these hold, tested in this order (the first that fails is its
+ * verdict):
+ *  - LOST: Lucas-Kanade kept it (its window textured enough, inside the image), both ways;
+ *  - PHOTOMETRIC: the two windows at the result differ by at most max_photometric grey levels
+ *    (mean absolute difference): an occluder replaces the window's content, and the difference
+ *    becomes the texture's own contrast;
+ *  - BACKWARD: found again from the result back in the reference, it lands within
+ *    max_backward_px of where it started (Kalal, Mikolajczyk and Matas, "Forward-backward error:
+ *    automatic detection of tracking failures", ICPR 2010): the backward search starts from the
+ *    prediction's inverse, not from the answer, so a window that fits two places fails it;
+ *  - DISAGREES: it lies within max_disagreement_px of the markers' prediction: a landmark that
+ *    disagrees with the map by more than the map's own expected error is dropped, not averaged
+ *    in.
+ * Nothing is allocated per frame. */
+#ifndef STILLHEART_LANDMARKS_H
+#define STILLHEART_LANDMARKS_H
+
+#include <stdint.h>
+
+#include "stillheart/core.h"
+#include "stillheart/flow.h"
+#include "stillheart/hull.h"
+#include "stillheart/image.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef enum {
+    SH_LANDMARK_ACCEPTED = 0,
+    SH_LANDMARK_LOST,
+    SH_LANDMARK_PHOTOMETRIC,
+    SH_LANDMARK_BACKWARD,
+    SH_LANDMARK_DISAGREES,
+    SH_LANDMARK_VERDICTS
+} sh_landmark_verdict;
+
+/* "accepted", "lost", "photometric", "backward", "disagrees". */
+const char *sh_landmark_verdict_name(sh_landmark_verdict v);
+
+typedef struct {
+    int max_points;             /* at most this many landmarks (200) */
+    double min_distance;        /* px between two landmarks (20) */
+    double quality;             /* corner response relative to the strongest allowed (0.01) */
+    double tag_margin;          /* px kept clear beyond each tag's white quiet zone, which is
+                                 * taken as one module, an eighth of the quad's side (the
+                                 * families' tags have one white module round their black
+                                 * border) (2) */
+    int highlight;              /* luma at or above which a pixel is a specular highlight (250:
+                                 * an 8-bit camera clips there) */
+    double max_photometric;     /* grey levels (12) */
+    double max_backward_px;     /* px (0.5: half of the 1 px a landmark must be good to);
+                                 * 0 turns the backward test off (and its cost) */
+    double max_disagreement_px; /* px (3) */
+    sh_flow_params flow;        /* the tracker (sh_flow_params_default) */
+} sh_landmarks_params;
+
+void sh_landmarks_params_default(sh_landmarks_params *p);
+
+typedef struct sh_landmarks sh_landmarks;
+
+/* Chooses the landmarks in the reference luma plane. hull: only inside it (NULL: anywhere);
+ * tags: n_tags quads as 4 corners x (x, y) each, 8 doubles a tag (NULL with 0). Fewer than
+ * max_points (even none) is not an error: the texture decides. SH_EINVAL for bad parameters. */
+sh_status sh_landmarks_create(const sh_landmarks_params *params, const sh_plane *reference,
+                              const sh_hull *hull, const double *tags, int n_tags, sh_landmarks **out);
+void sh_landmarks_destroy(sh_landmarks *lm);
+
+int sh_landmarks_count(const sh_landmarks *lm);
+/* Their reference positions, x0,y0,... (count pairs), strongest corner first. */
+const float *sh_landmarks_reference(const sh_landmarks *lm);
+
+typedef struct {
+    int verdicts[SH_LANDMARK_VERDICTS]; /* landmarks of the frame by verdict */
+} sh_landmarks_counts;
+
+/* Finds the landmarks in a luma plane of the reference's size. predicted: count pairs, where
+ * the markers' map puts each landmark (NULL: no map; then the search starts at the reference
+ * position and DISAGREES is not tested). xy: count pairs, each landmark's position (its last
+ * estimate when not accepted); verdict: count values; counts may be NULL. */
+sh_status sh_landmarks_track(sh_landmarks *lm, const sh_plane *luma, const float *predicted, float *xy,
+                             uint8_t *verdict, sh_landmarks_counts *counts);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

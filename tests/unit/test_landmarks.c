@@ -1,0 +1,204 @@
+/* src/landmarks against answers known without it: the synthetic sequence (tools/synth: a
+ * texture under a known smooth deformation) gives every landmark's true position. Where
+ * landmarks are chosen (inside the hull, off a tag's quad and its quiet zone, off a highlight by
+ * half a window), that every accepted landmark lies within 1 px of its truth while an occluder
+ * covers part of the frame, that the occluded ones are refused and counted, and that a landmark
+ * the markers' map places wrongly is refused as disagreeing. */
+#include <math.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include <cmocka.h>
+
+#include "stillheart/landmarks.h"
+#include "synth.h"
+
+enum { W = 480, H = 360 };
+
+static const synth_motion motion = {W, H, 6.0};
+
+static void render(sh_image *img, double t)
+{
+    assert_int_equal(sh_image_create(img, SH_PIX_GRAY8, W, H), SH_OK);
+    synth_render(&motion, t, img);
+}
+
+/* A tag's quad: an axis-aligned square of side s at (x, y), corners clockwise. */
+static void square(double *q, double x, double y, double s)
+{
+    double c[8] = {x, y, x + s, y, x + s, y + s, x, y + s};
+    memcpy(q, c, sizeof c);
+}
+
+static void test_where_landmarks_are_chosen(void **state)
+{
+    (void)state;
+    sh_image ref;
+    render(&ref, 0);
+    /* a highlight: a clipped disk of radius 8 at (300, 200) */
+    for (int y = 0; y < H; y++)
+        for (int x = 0; x < W; x++)
+            if (hypot(x - 300, y - 200) <= 8) ref.plane[0].data[(size_t)y * ref.plane[0].stride + x] = 255;
+    double hull_xy[8] = {40, 40, 440, 50, 430, 320, 50, 310};
+    sh_hull hull;
+    assert_int_equal(sh_hull_compute(hull_xy, 4, &hull), SH_OK);
+    double tag[8];
+    square(tag, 150, 120, 40);
+    sh_landmarks_params p;
+    sh_landmarks_params_default(&p);
+    p.max_points = 400;
+    p.min_distance = 8;
+    sh_landmarks *lm;
+    assert_int_equal(sh_landmarks_create(&p, &ref.plane[0], &hull, tag, 1, &lm), SH_OK);
+    int n = sh_landmarks_count(lm);
+    const float *xy = sh_landmarks_reference(lm);
+    print_message("  %d landmarks chosen\n", n);
+    assert_true(n >= 100);
+    /* the clearances, from the definitions: the tag's quiet zone is 40 / 8 = 5 px, the margin
+     * 2 px, half the window 10 px; a highlight pixel must be outside every window (the
+     * Chebyshev distance from the disk's pixels more than 10) */
+    double tag_clear = 40.0 / 8 + p.tag_margin + p.flow.win / 2;
+    for (int i = 0; i < n; i++) {
+        double x = xy[2 * i], y = xy[2 * i + 1];
+        assert_true(sh_hull_contains(&hull, x, y));
+        double dx = fmax(fmax(150 - x, x - 190), 0), dy = fmax(fmax(120 - y, y - 160), 0);
+        if (hypot(dx, dy) <= tag_clear) fail_msg("landmark (%.0f, %.0f) %.1f px from the tag", x, y, hypot(dx, dy));
+        for (int hy = 192; hy <= 208; hy++)
+            for (int hx = 292; hx <= 308; hx++)
+                if (hypot(hx - 300, hy - 200) <= 8 && fabs(hx - x) <= 10 && fabs(hy - y) <= 10)
+                    fail_msg("landmark (%.0f, %.0f) sees the highlight at (%d, %d)", x, y, hx, hy);
+    }
+    /* and they do go near them: the exclusions are not wider than said */
+    int near_tag = 0;
+    for (int i = 0; i < n; i++) {
+        double dx = fmax(fmax(150 - xy[2 * i], xy[2 * i] - 190), 0), dy = fmax(fmax(120 - xy[2 * i + 1], xy[2 * i + 1] - 160), 0);
+        near_tag += hypot(dx, dy) <= tag_clear + 10;
+    }
+    assert_true(near_tag > 0);
+    sh_landmarks_destroy(lm);
+    sh_image_destroy(&ref);
+}
+
+/* The synthetic deformation at t = 0.2, the map's prediction off by up to 1.5 px (as a map
+ * between markers is), an occluder (a flat grey bar, as an instrument shaft) across part of
+ * the frame, and four landmarks predicted 8 px wrong. */
+static void test_trust_against_truth(void **state)
+{
+    (void)state;
+    sh_image ref, cur;
+    render(&ref, 0);
+    render(&cur, 0.2);
+    const int bx0 = 200, bx1 = 240; /* the bar: columns [bx0, bx1) of the current frame */
+    for (int y = 0; y < H; y++)
+        for (int x = bx0; x < bx1; x++) cur.plane[0].data[(size_t)y * cur.plane[0].stride + x] = (uint8_t)(90 + (y / 6 % 2) * 60);
+    sh_landmarks_params p;
+    sh_landmarks_params_default(&p);
+    p.max_points = 300;
+    p.min_distance = 10;
+    sh_landmarks *lm;
+    assert_int_equal(sh_landmarks_create(&p, &ref.plane[0], NULL, NULL, 0, &lm), SH_OK);
+    int n = sh_landmarks_count(lm);
+    assert_true(n >= 150);
+    const float *r = sh_landmarks_reference(lm);
+    float *pred = malloc(2 * (size_t)n * sizeof *pred), *xy = malloc(2 * (size_t)n * sizeof *xy);
+    double *truth = malloc(2 * (size_t)n * sizeof *truth);
+    uint8_t *verdict = malloc((size_t)n);
+    int wrong[4], n_wrong = 0;
+    for (int i = 0; i < n; i++) {
+        synth_forward(&motion, 0.2, r[2 * i], r[2 * i + 1], &truth[2 * i], &truth[2 * i + 1]);
+        /* a smooth map error of up to 1.5 px */
+        pred[2 * i] = (float)(truth[2 * i] + 1.5 * sin(r[2 * i] / 70.0));
+        pred[2 * i + 1] = (float)(truth[2 * i + 1] + 1.5 * cos(r[2 * i + 1] / 55.0));
+        double tx = truth[2 * i];
+        if (n_wrong < 4 && i % 17 == 3 && (tx < bx0 - 30 || tx > bx1 + 30)) {
+            pred[2 * i] += 8;
+            wrong[n_wrong++] = i;
+        }
+    }
+    assert_int_equal(n_wrong, 4);
+    sh_landmarks_counts c;
+    assert_int_equal(sh_landmarks_track(lm, &cur.plane[0], pred, xy, verdict, &c), SH_OK);
+    int accepted = 0, clear = 0, clear_accepted = 0, covered = 0, covered_refused = 0;
+    double worst = 0;
+    for (int i = 0; i < n; i++) {
+        double e = hypot(xy[2 * i] - truth[2 * i], xy[2 * i + 1] - truth[2 * i + 1]);
+        /* the window (21 px) wholly clear of the bar, or wholly on it */
+        int is_clear = truth[2 * i] + 10.5 < bx0 || truth[2 * i] - 10.5 >= bx1;
+        int is_covered = truth[2 * i] - 10.5 >= bx0 && truth[2 * i] + 10.5 < bx1;
+        int far_inside = truth[2 * i] > 12 && truth[2 * i] < W - 13 && truth[2 * i + 1] > 12 && truth[2 * i + 1] < H - 13;
+        if (verdict[i] == SH_LANDMARK_ACCEPTED) {
+            accepted++;
+            if (e > worst) worst = e;
+        }
+        clear += is_clear && far_inside;
+        clear_accepted += is_clear && far_inside && verdict[i] == SH_LANDMARK_ACCEPTED;
+        covered += is_covered;
+        covered_refused += is_covered && verdict[i] != SH_LANDMARK_ACCEPTED;
+    }
+    print_message("  %d landmarks: %d accepted (worst %.3f px from the truth), lost %d, photometric %d, backward %d, "
+                  "disagrees %d; %d of %d clear of the bar accepted, %d of %d under it refused\n",
+                  n, accepted, worst, c.verdicts[SH_LANDMARK_LOST], c.verdicts[SH_LANDMARK_PHOTOMETRIC],
+                  c.verdicts[SH_LANDMARK_BACKWARD], c.verdicts[SH_LANDMARK_DISAGREES], clear_accepted, clear,
+                  covered_refused, covered);
+    assert_int_equal(c.verdicts[0] + c.verdicts[1] + c.verdicts[2] + c.verdicts[3] + c.verdicts[4], n);
+    assert_int_equal(c.verdicts[SH_LANDMARK_ACCEPTED], accepted);
+    /* the safety property of issue 19: nothing accepted more than 1 px from the truth */
+    assert_true(worst <= 1.0);
+    assert_true(covered > 0);
+    assert_int_equal(covered_refused, covered);
+    /* the texture is good everywhere else: nearly all of it accepted */
+    assert_true(clear_accepted >= clear * 9 / 10);
+    /* the wrongly predicted ones were found where they are, and refused for disagreeing */
+    for (int k = 0; k < n_wrong; k++) {
+        int i = wrong[k];
+        assert_int_equal(verdict[i], SH_LANDMARK_DISAGREES);
+        assert_true(hypot(xy[2 * i] - truth[2 * i], xy[2 * i + 1] - truth[2 * i + 1]) < 0.5);
+    }
+    free(pred);
+    free(xy);
+    free(truth);
+    free(verdict);
+    sh_landmarks_destroy(lm);
+    sh_image_destroy(&ref);
+    sh_image_destroy(&cur);
+}
+
+static void test_refusals(void **state)
+{
+    (void)state;
+    sh_image ref, small;
+    render(&ref, 0);
+    assert_int_equal(sh_image_create(&small, SH_PIX_GRAY8, 100, 100), SH_OK);
+    sh_landmarks_params p;
+    sh_landmarks_params_default(&p);
+    sh_landmarks *lm;
+    p.max_points = 0;
+    assert_int_equal(sh_landmarks_create(&p, &ref.plane[0], NULL, NULL, 0, &lm), SH_EINVAL);
+    sh_landmarks_params_default(&p);
+    p.max_photometric = NAN;
+    assert_int_equal(sh_landmarks_create(&p, &ref.plane[0], NULL, NULL, 0, &lm), SH_EINVAL);
+    sh_landmarks_params_default(&p);
+    assert_int_equal(sh_landmarks_create(&p, &ref.plane[0], NULL, NULL, 2, &lm), SH_EINVAL);
+    assert_int_equal(sh_landmarks_create(&p, &ref.plane[0], NULL, NULL, 0, &lm), SH_OK);
+    float xy[400];
+    uint8_t v[200];
+    assert_int_equal(sh_landmarks_track(lm, &small.plane[0], NULL, xy, v, NULL), SH_EINVAL);
+    assert_string_equal(sh_landmark_verdict_name(SH_LANDMARK_BACKWARD), "backward");
+    sh_landmarks_destroy(lm);
+    sh_image_destroy(&ref);
+    sh_image_destroy(&small);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_where_landmarks_are_chosen),
+        cmocka_unit_test(test_trust_against_truth),
+        cmocka_unit_test(test_refusals),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}

@@ -1,0 +1,221 @@
+/* Natural landmarks on a phantom sequence against its ground truth (issue 19): how many are
+ * chosen, what becomes of them frame by frame (accepted, or refused by which test), and how far
+ * each accepted one lies from where the truth puts its surface point, beside the markers' own
+ * map at the same points (what a landmark could correct).
+ *
+ * Per frame t after the reference N, as a stabilizer would: the markers' map of frame t (an
+ * interpolant on the reference positions of the markers t shares with N, the method of
+ * --method, fitted to their positions in t: the points file's, from `stillheart track`)
+ * predicts each landmark; sh_landmarks_track finds it and judges it. An accepted landmark is
+ * wrong when the truth says its surface point is hidden in frame t (an instrument, blood), and
+ * else off by its distance to the truth. The tags' quads that keep landmarks off the stickers
+ * are the truth's in frame N (the product takes the detector's). */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include "eval.h"
+#include "stillheart/y4m.h"
+
+typedef struct {
+    double *ref_xy, *cur_xy, *values;
+    int *ids;
+    float *pred, *xy;
+    uint8_t *verdict;
+    phantom_content *seen;
+    float *err, *map_err;
+    long long count, cap;
+    double *ms;
+} scratch;
+
+static void scratch_free(scratch *s)
+{
+    free(s->ref_xy), free(s->cur_xy), free(s->values), free(s->ids);
+    free(s->pred), free(s->xy), free(s->verdict), free(s->seen), free(s->err), free(s->map_err), free(s->ms);
+}
+
+static int cmp_float(const void *a, const void *b)
+{
+    float x = *(const float *)a, y = *(const float *)b;
+    return (x > y) - (x < y);
+}
+
+static double pct(float *v, long long n, double q)
+{
+    if (n == 0) return NAN;
+    qsort(v, (size_t)n, sizeof *v, cmp_float);
+    long long k = (long long)ceil(q * (double)n) - 1;
+    return v[k < 0 ? 0 : k];
+}
+
+/* The markers' map of frame t at every landmark (s->pred); 0 when fewer than 3 markers are
+ * shared with the reference, or the interpolant refuses them. */
+static int predict(const eval_lm_options *o, const sh_points *points, const sh_point *ref, int nref, int t,
+                   const float *lm_ref, int n, scratch *s)
+{
+    int ncur;
+    const sh_point *cur = sh_points_frame(points, t, &ncur);
+    int m = sh_points_match(ref, nref, cur, ncur, s->ids, s->cur_xy);
+    if (m < 3) return 0;
+    for (int k = 0, r = 0; k < m; k++) {
+        while (ref[r].id != s->ids[k]) r++;
+        s->ref_xy[2 * k] = ref[r].x;
+        s->ref_xy[2 * k + 1] = ref[r].y;
+    }
+    sh_interp *in;
+    if (sh_interp_create(&o->params, s->ref_xy, m, &in) != SH_OK) return 0;
+    /* a B-spline's coefficients are its lattice's, not one per marker */
+    double *coef = malloc(2 * (size_t)sh_interp_num_coefs(in) * sizeof *coef);
+    int ok = coef && sh_interp_fit(in, s->cur_xy, 2, coef) == SH_OK;
+    for (int i = 0; ok && i < n; i++) {
+        double v[2];
+        ok = sh_interp_eval(in, coef, 2, lm_ref[2 * i], lm_ref[2 * i + 1], v) == SH_OK;
+        s->pred[2 * i] = (float)v[0];
+        s->pred[2 * i + 1] = (float)v[1];
+    }
+    free(coef);
+    sh_interp_destroy(in);
+    return ok;
+}
+
+static double cpu_ms(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+    return (double)ts.tv_sec * 1e3 + (double)ts.tv_nsec / 1e6;
+}
+
+/* Accepted landmarks of one frame against the truth. */
+static sh_status judge(const eval_lm_options *o, int t, int n, scratch *s, eval_lm_result *r)
+{
+    if (s->count + n > s->cap) {
+        long long cap = s->cap ? s->cap * 2 : 1 << 14;
+        while (cap < s->count + n) cap *= 2;
+        float *e = realloc(s->err, sizeof(float) * (size_t)cap), *me = e ? realloc(s->map_err, sizeof(float) * (size_t)cap) : NULL;
+        if (e) s->err = e;
+        if (me) s->map_err = me;
+        if (!e || !me) return sh_error_set(SH_ENOMEM, "landmarks: out of memory at frame %d", t);
+        s->cap = cap;
+    }
+    for (int i = 0; i < n; i++) {
+        int accepted = s->verdict[i] == SH_LANDMARK_ACCEPTED;
+        double gx, gy;
+        if (s->seen[i].marker == -2) { /* no truth in the reference: not judged */
+            r->unjudged += accepted;
+            continue;
+        }
+        if (!phantom_truth_content_visible(o->truth, o->camera, t, &s->seen[i]) ||
+            phantom_truth_project_content(o->truth, o->camera, t, &s->seen[i], &gx, &gy) != SH_OK) {
+            r->hidden++;
+            r->accepted_hidden += accepted;
+            continue;
+        }
+        if (!accepted) continue;
+        double e = hypot(s->xy[2 * i] - gx, s->xy[2 * i + 1] - gy);
+        r->over_1px += e > 1;
+        if (e > r->max) r->max = e;
+        r->sum += e;
+        s->err[s->count] = (float)e;
+        double me = hypot(s->pred[2 * i] - gx, s->pred[2 * i + 1] - gy);
+        r->map_sum += me;
+        s->map_err[s->count++] = (float)me;
+    }
+    return SH_OK;
+}
+
+sh_status eval_landmarks_run(const eval_lm_options *o, const sh_points *points, const char *video_path,
+                             eval_lm_result *r)
+{
+    memset(r, 0, sizeof *r);
+    int nref;
+    const sh_point *ref = sh_points_frame(points, o->reference, &nref);
+    const phantom_model *pm = phantom_truth_model(o->truth);
+    sh_y4m_reader *rd;
+    sh_status st = sh_y4m_reader_open(video_path, &rd);
+    if (st != SH_OK) return st;
+    const sh_y4m_header *h = sh_y4m_reader_header(rd);
+    if (h->width != pm->width || h->height != pm->height) {
+        sh_y4m_reader_close(rd);
+        return sh_error_set(SH_EINVAL, "the phantom's images are %dx%d, %s's %dx%d", pm->width, pm->height,
+                            video_path, h->width, h->height);
+    }
+    sh_image frame = {0};
+    sh_landmarks *lm = NULL;
+    scratch s = {0};
+    int n = 0, mt = pm->num_markers;
+    size_t m = (size_t)(nref > 0 ? nref : 1), lmax = (size_t)o->lp.max_points;
+    s.ref_xy = malloc(2 * m * sizeof(double));
+    s.cur_xy = malloc(2 * m * sizeof(double));
+    s.ids = malloc(m * sizeof(int));
+    s.values = malloc(8 * (size_t)(mt > 0 ? mt : 1) * sizeof(double));
+    s.pred = malloc(2 * lmax * sizeof(float));
+    s.xy = malloc(2 * lmax * sizeof(float));
+    s.verdict = malloc(lmax);
+    s.seen = malloc(lmax * sizeof(phantom_content));
+    s.ms = malloc(sizeof(double) * (size_t)(points->max_frame + 2));
+    if (!s.ref_xy || !s.cur_xy || !s.ids || !s.values || !s.pred || !s.xy || !s.verdict || !s.seen || !s.ms)
+        st = sh_error_set(SH_ENOMEM, "landmarks: out of memory");
+    if (st == SH_OK) st = sh_image_create(&frame, h->format, h->width, h->height);
+    int frames_timed = 0;
+    for (int t = 0; st == SH_OK; t++) {
+        if ((st = sh_y4m_reader_read(rd, &frame)) != SH_OK) break;
+        if (t == o->reference) {
+            /* the tags' black-border quads in the reference, from the truth */
+            int nt = 0;
+            for (int i = 0; i < mt; i++) {
+                int vis = 1;
+                for (int k = 0; k < 4 && vis; k++)
+                    if (phantom_truth_marker(o->truth, o->camera, t, i, k, NULL, &s.values[8 * nt + 2 * k],
+                                             &s.values[8 * nt + 2 * k + 1], NULL, &vis) != SH_OK)
+                        vis = 0;
+                nt += vis;
+            }
+            double *cxy = malloc(2 * m * sizeof(double));
+            sh_hull hull;
+            for (int k = 0; cxy && k < nref; k++) cxy[2 * k] = ref[k].x, cxy[2 * k + 1] = ref[k].y;
+            st = !cxy ? sh_error_set(SH_ENOMEM, "landmarks: out of memory") : sh_hull_compute(cxy, nref, &hull);
+            free(cxy);
+            if (st == SH_OK) st = sh_landmarks_create(&o->lp, &frame.plane[0], &hull, s.values, nt, &lm);
+            if (st != SH_OK) break;
+            n = sh_landmarks_count(lm);
+            r->seeded = n;
+            const float *lr = sh_landmarks_reference(lm);
+            for (int i = 0; i < n; i++)
+                if (phantom_truth_locate_content(o->truth, o->camera, t, lr[2 * i], lr[2 * i + 1], &s.seen[i]) != SH_OK ||
+                    !phantom_truth_content_visible(o->truth, o->camera, t, &s.seen[i]))
+                    s.seen[i].marker = -2;
+            continue;
+        }
+        if (!lm) continue; /* before the reference */
+        if (!predict(o, points, ref, nref, t, sh_landmarks_reference(lm), n, &s)) {
+            r->unpredicted_frames++;
+            continue;
+        }
+        sh_landmarks_counts c;
+        double t0 = cpu_ms();
+        st = sh_landmarks_track(lm, &frame.plane[0], s.pred, s.xy, s.verdict, &c);
+        s.ms[frames_timed++] = cpu_ms() - t0;
+        if (st != SH_OK) break;
+        r->frames++;
+        for (int v = 0; v < SH_LANDMARK_VERDICTS; v++) r->verdicts[v] += c.verdicts[v];
+        st = judge(o, t, n, &s, r);
+    }
+    if (st == SH_EEOF) st = lm ? SH_OK : sh_error_set(SH_EINVAL, "%s has no frame %d", video_path, o->reference);
+    if (st == SH_OK) {
+        r->measured = s.count;
+        r->mean = s.count ? r->sum / (double)s.count : NAN;
+        r->map_mean = s.count ? r->map_sum / (double)s.count : NAN;
+        r->p99 = pct(s.err, s.count, 0.99);
+        r->map_p99 = pct(s.map_err, s.count, 0.99);
+        float *ms = malloc(sizeof(float) * (size_t)(frames_timed + 1));
+        for (int i = 0; ms && i < frames_timed; i++) ms[i] = (float)s.ms[i];
+        r->ms_median = ms ? pct(ms, frames_timed, 0.5) : NAN;
+        free(ms);
+    }
+    sh_landmarks_destroy(lm);
+    sh_image_destroy(&frame);
+    sh_y4m_reader_close(rd);
+    scratch_free(&s);
+    return st;
+}
