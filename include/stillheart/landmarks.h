@@ -10,6 +10,19 @@
  * the highlight level: a highlight moves with the light and the view, not with the tissue), and
  * half a window inside the image.
  *
+ * Both the choice and the search see the frames band-passed (unless band is 0): the mean over 3x3
+ * pixels minus the mean over a box `band` pixels each way from the centre (5 by default, about
+ * half the default 21 px window's side), scaled by a gain the reference fixes (its 99th
+ * percentile of |difference| to 100 grey levels) around 128.
+ * The fine box takes out the pixel noise, whose own corners would otherwise be chosen and then
+ * refused; the coarse one takes out the shading that sweeps over the tissue as the heart turns
+ * under the light (and the broad lobes of highlights): structure coarser than half a window
+ * says little about where the window lies, but a brightness ramp across it moves a
+ * translation-only match (on the phantom, started at the truth itself, by 0.86 px in the mean
+ * with raw frames; docs/landmarks.md). It needs a texture with detail finer than half a window,
+ * as tissue has (vessels, capillaries); one made only of waves a window or more long loses most
+ * of its signal to it.
+ *
  * Found per frame (sh_landmarks_track) against the reference itself, not the previous frame:
  * errors do not accumulate, and a landmark hidden for a while (an instrument, blood) is found
  * again when it shows, with nothing to re-seed. A new reference chooses anew. Pyramidal
@@ -27,7 +40,13 @@
  *    prediction's inverse, not from the answer, so a window that fits two places fails it;
  *  - DISAGREES: it lies within max_disagreement_px of the markers' prediction: a landmark that
  *    disagrees with the map by more than the map's own expected error is dropped, not averaged
- *    in.
+ *    in;
+ *  - DEVIATES: its correction of the map (its position minus the prediction) lies within
+ *    max_deviation_px of the median correction of its `neighbours` nearest landmarks (by
+ *    reference position) that passed the tests above, and at least 3 of them did. The map's
+ *    own error is smooth between the markers, so neighbours that are right correct it alike;
+ *    one whose window matched the wrong place, consistently both ways and within the map's
+ *    reach, stands out. This test needs a prediction.
  * Nothing is allocated per frame. */
 #ifndef STILLHEART_LANDMARKS_H
 #define STILLHEART_LANDMARKS_H
@@ -49,10 +68,11 @@ typedef enum {
     SH_LANDMARK_PHOTOMETRIC,
     SH_LANDMARK_BACKWARD,
     SH_LANDMARK_DISAGREES,
+    SH_LANDMARK_DEVIATES,
     SH_LANDMARK_VERDICTS
 } sh_landmark_verdict;
 
-/* "accepted", "lost", "photometric", "backward", "disagrees". */
+/* "accepted", "lost", "photometric", "backward", "disagrees", "deviates". */
 const char *sh_landmark_verdict_name(sh_landmark_verdict v);
 
 typedef struct {
@@ -65,10 +85,14 @@ typedef struct {
                                  * border) (2) */
     int highlight;              /* luma at or above which a pixel is a specular highlight (250:
                                  * an 8-bit camera clips there) */
-    double max_photometric;     /* grey levels (12) */
+    int band;                   /* the band-pass's coarse box, px each way (5; 0: raw frames) */
+    double max_photometric;     /* grey levels of the frames tracked (band-passed or raw) (12) */
     double max_backward_px;     /* px (0.5: half of the 1 px a landmark must be good to);
                                  * 0 turns the backward test off (and its cost) */
     double max_disagreement_px; /* px (3) */
+    int neighbours;             /* landmarks whose corrections a landmark's is checked against
+                                 * (8; 0: no such test) */
+    double max_deviation_px;    /* px (0.5: half of the 1 px bound, as the backward test) */
     sh_flow_params flow;        /* the tracker (sh_flow_params_default) */
 } sh_landmarks_params;
 

@@ -6,6 +6,9 @@
 
 #include "stillheart/landmarks.h"
 
+/* The band-pass's fine box: 3x3, against the pixel noise */
+#define BAND_FINE 1
+
 struct sh_landmarks {
     sh_landmarks_params p;
     int width, height, n;
@@ -15,12 +18,18 @@ struct sh_landmarks {
     float *back;     /* n pairs: backward result, and its starting guess */
     float *err;      /* n */
     uint8_t *st_fwd, *st_back;
+    int *near;       /* n x neighbours: each landmark's nearest others in the reference */
+    float *scratch;  /* 2 x neighbours */
+    uint32_t *integral; /* (w + 1) x (h + 1): the band-pass's box sums */
+    int *cols;       /* 4 w ints and 2 w floats: the boxes' columns (band_pass) */
+    uint8_t *band;   /* w x h: the band-passed frame the tracker sees */
+    float gain;      /* the band-pass's, fixed by the reference */
 };
 
 const char *sh_landmark_verdict_name(sh_landmark_verdict v)
 {
     static const char *const names[SH_LANDMARK_VERDICTS] = {"accepted", "lost", "photometric", "backward",
-                                                            "disagrees"};
+                                                            "disagrees", "deviates"};
     return (unsigned)v < SH_LANDMARK_VERDICTS ? names[v] : "?";
 }
 
@@ -35,6 +44,9 @@ void sh_landmarks_params_default(sh_landmarks_params *p)
     p->max_photometric = 12;
     p->max_backward_px = 0.5;
     p->max_disagreement_px = 3;
+    p->band = 5;
+    p->neighbours = 8;
+    p->max_deviation_px = 0.5;
     sh_flow_params_default(&p->flow);
 }
 
@@ -46,6 +58,10 @@ static sh_status check_params(const sh_landmarks_params *p)
         p->highlight < 1 || p->highlight > 256)
         return sh_error_set(SH_EINVAL, "landmarks: min_distance, quality (0, 1], tag_margin >= 0 or highlight 1-256 "
                             "out of range");
+    if (p->band != 0 && (p->band <= BAND_FINE || p->band > 64))
+        return sh_error_set(SH_EINVAL, "landmarks: band %d: 0 (none) or %d to 64", p->band, BAND_FINE + 1);
+    if (p->neighbours < 0 || p->neighbours > 64 || !(p->max_deviation_px > 0))
+        return sh_error_set(SH_EINVAL, "landmarks: neighbours %d (0 to 64) or max_deviation_px not > 0", p->neighbours);
     if (!(p->max_photometric > 0) || !(p->max_backward_px >= 0) || !(p->max_disagreement_px > 0))
         return sh_error_set(SH_EINVAL, "landmarks: max_photometric and max_disagreement_px must be > 0, "
                             "max_backward_px >= 0");
@@ -139,6 +155,108 @@ static sh_status make_mask(const sh_landmarks_params *p, const sh_plane *ref, co
     return clear_highlights(mask, ref, p->highlight, half);
 }
 
+
+/* The band-pass (landmarks.h): 128 + gain (mean over (2 r1 + 1)^2 - mean over (2 r2 + 1)^2),
+ * clamped to 0..255, the boxes clipped at the image's edge. gain <= 0: chosen here so that the
+ * 99th percentile of |mean difference| maps to 100 grey levels (within 1..16), which uses the 8
+ * bits without clipping the texture; the reference sets it and every frame keeps it. */
+static void band_pass(sh_landmarks *lm, const sh_plane *src, int r1, int r2)
+{
+    const int w = src->width, h = src->height;
+    const size_t iw = (size_t)w + 1;
+    uint32_t *S = lm->integral;
+    memset(S, 0, iw * sizeof *S);
+    for (int y = 0; y < h; y++) {
+        uint32_t row = 0;
+        const uint8_t *in = src->data + (size_t)y * src->stride;
+        uint32_t *above = S + (size_t)y * iw, *here = above + iw;
+        here[0] = 0;
+        for (int x = 0; x < w; x++) {
+            row += in[x];
+            here[x + 1] = above[x + 1] + row;
+        }
+    }
+    /* the boxes' column ranges and reciprocal widths, once per call: no division per pixel */
+    int *l1 = lm->cols, *m1 = l1 + w, *l2 = m1 + w, *m2 = l2 + w;
+    float *iw1 = (float *)(m2 + w), *iw2 = iw1 + w;
+    for (int x = 0; x < w; x++) {
+        l1[x] = x - r1 < 0 ? 0 : x - r1, m1[x] = x + r1 + 1 > w ? w : x + r1 + 1;
+        l2[x] = x - r2 < 0 ? 0 : x - r2, m2[x] = x + r2 + 1 > w ? w : x + r2 + 1;
+        iw1[x] = 1.0f / (float)(m1[x] - l1[x]);
+        iw2[x] = 1.0f / (float)(m2[x] - l2[x]);
+    }
+    uint32_t hist[256] = {0};
+    const int choose = lm->gain <= 0;
+    for (int pass = choose; pass >= 0; pass--) {
+        const float gain = lm->gain;
+        for (int y = 0; y < h; y++) {
+            int a1 = y - r1 < 0 ? 0 : y - r1, b1 = y + r1 + 1 > h ? h : y + r1 + 1;
+            int a2 = y - r2 < 0 ? 0 : y - r2, b2 = y + r2 + 1 > h ? h : y + r2 + 1;
+            const uint32_t *t1 = S + (size_t)a1 * iw, *u1 = S + (size_t)b1 * iw;
+            const uint32_t *t2 = S + (size_t)a2 * iw, *u2 = S + (size_t)b2 * iw;
+            const float ih1 = 1.0f / (float)(b1 - a1), ih2 = 1.0f / (float)(b2 - a2);
+            uint8_t *out = lm->band + (size_t)y * w;
+            for (int x = 0; x < w; x++) {
+                float s1 = (float)(u1[m1[x]] - u1[l1[x]] - t1[m1[x]] + t1[l1[x]]) * (ih1 * iw1[x]);
+                float s2 = (float)(u2[m2[x]] - u2[l2[x]] - t2[m2[x]] + t2[l2[x]]) * (ih2 * iw2[x]);
+                if (pass) {
+                    float d = fabsf(s1 - s2);
+                    hist[d >= 255 ? 255 : (int)d]++;
+                    continue;
+                }
+                float v = 128 + gain * (s1 - s2);
+                out[x] = (uint8_t)(v <= 0 ? 0 : v >= 255 ? 255 : lrintf(v));
+            }
+        }
+        if (pass) {
+            uint64_t want = (uint64_t)w * h * 99 / 100, seen = 0;
+            int k = 0;
+            while (k < 255 && (seen += hist[k]) < want) k++;
+            float g = 100.0f / (float)(k + 1);
+            lm->gain = g < 1 ? 1 : g > 16 ? 16 : g;
+        }
+    }
+}
+
+/* Each landmark's `neighbours` nearest others by reference position (fewer when there are fewer
+ * landmarks), nearest first: a partial insertion sort per landmark, O(n^2 k) once per reference. */
+static void find_neighbours(sh_landmarks *lm)
+{
+    int n = lm->n, k = lm->p.neighbours < n - 1 ? lm->p.neighbours : n - 1;
+    float *d = lm->scratch;
+    for (int i = 0; i < n; i++) {
+        int *row = lm->near + (size_t)i * lm->p.neighbours, have = 0;
+        for (int j = 0; j < n; j++) {
+            if (j == i) continue;
+            float dx = lm->ref_xy[2 * j] - lm->ref_xy[2 * i], dy = lm->ref_xy[2 * j + 1] - lm->ref_xy[2 * i + 1];
+            float dj = dx * dx + dy * dy;
+            if (have == k && dj >= d[k - 1]) continue;
+            int at = have < k ? have++ : k - 1;
+            while (at > 0 && d[at - 1] > dj) {
+                d[at] = d[at - 1];
+                row[at] = row[at - 1];
+                at--;
+            }
+            d[at] = dj;
+            row[at] = j;
+        }
+        for (int m = have; m < lm->p.neighbours; m++) row[m] = -1;
+    }
+}
+
+static int cmp_float(const void *a, const void *b)
+{
+    float x = *(const float *)a, y = *(const float *)b;
+    return (x > y) - (x < y);
+}
+
+/* The median of v[0..m) (m >= 1), reordering v. */
+static float median(float *v, int m)
+{
+    qsort(v, (size_t)m, sizeof *v, cmp_float);
+    return m & 1 ? v[m / 2] : 0.5f * (v[m / 2 - 1] + v[m / 2]);
+}
+
 sh_status sh_landmarks_create(const sh_landmarks_params *params, const sh_plane *reference, const sh_hull *hull,
                               const double *tags, int n_tags, sh_landmarks **out)
 {
@@ -160,12 +278,24 @@ sh_status sh_landmarks_create(const sh_landmarks_params *params, const sh_plane 
     lm->err = malloc(m * sizeof *lm->err);
     lm->st_fwd = malloc(m);
     lm->st_back = malloc(m);
-    if (!mask || !lm->ref_xy || !lm->fwd || !lm->back || !lm->err || !lm->st_fwd || !lm->st_back) {
+    lm->near = malloc(m * (size_t)(params->neighbours + 1) * sizeof *lm->near);
+    lm->scratch = malloc(2 * (size_t)(params->neighbours + 1) * sizeof *lm->scratch);
+    lm->integral = malloc(((size_t)lm->width + 1) * ((size_t)lm->height + 1) * sizeof *lm->integral);
+    lm->band = malloc((size_t)lm->width * lm->height);
+    lm->cols = malloc(6 * (size_t)lm->width * sizeof(int));
+    if (!mask || !lm->ref_xy || !lm->fwd || !lm->back || !lm->err || !lm->st_fwd || !lm->st_back || !lm->near ||
+        !lm->scratch || !lm->integral || !lm->band || !lm->cols) {
         free(mask);
         sh_landmarks_destroy(lm);
         return sh_error_set(SH_ENOMEM, "landmarks: out of memory");
     }
     st = make_mask(params, reference, hull, tags, n_tags, mask);
+    /* corners and the reference's pyramid from the band-passed reference (its gain set here) */
+    sh_plane band = *reference;
+    if (params->band > 0) {
+        band_pass(lm, reference, BAND_FINE, params->band);
+        band = (sh_plane){lm->band, lm->width, lm->height, lm->width};
+    }
     if (st == SH_OK) {
         sh_flow_corner_params cp;
         sh_flow_corner_params_default(&cp);
@@ -173,12 +303,13 @@ sh_status sh_landmarks_create(const sh_landmarks_params *params, const sh_plane 
         cp.quality = params->quality;
         cp.min_distance = params->min_distance;
         sh_plane mp = {mask, lm->width, lm->height, lm->width};
-        st = sh_flow_corners(reference, &mp, &cp, lm->ref_xy, &lm->n);
+        st = sh_flow_corners(&band, &mp, &cp, lm->ref_xy, &lm->n);
     }
     free(mask);
+    if (st == SH_OK && params->neighbours > 0) find_neighbours(lm);
     if (st == SH_OK) st = sh_flow_pyramid_create(lm->width, lm->height, &params->flow, &lm->ref);
     if (st == SH_OK) st = sh_flow_pyramid_create(lm->width, lm->height, &params->flow, &lm->cur);
-    if (st == SH_OK) st = sh_flow_pyramid_build(lm->ref, reference, 1);
+    if (st == SH_OK) st = sh_flow_pyramid_build(lm->ref, &band, 1);
     if (st != SH_OK) {
         sh_landmarks_destroy(lm);
         return st;
@@ -198,11 +329,46 @@ void sh_landmarks_destroy(sh_landmarks *lm)
     free(lm->err);
     free(lm->st_fwd);
     free(lm->st_back);
+    free(lm->near);
+    free(lm->scratch);
+    free(lm->integral);
+    free(lm->band);
+    free(lm->cols);
     free(lm);
 }
 
 int sh_landmarks_count(const sh_landmarks *lm) { return lm->n; }
 const float *sh_landmarks_reference(const sh_landmarks *lm) { return lm->ref_xy; }
+
+/* The last test: a landmark's correction of the map (its position minus the prediction) against
+ * the median correction of its nearest landmarks that passed the others. The map's own error is
+ * smooth between the markers, so correct neighbours correct it alike; a landmark whose window
+ * matched the wrong place, consistently both ways and within the map's reach, stands out. Too
+ * few neighbours to tell (fewer than 3 that passed): refused, as nothing vouches for it. */
+static void deviations(sh_landmarks *lm, const float *predicted, uint8_t *verdict)
+{
+    const int k = lm->p.neighbours, min_voters = 3;
+    float *vx = lm->scratch, *vy = lm->scratch + k + 1;
+    for (int i = 0; i < lm->n; i++) {
+        if (verdict[i] != SH_LANDMARK_ACCEPTED) continue;
+        int m = 0;
+        for (int j = 0; j < k; j++) {
+            int q = lm->near[(size_t)i * k + j];
+            /* the neighbours' verdicts from the first four tests: SH_LANDMARK_DEVIATES is set only
+             * here, after every landmark's first four, so compare with it too */
+            if (q < 0 || (verdict[q] != SH_LANDMARK_ACCEPTED && verdict[q] != SH_LANDMARK_DEVIATES)) continue;
+            vx[m] = lm->fwd[2 * q] - predicted[2 * q];
+            vy[m++] = lm->fwd[2 * q + 1] - predicted[2 * q + 1];
+        }
+        if (m < min_voters) {
+            verdict[i] = SH_LANDMARK_DEVIATES;
+            continue;
+        }
+        float mx = median(vx, m), my = median(vy, m);
+        float dx = lm->fwd[2 * i] - predicted[2 * i] - mx, dy = lm->fwd[2 * i + 1] - predicted[2 * i + 1] - my;
+        if (!(hypotf(dx, dy) <= lm->p.max_deviation_px)) verdict[i] = SH_LANDMARK_DEVIATES;
+    }
+}
 
 sh_status sh_landmarks_track(sh_landmarks *lm, const sh_plane *luma, const float *predicted, float *xy,
                              uint8_t *verdict, sh_landmarks_counts *counts)
@@ -215,7 +381,12 @@ sh_status sh_landmarks_track(sh_landmarks *lm, const sh_plane *luma, const float
     if (counts) memset(counts, 0, sizeof *counts);
     if (n == 0) return SH_OK;
     /* the frame's gradients only when it is tracked from, by the backward test */
-    sh_status st = sh_flow_pyramid_build(lm->cur, luma, backward);
+    sh_plane band = *luma;
+    if (p->band > 0) {
+        band_pass(lm, luma, BAND_FINE, p->band);
+        band = (sh_plane){lm->band, lm->width, lm->height, lm->width};
+    }
+    sh_status st = sh_flow_pyramid_build(lm->cur, &band, backward);
     if (st == SH_OK)
         st = sh_flow_track(&p->flow, lm->ref, lm->cur, n, lm->ref_xy, predicted, lm->fwd, lm->st_fwd, lm->err);
     if (st == SH_OK && backward) {
@@ -241,7 +412,9 @@ sh_status sh_landmarks_track(sh_landmarks *lm, const sh_plane *luma, const float
         xy[2 * i] = f[0];
         xy[2 * i + 1] = f[1];
         verdict[i] = (uint8_t)v;
-        if (counts) counts->verdicts[v]++;
     }
+    if (predicted && p->neighbours > 0) deviations(lm, predicted, verdict);
+    if (counts)
+        for (int i = 0; i < n; i++) counts->verdicts[verdict[i]]++;
     return SH_OK;
 }

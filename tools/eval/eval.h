@@ -71,6 +71,10 @@ typedef struct {
     double sum, mean, p99, max;        /* accepted landmarks' error (px) */
     double map_sum, map_mean, map_p99; /* the markers' map at the same landmarks (px) */
     double ms_median;          /* sh_landmarks_track per frame, thread CPU time */
+    /* the hull's samples (every 8 px) against the truth: the markers' map, and the same method
+     * fitted to the markers and the accepted landmarks together (px) */
+    long long geo_samples;
+    double geo_map_mean, geo_map_p95, geo_lm_mean, geo_lm_p95;
 } eval_lm_result;
 
 /* Runs the landmarks over the unstabilized video (its frames from the reference on) with the

@@ -63,3 +63,9 @@ $(BUILD)/tests/test_eval_landmarks: $(BUILD)/tools/eval/tests/test_eval_landmark
 	$(CC) $(LDFLAGS) $< $(BUILD)/tests/unit/shell.o $(LIB) $(shell $(PKG_CONFIG) --libs cmocka) $(LDLIBS_ALL) -o $@
 
 TOOL_TESTS += $(BUILD)/tests/test_eval_landmarks
+
+# ---- natural landmarks on rendered phantoms against their truth (docs/landmarks.md) ----
+LANDMARKS_DIR ?= out/landmarks
+.PHONY: landmarks-table
+landmarks-table: $(EVAL_BIN) $(BUILD)/stillheart-render
+	@sh tools/eval/landmarks.sh $(BUILD) $(LANDMARKS_DIR)

@@ -85,7 +85,9 @@ static void usage(FILE *f)
         "                     markers, and judged (accepted, lost, photometric, backward,\n"
         "                     disagrees); the accepted ones against the truth: mean, p99 and max\n"
         "                     px, how many more than 1 px off or hidden (both wrong), beside the\n"
-        "                     markers' map at the same points; the time per frame (one thread)\n"
+        "                     markers' map at the same points; the time per frame (one thread);\n"
+        "                     the geometric error over the hull of the markers' map and of the\n"
+        "                     same method fitted to the markers and the accepted landmarks\n"
         "  --lm-photometric G, --lm-backward PX, --lm-disagreement PX\n"
         "                     the tests' thresholds (defaults 12 grey levels, 0.5 px, 3 px;\n"
         "                     --lm-backward 0: no backward test)\n"
@@ -328,22 +330,32 @@ static int landmarks(options *o, const char *video_path)
         sh_cli_json_number(&j, "map_mean", r.map_mean);
         sh_cli_json_number(&j, "map_p99", r.map_p99);
         sh_cli_json_number(&j, "ms_median", r.ms_median);
+        sh_cli_json_object(&j, "geometric");
+        sh_cli_json_int(&j, "samples", r.geo_samples);
+        sh_cli_json_number(&j, "markers_mean", r.geo_map_mean);
+        sh_cli_json_number(&j, "markers_p95", r.geo_map_p95);
+        sh_cli_json_number(&j, "landmarks_mean", r.geo_lm_mean);
+        sh_cli_json_number(&j, "landmarks_p95", r.geo_lm_p95);
+        sh_cli_json_end(&j);
         sh_cli_json_end(&j);
     } else {
         long long all = 0;
         for (int v = 0; v < SH_LANDMARK_VERDICTS; v++) all += r.verdicts[v];
         printf("%s: %d landmarks chosen in frame %d, %d frames after it (%d without a markers' map)\n", video_path,
                r.seeded, o->reference, r.frames, r.unpredicted_frames);
-        printf("landmark-frames: %lld; accepted %lld, lost %lld, photometric %lld, backward %lld, disagrees %lld\n",
-               all, r.verdicts[SH_LANDMARK_ACCEPTED], r.verdicts[SH_LANDMARK_LOST],
+        printf("landmark-frames: %lld; accepted %lld, lost %lld, photometric %lld, backward %lld, disagrees %lld, "
+               "deviates %lld\n", all, r.verdicts[SH_LANDMARK_ACCEPTED], r.verdicts[SH_LANDMARK_LOST],
                r.verdicts[SH_LANDMARK_PHOTOMETRIC], r.verdicts[SH_LANDMARK_BACKWARD],
-               r.verdicts[SH_LANDMARK_DISAGREES]);
+               r.verdicts[SH_LANDMARK_DISAGREES], r.verdicts[SH_LANDMARK_DEVIATES]);
         printf("accepted against the truth (px): mean %.4f, p99 %.4f, max %.4f over %lld; more than 1 px off: %lld; "
                "accepted while hidden: %lld of %lld hidden\n", r.mean, r.p99, r.max, r.measured, r.over_1px,
                r.accepted_hidden, r.hidden);
         printf("the markers' map (%s) at the same landmarks (px): mean %.4f, p99 %.4f\n",
                o->method ? o->method : "tps", r.map_mean, r.map_p99);
         printf("landmark tracking per frame: %.2f ms (median, one thread)\n", r.ms_median);
+        printf("geometric error over the hull (%lld samples, px): the markers' map mean %.4f, p95 %.4f; with the "
+               "accepted landmarks mean %.4f, p95 %.4f\n", r.geo_samples, r.geo_map_mean, r.geo_map_p95,
+               r.geo_lm_mean, r.geo_lm_p95);
     }
 done:
     phantom_truth_close(truth);

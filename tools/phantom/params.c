@@ -17,7 +17,7 @@ typedef struct {
     size_t offset;
     int count;
     char type;  /* 'd' double, 'i' int, 'u' uint64 */
-    char group; /* 0: always there; 'c' camera motion, 'f' first beat: written only when the
+    char group; /* 0: always there; 'c' camera motion, 'f' first beat, 't' texture contrast: written only when the
                  * feature is on, so files from before it (and without it) read as without */
 } field;
 
@@ -38,12 +38,14 @@ static const field fields[] = {
     I(decoy), I(decoy_id), D(decoy_center, 3), D(decoy_yaw, 1), D(noise, 1), D(exposure, 1),
     OI(cam_motion, 'c'), OD(cam_motion_t0, 1, 'c'), OD(cam_motion_dur, 1, 'c'),
     OD(cam_motion_shift, 3, 'c'), OI(first_beat, 'f'), OD(first_beat_at, 1, 'f'),
+    OD(texture_contrast, 1, 't'),
 };
 #define NFIELDS (sizeof fields / sizeof fields[0])
 
 static int group_on(const phantom_model *m, char group)
 {
-    return group == 0 || (group == 'c' && m->cam_motion != 0) || (group == 'f' && m->first_beat != 0);
+    return group == 0 || (group == 'c' && m->cam_motion != 0) || (group == 'f' && m->first_beat != 0) ||
+           (group == 't' && m->texture_contrast != 0);
 }
 
 static void put_doubles(FILE *f, const double *d, int n)
@@ -136,6 +138,8 @@ static sh_status validate(const phantom_model *m, const char *name, unsigned see
     if (m->cam_motion < 0 || m->cam_motion > 2) return BAD("%s: cam_motion %d: 0, 1 or 2", name, m->cam_motion);
     if (m->cam_motion == 1 && !(m->cam_motion_dur > 0))
         return BAD("%s: a pan (cam_motion 1) needs cam_motion_dur > 0", name);
+    if (!(m->texture_contrast >= 0 && m->texture_contrast <= 16))
+        return BAD("%s: texture_contrast out of range (0 to 16)", name);
     if (m->first_beat < 0 || m->first_beat > 1) return BAD("%s: first_beat %d: 0 or 1", name, m->first_beat);
     /* the first beat's warp divides by the heart rate */
     if (m->first_beat && !(m->heart_hz > 0 && m->first_beat_at >= 0))

@@ -129,6 +129,9 @@ typedef struct {
      * than normal, then beats at heart_hz, phase continuous. Respiration keeps the clock. */
     int first_beat;
     double first_beat_at;
+    /* the tissue texture's contrast about its mean colour (renderer only): 0 as designed (1);
+     * phantom.txt carries it only when set */
+    double texture_contrast;
 } phantom_model;
 
 enum { PHANTOM_CAM_NONE = 0, PHANTOM_CAM_PAN = 1, PHANTOM_CAM_BUMP = 2 };
@@ -227,6 +230,7 @@ typedef struct {
                               * frame at or after it */
     int first_beat;       /* 1: rest, then a first contraction 4x faster; not with periodic */
     double first_beat_at; /* seconds of rest from frame 0; <= 0: 0.5 s */
+    double texture_contrast; /* <= 0 or 1: the texture as designed; else its contrast scaled */
 } phantom_options;
 
 void phantom_options_default(phantom_options *o);

@@ -119,6 +119,35 @@ static float smooth(float e0, float e1, float x)
     return t * t * (3 - 2 * t);
 }
 
+/* One texel of the tissue at (u, v) mm from the patch corner, d texels from the nearest vessel:
+ * its colour before the rim's fade, and that fade. */
+static void tissue_texel(const phantom_model *m, float d, float u, float v, uint32_t seed, float c[3], float *rim_out)
+{
+    float low = fbm(u / 14.0f + 3, v / 14.0f + 3, 3, seed);
+    float mid = fbm(u / 2.5f + 7, v / 2.5f + 7, 3, seed + 1000);
+    float fine = vnoise(u * 2.2f + 11, v * 2.2f + 11, seed + 2000);
+    /* fibre direction: streaks along a slowly turning angle */
+    float streak = vnoise(u * 0.9f + v * 0.35f + 50, v * 3.0f - u * 1.1f + 50, seed + 3000);
+    float shade = 0.72f + 0.45f * low + 0.22f * mid + 0.12f * fine + 0.08f * streak;
+    float r = 150 * shade, g = 42 * shade + 10 * mid, b = 45 * shade + 6 * fine;
+    /* fat hugs the vessels and lies in patches elsewhere */
+    float fatness = smooth(0.68f, 0.80f, fbm(u / 9.0f + 20, v / 9.0f + 20, 4, seed + 4000) +
+                                             0.30f * smooth(5.0f, 1.4f, d));
+    float fr = 225 - 30 * mid, fg = 185 - 35 * mid + 10 * fine, fb = 105 - 20 * mid;
+    r += (fr - r) * fatness;
+    g += (fg - g) * fatness;
+    b += (fb - b) * fatness;
+    float vessel_a = smooth(1.15f, 0.7f, d);
+    float vr = 95 + 30 * fine, vg = 22 + 10 * fine, vb = 48 + 10 * mid;
+    r += (vr - r) * vessel_a;
+    g += (vg - g) * vessel_a;
+    b += (vb - b) * vessel_a;
+    /* the rim of the patch fades into the drape's shadow */
+    float edge = fminf(fminf(u, (float)m->size_u - u), fminf(v, (float)m->size_v - v));
+    *rim_out = 0.55f + 0.45f * smooth(0.0f, 4.0f, edge);
+    c[0] = r, c[1] = g, c[2] = b;
+}
+
 sh_status rd_texture_tissue(const phantom_model *m, int w, int h, rd_texture *out)
 {
     out->width = w;
@@ -146,36 +175,29 @@ sh_status rd_texture_tissue(const phantom_model *m, int w, int h, rd_texture *ou
     }
     uint32_t seed = (uint32_t)(m->seed * 2654435761u);
     float cell = (float)(1.0 / tpm); /* mm per texel */
+    /* --texture-contrast: each texel's colour about the texture's mean, scaled (a first pass
+     * finds the mean); the rim's fade is applied after, as without it */
+    const float contrast = m->texture_contrast > 0 ? (float)m->texture_contrast : 1;
+    double mean[3] = {0, 0, 0};
+    if (contrast != 1) {
+        for (int y = 0; y < h; y++)
+            for (int x = 0; x < w; x++) {
+                float c[3], rim;
+                tissue_texel(m, vd[(size_t)y * w + x], x * cell, y * cell, seed, c, &rim);
+                for (int k = 0; k < 3; k++) mean[k] += c[k];
+            }
+        for (int k = 0; k < 3; k++) mean[k] /= (double)w * h;
+    }
     for (int y = 0; y < h; y++) {
         uint8_t *row = out->rgb + (size_t)y * w * 3;
         for (int x = 0; x < w; x++) {
-            float u = x * cell, v = y * cell; /* mm from the patch corner */
-            float low = fbm(u / 14.0f + 3, v / 14.0f + 3, 3, seed);
-            float mid = fbm(u / 2.5f + 7, v / 2.5f + 7, 3, seed + 1000);
-            float fine = vnoise(u * 2.2f + 11, v * 2.2f + 11, seed + 2000);
-            /* fibre direction: streaks along a slowly turning angle */
-            float streak = vnoise(u * 0.9f + v * 0.35f + 50, v * 3.0f - u * 1.1f + 50, seed + 3000);
-            float shade = 0.72f + 0.45f * low + 0.22f * mid + 0.12f * fine + 0.08f * streak;
-            float r = 150 * shade, g = 42 * shade + 10 * mid, b = 45 * shade + 6 * fine;
-            float d = vd[(size_t)y * w + x];
-            /* fat hugs the vessels and lies in patches elsewhere */
-            float fatness = smooth(0.68f, 0.80f, fbm(u / 9.0f + 20, v / 9.0f + 20, 4, seed + 4000) +
-                                                     0.30f * smooth(5.0f, 1.4f, d));
-            float fr = 225 - 30 * mid, fg = 185 - 35 * mid + 10 * fine, fb = 105 - 20 * mid;
-            r += (fr - r) * fatness;
-            g += (fg - g) * fatness;
-            b += (fb - b) * fatness;
-            float vessel_a = smooth(1.15f, 0.7f, d);
-            float vr = 95 + 30 * fine, vg = 22 + 10 * fine, vb = 48 + 10 * mid;
-            r += (vr - r) * vessel_a;
-            g += (vg - g) * vessel_a;
-            b += (vb - b) * vessel_a;
-            /* the rim of the patch fades into the drape's shadow */
-            float edge = fminf(fminf(u, (float)m->size_u - u), fminf(v, (float)m->size_v - v));
-            float rim = 0.55f + 0.45f * smooth(0.0f, 4.0f, edge);
-            row[3 * x] = (uint8_t)fminf(255, r * rim);
-            row[3 * x + 1] = (uint8_t)fminf(255, g * rim);
-            row[3 * x + 2] = (uint8_t)fminf(255, b * rim);
+            float c[3], rim;
+            tissue_texel(m, vd[(size_t)y * w + x], x * cell, y * cell, seed, c, &rim);
+            if (contrast != 1)
+                for (int k = 0; k < 3; k++) c[k] = fmaxf(0, (float)mean[k] + contrast * (c[k] - (float)mean[k]));
+            row[3 * x] = (uint8_t)fminf(255, c[0] * rim);
+            row[3 * x + 1] = (uint8_t)fminf(255, c[1] * rim);
+            row[3 * x + 2] = (uint8_t)fminf(255, c[2] * rim);
         }
     }
     free(vd);

@@ -53,7 +53,7 @@ static void test_occlusions_cost_landmarks_never_wrong_ones(void **state)
     assert_true(seeded >= 1);
     assert_int_equal((int)frames, FRAMES - 1);
     double all = json_num(test_out, "accepted") + json_num(test_out, "lost") + json_num(test_out, "photometric") +
-                 json_num(test_out, "backward") + json_num(test_out, "disagrees");
+                 json_num(test_out, "backward") + json_num(test_out, "disagrees") + json_num(test_out, "deviates");
     assert_int_equal((long long)all, (long long)(seeded * frames));
     assert_true(json_num(test_out, "photometric") + json_num(test_out, "lost") > 0); /* the shaft and blood cost some */
     assert_true(json_num(test_out, "hidden") > 0); /* the occluders do cross landmarks */

@@ -48,6 +48,19 @@ static void test_params_round_trip(void **state)
     assert_int_equal(phantom_model_read(path, &b), SH_OK);
     remove(path);
     assert_memory_equal(&a, &b, sizeof a); /* both were zeroed first: padding compares too */
+    /* the texture's contrast, written only when set, read back as given */
+    o.texture_contrast = 0.5;
+    assert_int_equal(phantom_model_build(&o, &a), SH_OK);
+    assert_true(a.texture_contrast == 0.5);
+    close(fd);
+    strcpy(path + strlen(path) - 6, "XXXXXX");
+    fd = mkstemp(path);
+    assert_true(fd >= 0);
+    close(fd);
+    assert_int_equal(phantom_model_write(&a, path), SH_OK);
+    assert_int_equal(phantom_model_read(path, &b), SH_OK);
+    remove(path);
+    assert_memory_equal(&a, &b, sizeof a);
 }
 
 static void test_locate_inverts_project(void **state)
