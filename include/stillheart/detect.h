@@ -54,7 +54,9 @@ typedef struct {
                              * from the truth, docs/tracking.md); small tags need 1 */
     int merge_windows;      /* 1 (default): windows that overlap or lie close are merged into
                              * their bounding box when that costs fewer pixels than it saves in
-                             * per-call overhead; tags seen by two windows are reported once */
+                             * per-call overhead; tags seen by two windows are reported once
+                             * (the view whose window edge stays half a module clear of its quad,
+                             * else the higher decision margin: detect.c, collect) */
 } sh_detector_options;
 
 /* libapriltag's pixel-centre offset, subtracted from its coordinates. */

@@ -7,6 +7,7 @@
  * integers. */
 #include "stillheart/detect.h"
 
+#include <math.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
@@ -64,6 +65,10 @@ static const struct {
  * the same within noise, so the call overhead is small beside the pixels' cost there. */
 #define CALL_COST_PIXELS 6000
 
+/* Detections of one windowed scan whose cut flag is kept for the choice between two views of a
+ * tag; beyond them (more tags than any rig has) the choice falls back on the decision margin. */
+#define CUT_SLOTS 1024
+
 struct sh_detector {
     apriltag_detector_t *td;
     apriltag_family_t *tf;
@@ -74,6 +79,9 @@ struct sh_detector {
     int gray_width, gray_height;
     sh_window scan[SH_DETECT_MAX_WINDOWS];
     int num_scan;
+    /* per reported detection of a windowed scan (the first CUT_SLOTS): whether its window may
+     * have cut it (cut_view) */
+    unsigned char cut[CUT_SLOTS];
 };
 
 const char *sh_detector_families(void)
@@ -144,12 +152,40 @@ void sh_detector_destroy(sh_detector *det)
     free(det);
 }
 
+/* Whether the window (ox, oy, ww, wh) may have cut the tag: its quad comes within half a module
+ * (the quad's mean side over the family's width at the border) of a window edge that is not the
+ * frame's. A window edge across the black border still decodes, with that side fitted inside the
+ * border, a few px off (test_detect: 2.7-3.8 px on a 96 px tag); a window that holds half of the
+ * one-module quiet zone, as the tracker's do (track.c, TRK_WINDOW_QUIET), shows the real edge. */
+static int cut_view(const sh_detection *s, int ox, int oy, int ww, int wh, int fw, int fh,
+                    int modules)
+{
+    double side = 0;
+    for (int k = 0; k < 4; k++)
+        side += 0.25 * hypot(s->corner[(k + 1) % 4][0] - s->corner[k][0],
+                             s->corner[(k + 1) % 4][1] - s->corner[k][1]);
+    double room = 0.5 * side / (modules > 0 ? modules : 1);
+    /* pixel centres at integers: the window's pixels span [ox - 0.5, ox + ww - 0.5) */
+    for (int k = 0; k < 4; k++) {
+        double x = s->corner[k][0], y = s->corner[k][1];
+        if ((ox > 0 && x - (ox - 0.5) < room) || (ox + ww < fw && (ox + ww - 0.5) - x < room) ||
+            (oy > 0 && y - (oy - 0.5) < room) || (oy + wh < fh && (oy + wh - 0.5) - y < room))
+            return 1;
+    }
+    return 0;
+}
+
 /* Copies libapriltag's detections (window-relative) into out[*n...], in frame coordinates.
- * With dedup, a detection of the same id whose centre lies within a quarter of the tag's edge
- * of one already reported (the same tag seen by two windows) is dropped. */
-static void collect(zarray_t *dets, int ox, int oy, int dedup, sh_detection *out, int max, int *n)
+ * With dedup (windowed scans), a detection of the same id whose centre lies within a quarter of
+ * the tag's edge of one already reported (the same tag seen by two windows) is one tag: the view
+ * that its window did not cut is kept (a cut view can have the higher decision margin: a
+ * reacquisition band's edge across a tag already in its own window gave 1-6 px errors at 4K),
+ * and between views alike the clearer one. */
+static void collect(sh_detector *det, zarray_t *dets, const sh_window *win, int fw, int fh,
+                    int dedup, sh_detection *out, int max, int *n)
 {
     const double off = SH_DETECT_APRILTAG_OFFSET;
+    const int ox = win->x, oy = win->y;
     for (int i = 0; i < zarray_size(dets); i++) {
         apriltag_detection_t *d;
         zarray_get(dets, i, &d);
@@ -163,7 +199,9 @@ static void collect(zarray_t *dets, int ox, int oy, int dedup, sh_detection *out
         }
         s.margin = d->decision_margin;
         s.hamming = d->hamming;
+        int cut = 0;
         if (dedup) {
+            cut = cut_view(&s, ox, oy, win->width, win->height, fw, fh, det->tf->width_at_border);
             double ex = s.corner[1][0] - s.corner[0][0], ey = s.corner[1][1] - s.corner[0][1];
             double tol2 = (ex * ex + ey * ey) / 16.0;
             int dup = 0;
@@ -172,19 +210,25 @@ static void collect(zarray_t *dets, int ox, int oy, int dedup, sh_detection *out
                 double dx = out[j].cx - s.cx, dy = out[j].cy - s.cy;
                 if (out[j].id == s.id && dx * dx + dy * dy <= tol2) {
                     dup = 1;
-                    if (s.margin > out[j].margin) out[j] = s; /* keep the clearer view */
+                    int cut_j = j < CUT_SLOTS ? det->cut[j] : cut;
+                    if (cut < cut_j || (cut == cut_j && s.margin > out[j].margin)) {
+                        out[j] = s;
+                        if (j < CUT_SLOTS) det->cut[j] = (unsigned char)cut;
+                    }
                 }
             }
             if (dup) continue;
         }
         if (*n < max) out[*n] = s;
+        if (*n < max && *n < CUT_SLOTS) det->cut[*n] = (unsigned char)cut;
         (*n)++;
     }
 }
 
-static sh_status run(sh_detector *det, const uint8_t *base, int width, int height, int stride,
-                     int ox, int oy, int dedup, sh_detection *out, int max, int *n)
+static sh_status run(sh_detector *det, const uint8_t *base, int fw, int fh, int stride,
+                     const sh_window *w, int dedup, sh_detection *out, int max, int *n)
 {
+    const int width = w->width, height = w->height, ox = w->x, oy = w->y;
     /* image_u8_t's geometry is const: build it by initialization. libapriltag only reads the
      * pixels (a blur or decimation works on its own copy). */
     image_u8_t im = {.width = width, .height = height, .stride = stride,
@@ -192,7 +236,7 @@ static sh_status run(sh_detector *det, const uint8_t *base, int width, int heigh
     zarray_t *dets = apriltag_detector_detect(det->td, &im);
     if (!dets) return sh_error_set(SH_ENOMEM, "detect: libapriltag failed on a %dx%d image", width,
                                    height);
-    collect(dets, ox, oy, dedup, out, max, n);
+    collect(det, dets, w, fw, fh, dedup, out, max, n);
     apriltag_detections_destroy(dets);
     return SH_OK;
 }
@@ -263,14 +307,15 @@ sh_status sh_detector_detect_plane(sh_detector *det, const uint8_t *luma, int wi
     if (!windows || num_windows == 0) {
         det->td->quad_decimate = (float)det->opts.quad_decimate;
         det->num_scan = 0;
-        st = run(det, luma, width, height, stride, 0, 0, 0, out, max, &n);
+        const sh_window whole = {0, 0, width, height};
+        st = run(det, luma, width, height, stride, &whole, 0, out, max, &n);
     } else {
         det->td->quad_decimate = (float)det->opts.window_decimate;
         plan_windows(det, width, height, windows, num_windows);
         st = SH_OK;
         for (int i = 0; i < det->num_scan && st == SH_OK; i++) {
             const sh_window *w = &det->scan[i];
-            st = run(det, luma, w->width, w->height, stride, w->x, w->y, 1, out, max, &n);
+            st = run(det, luma, width, height, stride, w, 1, out, max, &n);
         }
     }
     *count = n;

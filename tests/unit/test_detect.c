@@ -81,14 +81,42 @@ static void check_square(const sh_detection *d, double x0, double y0, double x1,
  * corner residual under 0.05 px with the 0.5 offset; 0.375 would leave 0.125). */
 #define SHARP_TOL 0.25
 
+/* The drawn-tag tests' canvas, CANVAS_W x CANVAS_H with the given stride: tag TAG_ID at scale
+ * TAG_K, its top-left cell at (TAG_OX, TAG_OY); x0..y1 the black border's exact outer edges. */
+enum { CANVAS_W = 320, CANVAS_H = 240, TAG_K = 12, TAG_OX = 37, TAG_OY = 29, TAG_ID = 7 };
+
+static uint8_t *tag_canvas(int stride, double *x0, double *y0, double *x1, double *y1)
+{
+    uint8_t *buf = malloc((size_t)stride * CANVAS_H);
+    assert_non_null(buf);
+    draw_tag(buf, CANVAS_W, CANVAS_H, stride, TAG_ID, TAG_K, TAG_OX, TAG_OY);
+    *x0 = TAG_OX + TAG_K - 0.5, *x1 = TAG_OX + 9 * TAG_K - 0.5;
+    *y0 = TAG_OY + TAG_K - 0.5, *y1 = TAG_OY + 9 * TAG_K - 0.5;
+    return buf;
+}
+
+/* The canvas (stride wide) scanned in nwin windows (0: full frame): one tag, TAG_ID, found
+ * whole, on the exact square (x0, y0)-(x1, y1). */
+static void detect_the_tag(sh_detector *det, const uint8_t *buf, int stride, const sh_window *win,
+                           int nwin, double x0, double y0, double x1, double y1)
+{
+    sh_detection d[MAXD];
+    int n = -1;
+    assert_int_equal(sh_detector_detect_plane(det, buf, CANVAS_W, CANVAS_H, stride, win, nwin, d,
+                                              MAXD, &n),
+                     SH_OK);
+    assert_int_equal(n, 1);
+    assert_int_equal(d[0].id, TAG_ID);
+    assert_int_equal(d[0].hamming, 0);
+    check_square(&d[0], x0, y0, x1, y1, SHARP_TOL);
+}
+
 static void test_pixel_centre_convention(void **state)
 {
     (void)state;
-    const int w = 320, h = 240, stride = 352, k = 12, ox = 37, oy = 29, id = 7;
-    uint8_t *buf = malloc((size_t)stride * h);
-    assert_non_null(buf);
-    draw_tag(buf, w, h, stride, id, k, ox, oy);
-    double x0 = ox + k - 0.5, x1 = ox + 9 * k - 0.5, y0 = oy + k - 0.5, y1 = oy + 9 * k - 0.5;
+    const int w = CANVAS_W, h = CANVAS_H, stride = 352, k = TAG_K, ox = TAG_OX, oy = TAG_OY;
+    double x0, y0, x1, y1;
+    uint8_t *buf = tag_canvas(stride, &x0, &y0, &x1, &y1);
 
     for (int dec = 1; dec <= 2; dec++) {
         sh_detector_options o;
@@ -96,21 +124,11 @@ static void test_pixel_centre_convention(void **state)
         o.quad_decimate = dec;
         sh_detector *det;
         assert_int_equal(sh_detector_create(&o, &det), SH_OK);
-        sh_detection d[MAXD];
-        int n = -1;
         /* full frame through a plane with padding (stride > width) */
-        assert_int_equal(sh_detector_detect_plane(det, buf, w, h, stride, NULL, 0, d, MAXD, &n),
-                         SH_OK);
-        assert_int_equal(n, 1);
-        assert_int_equal(d[0].id, id);
-        assert_int_equal(d[0].hamming, 0);
-        check_square(&d[0], x0, y0, x1, y1, SHARP_TOL);
+        detect_the_tag(det, buf, stride, NULL, 0, x0, y0, x1, y1);
         /* a window: a view with its origin moved, results back in frame coordinates */
         sh_window win = {ox - 5, oy - 3, 10 * k + 9, 10 * k + 7};
-        assert_int_equal(sh_detector_detect_plane(det, buf, w, h, stride, &win, 1, d, MAXD, &n),
-                         SH_OK);
-        assert_int_equal(n, 1);
-        check_square(&d[0], x0, y0, x1, y1, SHARP_TOL);
+        detect_the_tag(det, buf, stride, &win, 1, x0, y0, x1, y1);
         sh_detector_destroy(det);
     }
 
@@ -147,6 +165,35 @@ static void test_pixel_centre_convention(void **state)
     sh_detector_destroy(det);
     sh_image_destroy(&rgb);
     sh_image_destroy(&gray);
+    free(buf);
+}
+
+/* One tag seen by two windows, one whose edge crosses the tag's black border (its last 1-3
+ * rows or columns outside: libapriltag still decodes it, with that side fitted inside the border
+ * and a decision margin that can beat the whole view's), one that holds it whole with its quiet
+ * zone: in either order, the one tag reported is the whole view, on the exact square. */
+static void test_cut_view_loses_to_whole_view(void **state)
+{
+    (void)state;
+    const int w = CANVAS_W, h = CANVAS_H, k = TAG_K, ox = TAG_OX, oy = TAG_OY;
+    double x0, y0, x1, y1;
+    uint8_t *buf = tag_canvas(w, &x0, &y0, &x1, &y1);
+    sh_detector_options o;
+    sh_detector_options_default(&o);
+    o.merge_windows = 0; /* two calls, two views */
+    sh_detector *det;
+    assert_int_equal(sh_detector_create(&o, &det), SH_OK);
+    const sh_window whole = {ox - 5, oy - 3, 10 * k + 9, 10 * k + 7};
+    /* the border's last row and column of pixels are oy + 9k - 1 and ox + 9k - 1 */
+    for (int cut = 1; cut <= 3; cut++)
+        for (int side = 0; side < 2; side++)
+            for (int order = 0; order < 2; order++) {
+                sh_window part = side == 0 ? (sh_window){0, 0, w, oy + 9 * k - cut}  /* a band */
+                                           : (sh_window){0, 0, ox + 9 * k - cut, h};
+                sh_window win[2] = {order ? whole : part, order ? part : whole};
+                detect_the_tag(det, buf, w, win, 2, x0, y0, x1, y1);
+            }
+    sh_detector_destroy(det);
     free(buf);
 }
 
@@ -547,6 +594,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_arguments),
         cmocka_unit_test(test_pixel_centre_convention),
+        cmocka_unit_test(test_cut_view_loses_to_whole_view),
         cmocka_unit_test(test_photos_match_libapriltag),
         cmocka_unit_test(test_photos_expected_corners),
         cmocka_unit_test(test_phantom_windows_match_full_frame),
