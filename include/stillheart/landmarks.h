@@ -57,10 +57,21 @@
 #include "stillheart/flow.h"
 #include "stillheart/hull.h"
 #include "stillheart/image.h"
+#include "stillheart/interp.h"
 
 #ifdef __cplusplus
 extern "C" {
 #endif
+
+/* Points files give landmark k the id SH_LANDMARK_ID_BASE + k (`stillheart track --landmarks`):
+ * far above any tag family's ids, so the rows sort after the markers'. */
+#define SH_LANDMARK_ID_BASE 1000000
+
+/* Whether a 2D method is better with landmark rows than without. Measured on the phantom through
+ * `stillheart track --landmarks`, `warp` and stillheart-eval (docs/landmarks.md): TPS, piecewise
+ * linear, B-splines and affine gain; the Gaussian and local RBFs, exact through landmarks 20 px
+ * apart, lose (their systems nearly singular at those scales), so their warps leave the rows out. */
+int sh_landmarks_method_uses(sh_method method);
 
 typedef enum {
     SH_LANDMARK_ACCEPTED = 0,

@@ -47,6 +47,10 @@ void sh_points_destroy(sh_points *points);
  * its header: for whoever reads x, y (a 2D warp, a hull, test mode of the daemon). */
 sh_status sh_points_need_2d(const sh_points *points, const char *name);
 
+/* Removes every row whose id is min_id or more (landmark rows, SH_LANDMARK_ID_BASE, for a method
+ * they do not help); frames keep their numbers. Returns how many rows went. */
+int sh_points_drop_ids(sh_points *points, int min_id);
+
 /* Rows of one frame (count 0 for frames beyond the file). */
 const sh_point *sh_points_frame(const sh_points *points, int frame, int *count);
 

@@ -12,6 +12,7 @@
 #include "stillheart/points.h"
 #include "stillheart/track.h"
 #include "stillheart/y4m.h"
+#include "track_landmarks.h"
 
 #define MAX_DET SH_TRACK_MAX_DETECTIONS
 
@@ -41,6 +42,11 @@ static void usage(FILE *out)
         "  --lost-after S     seconds unseen before a marker is dropped (default 2)\n"
         "  --spatial off|fuse occluded markers from time only, or also from neighbours (default fuse)\n"
         "  --measured-only    write only markers detected in that frame\n"
+        "  --landmarks N      also up to N landmarks of the tissue (docs/landmarks.md), one camera:\n"
+        "                     chosen in frame 0 inside its markers' hull and off its tags, written\n"
+        "                     as rows with ids from 1000000 (their positions in frame 0 there),\n"
+        "                     then in each frame the ones found and accepted, which `stillheart\n"
+        "                     warp` takes as correspondences like the markers; off by default\n"
         "  --stats            tracking figures on standard error at the end\n"
         "  --json             with --stats: the figures as one JSON object, the last line on\n"
         "                     standard error (standard output carries the points): frames,\n"
@@ -101,6 +107,7 @@ typedef struct {
     double fps;
     sh_track_options topts; /* --noise, --lost-after, --spatial */
     int measured_only, stats, json;
+    int landmarks; /* --landmarks N; 0: none */
 } track_options;
 
 /* Fills o from argv: APP_GO_ON, or the exit code (usage and refusals printed). */
@@ -112,6 +119,7 @@ static int parse_options(int argc, char **argv, track_options *o)
         {"noise", required_argument, 0, 'n'},   {"lost-after", required_argument, 0, 'l'},
         {"spatial", required_argument, 0, 's'}, {"measured-only", no_argument, 0, 'm'},
         {"stats", no_argument, 0, 'S'},         {"json", no_argument, 0, 'j'},
+        {"landmarks", required_argument, 0, 'L'},
         SH_CLI_OPTIONS,                         {0, 0, 0, 0}};
     memset(o, 0, sizeof *o);
     sh_track_options_default(&o->topts);
@@ -138,6 +146,7 @@ static int parse_options(int argc, char **argv, track_options *o)
         case 'm': o->measured_only = 1; break;
         case 'S': o->stats = 1; break;
         case 'j': o->json = 1; break;
+        case 'L': if (!sh_cli_parse_int("--landmarks", optarg, 1, 100000, &o->landmarks)) return 2; break;
         case 'h': usage(stdout); return 0;
         default: { int rc = sh_cli_option(&cli, ch, argv); if (rc >= 0) return rc; } break;
         }
@@ -147,6 +156,8 @@ static int parse_options(int argc, char **argv, track_options *o)
     if (o->ncam < 1 || o->ncam > SH_TRACK_MAX_CAMERAS)
         return sh_cli_usage_error(&cli, "need one to %d videos", SH_TRACK_MAX_CAMERAS);
     for (int c = 0; c < o->ncam; c++) o->in[c] = argv[optind + c];
+    if (o->landmarks && (o->ncam > 1 || o->calib_path))
+        return sh_cli_usage_error(&cli, "--landmarks: one camera, without --cameras (landmarks in 3D are not built yet)");
     return APP_GO_ON;
 }
 
@@ -206,6 +217,10 @@ typedef struct {
     sh_tracker *t;
     sh_window win[SH_TRACK_MAX_CAMERAS][SH_TRACK_MAX_MARKERS + 1];
     sh_track_estimate est[SH_TRACK_MAX_MARKERS];
+    sh_point rows[SH_TRACK_MAX_MARKERS]; /* the frame's marker rows (write_rows) */
+    int nrows;
+    int ndet0;                           /* camera 0's detections of the frame */
+    track_landmarks *lm;                 /* --landmarks, from frame 0 */
 } track_pass;
 
 /* Each camera's detections of the current frame (static: too large for the stack). */
@@ -253,6 +268,7 @@ static int pass_open(const track_job *job, track_pass *p)
 
 static void pass_close(const track_job *job, track_pass *p)
 {
+    track_landmarks_destroy(p->lm);
     sh_tracker_destroy(p->t);
     for (int c = 0; c < job->o->ncam; c++) {
         sh_image_destroy(&p->img[c]);
@@ -286,7 +302,7 @@ static int detect_camera(const track_job *job, track_pass *p, int c, int f, int 
  * printed. */
 static int write_rows(const track_job *job, track_pass *p, int f, FILE *out)
 {
-    static sh_point rows[SH_TRACK_MAX_MARKERS];
+    sh_point *rows = p->rows;
     int n = sh_tracker_estimates(p->t, p->est, SH_TRACK_MAX_MARKERS), nr = 0;
     for (int k = 0; k < n; k++) {
         const sh_track_estimate *e = &p->est[k];
@@ -309,7 +325,11 @@ static int write_rows(const track_job *job, track_pass *p, int f, FILE *out)
                   : fprintf(out, "%d,%d,%.4f,%.4f\n", r->frame, r->id, r->x, r->y)) >= 0;
     }
     if (!ok) sh_log_error("writing the points: write error");
-    return !ok;
+    p->nrows = nr;
+    if (!ok || !job->o->landmarks) return !ok;
+    /* the tissue's landmarks after the frame's markers (their ids sort after) */
+    if (f == 0) return track_landmarks_start(job->o->landmarks, &p->img[0], dets[0], p->ndet0, rows, nr, out, &p->lm);
+    return p->lm && track_landmarks_frame(p->lm, &p->img[0], f, rows, nr, out);
 }
 
 enum { FRAME_DONE, FRAME_FAILED, FRAME_END };
@@ -342,6 +362,7 @@ static int pass_frame(const track_job *job, track_pass *p, int f, FILE *out)
         if (detect_camera(job, p, c, f, &count[c])) return FRAME_FAILED;
         dp[c] = dets[c];
     }
+    p->ndet0 = count[0];
     if (sh_tracker_update(p->t, dp, count, ncam) != SH_OK) {
         fail();
         return FRAME_FAILED;

@@ -4,6 +4,7 @@
 #include <string.h>
 
 #include "stab.h"
+#include "stillheart/landmarks.h"
 #include "stillheart/log.h"
 
 #define CACHE_SLOTS 8
@@ -22,7 +23,9 @@ static void usage(FILE *out)
         "(XSTILLHEART=method:NAME), which stillheart-eval reads; stillheart-eval also measures\n"
         "the paper's metric e (section V) of OUT and IN.\n\n"
         "options:\n"
-        "  --points FILE      marker positions, CSV 'frame,id,x,y' (required)\n"
+        "  --points FILE      marker positions, CSV 'frame,id,x,y' (required); rows with ids\n"
+        "                     from 1000000 are the tissue's landmarks (stillheart track\n"
+        "                     --landmarks), left out for gaussian and rbf-local\n"
         "  --method NAME      affine | pwlinear | bspline | rbf-local | tps | gaussian\n"
         "                     (RBFs with the affine term; add -pure for the form without it,\n"
         "                     e.g. tps-pure). Default: tps, the least geometric error on the\n"
@@ -151,6 +154,10 @@ static int open_input(warp_job *j)
     if (sh_points_read(o->points_path, &s->points) != SH_OK ||
         sh_points_need_2d(&s->points, o->points_path) != SH_OK)
         return app_fail("points");
+    if (!sh_landmarks_method_uses(o->params.method)) {
+        int n = sh_points_drop_ids(&s->points, SH_LANDMARK_ID_BASE);
+        if (n) sh_log_info("%d landmark rows left out: %s is worse with them (docs/landmarks.md)", n, o->method);
+    }
     if (sh_y4m_reader_open(o->in_path, &s->reader) != SH_OK) return app_fail("input");
     const sh_y4m_header *hdr = sh_y4m_reader_header(s->reader);
     j->recipe.width = hdr->width;

@@ -20,8 +20,9 @@ struct sh_landmarks {
     uint8_t *st_fwd, *st_back;
     int *near;       /* n x neighbours: each landmark's nearest others in the reference */
     float *scratch;  /* 2 x neighbours */
-    uint32_t *integral; /* (w + 1) x (h + 1): the band-pass's box sums */
-    int *cols;       /* 4 w ints and 2 w floats: the boxes' columns (band_pass) */
+    uint32_t *colsum;   /* 2 w: the band-pass's boxes' column sums */
+    uint32_t *prefix;   /* 2 (w + 1): their prefix sums along a row */
+    int *cols;          /* 4 w ints and 2 w floats: the boxes' columns (band_pass) */
     uint8_t *band;   /* w x h: the band-passed frame the tracker sees */
     float gain;      /* the band-pass's, fixed by the reference */
 };
@@ -31,6 +32,11 @@ const char *sh_landmark_verdict_name(sh_landmark_verdict v)
     static const char *const names[SH_LANDMARK_VERDICTS] = {"accepted", "lost", "photometric", "backward",
                                                             "disagrees", "deviates"};
     return (unsigned)v < SH_LANDMARK_VERDICTS ? names[v] : "?";
+}
+
+int sh_landmarks_method_uses(sh_method method)
+{
+    return method != SH_METHOD_GAUSSIAN && method != SH_METHOD_RBF_LOCAL;
 }
 
 void sh_landmarks_params_default(sh_landmarks_params *p)
@@ -159,24 +165,53 @@ static sh_status make_mask(const sh_landmarks_params *p, const sh_plane *ref, co
 /* The band-pass (landmarks.h): 128 + gain (mean over (2 r1 + 1)^2 - mean over (2 r2 + 1)^2),
  * clamped to 0..255, the boxes clipped at the image's edge. gain <= 0: chosen here so that the
  * 99th percentile of |mean difference| maps to 100 grey levels (within 1..16), which uses the 8
- * bits without clipping the texture; the reference sets it and every frame keeps it. */
+ * bits without clipping the texture; the reference sets it and every frame keeps it.
+ *
+ * The box sums are exact integers, kept as running sums: per column, the sum over each box's
+ * rows (a row added as it enters, one taken away as it leaves), then per row a prefix sum of
+ * those, whose differences are the boxes. Sequential memory and no division per pixel. */
+static void band_row(const sh_landmarks *lm, int w, int y, int h, int r1, int r2, int pass, uint32_t *hist)
+{
+    const uint32_t *v1 = lm->colsum, *v2 = v1 + w;
+    uint32_t *p1 = lm->prefix, *p2 = p1 + w + 1;
+    const int *l1 = lm->cols, *m1 = l1 + w, *l2 = m1 + w, *m2 = l2 + w;
+    const float *iw1 = (const float *)(m2 + w), *iw2 = iw1 + w;
+    p1[0] = p2[0] = 0;
+    for (int x = 0; x < w; x++) {
+        p1[x + 1] = p1[x] + v1[x];
+        p2[x + 1] = p2[x] + v2[x];
+    }
+    int a1 = y - r1 < 0 ? 0 : y - r1, b1 = y + r1 + 1 > h ? h : y + r1 + 1;
+    int a2 = y - r2 < 0 ? 0 : y - r2, b2 = y + r2 + 1 > h ? h : y + r2 + 1;
+    const float ih1 = 1.0f / (float)(b1 - a1), ih2 = 1.0f / (float)(b2 - a2), gain = lm->gain;
+    uint8_t *out = lm->band + (size_t)y * w;
+    for (int x = 0; x < w; x++) {
+        float s1 = (float)(p1[m1[x]] - p1[l1[x]]) * (ih1 * iw1[x]);
+        float s2 = (float)(p2[m2[x]] - p2[l2[x]]) * (ih2 * iw2[x]);
+        if (pass) {
+            float d = fabsf(s1 - s2);
+            hist[d >= 255 ? 255 : (int)d]++;
+            continue;
+        }
+        float v = 128 + gain * (s1 - s2);
+        out[x] = (uint8_t)(v <= 0 ? 0 : v >= 255 ? 255 : lrintf(v));
+    }
+}
+
+/* Adds (sign 1) or takes away (-1) row y of src to a box's column sums. */
+static void column_add(uint32_t *v, const sh_plane *src, int y, int sign)
+{
+    const uint8_t *in = src->data + (size_t)y * src->stride;
+    if (sign > 0)
+        for (int x = 0; x < src->width; x++) v[x] += in[x];
+    else
+        for (int x = 0; x < src->width; x++) v[x] -= in[x];
+}
+
 static void band_pass(sh_landmarks *lm, const sh_plane *src, int r1, int r2)
 {
     const int w = src->width, h = src->height;
-    const size_t iw = (size_t)w + 1;
-    uint32_t *S = lm->integral;
-    memset(S, 0, iw * sizeof *S);
-    for (int y = 0; y < h; y++) {
-        uint32_t row = 0;
-        const uint8_t *in = src->data + (size_t)y * src->stride;
-        uint32_t *above = S + (size_t)y * iw, *here = above + iw;
-        here[0] = 0;
-        for (int x = 0; x < w; x++) {
-            row += in[x];
-            here[x + 1] = above[x + 1] + row;
-        }
-    }
-    /* the boxes' column ranges and reciprocal widths, once per call: no division per pixel */
+    /* the boxes' column ranges and reciprocal widths, once per call */
     int *l1 = lm->cols, *m1 = l1 + w, *l2 = m1 + w, *m2 = l2 + w;
     float *iw1 = (float *)(m2 + w), *iw2 = iw1 + w;
     for (int x = 0; x < w; x++) {
@@ -186,27 +221,20 @@ static void band_pass(sh_landmarks *lm, const sh_plane *src, int r1, int r2)
         iw2[x] = 1.0f / (float)(m2[x] - l2[x]);
     }
     uint32_t hist[256] = {0};
-    const int choose = lm->gain <= 0;
-    for (int pass = choose; pass >= 0; pass--) {
-        const float gain = lm->gain;
+    for (int pass = lm->gain <= 0; pass >= 0; pass--) {
+        uint32_t *v1 = lm->colsum, *v2 = v1 + w;
+        memset(v1, 0, 2 * (size_t)w * sizeof *v1);
+        /* row 0's boxes: rows [0, r + 1) */
+        for (int y = 0; y < h && y <= r1; y++) column_add(v1, src, y, 1);
+        for (int y = 0; y < h && y <= r2; y++) column_add(v2, src, y, 1);
         for (int y = 0; y < h; y++) {
-            int a1 = y - r1 < 0 ? 0 : y - r1, b1 = y + r1 + 1 > h ? h : y + r1 + 1;
-            int a2 = y - r2 < 0 ? 0 : y - r2, b2 = y + r2 + 1 > h ? h : y + r2 + 1;
-            const uint32_t *t1 = S + (size_t)a1 * iw, *u1 = S + (size_t)b1 * iw;
-            const uint32_t *t2 = S + (size_t)a2 * iw, *u2 = S + (size_t)b2 * iw;
-            const float ih1 = 1.0f / (float)(b1 - a1), ih2 = 1.0f / (float)(b2 - a2);
-            uint8_t *out = lm->band + (size_t)y * w;
-            for (int x = 0; x < w; x++) {
-                float s1 = (float)(u1[m1[x]] - u1[l1[x]] - t1[m1[x]] + t1[l1[x]]) * (ih1 * iw1[x]);
-                float s2 = (float)(u2[m2[x]] - u2[l2[x]] - t2[m2[x]] + t2[l2[x]]) * (ih2 * iw2[x]);
-                if (pass) {
-                    float d = fabsf(s1 - s2);
-                    hist[d >= 255 ? 255 : (int)d]++;
-                    continue;
-                }
-                float v = 128 + gain * (s1 - s2);
-                out[x] = (uint8_t)(v <= 0 ? 0 : v >= 255 ? 255 : lrintf(v));
+            if (y > 0) {
+                if (y + r1 < h) column_add(v1, src, y + r1, 1);
+                if (y - r1 - 1 >= 0) column_add(v1, src, y - r1 - 1, -1);
+                if (y + r2 < h) column_add(v2, src, y + r2, 1);
+                if (y - r2 - 1 >= 0) column_add(v2, src, y - r2 - 1, -1);
             }
+            band_row(lm, w, y, h, r1, r2, pass, hist);
         }
         if (pass) {
             uint64_t want = (uint64_t)w * h * 99 / 100, seen = 0;
@@ -280,11 +308,12 @@ sh_status sh_landmarks_create(const sh_landmarks_params *params, const sh_plane 
     lm->st_back = malloc(m);
     lm->near = malloc(m * (size_t)(params->neighbours + 1) * sizeof *lm->near);
     lm->scratch = malloc(2 * (size_t)(params->neighbours + 1) * sizeof *lm->scratch);
-    lm->integral = malloc(((size_t)lm->width + 1) * ((size_t)lm->height + 1) * sizeof *lm->integral);
+    lm->colsum = malloc(2 * (size_t)lm->width * sizeof *lm->colsum);
+    lm->prefix = malloc(2 * ((size_t)lm->width + 1) * sizeof *lm->prefix);
     lm->band = malloc((size_t)lm->width * lm->height);
     lm->cols = malloc(6 * (size_t)lm->width * sizeof(int));
     if (!mask || !lm->ref_xy || !lm->fwd || !lm->back || !lm->err || !lm->st_fwd || !lm->st_back || !lm->near ||
-        !lm->scratch || !lm->integral || !lm->band || !lm->cols) {
+        !lm->scratch || !lm->colsum || !lm->prefix || !lm->band || !lm->cols) {
         free(mask);
         sh_landmarks_destroy(lm);
         return sh_error_set(SH_ENOMEM, "landmarks: out of memory");
@@ -331,7 +360,8 @@ void sh_landmarks_destroy(sh_landmarks *lm)
     free(lm->st_back);
     free(lm->near);
     free(lm->scratch);
-    free(lm->integral);
+    free(lm->colsum);
+    free(lm->prefix);
     free(lm->band);
     free(lm->cols);
     free(lm);

@@ -316,6 +316,21 @@ void sh_points_destroy(sh_points *points)
     points->max_frame = -1;
 }
 
+int sh_points_drop_ids(sh_points *points, int min_id)
+{
+    int w = 0;
+    for (int i = 0; i < points->count; i++)
+        if (points->rows[i].id < min_id) points->rows[w++] = points->rows[i];
+    int dropped = points->count - w;
+    points->count = w;
+    /* the frames stay (a frame may now have no row); their starts move down */
+    for (int f = 0, i = 0; f <= points->max_frame + 1; f++) {
+        while (i < w && points->rows[i].frame < f) i++;
+        points->frame_start[f] = i;
+    }
+    return dropped;
+}
+
 const sh_point *sh_points_frame(const sh_points *points, int frame, int *count)
 {
     if (!points || !points->frame_start || frame < 0 || frame > points->max_frame) {

@@ -301,6 +301,31 @@ static void test_match(void **state)
     assert_int_equal(sh_points_match(ref, 4, cur, 0, ids, xy), 0);
 }
 
+/* Landmark rows (ids from a limit on) dropped: every other row kept in order, every frame still
+ * there, a frame left with no row answering none. */
+static void test_drop_ids(void **state)
+{
+    (void)state;
+    const char *text = "frame,id,x,y\n0,1,1,1\n0,1000000,2,2\n0,1000003,3,3\n1,1000001,4,4\n2,2,5,5\n2,1000002,6,6\n";
+    sh_points p;
+    assert_int_equal(sh_points_parse(text, strlen(text), "t.csv", &p), SH_OK);
+    assert_int_equal(sh_points_drop_ids(&p, 1000000), 4);
+    assert_int_equal(p.count, 2);
+    assert_int_equal(p.max_frame, 2);
+    int n;
+    const sh_point *r = sh_points_frame(&p, 0, &n);
+    assert_int_equal(n, 1);
+    assert_int_equal(r[0].id, 1);
+    sh_points_frame(&p, 1, &n);
+    assert_int_equal(n, 0);
+    r = sh_points_frame(&p, 2, &n);
+    assert_int_equal(n, 1);
+    assert_int_equal(r[0].id, 2);
+    assert_true(r[0].x == 5);
+    assert_int_equal(sh_points_drop_ids(&p, 1000000), 0);
+    sh_points_destroy(&p);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -311,6 +336,7 @@ int main(void)
         cmocka_unit_test(test_write_read_round_trip),
         cmocka_unit_test(test_read_file),
         cmocka_unit_test(test_match),
+        cmocka_unit_test(test_drop_ids),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -54,11 +54,12 @@ TABLE2_DIR ?= out/table2
 table2: $(EVAL_BIN) $(PLOT_BIN) $(BUILD)/stillheart-render $(APP)
 	@sh tools/eval/table2.sh $(BUILD) $(TABLE2_DIR)
 
-# --landmarks on a rendered phantom with occlusions, judged against its truth.
+# --landmarks on a rendered phantom with occlusions, judged against its truth; and
+# `stillheart track --landmarks` through `stillheart warp`.
 $(BUILD)/tools/eval/tests/test_eval_landmarks.o: CFLAGS_ALL += -DEVAL_BIN='"$(abspath $(EVAL_BIN))"' \
-	-DRENDER_BIN='"$(abspath $(BUILD))/stillheart-render"' -Itests/unit
+	-DRENDER_BIN='"$(abspath $(BUILD))/stillheart-render"' -DAPP_BIN='"$(abspath $(APP))"' -Itests/unit
 $(BUILD)/tests/test_eval_landmarks: $(BUILD)/tools/eval/tests/test_eval_landmarks.o $(BUILD)/tests/unit/shell.o \
-		$(LIB) $(EVAL_BIN) $(BUILD)/stillheart-render
+		$(LIB) $(EVAL_BIN) $(BUILD)/stillheart-render $(APP)
 	@mkdir -p $(dir $@)
 	$(CC) $(LDFLAGS) $< $(BUILD)/tests/unit/shell.o $(LIB) $(shell $(PKG_CONFIG) --libs cmocka) $(LDLIBS_ALL) -o $@
 

@@ -4,14 +4,19 @@
 # the truth's tag centres as the markers (as make table2 feeds the warp); for each, stillheart-eval
 # --landmarks with all the markers, then with the four nearest the corners of the reference's
 # markers only; and one render with the tissue texture's contrast halved. TPS, the default method.
+# Then the product's own path on the same renders: `stillheart track` without and with
+# --landmarks, `stillheart warp` with each 2D method that takes them, and stillheart-eval's e and
+# geometric error of both.
 #   sh tools/eval/landmarks.sh BUILD OUTDIR
-# Writes OUTDIR/landmarks.csv and OUTDIR/json/*.json; renders go to OUTDIR/work and are deleted
-# as they are measured. FRAMES (default 200) sets the length; LANDMARKS (200) how many are asked.
+# Writes OUTDIR/landmarks.csv, OUTDIR/warp.csv and OUTDIR/json/*.json; renders go to OUTDIR/work
+# and are deleted as they are measured. FRAMES (default 200) sets the length; LANDMARKS (200) how
+# many are asked; WARP_METHODS (tps pwlinear bspline affine) the warp's methods.
 set -eu
 BUILD=$1 OUT=$2
-RENDER=$BUILD/stillheart-render EVAL=$BUILD/stillheart-eval
+RENDER=$BUILD/stillheart-render EVAL=$BUILD/stillheart-eval APP=$BUILD/stillheart
+WARP_METHODS=${WARP_METHODS:-tps pwlinear bspline affine}
 FRAMES=${FRAMES:-200} LANDMARKS=${LANDMARKS:-200}
-for b in "$RENDER" "$EVAL"; do [ -x "$b" ] || { echo "landmarks: $b is not built" >&2; exit 1; }; done
+for b in "$RENDER" "$EVAL" "$APP"; do [ -x "$b" ] || { echo "landmarks: $b is not built" >&2; exit 1; }; done
 mkdir -p "$OUT/work" "$OUT/json"
 start=$(date +%s)
 stamp() { echo "landmarks: [$(( $(date +%s) - start )) s] $*" >&2; }
@@ -36,6 +41,23 @@ run() { # run NAME DIR POINTS
     echo "$1,$(num "$1" seeded),$(num "$1" accepted),$(num "$1" measured),$(num "$1" mean),$(num "$1" p99),$(num "$1" max),$(num "$1" over_1px),$(num "$1" hidden),$(num "$1" accepted_hidden),$(num "$1" map_mean),$(num "$1" markers_mean),$(num "$1" markers_p95),$(num "$1" landmarks_mean),$(num "$1" landmarks_p95),$(num "$1" ms_median)" >> "$OUT/landmarks.csv"
 }
 
+# The product's path: track (the markers' ids 0-15 / 0-13 of the presets, no first pass) without
+# and with landmarks, warp, e and the geometric error.
+through_warp() { # through_warp NAME DIR IDS
+    (cd "$2" && "$APP" track --quiet --ids "$3" cam0.y4m > track.csv &&
+        "$APP" track --quiet --ids "$3" --landmarks "$LANDMARKS" cam0.y4m > track_lm.csv)
+    for m in $WARP_METHODS; do
+        for v in track track_lm; do
+            "$APP" warp --quiet --threads 2 --method "$m" --points "$2/$v.csv" "$2/cam0.y4m" "$2/stab.y4m"
+            "$EVAL" --quiet --json --truth "$2" --points "$2/$v.csv" "$2/stab.y4m" "$2/cam0.y4m" > "$OUT/json/$1-$m-$v.json"
+        done
+        a=$1-$m-track b=$1-$m-track_lm
+        echo "$1,$m,$(num "$a" e_stabilized),$(num "$b" e_stabilized),$(num "$a" mean),$(num "$b" mean),$(num "$a" p95),$(num "$b" p95)" >> "$OUT/warp.csv"
+    done
+    rm -f "$2/stab.y4m"
+}
+
+echo "run,method,e_markers,e_landmarks,geo_mean_markers,geo_mean_landmarks,geo_p95_markers,geo_p95_landmarks" > "$OUT/warp.csv"
 echo "run,seeded,accepted,measured,mean,p99,max,over_1px,hidden,accepted_hidden,map_at_landmarks,geo_markers_mean,geo_markers_p95,geo_landmarks_mean,geo_landmarks_p95,ms" > "$OUT/landmarks.csv"
 for p in exvivo invivo; do
     for seed in 1 2 3 4; do
@@ -47,6 +69,8 @@ for p in exvivo invivo; do
         ids=$(corners "$dir/points.csv")
         awk -F, -v ids="$ids" 'NR == 1 || $2 ~ "^(" ids ")$"' "$dir/points.csv" > "$dir/points4.csv"
         run "$p-$seed-4tags" "$dir" "$dir/points4.csv"
+        stamp "track, warp and evaluate $p seed $seed"
+        through_warp "$p-$seed" "$dir" "$( [ "$p" = exvivo ] && echo 0-15 || echo 0-13 )"
         rm -rf "$dir"
     done
 done
@@ -56,5 +80,6 @@ stamp "render exvivo seed 1, texture contrast halved"
 "$EVAL" --truth "$dir" --export-points "$dir/points.csv"
 run exvivo-1-half-contrast "$dir" "$dir/points.csv"
 rm -rf "$dir"
-stamp "done: $OUT/landmarks.csv"
+stamp "done: $OUT/landmarks.csv, $OUT/warp.csv"
 column -s, -t < "$OUT/landmarks.csv"
+column -s, -t < "$OUT/warp.csv"

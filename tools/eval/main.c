@@ -463,6 +463,10 @@ static int evaluate(options *o, const char *stab_path, const char *orig_path)
     if (o->truth_dir) {
         if (phantom_truth_open(o->truth_dir, &truth) != SH_OK) { fail("--truth"); goto done; }
         o->geo.truth = truth;
+        /* the map the warp used: without landmark rows for a method that leaves them out (the
+         * hull stays the markers': landmarks are chosen inside it) */
+        if (!o->geo.identity && !sh_landmarks_method_uses(o->geo.params.method))
+            sh_points_drop_ids(&points, SH_LANDMARK_ID_BASE);
         if (eval_geo_create(&o->geo, &points, &hull, f->width, f->height, &geo) != SH_OK) {
             sh_log_error("%s: %s", o->truth_dir, sh_error_message());
             goto done;

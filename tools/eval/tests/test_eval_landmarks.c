@@ -17,8 +17,8 @@
 
 #include "shell.h"
 
-#if !defined(EVAL_BIN) || !defined(RENDER_BIN)
-#error "EVAL_BIN and RENDER_BIN must name this build's programs"
+#if !defined(EVAL_BIN) || !defined(RENDER_BIN) || !defined(APP_BIN)
+#error "EVAL_BIN, RENDER_BIN and APP_BIN must name this build's programs"
 #endif
 
 /* 960x540 (the paper rig's camera at half size: at the small rig's 640x360 the tags leave the
@@ -64,10 +64,92 @@ static void test_occlusions_cost_landmarks_never_wrong_ones(void **state)
     test_run("rm -rf '%s'", dir);
 }
 
+/* Landmark rows of `stillheart track --landmarks`: frame 0 holds every landmark, later frames a
+ * subset of them; the TPS warp through them has a lower geometric error against the truth than
+ * through the markers alone; a method that leaves them out (gaussian) warps exactly as without. */
+static int landmark_rows(const char *path, int *frame0, int *later, int *strangers)
+{
+    FILE *f = fopen(path, "r");
+    if (!f) return -1;
+    static char seen[100000];
+    memset(seen, 0, sizeof seen);
+    char line[256];
+    *frame0 = *later = *strangers = 0;
+    while (fgets(line, sizeof line, f)) {
+        int fr, id;
+        if (sscanf(line, "%d,%d,", &fr, &id) != 2 || id < 1000000) continue;
+        if (fr == 0) {
+            if (id - 1000000 < (int)sizeof seen) seen[id - 1000000] = 1;
+            (*frame0)++;
+        } else {
+            (*later)++;
+            if (id - 1000000 >= (int)sizeof seen || !seen[id - 1000000]) (*strangers)++;
+        }
+    }
+    fclose(f);
+    return 0;
+}
+
+static double geometric_mean(const char *dir, const char *points, const char *stab)
+{
+    if (test_run("'%s' --quiet --json --truth '%s' --points '%s' '%s'", EVAL_BIN, dir, points, stab) != 0)
+        fail_msg("%s\n%s", test_cmd, test_out);
+    const char *g = strstr(test_out, "\"geometric\"");
+    assert_non_null(g);
+    return json_num(g, "mean");
+}
+
+static void test_track_landmarks_through_the_warp(void **state)
+{
+    (void)state;
+    char dir[] = "/tmp/sh_track_lm_XXXXXX";
+    assert_non_null(mkdtemp(dir));
+    if (test_run("'%s' --preset exvivo --rig paper --cameras 1 --width 960 --height 540 --occlusions --seed 1 "
+                 "--frames %d --quiet --out '%s'", RENDER_BIN, FRAMES, dir) != 0)
+        fail_msg("%s\n%s", test_cmd, test_out);
+    if (test_run("cd '%s' && '%s' track --quiet --ids 0-15 cam0.y4m > markers.csv && "
+                 "'%s' track --quiet --ids 0-15 --landmarks 100 cam0.y4m > landmarks.csv", dir, APP_BIN, APP_BIN) != 0)
+        fail_msg("%s\n%s", test_cmd, test_out);
+    char path[600];
+    snprintf(path, sizeof path, "%s/landmarks.csv", dir);
+    int frame0, later, strangers;
+    assert_int_equal(landmark_rows(path, &frame0, &later, &strangers), 0);
+    print_message("  %d landmarks in frame 0, %d accepted rows after it\n", frame0, later);
+    assert_true(frame0 >= 10);
+    assert_true(later > 0);
+    assert_int_equal(strangers, 0);
+    /* the marker rows are the same with or without landmarks */
+    assert_int_equal(test_run("cd '%s' && grep -v ',10[0-9][0-9][0-9][0-9][0-9],' landmarks.csv | cmp - markers.csv", dir), 0);
+    double plain, with;
+    for (int k = 0; k < 2; k++) {
+        if (test_run("cd '%s' && '%s' warp --quiet --method tps --points %s cam0.y4m stab_%d.y4m", dir, APP_BIN,
+                     k ? "landmarks.csv" : "markers.csv", k) != 0)
+            fail_msg("%s\n%s", test_cmd, test_out);
+    }
+    char p0[600], p1[600], s0[600], s1[600];
+    snprintf(p0, sizeof p0, "%s/markers.csv", dir), snprintf(p1, sizeof p1, "%s/landmarks.csv", dir);
+    snprintf(s0, sizeof s0, "%s/stab_0.y4m", dir), snprintf(s1, sizeof s1, "%s/stab_1.y4m", dir);
+    plain = geometric_mean(dir, p0, s0);
+    with = geometric_mean(dir, p1, s1);
+    print_message("  TPS geometric error against the truth: %.4f px with the markers, %.4f with the landmarks\n", plain, with);
+    assert_true(with < plain);
+    /* gaussian leaves them out: the same bytes as without */
+    for (int k = 0; k < 2; k++)
+        if (test_run("cd '%s' && '%s' warp --quiet --method gaussian --points %s cam0.y4m gauss_%d.y4m", dir, APP_BIN,
+                     k ? "landmarks.csv" : "markers.csv", k) != 0)
+            fail_msg("%s\n%s", test_cmd, test_out);
+    assert_int_equal(test_run("cd '%s' && cmp gauss_0.y4m gauss_1.y4m", dir), 0);
+    /* no landmarks in 3D yet: refused */
+    assert_int_equal(test_run("'%s' track --landmarks 10 --cameras x.yaml a.y4m b.y4m", APP_BIN), 2);
+    assert_non_null(strstr(test_out, "--landmarks: one camera"));
+    test_run("rm -rf '%s'", dir);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_occlusions_cost_landmarks_never_wrong_ones),
+        cmocka_unit_test(test_track_landmarks_through_the_warp),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
