@@ -12,7 +12,7 @@
 # and are deleted as they are measured. FRAMES (default 200) sets the length; LANDMARKS (200) how
 # many are asked; WARP_METHODS (tps pwlinear bspline affine) the warp's methods.
 set -eu
-BUILD=$1 OUT=$2
+BUILD=$(cd "$1" && pwd) OUT=$2
 RENDER=$BUILD/stillheart-render EVAL=$BUILD/stillheart-eval APP=$BUILD/stillheart
 WARP_METHODS=${WARP_METHODS:-tps pwlinear bspline affine}
 FRAMES=${FRAMES:-200} LANDMARKS=${LANDMARKS:-200}
