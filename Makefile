@@ -137,11 +137,13 @@ deps:
 # ---- per-module optimisation: $(OPT) everywhere but in this table. -O3 lets gcc vectorize the
 # per-pixel loops, each measured in make bench: src/warp the position fill (bench_warp) and the
 # outside fill (bench_outside), src/pixconv the pixel-format loops (bench_pixconv), src/screen the
-# display's YUV to XRGB rows (bench_screen), src/flow the pyramid's 16-bit reduction (bench_flow) ----
+# display's YUV to XRGB rows (bench_screen), src/flow the pyramid's 16-bit reduction (bench_flow),
+# src/landmarks the band-pass's column sums (stillheart-eval --landmarks, time per frame) ----
 $(BUILD)/src/warp/%.o:    CFLAGS_ALL += -O3
 $(BUILD)/src/pixconv/%.o: CFLAGS_ALL += -O3
 $(BUILD)/src/screen/%.o:  CFLAGS_ALL += -O3
 $(BUILD)/src/flow/%.o:    CFLAGS_ALL += -O3
+$(BUILD)/src/landmarks/%.o: CFLAGS_ALL += -O3
 
 $(BUILD)/%.o: %.c
 	@mkdir -p $(dir $@)
