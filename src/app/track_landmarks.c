@@ -63,9 +63,12 @@ static int write_landmarks(const track_landmarks *tl, int f, const float *xy, FI
 int track_landmarks_start(int n, const sh_image *frame, const sh_detection *dets, int ndet, const sh_point *rows,
                           int nrows, FILE *out, track_landmarks **out_tl)
 {
+    *out_tl = NULL;
     if (nrows < 3) {
-        sh_log_error("--landmarks: frame 0 has %d markers, the hull that bounds the landmarks needs 3", nrows);
-        return 1;
+        /* the markers are still tracked and written: only the landmarks are given up */
+        sh_log_warn("--landmarks: frame 0 has %d markers, the hull that bounds the landmarks needs 3: "
+                    "no landmarks", nrows);
+        return 0;
     }
     track_landmarks *tl = calloc(1, sizeof *tl);
     double *tags = malloc(8 * (size_t)(ndet > 0 ? ndet : 1) * sizeof *tags);

@@ -139,6 +139,13 @@ static void test_track_landmarks_through_the_warp(void **state)
                      k ? "landmarks.csv" : "markers.csv", k) != 0)
             fail_msg("%s\n%s", test_cmd, test_out);
     assert_int_equal(test_run("cd '%s' && cmp gauss_0.y4m gauss_1.y4m", dir), 0);
+    /* two markers make no hull: the markers are written, no landmark, and it is said */
+    assert_int_equal(test_run("cd '%s' && { '%s' track --ids 0,1 --landmarks 10 cam0.y4m 2>&1 >two.csv; }", dir, APP_BIN), 0);
+    assert_non_null(strstr(test_out, "frame 0 has 2 markers"));
+    snprintf(path, sizeof path, "%s/two.csv", dir);
+    assert_int_equal(landmark_rows(path, &frame0, &later, &strangers), 0);
+    assert_int_equal(frame0 + later, 0);
+    assert_int_equal(test_run("cd '%s' && test $(wc -l < two.csv) -gt %d", dir, FRAMES), 0);
     /* no landmarks in 3D yet: refused */
     assert_int_equal(test_run("'%s' track --landmarks 10 --cameras x.yaml a.y4m b.y4m", APP_BIN), 2);
     assert_non_null(strstr(test_out, "--landmarks: one camera"));
