@@ -94,6 +94,14 @@ int sh_interp_basis(const sh_interp *interp, double x, double y, int *index, dou
  * (the affine term's, indices n .. n + 2) are sh_interp_basis's. */
 int sh_interp_kernel_factors(const sh_interp *interp, int axis, double v, double *f);
 
+/* One-shot, for a set of correspondences that changes with every call: the interpolant of params
+ * through the n points ref_xy (x0,y0,...) with 2D values cur_xy, evaluated at the count points
+ * `at` (x0,y0,... as floats) into out (count pairs). A point where the method has no value
+ * (piecewise linear outside the hull) gets NaN. Allocates the interpolant and its coefficients;
+ * errors as sh_interp_create and sh_interp_fit. */
+sh_status sh_interp_map_points(const sh_interp_params *params, const double *ref_xy, const double *cur_xy, int n,
+                               const float *at, int count, float *out);
+
 /* value(x, y) = sum basis * coef, for dim components. Piecewise linear outside the convex hull:
  * SH_ERANGE with out set to 0 (no silent zero map). */
 sh_status sh_interp_eval(const sh_interp *interp, const double *coef, int dim, double x, double y,

@@ -55,10 +55,10 @@ int sh_points_drop_ids(sh_points *points, int min_id);
 const sh_point *sh_points_frame(const sh_points *points, int frame, int *count);
 
 /* The markers two frames share: walks both lists (sorted by id, as sh_points_frame returns
- * them) and writes, for each id found in both, the id and the current frame's x, y. Returns the
- * count (at most min(nref, ncur)). */
+ * them) and writes, for each id found in both, the id, the reference frame's x, y (into ref_xy,
+ * when not NULL) and the current frame's. Returns the count (at most min(nref, ncur)). */
 int sh_points_match(const sh_point *ref, int nref, const sh_point *cur, int ncur, int *ids,
-                    double *cur_xy);
+                    double *ref_xy, double *cur_xy);
 
 /* Writes rows as CSV with the header: frame,id,x,y, and X,Y,Z when has_3d; has_3d
  * SH_POINTS_XYZ_ONLY leaves out x,y. */

@@ -199,7 +199,7 @@ static int warp_open(warp_job *j, const warp_options *o)
     /* From standard input (reference 0 only) the reference frame is the first one read below. */
     if (o->metric && !s->from_stdin && !app_read_frame_at(o->in_path, o->reference, &s->ref))
         return app_fail("reference frame");
-    int nref = sh_points_match(s->ref_rows, s->ref_count, s->ref_rows, s->ref_count, s->ids, s->cur);
+    int nref = sh_points_match(s->ref_rows, s->ref_count, s->ref_rows, s->ref_count, s->ids, NULL, s->cur);
     if (cache_get(s->cache, s->ids, nref, &j->model) != SH_OK) return app_fail("reference markers");
     s->full_range = sh_y4m_header_full_range(hdr);
     if (o->metric && !s->from_stdin &&
@@ -226,7 +226,7 @@ static int warp_frame(void *job)
     }
     int ncur;
     const sh_point *cur = sh_points_frame(&s->points, s->frames, &ncur);
-    int n = sh_points_match(s->ref_rows, s->ref_count, cur, ncur, s->ids, s->cur);
+    int n = sh_points_match(s->ref_rows, s->ref_count, cur, ncur, s->ids, NULL, s->cur);
     double t0 = app_now();
     const sh_image *shown = &s->out;
     if (n < 3 || cache_get(s->cache, s->ids, n, &j->model) != SH_OK ||

@@ -14,7 +14,8 @@ struct track_landmarks {
     sh_point *ref;     /* frame 0's marker rows, sorted by id */
     int nref;
     int *ids;          /* nref: the ids a frame shares with frame 0 */
-    double *ref_xy, *cur_xy; /* nref pairs */
+    double *ref_xy, *cur_xy; /* nref pairs: frame 0's positions (for its hull), then per frame the
+                              * shared markers' reference and current positions */
     float *pred, *xy;  /* n pairs */
     uint8_t *verdict;  /* n */
     sh_image gray;     /* RGB24 frames' luma */
@@ -132,32 +133,14 @@ static int predict(track_landmarks *tl, const sh_point *rows, int nrows)
     if (!cur) return 0;
     memcpy(cur, rows, (size_t)nrows * sizeof *cur);
     qsort(cur, (size_t)nrows, sizeof *cur, by_id);
-    int m = sh_points_match(tl->ref, tl->nref, cur, nrows, tl->ids, tl->cur_xy);
+    /* the shared markers' reference positions go into ref_xy (its whole-set use, the hull, is over) */
+    int m = sh_points_match(tl->ref, tl->nref, cur, nrows, tl->ids, tl->ref_xy, tl->cur_xy);
     free(cur);
     if (m < 3) return 0;
-    double *ref_xy = malloc(2 * (size_t)m * sizeof *ref_xy);
-    if (!ref_xy) return 0;
-    for (int k = 0, r = 0; k < m; k++) {
-        while (tl->ref[r].id != tl->ids[k]) r++;
-        ref_xy[2 * k] = tl->ref[r].x, ref_xy[2 * k + 1] = tl->ref[r].y;
-    }
     sh_interp_params ip;
     sh_interp_params_default(&ip, SH_METHOD_TPS);
-    sh_interp *in = NULL;
-    double *coef = NULL;
-    int ok = sh_interp_create(&ip, ref_xy, m, &in) == SH_OK &&
-             (coef = malloc(2 * (size_t)sh_interp_num_coefs(in) * sizeof *coef)) != NULL &&
-             sh_interp_fit(in, tl->cur_xy, 2, coef) == SH_OK;
-    const float *r = sh_landmarks_reference(tl->lm);
-    for (int i = 0; ok && i < tl->n; i++) {
-        double v[2];
-        ok = sh_interp_eval(in, coef, 2, r[2 * i], r[2 * i + 1], v) == SH_OK;
-        tl->pred[2 * i] = (float)v[0], tl->pred[2 * i + 1] = (float)v[1];
-    }
-    free(coef);
-    free(ref_xy);
-    sh_interp_destroy(in);
-    return ok;
+    return sh_interp_map_points(&ip, tl->ref_xy, tl->cur_xy, m, sh_landmarks_reference(tl->lm), tl->n, tl->pred) ==
+           SH_OK;
 }
 
 int track_landmarks_frame(track_landmarks *tl, const sh_image *frame, int f, const sh_point *rows, int nrows,

@@ -219,6 +219,26 @@ sh_status sh_interp_eval(const sh_interp *it, const double *coef, int dim, doubl
     return SH_OK;
 }
 
+sh_status sh_interp_map_points(const sh_interp_params *params, const double *ref_xy, const double *cur_xy, int n,
+                               const float *at, int count, float *out)
+{
+    sh_interp *it;
+    sh_status st = sh_interp_create(params, ref_xy, n, &it);
+    if (st != SH_OK) return st;
+    /* a B-spline's coefficients are its lattice's, not one per point */
+    double *coef = malloc(2 * (size_t)sh_interp_num_coefs(it) * sizeof *coef);
+    st = coef ? sh_interp_fit(it, cur_xy, 2, coef) : sh_error_set(SH_ENOMEM, "interp: out of memory");
+    for (int i = 0; st == SH_OK && i < count; i++) {
+        double v[2];
+        if (sh_interp_eval(it, coef, 2, at[2 * i], at[2 * i + 1], v) != SH_OK) v[0] = v[1] = NAN;
+        out[2 * i] = (float)v[0];
+        out[2 * i + 1] = (float)v[1];
+    }
+    free(coef);
+    sh_interp_destroy(it);
+    return st;
+}
+
 int sh_interp_triangles(const sh_interp *it, const int **triangles)
 {
     if (triangles) *triangles = it ? it->triangles : NULL;

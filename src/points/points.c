@@ -353,7 +353,7 @@ static int put_real(FILE *out, double v)
 }
 
 int sh_points_match(const sh_point *ref, int nref, const sh_point *cur, int ncur, int *ids,
-                    double *cur_xy)
+                    double *ref_xy, double *cur_xy)
 {
     int n = 0;
     for (int i = 0, j = 0; i < nref && j < ncur;) {
@@ -363,6 +363,7 @@ int sh_points_match(const sh_point *ref, int nref, const sh_point *cur, int ncur
             j++;
         } else {
             ids[n] = cur[j].id;
+            if (ref_xy) ref_xy[2 * n] = ref[i].x, ref_xy[2 * n + 1] = ref[i].y;
             cur_xy[2 * n] = cur[j].x;
             cur_xy[2 * n + 1] = cur[j].y;
             n++, i++, j++;

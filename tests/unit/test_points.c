@@ -289,16 +289,20 @@ static void test_read_file(void **state)
 static void test_match(void **state)
 {
     (void)state;
-    const sh_point ref[] = {{.id = 1}, {.id = 3}, {.id = 4}, {.id = 9}};
+    const sh_point ref[] = {{.id = 1}, {.id = 3, .x = 30, .y = 31}, {.id = 4}, {.id = 9, .x = 90, .y = 91}};
     const sh_point cur[] = {{.id = 0, .x = 5, .y = 6}, {.id = 3, .x = 7, .y = 8},
                             {.id = 9, .x = 1.5, .y = 2.5}, {.id = 12, .x = 3, .y = 4}};
     int ids[4];
     double xy[8];
-    assert_int_equal(sh_points_match(ref, 4, cur, 4, ids, xy), 2);
+    double rxy[8];
+    assert_int_equal(sh_points_match(ref, 4, cur, 4, ids, NULL, xy), 2);
     assert_int_equal(ids[0], 3);
     assert_int_equal(ids[1], 9);
     assert_true(xy[0] == 7 && xy[1] == 8 && xy[2] == 1.5 && xy[3] == 2.5);
-    assert_int_equal(sh_points_match(ref, 4, cur, 0, ids, xy), 0);
+    /* the reference's positions of the same ids, when asked */
+    assert_int_equal(sh_points_match(ref, 4, cur, 4, ids, rxy, xy), 2);
+    assert_true(rxy[0] == 30 && rxy[1] == 31 && rxy[2] == 90 && rxy[3] == 91);
+    assert_int_equal(sh_points_match(ref, 4, cur, 0, ids, NULL, xy), 0);
 }
 
 /* Landmark rows (ids from a limit on) dropped: every other row kept in order, every frame still

@@ -148,7 +148,7 @@ static int frame_map(eval_geo *g, int t)
     if (g->o.identity) return 0;
     int ncur;
     const sh_point *cur = sh_points_frame(g->points, t, &ncur);
-    int n = sh_points_match(g->ref_rows, g->ref_count, cur, ncur, g->ids, g->cur_xy);
+    int n = sh_points_match(g->ref_rows, g->ref_count, cur, ncur, g->ids, NULL, g->cur_xy);
     if (n < 3) return 0;
     if (!(g->model && g->model_n == n && !memcmp(g->model_ids, g->ids, sizeof(int) * (size_t)n)) &&
         build_model(g, n) != SH_OK)

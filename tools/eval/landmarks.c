@@ -63,28 +63,6 @@ static double pct(float *v, long long n, double q)
 
 /* The markers' map of frame t at every landmark (s->pred); 0 when fewer than 3 markers are
  * shared with the reference, or the interpolant refuses them. */
-/* A map fitted to m correspondences (ref -> cur), evaluated at n points: 0 when the interpolant
- * refuses them. */
-static int fit_eval(const sh_interp_params *params, const double *ref_xy, const double *cur_xy, int m, const float *at,
-                    int n, float *out)
-{
-    sh_interp *in;
-    if (sh_interp_create(params, ref_xy, m, &in) != SH_OK) return 0;
-    /* a B-spline's coefficients are its lattice's, not one per marker */
-    double *coef = malloc(2 * (size_t)sh_interp_num_coefs(in) * sizeof *coef);
-    int ok = coef && sh_interp_fit(in, cur_xy, 2, coef) == SH_OK;
-    for (int i = 0; ok && i < n; i++) {
-        double v[2];
-        /* pwlinear outside its hull: no value there (NaN, not judged) */
-        if (sh_interp_eval(in, coef, 2, at[2 * i], at[2 * i + 1], v) != SH_OK) v[0] = v[1] = NAN;
-        out[2 * i] = (float)v[0];
-        out[2 * i + 1] = (float)v[1];
-    }
-    free(coef);
-    sh_interp_destroy(in);
-    return ok;
-}
-
 /* The hull's samples against the truth in frame t: the markers' map (s->ref_xy/cur_xy, m) and
  * the same with the accepted landmarks added as correspondences. */
 static sh_status compare_maps(const eval_lm_options *o, int t, int m, const float *lm_ref, int n, scratch *s,
@@ -119,8 +97,9 @@ static sh_status compare_maps(const eval_lm_options *o, int t, int m, const floa
         }
         for (int i = 0; i < g->n; i++) at[2 * i] = g->x[i], at[2 * i + 1] = g->y[i];
     }
-    if (st == SH_OK && fit_eval(&o->params, s->ref_xy, s->cur_xy, m, at, g->n, fm) &&
-        fit_eval(&o->params, ref_all, cur_all, k, at, g->n, fl)) {
+    /* an interpolant the method refuses (too few, degenerate) leaves the frame out */
+    if (st == SH_OK && sh_interp_map_points(&o->params, s->ref_xy, s->cur_xy, m, at, g->n, fm) == SH_OK &&
+        sh_interp_map_points(&o->params, ref_all, cur_all, k, at, g->n, fl) == SH_OK) {
         for (int i = 0; i < g->n; i++) {
             double gx, gy;
             if (!phantom_truth_content_visible(o->truth, o->camera, t, &g->seen[i]) ||
@@ -140,15 +119,10 @@ static int predict(const eval_lm_options *o, const sh_points *points, const sh_p
 {
     int ncur;
     const sh_point *cur = sh_points_frame(points, t, &ncur);
-    int m = sh_points_match(ref, nref, cur, ncur, s->ids, s->cur_xy);
+    int m = sh_points_match(ref, nref, cur, ncur, s->ids, s->ref_xy, s->cur_xy);
     if (m < 3) return 0;
-    for (int k = 0, r = 0; k < m; k++) {
-        while (ref[r].id != s->ids[k]) r++;
-        s->ref_xy[2 * k] = ref[r].x;
-        s->ref_xy[2 * k + 1] = ref[r].y;
-    }
     *m_out = m;
-    if (!fit_eval(&o->params, s->ref_xy, s->cur_xy, m, lm_ref, n, s->pred)) return 0;
+    if (sh_interp_map_points(&o->params, s->ref_xy, s->cur_xy, m, lm_ref, n, s->pred) != SH_OK) return 0;
     /* piecewise linear has no value outside the hull of the markers frame t shares */
     for (int i = 0; i < 2 * n; i++)
         if (isnan(s->pred[i])) return 0;
