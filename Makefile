@@ -138,12 +138,14 @@ deps:
 # per-pixel loops, each measured in make bench: src/warp the position fill (bench_warp) and the
 # outside fill (bench_outside), src/pixconv the pixel-format loops (bench_pixconv), src/screen the
 # display's YUV to XRGB rows (bench_screen), src/flow the pyramid's 16-bit reduction (bench_flow),
-# src/landmarks the band-pass's column sums (stillheart-eval --landmarks, time per frame) ----
+# src/landmarks the band-pass's column sums (stillheart-eval --landmarks, time per frame),
+# src/linalg the per-frame LU's row updates (lu.c; the daemon's landmarks, --stats model time) ----
 $(BUILD)/src/warp/%.o:    CFLAGS_ALL += -O3
 $(BUILD)/src/pixconv/%.o: CFLAGS_ALL += -O3
 $(BUILD)/src/screen/%.o:  CFLAGS_ALL += -O3
 $(BUILD)/src/flow/%.o:    CFLAGS_ALL += -O3
 $(BUILD)/src/landmarks/%.o: CFLAGS_ALL += -O3
+$(BUILD)/src/linalg/%.o:  CFLAGS_ALL += -O3
 
 $(BUILD)/%.o: %.c
 	@mkdir -p $(dir $@)

@@ -82,6 +82,22 @@ int sh_interp_max_terms(const sh_interp *interp);
  * piecewise linear, O(n^2 dim) for the RBFs, O(levels n^2 dim + lattice dim) for B-splines. */
 sh_status sh_interp_fit(const sh_interp *interp, const double *values, int dim, double *coef);
 
+/* The interpolant through the points with use[k] != 0 alone, as if the others were not there, in
+ * this interpolant's coefficient layout: a left-out point's coefficients are 0, so that
+ * sh_interp_basis, sh_interp_eval and a warp grid built over all the points give its map. For
+ * correspondences that come and go every frame (natural landmarks, landmarks.h): one interpolant
+ * and one grid basis per reference instead of one per subset. Affine and the RBFs only: their basis
+ * at a point does not depend on which points are used, whereas the Delaunay triangles and the
+ * B-spline lattices do (SH_EINVAL for those). Up to rounding the function sh_interp_create on the
+ * used points gives (the affine part keeps this interpolant's centring and scale: the same
+ * functions). values: n x dim as for sh_interp_fit (a left-out point's values are not read).
+ * work: sh_interp_subset_work_size(interp) bytes, aligned for double; nothing is allocated.
+ * SH_EDEGENERATE for too few used points, collinear ones where the method has an affine part, or
+ * a singular system. Cost: O(s^3) for s used points (the system is factored anew). */
+size_t sh_interp_subset_work_size(const sh_interp *interp);
+sh_status sh_interp_fit_subset(const sh_interp *interp, const unsigned char *use, const double *values, int dim,
+                               double *coef, void *work);
+
 /* Sparse basis row at (x, y): writes count (index, weight) pairs and returns count (>= 0).
  * Piecewise linear returns 0 terms outside the convex hull of the reference points. */
 int sh_interp_basis(const sh_interp *interp, double x, double y, int *index, double *weight);

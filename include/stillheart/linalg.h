@@ -15,6 +15,11 @@ extern "C" {
  * singular matrix). Fails only for bad arguments or lack of memory; the caller judges rcond. */
 sh_status sh_linalg_lu_factor(int n, double *a, int *src, double *rcond);
 
+/* The same factorization (the same layout, for sh_linalg_lu_solve) without allocating and without
+ * the condition estimate: for a system refactored every frame. SH_EDEGENERATE when a pivot is
+ * zero or the pivots span more than 1e15 (a system no digit of whose solution would be right). */
+sh_status sh_linalg_lu_factor_inplace(int n, double *a, int *src);
+
 /* Solves A x = b for dim right-hand sides with the factor of sh_linalg_lu_factor. b holds nb
  * rows of dim values (row-major); rows nb..n-1 of b are taken as zero (the side conditions of an
  * RBF system). x: n x dim, must not overlap b. No allocation; reentrant. */

@@ -45,6 +45,10 @@ void sh_warp_model_destroy(sh_warp_model *model);
 
 /* The current positions of the same n points, in the same order. */
 sh_status sh_warp_model_update(sh_warp_model *model, const double *cur_xy);
+/* The map through the points with use[k] != 0 alone (sh_interp_fit_subset: affine and the RBFs;
+ * SH_EINVAL for the others); use NULL: every point, as sh_warp_model_update. A left-out point's
+ * position is not read. The first such update allocates the fit's work, once per model. */
+sh_status sh_warp_model_update_subset(sh_warp_model *model, const double *cur_xy, const unsigned char *use);
 
 const sh_hull *sh_warp_model_hull(const sh_warp_model *model);
 /* Grid spacing in use (0 for the exact methods: affine, piecewise linear). */

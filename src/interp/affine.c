@@ -45,7 +45,46 @@ static int affine_basis(const sh_interp *it, double x, double y, int *index, dou
     return 3;
 }
 
-static const sh_interp_ops affine_ops = {affine_fit, affine_basis, NULL, affine_destroy};
+static size_t affine_subset_work(const sh_interp *it) { return sizeof(double) * 2 * (size_t)it->n; }
+
+/* Least squares over the used points in the same [1, u, v] basis: the 3 x 3 normal equations,
+ * solved in closed form (Cramer), well conditioned in the centred and scaled coordinates. */
+static sh_status affine_fit_subset(const sh_interp *it, const unsigned char *use, int s, const double *values, int dim,
+                                   double *coef, void *work)
+{
+    const affine_impl *a = it->impl;
+    double *q = work;
+    for (int i = 0, k = 0; i < it->n; i++)
+        if (use[i]) q[2 * k] = it->ref[2 * i], q[2 * k + 1] = it->ref[2 * i + 1], k++;
+    if (s < 3 || sh_interp_collinear(q, s))
+        return sh_error_set(SH_EDEGENERATE, "interp affine: the %d points used are collinear or too few", s);
+    double N[3][3] = {{0}}, b[3][3] = {{0}};
+    for (int i = 0; i < it->n; i++) {
+        if (!use[i]) continue;
+        double row[3] = {1.0, (it->ref[2 * i] - a->cx) * a->inv_scale, (it->ref[2 * i + 1] - a->cy) * a->inv_scale};
+        for (int j = 0; j < 3; j++) {
+            for (int k = 0; k < 3; k++) N[j][k] += row[j] * row[k];
+            for (int d = 0; d < dim; d++) b[j][d] += row[j] * values[i * dim + d];
+        }
+    }
+    double det = N[0][0] * (N[1][1] * N[2][2] - N[1][2] * N[2][1]) - N[0][1] * (N[1][0] * N[2][2] - N[1][2] * N[2][0]) +
+                 N[0][2] * (N[1][0] * N[2][1] - N[1][1] * N[2][0]);
+    if (!(fabs(det) > 1e-12 * (double)s * s * s))
+        return sh_error_set(SH_EDEGENERATE, "interp affine: the %d points used are nearly collinear", s);
+    for (int d = 0; d < dim; d++)
+        for (int c = 0; c < 3; c++) {
+            double M[3][3];
+            for (int j = 0; j < 3; j++)
+                for (int k = 0; k < 3; k++) M[j][k] = k == c ? b[j][d] : N[j][k];
+            double dc = M[0][0] * (M[1][1] * M[2][2] - M[1][2] * M[2][1]) - M[0][1] * (M[1][0] * M[2][2] - M[1][2] * M[2][0]) +
+                        M[0][2] * (M[1][0] * M[2][1] - M[1][1] * M[2][0]);
+            coef[c * dim + d] = dc / det;
+        }
+    return SH_OK;
+}
+
+static const sh_interp_ops affine_ops = {affine_fit, affine_basis, NULL, affine_destroy, affine_subset_work,
+                                         affine_fit_subset};
 
 sh_status sh_interp_affine_init(sh_interp *it)
 {

@@ -178,6 +178,33 @@ sh_status sh_interp_fit(const sh_interp *it, const double *values, int dim, doub
     return it->ops->fit(it, values, dim, coef);
 }
 
+size_t sh_interp_subset_work_size(const sh_interp *it)
+{
+    return it && it->ops->subset_work ? it->ops->subset_work(it) : 0;
+}
+
+sh_status sh_interp_fit_subset(const sh_interp *it, const unsigned char *use, const double *values, int dim,
+                               double *coef, void *work)
+{
+    if (!it || !use || !values || !coef || !work) return sh_error_set(SH_EINVAL, "interp fit: null argument");
+    if (!it->ops->fit_subset)
+        return sh_error_set(SH_EINVAL, "interp %s: no fit on a subset of the points (its basis depends on which are used)",
+                            method_names[it->params.method]);
+    if (dim < 1 || dim > 3) return sh_error_set(SH_EINVAL, "interp fit: dim must be 1..3 (got %d)", dim);
+    int s = 0;
+    for (int i = 0; i < it->n; i++) {
+        if (!use[i]) continue;
+        s++;
+        for (int d = 0; d < dim; d++)
+            if (!isfinite(values[i * dim + d]))
+                return sh_error_set(SH_EINVAL, "interp fit: value %d of point %d is not finite", d, i);
+    }
+    if (s < min_points(&it->params))
+        return sh_error_set(SH_EDEGENERATE, "interp %s: %d points used, needs at least %d",
+                            method_names[it->params.method], s, min_points(&it->params));
+    return it->ops->fit_subset(it, use, s, values, dim, coef, work);
+}
+
 int sh_interp_basis(const sh_interp *it, double x, double y, int *index, double *weight)
 {
     if (!it || !index || !weight) return sh_error_set(SH_EINVAL, "interp basis: null argument");

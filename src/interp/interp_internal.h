@@ -16,6 +16,11 @@ typedef struct {
     sh_status (*eval)(const sh_interp *it, const double *coef, int dim, double x, double y,
                       double *out);
     void (*destroy)(void *impl);
+    /* NULL: the method has no fit on a subset (sh_interp_fit_subset). The work's size, in bytes,
+     * and the fit; interp.c has checked the arguments and counted the used points (s >= 1). */
+    size_t (*subset_work)(const sh_interp *it);
+    sh_status (*fit_subset)(const sh_interp *it, const unsigned char *use, int s, const double *values, int dim,
+                            double *coef, void *work);
 } sh_interp_ops;
 
 struct sh_interp {

@@ -165,7 +165,7 @@ static void mba_destroy(void *p)
     free(b);
 }
 
-static const sh_interp_ops mba_ops = {mba_fit, mba_basis, NULL, mba_destroy};
+static const sh_interp_ops mba_ops = {mba_fit, mba_basis, NULL, mba_destroy, NULL, NULL};
 
 static size_t lattice_size(const mba_impl *b, int levels)
 {

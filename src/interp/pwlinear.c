@@ -68,7 +68,7 @@ static int pwl_basis(const sh_interp *it, double x, double y, int *index, double
     return 3;
 }
 
-static const sh_interp_ops pwl_ops = {pwl_fit, pwl_basis, NULL, pwl_destroy};
+static const sh_interp_ops pwl_ops = {pwl_fit, pwl_basis, NULL, pwl_destroy, NULL, NULL};
 
 /* Runs qhull; on success *tri holds *ntri triangles (vertex triples, any orientation). */
 static sh_status delaunay(const double *xy, int n, int **tri, int *ntri)

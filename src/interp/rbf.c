@@ -125,8 +125,64 @@ static sh_status rbf_eval(const sh_interp *it, const double *coef, int dim, doub
     return SH_OK;
 }
 
-static const sh_interp_ops dense_ops = {rbf_fit, rbf_basis_dense, rbf_eval, rbf_destroy};
-static const sh_interp_ops local_ops = {rbf_fit, rbf_basis_local, rbf_eval, rbf_destroy};
+/* The work of a subset fit: the system (m x m at most), its right-hand side and solution (3
+ * columns at most), the used points gathered, the pivot rows and the map from used to all. */
+static size_t rbf_subset_work(const sh_interp *it)
+{
+    const rbf_impl *r = it->impl;
+    size_t m = (size_t)r->m, n = (size_t)it->n;
+    return sizeof(double) * (m * m + 6 * m + 2 * n) + sizeof(int) * (m + n);
+}
+
+/* The system sh_interp_rbf_init builds, over the s used points only, with the same affine basis
+ * (this interpolant's centre, scale and gain): the interpolant through them alone. */
+static sh_status rbf_fit_subset(const sh_interp *it, const unsigned char *use, int s, const double *values, int dim,
+                                double *coef, void *work)
+{
+    const rbf_impl *r = it->impl;
+    const char *name = sh_interp_method_name(r->kind);
+    int n = it->n, ms = s + 3 * r->affine;
+    double *a = work, *rhs = a + (size_t)ms * ms, *x = rhs + 3 * (size_t)ms, *q = x + 3 * (size_t)ms;
+    int *src = (int *)(q + 2 * (size_t)n), *at = src + ms;
+    for (int i = 0, k = 0; i < n; i++)
+        if (use[i]) {
+            at[k] = i;
+            q[2 * k] = it->ref[2 * i], q[2 * k + 1] = it->ref[2 * i + 1];
+            for (int d = 0; d < dim; d++) rhs[k * dim + d] = values[i * dim + d];
+            k++;
+        }
+    if (r->affine && (s < 3 || sh_interp_collinear(q, s)))
+        return sh_error_set(SH_EDEGENERATE, "interp %s: the %d points used are collinear or too few for the affine term",
+                            name, s);
+    for (int i = 0; i < s; i++) {
+        for (int j = 0; j <= i; j++) {
+            double dx = q[2 * i] - q[2 * j], dy = q[2 * i + 1] - q[2 * j + 1];
+            a[(size_t)i * ms + j] = a[(size_t)j * ms + i] = kernel(r, dx * dx + dy * dy);
+        }
+        a[(size_t)i * ms + i] += it->params.smoothing;
+        for (int c = 0; c < 3 * r->affine; c++) {
+            double g = r->poly_gain;
+            double v = c == 0 ? g : c == 1 ? g * (q[2 * i] - r->cx) * r->inv_scale : g * (q[2 * i + 1] - r->cy) * r->inv_scale;
+            a[(size_t)i * ms + s + c] = a[(size_t)(s + c) * ms + i] = v;
+        }
+    }
+    for (int c = 0; c < 3 * r->affine; c++)
+        for (int e = 0; e < 3; e++) a[(size_t)(s + c) * ms + s + e] = 0.0;
+    sh_status st = sh_linalg_lu_factor_inplace(ms, a, src);
+    if (st != SH_OK)
+        return sh_error_set(SH_EDEGENERATE, "interp %s: the system of the %d points used: %s", name, s,
+                            sh_error_message());
+    sh_linalg_lu_solve(ms, a, src, rhs, s, dim, x);
+    for (int i = 0; i < (n + 3 * r->affine) * dim; i++) coef[i] = 0.0;
+    for (int k = 0; k < s; k++)
+        for (int d = 0; d < dim; d++) coef[at[k] * dim + d] = x[k * dim + d];
+    for (int c = 0; c < 3 * r->affine; c++)
+        for (int d = 0; d < dim; d++) coef[(n + c) * dim + d] = x[(s + c) * dim + d];
+    return SH_OK;
+}
+
+static const sh_interp_ops dense_ops = {rbf_fit, rbf_basis_dense, rbf_eval, rbf_destroy, rbf_subset_work, rbf_fit_subset};
+static const sh_interp_ops local_ops = {rbf_fit, rbf_basis_local, rbf_eval, rbf_destroy, rbf_subset_work, rbf_fit_subset};
 
 static sh_status build_local_grid(const sh_interp *it, rbf_impl *r, int *max_near)
 {

@@ -79,6 +79,7 @@ void sh_warp_model_destroy(sh_warp_model *m)
     free(m->spans);
     free((void *)m->ref_xy);
     free(m->disp);
+    free(m->subset_work);
     free(m);
 }
 
@@ -406,16 +407,38 @@ static double grid_error_bound(sh_warp_model *m)
     return ERROR_SAFETY / 8 * sqrt(worst);
 }
 
+/* The interpolant's coefficients for values (n x 2): through every point, or through the used
+ * ones alone. */
+static sh_status fit(sh_warp_model *m, const double *values, const unsigned char *use)
+{
+    if (!use) return sh_interp_fit(m->interp, values, 2, m->coef);
+    if (!m->subset_work) {
+        size_t bytes = sh_interp_subset_work_size(m->interp);
+        if (!bytes)
+            return sh_error_set(SH_EINVAL, "warp: %s cannot leave points out (its basis depends on which are used)",
+                                sh_interp_method_name(sh_interp_method(m->interp)));
+        if (!(m->subset_work = malloc(bytes))) return sh_error_set(SH_ENOMEM, "warp: out of memory");
+    }
+    return sh_interp_fit_subset(m->interp, use, values, 2, m->coef, m->subset_work);
+}
+
 sh_status sh_warp_model_update(sh_warp_model *m, const double *cur_xy)
 {
+    return sh_warp_model_update_subset(m, cur_xy, NULL);
+}
+
+sh_status sh_warp_model_update_subset(sh_warp_model *m, const double *cur_xy, const unsigned char *use)
+{
     if (!m || !cur_xy) return sh_error_set(SH_EINVAL, "warp: no positions");
+    if (use && m->kind == MODEL_TRIANGLES)
+        return sh_error_set(SH_EINVAL, "warp: pwlinear cannot leave points out (its triangles depend on which are used)");
     for (int i = 0; i < 2 * m->n; i++)
-        if (!isfinite(cur_xy[i]))
+        if ((!use || use[i / 2]) && !isfinite(cur_xy[i]))
             return sh_error_set(SH_EINVAL, "warp: current position of point %d is not finite", i / 2);
     sh_status st;
     switch (m->kind) {
     case MODEL_AFFINE: {
-        if ((st = sh_interp_fit(m->interp, cur_xy, 2, m->coef)) != SH_OK) return st;
+        if ((st = fit(m, cur_xy, use)) != SH_OK) return st;
         double o[2], ex[2], ey[2];
         /* Read the map off the interpolant so its internal scaling stays its own business. */
         if ((st = sh_interp_eval(m->interp, m->coef, 2, 0, 0, o)) != SH_OK ||
@@ -443,8 +466,8 @@ sh_status sh_warp_model_update(sh_warp_model *m, const double *cur_xy)
          * reproduces affine functions, and for the others (B-splines, RBFs without the affine
          * term) a translation stays exact and the map tends to the identity, not to zero, away
          * from the markers. */
-        for (int i = 0; i < 2 * m->n; i++) m->disp[i] = cur_xy[i] - m->ref_xy[i];
-        if ((st = sh_interp_fit(m->interp, m->disp, 2, m->coef)) != SH_OK) return st;
+        for (int i = 0; i < 2 * m->n; i++) m->disp[i] = !use || use[i / 2] ? cur_xy[i] - m->ref_xy[i] : 0.0;
+        if ((st = fit(m, m->disp, use)) != SH_OK) return st;
         grid_map(m);
         m->error_bound = grid_error_bound(m);
         while (m->error_bound > m->opts.max_error && m->h > 1) {

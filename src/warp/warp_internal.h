@@ -30,6 +30,7 @@ struct sh_warp_model {
     int32_t *spans;          /*   as (triangle or -1 for none, first pixel, last pixel) */
     const double *ref_xy;    /* copy, n x 2 */
     double *disp;            /* displacement of the last update, n x 2 */
+    void *subset_work;       /* sh_interp_fit_subset's, made by the first subset update */
 
     int h, gx0, gy0, nx, ny; /* grid: node (i, j) sits at (gx0 + i h, gy0 + j h) */
     int *row_start, *index;  /* CSR basis rows, one per node */

@@ -15,6 +15,7 @@
 
 #include "../ref/interp_ref.h"
 #include "stillheart/interp.h"
+#include "stillheart/linalg.h"
 
 /* Deterministic uniform numbers (xorshift64*), so a failure reproduces. */
 static uint64_t rng_state = 88172645463325252ULL;
@@ -507,6 +508,94 @@ static void test_gaussian_factors(void **state)
     }
 }
 
+/* A fit through a subset equals the interpolant built on that subset alone (sh_interp_create,
+ * the path every other test checks), evaluated through the full set's basis as the warp does;
+ * the methods whose basis depends on the points used refuse. */
+static void test_fit_subset(void **state)
+{
+    (void)state;
+    enum { N = 40, Q = 60 };
+    double xy[2 * N], val[2 * N], sub_xy[2 * N], sub_val[2 * N], q[2 * Q];
+    unsigned char use[N];
+    random_points(xy, N, 640, 480);
+    random_points(q, Q, 640, 480);
+    for (int i = 0; i < 2 * N; i++) val[i] = uniform(-10, 10);
+    int s = 0;
+    for (int i = 0; i < N; i++) {
+        use[i] = i % 3 != 1; /* a third left out, spread over the points */
+        if (!use[i]) val[2 * i] = val[2 * i + 1] = NAN; /* never read */
+        if (use[i]) {
+            sub_xy[2 * s] = xy[2 * i], sub_xy[2 * s + 1] = xy[2 * i + 1];
+            sub_val[2 * s] = val[2 * i], sub_val[2 * s + 1] = val[2 * i + 1];
+            s++;
+        }
+    }
+    const char *names[] = {"tps", "tps-pure", "gaussian", "rbf-local", "affine"};
+    for (size_t m = 0; m < sizeof names / sizeof *names; m++) {
+        sh_interp *all = create_named(names[m], xy, N), *sub = create_named(names[m], sub_xy, s);
+        double *ca = malloc(sizeof(double) * 2 * (size_t)sh_interp_num_coefs(all));
+        double *cs = malloc(sizeof(double) * 2 * (size_t)sh_interp_num_coefs(sub));
+        void *work = malloc(sh_interp_subset_work_size(all));
+        assert_true(ca && cs && work);
+        if (sh_interp_fit_subset(all, use, val, 2, ca, work) != SH_OK) fail_msg("%s: %s", names[m], sh_error_message());
+        assert_int_equal(sh_interp_fit(sub, sub_val, 2, cs), SH_OK);
+        double worst = 0;
+        for (int k = 0; k < Q; k++) {
+            double a[2], b[2];
+            eval_basis(all, ca, 2, q[2 * k], q[2 * k + 1], a);
+            eval_basis(sub, cs, 2, q[2 * k], q[2 * k + 1], b);
+            worst = fmax(worst, fmax(fabs(a[0] - b[0]), fabs(a[1] - b[1])));
+        }
+        if (!(worst < 1e-7)) fail_msg("%s: subset fit differs by %g", names[m], worst);
+        /* a left-out point weighs nothing: its coefficients are 0 (affine has none per point) */
+        for (int i = 0; i < N && strcmp(names[m], "affine"); i++)
+            if (!use[i]) assert_true(ca[2 * i] == 0.0 && ca[2 * i + 1] == 0.0);
+        free(ca), free(cs), free(work);
+        sh_interp_destroy(all), sh_interp_destroy(sub);
+    }
+    /* too few used points for the affine part */
+    sh_interp *tps = create_named("tps", xy, N);
+    void *work = malloc(sh_interp_subset_work_size(tps));
+    double *c = malloc(sizeof(double) * 2 * (size_t)sh_interp_num_coefs(tps));
+    unsigned char two[N] = {1, 0, 1}; /* point 1 is left out above: its values are NaN */
+    assert_int_equal(sh_interp_fit_subset(tps, two, val, 2, c, work), SH_EDEGENERATE);
+    free(work), free(c);
+    sh_interp_destroy(tps);
+    const char *refuse[] = {"pwlinear", "bspline"};
+    for (int m = 0; m < 2; m++) {
+        sh_interp *it = create_named(refuse[m], xy, N);
+        assert_int_equal(sh_interp_subset_work_size(it), 0);
+        double cc[1];
+        assert_int_equal(sh_interp_fit_subset(it, use, val, 2, cc, cc), SH_EINVAL);
+        sh_interp_destroy(it);
+    }
+}
+
+/* The per-frame factorization solves what Eigen's does (the oracle), and refuses a singular
+ * system. */
+static void test_lu_inplace(void **state)
+{
+    (void)state;
+    enum { M = 150 };
+    double *a = malloc(sizeof(double) * M * M), *b = malloc(sizeof(double) * M * M), rhs[2 * M], x1[2 * M], x2[2 * M];
+    int s1[M], s2[M];
+    assert_true(a && b);
+    for (int i = 0; i < M * M; i++) a[i] = b[i] = uniform(-1, 1);
+    for (int i = 0; i < 2 * M; i++) rhs[i] = uniform(-5, 5);
+    double rc;
+    assert_int_equal(sh_linalg_lu_factor(M, a, s1, &rc), SH_OK);
+    assert_int_equal(sh_linalg_lu_factor_inplace(M, b, s2), SH_OK);
+    sh_linalg_lu_solve(M, a, s1, rhs, M, 2, x1);
+    sh_linalg_lu_solve(M, b, s2, rhs, M, 2, x2);
+    double worst = 0, size = 0;
+    for (int i = 0; i < 2 * M; i++) worst = fmax(worst, fabs(x1[i] - x2[i])), size = fmax(size, fabs(x1[i]));
+    if (!(worst <= 1e-9 * size)) fail_msg("solutions differ by %g (size %g)", worst, size);
+    for (int i = 0; i < M * M; i++) b[i] = uniform(-1, 1);
+    for (int j = 0; j < M; j++) b[5 * M + j] = 2 * b[7 * M + j]; /* two proportional rows */
+    assert_int_equal(sh_linalg_lu_factor_inplace(M, b, s2), SH_EDEGENERATE);
+    free(a), free(b);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -521,6 +610,8 @@ int main(void)
         cmocka_unit_test(test_bspline_level_bound),
         cmocka_unit_test(test_local_sparse),
         cmocka_unit_test(test_gaussian_factors),
+        cmocka_unit_test(test_fit_subset),
+        cmocka_unit_test(test_lu_inplace),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -121,6 +121,52 @@ static void test_grid_refines_for_tight_tolerance(void **state)
     unbuild(&b);
 }
 
+/* A model built over every point and updated through a subset gives the map of a model built on
+ * that subset alone (within twice the grid's tolerance: each grid is within 0.05 px of its exact
+ * map), wherever both are defined; pwlinear refuses. */
+static void test_update_subset(void **state)
+{
+    (void)state;
+    const int w = 480, h = 270, n = 30;
+    synth_motion mo = {w, h, 10};
+    double ref[2 * n], cur[2 * n], sref[2 * n], scur[2 * n];
+    unsigned char use[n];
+    synth_markers(&mo, n, 7, ref);
+    moved_markers(&mo, 0.4, ref, n, cur);
+    int s = 0;
+    for (int i = 0; i < n; i++) {
+        use[i] = i < 4 || i % 4 != 2; /* the first ones span the layout */
+        if (use[i]) sref[2 * s] = ref[2 * i], sref[2 * s + 1] = ref[2 * i + 1], scur[2 * s] = cur[2 * i],
+                    scur[2 * s + 1] = cur[2 * i + 1], s++;
+        else cur[2 * i] = cur[2 * i + 1] = NAN; /* never read */
+    }
+    const char *methods[] = {"tps", "affine"};
+    float *ma = malloc(sizeof(float) * 2 * (size_t)w * h), *mb = malloc(sizeof(float) * 2 * (size_t)w * h);
+    assert_true(ma && mb);
+    for (int k = 0; k < 2; k++) {
+        built all = build(methods[k], ref, n, w, h, NULL), sub = build(methods[k], sref, s, w, h, NULL);
+        assert_int_equal(sh_warp_model_update_subset(all.model, cur, use), SH_OK);
+        assert_int_equal(sh_warp_model_update(sub.model, scur), SH_OK);
+        assert_int_equal(sh_warp_model_map(all.model, ma), SH_OK);
+        assert_int_equal(sh_warp_model_map(sub.model, mb), SH_OK);
+        double worst = 0;
+        long both = 0;
+        for (size_t i = 0; i < (size_t)w * h; i++)
+            if (!isnan(ma[2 * i]) && !isnan(mb[2 * i])) {
+                worst = fmax(worst, hypot(ma[2 * i] - mb[2 * i], ma[2 * i + 1] - mb[2 * i + 1]));
+                both++;
+            }
+        assert_true(both > (long)w * h / 4);
+        if (!(worst <= 0.1)) fail_msg("%s: the subset's map differs by %.4f px", methods[k], worst);
+        unbuild(&all);
+        unbuild(&sub);
+    }
+    built pw = build("pwlinear", ref, n, w, h, NULL);
+    assert_int_equal(sh_warp_model_update_subset(pw.model, cur, use), SH_EINVAL);
+    unbuild(&pw);
+    free(ma), free(mb);
+}
+
 /* Affine and piecewise linear maps are evaluated exactly (no grid). */
 static void test_exact_methods(void **state)
 {
@@ -489,6 +535,7 @@ int main(void)
         cmocka_unit_test(test_grid_refines_for_tight_tolerance),
         cmocka_unit_test(test_fill_every_spacing),
         cmocka_unit_test(test_exact_methods),
+        cmocka_unit_test(test_update_subset),
         cmocka_unit_test(test_translation_every_format),
         cmocka_unit_test(test_bilinear_closed_form),
         cmocka_unit_test(test_threads_same_bytes),
