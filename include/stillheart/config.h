@@ -71,6 +71,8 @@ typedef struct {
     char family[32];                 /* tag36h11, tagStandard41h12, ... */
     uint8_t ids[SH_CONFIG_MAX_IDS];  /* ids[i] = 1: tag i is a marker */
     char ids_text[SH_CONFIG_STR];    /* as written: "0-15", "1,3,5-9" */
+    /* [track] */
+    int landmarks;                   /* natural landmarks of the tissue besides the markers (0: none) */
     /* [method] */
     char method_name[32];            /* sh_config_method: the interpolation parameters of these four */
     double sigma;                    /* < 0: the method's default */

@@ -133,6 +133,11 @@ typedef struct {
 sh_status sh_landmarks_track(sh_landmarks *lm, const sh_plane *luma, const float *predicted, float *xy,
                              uint8_t *verdict, sh_landmarks_counts *counts);
 
+/* The luma plane landmarks are chosen and found in: plane 0 of a grey or YUV frame (a view, no
+ * copy), or the BT.601 luma of an RGB24 frame computed into buf (made, or made again at another
+ * size, as needed; zeroed by the caller before first use, destroyed with sh_image_destroy). */
+sh_status sh_landmarks_luma(const sh_image *frame, sh_image *buf, const sh_plane **out);
+
 #ifdef __cplusplus
 }
 #endif

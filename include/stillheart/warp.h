@@ -31,6 +31,9 @@ extern "C" {
 typedef struct {
     double max_error;  /* largest tolerated map error in pixels (default 0.05) */
     int grid_spacing;  /* initial grid spacing in pixels, a power of two (default 16) */
+    int hull_points;   /* > 0: the hull (what the warp shows) is the first hull_points points'
+                        * alone, the others only shaping the map inside it (natural landmarks
+                        * never widen what is shown: sh_modelcache); 0: every point's (default) */
 } sh_warp_options;
 
 void sh_warp_options_default(sh_warp_options *opts);
@@ -49,6 +52,11 @@ sh_status sh_warp_model_update(sh_warp_model *model, const double *cur_xy);
  * SH_EINVAL for the others); use NULL: every point, as sh_warp_model_update. A left-out point's
  * position is not read. The first such update allocates the fit's work, once per model. */
 sh_status sh_warp_model_update_subset(sh_warp_model *model, const double *cur_xy, const unsigned char *use);
+
+/* The map of the last update at reference point (x, y), evaluated exactly (the interpolant, not
+ * the grid the warp samples): its current-frame position into out[0..1]. Piecewise linear outside
+ * its triangles: SH_ERANGE and NaN. */
+sh_status sh_warp_model_eval(const sh_warp_model *model, double x, double y, double *out);
 
 const sh_hull *sh_warp_model_hull(const sh_warp_model *model);
 /* Grid spacing in use (0 for the exact methods: affine, piecewise linear). */

@@ -34,18 +34,10 @@ static int fail(const char *what)
     return 1;
 }
 
-/* The luma plane of a frame: plane 0 of the YUV and grey formats, else BT.601 from RGB24. */
 static const sh_plane *luma(track_landmarks *tl, const sh_image *f)
 {
-    if (f->format != SH_PIX_RGB24) return &f->plane[0];
-    if (!tl->gray.owned && sh_image_create(&tl->gray, SH_PIX_GRAY8, f->width, f->height) != SH_OK) return NULL;
-    for (int y = 0; y < f->height; y++) {
-        const uint8_t *in = f->plane[0].data + (size_t)y * f->plane[0].stride;
-        uint8_t *out = tl->gray.plane[0].data + (size_t)y * tl->gray.plane[0].stride;
-        for (int x = 0; x < f->width; x++)
-            out[x] = (uint8_t)((77 * in[3 * x] + 150 * in[3 * x + 1] + 29 * in[3 * x + 2] + 128) >> 8);
-    }
-    return &tl->gray.plane[0];
+    const sh_plane *y;
+    return sh_landmarks_luma(f, &tl->gray, &y) == SH_OK ? y : NULL;
 }
 
 /* The accepted landmarks of frame f (all of them at frame 0, at their reference positions). */

@@ -3,6 +3,7 @@
  * The kinds of value (text to value and back) are in value.c, reading INI text and files in ini.c. */
 #include "stillheart/config.h"
 #include "stillheart/image.h"
+#include "stillheart/landmarks.h"
 #include "stillheart/track.h"
 
 #include "config_internal.h"
@@ -62,6 +63,8 @@ static const keydef keys[] = {
     {"trigger", "offset_us", "trigger-offset-us", K_INT, SRC, F(trigger_offset_us), 0, -1000000, 1000000, "frame timestamp minus trigger edge, expected"},
     {"detect", "family", "family", K_STR, PROC, F(family), S(family), 0, 0, "AprilTag family (tag36h11, ...)"},
     {"detect", "ids", "ids", K_IDS, PROC, F(ids_text), S(ids_text), 0, 0, "marker ids: 0-15 or 1,3,5-9"},
+    {"track", "landmarks", "landmarks", K_INT, PROC, F(landmarks), 0, 0, 2000,
+     "natural landmarks of the tissue besides the markers (0: none; tps, affine; 2D)"},
     {"method", "name", "method", K_METHOD, PROC, F(method_name), S(method_name), 0, 0, "affine pwlinear bspline rbf-local[-pure] tps[-pure] gaussian[-pure]"},
     {"method", "sigma", "sigma", K_DOUBLE, PROC, F(sigma), 0, -1, 1e6, "RBF scale in px (-1: the method's default)"},
     {"method", "levels", "levels", K_INT, PROC, F(levels), 0, 0, 16, "B-spline levels (0: automatic)"},
@@ -399,6 +402,17 @@ static sh_status check_method(const sh_config *cfg, char *err)
         return refuse(cfg, "method", "layout", err, "only the stereo view has a layout ([method] view = stereo)");
     sh_interp_params method;
     sh_config_method(cfg, &method);
+    if (cfg->landmarks && cfg->calibration[0])
+        return refuse(cfg, "track", "landmarks", err, "%d, but landmarks are 2D only (not with [method] calibration)",
+                      cfg->landmarks);
+    /* a landmark set that changes every frame needs a method whose map can leave points out
+     * without a new model (sh_interp_fit_subset), and one that is better with them */
+    if (cfg->landmarks && (!sh_landmarks_method_uses(method.method) || method.method == SH_METHOD_PWLINEAR ||
+                           method.method == SH_METHOD_BSPLINE))
+        return refuse(cfg, "track", "landmarks", err, "%d, but %s %s (tps and affine follow landmarks; "
+                      "docs/landmarks.md)", cfg->landmarks, cfg->method_name,
+                      sh_landmarks_method_uses(method.method) ? "would need a new model for every frame's landmarks"
+                                                              : "is worse with landmarks");
     int need = method_min_markers(method.method);
     if (cfg->min_markers < need)
         return refuse(cfg, "gating", "min_markers", err, "%d is fewer than %s needs (%d)", cfg->min_markers,

@@ -113,7 +113,9 @@ sh_status sh_daemon_create(const sh_config *cfg, const sh_daemon_options *opt, s
     }
     const char *which = NULL, *path = NULL;
     if (d->opt.trace_path && !(d->trace = fopen(d->opt.trace_path, "w"))) which = "--trace", path = d->opt.trace_path;
-    if (d->trace) fprintf(d->trace, "index,status,markers,residual,reason,markers_ms,model_ms,warp_ms,latency_ms\n");
+    if (d->trace)
+        fprintf(d->trace, "index,status,markers,residual,reason,markers_ms,model_ms,warp_ms,latency_ms,landmarks,"
+                "landmarks_ms\n");
     if (!which && d->opt.trace_points_path && !(d->trace_points = fopen(d->opt.trace_points_path, "w")))
         which = "--trace-points", path = d->opt.trace_points_path;
     if (d->trace_points) fprintf(d->trace_points, "frame,id,x,y\n");
@@ -377,10 +379,12 @@ static void sample_memory(sh_daemon *d, int64_t now)
 static void trace_frame(sh_daemon *d, const run_frame *s, const sh_display_frame_info *info, double latency_ms)
 {
     if (d->trace) {
-        double tm, tmod, tw;
+        double tm, tmod, tw, tl;
+        int nl;
         run_proc_times(d->pl.proc, &tm, &tmod, &tw);
-        fprintf(d->trace, "%d,%s,%u,%.3f,\"%s\",%.3f,%.3f,%.3f,%.3f\n", s->index, status_names[info->status],
-                info->markers_used, (double)info->residual_px, info->reason, tm, tmod, tw, latency_ms);
+        run_proc_landmarks(d->pl.proc, &nl, &tl);
+        fprintf(d->trace, "%d,%s,%u,%.3f,\"%s\",%.3f,%.3f,%.3f,%.3f,%d,%.3f\n", s->index, status_names[info->status],
+                info->markers_used, (double)info->residual_px, info->reason, tm, tmod, tw, latency_ms, nl, tl);
     }
     if (d->trace_points) {
         const int *ids;

@@ -39,6 +39,19 @@ typedef struct {
     run_model *full; /* the full set's slot: the swap waits for it */
     run_model slot[SLOTS];
     unsigned long clock;
+    /* landmarks: chosen by the helper (choosing 1 until then, no full slot yet) from a copy of the
+     * reference frame's luma and tags; rows = ref then the landmarks, sorted by id (the models'
+     * keys are made from it) */
+    int choosing, choice_taken;
+    uint8_t *luma;
+    int width, height;
+    double *tags;
+    int ntags;
+    sh_landmarks *lm;
+    int nlm;
+    sh_point *rows;
+    int nrows;
+    char note[160];
 } generation;
 
 struct run_models {
@@ -54,6 +67,7 @@ struct run_models {
     int nevicted;
     int builds;
     run_model *pinned;      /* the model last handed out: never evicted (the fallback) */
+    sh_landmarks_params lp; /* max_points 0: no landmarks */
 };
 
 static void model_free(run_model *md)
@@ -67,7 +81,18 @@ static void generation_free(generation *g)
 {
     if (!g) return;
     for (int i = 0; i < SLOTS; i++) model_free(&g->slot[i]);
+    sh_landmarks_destroy(g->lm);
+    free(g->luma), free(g->tags), free(g->rows);
     free(g);
+}
+
+static run_model *slot_for(run_models *m, generation *g, const int *ids, int n);
+
+/* The rows the models' keys are made from: the markers, then the landmarks when there are any. */
+static const sh_point *rows_of(const generation *g, int *n)
+{
+    *n = g->rows ? g->nrows : g->nref;
+    return g->rows ? g->rows : g->ref;
 }
 
 /* Builds md's models (its entry's key set) and what the residual needs beside them. */
@@ -114,11 +139,35 @@ static sh_status update_3d(const run_models *m, run_model *md, const double *cur
     return SH_OK;
 }
 
+/* The residual of a map through a subset: read off the warp model's own fit (sh_warp_model_eval),
+ * as a second fit would factor the subset's system again. */
+static sh_status residual_subset(run_model *md, const double *det_xy, double *residual)
+{
+    const sh_modelcache_entry *e = &md->e;
+    double worst = -1;
+    for (int k = 0; k < e->n; k++) {
+        double q[2];
+        if (!isfinite(det_xy[2 * k])) continue;
+        if (sh_warp_model_eval(e->model, e->ref_xy[2 * k], e->ref_xy[2 * k + 1], q) != SH_OK) {
+            worst = NAN;
+            break;
+        }
+        double r = hypot(q[0] - det_xy[2 * k], q[1] - det_xy[2 * k + 1]);
+        if (!(r <= worst)) worst = r; /* a NaN wins: never hidden */
+    }
+    *residual = worst;
+    return SH_OK;
+}
+
 sh_status run_model_update(run_model *md, const double *cur_xy, const double *cur_xyz, const double *det_xy,
-                           double *residual)
+                           const unsigned char *use, double *residual)
 {
     const sh_modelcache_entry *e = &md->e;
     if (e->m3) return update_3d(md->owner, md, cur_xyz, det_xy, residual);
+    if (use) {
+        sh_status st = sh_warp_model_update_subset(e->model, cur_xy, use);
+        return st == SH_OK ? residual_subset(md, det_xy, residual) : st;
+    }
     sh_status st = sh_warp_model_update(e->model, cur_xy);
     if (st != SH_OK) return st;
     /* The map at a marker's reference position, f(q) = q + D(q), against where the detector saw
@@ -167,13 +216,62 @@ sh_status run_residual(const sh_interp_params *params, const double *ref_xy, con
     }
     sh_status st = sh_modelcache_entry_set(&md->e, ref, n, ids, n);
     if (st == SH_OK) st = model_build(&m, md);
-    if (st == SH_OK) st = run_model_update(md, cur_xy, NULL, det_xy, residual);
+    if (st == SH_OK) st = run_model_update(md, cur_xy, NULL, det_xy, NULL, residual);
     model_free(md);
     free(md);
     return st;
 }
 
 /* ---- the helper thread ---- */
+/* Outside the lock: g's landmarks from its frame, inside its markers' hull and off its tags. g
+ * itself is not touched until the result is stored (under the lock) by the caller. */
+static sh_status choose_landmarks(const run_models *m, const generation *g, sh_landmarks **lm)
+{
+    double xy[2 * SH_TRACK_MAX_MARKERS];
+    for (int k = 0; k < g->nref; k++) xy[2 * k] = g->ref[k].x, xy[2 * k + 1] = g->ref[k].y;
+    sh_hull hull;
+    sh_plane luma = {g->luma, g->width, g->height, g->width};
+    sh_status st = sh_hull_compute(xy, g->nref, &hull);
+    if (st == SH_OK) st = sh_landmarks_create(&m->lp, &luma, &hull, g->tags, g->ntags, lm);
+    return st;
+}
+
+/* Under the lock, after choose_landmarks: g's rows (markers, then the landmarks) and its full-set
+ * slot, whose key holds them all. Without landmarks (none found, or the choice failed: the note
+ * says why) the markers go on alone. */
+static void landmarks_chosen(run_models *m, generation *g, sh_landmarks *lm, sh_status st)
+{
+    g->choosing = 0;
+    g->lm = lm;
+    g->nlm = st == SH_OK ? sh_landmarks_count(lm) : 0;
+    if (st != SH_OK)
+        snprintf(g->note, sizeof g->note, "landmarks not chosen: %s", sh_error_message());
+    else if (!g->nlm)
+        snprintf(g->note, sizeof g->note, "no landmarks found inside the markers' hull (no corner textured enough)");
+    if (g->nlm && !(g->rows = malloc(sizeof(sh_point) * (size_t)(g->nref + g->nlm)))) {
+        snprintf(g->note, sizeof g->note, "landmarks: out of memory");
+        g->nlm = 0;
+    }
+    if (!g->nlm) {
+        sh_landmarks_destroy(g->lm);
+        g->lm = NULL;
+    }
+    int ids[SH_TRACK_MAX_MARKERS + RUN_MAX_LANDMARKS];
+    for (int i = 0; i < g->nref; i++) ids[i] = g->ref[i].id;
+    if (g->nlm) {
+        memcpy(g->rows, g->ref, sizeof(sh_point) * (size_t)g->nref);
+        const float *at = sh_landmarks_reference(g->lm);
+        for (int k = 0; k < g->nlm; k++) {
+            g->rows[g->nref + k] = (sh_point){.frame = g->frame, .id = SH_LANDMARK_ID_BASE + k, .x = at[2 * k],
+                                              .y = at[2 * k + 1], .X = NAN, .Y = NAN, .Z = NAN};
+            ids[g->nref + k] = SH_LANDMARK_ID_BASE + k;
+        }
+        g->nrows = g->nref + g->nlm;
+    }
+    g->full = slot_for(m, g, ids, g->nref + g->nlm);
+    pthread_cond_broadcast(&m->cv);
+}
+
 static run_model *find_building(generation *g)
 {
     if (!g) return NULL;
@@ -200,6 +298,19 @@ static void *helper_main(void *arg)
             free(m->evicted[m->nevicted]);
             have_evicted = 1;
         }
+        generation *choose = m->next && m->next->choosing && !m->next->choice_taken ? m->next : NULL;
+        if (choose && !trash && !have_evicted) {
+            /* the landmarks before the full set's model, whose key holds them */
+            choose->choice_taken = 1;
+            pthread_mutex_unlock(&m->mu);
+            sh_landmarks *lm = NULL;
+            sh_status st = choose_landmarks(m, choose, &lm);
+            pthread_mutex_lock(&m->mu);
+            /* stored even when choose was replaced meanwhile (it then waits in the trash, and
+             * generation_free frees what it holds) */
+            landmarks_chosen(m, choose, lm, st);
+            continue;
+        }
         /* the next reference first: the running one still works meanwhile */
         run_model *job = find_building(m->next);
         generation *job_gen = job ? m->next : NULL;
@@ -220,7 +331,9 @@ static void *helper_main(void *arg)
         run_model tmp;
         memset(&tmp, 0, sizeof tmp);
         /* the key copied from the generation's reference, which only this thread frees */
-        sh_status st = sh_modelcache_entry_set(&tmp.e, job_gen->ref, job_gen->nref, job->e.ids, job->e.n);
+        int nrows;
+        const sh_point *rows = rows_of(job_gen, &nrows);
+        sh_status st = sh_modelcache_entry_set(&tmp.e, rows, nrows, job->e.ids, job->e.n);
         if (st != SH_OK) { /* out of memory: the set is marked failed like a model that would not build */
             job->state = FAILED;
             snprintf(job->err, sizeof job->err, "%s", sh_error_message());
@@ -338,14 +451,38 @@ static run_model *slot_for(run_models *m, generation *g, const int *ids, int n)
     }
     memset(victim, 0, sizeof *victim);
     /* fails for ids not in the reference (the caller's bug) or out of memory: asked again */
-    if (sh_modelcache_entry_set(&victim->e, g->ref, g->nref, ids, n) != SH_OK) return NULL;
+    int nrows;
+    const sh_point *rows = rows_of(g, &nrows);
+    if (sh_modelcache_entry_set(&victim->e, rows, nrows, ids, n) != SH_OK) return NULL;
     victim->state = BUILDING;
     victim->e.last_used = ++g->clock;
     pthread_cond_broadcast(&m->cv);
     return victim;
 }
 
-sh_status run_models_set_reference(run_models *m, const sh_point *ref, int n, int frame)
+void run_models_set_landmarks(run_models *m, const sh_landmarks_params *lp)
+{
+    m->lp = *lp;
+}
+
+/* g's copy of what the landmarks are chosen from. */
+static sh_status keep_frame(generation *g, const sh_plane *luma, const double *tags, int ntags)
+{
+    g->width = luma->width;
+    g->height = luma->height;
+    g->luma = malloc((size_t)luma->width * (size_t)luma->height);
+    g->tags = malloc(sizeof(double) * 8 * (size_t)(ntags > 0 ? ntags : 1));
+    if (!g->luma || !g->tags) return sh_error_set(SH_ENOMEM, "reference: out of memory for its frame");
+    for (int y = 0; y < luma->height; y++)
+        memcpy(g->luma + (size_t)y * luma->width, luma->data + (size_t)y * luma->stride, (size_t)luma->width);
+    if (ntags > 0) memcpy(g->tags, tags, sizeof(double) * 8 * (size_t)ntags);
+    g->ntags = ntags;
+    g->choosing = 1;
+    return SH_OK;
+}
+
+sh_status run_models_set_reference(run_models *m, const sh_point *ref, int n, int frame, const sh_plane *luma,
+                                   const double *tags, int ntags)
 {
     if (n < 1 || n > SH_TRACK_MAX_MARKERS) return sh_error_set(SH_EINVAL, "reference: %d markers", n);
     generation *g = calloc(1, sizeof *g);
@@ -353,15 +490,36 @@ sh_status run_models_set_reference(run_models *m, const sh_point *ref, int n, in
     memcpy(g->ref, ref, sizeof(sh_point) * (size_t)n);
     g->nref = n;
     g->frame = frame;
+    if (m->lp.max_points > 0 && !m->recipe.three_d) {
+        sh_status st = luma ? keep_frame(g, luma, tags, ntags) : sh_error_set(SH_EINVAL, "reference: no frame for the landmarks");
+        if (st != SH_OK) {
+            generation_free(g);
+            return st;
+        }
+    }
     int ids[SH_TRACK_MAX_MARKERS];
     for (int i = 0; i < n; i++) ids[i] = ref[i].id;
     pthread_mutex_lock(&m->mu);
     discard(m, m->next);
     m->next = g;
-    run_model *s = g->full = slot_for(m, g, ids, n);
-    while (m->wait && s && s->state == BUILDING) pthread_cond_wait(&m->cv, &m->mu);
+    if (g->choosing) /* the helper chooses them, then asks for the full set */
+        pthread_cond_broadcast(&m->cv);
+    else
+        g->full = slot_for(m, g, ids, n);
+    while (m->wait && (g->choosing || (g->full && g->full->state == BUILDING))) pthread_cond_wait(&m->cv, &m->mu);
     pthread_mutex_unlock(&m->mu);
     return SH_OK;
+}
+
+sh_landmarks *run_models_landmarks(run_models *m)
+{
+    /* cur changes only in run_models_poll, on the calling (processing) thread */
+    return m->cur ? m->cur->lm : NULL;
+}
+
+const char *run_models_landmarks_note(const run_models *m)
+{
+    return m->cur ? m->cur->note : "";
 }
 
 int run_models_poll(run_models *m, int *frame, int *n)
@@ -369,7 +527,7 @@ int run_models_poll(run_models *m, int *frame, int *n)
     pthread_mutex_lock(&m->mu);
     int swapped = 0;
     /* the swap waits for the full-set model (slot 0 of a fresh generation) */
-    if (m->next && (!m->next->full || m->next->full->state != BUILDING)) {
+    if (m->next && !m->next->choosing && (!m->next->full || m->next->full->state != BUILDING)) {
         discard(m, m->cur);
         m->pinned = NULL;
         m->cur = m->next;
@@ -400,6 +558,15 @@ const sh_point *run_models_reference(const run_models *m, int *n)
 int run_models_get(run_models *m, const int *ids, int n, run_model **out)
 {
     if (!m->cur) return 0;
+    /* every model of a reference with landmarks holds them all (a frame picks its subset) */
+    int key[SH_TRACK_MAX_MARKERS + RUN_MAX_LANDMARKS], nlm = m->cur->nlm;
+    if (nlm) {
+        if (n > SH_TRACK_MAX_MARKERS) return sh_error_set(SH_EINVAL, "model: %d markers", n), -1;
+        memcpy(key, ids, sizeof(int) * (size_t)n);
+        for (int k = 0; k < nlm; k++) key[n + k] = SH_LANDMARK_ID_BASE + k;
+        ids = key;
+        n += nlm;
+    }
     pthread_mutex_lock(&m->mu);
     run_model *s = slot_for(m, m->cur, ids, n);
     while (m->wait && s && s->state == BUILDING) pthread_cond_wait(&m->cv, &m->mu);
@@ -447,5 +614,14 @@ const int *run_model_ids(const run_model *md, int *n)
     *n = md->e.n;
     return md->e.ids;
 }
+
+int run_model_markers(const run_model *md)
+{
+    int k = 0;
+    while (k < md->e.n && md->e.ids[k] < SH_LANDMARK_ID_BASE) k++;
+    return k;
+}
+
+const double *run_model_ref_xy(const run_model *md) { return md->e.ref_xy; }
 
 int run_models_builds(const run_models *m) { return m->builds; }

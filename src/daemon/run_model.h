@@ -7,6 +7,7 @@
 #include "stillheart/calib.h"
 #include "stillheart/core.h"
 #include "stillheart/interp.h"
+#include "stillheart/landmarks.h"
 #include "stillheart/points.h"
 #include "stillheart/track.h"
 #include "stillheart/warp.h"
@@ -30,9 +31,24 @@ sh_status run_models_create(const sh_interp_params *params, const sh_warp_option
  * eyes of a stereo pair around it (sh_warp3d_stereo_cameras). */
 sh_status run_models_set_3d(run_models *m, const sh_calib *calib, int camera, double baseline);
 void run_models_destroy(run_models *m);
+/* Natural landmarks (issue 19, landmarks.h; 2D, before the first reference): with
+ * lp->max_points > 0 every new reference chooses up to that many landmarks in its frame (on the
+ * helper thread, before its full-set model is built: a corner search takes tens of ms), and every
+ * model of that reference holds them after its markers, ids SH_LANDMARK_ID_BASE + k, so that a
+ * frame uses any subset of them without a new model (run_model_update's use). */
+void run_models_set_landmarks(run_models *m, const sh_landmarks_params *lp);
+#define RUN_MAX_LANDMARKS 2000 /* [track] landmarks' bound (config.c) */
 /* Requests a new reference (markers sorted by id, n <= SH_TRACK_MAX_MARKERS); its full-set model is
- * built first. A reference still being built is replaced. frame: for the log. */
-sh_status run_models_set_reference(run_models *m, const sh_point *ref, int n, int frame);
+ * built first. A reference still being built is replaced. frame: for the log. With landmarks:
+ * luma, the reference frame's luma plane, and tags (ntags quads, 8 doubles each: the markers'
+ * corners, which landmarks keep off) are copied; otherwise they may be NULL. */
+sh_status run_models_set_reference(run_models *m, const sh_point *ref, int n, int frame, const sh_plane *luma,
+                                   const double *tags, int ntags);
+/* The reference in use's landmarks, NULL when it has none (none asked, none found, or their
+ * choice failed: run_models_landmarks_note says why); for the processing thread alone. */
+sh_landmarks *run_models_landmarks(run_models *m);
+/* Why the reference in use has no landmarks though they were asked for ("" otherwise). */
+const char *run_models_landmarks_note(const run_models *m);
 /* Swaps in a new reference once its full-set model is built: returns 1 (and its frame and
  * marker count) when it did, 0 otherwise. */
 int run_models_poll(run_models *m, int *frame, int *n);
@@ -46,10 +62,15 @@ int run_models_get(run_models *m, const int *ids, int n, run_model **out);
 /* Map for the current positions cur_xy (n points in the model's id order, x0,y0,x1,y1,...) and
  * the residual: the largest distance, over the markers detected this frame, between where the
  * map puts the marker's reference position and where the detector saw it (det_xy; NaN for a
- * marker not detected). *residual is -1 when no marker was detected, NaN if the map cannot be
- * evaluated at a marker. */
+ * marker not detected, and for every landmark). *residual is -1 when no marker was detected, NaN
+ * if the map cannot be evaluated at a marker. use: NULL, or per point whether the map goes
+ * through it (a landmark refused this frame is left out, 2D only). */
 sh_status run_model_update(run_model *md, const double *cur_xy, const double *cur_xyz, const double *det_xy,
-                           double *residual);
+                           const unsigned char *use, double *residual);
+/* The model's markers: the first run_model_markers(md) of its ids (the rest are landmarks), and
+ * the reference positions of all its points (2 n doubles, the ids' order). */
+int run_model_markers(const run_model *md);
+const double *run_model_ref_xy(const run_model *md);
 /* The map a frame is warped with: the 2D model's, or the first 3D view's. */
 const sh_warp_model *run_model_warp(const run_model *md);
 /* 3D: the model's views (views[v] NULL past their count): 1, the output camera's own, or 2, the

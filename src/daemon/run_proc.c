@@ -10,6 +10,8 @@
 #include "run_model.h"
 #include "run_track.h"
 #include "run_proc.h"
+#include "stillheart/detect.h"
+#include "stillheart/landmarks.h"
 #include "stillheart/log.h"
 
 struct run_proc {
@@ -38,9 +40,23 @@ struct run_proc {
     int moving, still, await_ref;
     int calib_off;        /* the calibration does not fit what the cameras see (logged once) */
     double moved_px;      /* largest one-frame motion of this episode */
-    /* the markers the last warped frame's map was made from (run_proc_markers) */
-    int used_n, used_ids[SH_TRACK_MAX_MARKERS];
-    double used_xy[2 * SH_TRACK_MAX_MARKERS];
+    /* the markers (and landmarks) the last warped frame's map was made from (run_proc_markers);
+     * room for SH_TRACK_MAX_MARKERS + lm_cap points */
+    int used_n, *used_ids;
+    double *used_xy;
+    /* [track] landmarks (2D; lm_cap 0: none): the model's points are its markers, then the
+     * reference's landmarks; this frame's positions, detections and which are used */
+    int lm_cap;
+    sh_detector *lm_det;        /* test mode: the reference frame's tags (the tracker has them otherwise) */
+    sh_image lm_gray;           /* an RGB24 frame's luma */
+    float *lm_pred, *lm_xy;     /* lm_cap pairs */
+    uint8_t *lm_verdict;
+    double *all_xy, *all_det;   /* (SH_TRACK_MAX_MARKERS + lm_cap) pairs */
+    unsigned char *all_use;
+    long long lm_verdicts[SH_LANDMARK_VERDICTS];
+    int lm_frames, lm_accepted; /* frames the landmarks were looked for in; this frame's accepted */
+    double lm_ms;               /* this frame's landmark stage, CPU ms */
+    sh_log_limit lm_err;
 };
 
 #define RUN_SETTLE_FRAMES 2
@@ -58,6 +74,40 @@ void run_proc_times(const run_proc *p, double *markers_ms, double *model_ms, dou
     *markers_ms = p->ms[0];
     *model_ms = p->ms[1];
     *warp_ms = p->ms[2];
+}
+
+void run_proc_landmarks(const run_proc *p, int *accepted, double *ms)
+{
+    *accepted = p->lm_accepted;
+    *ms = p->lm_ms;
+}
+
+/* The buffers of [track] landmarks (and of the points a map is made from, which they join). */
+static sh_status landmarks_create(run_proc *p, const sh_config *cfg)
+{
+    p->lm_cap = p->three_d ? 0 : cfg->landmarks;
+    size_t most = SH_TRACK_MAX_MARKERS + (size_t)p->lm_cap;
+    p->used_ids = malloc(sizeof(int) * most);
+    p->used_xy = malloc(sizeof(double) * 2 * most);
+    if (!p->used_ids || !p->used_xy) return sh_error_set(SH_ENOMEM, "processing: out of memory");
+    if (!p->lm_cap) return SH_OK;
+    p->lm_pred = malloc(sizeof(float) * 2 * (size_t)p->lm_cap);
+    p->lm_xy = malloc(sizeof(float) * 2 * (size_t)p->lm_cap);
+    p->lm_verdict = malloc((size_t)p->lm_cap);
+    p->all_xy = malloc(sizeof(double) * 2 * most);
+    p->all_det = malloc(sizeof(double) * 2 * most);
+    p->all_use = malloc(most);
+    if (!p->lm_pred || !p->lm_xy || !p->lm_verdict || !p->all_xy || !p->all_det || !p->all_use)
+        return sh_error_set(SH_ENOMEM, "processing: out of memory for %d landmarks", p->lm_cap);
+    sh_landmarks_params lp;
+    sh_landmarks_params_default(&lp);
+    lp.max_points = p->lm_cap;
+    run_models_set_landmarks(p->models, &lp);
+    if (!cfg->points[0]) return SH_OK;
+    sh_detector_options dopt;
+    sh_detector_options_default(&dopt);
+    dopt.family = cfg->family;
+    return sh_detector_create(&dopt, &p->lm_det);
 }
 
 /* The most favourable layout of n markers a width x height frame allows (n >= 3): the centres of
@@ -171,6 +221,7 @@ sh_status run_proc_create(const sh_config *cfg, const sh_y4m_header *hdr, double
         st = run_tracker_create(cfg, p->three_d ? &p->calib : NULL, p->out_cam, hdr->width, hdr->height, p->fps,
                                 &p->tracker);
     }
+    if (st == SH_OK) st = landmarks_create(p, cfg);
     if (st != SH_OK) {
         run_proc_destroy(p);
         return st;
@@ -187,6 +238,19 @@ void run_proc_destroy(run_proc *p)
         run_tracker_summary(p->tracker, line, sizeof line);
         sh_log_info("%s", line);
     }
+    if (p->lm_frames) {
+        const long long *v = p->lm_verdicts;
+        long long all = 0;
+        for (int i = 0; i < SH_LANDMARK_VERDICTS; i++) all += v[i];
+        sh_log_info("landmarks: %d frames, %lld landmark-frames: accepted %lld, lost %lld, photometric %lld, "
+                    "backward %lld, disagrees %lld, deviates %lld", p->lm_frames, all, v[SH_LANDMARK_ACCEPTED],
+                    v[SH_LANDMARK_LOST], v[SH_LANDMARK_PHOTOMETRIC], v[SH_LANDMARK_BACKWARD],
+                    v[SH_LANDMARK_DISAGREES], v[SH_LANDMARK_DEVIATES]);
+    }
+    sh_detector_destroy(p->lm_det);
+    sh_image_destroy(&p->lm_gray);
+    free(p->lm_pred), free(p->lm_xy), free(p->lm_verdict), free(p->all_xy), free(p->all_det), free(p->all_use);
+    free(p->used_ids), free(p->used_xy);
     run_models_destroy(p->models);
     run_tracker_destroy(p->tracker);
     sh_points_destroy(&p->points);
@@ -232,6 +296,9 @@ static int markers(run_proc *p, const sh_image *img, const sh_image *const *cams
         const sh_point *rows = sh_points_frame(&p->points, index, &cnt);
         for (int i = 0; i < cnt && n < SH_TRACK_MAX_MARKERS; i++) {
             const sh_point *r = &rows[i];
+            /* a file of `stillheart track --landmarks` holds landmark rows: not markers ([track]
+             * landmarks follows its own) */
+            if (r->id >= SH_LANDMARK_ID_BASE) continue;
             if (!isfinite(r->x) || !isfinite(r->y) || (p->three_d && !(isfinite(r->X) && isfinite(r->Y) && isfinite(r->Z))))
                 continue;
             p->mk[n] = (run_marker){.id = r->id, .x = r->x, .y = r->y, .dx = r->x, .dy = r->y, .sigma = 0, .age = 0,
@@ -253,7 +320,33 @@ static int markers(run_proc *p, const sh_image *img, const sh_image *const *cams
     return n;
 }
 
-static void take_reference(run_proc *p, int index, int nm)
+/* With landmarks: the reference frame's luma and its tags' corners (the tracker's detections of
+ * this frame; in test mode a detection of the whole frame), for run_models_set_reference. 0 when
+ * they cannot be had (logged): the reference waits for a later frame. */
+static int reference_frame(run_proc *p, const sh_image *img, const sh_plane **luma, double *tags, int *ntags)
+{
+    *ntags = 0;
+    if (!p->lm_cap) return 1;
+    sh_detection own[SH_TRACK_MAX_DETECTIONS];
+    const sh_detection *d = own;
+    int n = 0;
+    sh_status st = sh_landmarks_luma(img, &p->lm_gray, luma);
+    if (st == SH_OK && p->tracker)
+        n = run_tracker_detections(p->tracker, &d);
+    else if (st == SH_OK)
+        st = sh_detector_detect(p->lm_det, img, own, SH_TRACK_MAX_DETECTIONS, &n);
+    if (st != SH_OK) {
+        sh_log_limited(&p->lm_err, SH_LOG_ERROR, "reference: landmarks: %s", sh_error_message());
+        return 0;
+    }
+    if (n > SH_TRACK_MAX_DETECTIONS) n = SH_TRACK_MAX_DETECTIONS;
+    for (int i = 0; i < n; i++)
+        for (int k = 0; k < 4; k++) tags[8 * i + 2 * k] = d[i].corner[k][0], tags[8 * i + 2 * k + 1] = d[i].corner[k][1];
+    *ntags = n;
+    return 1;
+}
+
+static void take_reference(run_proc *p, const sh_image *img, int index, int nm)
 {
     sh_point ref[SH_TRACK_MAX_MARKERS];
     int n = 0;
@@ -267,7 +360,11 @@ static void take_reference(run_proc *p, int index, int nm)
             : p->cfg.reference_frame > 0 ? index == p->cfg.reference_frame - 1
             : n >= p->cfg.min_markers;
     if (!due || n < 3) return;
-    if (run_models_set_reference(p->models, ref, n, index) != SH_OK) {
+    const sh_plane *luma = NULL;
+    double tags[8 * SH_TRACK_MAX_DETECTIONS];
+    int ntags;
+    if (!reference_frame(p, img, &luma, tags, &ntags)) return;
+    if (run_models_set_reference(p->models, ref, n, index, luma, tags, ntags) != SH_OK) {
         sh_log_error("reference: %s", sh_error_message());
         return;
     }
@@ -280,8 +377,8 @@ static void take_reference(run_proc *p, int index, int nm)
 static int fallback(run_proc *p, int nm, double *xy, double *xyz, double *det)
 {
     if (!p->last) return 0;
-    int n;
-    const int *ids = run_model_ids(p->last, &n);
+    int n = run_model_markers(p->last); /* its landmarks are found by landmarks() */
+    const int *ids = run_model_ids(p->last, &(int){0});
     for (int k = 0, c = 0; k < n; k++) {
         while (c < nm && p->mk[c].id < ids[k]) c++;
         if (c == nm || p->mk[c].id != ids[k] || p->mk[c].sigma > p->cfg.max_sigma_px) return 0;
@@ -360,16 +457,22 @@ static int camera_motion(run_proc *p, int index, sh_display_frame_info *info)
 
 /* The gates before any model: a moving camera, a calibration that does not fit, a reference
  * awaited or not there yet. 1 when the frame goes on (the reference in use in *ref, *nref). */
-static int reference_ready(run_proc *p, int index, int nm, sh_display_frame_info *info, const sh_point **ref,
-                           int *nref)
+static int reference_ready(run_proc *p, const sh_image *img, int index, int nm, sh_display_frame_info *info,
+                           const sh_point **ref, int *nref)
 {
     if (camera_motion(p, index, info) || calibration_off(p, index, info)) return 0;
-    take_reference(p, index, nm);
+    take_reference(p, img, index, nm);
     int ref_frame, ref_n;
     if (run_models_poll(p->models, &ref_frame, &ref_n)) {
         p->last = NULL; /* it belonged to the old reference, now freed */
         p->await_ref = 0;
-        sh_log_info("reference: frame %d, %d markers", ref_frame, ref_n);
+        sh_landmarks *lm = run_models_landmarks(p->models);
+        if (lm)
+            sh_log_info("reference: frame %d, %d markers, %d landmarks", ref_frame, ref_n, sh_landmarks_count(lm));
+        else if (p->lm_cap)
+            sh_log_warn("reference: frame %d, %d markers; %s", ref_frame, ref_n, run_models_landmarks_note(p->models));
+        else
+            sh_log_info("reference: frame %d, %d markers", ref_frame, ref_n);
     }
     if (p->await_ref) {
         /* the old reference is a view the camera has left: the live picture until the new one */
@@ -485,6 +588,70 @@ static const sh_image *raw(run_proc *p, const sh_image *img)
 static const sh_image *frame(run_proc *p, const sh_image *img, const sh_image *const *cams, int index,
                              unsigned epoch, sh_display_frame_info *info);
 
+/* A model with landmarks (ids after its markers'): this frame's positions of all its points into
+ * p->all_xy (the markers' xy, then each landmark found in img), their detections into p->all_det
+ * (NaN for the landmarks: the residual is the markers'), and which the map goes through into
+ * p->all_use (the markers, and the landmarks landmarks.h accepts). Each landmark's search starts
+ * where the markers' TPS map puts it, as in `stillheart track --landmarks`, whatever [method]
+ * is. A failure leaves every landmark out (the markers' map alone), logged. */
+static void landmarks(run_proc *p, const run_model *md, const sh_image *img, const double *xy, const double *det)
+{
+    double t0 = now_ms();
+    int n, nmk = run_model_markers(md);
+    run_model_ids(md, &n);
+    int nlm = n - nmk;
+    sh_landmarks *lm = run_models_landmarks(p->models);
+    memcpy(p->all_xy, xy, sizeof(double) * 2 * (size_t)nmk);
+    memcpy(p->all_det, det, sizeof(double) * 2 * (size_t)nmk);
+    memset(p->all_use, 1, (size_t)nmk);
+    memset(p->all_use + nmk, 0, (size_t)nlm);
+    p->lm_accepted = 0;
+    sh_interp_params tps;
+    sh_interp_params_default(&tps, SH_METHOD_TPS);
+    const sh_plane *y;
+    sh_landmarks_counts c;
+    sh_status st = lm && sh_landmarks_count(lm) == nlm ? SH_OK
+                                                       : sh_error_set(SH_EINVAL, "the model's landmarks are not the reference's");
+    if (st == SH_OK) st = sh_landmarks_luma(img, &p->lm_gray, &y);
+    if (st == SH_OK)
+        st = sh_interp_map_points(&tps, run_model_ref_xy(md), xy, nmk, sh_landmarks_reference(lm), nlm, p->lm_pred);
+    if (st == SH_OK) st = sh_landmarks_track(lm, y, p->lm_pred, p->lm_xy, p->lm_verdict, &c);
+    if (st != SH_OK) {
+        sh_log_limited(&p->lm_err, SH_LOG_ERROR, "landmarks: %s (the markers alone)", sh_error_message());
+    } else {
+        sh_log_limit_clear(&p->lm_err);
+        for (int k = 0; k < nlm; k++) {
+            p->all_xy[2 * (nmk + k)] = p->lm_xy[2 * k];
+            p->all_xy[2 * (nmk + k) + 1] = p->lm_xy[2 * k + 1];
+            p->all_use[nmk + k] = p->lm_verdict[k] == SH_LANDMARK_ACCEPTED;
+        }
+        for (int v = 0; v < SH_LANDMARK_VERDICTS; v++) p->lm_verdicts[v] += c.verdicts[v];
+        p->lm_accepted = c.verdicts[SH_LANDMARK_ACCEPTED];
+        p->lm_frames++;
+    }
+    for (int k = nmk; k < n; k++) {
+        if (!p->all_use[k]) p->all_xy[2 * k] = p->all_xy[2 * k + 1] = NAN; /* never read */
+        p->all_det[2 * k] = p->all_det[2 * k + 1] = NAN;
+    }
+    p->lm_ms = now_ms() - t0;
+}
+
+/* The points the last warped frame's map went through: the model's markers, then the landmarks
+ * it used. */
+static void keep_used(run_proc *p, const run_model *md, const double *xy, const unsigned char *use)
+{
+    int mn;
+    const int *mids = run_model_ids(md, &mn);
+    p->used_n = 0;
+    for (int k = 0; k < mn; k++) {
+        if (use && !use[k]) continue;
+        p->used_ids[p->used_n] = mids[k];
+        p->used_xy[2 * p->used_n] = xy[2 * k];
+        p->used_xy[2 * p->used_n + 1] = xy[2 * k + 1];
+        p->used_n++;
+    }
+}
+
 const sh_image *run_proc_frame(run_proc *p, const sh_image *img, const sh_image *const *cams, int index,
                                unsigned epoch, sh_display_frame_info *info)
 {
@@ -498,6 +665,8 @@ static const sh_image *frame(run_proc *p, const sh_image *img, const sh_image *c
 {
     double t0 = now_ms();
     p->ms[0] = p->ms[1] = p->ms[2] = 0;
+    p->lm_ms = 0;
+    p->lm_accepted = 0;
     int nm = markers(p, img, cams, index, epoch);
     double t1 = now_ms();
     p->ms[0] = t1 - t0;
@@ -508,7 +677,7 @@ static const sh_image *frame(run_proc *p, const sh_image *img, const sh_image *c
     const sh_point *ref;
     int nref;
     run_selection sel;
-    if (!reference_ready(p, index, nm, info, &ref, &nref) || !selection_ok(p, ref, nref, nm, &sel, info))
+    if (!reference_ready(p, img, index, nm, info, &ref, &nref) || !selection_ok(p, ref, nref, nm, &sel, info))
         return img;
     run_positions fb;
     int building = 0;
@@ -516,10 +685,17 @@ static const sh_image *frame(run_proc *p, const sh_image *img, const sh_image *c
     if (!md) return img;
     const double *xy = building ? fb.xy : sel.xy, *xyz = building ? fb.xyz : sel.xyz,
                  *det = building ? fb.det : sel.det;
+    const unsigned char *use = NULL;
+    int npts;
+    run_model_ids(md, &npts);
+    if (npts > run_model_markers(md)) { /* the reference has landmarks */
+        landmarks(p, md, img, xy, det);
+        xy = p->all_xy, det = p->all_det, use = p->all_use;
+    }
     double residual;
-    sh_status ust = run_model_update(md, xy, xyz, det, &residual);
+    sh_status ust = run_model_update(md, xy, xyz, det, use, &residual);
     double t2 = now_ms();
-    p->ms[1] = t2 - t1;
+    p->ms[1] = t2 - t1 - p->lm_ms;
     if (ust != SH_OK) {
         reason(info, "model update failed");
         return img;
@@ -540,11 +716,7 @@ static const sh_image *frame(run_proc *p, const sh_image *img, const sh_image *c
         reason(info, "warp failed");
         return img;
     }
-    int mn;
-    const int *mids = run_model_ids(md, &mn);
-    p->used_n = mn;
-    memcpy(p->used_ids, mids, sizeof(int) * (size_t)mn);
-    memcpy(p->used_xy, xy, sizeof(double) * 2 * (size_t)mn);
+    keep_used(p, md, xy, use);
     warped_status(&sel, building, info);
     return &p->out;
 }

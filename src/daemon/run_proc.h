@@ -36,12 +36,16 @@ void run_proc_request_reference(run_proc *p);
 const sh_image *run_proc_frame(run_proc *p, const sh_image *img, const sh_image *const *cams, int index,
                                unsigned epoch, sh_display_frame_info *info);
 int run_proc_builds(const run_proc *p);
-/* The markers (ids and output-camera positions) the last frame's map was made from: their count,
- * 0 when that frame was shown raw. Valid until the next run_proc_frame. */
+/* The markers (ids and output-camera positions) the last frame's map was made from, then the
+ * landmarks it used (ids from SH_LANDMARK_ID_BASE): their count, 0 when that frame was shown raw.
+ * Valid until the next run_proc_frame. */
 int run_proc_markers(const run_proc *p, const int **ids, const double **xy);
 /* The processing thread's CPU time in the last frame's stages, ms (the warp's helper threads
  * not counted): markers (detection and tracker), model (selection,
  * model lookup, map update, residual), warp (with [sink] outside's fill; 0 when not warped). */
 void run_proc_times(const run_proc *p, double *markers_ms, double *model_ms, double *warp_ms);
+/* [track] landmarks: the last frame's accepted landmarks and the CPU ms their stage took (the
+ * prediction, the search and the tests; not in model_ms); 0 and 0 without landmarks. */
+void run_proc_landmarks(const run_proc *p, int *accepted, double *ms);
 
 #endif

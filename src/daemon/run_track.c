@@ -20,6 +20,7 @@ struct run_tracker {
     int last_index, frame, started;
     unsigned epoch;
     sh_detection dets[SH_TRACK_MAX_CAMERAS][MAX_DET];
+    int ndets[SH_TRACK_MAX_CAMERAS]; /* the last frame's, after merging */
     sh_window win[SH_TRACK_MAX_MARKERS + 1];
     sh_track_estimate est[SH_TRACK_MAX_MARKERS];
 };
@@ -71,6 +72,12 @@ void run_tracker_destroy(run_tracker *rt)
 }
 
 double run_tracker_fps(const run_tracker *rt) { return rt->opts.fps; }
+
+int run_tracker_detections(const run_tracker *rt, const sh_detection **out)
+{
+    *out = rt->dets[rt->out_cam];
+    return rt->ndets[rt->out_cam];
+}
 
 void run_tracker_motion(const run_tracker *rt, sh_track_motion *out) { sh_tracker_motion(rt->t, out); }
 
@@ -141,6 +148,7 @@ sh_status run_tracker_frame(run_tracker *rt, const sh_image *const *cams, int in
         if (st != SH_OK) nd = 0; /* a detector failure is a frame without detections */
         count[c] = merge_copies(rt->dets[c], nd < MAX_DET ? nd : MAX_DET);
     }
+    memcpy(rt->ndets, count, sizeof(int) * (size_t)rt->ncam);
     rt->started = 1;
     st = sh_tracker_update(rt->t, dp, count, rt->ncam);
     if (st != SH_OK) return st;

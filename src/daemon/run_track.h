@@ -40,6 +40,8 @@ void run_tracker_destroy(run_tracker *t);
  * camera) or a new epoch (a discontinuity, run_frame) restarts the tracker. */
 sh_status run_tracker_frame(run_tracker *t, const sh_image *const *cams, int index, unsigned epoch, run_marker *out,
                             int *n);
+/* The output camera's detections of the last frame (their count; 0 before the first). */
+int run_tracker_detections(const run_tracker *t, const sh_detection **out);
 /* What the last frame's detections said that the motion model did not expect (a moved camera). */
 void run_tracker_motion(const run_tracker *t, sh_track_motion *out);
 /* 3D: how well the calibration fits what the cameras see (sh_tracker_calibration). */

@@ -472,3 +472,24 @@ sh_status sh_landmarks_track(sh_landmarks *lm, const sh_plane *luma, const float
         for (int i = 0; i < n; i++) counts->verdicts[verdict[i]]++;
     return SH_OK;
 }
+
+sh_status sh_landmarks_luma(const sh_image *f, sh_image *buf, const sh_plane **out)
+{
+    if (f->format != SH_PIX_RGB24) {
+        *out = &f->plane[0];
+        return SH_OK;
+    }
+    if (!buf->owned || buf->width != f->width || buf->height != f->height) {
+        sh_image_destroy(buf);
+        sh_status st = sh_image_create(buf, SH_PIX_GRAY8, f->width, f->height);
+        if (st != SH_OK) return st;
+    }
+    for (int y = 0; y < f->height; y++) {
+        const uint8_t *in = f->plane[0].data + (size_t)y * f->plane[0].stride;
+        uint8_t *o = buf->plane[0].data + (size_t)y * buf->plane[0].stride;
+        for (int x = 0; x < f->width; x++)
+            o[x] = (uint8_t)((77 * in[3 * x] + 150 * in[3 * x + 1] + 29 * in[3 * x + 2] + 128) >> 8);
+    }
+    *out = &buf->plane[0];
+    return SH_OK;
+}

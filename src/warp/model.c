@@ -19,6 +19,7 @@ void sh_warp_options_default(sh_warp_options *opts)
 {
     opts->max_error = 0.05;
     opts->grid_spacing = 16;
+    opts->hull_points = 0;
 }
 
 static void free_grid(sh_warp_model *m)
@@ -189,7 +190,11 @@ sh_status sh_warp_model_create(const sh_interp *interp, const double *ref_xy, in
         st = sh_error_set(SH_EINVAL, "warp: max_error must be > 0 and grid spacing a power of two");
         goto fail;
     }
-    if ((st = sh_hull_compute(ref_xy, n, &m->hull)) != SH_OK) goto fail;
+    if (m->opts.hull_points < 0 || m->opts.hull_points > n) {
+        st = sh_error_set(SH_EINVAL, "warp: hull of %d points out of %d", m->opts.hull_points, n);
+        goto fail;
+    }
+    if ((st = sh_hull_compute(ref_xy, m->opts.hull_points ? m->opts.hull_points : n, &m->hull)) != SH_OK) goto fail;
 
     double *ref = malloc(sizeof(double) * 2 * (size_t)n);
     m->disp = malloc(sizeof(double) * 2 * (size_t)n);
@@ -479,6 +484,40 @@ sh_status sh_warp_model_update_subset(sh_warp_model *m, const double *cur_xy, co
             m->error_bound = grid_error_bound(m);
         }
         return SH_OK;
+    }
+    return SH_EINVAL;
+}
+
+sh_status sh_warp_model_eval(const sh_warp_model *m, double x, double y, double *out)
+{
+    switch (m->kind) {
+    case MODEL_AFFINE:
+        out[0] = m->affine[0] + m->affine[1] * x + m->affine[2] * y;
+        out[1] = m->affine[3] + m->affine[4] * x + m->affine[5] * y;
+        return SH_OK;
+    case MODEL_GRID: {
+        double d[2] = {0, 0};
+        sh_status st = sh_interp_eval(m->interp, m->coef, 2, x, y, d);
+        out[0] = x + d[0];
+        out[1] = y + d[1];
+        return st;
+    }
+    case MODEL_TRIANGLES:
+        for (int t = 0; t < m->ntri; t++) {
+            const int *v = m->tri + 3 * t;
+            const double *p0 = m->ref_xy + 2 * v[0], *p1 = m->ref_xy + 2 * v[1], *p2 = m->ref_xy + 2 * v[2];
+            double ux = p1[0] - p0[0], uy = p1[1] - p0[1], vx = p2[0] - p0[0], vy = p2[1] - p0[1];
+            double det = ux * vy - vx * uy, wx = x - p0[0], wy = y - p0[1];
+            double b1 = (wx * vy - vx * wy) / det, b2 = (ux * wy - wx * uy) / det;
+            /* a point on a shared edge belongs to either triangle: both give the same map there */
+            if (b1 < -1e-9 || b2 < -1e-9 || b1 + b2 > 1 + 1e-9) continue;
+            const double *a = m->tri_map + 6 * t;
+            out[0] = a[0] + a[1] * x + a[2] * y;
+            out[1] = a[3] + a[4] * x + a[5] * y;
+            return SH_OK;
+        }
+        out[0] = out[1] = NAN;
+        return sh_error_set(SH_ERANGE, "warp: (%g, %g) is outside the triangulation", x, y);
     }
     return SH_EINVAL;
 }

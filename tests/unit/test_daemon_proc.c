@@ -141,7 +141,7 @@ static void test_models_swap(void **state)
         ids[i] = i;
     }
     assert_null(run_models_reference(m, &nref));
-    assert_int_equal(run_models_set_reference(m, ref, N, 3), SH_OK);
+    assert_int_equal(run_models_set_reference(m, ref, N, 3, NULL, NULL, 0), SH_OK);
     int swapped = 0;
     for (int t = 0; t < 2000 && !swapped; t++) {
         swapped = run_models_poll(m, &frame, &n);
@@ -154,7 +154,7 @@ static void test_models_swap(void **state)
     assert_int_equal(run_models_get(m, ids, N, &md), 1); /* the full set came with the swap */
     /* second reference: until swapped, the first stays (same pointer, same positions) */
     for (int i = 0; i < N; i++) ref[i].x += 1;
-    assert_int_equal(run_models_set_reference(m, ref, N, 9), SH_OK);
+    assert_int_equal(run_models_set_reference(m, ref, N, 9, NULL, NULL, 0), SH_OK);
     assert_true(run_models_pending(m));
     const sh_point *r0 = run_models_reference(m, &nref);
     assert_true(r0 && r0[0].x == xy[0]);

@@ -158,11 +158,32 @@ static void test_update_subset(void **state)
             }
         assert_true(both > (long)w * h / 4);
         if (!(worst <= 0.1)) fail_msg("%s: the subset's map differs by %.4f px", methods[k], worst);
+        /* the exact map (no grid) at the markers' positions: the same function */
+        for (int i = 0; i < s; i++) {
+            double a[2], b[2];
+            assert_int_equal(sh_warp_model_eval(all.model, sref[2 * i], sref[2 * i + 1], a), SH_OK);
+            assert_int_equal(sh_warp_model_eval(sub.model, sref[2 * i], sref[2 * i + 1], b), SH_OK);
+            assert_true(fabs(a[0] - b[0]) < 1e-6 && fabs(a[1] - b[1]) < 1e-6);
+            if (k == 0) /* tps interpolates: through the used points themselves */
+                assert_true(fabs(a[0] - scur[2 * i]) < 1e-6 && fabs(a[1] - scur[2 * i + 1]) < 1e-6);
+        }
         unbuild(&all);
         unbuild(&sub);
     }
     built pw = build("pwlinear", ref, n, w, h, NULL);
     assert_int_equal(sh_warp_model_update_subset(pw.model, cur, use), SH_EINVAL);
+    /* piecewise linear through every point: its exact map passes through them, and is undefined
+     * outside their hull */
+    built pws = build("pwlinear", sref, s, w, h, NULL);
+    assert_int_equal(sh_warp_model_update(pws.model, scur), SH_OK);
+    for (int i = 0; i < s; i++) {
+        double a[2];
+        assert_int_equal(sh_warp_model_eval(pws.model, sref[2 * i], sref[2 * i + 1], a), SH_OK);
+        assert_true(fabs(a[0] - scur[2 * i]) < 1e-9 && fabs(a[1] - scur[2 * i + 1]) < 1e-9);
+    }
+    double far[2];
+    assert_int_equal(sh_warp_model_eval(pws.model, -50, -50, far), SH_ERANGE);
+    unbuild(&pws);
     unbuild(&pw);
     free(ma), free(mb);
 }

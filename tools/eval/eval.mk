@@ -55,7 +55,7 @@ table2: $(EVAL_BIN) $(PLOT_BIN) $(BUILD)/stillheart-render $(APP)
 	@sh tools/eval/table2.sh $(BUILD) $(TABLE2_DIR)
 
 # --landmarks on a rendered phantom with occlusions, judged against its truth; and
-# `stillheart track --landmarks` through `stillheart warp`.
+# `stillheart track --landmarks` through `stillheart warp`; the daemon's [track] landmarks against both.
 $(BUILD)/tools/eval/tests/test_eval_landmarks.o: CFLAGS_ALL += -DEVAL_BIN='"$(abspath $(EVAL_BIN))"' \
 	-DRENDER_BIN='"$(abspath $(BUILD))/stillheart-render"' -DAPP_BIN='"$(abspath $(APP))"' -Itests/unit
 $(BUILD)/tests/test_eval_landmarks: $(BUILD)/tools/eval/tests/test_eval_landmarks.o $(BUILD)/tests/unit/shell.o \

@@ -4,6 +4,7 @@
  * hidden (the occlusions must cost landmarks, never produce wrong ones). How far the accepted
  * ones lie from the truth is measured and reported (docs/landmarks.md), not asserted here: on
  * the phantom it is not yet within the issue's 1 px. */
+#include <math.h>
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -152,11 +153,77 @@ static void test_track_landmarks_through_the_warp(void **state)
     test_run("rm -rf '%s'", dir);
 }
 
+/* The daemon's [track] landmarks = N on the same kind of render, its markers from the points file
+ * `stillheart track` writes (test mode), against that command's own --landmarks: the landmarks it
+ * uses in each frame (--trace-points) are the ones `stillheart track --landmarks` accepts, at the
+ * same positions (their searches start from the markers' map of the file's rounded positions in
+ * the one and of the exact ones in the other: a landmark at the edge of a test may go either way),
+ * and its frames have the geometric error against the truth of `stillheart warp` through that
+ * file, lower than the markers' alone. Methods that cannot follow a changing set are refused. */
+static void test_daemon_landmarks(void **state)
+{
+    (void)state;
+    enum { DFRAMES = 40 };
+    char dir[] = "/tmp/sh_run_lm_XXXXXX";
+    assert_non_null(mkdtemp(dir));
+    if (test_run("'%s' --preset exvivo --rig paper --cameras 1 --width 960 --height 540 --occlusions --seed 1 "
+                 "--frames %d --quiet --out '%s'", RENDER_BIN, DFRAMES, dir) != 0)
+        fail_msg("%s\n%s", test_cmd, test_out);
+    if (test_run("cd '%s' && '%s' track --quiet --ids 0-15 cam0.y4m > markers.csv && "
+                 "'%s' track --quiet --ids 0-15 --landmarks 100 cam0.y4m > landmarks.csv && "
+                 "'%s' warp --quiet --method tps --points markers.csv cam0.y4m plain.y4m && "
+                 "'%s' warp --quiet --method tps --points landmarks.csv cam0.y4m stab.y4m", dir, APP_BIN, APP_BIN,
+                 APP_BIN, APP_BIN) != 0)
+        fail_msg("%s\n%s", test_cmd, test_out);
+    if (test_run("cd '%s' && '%s' run --source y4m:cam0.y4m --no-realtime --no-loop --points markers.csv "
+                 "--landmarks 100 --method tps --sink none --group= --threads 2 --record rec.y4m --trace-points used.csv",
+                 dir, APP_BIN) != 0)
+        fail_msg("%s\n%s", test_cmd, test_out);
+    assert_non_null(strstr(test_out, " landmarks"));
+    assert_non_null(strstr(test_out, "landmark-frames: accepted"));
+    /* the landmark rows of frames 1.. in both: (frame, id) shared, only in one, largest distance */
+    if (test_run("cd '%s' && awk -F, 'FNR > 1 && $1 > 0 && $2 >= 1000000 { k = $1 \",\" $2; "
+                 "if (FILENAME == \"landmarks.csv\") { x[k] = $3; y[k] = $4; t++ } else if (k in x) { s++; "
+                 "d = ($3 - x[k]) ^ 2 + ($4 - y[k]) ^ 2; if (d > m) m = d } else o++ } "
+                 "END { printf \"%%d %%d %%d %%.6f\\n\", t, s, o, sqrt(m) }' landmarks.csv used.csv", dir) != 0)
+        fail_msg("%s\n%s", test_cmd, test_out);
+    int track_rows, shared, only_daemon;
+    double far;
+    assert_int_equal(sscanf(test_out, "%d %d %d %lf", &track_rows, &shared, &only_daemon, &far), 4);
+    print_message("  landmark rows: %d of track's, %d shared, %d the daemon's alone; largest distance %.4f px\n",
+                  track_rows, shared, only_daemon, far);
+    assert_true(track_rows > 0);
+    assert_true(shared >= track_rows * 0.98 && only_daemon <= track_rows * 0.02);
+    assert_true(far < 0.05);
+    char pts[600], vid[600];
+    snprintf(pts, sizeof pts, "%s/markers.csv", dir), snprintf(vid, sizeof vid, "%s/plain.y4m", dir);
+    double plain = geometric_mean(dir, pts, vid);
+    snprintf(pts, sizeof pts, "%s/landmarks.csv", dir), snprintf(vid, sizeof vid, "%s/stab.y4m", dir);
+    double warp = geometric_mean(dir, pts, vid);
+    snprintf(pts, sizeof pts, "%s/used.csv", dir), snprintf(vid, sizeof vid, "%s/rec.y4m", dir);
+    double daemon = geometric_mean(dir, pts, vid);
+    print_message("  TPS geometric error: markers %.4f px, warp with landmarks %.4f, daemon with landmarks %.4f\n", plain,
+                  warp, daemon);
+    assert_true(daemon < plain);
+    assert_true(fabs(daemon - warp) < 0.01);
+    /* refused: methods whose model cannot leave a landmark out, one that is worse with them, 3D */
+    const char *refused[][2] = {{"--method bspline", "new model for every frame"},
+                                {"--method gaussian", "worse with landmarks"},
+                                {"--calibration rig.yaml", "2D only"}};
+    for (int k = 0; k < 3; k++) {
+        assert_int_equal(test_run("'%s' run --source y4m:%s/cam0.y4m --landmarks 10 %s --sink none", APP_BIN, dir,
+                                  refused[k][0]), 2);
+        if (!strstr(test_out, refused[k][1])) fail_msg("%s: no '%s' in:\n%s", refused[k][0], refused[k][1], test_out);
+    }
+    test_run("rm -rf '%s'", dir);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_occlusions_cost_landmarks_never_wrong_ones),
         cmocka_unit_test(test_track_landmarks_through_the_warp),
+        cmocka_unit_test(test_daemon_landmarks),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
