@@ -31,9 +31,6 @@ extern "C" {
 typedef struct {
     double max_error;  /* largest tolerated map error in pixels (default 0.05) */
     int grid_spacing;  /* initial grid spacing in pixels, a power of two (default 16) */
-    int hull_points;   /* > 0: the hull (what the warp shows) is the first hull_points points'
-                        * alone, the others only shaping the map inside it (natural landmarks
-                        * never widen what is shown: sh_modelcache); 0: every point's (default) */
 } sh_warp_options;
 
 void sh_warp_options_default(sh_warp_options *opts);
@@ -49,8 +46,11 @@ void sh_warp_model_destroy(sh_warp_model *model);
 /* The current positions of the same n points, in the same order. */
 sh_status sh_warp_model_update(sh_warp_model *model, const double *cur_xy);
 /* The map through the points with use[k] != 0 alone (sh_interp_fit_subset: affine and the RBFs;
- * SH_EINVAL for the others); use NULL: every point, as sh_warp_model_update. A left-out point's
- * position is not read. The first such update allocates the fit's work, once per model. */
+ * SH_EINVAL for the others); use NULL: every point, as sh_warp_model_update. The hull, what the
+ * warp shows, becomes the used points' (a model built on those points alone would show the same:
+ * where the map is interpolated between points trusted this frame); use NULL restores every
+ * point's. A left-out point's position is not read. The first such update allocates the fit's
+ * work, once per model. */
 sh_status sh_warp_model_update_subset(sh_warp_model *model, const double *cur_xy, const unsigned char *use);
 
 /* The map of the last update at reference point (x, y), evaluated exactly (the interpolant, not

@@ -1,7 +1,6 @@
 /* Models per marker set (modelcache.h): an entry's key and models, the lookup in a table of them,
  * and the one-thread table that builds on a miss. */
 #include "stillheart/modelcache.h"
-#include "stillheart/landmarks.h"
 
 #include <stdlib.h>
 #include <string.h>
@@ -66,17 +65,9 @@ sh_status sh_modelcache_entry_build(sh_modelcache_entry *e, const sh_modelcache_
                                        &e->view[v]);
         if (st == SH_OK && r->ply_spacing > 0) st = sh_warp3d_ply_create(e->m3, r->ply_spacing, r->ply_mesh, &e->ply);
     } else {
-        /* Natural landmarks (ids from SH_LANDMARK_ID_BASE, after the markers') shape the map but
-         * never widen what is shown: the hull stays the markers' (the landmarks are chosen inside
-         * the reference's, but a marker that drops out shrinks it), unless fewer than 3 markers
-         * leave no hull of their own. */
-        sh_warp_options wo = r->wopts;
-        int markers = 0;
-        while (markers < e->n && e->ids[markers] < SH_LANDMARK_ID_BASE) markers++;
-        if (markers >= 3 && markers < e->n) wo.hull_points = markers;
         st = sh_interp_create(&r->params, e->ref_xy, e->n, &e->interp);
         if (st == SH_OK)
-            st = sh_warp_model_create(e->interp, e->ref_xy, e->n, r->width, r->height, &wo, &e->model);
+            st = sh_warp_model_create(e->interp, e->ref_xy, e->n, r->width, r->height, &r->wopts, &e->model);
     }
     if (st != SH_OK) free_models(e);
     return st;

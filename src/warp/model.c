@@ -19,7 +19,6 @@ void sh_warp_options_default(sh_warp_options *opts)
 {
     opts->max_error = 0.05;
     opts->grid_spacing = 16;
-    opts->hull_points = 0;
 }
 
 static void free_grid(sh_warp_model *m)
@@ -81,6 +80,7 @@ void sh_warp_model_destroy(sh_warp_model *m)
     free((void *)m->ref_xy);
     free(m->disp);
     free(m->subset_work);
+    free(m->subset_xy);
     free(m);
 }
 
@@ -190,11 +190,8 @@ sh_status sh_warp_model_create(const sh_interp *interp, const double *ref_xy, in
         st = sh_error_set(SH_EINVAL, "warp: max_error must be > 0 and grid spacing a power of two");
         goto fail;
     }
-    if (m->opts.hull_points < 0 || m->opts.hull_points > n) {
-        st = sh_error_set(SH_EINVAL, "warp: hull of %d points out of %d", m->opts.hull_points, n);
-        goto fail;
-    }
-    if ((st = sh_hull_compute(ref_xy, m->opts.hull_points ? m->opts.hull_points : n, &m->hull)) != SH_OK) goto fail;
+    if ((st = sh_hull_compute(ref_xy, n, &m->hull)) != SH_OK) goto fail;
+    m->hull_all = m->hull;
 
     double *ref = malloc(sizeof(double) * 2 * (size_t)n);
     m->disp = malloc(sizeof(double) * 2 * (size_t)n);
@@ -412,19 +409,28 @@ static double grid_error_bound(sh_warp_model *m)
     return ERROR_SAFETY / 8 * sqrt(worst);
 }
 
-/* The interpolant's coefficients for values (n x 2): through every point, or through the used
- * ones alone. */
+/* The interpolant's coefficients for values (n x 2) and the hull: through every point, or
+ * through the used ones alone and their hull. */
 static sh_status fit(sh_warp_model *m, const double *values, const unsigned char *use)
 {
-    if (!use) return sh_interp_fit(m->interp, values, 2, m->coef);
+    if (!use) {
+        m->hull = m->hull_all;
+        return sh_interp_fit(m->interp, values, 2, m->coef);
+    }
     if (!m->subset_work) {
         size_t bytes = sh_interp_subset_work_size(m->interp);
         if (!bytes)
             return sh_error_set(SH_EINVAL, "warp: %s cannot leave points out (its basis depends on which are used)",
                                 sh_interp_method_name(sh_interp_method(m->interp)));
-        if (!(m->subset_work = malloc(bytes))) return sh_error_set(SH_ENOMEM, "warp: out of memory");
+        if (!(m->subset_work = malloc(bytes)) || !(m->subset_xy = malloc(sizeof(double) * 2 * (size_t)m->n)))
+            return sh_error_set(SH_ENOMEM, "warp: out of memory");
     }
-    return sh_interp_fit_subset(m->interp, use, values, 2, m->coef, m->subset_work);
+    int s = 0;
+    for (int i = 0; i < m->n; i++)
+        if (use[i]) m->subset_xy[2 * s] = m->ref_xy[2 * i], m->subset_xy[2 * s + 1] = m->ref_xy[2 * i + 1], s++;
+    sh_status st = sh_interp_fit_subset(m->interp, use, values, 2, m->coef, m->subset_work);
+    if (st == SH_OK) st = sh_hull_compute(m->subset_xy, s, &m->hull);
+    return st;
 }
 
 sh_status sh_warp_model_update(sh_warp_model *m, const double *cur_xy)

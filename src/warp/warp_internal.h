@@ -31,6 +31,8 @@ struct sh_warp_model {
     const double *ref_xy;    /* copy, n x 2 */
     double *disp;            /* displacement of the last update, n x 2 */
     void *subset_work;       /* sh_interp_fit_subset's, made by the first subset update */
+    double *subset_xy;       /* its scratch: the used points' reference positions, for their hull */
+    sh_hull hull_all;        /* every point's hull (hull: the last update's points') */
 
     int h, gx0, gy0, nx, ny; /* grid: node (i, j) sits at (gx0 + i h, gy0 + j h) */
     int *row_start, *index;  /* CSR basis rows, one per node */

@@ -158,6 +158,11 @@ static void test_update_subset(void **state)
             }
         assert_true(both > (long)w * h / 4);
         if (!(worst <= 0.1)) fail_msg("%s: the subset's map differs by %.4f px", methods[k], worst);
+        /* it shows what the subset's own model shows: the used points' hull */
+        const sh_hull *ha = sh_warp_model_hull(all.model), *hb = sh_warp_model_hull(sub.model);
+        assert_int_equal(ha->count, hb->count);
+        for (int i = 0; i < ha->count; i++) assert_true(ha->x[i] == hb->x[i] && ha->y[i] == hb->y[i]);
+        for (size_t i = 0; i < (size_t)w * h; i++) assert_true(isnan(ma[2 * i]) == isnan(mb[2 * i]));
         /* the exact map (no grid) at the markers' positions: the same function */
         for (int i = 0; i < s; i++) {
             double a[2], b[2];

@@ -6,11 +6,12 @@
 # markers only; and one render with the tissue texture's contrast halved. TPS, the default method.
 # Then the product's own path on the same renders: `stillheart track` without and with
 # --landmarks, `stillheart warp` with each 2D method that takes them, and stillheart-eval's e and
-# geometric error of both.
+# geometric error of both; and the daemon (`stillheart run`, [track] landmarks) likewise.
 #   sh tools/eval/landmarks.sh BUILD OUTDIR
-# Writes OUTDIR/landmarks.csv, OUTDIR/warp.csv and OUTDIR/json/*.json; renders go to OUTDIR/work
-# and are deleted as they are measured. FRAMES (default 200) sets the length; LANDMARKS (200) how
-# many are asked; WARP_METHODS (tps pwlinear bspline affine) the warp's methods.
+# Writes OUTDIR/landmarks.csv, OUTDIR/warp.csv, OUTDIR/daemon.csv and OUTDIR/json/*.json;
+# renders go to OUTDIR/work and are deleted as they are measured. FRAMES (default 200) sets the
+# length; LANDMARKS (200) how many are asked; WARP_METHODS (tps pwlinear bspline affine) the
+# warp's methods.
 set -eu
 BUILD=$(cd "$1" && pwd) OUT=$2
 RENDER=$BUILD/stillheart-render EVAL=$BUILD/stillheart-eval APP=$BUILD/stillheart
@@ -57,6 +58,26 @@ through_warp() { # through_warp NAME DIR IDS
     rm -f "$2/stab.y4m"
 }
 
+# The daemon's path: `stillheart run` without and with [track] landmarks, TPS, as fast as it goes,
+# its markers those of `stillheart track` above (test mode: its reference is frame 0 and is
+# warped, so its --trace-points, the markers and landmarks each frame's map went through, is a
+# points file the evaluator takes); e and the geometric error of what it showed, the landmark
+# stage's and the model update's CPU ms per frame (medians, --trace), and its RSS.
+through_daemon() { # through_daemon NAME DIR (after through_warp: its track.csv)
+    for v in 0 "$LANDMARKS"; do
+        rm -f "$2/run.y4m"
+        "$APP" run --source "y4m:$2/cam0.y4m" --no-realtime --no-loop --points "$2/track.csv" --method tps --landmarks "$v" \
+            --sink none --group= --threads 2 --quiet --stats --record "$2/run.y4m" --trace "$2/trace.csv" \
+            --trace-points "$2/used.csv" > "$2/stats.txt"
+        "$EVAL" --quiet --json --truth "$2" --points "$2/used.csv" "$2/run.y4m" "$2/cam0.y4m" > "$OUT/json/$1-daemon-$v.json"
+        ms=$(python3 -c 'import csv,sys,statistics as s; r=list(csv.DictReader(open(sys.argv[1]))); print("%.2f,%.2f" % (s.median(float(x["landmarks_ms"]) for x in r), s.median(float(x["model_ms"]) for x in r)))' "$2/trace.csv")
+        rss=$(sed -n 's/.*RSS kB start [0-9]* max \([0-9]*\).*/\1/p' "$2/stats.txt")
+        echo "$1,$v,$(num "$1-daemon-$v" e_stabilized),$(num "$1-daemon-$v" mean),$(num "$1-daemon-$v" p95),$ms,$rss" >> "$OUT/daemon.csv"
+    done
+    rm -f "$2/run.y4m"
+}
+
+echo "run,landmarks,e,geo_mean,geo_p95,landmarks_ms,model_ms,rss_kb_max" > "$OUT/daemon.csv"
 echo "run,method,e_markers,e_landmarks,geo_mean_markers,geo_mean_landmarks,geo_p95_markers,geo_p95_landmarks" > "$OUT/warp.csv"
 echo "run,seeded,accepted,measured,mean,p99,max,over_1px,hidden,accepted_hidden,map_at_landmarks,geo_markers_mean,geo_markers_p95,geo_landmarks_mean,geo_landmarks_p95,ms" > "$OUT/landmarks.csv"
 for p in exvivo invivo; do
@@ -71,6 +92,8 @@ for p in exvivo invivo; do
         run "$p-$seed-4tags" "$dir" "$dir/points4.csv"
         stamp "track, warp and evaluate $p seed $seed"
         through_warp "$p-$seed" "$dir" "$( [ "$p" = exvivo ] && echo 0-15 || echo 0-13 )"
+        stamp "the daemon on $p seed $seed"
+        through_daemon "$p-$seed" "$dir"
         rm -rf "$dir"
     done
 done
@@ -80,6 +103,7 @@ stamp "render exvivo seed 1, texture contrast halved"
 "$EVAL" --truth "$dir" --export-points "$dir/points.csv"
 run exvivo-1-half-contrast "$dir" "$dir/points.csv"
 rm -rf "$dir"
-stamp "done: $OUT/landmarks.csv, $OUT/warp.csv"
+stamp "done: $OUT/landmarks.csv, $OUT/warp.csv, $OUT/daemon.csv"
 column -s, -t < "$OUT/landmarks.csv"
 column -s, -t < "$OUT/warp.csv"
+column -s, -t < "$OUT/daemon.csv"
