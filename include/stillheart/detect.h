@@ -15,7 +15,8 @@
  * detector owns, only inside the windows when detecting in windows.
  *
  * A detector holds one apriltag_detector per family, reused for every call (per-call overhead
- * matters); it is not thread-safe: one detector per thread. */
+ * matters); it is not thread-safe: one detector per thread (its own helpers, window_threads,
+ * are its business). */
 #ifndef STILLHEART_DETECT_H
 #define STILLHEART_DETECT_H
 
@@ -57,6 +58,11 @@ typedef struct {
                              * per-call overhead; tags seen by two windows are reported once
                              * (the view whose window edge stays half a module clear of its quad,
                              * else the higher decision margin: detect.c, collect) */
+    int window_threads;     /* threads scanning the windows of one call (default 1): the
+                             * caller's and window_threads - 1 helpers started at create, each
+                             * with its own libapriltag detector, windows handed out largest
+                             * first; the results are collected in window order, the same as
+                             * with one thread. Whole-frame scans use `threads` alone */
 } sh_detector_options;
 
 /* libapriltag's pixel-centre offset, subtracted from its coordinates. */

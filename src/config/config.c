@@ -85,7 +85,7 @@ static const keydef keys[] = {
     {"gating", "dropout_ms", "dropout-ms", K_INT, SH_CONFIG_GATING, F(dropout_ms), 0, 0, 60000, "stale estimates up to this -> degraded, longer -> raw"},
     {"gating", "max_calibration_px", "max-calibration", K_DOUBLE, SH_CONFIG_GATING, F(max_calibration_px), 0, 0.01, 100,
      "3D: median reprojection error of the markers seen by two or more cameras over this -> raw (the calibration does not fit)"},
-    {"run", "threads", "threads", K_INT, PROC, F(threads), 0, 1, 64, "warp threads"},
+    {"run", "threads", "threads", K_INT, PROC, F(threads), 0, 1, 64, "warp and detection threads"},
     {"run", "control", "control", K_STR, SH_CONFIG_CONTROL, F(control), S(control), 0, 0, "control socket path (\"\": none)"},
     {"run", "control_group", "control-group", K_STR, SH_CONFIG_LIVE, F(control_group), S(control_group), 0, 0,
      "group that may request a new reference on the control socket (\"\": the service's user and root only)"},

@@ -53,6 +53,9 @@ sh_status run_tracker_create(const sh_config *cfg, const sh_calib *calib, int ou
     sh_detector_options_default(&dopt);
     dopt.family = cfg->family;
     dopt.window_decimate = 2; /* ~2.4x cheaper, as accurate on ~100 px tags (detect.h) */
+    /* the windows scanned by as many threads as the warp's: detection no longer leaves a core
+     * idle (docs/daemon.md, "At 4K"); the same detections in the same order */
+    dopt.window_threads = cfg->threads > 0 ? cfg->threads : 1;
     sh_status st = sh_detector_create(&dopt, &rt->det);
     if (st == SH_OK) st = sh_tracker_create(&rt->opts, calib ? &rt->calib : NULL, &rt->t);
     if (st != SH_OK) {

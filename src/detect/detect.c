@@ -27,9 +27,12 @@ void sh_detector_options_default(sh_detector_options *opts)
     opts->max_hamming = 2;
     opts->window_decimate = 1.0;
     opts->merge_windows = 1;
+    opts->window_threads = 1;
 }
 
 #ifdef SH_HAVE_APRILTAG
+
+#include <pthread.h>
 
 #include <apriltag/apriltag.h>
 #include <apriltag/tag16h5.h>
@@ -69,10 +72,21 @@ static const struct {
  * tag; beyond them (more tags than any rig has) the choice falls back on the decision margin. */
 #define CUT_SLOTS 1024
 
+/* A helper thread of a windowed scan, with its own libapriltag detector and family (neither is
+ * shared between threads: the family holds the decode table its detector built). */
+typedef struct {
+    struct sh_detector *det;
+    apriltag_detector_t *td;
+    apriltag_family_t *tf;
+    pthread_t thread;
+    int started;
+} helper;
+
 struct sh_detector {
     apriltag_detector_t *td;
     apriltag_family_t *tf;
     void (*tf_destroy)(apriltag_family_t *);
+    int family;             /* index in families[] */
     sh_detector_options opts;
     uint8_t *gray;          /* RGB24 -> grey, sized at the first RGB frame */
     size_t gray_size;
@@ -82,12 +96,120 @@ struct sh_detector {
     /* per reported detection of a windowed scan (the first CUT_SLOTS): whether its window may
      * have cut it (cut_view) */
     unsigned char cut[CUT_SLOTS];
+    /* window_threads > 1: helpers scanning a call's windows beside the caller */
+    int nhelpers;
+    helper *helpers;
+    pthread_mutex_t mu;
+    pthread_cond_t go, done;
+    int sync_made;          /* mu, go and done initialized */
+    unsigned generation;    /* bumped per call that wakes the helpers */
+    int busy;               /* helpers still scanning this call's windows */
+    int quit;
+    const uint8_t *base;    /* this call's plane and its stride */
+    int stride;
+    int next;               /* windows handed out so far, in order[] */
+    int order[SH_DETECT_MAX_WINDOWS];       /* scan[] indices, largest window first */
+    zarray_t *found[SH_DETECT_MAX_WINDOWS]; /* per scan[] window: libapriltag's detections */
 };
 
 const char *sh_detector_families(void)
 {
     return "tag36h11 tag36h10 tag25h9 tag16h5 tagStandard41h12 tagStandard52h13 tagCircle21h7 "
            "tagCircle49h12 tagCustom48h12";
+}
+
+/* A window of the plane at base (rows stride bytes apart) through libapriltag's detector td:
+ * its detections relative to the window, NULL when libapriltag failed. */
+static zarray_t *detect_view(apriltag_detector_t *td, const uint8_t *base, int stride, const sh_window *w)
+{
+    /* image_u8_t's geometry is const: build it by initialization. libapriltag only reads the
+     * pixels (a blur or decimation works on its own copy). */
+    image_u8_t im = {.width = w->width, .height = w->height, .stride = stride,
+                     .buf = (uint8_t *)(uintptr_t)(base + (size_t)w->y * (size_t)stride + (size_t)w->x)};
+    return apriltag_detector_detect(td, &im);
+}
+
+/* Scans windows on td until none is left to hand out (the caller's thread and each helper). */
+static void scan_windows(sh_detector *det, apriltag_detector_t *td)
+{
+    for (;;) {
+        pthread_mutex_lock(&det->mu);
+        int i = det->next < det->num_scan ? det->order[det->next++] : -1;
+        pthread_mutex_unlock(&det->mu);
+        if (i < 0) return;
+        det->found[i] = detect_view(td, det->base, det->stride, &det->scan[i]);
+    }
+}
+
+static void *helper_main(void *arg)
+{
+    helper *h = arg;
+    sh_detector *det = h->det;
+    unsigned seen = 0;
+    pthread_mutex_lock(&det->mu);
+    for (;;) {
+        while (!det->quit && det->generation == seen) pthread_cond_wait(&det->go, &det->mu);
+        if (det->quit) break;
+        seen = det->generation;
+        pthread_mutex_unlock(&det->mu);
+        scan_windows(det, h->td);
+        pthread_mutex_lock(&det->mu);
+        if (--det->busy == 0) pthread_cond_signal(&det->done);
+    }
+    pthread_mutex_unlock(&det->mu);
+    return NULL;
+}
+
+/* The lock (always: one thread hands the windows out to itself through it too) and, with
+ * window_threads > 1, the helpers, each with a detector of its own set up as det's. */
+static sh_status start_helpers(sh_detector *det)
+{
+    pthread_mutex_init(&det->mu, NULL);
+    pthread_cond_init(&det->go, NULL);
+    pthread_cond_init(&det->done, NULL);
+    det->sync_made = 1;
+    int n = det->opts.window_threads - 1;
+    if (n <= 0) return SH_OK;
+    det->helpers = calloc((size_t)n, sizeof *det->helpers);
+    if (!det->helpers) return sh_error_set(SH_ENOMEM, "detect: cannot allocate the helpers");
+    for (int k = 0; k < n; k++) {
+        helper *h = &det->helpers[k];
+        det->nhelpers = k + 1; /* stop_helpers frees up to here */
+        h->det = det;
+        h->tf = families[det->family].create();
+        h->td = apriltag_detector_create();
+        if (!h->tf || !h->td) return sh_error_set(SH_ENOMEM, "detect: cannot create a helper's libapriltag detector");
+        apriltag_detector_add_family_bits(h->td, h->tf, det->opts.max_hamming);
+        h->td->quad_decimate = (float)det->opts.window_decimate; /* helpers only scan windows */
+        h->td->quad_sigma = det->td->quad_sigma;
+        h->td->refine_edges = det->td->refine_edges;
+        h->td->decode_sharpening = det->td->decode_sharpening;
+        h->td->nthreads = det->td->nthreads;
+        h->td->debug = 0;
+        if (pthread_create(&h->thread, NULL, helper_main, h))
+            return sh_error_set(SH_ENOMEM, "detect: cannot start helper thread %d", k + 1);
+        h->started = 1;
+    }
+    return SH_OK;
+}
+
+static void stop_helpers(sh_detector *det)
+{
+    if (!det->sync_made) return;
+    pthread_mutex_lock(&det->mu);
+    det->quit = 1;
+    pthread_cond_broadcast(&det->go);
+    pthread_mutex_unlock(&det->mu);
+    for (int k = 0; k < det->nhelpers; k++) {
+        helper *h = &det->helpers[k];
+        if (h->started) pthread_join(h->thread, NULL);
+        if (h->td) apriltag_detector_destroy(h->td);
+        if (h->tf) families[det->family].destroy(h->tf);
+    }
+    free(det->helpers);
+    pthread_mutex_destroy(&det->mu);
+    pthread_cond_destroy(&det->go);
+    pthread_cond_destroy(&det->done);
 }
 
 sh_status sh_detector_create(const sh_detector_options *opts, sh_detector **out)
@@ -120,6 +242,8 @@ sh_status sh_detector_create(const sh_detector_options *opts, sh_detector **out)
         return sh_error_set(SH_EINVAL, "detect: threads %d outside [1, 64]", o.threads);
     if (o.max_hamming < 0 || o.max_hamming > 3)
         return sh_error_set(SH_EINVAL, "detect: max_hamming %d outside [0, 3]", o.max_hamming);
+    if (o.window_threads < 1 || o.window_threads > 64)
+        return sh_error_set(SH_EINVAL, "detect: window_threads %d outside [1, 64]", o.window_threads);
 
     sh_detector *det = calloc(1, sizeof *det);
     if (!det) return sh_error_set(SH_ENOMEM, "detect: cannot allocate the detector");
@@ -127,6 +251,7 @@ sh_status sh_detector_create(const sh_detector_options *opts, sh_detector **out)
     det->opts.family = families[f].name; /* a static string: the caller's may not outlive us */
     det->tf = families[f].create();
     det->tf_destroy = families[f].destroy;
+    det->family = f;
     det->td = apriltag_detector_create();
     if (!det->tf || !det->td) {
         sh_detector_destroy(det);
@@ -139,6 +264,11 @@ sh_status sh_detector_create(const sh_detector_options *opts, sh_detector **out)
     det->td->decode_sharpening = o.decode_sharpening;
     det->td->nthreads = o.threads;
     det->td->debug = 0;
+    sh_status st = start_helpers(det);
+    if (st != SH_OK) {
+        sh_detector_destroy(det);
+        return st;
+    }
     *out = det;
     return SH_OK;
 }
@@ -146,6 +276,7 @@ sh_status sh_detector_create(const sh_detector_options *opts, sh_detector **out)
 void sh_detector_destroy(sh_detector *det)
 {
     if (!det) return;
+    stop_helpers(det);
     if (det->td) apriltag_detector_destroy(det->td);
     if (det->tf && det->tf_destroy) det->tf_destroy(det->tf);
     free(det->gray);
@@ -225,25 +356,54 @@ static void collect(sh_detector *det, zarray_t *dets, const sh_window *win, int 
     }
 }
 
-static sh_status run(sh_detector *det, const uint8_t *base, int fw, int fh, int stride,
-                     const sh_window *w, int dedup, sh_detection *out, int max, int *n)
-{
-    const int width = w->width, height = w->height, ox = w->x, oy = w->y;
-    /* image_u8_t's geometry is const: build it by initialization. libapriltag only reads the
-     * pixels (a blur or decimation works on its own copy). */
-    image_u8_t im = {.width = width, .height = height, .stride = stride,
-                     .buf = (uint8_t *)(uintptr_t)(base + (size_t)oy * (size_t)stride + (size_t)ox)};
-    zarray_t *dets = apriltag_detector_detect(det->td, &im);
-    if (!dets) return sh_error_set(SH_ENOMEM, "detect: libapriltag failed on a %dx%d image", width,
-                                   height);
-    collect(det, dets, w, fw, fh, dedup, out, max, n);
-    apriltag_detections_destroy(dets);
-    return SH_OK;
-}
-
 static long area(const sh_window *w)
 {
     return (long)w->width * (long)w->height;
+}
+
+/* The planned windows (det->scan) of the plane at base, scanned by the caller's thread and the
+ * helpers, largest first so that they finish together; their detections collected in window
+ * order, so the result is one thread's. Collecting stops at a window libapriltag failed on, as
+ * one thread scanning them in order would have stopped. */
+static sh_status scan(sh_detector *det, const uint8_t *base, int fw, int fh, int stride, sh_detection *out,
+                      int max, int *n)
+{
+    int m = det->num_scan;
+    for (int i = 0; i < m; i++) { /* insertion sort: a few dozen windows */
+        int j = i;
+        while (j > 0 && area(&det->scan[det->order[j - 1]]) < area(&det->scan[i])) {
+            det->order[j] = det->order[j - 1];
+            j--;
+        }
+        det->order[j] = i;
+    }
+    det->base = base;
+    det->stride = stride;
+    det->next = 0;
+    int wake = det->nhelpers > 0 && m > 1;
+    if (wake) {
+        pthread_mutex_lock(&det->mu);
+        det->busy = det->nhelpers;
+        det->generation++;
+        pthread_cond_broadcast(&det->go);
+        pthread_mutex_unlock(&det->mu);
+    }
+    scan_windows(det, det->td);
+    if (wake) {
+        pthread_mutex_lock(&det->mu);
+        while (det->busy > 0) pthread_cond_wait(&det->done, &det->mu);
+        pthread_mutex_unlock(&det->mu);
+    }
+    sh_status st = SH_OK;
+    for (int i = 0; i < m; i++) {
+        if (!det->found[i] && st == SH_OK)
+            st = sh_error_set(SH_ENOMEM, "detect: libapriltag failed on a %dx%d image", det->scan[i].width,
+                              det->scan[i].height);
+        if (det->found[i] && st == SH_OK) collect(det, det->found[i], &det->scan[i], fw, fh, 1, out, max, n);
+        if (det->found[i]) apriltag_detections_destroy(det->found[i]);
+        det->found[i] = NULL;
+    }
+    return st;
 }
 
 /* Clips the windows to the frame, drops empty ones, and (when asked) merges pairs whose
@@ -308,15 +468,16 @@ sh_status sh_detector_detect_plane(sh_detector *det, const uint8_t *luma, int wi
         det->td->quad_decimate = (float)det->opts.quad_decimate;
         det->num_scan = 0;
         const sh_window whole = {0, 0, width, height};
-        st = run(det, luma, width, height, stride, &whole, 0, out, max, &n);
+        zarray_t *dets = detect_view(det->td, luma, stride, &whole);
+        if (!dets)
+            return sh_error_set(SH_ENOMEM, "detect: libapriltag failed on a %dx%d image", width, height);
+        collect(det, dets, &whole, width, height, 0, out, max, &n);
+        apriltag_detections_destroy(dets);
+        st = SH_OK;
     } else {
         det->td->quad_decimate = (float)det->opts.window_decimate;
         plan_windows(det, width, height, windows, num_windows);
-        st = SH_OK;
-        for (int i = 0; i < det->num_scan && st == SH_OK; i++) {
-            const sh_window *w = &det->scan[i];
-            st = run(det, luma, width, height, stride, w, 1, out, max, &n);
-        }
+        st = scan(det, luma, width, height, stride, out, max, &n);
     }
     *count = n;
     return st;

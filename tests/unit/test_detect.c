@@ -211,7 +211,12 @@ static void test_arguments(void **state)
     o.quad_decimate = 0.5;
     assert_int_equal(sh_detector_create(&o, &det), SH_EINVAL);
     sh_detector_options_default(&o);
+    o.window_threads = 0;
+    assert_int_equal(sh_detector_create(&o, &det), SH_EINVAL);
+    assert_non_null(strstr(sh_error_message(), "window_threads"));
+    sh_detector_options_default(&o);
     o.family = "tag25h9";
+    o.window_threads = 3; /* helpers started and stopped with nothing to scan */
     assert_int_equal(sh_detector_create(&o, &det), SH_OK);
 
     uint8_t img[64 * 48];
@@ -572,6 +577,41 @@ static void test_phantom_windows_match_full_frame(void **state)
         }
         sh_detector_destroy(wd);
     }
+    /* Windows scanned by 2 and 3 threads give one thread's detections byte for byte, in its
+     * order: with and without merging, and with a reacquisition band over the top half that
+     * sees some tags a second time (the choice between two views follows the window order). */
+    w[nt] = (sh_window){0, 0, frame.width, frame.height / 2 + 40};
+    for (int merge = 0; merge <= 1; merge++)
+        for (int band = 0; band <= 1; band++) {
+            sh_detection one[MAXD], many[MAXD];
+            int none = 0, nmany = 0;
+            for (int threads = 1; threads <= 3; threads++) {
+                sh_detector_options o;
+                sh_detector_options_default(&o);
+                o.merge_windows = merge;
+                o.window_threads = threads;
+                sh_detector *wd;
+                assert_int_equal(sh_detector_create(&o, &wd), SH_OK);
+                for (int rep = 0; rep < 2; rep++) { /* the helpers go round again */
+                    sh_detection *d = threads == 1 ? one : many;
+                    int *nd = threads == 1 ? &none : &nmany;
+                    memset(d, 0, sizeof(sh_detection) * MAXD);
+                    assert_int_equal(sh_detector_detect_windows(wd, &frame, w, nt + band, d, MAXD, nd), SH_OK);
+                    if (threads == 1) continue;
+                    assert_int_equal(nmany, none);
+                    for (int i = 0; i < none && i < MAXD; i++) { /* field by field: the padding is not copied alike */
+                        assert_int_equal(many[i].id, one[i].id);
+                        assert_int_equal(many[i].hamming, one[i].hamming);
+                        assert_memory_equal(&many[i].cx, &one[i].cx, sizeof one[i].cx);
+                        assert_memory_equal(&many[i].cy, &one[i].cy, sizeof one[i].cy);
+                        assert_memory_equal(many[i].corner, one[i].corner, sizeof one[i].corner);
+                        assert_memory_equal(&many[i].margin, &one[i].margin, sizeof one[i].margin);
+                    }
+                }
+                sh_detector_destroy(wd);
+            }
+            assert_true(none >= nt);
+        }
     /* the Y plane of I420 through detect_plane gives what detect gave */
     int n2 = 0;
     assert_int_equal(sh_detector_detect_plane(det, frame.plane[0].data, frame.width, frame.height,
