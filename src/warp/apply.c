@@ -39,31 +39,50 @@ void warp_plane_offsets(const sh_image *img, int p, plane_geometry *g)
     }
 }
 
+static int same_geometry(const plane_geometry *a, const plane_geometry *b)
+{
+    return a->scale == b->scale && a->ox == b->ox && a->oy == b->oy && a->width == b->width &&
+           a->height == b->height;
+}
+
+/* The stripe's rows of every plane. Planes that sit alike (4:2:0's U and V at every siting but
+ * PAL DV's, all three of 4:4:4) are done together, row by row: the row's extent and source
+ * positions are made once and sampled from each (the same positions each would have made). */
 static void run_stripe(const warp_job *job, int stripe, int stripes, int32_t *fx, int32_t *fy)
 {
     const sh_image *cur = job->current;
     sh_image *out = job->out;
     int channels = sh_pixfmt_channels(cur->format);
-    for (int p = 0; p < cur->num_planes; p++) {
+    for (int p = 0, q; p < cur->num_planes; p = q) {
         plane_geometry g;
         warp_plane_offsets(cur, p, &g);
         g.width = out->plane[p].width;
         g.height = out->plane[p].height;
-        uint8_t black = (p > 0 && cur->format != SH_PIX_RGB24) ? 128 : 0;
+        for (q = p + 1; q < cur->num_planes; q++) {
+            plane_geometry h;
+            warp_plane_offsets(cur, q, &h);
+            h.width = out->plane[q].width;
+            h.height = out->plane[q].height;
+            if (!same_geometry(&g, &h)) break;
+        }
         int y0 = (int)((long)g.height * stripe / stripes);
         int y1 = (int)((long)g.height * (stripe + 1) / stripes);
         for (int y = y0; y < y1; y++) {
-            uint8_t *row = out->plane[p].data + (size_t)y * out->plane[p].stride;
             int first, last;
-            if (!warp_model_row_extent(job->model, &g, y, &first, &last)) {
-                memset(row, black, (size_t)g.width * channels);
-                continue;
+            int inside = warp_model_row_extent(job->model, &g, y, &first, &last);
+            if (inside) warp_model_row_fill(job->model, &g, y, first, last, fx, fy);
+            for (int k = p; k < q; k++) {
+                uint8_t *row = out->plane[k].data + (size_t)y * out->plane[k].stride;
+                uint8_t black = (k > 0 && cur->format != SH_PIX_RGB24) ? 128 : 0;
+                if (!inside) {
+                    memset(row, black, (size_t)g.width * channels);
+                    continue;
+                }
+                memset(row, black, (size_t)first * channels);
+                memset(row + (size_t)(last + 1) * channels, black, (size_t)(g.width - 1 - last) * channels);
+                warp_sample_row(&cur->plane[k], channels, black, row + (size_t)first * channels, fx, fy,
+                                last - first + 1);
             }
-            memset(row, black, (size_t)first * channels);
-            memset(row + (size_t)(last + 1) * channels, black, (size_t)(g.width - 1 - last) * channels);
-            warp_model_row_fill(job->model, &g, y, first, last, fx, fy);
-            warp_sample_row(&cur->plane[p], channels, black, row + (size_t)first * channels, fx, fy,
-                            last - first + 1);
         }
     }
 }
