@@ -101,6 +101,15 @@ int sh_source_fd(const sh_source *src);
  * 1 with a frame, 0 when none came in time or the camera is being reopened. SH_EEOF when a
  * replay without loop is over. Errors are returned only for what reopening cannot cure. */
 sh_status sh_source_dequeue(sh_source *src, int timeout_ms, sh_source_frame *frame, int *got);
+/* sh_source_dequeue with the pixels read straight into dst where the source can give them
+ * without a conversion: a y4m: replay whose frames are dst's format and size, I420 or grey
+ * (GRAY8). *direct is then 1, dst holds the frame with what sh_pixconv_convert would have made
+ * of it (the chroma siting of a raw I420 frame: centre) and frame->raw has no data (NULL, 0
+ * bytes); the frame is released as any other. Otherwise *direct is 0 and the frame is
+ * sh_source_dequeue's (dst untouched), for the caller to convert. A 4K replay spares a 12 MB copy
+ * a frame this way (docs/daemon.md, "At 4K"). */
+sh_status sh_source_dequeue_into(sh_source *src, int timeout_ms, sh_image *dst, sh_source_frame *frame, int *got,
+                                 int *direct);
 sh_status sh_source_release(sh_source *src, sh_source_frame *frame);
 sh_status sh_source_stop(sh_source *src);
 void sh_source_close(sh_source *src);

@@ -2,7 +2,7 @@
  * (run_source.h). Frame buffers live in a small pool per camera; a buffer is free, being filled
  * by its camera's thread, in a pending set (sync.h holds its index as `user`), in the waiting set
  * or in the set processing holds.
- * About 650 lines, on purpose: the pool, the grouping, the mailbox and the camera threads share
+ * About 670 lines, on purpose: the pool, the grouping, the mailbox and the camera threads share
  * one lock and one buffer life cycle, and split across files each would have to know the
  * others' invariants (the options that are not, source_options.c, already went). */
 #include "run_source.h"
@@ -204,6 +204,25 @@ static void settle(run_source *rs, camera *k, int b, sh_status cst, uint64_t seq
     pthread_mutex_unlock(&rs->mu);
 }
 
+/* A free buffer of the camera's pool, now FILLING; -1 when none is free. */
+static int take_buffer(run_source *rs, camera *k)
+{
+    pthread_mutex_lock(&rs->mu);
+    int b = -1;
+    for (int i = 0; i < POOL && b < 0; i++)
+        if (k->state[i] == FREE) b = i;
+    if (b >= 0) k->state[b] = FILLING;
+    pthread_mutex_unlock(&rs->mu);
+    return b;
+}
+
+static void give_back(run_source *rs, camera *k, int b)
+{
+    pthread_mutex_lock(&rs->mu);
+    k->state[b] = FREE;
+    pthread_mutex_unlock(&rs->mu);
+}
+
 static void *camera_thread(void *arg)
 {
     camera *k = arg;
@@ -213,9 +232,13 @@ static void *camera_thread(void *arg)
     sh_log_set_thread(k->thread_name);
     while (!stopping(rs)) {
         pace(rs, k);
+        /* a free buffer first: a replay in the working format reads into it, no copy after */
+        int b = take_buffer(rs, k);
         sh_source_frame f;
-        int got = 0;
-        sh_status st = sh_source_dequeue(k->src, DEQUEUE_MS, &f, &got);
+        int got = 0, direct = 0;
+        sh_status st = b >= 0 ? sh_source_dequeue_into(k->src, DEQUEUE_MS, &k->pool[b], &f, &got, &direct)
+                              : sh_source_dequeue(k->src, DEQUEUE_MS, &f, &got);
+        if (b >= 0 && !got) give_back(rs, k, b);
         sh_source_stats ss;
         sh_source_get_stats(k->src, &ss);
         if (ss.losses != losses)
@@ -245,14 +268,12 @@ static void *camera_thread(void *arg)
             break;
         }
         if (!got) continue;
-        pthread_mutex_lock(&rs->mu);
-        int b = -1;
-        for (int i = 0; i < POOL && b < 0; i++)
-            if (k->state[i] == FREE) b = i;
-        if (b >= 0) k->state[b] = FILLING;
-        else k->st.no_buffer++;
-        pthread_mutex_unlock(&rs->mu);
-        sh_status cst = b >= 0 ? sh_pixconv_convert(k->conv, &f.raw, &k->pool[b]) : SH_OK;
+        if (b < 0) {
+            pthread_mutex_lock(&rs->mu);
+            k->st.no_buffer++;
+            pthread_mutex_unlock(&rs->mu);
+        }
+        sh_status cst = b >= 0 && !direct ? sh_pixconv_convert(k->conv, &f.raw, &k->pool[b]) : SH_OK;
         if (cst != SH_OK)
             sh_log_limited(&bad, SH_LOG_ERROR, "%s: frame %llu: %s (further bad frames counted only)", k->name,
                            (unsigned long long)f.sequence, sh_error_message());

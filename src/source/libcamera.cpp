@@ -456,7 +456,7 @@ void lc_close(sh_source *s)
     delete l;
 }
 
-const sh_source_ops ops = {lc_start, lc_fd, lc_dequeue, lc_release, lc_stop, lc_close};
+const sh_source_ops ops = {lc_start, lc_fd, lc_dequeue, lc_release, lc_stop, lc_close, nullptr};
 
 // A control's limit as a double, whatever its type.
 double as_double(const ControlValue &v)

@@ -150,7 +150,7 @@ static void r_close(sh_source *s)
     free(r);
 }
 
-static const sh_source_ops ops = {r_start, sh_replay_fd, r_dequeue, sh_replay_release, sh_replay_stop, r_close};
+static const sh_source_ops ops = {r_start, sh_replay_fd, r_dequeue, sh_replay_release, sh_replay_stop, r_close, NULL};
 
 sh_status sh_source_open_rec(const char *path, const sh_source_options *opts, sh_source **out)
 {

@@ -102,6 +102,20 @@ sh_status sh_source_dequeue(sh_source *s, int timeout_ms, sh_source_frame *frame
     return s->ops->dequeue(s, timeout_ms, frame, got);
 }
 
+sh_status sh_source_dequeue_into(sh_source *s, int timeout_ms, sh_image *dst, sh_source_frame *frame, int *got,
+                                 int *direct)
+{
+    if (direct) *direct = 0;
+    if (!dst || !direct) {
+        if (got) *got = 0;
+        return sh_error_set(SH_EINVAL, "source: NULL argument");
+    }
+    if (!s || !s->started || !s->ops->dequeue_into) return sh_source_dequeue(s, timeout_ms, frame, got);
+    if (got) *got = 0;
+    if (!frame || !got) return sh_error_set(SH_EINVAL, "source: NULL argument");
+    return s->ops->dequeue_into(s, timeout_ms, dst, frame, got, direct);
+}
+
 sh_status sh_source_release(sh_source *s, sh_source_frame *frame)
 {
     if (!s || !frame) return sh_error_set(SH_EINVAL, "source: NULL argument");

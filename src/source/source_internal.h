@@ -15,6 +15,9 @@ typedef struct {
     sh_status (*release)(sh_source *src, sh_source_frame *frame);
     sh_status (*stop)(sh_source *src);
     void (*close)(sh_source *src);
+    /* sh_source_dequeue_into where the backend can read into dst (*direct 1); NULL: never */
+    sh_status (*dequeue_into)(sh_source *src, int timeout_ms, sh_image *dst, sh_source_frame *frame, int *got,
+                              int *direct);
 } sh_source_ops;
 
 /* The first member of every backend's state. */

@@ -503,7 +503,7 @@ static void v_close(sh_source *s)
     free(v);
 }
 
-static const sh_source_ops ops = {v_start, v_fd, v_dequeue, v_release, v_stop, v_close};
+static const sh_source_ops ops = {v_start, v_fd, v_dequeue, v_release, v_stop, v_close, NULL};
 
 sh_status sh_source_open_v4l2(const char *path, const sh_source_options *opts, sh_source **out)
 {

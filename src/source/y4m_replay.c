@@ -78,7 +78,9 @@ static sh_status met_damage(y4m_source *y)
     return SH_EEOF;
 }
 
-static sh_status y_dequeue(sh_source *s, int timeout_ms, sh_source_frame *f, int *got)
+/* The next frame into the slot's image, or into dst (a caller's image of the file's format and
+ * size: sh_source_dequeue_into), the slot then held without its memory. */
+static sh_status y_read(sh_source *s, int timeout_ms, sh_image *dst, sh_source_frame *f, int *got)
 {
     y4m_source *y = (y4m_source *)s;
     int slot;
@@ -87,7 +89,9 @@ static sh_status y_dequeue(sh_source *s, int timeout_ms, sh_source_frame *f, int
     if (y->at_end) return SH_EEOF;
     int64_t due = sh_source_schedule_ns(y->t0, y->k, s->fps_num, s->fps_den);
     if (!sh_replay_wait(&y->rp, due, timeout_ms)) return SH_OK;
-    st = sh_y4m_reader_read(y->reader, &y->img[slot]);
+    sh_image *img = dst ? dst : &y->img[slot];
+    sh_chroma_siting kept = img->siting;
+    st = sh_y4m_reader_read(y->reader, img);
     for (int attempt = 0; st != SH_OK && attempt < 2; attempt++) {
         if (st == SH_EFORMAT) st = met_damage(y);
         if (st != SH_EEOF) return st;
@@ -99,15 +103,34 @@ static sh_status y_dequeue(sh_source *s, int timeout_ms, sh_source_frame *f, int
         }
         if ((st = rewind_reader(y)) != SH_OK) return st;
         y->restarted = !y->seamless;
-        st = sh_y4m_reader_read(y->reader, &y->img[slot]);
+        st = sh_y4m_reader_read(y->reader, img);
     }
     if (st != SH_OK) return st == SH_EEOF ? sh_error_set(SH_EFORMAT, "%s: no frame to loop over", s->name) : st;
-    sh_replay_hand_out(&y->rp, slot, y->mem[slot], y->frame_bytes, y->k, due, y->restarted, f);
+    /* dst as pixconv would have left it: a raw I420 frame's chroma centred (a raw frame carries no
+     * siting), a GRAY8 image's siting untouched */
+    if (dst) dst->siting = dst->format == SH_PIX_I420 ? SH_CHROMA_CENTER : kept;
+    sh_replay_hand_out(&y->rp, slot, dst ? NULL : y->mem[slot], dst ? 0 : y->frame_bytes, y->k, due, y->restarted, f);
     y->restarted = 0;
     y->k++;
     sh_replay_arm(&y->rp, sh_source_schedule_ns(y->t0, y->k, s->fps_num, s->fps_den));
     *got = 1;
     return SH_OK;
+}
+
+static sh_status y_dequeue(sh_source *s, int timeout_ms, sh_source_frame *f, int *got)
+{
+    return y_read(s, timeout_ms, NULL, f, got);
+}
+
+/* Straight into dst when it is what pixconv would make of the file's frames: the same format
+ * (I420 or GRAY8; 4:4:4 files are converted to I420) and size. */
+static sh_status y_dequeue_into(sh_source *s, int timeout_ms, sh_image *dst, sh_source_frame *f, int *got,
+                                int *direct)
+{
+    y4m_source *y = (y4m_source *)s;
+    *direct = dst->format == y->pixfmt && (dst->format == SH_PIX_I420 || dst->format == SH_PIX_GRAY8) &&
+              dst->width == s->width && dst->height == s->height;
+    return y_read(s, timeout_ms, *direct ? dst : NULL, f, got);
 }
 
 static void y_close(sh_source *s)
@@ -119,7 +142,8 @@ static void y_close(sh_source *s)
     free(y);
 }
 
-static const sh_source_ops ops = {y_start, sh_replay_fd, y_dequeue, sh_replay_release, sh_replay_stop, y_close};
+static const sh_source_ops ops = {y_start, sh_replay_fd, y_dequeue, sh_replay_release, sh_replay_stop, y_close,
+                                   y_dequeue_into};
 
 sh_status sh_source_open_y4m(const char *path, const sh_source_options *opts, sh_source **out)
 {

@@ -185,6 +185,82 @@ static void test_fast_replay(void **state)
     sh_source_close(s);
 }
 
+/* A Y4M file of N frames of format f (every plane's bytes varied per frame) with the given
+ * chroma siting. */
+static void write_y4m_planes(sh_pixfmt f, sh_chroma_siting siting)
+{
+    sh_y4m_header h;
+    memset(&h, 0, sizeof h);
+    h.width = W;
+    h.height = H;
+    h.format = f;
+    h.siting = siting;
+    h.fps_num = 25;
+    h.fps_den = 1;
+    sh_y4m_writer *w;
+    assert_int_equal(sh_y4m_writer_open(path, &h, &w), SH_OK);
+    sh_image img;
+    assert_int_equal(sh_image_create(&img, f, W, H), SH_OK);
+    for (int n = 0; n < N; n++) {
+        for (int p = 0; p < img.num_planes; p++)
+            for (int y = 0; y < img.plane[p].height; y++)
+                for (int x = 0; x < img.plane[p].width; x++)
+                    img.plane[p].data[y * img.plane[p].stride + x] = (uint8_t)(37 * n + 11 * p + 5 * x + 3 * y);
+        assert_int_equal(sh_y4m_writer_write(w, &img), SH_OK);
+    }
+    sh_image_destroy(&img);
+    assert_int_equal(sh_y4m_writer_close(w), SH_OK);
+}
+
+/* sh_source_dequeue_into gives the image sh_source_dequeue and sh_pixconv_convert give, frame
+ * for frame over two loops, siting included: read straight in for I420 (a C420mpeg2 file: the
+ * raw frame's siting is pixconv's centre, not the header's) and grey; a 4:4:4 file is left to
+ * the caller's conversion (direct 0, dst untouched). */
+static void test_dequeue_into(void **state)
+{
+    (void)state;
+    const struct { sh_pixfmt file, work; int direct; } cases[] = {
+        {SH_PIX_I420, SH_PIX_I420, 1}, {SH_PIX_GRAY8, SH_PIX_GRAY8, 1}, {SH_PIX_YUV444, SH_PIX_I420, 0}};
+    for (size_t c = 0; c < sizeof cases / sizeof cases[0]; c++) {
+        write_y4m_planes(cases[c].file, SH_CHROMA_LEFT);
+        sh_source *a = start_fast_loop(), *b = start_fast_loop();
+        sh_image ia, ib;
+        assert_int_equal(sh_image_create(&ia, cases[c].work, W, H), SH_OK);
+        assert_int_equal(sh_image_create(&ib, cases[c].work, W, H), SH_OK);
+        for (int k = 0; k < 2 * N; k++) {
+            sh_source_frame fa, fb;
+            int got = 0, direct = -1;
+            assert_int_equal(sh_source_dequeue(a, 0, &fa, &got), SH_OK);
+            assert_int_equal(got, 1);
+            assert_int_equal(sh_pixconv_convert(NULL, &fa.raw, &ia), SH_OK);
+            ib.siting = SH_CHROMA_PALDV; /* neither pixconv nor a direct read may leave this */
+            if (cases[c].work == SH_PIX_GRAY8) ia.siting = ib.siting;
+            memset(ib.plane[0].data, 7, (size_t)ib.plane[0].stride * H);
+            assert_int_equal(sh_source_dequeue_into(b, 0, &ib, &fb, &got, &direct), SH_OK);
+            assert_int_equal(got, 1);
+            assert_int_equal(direct, cases[c].direct);
+            assert_int_equal(fb.sequence, fa.sequence);
+            if (!direct) {
+                assert_int_equal(ib.plane[0].data[0], 7); /* untouched */
+                assert_int_equal(sh_pixconv_convert(NULL, &fb.raw, &ib), SH_OK);
+            } else {
+                assert_null(fb.raw.data);
+            }
+            assert_int_equal(ib.siting, ia.siting);
+            for (int p = 0; p < ia.num_planes; p++)
+                for (int y = 0; y < ia.plane[p].height; y++)
+                    assert_memory_equal(ib.plane[p].data + y * ib.plane[p].stride, ia.plane[p].data + y * ia.plane[p].stride,
+                                        (size_t)ia.plane[p].width);
+            assert_int_equal(sh_source_release(a, &fa), SH_OK);
+            assert_int_equal(sh_source_release(b, &fb), SH_OK);
+        }
+        sh_image_destroy(&ia);
+        sh_image_destroy(&ib);
+        sh_source_close(a);
+        sh_source_close(b);
+    }
+}
+
 /* Two replays of one rig started 30 ms apart (as a loaded machine may start them): each one's
  * own start puts its schedule 30 ms after the other's, more than the quarter period a frame set
  * allows; sh_source_start_at with one clock gives frame k of both the stamp clock + k/fps
@@ -440,6 +516,7 @@ int main(void)
         cmocka_unit_test(test_realtime_schedule),
         cmocka_unit_test(test_ntsc_rate_and_poll),
         cmocka_unit_test(test_fast_replay),
+        cmocka_unit_test(test_dequeue_into),
         cmocka_unit_test(test_replays_share_a_start),
         cmocka_unit_test(test_loop_discontinuity),
         cmocka_unit_test(test_damaged_replays),
