@@ -72,12 +72,14 @@ static const struct {
  * tag; beyond them (more tags than any rig has) the choice falls back on the decision margin. */
 #define CUT_SLOTS 1024
 
-/* A helper thread of a windowed scan, with its own libapriltag detector and family (neither is
- * shared between threads: the family holds the decode table its detector built). */
+/* A helper thread of a windowed scan, with its own libapriltag detector (its buffers and worker
+ * pool are per call state). The family is the caller's: libapriltag 3.3 builds the family's
+ * decode table (about 30 MB for tag36h11 at 2 bits) when the first detector adds it and only
+ * reads it while decoding; another detector adding it finds it built, and the first detector
+ * destroyed frees it (each of them checks). */
 typedef struct {
     struct sh_detector *det;
     apriltag_detector_t *td;
-    apriltag_family_t *tf;
     pthread_t thread;
     int started;
 } helper;
@@ -86,7 +88,6 @@ struct sh_detector {
     apriltag_detector_t *td;
     apriltag_family_t *tf;
     void (*tf_destroy)(apriltag_family_t *);
-    int family;             /* index in families[] */
     sh_detector_options opts;
     uint8_t *gray;          /* RGB24 -> grey, sized at the first RGB frame */
     size_t gray_size;
@@ -161,7 +162,8 @@ static void *helper_main(void *arg)
 }
 
 /* The lock (always: one thread hands the windows out to itself through it too) and, with
- * window_threads > 1, the helpers, each with a detector of its own set up as det's. */
+ * window_threads > 1, the helpers, each with a detector of its own set up as det's, on det's
+ * family. */
 static sh_status start_helpers(sh_detector *det)
 {
     pthread_mutex_init(&det->mu, NULL);
@@ -176,10 +178,9 @@ static sh_status start_helpers(sh_detector *det)
         helper *h = &det->helpers[k];
         det->nhelpers = k + 1; /* stop_helpers frees up to here */
         h->det = det;
-        h->tf = families[det->family].create();
         h->td = apriltag_detector_create();
-        if (!h->tf || !h->td) return sh_error_set(SH_ENOMEM, "detect: cannot create a helper's libapriltag detector");
-        apriltag_detector_add_family_bits(h->td, h->tf, det->opts.max_hamming);
+        if (!h->td) return sh_error_set(SH_ENOMEM, "detect: cannot create a helper's libapriltag detector");
+        apriltag_detector_add_family_bits(h->td, det->tf, det->opts.max_hamming);
         h->td->quad_decimate = (float)det->opts.window_decimate; /* helpers only scan windows */
         h->td->quad_sigma = det->td->quad_sigma;
         h->td->refine_edges = det->td->refine_edges;
@@ -204,7 +205,6 @@ static void stop_helpers(sh_detector *det)
         helper *h = &det->helpers[k];
         if (h->started) pthread_join(h->thread, NULL);
         if (h->td) apriltag_detector_destroy(h->td);
-        if (h->tf) families[det->family].destroy(h->tf);
     }
     free(det->helpers);
     pthread_mutex_destroy(&det->mu);
@@ -251,7 +251,6 @@ sh_status sh_detector_create(const sh_detector_options *opts, sh_detector **out)
     det->opts.family = families[f].name; /* a static string: the caller's may not outlive us */
     det->tf = families[f].create();
     det->tf_destroy = families[f].destroy;
-    det->family = f;
     det->td = apriltag_detector_create();
     if (!det->tf || !det->td) {
         sh_detector_destroy(det);
