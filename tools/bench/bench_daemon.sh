@@ -5,7 +5,7 @@
 # periodic (stillheart-render --periodic: its end joins its start, so the tracker runs on as it
 # would on a live camera instead of starting afresh at every loop).
 # Once with detection (the product), once from a points file (detection left out), then
-# BENCH_DAEMON_RT_FRAMES (default 400) in real time with detection.
+# BENCH_DAEMON_RT_FRAMES (default 400) in real time with detection; then at 4K (below).
 B=$(dirname "$0")/..
 DIR=${BENCH_DAEMON_DIR:-out/bench-daemon}
 N=${BENCH_DAEMON_FRAMES:-1200}
@@ -45,5 +45,41 @@ line=$("$B/stillheart" run --source "y4m:$DIR/cam0.y4m" --realtime --loop --thre
     --sink shm:/stillheart-bench --group= --quiet --stats --max-frames "$RT" --trace "$T/rt.csv" 2>/dev/null) || exit 1
 echo "daemon 1920x1080 tps 2 threads, markers detect, real time: $line"
 echo "  $(stages "$T/rt.csv")"
+
+# Issue 20's 4K tower: 3840x2160 I420, as fast as possible, 2 threads, into the segment, tps and
+# bspline, 16 tags (the preset's 10 mm) and 32 (8 mm: 32 of 10 mm do not fit its patch). Each
+# recording is 66 periodic frames (two whole beats: it loops without a jump), 820 MB, made once
+# and kept: BENCH_DAEMON_4K_DIR (16 tags, default out/bench-daemon-4k) and BENCH_DETECT_TRACK_4K_DIR
+# (32 tags, bench_detect_track's, default out/bench-detect-track-4k); .complete marks one made
+# whole. BENCH_DAEMON_4K_FRAMES (default 600) frames a run; 0 leaves the 4K runs out.
+N4=${BENCH_DAEMON_4K_FRAMES:-600}
+render_4k() { # DIR, extra renderer options
+    [ -f "$1/.complete" ] && return 0
+    echo "rendering 66 phantom frames (3840x2160, exvivo, periodic) into $1, once..."
+    mkdir -p "$1" && "$B/stillheart-render" --preset exvivo --rig paper --cameras 1 --width 3840 --height 2160 \
+        --periodic --seed 3 --frames 66 $2 --out "$1" >/dev/null && : > "$1/.complete"
+}
+load() { cut -d' ' -f1 /proc/loadavg; }
+if [ "$N4" -gt 0 ]; then
+    D16=${BENCH_DAEMON_4K_DIR:-out/bench-daemon-4k}
+    D32=${BENCH_DETECT_TRACK_4K_DIR:-out/bench-detect-track-4k}
+    render_4k "$D16" "" || exit 1
+    render_4k "$D32" "--markers 32 --tag-size 8" || exit 1
+    for tags in 16 32; do
+        dir=$D16; [ $tags = 32 ] && dir=$D32
+        for method in tps bspline; do
+            l0=$(load)
+            t0=$(date +%s.%N)
+            line=$("$B/stillheart" run --source "y4m:$dir/cam0.y4m" --no-realtime --loop --threads 2 --method $method \
+                --ids 0-$((tags - 1)) --sink shm:/stillheart-bench-4k --group= --quiet --stats --max-frames "$N4" \
+                --trace "$T/4k.csv") || exit 1
+            t1=$(date +%s.%N)
+            fps=$(echo "$N4 $t0 $t1" | awk '{printf "%.1f", $1 / ($3 - $2)}')
+            echo "daemon 3840x2160 $tags tags $method 2 threads, markers detect: $fps frames/s over $N4 frames (process start included), load $l0 -> $(load); $line"
+            echo "  $(stages "$T/4k.csv")"
+        done
+    done
+    rm -f /dev/shm/stillheart-bench-4k
+fi
 rm -rf "$T"
 rm -f /dev/shm/stillheart-bench
