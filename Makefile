@@ -226,8 +226,8 @@ $(BUILD)/bench/%: tools/bench/%.cpp $(BUILD)/tools/synth/synth.o $(LIB)
 	@mkdir -p $(dir $@)
 	$(CXX) $(CXXFLAGS_ALL) $(OPENCV_CFLAGS) $< $(BUILD)/tools/synth/synth.o $(LIB) $(OPENCV_LIBS) $(LDLIBS_ALL) -o $@
 
-# bench_flow's peer, cv::calcOpticalFlowPyrLK, lives in OpenCV's video module
-$(BUILD)/bench/bench_flow: OPENCV_LIBS += -lopencv_video
+# bench_flow's and bench_landmarks' peer, cv::calcOpticalFlowPyrLK, lives in OpenCV's video module
+$(BUILD)/bench/bench_flow $(BUILD)/bench/bench_landmarks: OPENCV_LIBS += -lopencv_video
 
 bench: deps
 	@sh scripts/install-deps.sh --bench
