@@ -64,10 +64,28 @@ int sh_flow_pyramid_levels(const sh_flow_pyramid *pyr);
  * reference frame's, built once; or every frame's when points go frame to frame). */
 sh_status sh_flow_pyramid_build(sh_flow_pyramid *pyr, const sh_plane *luma, int gradients);
 
+/* Builds only what searches near a box of points can read: box is x0, y0, x1, y1 (level 0 px,
+ * x0 <= x1, y0 <= y1), and each level gets the pixels (and gradients) that a window centred
+ * anywhere in the box scaled to the level reads, with what the levels above are reduced from;
+ * the rest of the pyramid is left as it was. A search that would read anything else stops
+ * with SH_FLOW_UNBUILT, so a point either gets the same result, bit for bit, as from
+ * sh_flow_pyramid_build or that status (a caller then builds the whole frame and tracks it
+ * again). luma need only hold valid pixels in sh_flow_pyramid_box_part's rectangle: the rest is
+ * not read. For a fixed set of points moving in a known area of a larger frame (the landmarks
+ * around their prediction) this is a fraction of the work. */
+sh_status sh_flow_pyramid_build_box(sh_flow_pyramid *pyr, const sh_plane *luma, int gradients,
+                                    const float box[4]);
+/* The frame's pixels sh_flow_pyramid_build_box reads for box: [part[0], part[2]) x
+ * [part[1], part[3]), within the frame. */
+sh_status sh_flow_pyramid_box_part(const sh_flow_pyramid *pyr, const float box[4], int gradients,
+                                   int part[4]);
+
 typedef enum {
     SH_FLOW_OK = 0,     /* followed */
     SH_FLOW_FLAT,       /* its window's texture is too weak to locate it (min_eig) */
-    SH_FLOW_OUTSIDE     /* its window left the image */
+    SH_FLOW_OUTSIDE,    /* its window left the image */
+    SH_FLOW_UNBUILT     /* its window reached a part of a pyramid that sh_flow_pyramid_build_box
+                         * did not build (out is then where the search was) */
 } sh_flow_status;
 
 /* Follows n points from prev to next (pyramids of the same size and params; prev built with

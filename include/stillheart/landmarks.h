@@ -47,7 +47,12 @@
  *    own error is smooth between the markers, so neighbours that are right correct it alike;
  *    one whose window matched the wrong place, consistently both ways and within the map's
  *    reach, stands out. This test needs a prediction.
- * Nothing is allocated per frame. */
+ * Only the part of the frame the searches read is band-passed and put in the pyramid: the part
+ * around the box of the predictions grown by the disagreement bound and 8 px
+ * (sh_flow_pyramid_build_box). A search that leaves it is done again on a larger part around
+ * where it started and where it stopped (reaching 32, 64, 128 px further), then on the whole
+ * frame; the results are the whole frame's, bit for bit, whatever part was built (counts says
+ * how many searches were done again). Nothing is allocated per frame. */
 #ifndef STILLHEART_LANDMARKS_H
 #define STILLHEART_LANDMARKS_H
 
@@ -124,6 +129,10 @@ const float *sh_landmarks_reference(const sh_landmarks *lm);
 
 typedef struct {
     int verdicts[SH_LANDMARK_VERDICTS]; /* landmarks of the frame by verdict */
+    /* cost, not results: searches that left the part of the frame built around the
+     * predictions and were done again on a larger part, and whether the whole frame had to be
+     * built in the end (sh_landmarks_track) */
+    int searched_again, whole_frame;
 } sh_landmarks_counts;
 
 /* Finds the landmarks in a luma plane of the reference's size. predicted: count pairs, where

@@ -14,6 +14,11 @@ typedef struct {
     int stride;         /* samples per row of every plane */
     uint8_t *img;       /* pixel (0, 0): img_base + pad * stride + pad */
     int16_t *gx, *gy;   /* gradient (0, 0) */
+    /* what the last build made (sh_flow_pyramid_build_box builds part of a level): pixels in
+     * [img_box[0], img_box[2]) x [img_box[1], img_box[3]), gradients in grad_box, level
+     * coordinates, reaching into the border where the part touches the level's edge; the
+     * tracker reads nothing outside them (SH_FLOW_UNBUILT) */
+    int img_box[4], grad_box[4];
 } flow_level;
 
 #define FLOW_SLACK 64

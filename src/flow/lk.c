@@ -34,6 +34,22 @@ static int inside(const flow_level *l, float x, float y, int win)
     return x >= (float)-win && x < (float)l->width && y >= (float)-win && y < (float)l->height;
 }
 
+/* Whether the pixels a window at integer corner (ix, iy) reads, [ix, ix + win] x [iy, iy + win]
+ * with the bilinear neighbour, were built (flow_level's img_box or grad_box). */
+static int built(const int b[4], int ix, int iy, int win)
+{
+    return ix >= b[0] && iy >= b[1] && ix + win + 1 <= b[2] && iy + win + 1 <= b[3];
+}
+
+/* A search that reached an unbuilt part of a pyramid stops there: its position (nx, ny) on
+ * level lv, in level 0 px, tells the caller where it was going. */
+static uint8_t unbuilt(float nx, float ny, int lv, float *qx, float *qy)
+{
+    *qx = nx * (float)(1 << lv);
+    *qy = ny * (float)(1 << lv);
+    return SH_FLOW_UNBUILT;
+}
+
 /* The previous frame's window, rows FLOW_WROW(win) apart. */
 typedef struct {
     int16_t img[SH_FLOW_MAX_WIN * FLOW_WROW(SH_FLOW_MAX_WIN)]; /* 1/32 grey levels */
@@ -81,6 +97,7 @@ static uint8_t track_point(const sh_flow_params *prm, const sh_flow_pyramid *pre
             continue;
         }
         int ix = (int)floorf(sx), iy = (int)floorf(sy);
+        if (!built(L0->grad_box, ix, iy, win)) return unbuilt(nx, ny, lv, qx, qy);
         int w[4];
         int64_t sum[3];
         bilinear(sx - (float)ix, sy - (float)iy, w);
@@ -102,6 +119,7 @@ static uint8_t track_point(const sh_flow_params *prm, const sh_flow_pyramid *pre
                 break;
             }
             int jx = (int)floorf(cx), jy = (int)floorf(cy);
+            if (!built(L1->img_box, jx, jy, win)) return unbuilt(nx, ny, lv, qx, qy);
             bilinear(cx - (float)jx, cy - (float)jy, w);
             flow_window_mismatch(L1, jx, jy, w, win, s->img, s->gx, s->gy, sum);
             const float b1 = (float)sum[0] * FLT_SCALE, b2 = (float)sum[1] * FLT_SCALE;
@@ -126,6 +144,7 @@ static uint8_t track_point(const sh_flow_params *prm, const sh_flow_pyramid *pre
                 status = SH_FLOW_OUTSIDE;
             } else if (err) {
                 int jx = (int)floorf(ex), jy = (int)floorf(ey);
+                if (!built(L1->img_box, jx, jy, win)) return unbuilt(nx, ny, lv, qx, qy);
                 bilinear(ex - (float)jx, ey - (float)jy, w);
                 *err = (float)abs_mismatch(L1, jx, jy, w, win, s) * (1.f / (float)(32 * win * win));
             }

@@ -25,6 +25,11 @@ struct sh_landmarks {
     int *cols;          /* 4 w ints and 2 w floats: the boxes' columns (band_pass) */
     uint8_t *band;   /* w x h: the band-passed frame the tracker sees */
     float gain;      /* the band-pass's, fixed by the reference */
+    /* the searches done again on the whole frame (sh_landmarks_track): their landmarks' indices,
+     * and per landmark 2 + 2 + 2 + 2 + 1 floats, 2 statuses */
+    int *redo;
+    float *redo_xy;
+    uint8_t *redo_st;
 };
 
 const char *sh_landmark_verdict_name(sh_landmark_verdict v)
@@ -169,17 +174,22 @@ static sh_status make_mask(const sh_landmarks_params *p, const sh_plane *ref, co
  *
  * The box sums are exact integers, kept as running sums: per column, the sum over each box's
  * rows (a row added as it enters, one taken away as it leaves), then per row a prefix sum of
- * those, whose differences are the boxes. Sequential memory and no division per pixel. */
-static void band_row(const sh_landmarks *lm, int w, int y, int h, int r1, int r2, int pass, uint32_t *hist)
+ * those, whose differences are the boxes. Sequential memory and no division per pixel. Only the
+ * pixels of a part of the frame are made (a frame's, the part its pyramid reads): each is the
+ * same function of the frame's pixels wherever the part lies, as the sums are exact. */
+static void band_row(const sh_landmarks *lm, int w, int y, int h, int r1, int r2, const int part[4], int pass,
+                     uint32_t *hist)
 {
     const uint32_t *v1 = lm->colsum, *v2 = v1 + w;
-    uint32_t *p1 = lm->prefix, *p2 = p1 + w + 1;
+    uint32_t *restrict p1 = lm->prefix, *restrict p2 = p1 + w + 1;
     const int *l1 = lm->cols, *m1 = l1 + w, *l2 = m1 + w, *m2 = l2 + w;
     const float *iw1 = (const float *)(m2 + w), *iw2 = iw1 + w;
+    /* the prefix sums over the columns the part's boxes reach, indexed by column: p[c0] = 0 */
+    const int c0 = part[0] - r2 > 0 ? part[0] - r2 : 0, c1 = part[2] + r2 < w ? part[2] + r2 : w;
     /* the running sums in registers: through memory, each step would wait for the last store */
     uint32_t run1 = 0, run2 = 0;
-    p1[0] = p2[0] = 0;
-    for (int x = 0; x < w; x++) {
+    p1[c0] = p2[c0] = 0;
+    for (int x = c0; x < c1; x++) {
         run1 += v1[x];
         run2 += v2[x];
         p1[x + 1] = run1;
@@ -188,9 +198,9 @@ static void band_row(const sh_landmarks *lm, int w, int y, int h, int r1, int r2
     int a1 = y - r1 < 0 ? 0 : y - r1, b1 = y + r1 + 1 > h ? h : y + r1 + 1;
     int a2 = y - r2 < 0 ? 0 : y - r2, b2 = y + r2 + 1 > h ? h : y + r2 + 1;
     const float ih1 = 1.0f / (float)(b1 - a1), ih2 = 1.0f / (float)(b2 - a2), gain = lm->gain;
-    uint8_t *out = lm->band + (size_t)y * w;
+    uint8_t *restrict out = lm->band + (size_t)y * w;
     if (pass) {
-        for (int x = 0; x < w; x++) {
+        for (int x = part[0]; x < part[2]; x++) {
             float s1 = (float)(p1[m1[x]] - p1[l1[x]]) * (ih1 * iw1[x]);
             float s2 = (float)(p2[m2[x]] - p2[l2[x]]) * (ih2 * iw2[x]);
             float d = fabsf(s1 - s2);
@@ -199,43 +209,52 @@ static void band_row(const sh_landmarks *lm, int w, int y, int h, int r1, int r2
         return;
     }
     /* the columns whose boxes the image's sides do not clip, with their constant widths (the
-     * same arithmetic, in a loop gcc vectorizes), then the ones near the sides */
-    const int x0 = r2 < w ? r2 : w, x1 = w - r2 - 1 > x0 ? w - r2 - 1 : x0;
+     * same arithmetic: 1 / width is the same float either way), in a loop gcc vectorizes; then
+     * the ones near the sides. A box's sum is below 2^24, so the difference of two prefix sums
+     * converts exactly through int32 (which vectorizes, where uint32 does not). The rounding to
+     * an integer is lrintf's (the current mode, to nearest even by default) without the call:
+     * adding 1.5 * 2^23 to a value in [0, 255] leaves no fraction bits, and taking it away
+     * again is exact (no -ffast-math here, and -ffp-contract=off). */
+    const float round = 0x1.8p23f;
+    const int xa = r2 < w ? r2 : w, xb = w - r2 - 1 > xa ? w - r2 - 1 : xa;
+    const int x0 = part[0] > xa ? part[0] : xa, x1 = part[2] < xb ? part[2] : xb;
     const float k1 = ih1 * (1.0f / (float)(2 * r1 + 1)), k2 = ih2 * (1.0f / (float)(2 * r2 + 1));
     for (int x = x0; x < x1; x++) {
-        float s1 = (float)(p1[x + r1 + 1] - p1[x - r1]) * k1;
-        float s2 = (float)(p2[x + r2 + 1] - p2[x - r2]) * k2;
-        float v = 128 + gain * (s1 - s2);
-        v = v > 0 ? v : 0; /* compares, not fminf: no call, and the loop vectorizes */
-        v = v < 255 ? v : 255;
-        out[x] = (uint8_t)lrintf(v);
+        float s1 = (float)(int32_t)(p1[x + r1 + 1] - p1[x - r1]) * k1;
+        float s2 = (float)(int32_t)(p2[x + r2 + 1] - p2[x - r2]) * k2;
+        /* rounded, then clamped to 0..255 as integers (float compares are branches to gcc): the
+         * same as clamped then rounded, 0 and 255 being integers; |v| < 128 + 16 * 255 < 2^22,
+         * where the rounding above holds */
+        int32_t q = (int32_t)(((128 + gain * (s1 - s2)) + round) - round);
+        q = q > 0 ? q : 0;
+        out[x] = (uint8_t)(q < 255 ? q : 255);
     }
-    for (int x = 0; x < w; x++) {
-        if (x == x0) x = x1;
-        if (x >= w) break;
+    for (int x = part[0]; x < part[2]; x++) {
+        if (x == x0 && x0 < x1) x = x1;
+        if (x >= part[2]) break;
         float s1 = (float)(p1[m1[x]] - p1[l1[x]]) * (ih1 * iw1[x]);
         float s2 = (float)(p2[m2[x]] - p2[l2[x]]) * (ih2 * iw2[x]);
         float v = 128 + gain * (s1 - s2);
         v = v > 0 ? v : 0;
         v = v < 255 ? v : 255;
-        out[x] = (uint8_t)lrintf(v);
+        out[x] = (uint8_t)(int32_t)((v + round) - round);
     }
 }
 
-/* Adds (sign 1) or takes away (-1) row y of src to a box's column sums. */
-static void column_add(uint32_t *restrict v, const sh_plane *src, int y, int sign)
+/* Adds (sign 1) or takes away (-1) row y of src, columns [x0, x1), to a box's column sums. */
+static void column_add(uint32_t *restrict v, const sh_plane *src, int y, int x0, int x1, int sign)
 {
     const uint8_t *restrict in = src->data + (size_t)y * src->stride;
     if (sign > 0)
-        for (int x = 0; x < src->width; x++) v[x] += in[x];
+        for (int x = x0; x < x1; x++) v[x] += in[x];
     else
-        for (int x = 0; x < src->width; x++) v[x] -= in[x];
+        for (int x = x0; x < x1; x++) v[x] -= in[x];
 }
 
-static void band_pass(sh_landmarks *lm, const sh_plane *src, int r1, int r2)
+/* The boxes' column ranges and reciprocal widths, once per reference. */
+static void band_columns(sh_landmarks *lm, int r1, int r2)
 {
-    const int w = src->width, h = src->height;
-    /* the boxes' column ranges and reciprocal widths, once per call */
+    const int w = lm->width;
     int *l1 = lm->cols, *m1 = l1 + w, *l2 = m1 + w, *m2 = l2 + w;
     float *iw1 = (float *)(m2 + w), *iw2 = iw1 + w;
     for (int x = 0; x < w; x++) {
@@ -244,21 +263,32 @@ static void band_pass(sh_landmarks *lm, const sh_plane *src, int r1, int r2)
         iw1[x] = 1.0f / (float)(m1[x] - l1[x]);
         iw2[x] = 1.0f / (float)(m2[x] - l2[x]);
     }
+}
+
+/* The band-passed pixels of src in part (x0, y0, x1, y1, half-open, within the frame) into
+ * lm->band; first the gain when it is not set yet (the whole frame then). */
+static void band_pass(sh_landmarks *lm, const sh_plane *src, int r1, int r2, const int part[4])
+{
+    const int w = src->width, h = src->height;
+    /* the columns whose sums the part's boxes read */
+    const int c0 = part[0] - r2 > 0 ? part[0] - r2 : 0, c1 = part[2] + r2 < w ? part[2] + r2 : w;
     uint32_t hist[256] = {0};
     for (int pass = lm->gain <= 0; pass >= 0; pass--) {
         uint32_t *v1 = lm->colsum, *v2 = v1 + w;
-        memset(v1, 0, 2 * (size_t)w * sizeof *v1);
-        /* row 0's boxes: rows [0, r + 1) */
-        for (int y = 0; y < h && y <= r1; y++) column_add(v1, src, y, 1);
-        for (int y = 0; y < h && y <= r2; y++) column_add(v2, src, y, 1);
-        for (int y = 0; y < h; y++) {
-            if (y > 0) {
-                if (y + r1 < h) column_add(v1, src, y + r1, 1);
-                if (y - r1 - 1 >= 0) column_add(v1, src, y - r1 - 1, -1);
-                if (y + r2 < h) column_add(v2, src, y + r2, 1);
-                if (y - r2 - 1 >= 0) column_add(v2, src, y - r2 - 1, -1);
+        memset(v1 + c0, 0, (size_t)(c1 - c0) * sizeof *v1);
+        memset(v2 + c0, 0, (size_t)(c1 - c0) * sizeof *v2);
+        /* the first row's boxes: rows [y0 - r, y0 + r] within the frame */
+        const int y0 = part[1];
+        for (int y = y0 - r1 > 0 ? y0 - r1 : 0; y < h && y <= y0 + r1; y++) column_add(v1, src, y, c0, c1, 1);
+        for (int y = y0 - r2 > 0 ? y0 - r2 : 0; y < h && y <= y0 + r2; y++) column_add(v2, src, y, c0, c1, 1);
+        for (int y = y0; y < part[3]; y++) {
+            if (y > y0) {
+                if (y + r1 < h) column_add(v1, src, y + r1, c0, c1, 1);
+                if (y - r1 - 1 >= 0) column_add(v1, src, y - r1 - 1, c0, c1, -1);
+                if (y + r2 < h) column_add(v2, src, y + r2, c0, c1, 1);
+                if (y - r2 - 1 >= 0) column_add(v2, src, y - r2 - 1, c0, c1, -1);
             }
-            band_row(lm, w, y, h, r1, r2, pass, hist);
+            band_row(lm, w, y, h, r1, r2, part, pass, hist);
         }
         if (pass) {
             uint64_t want = (uint64_t)w * h * 99 / 100, seen = 0;
@@ -336,8 +366,12 @@ sh_status sh_landmarks_create(const sh_landmarks_params *params, const sh_plane 
     lm->prefix = malloc(2 * ((size_t)lm->width + 1) * sizeof *lm->prefix);
     lm->band = malloc((size_t)lm->width * lm->height);
     lm->cols = malloc(6 * (size_t)lm->width * sizeof(int));
+    lm->redo = malloc(m * sizeof *lm->redo);
+    lm->redo_xy = malloc(9 * m * sizeof *lm->redo_xy);
+    lm->redo_st = malloc(2 * m);
     if (!mask || !lm->ref_xy || !lm->fwd || !lm->back || !lm->err || !lm->st_fwd || !lm->st_back || !lm->near ||
-        !lm->scratch || !lm->colsum || !lm->prefix || !lm->band || !lm->cols) {
+        !lm->scratch || !lm->colsum || !lm->prefix || !lm->band || !lm->cols || !lm->redo || !lm->redo_xy ||
+        !lm->redo_st) {
         free(mask);
         sh_landmarks_destroy(lm);
         return sh_error_set(SH_ENOMEM, "landmarks: out of memory");
@@ -346,7 +380,9 @@ sh_status sh_landmarks_create(const sh_landmarks_params *params, const sh_plane 
     /* corners and the reference's pyramid from the band-passed reference (its gain set here) */
     sh_plane band = *reference;
     if (params->band > 0) {
-        band_pass(lm, reference, BAND_FINE, params->band);
+        const int all[4] = {0, 0, lm->width, lm->height};
+        band_columns(lm, BAND_FINE, params->band);
+        band_pass(lm, reference, BAND_FINE, params->band, all);
         band = (sh_plane){lm->band, lm->width, lm->height, lm->width};
     }
     if (st == SH_OK) {
@@ -388,6 +424,9 @@ void sh_landmarks_destroy(sh_landmarks *lm)
     free(lm->prefix);
     free(lm->band);
     free(lm->cols);
+    free(lm->redo);
+    free(lm->redo_xy);
+    free(lm->redo_st);
     free(lm);
 }
 
@@ -424,6 +463,112 @@ static void deviations(sh_landmarks *lm, const float *predicted, uint8_t *verdic
     }
 }
 
+/* Forward from the reference at ref to the frame from guess (NULL: from ref), then, with the
+ * backward test, back from the result, starting where the prediction's inverse puts it: the
+ * result minus the predicted displacement (without a prediction, at the result itself, as the
+ * forward search started at the reference position). */
+static sh_status searches(const sh_landmarks *lm, int n, const float *ref, const float *guess, float *fwd,
+                          uint8_t *st_fwd, float *err, float *back, uint8_t *st_back)
+{
+    const sh_landmarks_params *p = &lm->p;
+    sh_status st = sh_flow_track(&p->flow, lm->ref, lm->cur, n, ref, guess, fwd, st_fwd, err);
+    if (st != SH_OK || !(p->max_backward_px > 0)) return st;
+    for (int i = 0; i < 2 * n; i++) back[i] = guess ? fwd[i] - (guess[i] - ref[i]) : fwd[i];
+    return sh_flow_track(&p->flow, lm->cur, lm->ref, n, fwd, back, back, st_back, NULL);
+}
+
+/* Where the frame's searches are expected: the box of their starting positions, grown by
+ * SEARCH_REACH px plus the disagreement bound. An accepted landmark ends within
+ * max_disagreement_px of its prediction, which its backward search starts from; SEARCH_REACH
+ * covers the steps of the searches on their way. A search that leaves it costs time, not
+ * results (search_again). */
+#define SEARCH_REACH 8
+/* Rounds of search_again on parts of the frame (each reaching twice as far as the last) before
+ * the whole frame is built */
+#define AGAIN_ROUNDS 3
+
+/* Grows box (x0, y0, x1, y1) to hold (x, y) when a search could read the frame from there at
+ * all: finite, within a window of the frame. */
+static void box_add(const sh_landmarks *lm, float box[4], float x, float y)
+{
+    const float lim = (float)lm->p.flow.win;
+    if (!(x >= -lim && x <= (float)lm->width + lim && y >= -lim && y <= (float)lm->height + lim)) return;
+    box[0] = x < box[0] ? x : box[0], box[2] = x > box[2] ? x : box[2];
+    box[1] = y < box[1] ? y : box[1], box[3] = y > box[3] ? y : box[3];
+}
+
+static void box_grow(float box[4], float r)
+{
+    if (!(box[0] <= box[2])) box[0] = box[1] = box[2] = box[3] = 0; /* no search reads the frame */
+    box[0] -= r, box[1] -= r, box[2] += r, box[3] += r;
+}
+
+/* The frame band-passed (unless band is 0) in the part of it a pyramid built for box reads, and
+ * that pyramid; the whole frame when box is NULL. */
+static sh_status build_part(sh_landmarks *lm, const sh_plane *luma, const float *box)
+{
+    const int backward = lm->p.max_backward_px > 0;
+    int part[4] = {0, 0, lm->width, lm->height};
+    sh_status st = box ? sh_flow_pyramid_box_part(lm->cur, box, backward, part) : SH_OK;
+    sh_plane band = *luma;
+    if (st == SH_OK && lm->p.band > 0) {
+        band_pass(lm, luma, BAND_FINE, lm->p.band, part);
+        band = (sh_plane){lm->band, lm->width, lm->height, lm->width};
+    }
+    if (st != SH_OK) return st;
+    return box ? sh_flow_pyramid_build_box(lm->cur, &band, backward, box) : sh_flow_pyramid_build(lm->cur, &band, backward);
+}
+
+/* The landmarks whose searches read outside the part of the frame built for them, searched
+ * again: one whose forward search did, and one whose backward search did after its forward
+ * search succeeded (after a failed one its verdict is LOST either way). Each round builds the
+ * part around where those searches started and where they were when they stopped (the backward
+ * search reads the frame only at the forward result), reaching twice as far as the round
+ * before; after AGAIN_ROUNDS the whole frame. A point's search reads the same pixels whatever
+ * part holds them, so the results are those of the whole frame. counts: searches done again,
+ * and whether the whole frame was built. */
+static sh_status search_again(sh_landmarks *lm, const sh_plane *luma, const float *predicted, int *again,
+                              int *whole)
+{
+    const int backward = lm->p.max_backward_px > 0;
+    const size_t k = (size_t)lm->p.max_points;
+    float *ref = lm->redo_xy, *guess = ref + 2 * k, *fwd = guess + 2 * k, *back = fwd + 2 * k, *err = back + 2 * k;
+    uint8_t *st_fwd = lm->redo_st, *st_back = st_fwd + k;
+    const float *start = predicted ? predicted : lm->ref_xy;
+    for (int round = 0;; round++) {
+        int m = 0;
+        float box[4] = {INFINITY, INFINITY, -INFINITY, -INFINITY};
+        for (int i = 0; i < lm->n; i++)
+            if (lm->st_fwd[i] == SH_FLOW_UNBUILT ||
+                (backward && lm->st_fwd[i] == SH_FLOW_OK && lm->st_back[i] == SH_FLOW_UNBUILT)) {
+                lm->redo[m++] = i;
+                box_add(lm, box, start[2 * i], start[2 * i + 1]);
+                box_add(lm, box, lm->fwd[2 * i], lm->fwd[2 * i + 1]);
+            }
+        if (m == 0) return SH_OK;
+        *again += m;
+        *whole = round == AGAIN_ROUNDS;
+        box_grow(box, (float)lm->p.max_disagreement_px + (float)(SEARCH_REACH << (round + 2)));
+        sh_status st = build_part(lm, luma, *whole ? NULL : box);
+        if (st != SH_OK) return st;
+        for (int j = 0; j < m; j++) {
+            int i = lm->redo[j];
+            ref[2 * j] = lm->ref_xy[2 * i], ref[2 * j + 1] = lm->ref_xy[2 * i + 1];
+            if (predicted) guess[2 * j] = predicted[2 * i], guess[2 * j + 1] = predicted[2 * i + 1];
+        }
+        st = searches(lm, m, ref, predicted ? guess : NULL, fwd, st_fwd, err, back, st_back);
+        if (st != SH_OK) return st;
+        for (int j = 0; j < m; j++) {
+            int i = lm->redo[j];
+            lm->fwd[2 * i] = fwd[2 * j], lm->fwd[2 * i + 1] = fwd[2 * j + 1];
+            lm->back[2 * i] = back[2 * j], lm->back[2 * i + 1] = back[2 * j + 1];
+            lm->err[i] = err[j];
+            lm->st_fwd[i] = st_fwd[j];
+            if (backward) lm->st_back[i] = st_back[j];
+        }
+    }
+}
+
 sh_status sh_landmarks_track(sh_landmarks *lm, const sh_plane *luma, const float *predicted, float *xy,
                              uint8_t *verdict, sh_landmarks_counts *counts)
 {
@@ -431,25 +576,18 @@ sh_status sh_landmarks_track(sh_landmarks *lm, const sh_plane *luma, const float
         return sh_error_set(SH_EINVAL, "landmarks: a %dx%d frame for a %dx%d reference", luma ? luma->width : 0,
                             luma ? luma->height : 0, lm->width, lm->height);
     const sh_landmarks_params *p = &lm->p;
-    int n = lm->n, backward = p->max_backward_px > 0;
+    int n = lm->n, backward = p->max_backward_px > 0, again = 0, whole = 0;
     if (counts) memset(counts, 0, sizeof *counts);
     if (n == 0) return SH_OK;
-    /* the frame's gradients only when it is tracked from, by the backward test */
-    sh_plane band = *luma;
-    if (p->band > 0) {
-        band_pass(lm, luma, BAND_FINE, p->band);
-        band = (sh_plane){lm->band, lm->width, lm->height, lm->width};
-    }
-    sh_status st = sh_flow_pyramid_build(lm->cur, &band, backward);
-    if (st == SH_OK)
-        st = sh_flow_track(&p->flow, lm->ref, lm->cur, n, lm->ref_xy, predicted, lm->fwd, lm->st_fwd, lm->err);
-    if (st == SH_OK && backward) {
-        /* back from the result, starting where the prediction's inverse puts it: the result
-         * minus the predicted displacement (without a prediction, at the result itself, as the
-         * forward search started at the reference position) */
-        for (int i = 0; i < 2 * n; i++) lm->back[i] = predicted ? lm->fwd[i] - (predicted[i] - lm->ref_xy[i]) : lm->fwd[i];
-        st = sh_flow_track(&p->flow, lm->cur, lm->ref, n, lm->fwd, lm->back, lm->back, lm->st_back, NULL);
-    }
+    /* only the part of the frame the searches are expected to read: band-passed, and its
+     * pyramid (with the gradients only when the frame is tracked from, by the backward test) */
+    float box[4] = {INFINITY, INFINITY, -INFINITY, -INFINITY};
+    const float *start = predicted ? predicted : lm->ref_xy;
+    for (int i = 0; i < n; i++) box_add(lm, box, start[2 * i], start[2 * i + 1]);
+    box_grow(box, (float)p->max_disagreement_px + SEARCH_REACH);
+    sh_status st = build_part(lm, luma, box);
+    if (st == SH_OK) st = searches(lm, n, lm->ref_xy, predicted, lm->fwd, lm->st_fwd, lm->err, lm->back, lm->st_back);
+    if (st == SH_OK) st = search_again(lm, luma, predicted, &again, &whole);
     if (st != SH_OK) return st;
     for (int i = 0; i < n; i++) {
         const float *f = lm->fwd + 2 * i, *r = lm->ref_xy + 2 * i;
@@ -468,8 +606,11 @@ sh_status sh_landmarks_track(sh_landmarks *lm, const sh_plane *luma, const float
         verdict[i] = (uint8_t)v;
     }
     if (predicted && p->neighbours > 0) deviations(lm, predicted, verdict);
-    if (counts)
+    if (counts) {
         for (int i = 0; i < n; i++) counts->verdicts[verdict[i]]++;
+        counts->searched_again = again;
+        counts->whole_frame = whole;
+    }
     return SH_OK;
 }
 

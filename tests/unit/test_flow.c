@@ -247,6 +247,109 @@ static void test_flat_outside_and_bad_points(void **state)
     sh_image_destroy(&tex);
 }
 
+/* Whether two floats are the same bits. */
+static int same_bits(float a, float b)
+{
+    return memcmp(&a, &b, sizeof a) == 0;
+}
+
+/* A pyramid built only for a box of points (sh_flow_pyramid_build_box) gives every point either
+ * the result of the whole frame's pyramid, bit for bit, or SH_FLOW_UNBUILT; a search that stays
+ * near the box gets its result; the frame is read only in sh_flow_pyramid_box_part's rectangle
+ * (the rest of it garbage here); and what an earlier build of another frame left in the pyramid
+ * is never read. Boxes in the middle, touching the top-left and bottom-right edges, and as a
+ * previous (gradients: the backward search's) and a next frame. */
+static void test_box_build_same_as_whole(void **state)
+{
+    (void)state;
+    enum { FW = 320, FH = 240, GRID = 8, N = GRID * GRID };
+    const double dx = 2.3, dy = -1.4;
+    sh_image f0, f1, junk, other;
+    assert_int_equal(sh_image_create(&f0, SH_PIX_GRAY8, FW, FH), SH_OK);
+    assert_int_equal(sh_image_create(&f1, SH_PIX_GRAY8, FW, FH), SH_OK);
+    assert_int_equal(sh_image_create(&junk, SH_PIX_GRAY8, FW, FH), SH_OK);
+    assert_int_equal(sh_image_create(&other, SH_PIX_GRAY8, FW, FH), SH_OK);
+    render_shifted(&f0, 0, 0);
+    render_shifted(&f1, dx, dy);
+    render_shifted(&other, -7, 5);
+    float xy[2 * N], guess[2 * N], ref_out[2 * N], out[2 * N], ref_err[N], err[N];
+    uint8_t ref_st[N], st[N];
+    for (int i = 0; i < N; i++) {
+        xy[2 * i] = 4.0f + (float)(FW - 8) * (float)(i % GRID) / (GRID - 1) + 0.25f;
+        xy[2 * i + 1] = 4.0f + (float)(FH - 8) * (float)(i / GRID) / (GRID - 1) + 0.5f;
+        guess[2 * i] = xy[2 * i] + (float)dx;
+        guess[2 * i + 1] = xy[2 * i + 1] + (float)dy;
+    }
+    const float boxes[4][4] = {{100, 80, 220, 160}, {-30, -30, 60, 50}, {250, 170, 400, 300}, {150, 110, 150, 110}};
+    for (int role = 0; role < 2; role++) /* 0: the box-built pyramid is the next frame; 1: the previous */
+        for (int b = 0; b < 4; b++) {
+            const float *box = boxes[b];
+            pair p;
+            pair_make(&p, &f0, &f1, 3);
+            /* the whole frame's answer: forward (role 0), or backward from f1 to f0 (role 1) */
+            sh_flow_pyramid *whole_b = NULL, *whole_a = NULL;
+            assert_int_equal(sh_flow_pyramid_create(FW, FH, &p.prm, &whole_b), SH_OK);
+            assert_int_equal(sh_flow_pyramid_build(whole_b, &f1.plane[0], 1), SH_OK);
+            assert_int_equal(sh_flow_pyramid_create(FW, FH, &p.prm, &whole_a), SH_OK);
+            assert_int_equal(sh_flow_pyramid_build(whole_a, &f0.plane[0], 0), SH_OK);
+            const float *from = role ? guess : xy, *to = role ? xy : guess;
+            if (role)
+                assert_int_equal(sh_flow_track(&p.prm, whole_b, whole_a, N, from, to, ref_out, ref_st, ref_err), SH_OK);
+            else
+                assert_int_equal(sh_flow_track(&p.prm, p.a, whole_b, N, from, to, ref_out, ref_st, ref_err), SH_OK);
+            /* f1 with garbage outside the part the box reads, into a pyramid that held another frame */
+            int part[4];
+            assert_int_equal(sh_flow_pyramid_box_part(p.b, box, role, part), SH_OK);
+            assert_true(part[0] >= 0 && part[1] >= 0 && part[2] <= FW && part[3] <= FH);
+            for (int y = 0; y < FH; y++)
+                for (int x = 0; x < FW; x++) {
+                    int in = x >= part[0] && x < part[2] && y >= part[1] && y < part[3];
+                    junk.plane[0].data[(size_t)y * junk.plane[0].stride + x] =
+                        in ? f1.plane[0].data[(size_t)y * f1.plane[0].stride + x] : (uint8_t)((x * 37 + y * 91) & 255);
+                }
+            assert_int_equal(sh_flow_pyramid_build(p.b, &other.plane[0], 1), SH_OK);
+            assert_int_equal(sh_flow_pyramid_build_box(p.b, &junk.plane[0], role, box), SH_OK);
+            if (role)
+                assert_int_equal(sh_flow_track(&p.prm, p.b, whole_a, N, from, to, out, st, err), SH_OK);
+            else
+                assert_int_equal(sh_flow_track(&p.prm, p.a, p.b, N, from, to, out, st, err), SH_OK);
+            int kept = 0;
+            for (int i = 0; i < N; i++) {
+                const float *s = from + 2 * i;
+                /* a search from inside the box grown by a window and the shift stays built */
+                const float r = 3.0f;
+                int near = s[0] >= box[0] + r && s[0] <= box[2] - r && s[1] >= box[1] + r && s[1] <= box[3] - r;
+                if (st[i] == SH_FLOW_UNBUILT) {
+                    assert_false(near);
+                    continue;
+                }
+                kept++;
+                assert_int_equal(st[i], ref_st[i]);
+                assert_true(same_bits(out[2 * i], ref_out[2 * i]) && same_bits(out[2 * i + 1], ref_out[2 * i + 1]));
+                assert_true(same_bits(err[i], ref_err[i]));
+            }
+            /* the searches far from the small boxes could not be done (the middle one's part is
+             * the whole of this small frame: its coarsest level's windows reach that far) */
+            assert_true(kept >= 1);
+            if (b > 0) assert_true(kept < N);
+            sh_flow_pyramid_destroy(whole_a);
+            sh_flow_pyramid_destroy(whole_b);
+            pair_free(&p);
+        }
+    float bad[4] = {10, 10, 5, 20};
+    pair p;
+    pair_make(&p, &f0, &f1, 3);
+    int part[4];
+    assert_int_equal(sh_flow_pyramid_build_box(p.b, &f1.plane[0], 0, bad), SH_EINVAL);
+    bad[2] = NAN;
+    assert_int_equal(sh_flow_pyramid_box_part(p.b, bad, 0, part), SH_EINVAL);
+    pair_free(&p);
+    sh_image_destroy(&f0);
+    sh_image_destroy(&f1);
+    sh_image_destroy(&junk);
+    sh_image_destroy(&other);
+}
+
 /* A checkerboard of 16 px squares has its corners where four squares meet, at 15.5 + 16 k; the
  * strongest responses are the pixels next to them, and nothing else responds (edges have one
  * eigenvalue zero). */
@@ -364,6 +467,7 @@ int main(void)
         cmocka_unit_test(test_large_shift_needs_levels_or_guess),
         cmocka_unit_test(test_deformation_against_truth),
         cmocka_unit_test(test_flat_outside_and_bad_points),
+        cmocka_unit_test(test_box_build_same_as_whole),
         cmocka_unit_test(test_corners_of_a_checkerboard),
         cmocka_unit_test(test_refusals),
     };

@@ -170,6 +170,87 @@ static void test_trust_against_truth(void **state)
     sh_image_destroy(&cur);
 }
 
+/* The frame is band-passed and its pyramid built only around the predictions; a search that
+ * leaves that part is done again on a larger one (counted in searched_again). Its answer must be
+ * the whole frame's: here src/flow's own tracker on whole pyramids of the raw frames (band 0),
+ * forward from the predictions and backward from their inverse, gives every landmark's
+ * position, bit for bit, and the verdict of the first four tests. The landmarks lie in the
+ * middle of the frame; those on its right are predicted 16 px left of their truth, so their
+ * searches end outside the part built around the predictions (one pyramid level above the
+ * base: with more, the coarsest level's windows reach across most of this small frame). */
+static void test_searches_outside_the_part_same_as_whole_frame(void **state)
+{
+    (void)state;
+    sh_image ref, cur;
+    render(&ref, 0);
+    render(&cur, 0.2);
+    sh_landmarks_params p;
+    sh_landmarks_params_default(&p);
+    p.max_points = 100;
+    p.min_distance = 12;
+    p.band = 0;
+    p.flow.levels = 1;
+    const double corners[8] = {150, 110, 330, 110, 330, 250, 150, 250};
+    sh_hull hull;
+    assert_int_equal(sh_hull_compute(corners, 4, &hull), SH_OK);
+    sh_landmarks *lm;
+    assert_int_equal(sh_landmarks_create(&p, &ref.plane[0], &hull, NULL, 0, &lm), SH_OK);
+    const int n = sh_landmarks_count(lm);
+    assert_true(n >= 40);
+    const float *r = sh_landmarks_reference(lm);
+    float *pred = malloc(2 * (size_t)n * sizeof *pred), *xy = malloc(2 * (size_t)n * sizeof *xy);
+    float *fwd = malloc(2 * (size_t)n * sizeof *fwd), *back = malloc(2 * (size_t)n * sizeof *back);
+    float *err = malloc((size_t)n * sizeof *err);
+    uint8_t *verdict = malloc((size_t)n), *st_fwd = malloc((size_t)n), *st_back = malloc((size_t)n);
+    int shifted = 0;
+    for (int i = 0; i < n; i++) {
+        double tx, ty;
+        synth_forward(&motion, 0.2, r[2 * i], r[2 * i + 1], &tx, &ty);
+        pred[2 * i] = (float)(tx + 0.7 * sin(r[2 * i] / 40.0) - (r[2 * i] > 300 ? 16 : 0));
+        pred[2 * i + 1] = (float)(ty + 0.7 * cos(r[2 * i + 1] / 30.0));
+        shifted += r[2 * i] > 300;
+    }
+    assert_true(shifted >= 3);
+    sh_landmarks_counts c;
+    assert_int_equal(sh_landmarks_track(lm, &cur.plane[0], pred, xy, verdict, &c), SH_OK);
+    print_message("  %d landmarks (%d predicted 16 px off): %d searches done again, whole frame %d; accepted %d\n", n,
+                  shifted, c.searched_again, c.whole_frame, c.verdicts[SH_LANDMARK_ACCEPTED]);
+    assert_true(c.searched_again > 0);
+    assert_true(c.verdicts[SH_LANDMARK_ACCEPTED] > n / 2);
+    /* the whole frame's answer */
+    sh_flow_pyramid *a, *b;
+    assert_int_equal(sh_flow_pyramid_create(W, H, &p.flow, &a), SH_OK);
+    assert_int_equal(sh_flow_pyramid_create(W, H, &p.flow, &b), SH_OK);
+    assert_int_equal(sh_flow_pyramid_build(a, &ref.plane[0], 1), SH_OK);
+    assert_int_equal(sh_flow_pyramid_build(b, &cur.plane[0], 1), SH_OK);
+    assert_int_equal(sh_flow_track(&p.flow, a, b, n, r, pred, fwd, st_fwd, err), SH_OK);
+    for (int i = 0; i < 2 * n; i++) back[i] = fwd[i] - (pred[i] - r[i]);
+    assert_int_equal(sh_flow_track(&p.flow, b, a, n, fwd, back, back, st_back, NULL), SH_OK);
+    for (int i = 0; i < n; i++) {
+        assert_memory_equal(&xy[2 * i], &fwd[2 * i], 2 * sizeof *xy);
+        int v = SH_LANDMARK_ACCEPTED;
+        if (st_fwd[i] != SH_FLOW_OK || st_back[i] != SH_FLOW_OK)
+            v = SH_LANDMARK_LOST;
+        else if (!(err[i] <= p.max_photometric))
+            v = SH_LANDMARK_PHOTOMETRIC;
+        else if (!(hypot(back[2 * i] - r[2 * i], back[2 * i + 1] - r[2 * i + 1]) <= p.max_backward_px))
+            v = SH_LANDMARK_BACKWARD;
+        else if (!(hypot(fwd[2 * i] - pred[2 * i], fwd[2 * i + 1] - pred[2 * i + 1]) <= p.max_disagreement_px))
+            v = SH_LANDMARK_DISAGREES;
+        if (v == SH_LANDMARK_ACCEPTED) /* the neighbours' test may refuse it still */
+            assert_true(verdict[i] == SH_LANDMARK_ACCEPTED || verdict[i] == SH_LANDMARK_DEVIATES);
+        else
+            assert_int_equal(verdict[i], v);
+        if (r[2 * i] > 300) assert_int_equal(verdict[i], SH_LANDMARK_DISAGREES);
+    }
+    sh_flow_pyramid_destroy(a);
+    sh_flow_pyramid_destroy(b);
+    free(pred), free(xy), free(fwd), free(back), free(err), free(verdict), free(st_fwd), free(st_back);
+    sh_landmarks_destroy(lm);
+    sh_image_destroy(&ref);
+    sh_image_destroy(&cur);
+}
+
 /* A texture with detail finer than half a window (waves 7-18 px long) under a shading that
  * changes between the frames (a gain wave sweeping across, and a broad highlight lobe moving),
  * moved by a known similarity: the band-passed search keeps every accepted landmark within 1 px
@@ -296,6 +377,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_where_landmarks_are_chosen),
         cmocka_unit_test(test_trust_against_truth),
+        cmocka_unit_test(test_searches_outside_the_part_same_as_whole_frame),
         cmocka_unit_test(test_band_pass_against_shading),
         cmocka_unit_test(test_refusals),
     };
