@@ -99,6 +99,22 @@ sh_status sh_flow_track(const sh_flow_params *params, const sh_flow_pyramid *pre
                         const sh_flow_pyramid *next, int n, const float *xy, const float *guess,
                         float *out, uint8_t *status, float *err);
 
+/* A fixed previous frame's windows around fixed points, sampled once on every level (the
+ * reference's around the landmarks, which are found in every new frame): what sh_flow_track
+ * samples anew for each point on each call. prev: built with its gradients; xy: n points. It
+ * holds 6 win * (win rounded up to 8) bytes a point and level (about 3 KB at the default window:
+ * 2.4 MB for 200 points on 4 levels), allocated here. */
+typedef struct sh_flow_windows sh_flow_windows;
+sh_status sh_flow_windows_create(const sh_flow_params *params, const sh_flow_pyramid *prev, int n,
+                                 const float *xy, sh_flow_windows **out);
+void sh_flow_windows_destroy(sh_flow_windows *windows);
+/* sh_flow_track from windows: the same results, bit for bit, as sh_flow_track(params, prev, next,
+ * ...) with the prev and points they were made from, for m of their points: idx[j] (NULL: j) is
+ * the point whose guess, out, status and err are at j. params as at _create. */
+sh_status sh_flow_track_windows(const sh_flow_params *params, const sh_flow_windows *prev,
+                                const sh_flow_pyramid *next, int m, const int *idx,
+                                const float *guess, float *out, uint8_t *status, float *err);
+
 typedef struct {
     int max_points;      /* at most this many, strongest first */
     double quality;      /* relative to the strongest response in the mask (0.01) */

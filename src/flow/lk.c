@@ -9,7 +9,10 @@
  * integers where OpenCV adds floats: exact, so every architecture gets the same result. */
 #include "flow_internal.h"
 
+#include <string.h>
+
 #include <math.h>
+#include <stdlib.h>
 
 #define W_BITS 14
 #define W_ONE (1 << W_BITS)
@@ -59,7 +62,7 @@ typedef struct {
 
 /* The sum of |d| over the window: OpenCV's error measure, once per point (portable C). */
 static int64_t abs_mismatch(const flow_level *l, int ix, int iy, const int w[4], int win,
-                            const window *s)
+                            const int16_t *I)
 {
     const int wr = FLOW_WROW(win);
     int64_t sa = 0;
@@ -68,17 +71,49 @@ static int64_t abs_mismatch(const flow_level *l, int ix, int iy, const int w[4],
         for (int x = 0; x < win; x++) {
             int v = p[x] * w[0] + p[x + 1] * w[1] + p[x + l->stride] * w[2] +
                     p[x + l->stride + 1] * w[3];
-            int d = DESCALE(v, W_BITS - 5) - s->img[y * wr + x];
+            int d = DESCALE(v, W_BITS - 5) - I[y * wr + x];
             sa += d < 0 ? -d : d;
         }
     }
     return sa;
 }
 
-/* One point through every level. p: its position in prev; q: the starting position in next. */
+/* A point's window in the previous frame on level lv: sampled into I, gx, gy with its sums, or
+ * why not (outside the image, or in a part of the pyramid not built). */
+enum { PREV_SAMPLED, PREV_OUTSIDE, PREV_UNBUILT };
+
+static int sample_prev(const flow_level *L0, float px, float py, int lv, int win, int16_t *I,
+                       int16_t *gx, int16_t *gy, int64_t sum[3])
+{
+    const float half = (float)(win - 1) * 0.5f;
+    float sx = px * (1.0f / (float)(1 << lv)) - half, sy = py * (1.0f / (float)(1 << lv)) - half;
+    if (!inside(L0, sx, sy, win)) return PREV_OUTSIDE;
+    int ix = (int)floorf(sx), iy = (int)floorf(sy);
+    if (!built(L0->grad_box, ix, iy, win)) return PREV_UNBUILT;
+    int w[4];
+    bilinear(sx - (float)ix, sy - (float)iy, w);
+    flow_window_prev(L0, ix, iy, w, win, I, gx, gy, sum);
+    return PREV_SAMPLED;
+}
+
+/* A fixed previous frame's windows around fixed points, every level (sh_flow_windows_create):
+ * for point i and level l, state[i (levels + 1) + l], its sums and its samples. */
+struct sh_flow_windows {
+    int n, win, levels, params_levels, width, height;
+    size_t len;      /* samples of one array of a window: win * FLOW_WROW(win) */
+    float *xy;       /* n pairs */
+    uint8_t *state;  /* PREV_* */
+    int64_t *sum;    /* 3 a window */
+    int16_t *data;   /* I, gx, gy a window */
+};
+
+/* One point through every level. p: its position in prev; q: the starting position in next.
+ * The previous frame's windows are sampled from prev, or taken from cache (point ci) when it
+ * is not NULL. */
 static uint8_t track_point(const sh_flow_params *prm, const sh_flow_pyramid *prev,
-                           const sh_flow_pyramid *next, int levels, float px, float py,
-                           float *qx, float *qy, float *err, window *s)
+                           const sh_flow_windows *cache, int ci, const sh_flow_pyramid *next,
+                           int levels, float px, float py, float *qx, float *qy, float *err,
+                           window *s)
 {
     const int win = prm->win;
     const float half = (float)(win - 1) * 0.5f;
@@ -86,22 +121,30 @@ static uint8_t track_point(const sh_flow_params *prm, const sh_flow_pyramid *pre
     uint8_t status = SH_FLOW_OK;
     float nx = *qx * (1.0f / (float)(1 << levels)), ny = *qy * (1.0f / (float)(1 << levels));
     for (int lv = levels; lv >= 0; lv--) {
-        const flow_level *L0 = &prev->level[lv], *L1 = &next->level[lv];
+        const flow_level *L1 = &next->level[lv];
         if (lv != levels) {
             nx *= 2.f;
             ny *= 2.f;
         }
-        float sx = px * (1.0f / (float)(1 << lv)) - half, sy = py * (1.0f / (float)(1 << lv)) - half;
-        if (!inside(L0, sx, sy, win)) {
+        const int16_t *I = s->img, *GX = s->gx, *GY = s->gy;
+        int64_t sum[3];
+        int ps;
+        if (cache) {
+            size_t k = (size_t)ci * (size_t)(cache->levels + 1) + (size_t)lv;
+            ps = cache->state[k];
+            memcpy(sum, cache->sum + 3 * k, sizeof sum);
+            I = cache->data + 3 * k * cache->len;
+            GX = I + cache->len;
+            GY = GX + cache->len;
+        } else {
+            ps = sample_prev(&prev->level[lv], px, py, lv, win, s->img, s->gx, s->gy, sum);
+        }
+        if (ps == PREV_OUTSIDE) {
             if (lv == 0) status = SH_FLOW_OUTSIDE;
             continue;
         }
-        int ix = (int)floorf(sx), iy = (int)floorf(sy);
-        if (!built(L0->grad_box, ix, iy, win)) return unbuilt(nx, ny, lv, qx, qy);
+        if (ps == PREV_UNBUILT) return unbuilt(nx, ny, lv, qx, qy);
         int w[4];
-        int64_t sum[3];
-        bilinear(sx - (float)ix, sy - (float)iy, w);
-        flow_window_prev(L0, ix, iy, w, win, s->img, s->gx, s->gy, sum);
         const float a11 = (float)sum[0] * FLT_SCALE, a12 = (float)sum[1] * FLT_SCALE,
                     a22 = (float)sum[2] * FLT_SCALE;
         float det = a11 * a22 - a12 * a12;
@@ -121,7 +164,7 @@ static uint8_t track_point(const sh_flow_params *prm, const sh_flow_pyramid *pre
             int jx = (int)floorf(cx), jy = (int)floorf(cy);
             if (!built(L1->img_box, jx, jy, win)) return unbuilt(nx, ny, lv, qx, qy);
             bilinear(cx - (float)jx, cy - (float)jy, w);
-            flow_window_mismatch(L1, jx, jy, w, win, s->img, s->gx, s->gy, sum);
+            flow_window_mismatch(L1, jx, jy, w, win, I, GX, GY, sum);
             const float b1 = (float)sum[0] * FLT_SCALE, b2 = (float)sum[1] * FLT_SCALE;
             float dx = (a12 * b2 - a22 * b1) * inv, dy = (a12 * b1 - a11 * b2) * inv;
             cx += dx;
@@ -146,13 +189,41 @@ static uint8_t track_point(const sh_flow_params *prm, const sh_flow_pyramid *pre
                 int jx = (int)floorf(ex), jy = (int)floorf(ey);
                 if (!built(L1->img_box, jx, jy, win)) return unbuilt(nx, ny, lv, qx, qy);
                 bilinear(ex - (float)jx, ey - (float)jy, w);
-                *err = (float)abs_mismatch(L1, jx, jy, w, win, s) * (1.f / (float)(32 * win * win));
+                *err = (float)abs_mismatch(L1, jx, jy, w, win, I) * (1.f / (float)(32 * win * win));
             }
         }
     }
     *qx = nx;
     *qy = ny;
     return status;
+}
+
+/* The points' loop of sh_flow_track and sh_flow_track_windows: point idx[j] (j when idx is
+ * NULL) of xy, its guess, out, status and err at j. */
+static void track_points(const sh_flow_params *params, const sh_flow_pyramid *prev,
+                         const sh_flow_windows *cache, const sh_flow_pyramid *next, int levels,
+                         int n, const int *idx, const float *xy, const float *guess, float *out,
+                         uint8_t *status, float *err)
+{
+    window s; /* 24 KB at the largest window: the stack, not the heap, in the per-frame path */
+    for (int j = 0; j < n; j++) {
+        const int i = idx ? idx[j] : j;
+        float px = xy[2 * i], py = xy[2 * i + 1];
+        float qx = guess ? guess[2 * j] : px, qy = guess ? guess[2 * j + 1] : py;
+        if (err) err[j] = 0.f;
+        /* NaN or far outside any frame: refused before the levels' arithmetic sees it */
+        const float far = 4.f * SH_IMAGE_MAX_SIZE;
+        if (!(fabsf(px) < far && fabsf(py) < far && fabsf(qx) < far && fabsf(qy) < far)) {
+            out[2 * j] = px;
+            out[2 * j + 1] = py;
+            status[j] = SH_FLOW_OUTSIDE;
+            continue;
+        }
+        status[j] = track_point(params, prev, cache, i, next, levels, px, py, &qx, &qy,
+                                err ? &err[j] : NULL, &s);
+        out[2 * j] = qx;
+        out[2 * j + 1] = qy;
+    }
 }
 
 sh_status sh_flow_track(const sh_flow_params *params, const sh_flow_pyramid *prev,
@@ -170,23 +241,82 @@ sh_status sh_flow_track(const sh_flow_params *params, const sh_flow_pyramid *pre
     int levels = params->levels;
     if (levels > prev->levels) levels = prev->levels;
     if (levels > next->levels) levels = next->levels;
-    window s; /* 24 KB at the largest window: the stack, not the heap, in the per-frame path */
-    for (int i = 0; i < n; i++) {
-        float px = xy[2 * i], py = xy[2 * i + 1];
-        float qx = guess ? guess[2 * i] : px, qy = guess ? guess[2 * i + 1] : py;
-        if (err) err[i] = 0.f;
-        /* NaN or far outside any frame: refused before the levels' arithmetic sees it */
-        const float far = 4.f * SH_IMAGE_MAX_SIZE;
-        if (!(fabsf(px) < far && fabsf(py) < far && fabsf(qx) < far && fabsf(qy) < far)) {
-            out[2 * i] = px;
-            out[2 * i + 1] = py;
-            status[i] = SH_FLOW_OUTSIDE;
-            continue;
-        }
-        status[i] = track_point(params, prev, next, levels, px, py, &qx, &qy, err ? &err[i] : NULL,
-                                &s);
-        out[2 * i] = qx;
-        out[2 * i + 1] = qy;
+    track_points(params, prev, NULL, next, levels, n, NULL, xy, guess, out, status, err);
+    return SH_OK;
+}
+
+sh_status sh_flow_windows_create(const sh_flow_params *params, const sh_flow_pyramid *prev, int n,
+                                 const float *xy, sh_flow_windows **out)
+{
+    if (!out) return sh_error_set(SH_EINVAL, "flow: windows: no output");
+    *out = NULL;
+    if (!params || !prev || n < 0 || (n > 0 && !xy))
+        return sh_error_set(SH_EINVAL, "flow: windows: missing argument");
+    if (params->win != prev->pad || !prev->has_gradients)
+        return sh_error_set(SH_EINVAL, "flow: windows: a pyramid of another window, or without gradients");
+    sh_flow_windows *c = calloc(1, sizeof *c);
+    if (!c) return sh_error_set(SH_ENOMEM, "flow: out of memory");
+    c->n = n;
+    c->win = params->win;
+    c->params_levels = params->levels;
+    c->width = prev->level[0].width;
+    c->height = prev->level[0].height;
+    c->levels = params->levels < prev->levels ? params->levels : prev->levels;
+    c->len = (size_t)params->win * FLOW_WROW(params->win);
+    const size_t k = (size_t)(n > 0 ? n : 1) * (size_t)(c->levels + 1);
+    c->xy = malloc(2 * (size_t)(n > 0 ? n : 1) * sizeof *c->xy);
+    c->state = malloc(k);
+    c->sum = malloc(3 * k * sizeof *c->sum);
+    c->data = malloc(3 * k * c->len * sizeof *c->data);
+    if (!c->xy || !c->state || !c->sum || !c->data) {
+        sh_flow_windows_destroy(c);
+        return sh_error_set(SH_ENOMEM, "flow: out of memory for %d points' windows", n);
     }
+    for (int i = 0; i < n; i++) {
+        c->xy[2 * i] = xy[2 * i];
+        c->xy[2 * i + 1] = xy[2 * i + 1];
+        for (int lv = 0; lv <= c->levels; lv++) {
+            size_t e = (size_t)i * (size_t)(c->levels + 1) + (size_t)lv;
+            int16_t *I = c->data + 3 * e * c->len;
+            /* a point refused before any level (sh_flow_track's far test) is never looked up */
+            const float far = 4.f * SH_IMAGE_MAX_SIZE;
+            c->state[e] = fabsf(xy[2 * i]) < far && fabsf(xy[2 * i + 1]) < far
+                              ? (uint8_t)sample_prev(&prev->level[lv], xy[2 * i], xy[2 * i + 1], lv,
+                                                     c->win, I, I + c->len, I + 2 * c->len,
+                                                     c->sum + 3 * e)
+                              : PREV_OUTSIDE;
+        }
+    }
+    *out = c;
+    return SH_OK;
+}
+
+void sh_flow_windows_destroy(sh_flow_windows *c)
+{
+    if (!c) return;
+    free(c->xy);
+    free(c->state);
+    free(c->sum);
+    free(c->data);
+    free(c);
+}
+
+sh_status sh_flow_track_windows(const sh_flow_params *params, const sh_flow_windows *prev,
+                                const sh_flow_pyramid *next, int m, const int *idx,
+                                const float *guess, float *out, uint8_t *status, float *err)
+{
+    if (!params || !prev || !next || m < 0 || (m > 0 && (!out || !status)))
+        return sh_error_set(SH_EINVAL, "flow: track: missing argument");
+    if (params->win != prev->win || params->win != next->pad || params->levels != prev->params_levels ||
+        prev->width != next->level[0].width || prev->height != next->level[0].height)
+        return sh_error_set(SH_EINVAL, "flow: track: windows made with another window, levels or frame size");
+    for (int j = 0; idx && j < m; j++)
+        if (idx[j] < 0 || idx[j] >= prev->n)
+            return sh_error_set(SH_EINVAL, "flow: track: point %d of %d", idx[j], prev->n);
+    if (!idx && m > prev->n)
+        return sh_error_set(SH_EINVAL, "flow: track: %d points of %d", m, prev->n);
+    int levels = prev->levels;
+    if (levels > next->levels) levels = next->levels;
+    track_points(params, NULL, prev, next, levels, m, idx, prev->xy, guess, out, status, err);
     return SH_OK;
 }

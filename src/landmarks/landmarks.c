@@ -13,6 +13,7 @@ struct sh_landmarks {
     sh_landmarks_params p;
     int width, height, n;
     sh_flow_pyramid *ref, *cur;
+    sh_flow_windows *ref_win; /* the reference's windows around the landmarks, every level */
     float *ref_xy;   /* n pairs */
     float *fwd;      /* n pairs: forward result */
     float *back;     /* n pairs: backward result, and its starting guess */
@@ -26,7 +27,7 @@ struct sh_landmarks {
     uint8_t *band;   /* w x h: the band-passed frame the tracker sees */
     float gain;      /* the band-pass's, fixed by the reference */
     /* the searches done again on the whole frame (sh_landmarks_track): their landmarks' indices,
-     * and per landmark 2 + 2 + 2 + 2 + 1 floats, 2 statuses */
+     * and per landmark 2 + 2 + 2 + 1 floats, 2 statuses */
     int *redo;
     float *redo_xy;
     uint8_t *redo_st;
@@ -367,7 +368,7 @@ sh_status sh_landmarks_create(const sh_landmarks_params *params, const sh_plane 
     lm->band = malloc((size_t)lm->width * lm->height);
     lm->cols = malloc(6 * (size_t)lm->width * sizeof(int));
     lm->redo = malloc(m * sizeof *lm->redo);
-    lm->redo_xy = malloc(9 * m * sizeof *lm->redo_xy);
+    lm->redo_xy = malloc(7 * m * sizeof *lm->redo_xy);
     lm->redo_st = malloc(2 * m);
     if (!mask || !lm->ref_xy || !lm->fwd || !lm->back || !lm->err || !lm->st_fwd || !lm->st_back || !lm->near ||
         !lm->scratch || !lm->colsum || !lm->prefix || !lm->band || !lm->cols || !lm->redo || !lm->redo_xy ||
@@ -399,6 +400,7 @@ sh_status sh_landmarks_create(const sh_landmarks_params *params, const sh_plane 
     if (st == SH_OK) st = sh_flow_pyramid_create(lm->width, lm->height, &params->flow, &lm->ref);
     if (st == SH_OK) st = sh_flow_pyramid_create(lm->width, lm->height, &params->flow, &lm->cur);
     if (st == SH_OK) st = sh_flow_pyramid_build(lm->ref, &band, 1);
+    if (st == SH_OK) st = sh_flow_windows_create(&params->flow, lm->ref, lm->n, lm->ref_xy, &lm->ref_win);
     if (st != SH_OK) {
         sh_landmarks_destroy(lm);
         return st;
@@ -412,6 +414,7 @@ void sh_landmarks_destroy(sh_landmarks *lm)
     if (!lm) return;
     sh_flow_pyramid_destroy(lm->ref);
     sh_flow_pyramid_destroy(lm->cur);
+    sh_flow_windows_destroy(lm->ref_win);
     free(lm->ref_xy);
     free(lm->fwd);
     free(lm->back);
@@ -463,18 +466,23 @@ static void deviations(sh_landmarks *lm, const float *predicted, uint8_t *verdic
     }
 }
 
-/* Forward from the reference at ref to the frame from guess (NULL: from ref), then, with the
- * backward test, back from the result, starting where the prediction's inverse puts it: the
- * result minus the predicted displacement (without a prediction, at the result itself, as the
- * forward search started at the reference position). */
-static sh_status searches(const sh_landmarks *lm, int n, const float *ref, const float *guess, float *fwd,
+/* Forward from the reference to the frame for m landmarks, idx[j] (NULL: j), from guess (NULL:
+ * from their reference positions), then, with the backward test, back from the result,
+ * starting where the prediction's inverse puts it: the result minus the predicted displacement
+ * (without a prediction, at the result itself, as the forward search started at the reference
+ * position). guess, fwd, st_fwd, err, back, st_back: at j. */
+static sh_status searches(const sh_landmarks *lm, int m, const int *idx, const float *guess, float *fwd,
                           uint8_t *st_fwd, float *err, float *back, uint8_t *st_back)
 {
     const sh_landmarks_params *p = &lm->p;
-    sh_status st = sh_flow_track(&p->flow, lm->ref, lm->cur, n, ref, guess, fwd, st_fwd, err);
+    sh_status st = sh_flow_track_windows(&p->flow, lm->ref_win, lm->cur, m, idx, guess, fwd, st_fwd, err);
     if (st != SH_OK || !(p->max_backward_px > 0)) return st;
-    for (int i = 0; i < 2 * n; i++) back[i] = guess ? fwd[i] - (guess[i] - ref[i]) : fwd[i];
-    return sh_flow_track(&p->flow, lm->cur, lm->ref, n, fwd, back, back, st_back, NULL);
+    for (int j = 0; j < m; j++) {
+        const float *r = lm->ref_xy + 2 * (idx ? idx[j] : j);
+        back[2 * j] = guess ? fwd[2 * j] - (guess[2 * j] - r[0]) : fwd[2 * j];
+        back[2 * j + 1] = guess ? fwd[2 * j + 1] - (guess[2 * j + 1] - r[1]) : fwd[2 * j + 1];
+    }
+    return sh_flow_track(&p->flow, lm->cur, lm->ref, m, fwd, back, back, st_back, NULL);
 }
 
 /* Where the frame's searches are expected: the box of their starting positions, grown by
@@ -532,7 +540,7 @@ static sh_status search_again(sh_landmarks *lm, const sh_plane *luma, const floa
 {
     const int backward = lm->p.max_backward_px > 0;
     const size_t k = (size_t)lm->p.max_points;
-    float *ref = lm->redo_xy, *guess = ref + 2 * k, *fwd = guess + 2 * k, *back = fwd + 2 * k, *err = back + 2 * k;
+    float *guess = lm->redo_xy, *fwd = guess + 2 * k, *back = fwd + 2 * k, *err = back + 2 * k;
     uint8_t *st_fwd = lm->redo_st, *st_back = st_fwd + k;
     const float *start = predicted ? predicted : lm->ref_xy;
     for (int round = 0;; round++) {
@@ -551,12 +559,11 @@ static sh_status search_again(sh_landmarks *lm, const sh_plane *luma, const floa
         box_grow(box, (float)lm->p.max_disagreement_px + (float)(SEARCH_REACH << (round + 2)));
         sh_status st = build_part(lm, luma, *whole ? NULL : box);
         if (st != SH_OK) return st;
-        for (int j = 0; j < m; j++) {
+        for (int j = 0; predicted && j < m; j++) {
             int i = lm->redo[j];
-            ref[2 * j] = lm->ref_xy[2 * i], ref[2 * j + 1] = lm->ref_xy[2 * i + 1];
-            if (predicted) guess[2 * j] = predicted[2 * i], guess[2 * j + 1] = predicted[2 * i + 1];
+            guess[2 * j] = predicted[2 * i], guess[2 * j + 1] = predicted[2 * i + 1];
         }
-        st = searches(lm, m, ref, predicted ? guess : NULL, fwd, st_fwd, err, back, st_back);
+        st = searches(lm, m, lm->redo, predicted ? guess : NULL, fwd, st_fwd, err, back, st_back);
         if (st != SH_OK) return st;
         for (int j = 0; j < m; j++) {
             int i = lm->redo[j];
@@ -586,7 +593,7 @@ sh_status sh_landmarks_track(sh_landmarks *lm, const sh_plane *luma, const float
     for (int i = 0; i < n; i++) box_add(lm, box, start[2 * i], start[2 * i + 1]);
     box_grow(box, (float)p->max_disagreement_px + SEARCH_REACH);
     sh_status st = build_part(lm, luma, box);
-    if (st == SH_OK) st = searches(lm, n, lm->ref_xy, predicted, lm->fwd, lm->st_fwd, lm->err, lm->back, lm->st_back);
+    if (st == SH_OK) st = searches(lm, n, NULL, predicted, lm->fwd, lm->st_fwd, lm->err, lm->back, lm->st_back);
     if (st == SH_OK) st = search_again(lm, luma, predicted, &again, &whole);
     if (st != SH_OK) return st;
     for (int i = 0; i < n; i++) {

@@ -350,6 +350,64 @@ static void test_box_build_same_as_whole(void **state)
     sh_image_destroy(&other);
 }
 
+/* The previous frame's windows sampled once (sh_flow_windows_create) give every point the result
+ * sh_flow_track gives from the pyramid, bit for bit: all points, a subset in another order,
+ * points near and past the edges, a flat one and a NaN; and what must be refused. */
+static void test_windows_same_as_track(void **state)
+{
+    (void)state;
+    enum { FW = 200, FH = 150, N = 12 };
+    sh_image f0, f1;
+    assert_int_equal(sh_image_create(&f0, SH_PIX_GRAY8, FW, FH), SH_OK);
+    assert_int_equal(sh_image_create(&f1, SH_PIX_GRAY8, FW, FH), SH_OK);
+    render_shifted(&f0, 0, 0);
+    render_shifted(&f1, 1.7, -2.2);
+    for (int y = 0; y < 30; y++) memset(f0.plane[0].data + (size_t)y * f0.plane[0].stride, 120, 40); /* flat */
+    pair p;
+    pair_make(&p, &f0, &f1, 2);
+    const float xy[2 * N] = {100.3f, 75.6f, 10, 10,   3.5f, 140, 196.2f, 2.1f, -5, 80,  50, 160,
+                             60.25f, 40.5f, 150, 100, 120, 30, 180, 130,    NAN, 20, 90, 90.9f};
+    float guess[2 * N], a[2 * N], b[2 * N], ea[N], eb[N];
+    uint8_t sa[N], sb[N];
+    for (int i = 0; i < 2 * N; i++) guess[i] = xy[i] + (i % 2 ? -2.0f : 1.5f);
+    sh_flow_windows *w = NULL;
+    assert_int_equal(sh_flow_windows_create(&p.prm, p.a, N, xy, &w), SH_OK);
+    assert_int_equal(sh_flow_track(&p.prm, p.a, p.b, N, xy, guess, a, sa, ea), SH_OK);
+    assert_int_equal(sh_flow_track_windows(&p.prm, w, p.b, N, NULL, guess, b, sb, eb), SH_OK);
+    int ok = 0;
+    for (int i = 0; i < N; i++) {
+        assert_int_equal(sa[i], sb[i]);
+        assert_true(same_bits(a[2 * i], b[2 * i]) && same_bits(a[2 * i + 1], b[2 * i + 1]) && same_bits(ea[i], eb[i]));
+        ok += sa[i] == SH_FLOW_OK;
+    }
+    assert_true(ok >= 6 && ok < N);
+    /* a subset, backwards, without a guess and without err */
+    int idx[5] = {11, 7, 6, 2, 0};
+    float sub_xy[2 * 5], c[2 * 5];
+    uint8_t sc[5];
+    for (int j = 0; j < 5; j++) sub_xy[2 * j] = xy[2 * idx[j]], sub_xy[2 * j + 1] = xy[2 * idx[j] + 1];
+    assert_int_equal(sh_flow_track(&p.prm, p.a, p.b, 5, sub_xy, NULL, a, sa, NULL), SH_OK);
+    assert_int_equal(sh_flow_track_windows(&p.prm, w, p.b, 5, idx, NULL, c, sc, NULL), SH_OK);
+    for (int j = 0; j < 5; j++) {
+        assert_int_equal(sa[j], sc[j]);
+        assert_true(same_bits(a[2 * j], c[2 * j]) && same_bits(a[2 * j + 1], c[2 * j + 1]));
+    }
+    /* refusals: another point count, an index out of range, other levels, a pyramid without gradients */
+    assert_int_equal(sh_flow_track_windows(&p.prm, w, p.b, N + 1, NULL, NULL, b, sb, NULL), SH_EINVAL);
+    idx[2] = N;
+    assert_int_equal(sh_flow_track_windows(&p.prm, w, p.b, 5, idx, NULL, c, sc, NULL), SH_EINVAL);
+    sh_flow_params other = p.prm;
+    other.levels = 1;
+    assert_int_equal(sh_flow_track_windows(&other, w, p.b, N, NULL, NULL, b, sb, NULL), SH_EINVAL);
+    sh_flow_windows *w2 = NULL;
+    assert_int_equal(sh_flow_windows_create(&p.prm, p.b, N, xy, &w2), SH_EINVAL);
+    assert_null(w2);
+    sh_flow_windows_destroy(w);
+    pair_free(&p);
+    sh_image_destroy(&f0);
+    sh_image_destroy(&f1);
+}
+
 /* A checkerboard of 16 px squares has its corners where four squares meet, at 15.5 + 16 k; the
  * strongest responses are the pixels next to them, and nothing else responds (edges have one
  * eigenvalue zero). */
@@ -468,6 +526,7 @@ int main(void)
         cmocka_unit_test(test_deformation_against_truth),
         cmocka_unit_test(test_flat_outside_and_bad_points),
         cmocka_unit_test(test_box_build_same_as_whole),
+        cmocka_unit_test(test_windows_same_as_track),
         cmocka_unit_test(test_corners_of_a_checkerboard),
         cmocka_unit_test(test_refusals),
     };
