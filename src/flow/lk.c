@@ -107,6 +107,24 @@ struct sh_flow_windows {
     int16_t *data;   /* I, gx, gy a window */
 };
 
+/* The previous frame's window of point ci (at px, py) on level lv: from cache when it is not
+ * NULL, else sampled from prev into s. */
+static int prev_window(const sh_flow_pyramid *prev, const sh_flow_windows *cache, int ci, int lv,
+                       float px, float py, int win, window *s, const int16_t **I,
+                       const int16_t **gx, const int16_t **gy, int64_t sum[3])
+{
+    if (!cache) {
+        *I = s->img, *gx = s->gx, *gy = s->gy;
+        return sample_prev(&prev->level[lv], px, py, lv, win, s->img, s->gx, s->gy, sum);
+    }
+    size_t k = (size_t)ci * (size_t)(cache->levels + 1) + (size_t)lv;
+    memcpy(sum, cache->sum + 3 * k, 3 * sizeof *sum);
+    *I = cache->data + 3 * k * cache->len;
+    *gx = *I + cache->len;
+    *gy = *gx + cache->len;
+    return cache->state[k];
+}
+
 /* One point through every level. p: its position in prev; q: the starting position in next.
  * The previous frame's windows are sampled from prev, or taken from cache (point ci) when it
  * is not NULL. */
@@ -126,19 +144,9 @@ static uint8_t track_point(const sh_flow_params *prm, const sh_flow_pyramid *pre
             nx *= 2.f;
             ny *= 2.f;
         }
-        const int16_t *I = s->img, *GX = s->gx, *GY = s->gy;
+        const int16_t *I, *GX, *GY;
         int64_t sum[3];
-        int ps;
-        if (cache) {
-            size_t k = (size_t)ci * (size_t)(cache->levels + 1) + (size_t)lv;
-            ps = cache->state[k];
-            memcpy(sum, cache->sum + 3 * k, sizeof sum);
-            I = cache->data + 3 * k * cache->len;
-            GX = I + cache->len;
-            GY = GX + cache->len;
-        } else {
-            ps = sample_prev(&prev->level[lv], px, py, lv, win, s->img, s->gx, s->gy, sum);
-        }
+        int ps = prev_window(prev, cache, ci, lv, px, py, win, s, &I, &GX, &GY, sum);
         if (ps == PREV_OUTSIDE) {
             if (lv == 0) status = SH_FLOW_OUTSIDE;
             continue;
