@@ -119,10 +119,13 @@ static sh_status build_grid(sh_warp_model *m, int h)
 {
     free_grid(m);
     m->h = h;
-    m->gx0 = (int)floor(m->hull.xmin / h) * h;
-    m->gy0 = (int)floor(m->hull.ymin / h) * h;
-    m->nx = ((int)ceil(m->hull.xmax / h) * h - m->gx0) / h + 1;
-    m->ny = ((int)ceil(m->hull.ymax / h) * h - m->gy0) / h + 1;
+    /* Every point's hull, not the last update's: a grid refined while a subset update showed a
+     * smaller hull must still cover the next update through all of them. */
+    const sh_hull *all = &m->hull_all;
+    m->gx0 = (int)floor(all->xmin / h) * h;
+    m->gy0 = (int)floor(all->ymin / h) * h;
+    m->nx = ((int)ceil(all->xmax / h) * h - m->gx0) / h + 1;
+    m->ny = ((int)ceil(all->ymax / h) * h - m->gy0) / h + 1;
     size_t nodes = (size_t)m->nx * (size_t)m->ny;
     sh_status st = build_separable(m);
     if (st != SH_OK) return st;

@@ -119,6 +119,22 @@ static void test_grid_refines_for_tight_tolerance(void **state)
     assert_true(sh_warp_model_grid_spacing(b.model) < 8);
     assert_true(map_error(&b, ref, cur, n, w, h) <= 0.002);
     unbuild(&b);
+    /* A grid refined during an update through a subset (the two outermost points left out, the
+     * hull shown smaller) still covers every point's hull: the next update through all of them
+     * is within the tolerance everywhere in it. */
+    unsigned char use[n];
+    int left = 0, right = 0;
+    for (int i = 1; i < n; i++) {
+        if (ref[2 * i] < ref[2 * left]) left = i;
+        if (ref[2 * i] > ref[2 * right]) right = i;
+    }
+    for (int i = 0; i < n; i++) use[i] = i != left && i != right;
+    b = build("tps", ref, n, w, h, &opts);
+    assert_int_equal(sh_warp_model_update_subset(b.model, cur, use), SH_OK);
+    assert_true(sh_warp_model_refinements(b.model) > 0);
+    assert_int_equal(sh_warp_model_update(b.model, cur), SH_OK);
+    assert_true(map_error(&b, ref, cur, n, w, h) <= 0.002);
+    unbuild(&b);
 }
 
 /* A model built over every point and updated through a subset gives the map of a model built on
