@@ -37,6 +37,9 @@ struct sh_warp_model {
     int h, gx0, gy0, nx, ny; /* grid: node (i, j) sits at (gx0 + i h, gy0 + j h) */
     int *row_start, *index;  /* CSR basis rows, one per node */
     double *weight;
+    float *dense;            /* or, when every row holds every coefficient in order: */
+    int dense_terms;         /*   nodes x dense_terms weights, and no CSR; */
+    double *dense_coef;      /*   grid_map's scratch: the x coefficients, then the y ones */
     double *map;             /* per node: current x, y */
     int sep_n;               /* > 0: the kernel terms factor per axis (Gaussian), n of them; */
     double *sep_x;           /*   per pair of node columns, per k: their two factors; */
