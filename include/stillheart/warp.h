@@ -31,6 +31,11 @@ extern "C" {
 typedef struct {
     double max_error;  /* largest tolerated map error in pixels (default 0.05) */
     int grid_spacing;  /* initial grid spacing in pixels, a power of two (default 16) */
+    int defer_refine;  /* 0 (default): an update whose bound exceeds max_error refines the grid
+                        * there and then (a new basis: tens of ms with many points). 1: it keeps
+                        * the grid and its larger bound, and sh_warp_model_finer_spacing says
+                        * which spacing is due, for a caller with a deadline to build a model
+                        * with it elsewhere and swap it in. */
 } sh_warp_options;
 
 void sh_warp_options_default(sh_warp_options *opts);
@@ -65,6 +70,10 @@ int sh_warp_model_grid_spacing(const sh_warp_model *model);
 double sh_warp_model_error_bound(const sh_warp_model *model);
 /* How often updates had to refine the grid. */
 int sh_warp_model_refinements(const sh_warp_model *model);
+/* With defer_refine: the spacing (half the one in use) that the last update's map needs because
+ * its bound exceeds max_error; 0 when none is due (and always without defer_refine, or for the
+ * exact methods). */
+int sh_warp_model_finer_spacing(const sh_warp_model *model);
 
 /* The map exactly as the warp uses it: map[(y * width + x) * 2 + {0,1}] = current-frame x, y
  * of output pixel (x, y); NaN outside the hull. map holds width * height * 2 floats. */

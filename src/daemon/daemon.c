@@ -311,6 +311,7 @@ static void set_status_json(sh_daemon *d, const char *state, int index, const sh
     }
     sh_cli_json_int(&j, "published", (long long)d->published);
     sh_cli_json_int(&j, "black_frames", (long long)d->black_count);
+    sh_cli_json_int(&j, "grids_refined", run_pipeline_refined(&d->pl));
     sh_cli_json_int(&j, "dropped", (long long)run_pipeline_dropped(&d->pl));
     sh_cli_json_end(&j);
     if (fclose(f) == 0 && len > 0 && len < sizeof d->status_json) {
@@ -495,10 +496,12 @@ void sh_daemon_stats(sh_daemon *d, char *line, size_t cap)
     if (d->rss_1min) snprintf(at1, sizeof at1, " at 1 min %ld", d->rss_1min);
     snprintf(line, cap,
              "stats: %llu published (%llu raw, %llu degraded), %llu dropped, %s, RSS kB start %ld%s max %ld "
-             "end %ld, %d models built, %llu black frames (output camera lost)",
+             "end %ld, %d models built, %llu black frames (output camera lost), %d grids refined off the "
+             "processing thread",
              (unsigned long long)d->published, (unsigned long long)d->raw_count,
              (unsigned long long)d->degraded_count, (unsigned long long)run_pipeline_dropped(&d->pl), lat,
-             d->rss_start, at1, d->rss_max, f.rss_end, run_pipeline_builds(&d->pl), (unsigned long long)d->black_count);
+             d->rss_start, at1, d->rss_max, f.rss_end, run_pipeline_builds(&d->pl), (unsigned long long)d->black_count,
+             run_pipeline_refined(&d->pl));
 }
 
 /* The same figures; what was never measured is null. */

@@ -5,7 +5,12 @@
  * fills a slot in state BUILDING and marks it READY or FAILED, under the mutex. A model in a
  * READY slot is used by the processing thread alone, so the per-frame path takes the mutex only
  * to look at states. Evicted models and a replaced generation are freed by the helper, so that no
- * free of a large grid basis lands on a published frame either. */
+ * free of a large grid basis lands on a published frame either. Live (not test mode), a 2D map
+ * whose grid is too coarse for the frame is not refined on the processing thread either: the
+ * helper builds the finer grid's model and the next update swaps it in (refine_swap).
+ *
+ * Over 600 lines: the slot table, the helper thread and the swaps share one mutex and one set of
+ * invariants (who may touch a slot in which state); split, each half would need the other's. */
 #include <math.h>
 #include <pthread.h>
 #include <stdio.h>
@@ -19,18 +24,23 @@
 #define SLOTS 8
 
 enum { EMPTY = 0, BUILDING, READY, FAILED };
+/* A READY 2D model's finer grid: asked by the processing thread, taken and made by the helper,
+ * ready to swap; failed ones are not asked again (the map keeps its coarser grid). */
+enum { REFINE_NONE = 0, REFINE_ASKED, REFINE_TAKEN, REFINE_READY, REFINE_FAILED };
 
 /* A slot: the marker set's entry (modelcache.h: key, models, LRU stamp) and what the daemon adds. */
 struct run_model {
     sh_modelcache_entry e; /* 3D: the surface and its views (the output camera's, or the two eyes) */
     double uv[2 * SH_TRACK_MAX_MARKERS]; /* 3D: each marker's surface parameter (for the residual; NaN
                                      * where the view's ray misses) */
-    const run_models *owner; /* its camera, for the 3D residual */
+    run_models *owner; /* its camera, for the 3D residual; its lock, for refine_swap */
     double *coef;   /* the interpolant's coefficients, 2 columns (for the residual) */
     double vals[2 * SH_TRACK_MAX_MARKERS];
     int state;
     int taken;      /* the helper is building it */
     char err[160];  /* why the build failed */
+    int refine, refine_h;  /* REFINE_*, and the spacing asked for */
+    sh_warp_model *finer;  /* REFINE_READY: the model on the finer grid, to swap in */
 };
 
 typedef struct {
@@ -67,11 +77,14 @@ struct run_models {
     int nevicted;
     int builds;
     run_model *pinned;      /* the model last handed out: never evicted (the fallback) */
+    sh_warp_model *replaced[4]; /* grids swapped out by refine_swap, to free on the helper */
+    int refined;            /* finer grids built by the helper and swapped in */
     sh_landmarks_params lp; /* max_points 0: no landmarks */
 };
 
 static void model_free(run_model *md)
 {
+    sh_warp_model_destroy(md->finer);
     sh_modelcache_entry_clear(&md->e);
     free(md->coef);
     memset(md, 0, sizeof *md);
@@ -96,7 +109,7 @@ static const sh_point *rows_of(const generation *g, int *n)
 }
 
 /* Builds md's models (its entry's key set) and what the residual needs beside them. */
-static sh_status model_build(const run_models *m, run_model *md)
+static sh_status model_build(run_models *m, run_model *md)
 {
     md->owner = m;
     const sh_modelcache_entry *e = &md->e;
@@ -159,17 +172,66 @@ static sh_status residual_subset(run_model *md, const double *det_xy, double *re
     return SH_OK;
 }
 
+/* Live 2D models are made with defer_refine (run_models_create): a grid too coarse for a frame's
+ * map would otherwise be rebuilt inside that frame's update, 15-100 ms with the landmarks' 130-140
+ * points at 1080p (measured: refinements to 4 and 2 px), a frame or three lost in real time. Here
+ * a model the helper built on the finer grid replaces the old one before the update, and after
+ * it a finer grid is asked for when the map's bound wants one; meanwhile the map is within its
+ * bound, not max_error (0.05-0.34 px measured as refinements came due on the phantom with and
+ * without landmarks). */
+static void refine_swap(run_model *md)
+{
+    run_models *m = md->owner;
+    if (!m || !m->recipe.wopts.defer_refine) return;
+    pthread_mutex_lock(&m->mu);
+    if (md->refine == REFINE_READY) {
+        sh_warp_model *old = md->e.model;
+        md->e.model = md->finer;
+        md->finer = NULL;
+        md->refine = REFINE_NONE;
+        m->refined++;
+        int i = 0;
+        while (i < 4 && m->replaced[i]) i++;
+        if (i < 4) {
+            m->replaced[i] = old;
+            old = NULL;
+            pthread_cond_broadcast(&m->cv);
+        }
+        pthread_mutex_unlock(&m->mu);
+        sh_warp_model_destroy(old); /* the helper's list is full: here, once in a long while */
+        return;
+    }
+    pthread_mutex_unlock(&m->mu);
+}
+
+static void refine_ask(run_model *md)
+{
+    run_models *m = md->owner;
+    int h = m && m->recipe.wopts.defer_refine ? sh_warp_model_finer_spacing(md->e.model) : 0;
+    if (!h) return;
+    pthread_mutex_lock(&m->mu);
+    if (md->refine == REFINE_NONE) {
+        md->refine = REFINE_ASKED;
+        md->refine_h = h;
+        pthread_cond_broadcast(&m->cv);
+    }
+    pthread_mutex_unlock(&m->mu);
+}
+
 sh_status run_model_update(run_model *md, const double *cur_xy, const double *cur_xyz, const double *det_xy,
                            const unsigned char *use, double *residual)
 {
     const sh_modelcache_entry *e = &md->e;
     if (e->m3) return update_3d(md->owner, md, cur_xyz, det_xy, residual);
+    refine_swap(md);
     if (use) {
         sh_status st = sh_warp_model_update_subset(e->model, cur_xy, use);
+        if (st == SH_OK) refine_ask(md);
         return st == SH_OK ? residual_subset(md, det_xy, residual) : st;
     }
     sh_status st = sh_warp_model_update(e->model, cur_xy);
     if (st != SH_OK) return st;
+    refine_ask(md);
     /* The map at a marker's reference position, f(q) = q + D(q), against where the detector saw
      * it this frame: the tracker's smoothing plus what an approximating method leaves out. */
     for (int k = 0; k < 2 * e->n; k++) md->vals[k] = cur_xy[k] - e->ref_xy[k];
@@ -280,6 +342,39 @@ static run_model *find_building(generation *g)
     return NULL;
 }
 
+static run_model *find_refine(generation *g)
+{
+    if (!g) return NULL;
+    for (int i = 0; i < SLOTS; i++)
+        if (g->slot[i].state == READY && g->slot[i].refine == REFINE_ASKED) return &g->slot[i];
+    return NULL;
+}
+
+/* Under the lock, unlocked while it builds: md's model again on the finer grid it asked for, for
+ * refine_swap. The interpolant and reference positions it reads are freed only by this thread;
+ * the result lands only if md still holds the model it was asked for (not evicted, not replaced). */
+static void refine_model(run_models *m, run_model *md)
+{
+    sh_warp_model *asked_for = md->e.model, *fresh = NULL;
+    const sh_interp *interp = md->e.interp;
+    const double *ref_xy = md->e.ref_xy;
+    int n = md->e.n;
+    sh_warp_options o = m->recipe.wopts;
+    o.grid_spacing = md->refine_h;
+    md->refine = REFINE_TAKEN;
+    pthread_mutex_unlock(&m->mu);
+    sh_status st = sh_warp_model_create(interp, ref_xy, n, m->recipe.width, m->recipe.height, &o, &fresh);
+    pthread_mutex_lock(&m->mu);
+    if (md->e.model == asked_for && md->refine == REFINE_TAKEN) {
+        md->refine = st == SH_OK ? REFINE_READY : REFINE_FAILED;
+        md->finer = st == SH_OK ? fresh : NULL;
+        if (st == SH_OK) fresh = NULL;
+    }
+    pthread_mutex_unlock(&m->mu);
+    sh_warp_model_destroy(fresh);
+    pthread_mutex_lock(&m->mu);
+}
+
 static void *helper_main(void *arg)
 {
     run_models *m = arg;
@@ -291,6 +386,15 @@ static void *helper_main(void *arg)
         generation *trash = NULL;
         for (int i = 0; i < 4 && !trash; i++)
             if (m->trash[i]) { trash = m->trash[i]; m->trash[i] = NULL; }
+        sh_warp_model *replaced = NULL;
+        for (int i = 0; i < 4 && !trash && !replaced; i++)
+            if (m->replaced[i]) { replaced = m->replaced[i]; m->replaced[i] = NULL; }
+        if (replaced) {
+            pthread_mutex_unlock(&m->mu);
+            sh_warp_model_destroy(replaced);
+            pthread_mutex_lock(&m->mu);
+            continue;
+        }
         run_model evicted;
         int have_evicted = 0;
         if (!trash && m->nevicted) {
@@ -315,6 +419,12 @@ static void *helper_main(void *arg)
         run_model *job = find_building(m->next);
         generation *job_gen = job ? m->next : NULL;
         if (!job) { job = find_building(m->cur); job_gen = job ? m->cur : NULL; }
+        /* then the finer grids of models in use (new models first: without one a set is not shown) */
+        run_model *refine = !trash && !have_evicted && !job ? find_refine(m->cur) : NULL;
+        if (refine) {
+            refine_model(m, refine);
+            continue;
+        }
         if (!trash && !have_evicted && !job) {
             pthread_cond_wait(&m->cv, &m->mu);
             continue;
@@ -380,6 +490,9 @@ sh_status run_models_create(const sh_interp_params *params, const sh_warp_option
     m->recipe.wopts = *wopts;
     m->recipe.width = width;
     m->recipe.height = height;
+    /* live: refinements on the helper (refine_swap); test mode refines in the update, as stillheart
+     * warp does, so that its frames stay warp's */
+    m->recipe.wopts.defer_refine = !wait;
     m->wait = wait;
     pthread_mutex_init(&m->mu, NULL);
     pthread_cond_init(&m->cv, NULL);
@@ -404,6 +517,7 @@ void run_models_destroy(run_models *m)
     generation_free(m->next);
     for (int i = 0; i < 4; i++) generation_free(m->trash[i]);
     for (int i = 0; i < m->nevicted; i++) { model_free(m->evicted[i]); free(m->evicted[i]); }
+    for (int i = 0; i < 4; i++) sh_warp_model_destroy(m->replaced[i]);
     pthread_mutex_destroy(&m->mu);
     pthread_cond_destroy(&m->cv);
     free(m);
@@ -604,6 +718,8 @@ sh_status run_models_set_3d(run_models *m, const sh_calib *calib, int camera, do
     sh_warp3d_params_default(&r->p3);
     r->p3.surface = r->p3.displacement = r->params;
     sh_warp3d_view_options_default(&r->vopts);
+    /* the views' maps refine in their own updates (warp3d.h): no model of theirs is swapped */
+    r->wopts.defer_refine = 0;
     r->vopts.warp = r->wopts;
     r->three_d = 1;
     return SH_OK;
@@ -625,3 +741,6 @@ int run_model_markers(const run_model *md)
 const double *run_model_ref_xy(const run_model *md) { return md->e.ref_xy; }
 
 int run_models_builds(const run_models *m) { return m->builds; }
+
+/* refined changes only in refine_swap, on the calling (processing) thread */
+int run_models_refined(const run_models *m) { return m->refined; }

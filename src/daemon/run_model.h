@@ -78,6 +78,8 @@ const sh_warp_model *run_model_warp(const run_model *md);
 int run_model_views(const run_model *md, const sh_warp3d_view *views[2]);
 const int *run_model_ids(const run_model *md, int *n);
 int run_models_builds(const run_models *m);
+/* Live: how many models were swapped for one on a finer grid built by the helper (refine_swap). */
+int run_models_refined(const run_models *m);
 /* The residual alone, on a model built here (tests). */
 sh_status run_residual(const sh_interp_params *params, const double *ref_xy, const double *cur_xy,
                        const double *det_xy, int n, double *residual);

@@ -178,6 +178,7 @@ sh_status run_pipeline_start(run_pipeline *p) { return run_source_start(p->src);
 uint64_t run_pipeline_dropped(run_pipeline *p) { return p->dropped_before + (p->src ? run_source_dropped(p->src) : 0); }
 
 int run_pipeline_builds(const run_pipeline *p) { return p->builds_before + (p->proc ? run_proc_builds(p->proc) : 0); }
+int run_pipeline_refined(const run_pipeline *p) { return p->refined_before + (p->proc ? run_proc_refined(p->proc) : 0); }
 
 /* Appends ", text" (the first without the comma) to out. */
 static __attribute__((format(printf, 3, 4))) void add(char *out, size_t cap, const char *fmt, ...)
@@ -331,6 +332,7 @@ static void swap_in(run_pipeline *p, run_pipeline *n, const changes *c)
 {
     if (n->proc != p->proc) {
         p->builds_before += run_proc_builds(p->proc);
+        p->refined_before += run_proc_refined(p->proc);
         run_proc_destroy(p->proc);
     } else {
         run_proc_set_gating(p->proc, &n->cfg);
@@ -342,6 +344,7 @@ static void swap_in(run_pipeline *p, run_pipeline *n, const changes *c)
     if (c->black_made) sh_image_destroy(&p->black);
     n->dropped_before = p->dropped_before;
     n->builds_before = p->builds_before;
+    n->refined_before = p->refined_before;
     *p = *n;
 }
 

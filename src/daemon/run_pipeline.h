@@ -34,6 +34,7 @@ typedef struct {
     sh_image black;           /* shown while the output camera is lost, in out_hdr's geometry */
     uint64_t dropped_before;  /* dropped sets and models built by sources and processing */
     int builds_before;        /*   replaced by reloads, for the totals at exit */
+    int refined_before;
     run_file_stamp calib_file, points_file; /* [method] calibration, [run] points when opened */
 } run_pipeline;
 
@@ -62,6 +63,8 @@ run_reload run_pipeline_reload(run_pipeline *p, const sh_config *fresh, char *wh
 /* Sets dropped and models built since start, over every source and processing reloads replaced. */
 uint64_t run_pipeline_dropped(run_pipeline *p);
 int run_pipeline_builds(const run_pipeline *p);
+/* Models swapped for a finer grid built off the processing thread (run_models_refined), in all. */
+int run_pipeline_refined(const run_pipeline *p);
 
 /* Closes a V4L2 output (NULL: none), logging the frames it took and those it did not. */
 void run_pipeline_v4l2_close(run_v4l2out *o);

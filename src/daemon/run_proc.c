@@ -279,6 +279,7 @@ static __attribute__((format(printf, 2, 3))) void reason(sh_display_frame_info *
 void run_proc_request_reference(run_proc *p) { p->want_ref = 1; }
 
 int run_proc_builds(const run_proc *p) { return run_models_builds(p->models); }
+int run_proc_refined(const run_proc *p) { return run_models_refined(p->models); }
 
 int run_proc_markers(const run_proc *p, const int **ids, const double **xy)
 {

@@ -36,6 +36,7 @@ void run_proc_request_reference(run_proc *p);
 const sh_image *run_proc_frame(run_proc *p, const sh_image *img, const sh_image *const *cams, int index,
                                unsigned epoch, sh_display_frame_info *info);
 int run_proc_builds(const run_proc *p);
+int run_proc_refined(const run_proc *p);
 /* The markers (ids and output-camera positions) the last frame's map was made from, then the
  * landmarks it used (ids from SH_LANDMARK_ID_BASE): their count, 0 when that frame was shown raw.
  * Valid until the next run_proc_frame. */

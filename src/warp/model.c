@@ -19,6 +19,7 @@ void sh_warp_options_default(sh_warp_options *opts)
 {
     opts->max_error = 0.05;
     opts->grid_spacing = 16;
+    opts->defer_refine = 0;
 }
 
 static void free_grid(sh_warp_model *m)
@@ -578,7 +579,7 @@ sh_status sh_warp_model_update_subset(sh_warp_model *m, const double *cur_xy, co
         if ((st = fit(m, m->disp, use)) != SH_OK) return st;
         grid_map(m);
         m->error_bound = grid_error_bound(m);
-        while (m->error_bound > m->opts.max_error && m->h > 1) {
+        while (!m->opts.defer_refine && m->error_bound > m->opts.max_error && m->h > 1) {
             /* Halving, not a jump predicted from h^2 scaling: a coarse grid can overstate the
              * curvature of a map with finer structure (multilevel B-splines) and overshoot. */
             if ((st = build_grid(m, m->h / 2)) != SH_OK) return st;
@@ -643,6 +644,12 @@ double sh_warp_model_error_bound(const sh_warp_model *m)
 int sh_warp_model_refinements(const sh_warp_model *m)
 {
     return m->refinements;
+}
+
+int sh_warp_model_finer_spacing(const sh_warp_model *m)
+{
+    return m->kind == MODEL_GRID && m->opts.defer_refine && m->error_bound > m->opts.max_error && m->h > 1 ? m->h / 2
+                                                                                                          : 0;
 }
 
 sh_status sh_warp_model_map(const sh_warp_model *m, float *map)

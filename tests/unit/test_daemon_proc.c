@@ -2,6 +2,7 @@
  * closed form, the dropout / staleness rule of the selection, and the helper-thread models (a new
  * reference is swapped in only once built; the old one stays in use meanwhile). */
 #include <math.h>
+#include <stdlib.h>
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -177,6 +178,70 @@ static void test_models_swap(void **state)
     run_models_destroy(m);
 }
 
+/* Live, a map whose grid is too coarse is not refined in the frame's update: the helper builds
+ * the finer grid's model and a later update swaps it in, until the grid is the one a refinement in
+ * place reaches (the same map, bit for bit); test mode refines in place, as stillheart warp does. */
+static void test_models_refine_on_helper(void **state)
+{
+    (void)state;
+    sh_interp_params p;
+    sh_interp_params_parse("tps", &p);
+    sh_warp_options wo;
+    sh_warp_options_default(&wo);
+    wo.max_error = 0.002; /* a tolerance this map's 16 px grid cannot meet */
+    double xy[2 * N], cur[2 * N], det[2 * N];
+    grid(xy);
+    sh_point ref[N];
+    int ids[N];
+    for (int i = 0; i < N; i++) {
+        ref[i] = (sh_point){.frame = 0, .id = i, .x = xy[2 * i], .y = xy[2 * i + 1], .X = NAN, .Y = NAN, .Z = NAN};
+        ids[i] = i;
+        double dx = xy[2 * i] - 300, dy = xy[2 * i + 1] - 250; /* a bulge: no affine map follows it */
+        cur[2 * i] = xy[2 * i] + 12 * exp(-(dx * dx + dy * dy) / 8000.0);
+        cur[2 * i + 1] = xy[2 * i + 1] - 9 * exp(-(dx * dx + dy * dy) / 8000.0);
+        det[2 * i] = det[2 * i + 1] = NAN;
+    }
+    /* the refinement in place, for comparison */
+    sh_interp *it;
+    sh_warp_model *inplace;
+    assert_int_equal(sh_interp_create(&p, xy, N, &it), SH_OK);
+    assert_int_equal(sh_warp_model_create(it, xy, N, 640, 480, &wo, &inplace), SH_OK);
+    assert_int_equal(sh_warp_model_update(inplace, cur), SH_OK);
+    assert_true(sh_warp_model_refinements(inplace) >= 2);
+    float *ma = malloc(sizeof(float) * 2 * 640 * 480), *mb = malloc(sizeof(float) * 2 * 640 * 480);
+    assert_int_equal(sh_warp_model_map(inplace, mb), SH_OK);
+    for (int wait = 0; wait <= 1; wait++) {
+        run_models *m;
+        assert_int_equal(run_models_create(&p, &wo, 640, 480, wait, &m), SH_OK);
+        assert_int_equal(run_models_set_reference(m, ref, N, 0, NULL, NULL, 0), SH_OK);
+        int swapped = 0, frame, n;
+        for (int t = 0; t < 2000 && !swapped; t++) {
+            swapped = run_models_poll(m, &frame, &n);
+            if (!swapped) wait_ms(5);
+        }
+        assert_true(swapped);
+        run_model *md = NULL;
+        assert_int_equal(run_models_get(m, ids, N, &md), 1);
+        double residual;
+        int frames = 0;
+        do {
+            assert_int_equal(run_model_update(md, cur, NULL, det, NULL, &residual), SH_OK);
+            /* live, an update never rebuilds its grid */
+            if (!wait) assert_int_equal(sh_warp_model_refinements(run_model_warp(md)), 0);
+            if (sh_warp_model_grid_spacing(run_model_warp(md)) != sh_warp_model_grid_spacing(inplace)) wait_ms(5);
+        } while (++frames < 2000 &&
+                 sh_warp_model_grid_spacing(run_model_warp(md)) != sh_warp_model_grid_spacing(inplace));
+        assert_int_equal(run_models_refined(m), wait ? 0 : sh_warp_model_refinements(inplace));
+        if (wait) assert_int_equal(frames, 1);
+        assert_int_equal(sh_warp_model_map(run_model_warp(md), ma), SH_OK);
+        assert_memory_equal(ma, mb, sizeof(float) * 2 * 640 * 480);
+        run_models_destroy(m);
+    }
+    free(ma), free(mb);
+    sh_warp_model_destroy(inplace);
+    sh_interp_destroy(it);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -184,6 +249,7 @@ int main(void)
         cmocka_unit_test(test_residual_affine_leverage),
         cmocka_unit_test(test_select_dropout),
         cmocka_unit_test(test_models_swap),
+        cmocka_unit_test(test_models_refine_on_helper),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -172,6 +172,37 @@ static void test_grid_refines_for_tight_tolerance(void **state)
     assert_true(sh_warp_model_refinements(b.model) > 0);
     assert_int_equal(sh_warp_model_update(b.model, cur), SH_OK);
     assert_true(map_error(&b, ref, cur, n, w, h) <= 0.002);
+    /* Deferred (defer_refine, the live daemon): an update keeps its grid and says which spacing is
+     * due; models created at each spacing in turn end where the refinement in place ended, with
+     * the same map bit for bit (the same basis on the same grid). */
+    unbuild(&b);
+    b = build("tps", ref, n, w, h, &opts);
+    assert_int_equal(sh_warp_model_update(b.model, cur), SH_OK);
+    sh_warp_options dopts = opts;
+    dopts.defer_refine = 1;
+    built d = build("tps", ref, n, w, h, &dopts);
+    int due, steps = 0, first_h = sh_warp_model_grid_spacing(d.model);
+    assert_int_equal(sh_warp_model_update(d.model, cur), SH_OK);
+    while ((due = sh_warp_model_finer_spacing(d.model))) {
+        assert_int_equal(sh_warp_model_grid_spacing(d.model), first_h >> steps);
+        assert_true(sh_warp_model_error_bound(d.model) > dopts.max_error);
+        assert_int_equal(due, sh_warp_model_grid_spacing(d.model) / 2);
+        sh_warp_model_destroy(d.model);
+        dopts.grid_spacing = due;
+        assert_int_equal(sh_warp_model_create(d.interp, ref, n, w, h, &dopts, &d.model), SH_OK);
+        assert_int_equal(sh_warp_model_update(d.model, cur), SH_OK);
+        steps++;
+    }
+    assert_int_equal(sh_warp_model_refinements(d.model), 0);
+    assert_int_equal(steps, sh_warp_model_refinements(b.model));
+    assert_int_equal(sh_warp_model_grid_spacing(d.model), sh_warp_model_grid_spacing(b.model));
+    float *ma = malloc(sizeof(float) * 2 * (size_t)w * h), *mb = malloc(sizeof(float) * 2 * (size_t)w * h);
+    assert_int_equal(sh_warp_model_map(d.model, ma), SH_OK);
+    assert_int_equal(sh_warp_model_map(b.model, mb), SH_OK);
+    assert_memory_equal(ma, mb, sizeof(float) * 2 * (size_t)w * h);
+    assert_int_equal(sh_warp_model_finer_spacing(b.model), 0); /* never without defer_refine */
+    free(ma), free(mb);
+    unbuild(&d);
     unbuild(&b);
 }
 
