@@ -74,11 +74,12 @@ sh_status sh_daemon_start(sh_daemon *d);
 sh_status sh_daemon_run(sh_daemon *d, sh_daemon_signals *sig);
 /* The summary of the run so far, one line without newline ("stats: N published ..."): frames
  * published, raw, degraded, dropped, latency median / p99 / max, RSS, models built, black
- * frames. */
+ * frames, sets dropped after the tracker's first lock of the rates (or that it never locked). */
 void sh_daemon_stats(sh_daemon *d, char *line, size_t cap);
 /* The same as one JSON object and a newline on out (`stillheart run --stats --json`): published,
  * raw, degraded, dropped, latency_ms {median, p99, max}, rss_kb {start, at_1_min, max, end},
- * models_built, black_frames; a figure never measured is null. */
+ * models_built, black_frames, published_at_lock, dropped_after_lock; a figure never measured
+ * (no lock yet: the last two) is null. */
 void sh_daemon_stats_json(sh_daemon *d, FILE *out);
 /* Stops every thread, closes the pipeline (the display segment marked closed) and the trace
  * files. SH_OK unless the record or a trace file could not be written (logged). NULL: nothing. */

@@ -37,6 +37,10 @@ struct sh_daemon {
     size_t nlat;
     int64_t t_start;
     long rss_start, rss_max, rss_1min; /* warm-up (detector, caches) is over after a minute */
+    /* the tracker's first lock of the rates: sets dropped before it (the first full-frame scans,
+     * a constant-velocity guess) are the start's; one after it is the box not keeping up */
+    int locked;
+    uint64_t published_at_lock, dropped_at_lock;
 
     /* what was shown (the log's status changes, STATUS, the control socket's status line) */
     uint32_t last_status_shown;    /* 99: none yet, the next frame is logged */
@@ -311,7 +315,6 @@ static void set_status_json(sh_daemon *d, const char *state, int index, const sh
     }
     sh_cli_json_int(&j, "published", (long long)d->published);
     sh_cli_json_int(&j, "black_frames", (long long)d->black_count);
-    sh_cli_json_int(&j, "grids_refined", run_pipeline_refined(&d->pl));
     sh_cli_json_int(&j, "dropped", (long long)run_pipeline_dropped(&d->pl));
     sh_cli_json_end(&j);
     if (fclose(f) == 0 && len > 0 && len < sizeof d->status_json) {
@@ -419,6 +422,13 @@ static void camera_frame(sh_daemon *d, const run_frame *s)
     double latency_ms = (double)(done_ns - s->avail_ns) / 1e6;
     if (d->nlat < LAT_CAP) d->lat[d->nlat++] = (float)latency_ms;
     d->published++;
+    if (!d->locked && run_proc_locked(d->pl.proc)) {
+        d->locked = 1;
+        d->published_at_lock = d->published;
+        d->dropped_at_lock = run_pipeline_dropped(&d->pl);
+        sh_log_info("frame %d: the tracker's rates locked, %llu frames published and %llu sets dropped before", s->index,
+                    (unsigned long long)d->published, (unsigned long long)d->dropped_at_lock);
+    }
     sample_memory(d, done_ns);
     snprintf(d->status_line, sizeof d->status_line,
              "frame %d: %s%s%s, %u markers, residual %.2f px, %llu published, %llu dropped", s->index,
@@ -490,17 +500,21 @@ void sh_daemon_stats(sh_daemon *d, char *line, size_t cap)
 {
     stats_figures f;
     stats_measure(d, &f);
-    char lat[96] = "latency: no frame published", at1[40] = "";
+    char lat[96] = "latency: no frame published", at1[40] = "", lock[96] = "the tracker's rates not locked";
     if (f.have_latency)
         snprintf(lat, sizeof lat, "latency ms median %.2f p99 %.2f max %.2f", f.lat_median, f.lat_p99, f.lat_max);
     if (d->rss_1min) snprintf(at1, sizeof at1, " at 1 min %ld", d->rss_1min);
+    uint64_t dropped = run_pipeline_dropped(&d->pl);
+    if (d->locked)
+        snprintf(lock, sizeof lock, "%llu dropped after the tracker's first lock (at frame %llu published)",
+                 (unsigned long long)(dropped - d->dropped_at_lock), (unsigned long long)d->published_at_lock);
     snprintf(line, cap,
              "stats: %llu published (%llu raw, %llu degraded), %llu dropped, %s, RSS kB start %ld%s max %ld "
-             "end %ld, %d models built, %llu black frames (output camera lost), %d grids refined off the "
+             "end %ld, %d models built, %llu black frames (output camera lost), %s, %d grids refined off the "
              "processing thread",
              (unsigned long long)d->published, (unsigned long long)d->raw_count,
-             (unsigned long long)d->degraded_count, (unsigned long long)run_pipeline_dropped(&d->pl), lat,
-             d->rss_start, at1, d->rss_max, f.rss_end, run_pipeline_builds(&d->pl), (unsigned long long)d->black_count,
+             (unsigned long long)d->degraded_count, (unsigned long long)dropped, lat, d->rss_start, at1, d->rss_max,
+             f.rss_end, run_pipeline_builds(&d->pl), (unsigned long long)d->black_count, lock,
              run_pipeline_refined(&d->pl));
 }
 
@@ -531,6 +545,14 @@ void sh_daemon_stats_json(sh_daemon *d, FILE *out)
     sh_cli_json_end(&j);
     sh_cli_json_int(&j, "models_built", run_pipeline_builds(&d->pl));
     sh_cli_json_int(&j, "black_frames", (long long)d->black_count);
+    if (d->locked) {
+        sh_cli_json_int(&j, "published_at_lock", (long long)d->published_at_lock);
+        sh_cli_json_int(&j, "dropped_after_lock", (long long)(run_pipeline_dropped(&d->pl) - d->dropped_at_lock));
+    } else {
+        sh_cli_json_null(&j, "published_at_lock");
+        sh_cli_json_null(&j, "dropped_after_lock");
+    }
+    sh_cli_json_int(&j, "grids_refined", run_pipeline_refined(&d->pl));
     sh_cli_json_end(&j);
 }
 

@@ -281,6 +281,8 @@ void run_proc_request_reference(run_proc *p) { p->want_ref = 1; }
 int run_proc_builds(const run_proc *p) { return run_models_builds(p->models); }
 int run_proc_refined(const run_proc *p) { return run_models_refined(p->models); }
 
+int run_proc_locked(const run_proc *p) { return p->tracker && run_tracker_locked(p->tracker); }
+
 int run_proc_markers(const run_proc *p, const int **ids, const double **xy)
 {
     *ids = p->used_ids;

@@ -37,6 +37,8 @@ const sh_image *run_proc_frame(run_proc *p, const sh_image *img, const sh_image 
                                unsigned epoch, sh_display_frame_info *info);
 int run_proc_builds(const run_proc *p);
 int run_proc_refined(const run_proc *p);
+/* 1 while the tracker's rates are locked; 0 before, and always in test mode (no tracker). */
+int run_proc_locked(const run_proc *p);
 /* The markers (ids and output-camera positions) the last frame's map was made from, then the
  * landmarks it used (ids from SH_LANDMARK_ID_BASE): their count, 0 when that frame was shown raw.
  * Valid until the next run_proc_frame. */

@@ -86,6 +86,13 @@ void run_tracker_motion(const run_tracker *rt, sh_track_motion *out) { sh_tracke
 
 void run_tracker_calibration(const run_tracker *rt, sh_track_calibration *out) { sh_tracker_calibration(rt->t, out); }
 
+int run_tracker_locked(const run_tracker *rt)
+{
+    sh_track_stats s;
+    sh_tracker_stats(rt->t, &s);
+    return s.locked;
+}
+
 void run_tracker_summary(const run_tracker *rt, char *out, size_t cap)
 {
     sh_track_stats s;

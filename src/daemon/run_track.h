@@ -48,6 +48,8 @@ void run_tracker_motion(const run_tracker *t, sh_track_motion *out);
 void run_tracker_calibration(const run_tracker *rt, sh_track_calibration *out);
 /* The frame rate the tracker assumes (ages in ms use it). */
 double run_tracker_fps(const run_tracker *t);
+/* 1 while the tracker's heart (and respiration) rates are locked (sh_track_stats.locked). */
+int run_tracker_locked(const run_tracker *t);
 /* One line of the tracker's counters (sh_tracker_stats), for the log at exit. */
 void run_tracker_summary(const run_tracker *t, char *out, size_t cap);
 

@@ -131,6 +131,9 @@ static void test_max_frames(void **state)
     sh_daemon_options o = {.max_frames = 3};
     run(&o, &sig, stats, sizeof stats);
     assert_memory_equal(stats, "stats: 3 published (3 raw, 0 degraded), 0 dropped,", 50);
+    /* grey frames without markers: nothing to lock the rates on */
+    const char *tail = ", the tracker's rates not locked";
+    assert_string_equal(stats + strlen(stats) - strlen(tail), tail);
 }
 
 static void test_stop_before(void **state)

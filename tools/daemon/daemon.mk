@@ -58,9 +58,11 @@ run-demo: deps
 	  echo "live: $(APP) run --group= --source y4m:$(RUN_DEMO_DIR)/cam0.y4m & then $(BUILD)/stillheart-cat | ffplay -   (stop: kill %1)"; \
 	  exit $$rc
 
-# make bench: the daemon replaying a 1080p phantom as fast as possible, 16 tags, 2 threads.
-BENCH_DAEMON := $(BUILD)/bench/bench_daemon
-$(BENCH_DAEMON): tools/bench/bench_daemon.sh $(APP) $(BUILD)/stillheart-render
+# make bench: the daemon replaying a 1080p phantom as fast as possible, 16 tags, 2 threads
+# (bench_daemon, then at 4K), and issue 20's trinocular rig in real time, the 3D reference view and
+# the stereo pair beside the same in 2D (bench_daemon_3d).
+BENCH_DAEMON := $(BUILD)/bench/bench_daemon $(BUILD)/bench/bench_daemon_3d
+$(BENCH_DAEMON): $(BUILD)/bench/%: tools/bench/%.sh $(APP) $(BUILD)/stillheart-render
 	@mkdir -p $(dir $@)
 	cp $< $@
 	chmod +x $@
