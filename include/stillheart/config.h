@@ -73,6 +73,7 @@ typedef struct {
     char ids_text[SH_CONFIG_STR];    /* as written: "0-15", "1,3,5-9" */
     /* [track] */
     int landmarks;                   /* natural landmarks of the tissue besides the markers (0: none) */
+    int landmarks_sparse;            /* their tests for sparse markers (sh_landmarks_params_sparse) */
     /* [method] */
     char method_name[32];            /* sh_config_method: the interpolation parameters of these four */
     double sigma;                    /* < 0: the method's default */

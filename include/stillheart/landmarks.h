@@ -40,7 +40,7 @@
  *    prediction's inverse, not from the answer, so a window that fits two places fails it;
  *  - DISAGREES: it lies within max_disagreement_px of the markers' prediction: a landmark that
  *    disagrees with the map by more than the map's own expected error is dropped, not averaged
- *    in;
+ *    in (with bound_factor, that error is measured on the frame: sh_landmarks_params_sparse);
  *  - DEVIATES: its correction of the map (its position minus the prediction) lies within
  *    max_deviation_px of the median correction of its `neighbours` nearest landmarks (by
  *    reference position) that passed the tests above, and at least 3 of them did. The map's
@@ -109,10 +109,23 @@ typedef struct {
     int neighbours;             /* landmarks whose corrections a landmark's is checked against
                                  * (8; 0: no such test) */
     double max_deviation_px;    /* px (0.5: half of the 1 px bound, as the backward test) */
+    /* For markers too sparse for their map to come within a few px of the tissue (four at the
+     * corners of the field: docs/landmarks.md), sh_landmarks_params_sparse: */
+    double bound_factor;        /* > 0: the disagreement bound of each frame is this times the
+                                 * median distance from the markers' map of the landmarks that
+                                 * passed the tests before it (the map's error measured on the
+                                 * frame), never below max_disagreement_px (0: max_disagreement_px) */
+    int plane;                  /* 1: the deviation test expects the median of what the planes
+                                 * through each three neighbours that surround the landmark
+                                 * predict, their median where no three do (0: their median);
+                                 * at most 16 neighbours */
     sh_flow_params flow;        /* the tracker (sh_flow_params_default) */
 } sh_landmarks_params;
 
 void sh_landmarks_params_default(sh_landmarks_params *p);
+/* The defaults changed for a markers' map that may lie farther from the tissue than the
+ * defaults' 3 px (four markers at the corners of the field): bound_factor 4, plane 1. */
+void sh_landmarks_params_sparse(sh_landmarks_params *p);
 
 typedef struct sh_landmarks sh_landmarks;
 
@@ -133,6 +146,7 @@ typedef struct {
      * predictions and were done again on a larger part, and whether the whole frame had to be
      * built in the end (sh_landmarks_track) */
     int searched_again, whole_frame;
+    double bound_px; /* the frame's disagreement bound (0 without a prediction) */
 } sh_landmarks_counts;
 
 /* Finds the landmarks in a luma plane of the reference's size. predicted: count pairs, where

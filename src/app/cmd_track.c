@@ -47,6 +47,10 @@ static void usage(FILE *out)
         "                     as rows with ids from 1000000 (their positions in frame 0 there),\n"
         "                     then in each frame the ones found and accepted, which `stillheart\n"
         "                     warp` takes as correspondences like the markers; off by default\n"
+        "  --landmarks-sparse with --landmarks, for markers too sparse for their map to come\n"
+        "                     within 3 px of the tissue (four at the corners of the field): the\n"
+        "                     disagreement bound follows the map's error measured on each frame\n"
+        "                     and the neighbour test expects a plane (docs/landmarks.md)\n"
         "  --stats            tracking figures on standard error at the end\n"
         "  --json             with --stats: the figures as one JSON object, the last line on\n"
         "                     standard error (standard output carries the points): frames,\n"
@@ -108,6 +112,7 @@ typedef struct {
     sh_track_options topts; /* --noise, --lost-after, --spatial */
     int measured_only, stats, json;
     int landmarks; /* --landmarks N; 0: none */
+    int landmarks_sparse; /* --landmarks-sparse */
 } track_options;
 
 /* Fills o from argv: APP_GO_ON, or the exit code (usage and refusals printed). */
@@ -119,7 +124,7 @@ static int parse_options(int argc, char **argv, track_options *o)
         {"noise", required_argument, 0, 'n'},   {"lost-after", required_argument, 0, 'l'},
         {"spatial", required_argument, 0, 's'}, {"measured-only", no_argument, 0, 'm'},
         {"stats", no_argument, 0, 'S'},         {"json", no_argument, 0, 'j'},
-        {"landmarks", required_argument, 0, 'L'},
+        {"landmarks", required_argument, 0, 'L'}, {"landmarks-sparse", no_argument, 0, 'P'},
         SH_CLI_OPTIONS,                         {0, 0, 0, 0}};
     memset(o, 0, sizeof *o);
     sh_track_options_default(&o->topts);
@@ -147,6 +152,7 @@ static int parse_options(int argc, char **argv, track_options *o)
         case 'S': o->stats = 1; break;
         case 'j': o->json = 1; break;
         case 'L': if (!sh_cli_parse_int("--landmarks", optarg, 1, 100000, &o->landmarks)) return 2; break;
+        case 'P': o->landmarks_sparse = 1; break;
         case 'h': usage(stdout); return 0;
         default: { int rc = sh_cli_option(&cli, ch, argv); if (rc >= 0) return rc; } break;
         }
@@ -156,6 +162,7 @@ static int parse_options(int argc, char **argv, track_options *o)
     if (o->ncam < 1 || o->ncam > SH_TRACK_MAX_CAMERAS)
         return sh_cli_usage_error(&cli, "need one to %d videos", SH_TRACK_MAX_CAMERAS);
     for (int c = 0; c < o->ncam; c++) o->in[c] = argv[optind + c];
+    if (o->landmarks_sparse && !o->landmarks) return sh_cli_usage_error(&cli, "--landmarks-sparse goes with --landmarks");
     if (o->landmarks && (o->ncam > 1 || o->calib_path))
         return sh_cli_usage_error(&cli, "--landmarks: one camera, without --cameras (landmarks in 3D are not built yet)");
     return APP_GO_ON;
@@ -328,7 +335,7 @@ static int write_rows(const track_job *job, track_pass *p, int f, FILE *out)
     p->nrows = nr;
     if (!ok || !job->o->landmarks) return !ok;
     /* the tissue's landmarks after the frame's markers (their ids sort after) */
-    if (f == 0) return track_landmarks_start(job->o->landmarks, &p->img[0], dets[0], p->ndet0, rows, nr, out, &p->lm);
+    if (f == 0) return track_landmarks_start(job->o->landmarks, job->o->landmarks_sparse, &p->img[0], dets[0], p->ndet0, rows, nr, out, &p->lm);
     return p->lm && track_landmarks_frame(p->lm, &p->img[0], f, rows, nr, out);
 }
 

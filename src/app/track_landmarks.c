@@ -53,7 +53,7 @@ static int write_landmarks(const track_landmarks *tl, int f, const float *xy, FI
     return 0;
 }
 
-int track_landmarks_start(int n, const sh_image *frame, const sh_detection *dets, int ndet, const sh_point *rows,
+int track_landmarks_start(int n, int sparse, const sh_image *frame, const sh_detection *dets, int ndet, const sh_point *rows,
                           int nrows, FILE *out, track_landmarks **out_tl)
 {
     *out_tl = NULL;
@@ -87,7 +87,10 @@ int track_landmarks_start(int n, const sh_image *frame, const sh_detection *dets
         for (int k = 0; k < 4; k++) tags[8 * d + 2 * k] = dets[d].corner[k][0], tags[8 * d + 2 * k + 1] = dets[d].corner[k][1];
     sh_hull hull;
     sh_landmarks_params p;
-    sh_landmarks_params_default(&p);
+    if (sparse)
+        sh_landmarks_params_sparse(&p);
+    else
+        sh_landmarks_params_default(&p);
     p.max_points = n;
     const sh_plane *y = luma(tl, frame);
     int rc = 0;

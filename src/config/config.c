@@ -65,6 +65,8 @@ static const keydef keys[] = {
     {"detect", "ids", "ids", K_IDS, PROC, F(ids_text), S(ids_text), 0, 0, "marker ids: 0-15 or 1,3,5-9"},
     {"track", "landmarks", "landmarks", K_INT, PROC, F(landmarks), 0, 0, 2000,
      "natural landmarks of the tissue besides the markers (0: none; tps, affine; 2D)"},
+    {"track", "landmarks_sparse", "landmarks-sparse", K_BOOL, PROC, F(landmarks_sparse), 0, 0, 1,
+     "landmarks for markers too sparse for their map (four at the corners): the disagreement bound follows the map's measured error"},
     {"method", "name", "method", K_METHOD, PROC, F(method_name), S(method_name), 0, 0, "affine pwlinear bspline rbf-local[-pure] tps[-pure] gaussian[-pure]"},
     {"method", "sigma", "sigma", K_DOUBLE, PROC, F(sigma), 0, -1, 1e6, "RBF scale in px (-1: the method's default)"},
     {"method", "levels", "levels", K_INT, PROC, F(levels), 0, 0, 16, "B-spline levels (0: automatic)"},

@@ -100,7 +100,10 @@ static sh_status landmarks_create(run_proc *p, const sh_config *cfg)
     if (!p->lm_pred || !p->lm_xy || !p->lm_verdict || !p->all_xy || !p->all_det || !p->all_use)
         return sh_error_set(SH_ENOMEM, "processing: out of memory for %d landmarks", p->lm_cap);
     sh_landmarks_params lp;
-    sh_landmarks_params_default(&lp);
+    if (cfg->landmarks_sparse)
+        sh_landmarks_params_sparse(&lp);
+    else
+        sh_landmarks_params_default(&lp);
     lp.max_points = p->lm_cap;
     run_models_set_landmarks(p->models, &lp);
     if (!cfg->points[0]) return SH_OK;

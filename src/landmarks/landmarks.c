@@ -31,6 +31,10 @@ struct sh_landmarks {
     int *redo;
     float *redo_xy;
     uint8_t *redo_st;
+    int *voters;     /* a landmark's neighbours that vote (deviations) */
+    float *tri;      /* 2 tri_cap: what the planes through three of them predict (expected) */
+    int tri_cap;
+    float *dist;     /* n: distances from the map (adaptive_bound) */
 };
 
 const char *sh_landmark_verdict_name(sh_landmark_verdict v)
@@ -62,6 +66,13 @@ void sh_landmarks_params_default(sh_landmarks_params *p)
     sh_flow_params_default(&p->flow);
 }
 
+void sh_landmarks_params_sparse(sh_landmarks_params *p)
+{
+    sh_landmarks_params_default(p);
+    p->bound_factor = 4;
+    p->plane = 1;
+}
+
 static sh_status check_params(const sh_landmarks_params *p)
 {
     if (p->max_points < 1 || p->max_points > 100000)
@@ -74,6 +85,8 @@ static sh_status check_params(const sh_landmarks_params *p)
         return sh_error_set(SH_EINVAL, "landmarks: band %d: 0 (none) or %d to 64", p->band, BAND_FINE + 1);
     if (p->neighbours < 0 || p->neighbours > 64 || !(p->max_deviation_px > 0))
         return sh_error_set(SH_EINVAL, "landmarks: neighbours %d (0 to 64) or max_deviation_px not > 0", p->neighbours);
+    if (!(p->bound_factor >= 0 && p->bound_factor <= 1000) || (p->plane && p->neighbours > 16))
+        return sh_error_set(SH_EINVAL, "landmarks: bound_factor 0 to 1000, or plane with more than 16 neighbours");
     if (!(p->max_photometric > 0) || !(p->max_backward_px >= 0) || !(p->max_disagreement_px > 0))
         return sh_error_set(SH_EINVAL, "landmarks: max_photometric and max_disagreement_px must be > 0, "
                             "max_backward_px >= 0");
@@ -370,9 +383,14 @@ sh_status sh_landmarks_create(const sh_landmarks_params *params, const sh_plane 
     lm->redo = malloc(m * sizeof *lm->redo);
     lm->redo_xy = malloc(7 * m * sizeof *lm->redo_xy);
     lm->redo_st = malloc(2 * m);
+    lm->dist = malloc(m * sizeof *lm->dist);
+    lm->voters = malloc(((size_t)params->neighbours + 1) * sizeof *lm->voters);
+    lm->tri_cap = params->neighbours * (params->neighbours - 1) * (params->neighbours - 2) / 6 + 1;
+    lm->tri = malloc(2 * (size_t)lm->tri_cap * sizeof *lm->tri);
     if (!mask || !lm->ref_xy || !lm->fwd || !lm->back || !lm->err || !lm->st_fwd || !lm->st_back || !lm->near ||
         !lm->scratch || !lm->colsum || !lm->prefix || !lm->band || !lm->cols || !lm->redo || !lm->redo_xy ||
-        !lm->redo_st) {
+        !lm->redo_st || !lm->voters || !lm->dist ||
+        !lm->tri) {
         free(mask);
         sh_landmarks_destroy(lm);
         return sh_error_set(SH_ENOMEM, "landmarks: out of memory");
@@ -430,6 +448,7 @@ void sh_landmarks_destroy(sh_landmarks *lm)
     free(lm->redo);
     free(lm->redo_xy);
     free(lm->redo_st);
+    free(lm->voters), free(lm->tri), free(lm->dist);
     free(lm);
 }
 
@@ -441,10 +460,42 @@ const float *sh_landmarks_reference(const sh_landmarks *lm) { return lm->ref_xy;
  * smooth between the markers, so correct neighbours correct it alike; a landmark whose window
  * matched the wrong place, consistently both ways and within the map's reach, stands out. Too
  * few neighbours to tell (fewer than 3 that passed): refused, as nothing vouches for it. */
+/* What landmark i's correction is expected to be from its m voters q[] (their corrections vx, vy,
+ * relative to the markers' map): their median, or with `plane` the median of what the plane
+ * through each three of them (barycentric weights at i of at most PLANE_MAX_WEIGHT, so that
+ * their errors are not blown up) predicts at i, the median when no three qualify. */
+static void expected(sh_landmarks *lm, int i, const int *q, int m, float *vx, float *vy, float *ex, float *ey)
+{
+    int t = 0;
+    if (lm->p.plane) {
+        float *tx = lm->tri, *ty = lm->tri + lm->tri_cap;
+        const float *r = lm->ref_xy, xi = r[2 * i], yi = r[2 * i + 1];
+        for (int a = 0; a < m; a++)
+            for (int b = a + 1; b < m; b++)
+                for (int c = b + 1; c < m; c++) {
+                    float ax = r[2 * q[a]] - xi, ay = r[2 * q[a] + 1] - yi, bx = r[2 * q[b]] - xi,
+                          by = r[2 * q[b] + 1] - yi, cx = r[2 * q[c]] - xi, cy = r[2 * q[c] + 1] - yi;
+                    float d = (bx - ax) * (cy - ay) - (cx - ax) * (by - ay);
+                    if (!(fabsf(d) > 0)) continue;
+                    float wa = (bx * cy - cx * by) / d, wb = (cx * ay - ax * cy) / d, wc = 1 - wa - wb;
+                    if (!(wa >= 0 && wb >= 0 && wc >= 0))
+                        continue;
+                    tx[t] = wa * vx[a] + wb * vx[b] + wc * vx[c];
+                    ty[t++] = wa * vy[a] + wb * vy[b] + wc * vy[c];
+                }
+        if (t > 0) {
+            *ex = median(tx, t), *ey = median(ty, t);
+            return;
+        }
+    }
+    *ex = median(vx, m), *ey = median(vy, m);
+}
+
 static void deviations(sh_landmarks *lm, const float *predicted, uint8_t *verdict)
 {
     const int k = lm->p.neighbours, min_voters = 3;
     float *vx = lm->scratch, *vy = lm->scratch + k + 1;
+    int *qs = lm->voters;
     for (int i = 0; i < lm->n; i++) {
         if (verdict[i] != SH_LANDMARK_ACCEPTED) continue;
         int m = 0;
@@ -453,6 +504,7 @@ static void deviations(sh_landmarks *lm, const float *predicted, uint8_t *verdic
             /* the neighbours' verdicts from the first four tests: SH_LANDMARK_DEVIATES is set only
              * here, after every landmark's first four, so compare with it too */
             if (q < 0 || (verdict[q] != SH_LANDMARK_ACCEPTED && verdict[q] != SH_LANDMARK_DEVIATES)) continue;
+            qs[m] = q;
             vx[m] = lm->fwd[2 * q] - predicted[2 * q];
             vy[m++] = lm->fwd[2 * q + 1] - predicted[2 * q + 1];
         }
@@ -460,7 +512,8 @@ static void deviations(sh_landmarks *lm, const float *predicted, uint8_t *verdic
             verdict[i] = SH_LANDMARK_DEVIATES;
             continue;
         }
-        float mx = median(vx, m), my = median(vy, m);
+        float mx, my;
+        expected(lm, i, qs, m, vx, vy, &mx, &my);
         float dx = lm->fwd[2 * i] - predicted[2 * i] - mx, dy = lm->fwd[2 * i + 1] - predicted[2 * i + 1] - my;
         if (!(hypotf(dx, dy) <= lm->p.max_deviation_px)) verdict[i] = SH_LANDMARK_DEVIATES;
     }
@@ -576,6 +629,50 @@ static sh_status search_again(sh_landmarks *lm, const sh_plane *luma, const floa
     }
 }
 
+/* The first four tests (landmarks.h), the disagreement bound `bound` px (without a prediction
+ * not tested). */
+static void first_tests(const sh_landmarks *lm, const float *predicted, double bound, uint8_t *verdict)
+{
+    const sh_landmarks_params *p = &lm->p;
+    const int backward = p->max_backward_px > 0;
+    for (int i = 0; i < lm->n; i++) {
+        const float *f = lm->fwd + 2 * i, *r = lm->ref_xy + 2 * i;
+        sh_landmark_verdict v = SH_LANDMARK_ACCEPTED;
+        if (lm->st_fwd[i] != SH_FLOW_OK || (backward && lm->st_back[i] != SH_FLOW_OK) || !isfinite(f[0]) ||
+            !isfinite(f[1]))
+            v = SH_LANDMARK_LOST;
+        else if (!(lm->err[i] <= p->max_photometric))
+            v = SH_LANDMARK_PHOTOMETRIC;
+        else if (backward && !(hypot(lm->back[2 * i] - r[0], lm->back[2 * i + 1] - r[1]) <= p->max_backward_px))
+            v = SH_LANDMARK_BACKWARD;
+        else if (predicted && !(hypot(f[0] - predicted[2 * i], f[1] - predicted[2 * i + 1]) <= bound))
+            v = SH_LANDMARK_DISAGREES;
+        verdict[i] = (uint8_t)v;
+    }
+}
+
+/* The disagreement bound of the frame from its own data: bound_factor times the median distance
+ * from the markers' map of the landmarks the tests before it (lost, photometric, backward) keep,
+ * never below max_disagreement_px. */
+static double adaptive_bound(sh_landmarks *lm, const float *predicted, double floor_px)
+{
+    const sh_landmarks_params *p = &lm->p;
+    const int backward = p->max_backward_px > 0;
+    float *d = lm->dist;
+    int m = 0;
+    for (int i = 0; i < lm->n; i++) {
+        const float *f = lm->fwd + 2 * i, *r = lm->ref_xy + 2 * i;
+        if (lm->st_fwd[i] != SH_FLOW_OK || (backward && lm->st_back[i] != SH_FLOW_OK) || !isfinite(f[0]) ||
+            !isfinite(f[1]) || !(lm->err[i] <= p->max_photometric) ||
+            (backward && !(hypot(lm->back[2 * i] - r[0], lm->back[2 * i + 1] - r[1]) <= p->max_backward_px)))
+            continue;
+        d[m++] = hypotf(f[0] - predicted[2 * i], f[1] - predicted[2 * i + 1]);
+    }
+    if (m == 0) return floor_px;
+    double b = p->bound_factor * median(d, m);
+    return b > floor_px ? b : floor_px;
+}
+
 sh_status sh_landmarks_track(sh_landmarks *lm, const sh_plane *luma, const float *predicted, float *xy,
                              uint8_t *verdict, sh_landmarks_counts *counts)
 {
@@ -583,7 +680,7 @@ sh_status sh_landmarks_track(sh_landmarks *lm, const sh_plane *luma, const float
         return sh_error_set(SH_EINVAL, "landmarks: a %dx%d frame for a %dx%d reference", luma ? luma->width : 0,
                             luma ? luma->height : 0, lm->width, lm->height);
     const sh_landmarks_params *p = &lm->p;
-    int n = lm->n, backward = p->max_backward_px > 0, again = 0, whole = 0;
+    int n = lm->n, again = 0, whole = 0;
     if (counts) memset(counts, 0, sizeof *counts);
     if (n == 0) return SH_OK;
     /* only the part of the frame the searches are expected to read: band-passed, and its
@@ -596,27 +693,19 @@ sh_status sh_landmarks_track(sh_landmarks *lm, const sh_plane *luma, const float
     if (st == SH_OK) st = searches(lm, n, NULL, predicted, lm->fwd, lm->st_fwd, lm->err, lm->back, lm->st_back);
     if (st == SH_OK) st = search_again(lm, luma, predicted, &again, &whole);
     if (st != SH_OK) return st;
-    for (int i = 0; i < n; i++) {
-        const float *f = lm->fwd + 2 * i, *r = lm->ref_xy + 2 * i;
-        sh_landmark_verdict v = SH_LANDMARK_ACCEPTED;
-        if (lm->st_fwd[i] != SH_FLOW_OK || (backward && lm->st_back[i] != SH_FLOW_OK) || !isfinite(f[0]) ||
-            !isfinite(f[1]))
-            v = SH_LANDMARK_LOST;
-        else if (!(lm->err[i] <= p->max_photometric))
-            v = SH_LANDMARK_PHOTOMETRIC;
-        else if (backward && !(hypot(lm->back[2 * i] - r[0], lm->back[2 * i + 1] - r[1]) <= p->max_backward_px))
-            v = SH_LANDMARK_BACKWARD;
-        else if (predicted && !(hypot(f[0] - predicted[2 * i], f[1] - predicted[2 * i + 1]) <= p->max_disagreement_px))
-            v = SH_LANDMARK_DISAGREES;
-        xy[2 * i] = f[0];
-        xy[2 * i + 1] = f[1];
-        verdict[i] = (uint8_t)v;
-    }
+    double bound = p->max_disagreement_px;
+    if (predicted && p->bound_factor > 0) bound = adaptive_bound(lm, predicted, bound);
+    first_tests(lm, predicted, bound, verdict);
     if (predicted && p->neighbours > 0) deviations(lm, predicted, verdict);
+    for (int i = 0; i < n; i++) {
+        xy[2 * i] = lm->fwd[2 * i];
+        xy[2 * i + 1] = lm->fwd[2 * i + 1];
+    }
     if (counts) {
         for (int i = 0; i < n; i++) counts->verdicts[verdict[i]]++;
         counts->searched_again = again;
         counts->whole_frame = whole;
+        counts->bound_px = predicted ? bound : 0;
     }
     return SH_OK;
 }

@@ -3,7 +3,8 @@
 # presets, seeds 1-4, the paper rig's camera (1920x1080), with the instrument shaft and blood,
 # the truth's tag centres as the markers (as make table2 feeds the warp); for each, stillheart-eval
 # --landmarks with all the markers, then with the four nearest the corners of the reference's
-# markers only; and one render with the tissue texture's contrast halved. TPS, the default method.
+# markers only, with the default tests and with --lm-sparse (the tests for sparse markers); and
+# one render with the tissue texture's contrast halved. TPS, the default method.
 # Then the product's own path on the same renders: `stillheart track` without and with
 # --landmarks, `stillheart warp` with each 2D method that takes them, and stillheart-eval's e and
 # geometric error of both; and the daemon (`stillheart run`, [track] landmarks) likewise.
@@ -37,8 +38,11 @@ corners() {
         }' "$1"
 }
 
-run() { # run NAME DIR POINTS
-    "$EVAL" --quiet --json --truth "$2" --points "$3" --landmarks "$LANDMARKS" "$2/cam0.y4m" > "$OUT/json/$1.json"
+run() { # run NAME DIR POINTS [EVAL OPTIONS]
+    name=$1 dir=$2 pts=$3
+    shift 3
+    "$EVAL" --quiet --json --truth "$dir" --points "$pts" --landmarks "$LANDMARKS" "$@" "$dir/cam0.y4m" > "$OUT/json/$name.json"
+    set -- "$name"
     echo "$1,$(num "$1" seeded),$(num "$1" accepted),$(num "$1" measured),$(num "$1" mean),$(num "$1" p99),$(num "$1" max),$(num "$1" over_1px),$(num "$1" hidden),$(num "$1" accepted_hidden),$(num "$1" map_mean),$(num "$1" markers_mean),$(num "$1" markers_p95),$(num "$1" landmarks_mean),$(num "$1" landmarks_p95),$(num "$1" ms_median)" >> "$OUT/landmarks.csv"
 }
 
@@ -90,6 +94,7 @@ for p in exvivo invivo; do
         ids=$(corners "$dir/points.csv")
         awk -F, -v ids="$ids" 'NR == 1 || $2 ~ "^(" ids ")$"' "$dir/points.csv" > "$dir/points4.csv"
         run "$p-$seed-4tags" "$dir" "$dir/points4.csv"
+        run "$p-$seed-4tags-sparse" "$dir" "$dir/points4.csv" --lm-sparse
         stamp "track, warp and evaluate $p seed $seed"
         through_warp "$p-$seed" "$dir" "$( [ "$p" = exvivo ] && echo 0-15 || echo 0-13 )"
         stamp "the daemon on $p seed $seed"

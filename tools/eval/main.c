@@ -91,6 +91,13 @@ static void usage(FILE *f)
         "  --lm-photometric G, --lm-backward PX, --lm-disagreement PX\n"
         "                     the tests' thresholds (defaults 12 grey levels, 0.5 px, 3 px;\n"
         "                     --lm-backward 0: no backward test)\n"
+        "  --lm-sparse        for markers too sparse for their map (four at the corners): the\n"
+        "                     disagreement bound follows the frame's measured map error\n"
+        "                     (--lm-bound-factor 4) and the neighbour test expects a plane\n"
+        "                     (--lm-plane), as `stillheart track --landmarks-sparse`\n"
+        "  --lm-bound-factor K  the bound: K times the median distance from the map of the\n"
+        "                     landmarks the tests before it keep, never below --lm-disagreement\n"
+        "  --lm-plane         the neighbour test expects the planes through three neighbours\n"
         "STABILIZED may be '-' (standard input) with --reference 0.\n");
 }
 
@@ -504,6 +511,8 @@ int main(int argc, char **argv)
         {"heatmap-scale", required_argument, 0, 'Z'},
         {"landmarks", required_argument, 0, 'L'}, {"lm-photometric", required_argument, 0, 1001},
         {"lm-backward", required_argument, 0, 1002}, {"lm-disagreement", required_argument, 0, 1003},
+        {"lm-sparse", no_argument, 0, 1004}, {"lm-bound-factor", required_argument, 0, 1005},
+        {"lm-plane", no_argument, 0, 1006},
         {"json", no_argument, 0, 'j'},           SH_CLI_OPTIONS, {0, 0, 0, 0}};
     options o = {.stride = 4, .heatmap_max = 0.2, .heatmap_scale = 1, .contours = 4, .max_error = 0.05};
     sh_landmarks_params_default(&o.lp);
@@ -533,6 +542,9 @@ int main(int argc, char **argv)
         case 1001: if (!sh_cli_parse_double("--lm-photometric", optarg, 1e-3, 255, &o.lp.max_photometric)) return 2; break;
         case 1002: if (!sh_cli_parse_double("--lm-backward", optarg, 0, 1000, &o.lp.max_backward_px)) return 2; break;
         case 1003: if (!sh_cli_parse_double("--lm-disagreement", optarg, 1e-3, 1000, &o.lp.max_disagreement_px)) return 2; break;
+        case 1004: o.lp.bound_factor = 4, o.lp.plane = 1; break;
+        case 1005: if (!sh_cli_parse_double("--lm-bound-factor", optarg, 0, 1000, &o.lp.bound_factor)) return 2; break;
+        case 1006: o.lp.plane = 1; break;
         case 'h': usage(stdout); return 0;
         default: { int rc = sh_cli_option(&cli, opt, argv); if (rc >= 0) return rc; } break;
         }
