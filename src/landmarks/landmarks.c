@@ -1,5 +1,8 @@
 /* Natural landmarks: where they may be chosen, and the tests each must pass per frame
- * (landmarks.h says why each test is there). */
+ * (landmarks.h says why each test is there). Over 600 lines: the choice, the band-pass the
+ * choice and the searches share, the searches on a part of the frame and the tests are one
+ * object's state (its buffers sized once per reference); split, each part would need the
+ * others' internals. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -462,8 +465,9 @@ const float *sh_landmarks_reference(const sh_landmarks *lm) { return lm->ref_xy;
  * few neighbours to tell (fewer than 3 that passed): refused, as nothing vouches for it. */
 /* What landmark i's correction is expected to be from its m voters q[] (their corrections vx, vy,
  * relative to the markers' map): their median, or with `plane` the median of what the plane
- * through each three of them (barycentric weights at i of at most PLANE_MAX_WEIGHT, so that
- * their errors are not blown up) predicts at i, the median when no three qualify. */
+ * through each three of them whose triangle contains i (barycentric weights all >= 0:
+ * interpolated, as extrapolating blows their errors up) predicts at i; the plain median when no
+ * triangle contains it. */
 static void expected(sh_landmarks *lm, int i, const int *q, int m, float *vx, float *vy, float *ex, float *ey)
 {
     int t = 0;
@@ -629,23 +633,29 @@ static sh_status search_again(sh_landmarks *lm, const sh_plane *luma, const floa
     }
 }
 
-/* The first four tests (landmarks.h), the disagreement bound `bound` px (without a prediction
- * not tested). */
-static void first_tests(const sh_landmarks *lm, const float *predicted, double bound, uint8_t *verdict)
+/* The first three tests (landmarks.h) for landmark i: its verdict from them. */
+static sh_landmark_verdict first_three(const sh_landmarks *lm, int i)
 {
     const sh_landmarks_params *p = &lm->p;
     const int backward = p->max_backward_px > 0;
+    const float *f = lm->fwd + 2 * i, *r = lm->ref_xy + 2 * i;
+    if (lm->st_fwd[i] != SH_FLOW_OK || (backward && lm->st_back[i] != SH_FLOW_OK) || !isfinite(f[0]) ||
+        !isfinite(f[1]))
+        return SH_LANDMARK_LOST;
+    if (!(lm->err[i] <= p->max_photometric)) return SH_LANDMARK_PHOTOMETRIC;
+    if (backward && !(hypot(lm->back[2 * i] - r[0], lm->back[2 * i + 1] - r[1]) <= p->max_backward_px))
+        return SH_LANDMARK_BACKWARD;
+    return SH_LANDMARK_ACCEPTED;
+}
+
+/* The first four tests, the disagreement bound `bound` px (without a prediction not tested). */
+static void first_tests(const sh_landmarks *lm, const float *predicted, double bound, uint8_t *verdict)
+{
     for (int i = 0; i < lm->n; i++) {
-        const float *f = lm->fwd + 2 * i, *r = lm->ref_xy + 2 * i;
-        sh_landmark_verdict v = SH_LANDMARK_ACCEPTED;
-        if (lm->st_fwd[i] != SH_FLOW_OK || (backward && lm->st_back[i] != SH_FLOW_OK) || !isfinite(f[0]) ||
-            !isfinite(f[1]))
-            v = SH_LANDMARK_LOST;
-        else if (!(lm->err[i] <= p->max_photometric))
-            v = SH_LANDMARK_PHOTOMETRIC;
-        else if (backward && !(hypot(lm->back[2 * i] - r[0], lm->back[2 * i + 1] - r[1]) <= p->max_backward_px))
-            v = SH_LANDMARK_BACKWARD;
-        else if (predicted && !(hypot(f[0] - predicted[2 * i], f[1] - predicted[2 * i + 1]) <= bound))
+        const float *f = lm->fwd + 2 * i;
+        sh_landmark_verdict v = first_three(lm, i);
+        if (v == SH_LANDMARK_ACCEPTED && predicted &&
+            !(hypot(f[0] - predicted[2 * i], f[1] - predicted[2 * i + 1]) <= bound))
             v = SH_LANDMARK_DISAGREES;
         verdict[i] = (uint8_t)v;
     }
@@ -656,20 +666,13 @@ static void first_tests(const sh_landmarks *lm, const float *predicted, double b
  * never below max_disagreement_px. */
 static double adaptive_bound(sh_landmarks *lm, const float *predicted, double floor_px)
 {
-    const sh_landmarks_params *p = &lm->p;
-    const int backward = p->max_backward_px > 0;
     float *d = lm->dist;
     int m = 0;
-    for (int i = 0; i < lm->n; i++) {
-        const float *f = lm->fwd + 2 * i, *r = lm->ref_xy + 2 * i;
-        if (lm->st_fwd[i] != SH_FLOW_OK || (backward && lm->st_back[i] != SH_FLOW_OK) || !isfinite(f[0]) ||
-            !isfinite(f[1]) || !(lm->err[i] <= p->max_photometric) ||
-            (backward && !(hypot(lm->back[2 * i] - r[0], lm->back[2 * i + 1] - r[1]) <= p->max_backward_px)))
-            continue;
-        d[m++] = hypotf(f[0] - predicted[2 * i], f[1] - predicted[2 * i + 1]);
-    }
+    for (int i = 0; i < lm->n; i++)
+        if (first_three(lm, i) == SH_LANDMARK_ACCEPTED)
+            d[m++] = hypotf(lm->fwd[2 * i] - predicted[2 * i], lm->fwd[2 * i + 1] - predicted[2 * i + 1]);
     if (m == 0) return floor_px;
-    double b = p->bound_factor * median(d, m);
+    double b = lm->p.bound_factor * median(d, m);
     return b > floor_px ? b : floor_px;
 }
 
