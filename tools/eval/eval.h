@@ -56,6 +56,7 @@ typedef struct {
     int reference;
     sh_interp_params params;   /* the markers' map that predicts each landmark */
     sh_landmarks_params lp;
+    int keep_rows;             /* fill eval_lm_result.rows (--landmarks-points) */
 } eval_lm_options;
 
 typedef struct {
@@ -75,12 +76,23 @@ typedef struct {
      * fitted to the markers and the accepted landmarks together (px) */
     long long geo_samples;
     double geo_map_mean, geo_map_p95, geo_lm_mean, geo_lm_p95;
+    /* with keep_rows: the landmarks as points-file rows, ids SH_LANDMARK_ID_BASE + k, all of
+     * them in the reference at their reference positions, in each later frame the accepted ones
+     * where they were found (as `stillheart track --landmarks` writes them); the caller frees */
+    sh_point *rows;
+    int nrows;
 } eval_lm_result;
 
 /* Runs the landmarks over the unstabilized video (its frames from the reference on) with the
  * markers of `points`. */
 sh_status eval_landmarks_run(const eval_lm_options *o, const sh_points *points, const char *video_path,
                              eval_lm_result *r);
+/* The result as --landmarks prints it, JSON or text (method: the markers' map's). */
+void eval_landmarks_print(const eval_lm_result *r, const char *video_path, int reference, const char *method,
+                          int json);
+/* The 2D rows of `points` and r->rows together, sorted by frame and id: a points file that
+ * `stillheart warp` takes, the truth's markers with the landmarks. */
+sh_status eval_landmarks_write_points(const sh_points *points, const eval_lm_result *r, FILE *out);
 
 /* ---- heatmap (heatmap.c) ---- */
 

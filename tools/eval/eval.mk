@@ -49,10 +49,13 @@ $(BUILD)/tests/test_readme_video: $(BUILD)/tools/eval/tests/test_readme_video.o 
 TOOL_TESTS += $(BUILD)/tests/test_readme_video
 
 # ---- Table II: both presets at the paper's length, one camera, every 2D method ----
+# TABLE2_LANDMARKS=N adds the natural landmarks' rows (N asked, docs/landmarks.md): off by default,
+# they more than double the run (a model per frame for every landmark row's warp and evaluation).
 TABLE2_DIR ?= out/table2
+TABLE2_LANDMARKS ?= 0
 .PHONY: table2
 table2: $(EVAL_BIN) $(PLOT_BIN) $(BUILD)/stillheart-render $(APP)
-	@sh tools/eval/table2.sh $(BUILD) $(TABLE2_DIR)
+	@LANDMARKS=$(TABLE2_LANDMARKS) sh tools/eval/table2.sh $(BUILD) $(TABLE2_DIR)
 
 # --landmarks on a rendered phantom with occlusions, judged against its truth; and
 # `stillheart track --landmarks` through `stillheart warp`; the daemon's [track] landmarks against both.

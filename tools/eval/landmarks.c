@@ -16,6 +16,7 @@
 #include <time.h>
 
 #include "eval.h"
+#include "stillheart/cli.h"
 #include "stillheart/y4m.h"
 
 /* The hull's samples (every GEO_STRIDE px) and what each sees in the reference: where the two
@@ -127,6 +128,42 @@ static int predict(const eval_lm_options *o, const sh_points *points, const sh_p
     for (int i = 0; i < 2 * n; i++)
         if (isnan(s->pred[i])) return 0;
     return 1;
+}
+
+/* With keep_rows: frame t's landmark rows, every landmark (verdict NULL: the reference) or the
+ * accepted ones. */
+static sh_status keep_rows(const eval_lm_options *o, int t, int n, const float *xy, const uint8_t *verdict,
+                           eval_lm_result *r)
+{
+    if (!o->keep_rows) return SH_OK;
+    sh_point *rows = realloc(r->rows, sizeof(sh_point) * ((size_t)r->nrows + (size_t)n));
+    if (!rows) return sh_error_set(SH_ENOMEM, "landmarks: out of memory at frame %d", t);
+    r->rows = rows;
+    for (int i = 0; i < n; i++)
+        if (!verdict || verdict[i] == SH_LANDMARK_ACCEPTED)
+            rows[r->nrows++] = (sh_point){.frame = t, .id = SH_LANDMARK_ID_BASE + i, .x = xy[2 * i],
+                                          .y = xy[2 * i + 1], .X = NAN, .Y = NAN, .Z = NAN};
+    return SH_OK;
+}
+
+static int by_frame_id(const void *a, const void *b)
+{
+    const sh_point *p = a, *q = b;
+    if (p->frame != q->frame) return (p->frame > q->frame) - (p->frame < q->frame);
+    return (p->id > q->id) - (p->id < q->id);
+}
+
+sh_status eval_landmarks_write_points(const sh_points *points, const eval_lm_result *r, FILE *out)
+{
+    size_t n = (size_t)points->count + (size_t)r->nrows;
+    sh_point *all = malloc(sizeof(sh_point) * (n ? n : 1));
+    if (!all) return sh_error_set(SH_ENOMEM, "landmarks: out of memory");
+    if (points->count) memcpy(all, points->rows, sizeof(sh_point) * (size_t)points->count);
+    if (r->nrows) memcpy(all + points->count, r->rows, sizeof(sh_point) * (size_t)r->nrows);
+    qsort(all, n, sizeof *all, by_frame_id);
+    sh_status st = sh_points_write(out, all, (int)n, 0);
+    free(all);
+    return st;
 }
 
 static double cpu_ms(void)
@@ -260,6 +297,7 @@ sh_status eval_landmarks_run(const eval_lm_options *o, const sh_points *points, 
         if (t == o->reference) {
             if ((st = start(o, ref, nref, &frame.plane[0], &s, &g, &lm)) != SH_OK) break;
             n = r->seeded = sh_landmarks_count(lm);
+            st = keep_rows(o, t, n, sh_landmarks_reference(lm), NULL, r);
             continue;
         }
         if (!lm) continue; /* before the reference */
@@ -276,6 +314,7 @@ sh_status eval_landmarks_run(const eval_lm_options *o, const sh_points *points, 
         r->frames++;
         for (int v = 0; v < SH_LANDMARK_VERDICTS; v++) r->verdicts[v] += c.verdicts[v];
         st = judge(o, t, n, &s, r);
+        if (st == SH_OK) st = keep_rows(o, t, n, s.xy, s.verdict, r);
         if (st == SH_OK) st = compare_maps(o, t, m_used, sh_landmarks_reference(lm), n, &s, &g);
     }
     if (st == SH_EEOF) st = lm ? SH_OK : sh_error_set(SH_EINVAL, "%s has no frame %d", video_path, o->reference);
@@ -297,10 +336,64 @@ sh_status eval_landmarks_run(const eval_lm_options *o, const sh_points *points, 
         r->geo_map_p95 = pct(g.err_map, g.count, 0.95);
         r->geo_lm_p95 = pct(g.err_lm, g.count, 0.95);
     }
+    if (st != SH_OK) free(r->rows), r->rows = NULL, r->nrows = 0;
     free(g.x), free(g.y), free(g.seen), free(g.err_map), free(g.err_lm);
     sh_landmarks_destroy(lm);
     sh_image_destroy(&frame);
     sh_y4m_reader_close(rd);
     scratch_free(&s);
     return st;
+}
+
+/* The result as stillheart-eval --landmarks prints it: one JSON object, or lines of text. */
+void eval_landmarks_print(const eval_lm_result *r, const char *video_path, int reference, const char *method,
+                          int json)
+{
+    if (json) {
+        sh_cli_json j;
+        sh_cli_json_start(&j, stdout);
+        sh_cli_json_object(&j, NULL);
+        sh_cli_json_int(&j, "seeded", r->seeded);
+        sh_cli_json_int(&j, "frames", r->frames);
+        sh_cli_json_int(&j, "unpredicted_frames", r->unpredicted_frames);
+        for (int v = 0; v < SH_LANDMARK_VERDICTS; v++)
+            sh_cli_json_int(&j, sh_landmark_verdict_name((sh_landmark_verdict)v), r->verdicts[v]);
+        sh_cli_json_int(&j, "measured", r->measured);
+        sh_cli_json_int(&j, "hidden", r->hidden);
+        sh_cli_json_int(&j, "accepted_hidden", r->accepted_hidden);
+        sh_cli_json_int(&j, "unjudged", r->unjudged);
+        sh_cli_json_int(&j, "over_1px", r->over_1px);
+        sh_cli_json_number(&j, "mean", r->mean);
+        sh_cli_json_number(&j, "p99", r->p99);
+        sh_cli_json_number(&j, "max", r->max);
+        sh_cli_json_number(&j, "map_mean", r->map_mean);
+        sh_cli_json_number(&j, "map_p99", r->map_p99);
+        sh_cli_json_number(&j, "ms_median", r->ms_median);
+        sh_cli_json_object(&j, "geometric");
+        sh_cli_json_int(&j, "samples", r->geo_samples);
+        sh_cli_json_number(&j, "markers_mean", r->geo_map_mean);
+        sh_cli_json_number(&j, "markers_p95", r->geo_map_p95);
+        sh_cli_json_number(&j, "landmarks_mean", r->geo_lm_mean);
+        sh_cli_json_number(&j, "landmarks_p95", r->geo_lm_p95);
+        sh_cli_json_end(&j);
+        sh_cli_json_end(&j);
+    } else {
+        long long all = 0;
+        for (int v = 0; v < SH_LANDMARK_VERDICTS; v++) all += r->verdicts[v];
+        printf("%s: %d landmarks chosen in frame %d, %d frames after it (%d without a markers' map)\n", video_path,
+               r->seeded, reference, r->frames, r->unpredicted_frames);
+        printf("landmark-frames: %lld; accepted %lld, lost %lld, photometric %lld, backward %lld, disagrees %lld, "
+               "deviates %lld\n", all, r->verdicts[SH_LANDMARK_ACCEPTED], r->verdicts[SH_LANDMARK_LOST],
+               r->verdicts[SH_LANDMARK_PHOTOMETRIC], r->verdicts[SH_LANDMARK_BACKWARD],
+               r->verdicts[SH_LANDMARK_DISAGREES], r->verdicts[SH_LANDMARK_DEVIATES]);
+        printf("accepted against the truth (px): mean %.4f, p99 %.4f, max %.4f over %lld; more than 1 px off: %lld; "
+               "accepted while hidden: %lld of %lld hidden\n", r->mean, r->p99, r->max, r->measured, r->over_1px,
+               r->accepted_hidden, r->hidden);
+        printf("the markers' map (%s) at the same landmarks (px): mean %.4f, p99 %.4f\n",
+               method, r->map_mean, r->map_p99);
+        printf("landmark tracking per frame: %.2f ms (median, one thread)\n", r->ms_median);
+        printf("geometric error over the hull (%lld samples, px): the markers' map mean %.4f, p95 %.4f; with the "
+               "accepted landmarks mean %.4f, p95 %.4f\n", r->geo_samples, r->geo_map_mean, r->geo_map_p95,
+               r->geo_lm_mean, r->geo_lm_p95);
+    }
 }

@@ -14,7 +14,7 @@
 # length; LANDMARKS (200) how many are asked; WARP_METHODS (tps pwlinear bspline affine) the
 # warp's methods.
 set -eu
-BUILD=$(cd "$1" && pwd) OUT=$2
+BUILD=$(cd "$1" && pwd) OUT=$2 HERE=$(cd "$(dirname "$0")" && pwd)
 RENDER=$BUILD/stillheart-render EVAL=$BUILD/stillheart-eval APP=$BUILD/stillheart
 WARP_METHODS=${WARP_METHODS:-tps pwlinear bspline affine}
 FRAMES=${FRAMES:-200} LANDMARKS=${LANDMARKS:-200}
@@ -24,19 +24,8 @@ start=$(date +%s)
 stamp() { echo "landmarks: [$(( $(date +%s) - start )) s] $*" >&2; }
 num() { sed -n "s/.*\"$2\": \([-0-9.eEnaif+]*\).*/\1/p" "$OUT/json/$1.json" | head -1; }
 
-# The four markers nearest the corners of frame 0's markers (least x+y, x-y, -x+y, -x-y).
-corners() {
-    awk -F, 'NR > 1 && $1 == 0 { id[++n] = $2; x[n] = $3; y[n] = $4 }
-        END {
-            split("1 1,1 -1,-1 1,-1 -1", s, ",")
-            for (k = 1; k <= 4; k++) {
-                split(s[k], d, " "); best = ""
-                for (i = 1; i <= n; i++) { v = d[1] * x[i] + d[2] * y[i]; if (best == "" || v < best) { best = v; pick = id[i] } }
-                printf "%s%s", (k > 1 ? "|" : ""), pick
-            }
-            print ""
-        }' "$1"
-}
+# The four markers nearest the corners of frame 0's markers.
+corners() { awk -F, -f "$HERE/corners.awk" "$1"; }
 
 run() { # run NAME DIR POINTS [EVAL OPTIONS]
     name=$1 dir=$2 pts=$3

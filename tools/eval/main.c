@@ -88,6 +88,11 @@ static void usage(FILE *f)
         "                     markers' map at the same points; the time per frame (one thread);\n"
         "                     the geometric error over the hull of the markers' map and of the\n"
         "                     same method fitted to the markers and the accepted landmarks\n"
+        "  --landmarks-points OUT.csv\n"
+        "                     also writes P.csv's rows (2D columns) with the landmarks' (ids from\n"
+        "                     1000000: all of them in frame N at their reference positions, in\n"
+        "                     each later frame the accepted ones), as `stillheart track\n"
+        "                     --landmarks` writes them, for `stillheart warp`\n"
         "  --lm-photometric G, --lm-backward PX, --lm-disagreement PX\n"
         "                     the tests' thresholds (defaults 12 grey levels, 0.5 px, 3 px;\n"
         "                     --lm-backward 0: no backward test)\n"
@@ -176,6 +181,7 @@ typedef struct {
     int levels, have_sigma;
     char tagged_method[SH_Y4M_MAX_EXTRA]; /* the method the video's header named (o.method then) */
     int landmarks;                   /* --landmarks N: 0 when not asked */
+    const char *landmarks_points;    /* --landmarks-points OUT.csv */
     sh_landmarks_params lp;
 } options;
 
@@ -302,6 +308,7 @@ static int landmarks(options *o, const char *video_path)
     lo.lp = o->lp;
     lo.camera = o->camera;
     lo.reference = o->reference;
+    lo.keep_rows = o->landmarks_points != NULL;
     sh_points points;
     phantom_truth *truth = NULL;
     if (sh_points_read(o->points_path, &points) != SH_OK) return fail("--points");
@@ -316,54 +323,19 @@ static int landmarks(options *o, const char *video_path)
         fail(video_path);
         goto done;
     }
-    rc = 0;
-    if (o->json) {
-        sh_cli_json j;
-        sh_cli_json_start(&j, stdout);
-        sh_cli_json_object(&j, NULL);
-        sh_cli_json_int(&j, "seeded", r.seeded);
-        sh_cli_json_int(&j, "frames", r.frames);
-        sh_cli_json_int(&j, "unpredicted_frames", r.unpredicted_frames);
-        for (int v = 0; v < SH_LANDMARK_VERDICTS; v++)
-            sh_cli_json_int(&j, sh_landmark_verdict_name((sh_landmark_verdict)v), r.verdicts[v]);
-        sh_cli_json_int(&j, "measured", r.measured);
-        sh_cli_json_int(&j, "hidden", r.hidden);
-        sh_cli_json_int(&j, "accepted_hidden", r.accepted_hidden);
-        sh_cli_json_int(&j, "unjudged", r.unjudged);
-        sh_cli_json_int(&j, "over_1px", r.over_1px);
-        sh_cli_json_number(&j, "mean", r.mean);
-        sh_cli_json_number(&j, "p99", r.p99);
-        sh_cli_json_number(&j, "max", r.max);
-        sh_cli_json_number(&j, "map_mean", r.map_mean);
-        sh_cli_json_number(&j, "map_p99", r.map_p99);
-        sh_cli_json_number(&j, "ms_median", r.ms_median);
-        sh_cli_json_object(&j, "geometric");
-        sh_cli_json_int(&j, "samples", r.geo_samples);
-        sh_cli_json_number(&j, "markers_mean", r.geo_map_mean);
-        sh_cli_json_number(&j, "markers_p95", r.geo_map_p95);
-        sh_cli_json_number(&j, "landmarks_mean", r.geo_lm_mean);
-        sh_cli_json_number(&j, "landmarks_p95", r.geo_lm_p95);
-        sh_cli_json_end(&j);
-        sh_cli_json_end(&j);
-    } else {
-        long long all = 0;
-        for (int v = 0; v < SH_LANDMARK_VERDICTS; v++) all += r.verdicts[v];
-        printf("%s: %d landmarks chosen in frame %d, %d frames after it (%d without a markers' map)\n", video_path,
-               r.seeded, o->reference, r.frames, r.unpredicted_frames);
-        printf("landmark-frames: %lld; accepted %lld, lost %lld, photometric %lld, backward %lld, disagrees %lld, "
-               "deviates %lld\n", all, r.verdicts[SH_LANDMARK_ACCEPTED], r.verdicts[SH_LANDMARK_LOST],
-               r.verdicts[SH_LANDMARK_PHOTOMETRIC], r.verdicts[SH_LANDMARK_BACKWARD],
-               r.verdicts[SH_LANDMARK_DISAGREES], r.verdicts[SH_LANDMARK_DEVIATES]);
-        printf("accepted against the truth (px): mean %.4f, p99 %.4f, max %.4f over %lld; more than 1 px off: %lld; "
-               "accepted while hidden: %lld of %lld hidden\n", r.mean, r.p99, r.max, r.measured, r.over_1px,
-               r.accepted_hidden, r.hidden);
-        printf("the markers' map (%s) at the same landmarks (px): mean %.4f, p99 %.4f\n",
-               o->method ? o->method : "tps", r.map_mean, r.map_p99);
-        printf("landmark tracking per frame: %.2f ms (median, one thread)\n", r.ms_median);
-        printf("geometric error over the hull (%lld samples, px): the markers' map mean %.4f, p95 %.4f; with the "
-               "accepted landmarks mean %.4f, p95 %.4f\n", r.geo_samples, r.geo_map_mean, r.geo_map_p95,
-               r.geo_lm_mean, r.geo_lm_p95);
+    if (o->landmarks_points) {
+        FILE *out = fopen(o->landmarks_points, "w");
+        sh_status st = !out ? sh_error_set(SH_EIO, "cannot create: %s", strerror(errno))
+                            : eval_landmarks_write_points(&points, &r, out);
+        if (out && fclose(out) != 0 && st == SH_OK) st = sh_error_set(SH_EIO, "write failed");
+        free(r.rows);
+        if (st != SH_OK) {
+            fail(o->landmarks_points);
+            goto done;
+        }
     }
+    eval_landmarks_print(&r, video_path, o->reference, o->method ? o->method : "tps", o->json);
+    rc = fflush(stdout) == 0 ? 0 : 1;
 done:
     phantom_truth_close(truth);
     sh_points_destroy(&points);
@@ -513,6 +485,7 @@ int main(int argc, char **argv)
         {"lm-backward", required_argument, 0, 1002}, {"lm-disagreement", required_argument, 0, 1003},
         {"lm-sparse", no_argument, 0, 1004}, {"lm-bound-factor", required_argument, 0, 1005},
         {"lm-plane", no_argument, 0, 1006},
+        {"landmarks-points", required_argument, 0, 1007},
         {"json", no_argument, 0, 'j'},           SH_CLI_OPTIONS, {0, 0, 0, 0}};
     options o = {.stride = 4, .heatmap_max = 0.2, .heatmap_scale = 1, .contours = 4, .max_error = 0.05};
     sh_landmarks_params_default(&o.lp);
@@ -545,6 +518,7 @@ int main(int argc, char **argv)
         case 1004: o.lp.bound_factor = 4, o.lp.plane = 1; break;
         case 1005: if (!sh_cli_parse_double("--lm-bound-factor", optarg, 0, 1000, &o.lp.bound_factor)) return 2; break;
         case 1006: o.lp.plane = 1; break;
+        case 1007: o.landmarks_points = optarg; break;
         case 'h': usage(stdout); return 0;
         default: { int rc = sh_cli_option(&cli, opt, argv); if (rc >= 0) return rc; } break;
         }
@@ -565,6 +539,7 @@ int main(int argc, char **argv)
             st = sh_error_set(SH_EIO, "%s: write failed", o.export_out);
         return st == SH_OK ? 0 : fail("--export-points");
     }
+    if (o.landmarks_points && !o.landmarks) return sh_cli_usage_error(&cli, "--landmarks-points needs --landmarks N");
     if (o.landmarks) {
         if (!o.truth_dir || !o.points_path || argc - optind != 1)
             return sh_cli_usage_error(&cli, "--landmarks needs --truth DIR, --points and the original video");

@@ -35,6 +35,32 @@ static double json_num(const char *json, const char *key)
     return strtod(p + strlen(k), NULL);
 }
 
+/* --landmarks-points: the markers' rows as they were (2D columns), every landmark in frame 0 and
+ * the accepted ones after it; a TPS warp through that file has, on the same 8 px lattice, the
+ * geometric error the evaluator measured for the map through the markers and the accepted
+ * landmarks (the warp's also counts frame 0, whose map is the identity, error 0: scaled by
+ * frames / (frames - 1); the warp's grid adds at most its 0.05 px bound at a point). */
+static void landmark_points_reproduce_the_map(const char *dir, const char *json)
+{
+    if (test_run("cd '%s' && awk -F, 'NR == 1 || $2 < 1000000' lm.csv > m.csv && cut -d, -f1-4 points.csv | cmp - m.csv", dir) != 0)
+        fail_msg("marker rows changed: %s", test_out);
+    if (test_run("awk -F, 'NR > 1 && $2 >= 1000000 { n++ } NR > 1 && $2 >= 1000000 && $1 == 0 { z++ } "
+                 "END { print z, n - z }' '%s/lm.csv'", dir) != 0)
+        fail_msg("%s", test_out);
+    int frame0 = -1, later = -1;
+    assert_int_equal(sscanf(test_out, "%d %d", &frame0, &later), 2);
+    assert_int_equal(frame0, (int)json_num(json, "seeded"));
+    assert_int_equal(later, (int)json_num(json, "accepted"));
+    if (test_run("cd '%s' && '%s' warp --quiet --method tps --points lm.csv cam0.y4m stab.y4m && '%s' --quiet --json "
+                 "--truth . --geo-stride 8 --points lm.csv stab.y4m", dir, APP_BIN, EVAL_BIN) != 0)
+        fail_msg("%s\n%s", test_cmd, test_out);
+    double warp = json_num(test_out, "mean") * FRAMES / (FRAMES - 1), eval = json_num(json, "landmarks_mean");
+    print_message("  TPS through the written rows: %.4f px; the evaluator's map with the landmarks: %.4f px\n", warp,
+                  eval);
+    assert_true(fabs(warp - eval) < 0.01);
+    test_run("rm -f '%s/stab.y4m'", dir);
+}
+
 static void test_occlusions_cost_landmarks_never_wrong_ones(void **state)
 {
     (void)state;
@@ -46,10 +72,12 @@ static void test_occlusions_cost_landmarks_never_wrong_ones(void **state)
         fail_msg("%s\n%s", test_cmd, test_out);
     if (test_run("'%s' --truth '%s' --export-points '%s/points.csv'", EVAL_BIN, dir, dir) != 0)
         fail_msg("%s\n%s", test_cmd, test_out);
-    if (test_run("'%s' --quiet --json --truth '%s' --points '%s/points.csv' --landmarks 100 '%s/cam0.y4m'", EVAL_BIN,
-                 dir, dir, dir) != 0)
+    if (test_run("'%s' --quiet --json --truth '%s' --points '%s/points.csv' --landmarks 100 --landmarks-points "
+                 "'%s/lm.csv' '%s/cam0.y4m'", EVAL_BIN, dir, dir, dir, dir) != 0)
         fail_msg("%s\n%s", test_cmd, test_out);
     print_message("  %s", test_out);
+    static char json[TEST_OUT_MAX]; /* test_out is overwritten by the next command */
+    memcpy(json, test_out, sizeof json);
     double seeded = json_num(test_out, "seeded"), frames = json_num(test_out, "frames");
     assert_true(seeded >= 1);
     assert_int_equal((int)frames, FRAMES - 1);
@@ -59,6 +87,7 @@ static void test_occlusions_cost_landmarks_never_wrong_ones(void **state)
     assert_true(json_num(test_out, "photometric") + json_num(test_out, "lost") > 0); /* the shaft and blood cost some */
     assert_true(json_num(test_out, "hidden") > 0); /* the occluders do cross landmarks */
     assert_int_equal((int)json_num(test_out, "accepted_hidden"), 0);
+    landmark_points_reproduce_the_map(dir, json);
     /* a refusal: --landmarks without the truth */
     assert_int_equal(test_run("'%s' --points '%s/points.csv' --landmarks 10 '%s/cam0.y4m'", EVAL_BIN, dir, dir), 2);
     assert_non_null(strstr(test_out, "--landmarks needs --truth"));
