@@ -94,6 +94,43 @@ void eval_landmarks_print(const eval_lm_result *r, const char *video_path, int r
  * `stillheart warp` takes, the truth's markers with the landmarks. */
 sh_status eval_landmarks_write_points(const sh_points *points, const eval_lm_result *r, FILE *out);
 
+/* ---- the texture's spatial spectrum (spectrum.c) ---- */
+
+typedef struct eval_spectrum eval_spectrum;
+
+/* Radially averaged power spectrum of n x n patches (n a power of two, 16..4096). */
+sh_status eval_spectrum_create(int n, eval_spectrum **out);
+void eval_spectrum_destroy(eval_spectrum *s);
+/* Adds one patch (row stride in floats): its mean taken away, Hann-windowed, |FFT|^2 summed over
+ * the integer rings round(|k|) = 0..n/2 cycles per patch. */
+void eval_spectrum_add(eval_spectrum *s, const float *patch, int stride);
+int eval_spectrum_patches(const eval_spectrum *s);
+/* alpha of amplitude ~ 1/f^alpha: minus half the least-squares slope of log(mean power of ring
+ * k) against log k over rings k0..k1. */
+sh_status eval_spectrum_alpha(const eval_spectrum *s, int k0, int k1, double *alpha);
+
+/* On a rendered phantom: 64 px patches, the band 4..16 cycles per patch (16 to 4 px periods),
+ * and the octaves 2-4, 4-8, 8-16, 16-32. */
+#define EVAL_SPECTRUM_K0 4
+#define EVAL_SPECTRUM_K1 16
+#define EVAL_SPECTRUM_OCTAVES 4
+
+typedef struct {
+    int frames, patches;          /* frames sampled (8 spread over the sequence), patches used */
+    long long off_tissue;         /* patches in the hull left out: a tag, or tissue hidden, near */
+    long long highlights;         /* left out: a pixel at or above 250 (specular highlight) */
+    double contrast;              /* RMS contrast of the luma, std / mean, mean over patches */
+    double alpha;                 /* over EVAL_SPECTRUM_K0..K1 */
+    double octave_alpha[EVAL_SPECTRUM_OCTAVES];
+} eval_spectrum_result;
+
+/* The luma of 8 frames spread over the video, in 64 px patches on an 8 px grid (overlapping) that
+ * lie wholly inside the hull of that frame's tag centres and see the tissue alone (the truth,
+ * checked every 4 px, to 2 px around), without a highlight. */
+sh_status eval_spectrum_run(const phantom_truth *truth, int camera, const char *video_path, eval_spectrum_result *r);
+/* --spectrum: runs it on DIR's phantom and prints the result (JSON or text); the exit status. */
+int eval_spectrum_main(const char *truth_dir, int camera, int json, const char *video_path);
+
 /* ---- heatmap (heatmap.c) ---- */
 
 /* Colour-maps the I_error grey image (NaN outside the hull) with contour lines at

@@ -37,6 +37,15 @@ $(BUILD)/tests/test_figures: $(BUILD)/tools/eval/tests/test_figures.o $(BUILD)/t
 
 TOOL_TESTS += $(BUILD)/tests/test_figures
 
+# The spectrum slope of --spectrum on images of known slope (closed form).
+$(BUILD)/tools/eval/tests/test_spectrum.o: CFLAGS_ALL += -Itools/eval
+$(BUILD)/tests/test_spectrum: $(BUILD)/tools/eval/tests/test_spectrum.o $(BUILD)/tools/eval/spectrum.o \
+		$(BUILD)/libphantom.a $(LIB)
+	@mkdir -p $(dir $@)
+	$(CC) $(LDFLAGS) $< $(BUILD)/tools/eval/spectrum.o $(BUILD)/libphantom.a $(LIB) $(shell $(PKG_CONFIG) --libs cmocka) $(LDLIBS_ALL) -o $@
+
+TOOL_TESTS += $(BUILD)/tests/test_spectrum
+
 # The README's "Stabilize your own video" run as written (skipped without ffmpeg).
 $(BUILD)/tools/eval/tests/test_readme_video.o: CFLAGS_ALL += -DREADME='"$(abspath README.md)"' \
 	-DAPP_BIN='"$(abspath $(APP))"' -DEVAL_BIN='"$(abspath $(EVAL_BIN))"' \

@@ -24,6 +24,7 @@ static void usage(FILE *f)
         "usage: " PROG " --points P.csv [options] STABILIZED.y4m [ORIGINAL.y4m]\n"
         "       " PROG " --truth DIR --export-points OUT.csv [--camera C]\n"
         "       " PROG " --truth DIR --points P.csv --landmarks N [options] ORIGINAL.y4m\n"
+        "       " PROG " --truth DIR --spectrum [--camera C] [--json] VIDEO.y4m\n"
         "Measures the residual motion of a stabilized video as the paper does (section V):\n"
         "  I_error(x,y,c) = 1/k sum_t |I_t(x,y,c) - I_N(x,y,c)|,  e = sum_c 1/p sum_(x,y) I_error\n"
         "over all k frames of the video (the reference frame N included, as `stillheart warp`\n"
@@ -103,6 +104,11 @@ static void usage(FILE *f)
         "  --lm-bound-factor K  the bound: K times the median distance from the map of the\n"
         "                     landmarks the tests before it keep, never below --lm-disagreement\n"
         "  --lm-plane         the neighbour test expects the planes through three neighbours\n"
+        "The phantom's texture (docs/landmarks.md):\n"
+        "  --spectrum         instead of the above: the luma's amplitude spectrum ~ 1/f^alpha over\n"
+        "                     64 px patches of tissue alone inside the tags' hull (8 frames of\n"
+        "                     VIDEO, the truth's tags and occluders): alpha over 4..16 cycles per\n"
+        "                     patch and per octave, and the RMS contrast\n"
         "STABILIZED may be '-' (standard input) with --reference 0.\n");
 }
 
@@ -182,6 +188,7 @@ typedef struct {
     char tagged_method[SH_Y4M_MAX_EXTRA]; /* the method the video's header named (o.method then) */
     int landmarks;                   /* --landmarks N: 0 when not asked */
     const char *landmarks_points;    /* --landmarks-points OUT.csv */
+    int spectrum;                    /* --spectrum */
     sh_landmarks_params lp;
 } options;
 
@@ -486,6 +493,7 @@ int main(int argc, char **argv)
         {"lm-sparse", no_argument, 0, 1004}, {"lm-bound-factor", required_argument, 0, 1005},
         {"lm-plane", no_argument, 0, 1006},
         {"landmarks-points", required_argument, 0, 1007},
+        {"spectrum", no_argument, 0, 1008},
         {"json", no_argument, 0, 'j'},           SH_CLI_OPTIONS, {0, 0, 0, 0}};
     options o = {.stride = 4, .heatmap_max = 0.2, .heatmap_scale = 1, .contours = 4, .max_error = 0.05};
     sh_landmarks_params_default(&o.lp);
@@ -519,6 +527,7 @@ int main(int argc, char **argv)
         case 1005: if (!sh_cli_parse_double("--lm-bound-factor", optarg, 0, 1000, &o.lp.bound_factor)) return 2; break;
         case 1006: o.lp.plane = 1; break;
         case 1007: o.landmarks_points = optarg; break;
+        case 1008: o.spectrum = 1; break;
         case 'h': usage(stdout); return 0;
         default: { int rc = sh_cli_option(&cli, opt, argv); if (rc >= 0) return rc; } break;
         }
@@ -538,6 +547,10 @@ int main(int argc, char **argv)
         if (!to_stdout && fclose(out) != 0 && st == SH_OK)
             st = sh_error_set(SH_EIO, "%s: write failed", o.export_out);
         return st == SH_OK ? 0 : fail("--export-points");
+    }
+    if (o.spectrum) {
+        if (!o.truth_dir || argc - optind != 1) return sh_cli_usage_error(&cli, "--spectrum needs --truth DIR and one video");
+        return eval_spectrum_main(o.truth_dir, o.camera, o.json, argv[optind]);
     }
     if (o.landmarks_points && !o.landmarks) return sh_cli_usage_error(&cli, "--landmarks-points needs --landmarks N");
     if (o.landmarks) {

@@ -61,6 +61,36 @@ static void landmark_points_reproduce_the_map(const char *dir, const char *json)
     test_run("rm -f '%s/stab.y4m'", dir);
 }
 
+/* --spectrum on the paper rig's 1080p frames (its 64 px patches fit between those tags), with the
+ * texture as designed and with its contrast halved: eight frames sampled, patches found beside
+ * the tags and not on them, and the halved texture's RMS contrast lower (the renderer scales the
+ * texels about their mean); the slope itself is tested in test_spectrum against the closed form,
+ * and measured in docs/landmarks.md. */
+static void test_spectrum_on_a_render(void **state)
+{
+    (void)state;
+    char dir[] = "/tmp/sh_eval_spec_XXXXXX";
+    assert_non_null(mkdtemp(dir));
+    double contrast[2];
+    for (int k = 0; k < 2; k++) {
+        if (test_run("'%s' --preset exvivo --rig paper --cameras 1 --seed 1 --frames 16 --quiet --texture-contrast %s "
+                     "--out '%s/%d'", RENDER_BIN, k ? "0.5" : "1", dir, k) != 0)
+            fail_msg("%s\n%s", test_cmd, test_out);
+        if (test_run("'%s' --json --truth '%s/%d' --spectrum '%s/%d/cam0.y4m'", EVAL_BIN, dir, k, dir, k) != 0)
+            fail_msg("%s\n%s", test_cmd, test_out);
+        print_message("  %s", test_out);
+        assert_int_equal((int)json_num(test_out, "frames"), 8);
+        assert_true(json_num(test_out, "patches") > 0);
+        assert_true(json_num(test_out, "off_tissue") > 0); /* the tags' stickers were refused */
+        assert_true(isfinite(json_num(test_out, "alpha")));
+        contrast[k] = json_num(test_out, "contrast");
+    }
+    assert_true(contrast[1] < contrast[0]);
+    assert_int_equal(test_run("'%s' --spectrum '%s/0/cam0.y4m'", EVAL_BIN, dir), 2);
+    assert_non_null(strstr(test_out, "--spectrum needs --truth"));
+    test_run("rm -rf '%s'", dir);
+}
+
 static void test_occlusions_cost_landmarks_never_wrong_ones(void **state)
 {
     (void)state;
@@ -252,6 +282,7 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_occlusions_cost_landmarks_never_wrong_ones),
+        cmocka_unit_test(test_spectrum_on_a_render),
         cmocka_unit_test(test_track_landmarks_through_the_warp),
         cmocka_unit_test(test_daemon_landmarks),
     };
