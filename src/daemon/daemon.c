@@ -510,12 +510,12 @@ void sh_daemon_stats(sh_daemon *d, char *line, size_t cap)
                  (unsigned long long)(dropped - d->dropped_at_lock), (unsigned long long)d->published_at_lock);
     snprintf(line, cap,
              "stats: %llu published (%llu raw, %llu degraded), %llu dropped, %s, RSS kB start %ld%s max %ld "
-             "end %ld, %d models built, %llu black frames (output camera lost), %s, %d grids refined off the "
-             "processing thread",
+             "end %ld, %d models built, %llu black frames (output camera lost), %d grids refined off the "
+             "processing thread, %s",
              (unsigned long long)d->published, (unsigned long long)d->raw_count,
              (unsigned long long)d->degraded_count, (unsigned long long)dropped, lat, d->rss_start, at1, d->rss_max,
-             f.rss_end, run_pipeline_builds(&d->pl), (unsigned long long)d->black_count, lock,
-             run_pipeline_refined(&d->pl));
+             f.rss_end, run_pipeline_builds(&d->pl), (unsigned long long)d->black_count, run_pipeline_refined(&d->pl),
+             lock);
 }
 
 /* The same figures; what was never measured is null. */
