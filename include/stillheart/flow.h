@@ -115,6 +115,21 @@ sh_status sh_flow_track_windows(const sh_flow_params *params, const sh_flow_wind
                                 const sh_flow_pyramid *next, int m, const int *idx,
                                 const float *guess, float *out, uint8_t *status, float *err);
 
+/* sh_flow_track_windows with the previous frame's level-0 window of point j (at p) sampled
+ * through the 2x2 matrix M = warp + 4 j (row major; warp NULL: sh_flow_track_windows itself):
+ * T(d) = prev(p + M d) for each offset d of the window, and the step's gradients T's own (Scharr,
+ * as the pyramid's). Translation-only Lucas-Kanade is biased where the tissue deforms across the
+ * window; when the next frame is the previous one under a local affine J about the point, M =
+ * J^-1 makes the window the next frame shows about the match, which a translation then fits.
+ * The levels above keep the square windows: they only bring the search near. The samples step in
+ * fixed point and their bilinear weights are rounded to 1/128 px (integers only: the same result
+ * on every architecture). The pyramid the windows were made from must be kept, unchanged, while
+ * they are used with a warp: the level-0 windows are sampled from it. */
+sh_status sh_flow_track_windows_warped(const sh_flow_params *params, const sh_flow_windows *prev,
+                                       const sh_flow_pyramid *next, int m, const int *idx,
+                                       const float *guess, const float *warp, float *out,
+                                       uint8_t *status, float *err);
+
 typedef struct {
     int max_points;      /* at most this many, strongest first */
     double quality;      /* relative to the strongest response in the mask (0.01) */

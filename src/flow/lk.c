@@ -96,9 +96,71 @@ static int sample_prev(const flow_level *L0, float px, float py, int lv, int win
     return PREV_SAMPLED;
 }
 
+/* The previous frame's level-0 window about (px, py) sampled through the 2x2 matrix M (row
+ * major): T(d) = prev(p + M d) for the window's offsets d, with T's own Scharr gradients and their
+ * sums (sh_flow_track_windows_warped says why). The positions step in 16.16 fixed point from the
+ * window's corner, and each sample's bilinear weights are its fractions rounded to 1/128 px (7
+ * bits each way, 14 bits together, as the other samplers' weights): integers only, so every
+ * architecture gets the same template, within 1/256 px of where M puts each sample. The
+ * template is sampled a pixel wider on each side than the window, so that the gradients of its
+ * border pixels are its own; they are those of the 8-bit image in Scharr units, as the
+ * pyramid's (the template is in 1/32 grey levels: the Scharr sum descaled by 5 bits). */
+static int sample_prev_warped(const flow_level *L, int pad, float px, float py, int win, const float M[4],
+                              int16_t *I, int16_t *gx, int16_t *gy, int64_t sum[3])
+{
+    enum { T = SH_FLOW_MAX_WIN + 2 };
+    const int side = win + 2, h = win / 2 + 1, wr = FLOW_WROW(win);
+    /* the samples' box: the template's corners, and the bilinear neighbour */
+    const double ex = h * (fabs((double)M[0]) + fabs((double)M[1])), ey = h * (fabs((double)M[2]) + fabs((double)M[3]));
+    if (!(px - ex >= (double)-pad && px + ex + 1 < (double)(L->width + pad) && py - ey >= (double)-pad &&
+          py + ey + 1 < (double)(L->height + pad)))
+        return PREV_OUTSIDE;
+    const int *b = L->img_box;
+    if (!((int)floor(px - ex) >= b[0] && (int)floor(py - ey) >= b[1] && (int)floor(px + ex) + 2 <= b[2] &&
+          (int)floor(py + ey) + 2 <= b[3]))
+        return PREV_UNBUILT;
+    /* fixed point, offset by the pad so that every position is >= 0 and shifts floor it */
+    const double one = 65536.0;
+    const int32_t sxx = (int32_t)lrint(M[0] * one), syx = (int32_t)lrint(M[2] * one);
+    const int32_t sxy = (int32_t)lrint(M[1] * one), syy = (int32_t)lrint(M[3] * one);
+    int32_t rx = (int32_t)lrint((px + pad - h * ((double)M[0] + (double)M[1])) * one);
+    int32_t ry = (int32_t)lrint((py + pad - h * ((double)M[2] + (double)M[3])) * one);
+    int16_t t[T * T];
+    const int st = L->stride;
+    for (int y = 0; y < side; y++, rx += sxy, ry += syy) {
+        int32_t X = rx, Y = ry;
+        for (int x = 0; x < side; x++, X += sxx, Y += syx) {
+            int fx = ((X & 0xffff) + 256) >> 9, fy = ((Y & 0xffff) + 256) >> 9; /* 0..128 */
+            const uint8_t *q = L->img + (ptrdiff_t)((Y >> 16) - pad) * st + ((X >> 16) - pad);
+            int v = (q[0] * (128 - fx) + q[1] * fx) * (128 - fy) + (q[st] * (128 - fx) + q[st + 1] * fx) * fy;
+            t[y * T + x] = (int16_t)DESCALE(v, W_BITS - 5);
+        }
+    }
+    int64_t s11 = 0, s12 = 0, s22 = 0;
+    for (int y = 0; y < win; y++) {
+        const int16_t *a = t + y * T, *m = a + T, *c = m + T;
+        for (int x = 0; x < win; x++) {
+            int dx = 3 * (a[x + 2] - a[x] + c[x + 2] - c[x]) + 10 * (m[x + 2] - m[x]);
+            int dy = 3 * (c[x] - a[x] + c[x + 2] - a[x + 2]) + 10 * (c[x + 1] - a[x + 1]);
+            dx = DESCALE(dx, 5);
+            dy = DESCALE(dy, 5);
+            I[y * wr + x] = m[x + 1];
+            gx[y * wr + x] = (int16_t)dx;
+            gy[y * wr + x] = (int16_t)dy;
+            s11 += dx * dx;
+            s12 += dx * dy;
+            s22 += dy * dy;
+        }
+        for (int x = win; x < wr; x++) I[y * wr + x] = gx[y * wr + x] = gy[y * wr + x] = 0;
+    }
+    sum[0] = s11, sum[1] = s12, sum[2] = s22;
+    return PREV_SAMPLED;
+}
+
 /* A fixed previous frame's windows around fixed points, every level (sh_flow_windows_create):
  * for point i and level l, state[i (levels + 1) + l], its sums and its samples. */
 struct sh_flow_windows {
+    const sh_flow_pyramid *pyr; /* what they were sampled from: warped windows are sampled anew */
     int n, win, levels, params_levels, width, height;
     size_t len;      /* samples of one array of a window: win * FLOW_WROW(win) */
     float *xy;       /* n pairs */
@@ -107,12 +169,18 @@ struct sh_flow_windows {
     int16_t *data;   /* I, gx, gy a window */
 };
 
-/* The previous frame's window of point ci (at px, py) on level lv: from cache when it is not
- * NULL, else sampled from prev into s. */
+/* The previous frame's window of point ci (at px, py) on level lv: on level 0 with a warp M,
+ * sampled through it into s; else from cache when it is not NULL, else sampled from prev into
+ * s. */
 static int prev_window(const sh_flow_pyramid *prev, const sh_flow_windows *cache, int ci, int lv,
-                       float px, float py, int win, window *s, const int16_t **I,
+                       float px, float py, const float *M, int win, window *s, const int16_t **I,
                        const int16_t **gx, const int16_t **gy, int64_t sum[3])
 {
+    if (M && lv == 0) {
+        const sh_flow_pyramid *src = cache ? cache->pyr : prev;
+        *I = s->img, *gx = s->gx, *gy = s->gy;
+        return sample_prev_warped(&src->level[0], src->pad, px, py, win, M, s->img, s->gx, s->gy, sum);
+    }
     if (!cache) {
         *I = s->img, *gx = s->gx, *gy = s->gy;
         return sample_prev(&prev->level[lv], px, py, lv, win, s->img, s->gx, s->gy, sum);
@@ -130,8 +198,8 @@ static int prev_window(const sh_flow_pyramid *prev, const sh_flow_windows *cache
  * is not NULL. */
 static uint8_t track_point(const sh_flow_params *prm, const sh_flow_pyramid *prev,
                            const sh_flow_windows *cache, int ci, const sh_flow_pyramid *next,
-                           int levels, float px, float py, float *qx, float *qy, float *err,
-                           window *s)
+                           int levels, float px, float py, const float *M, float *qx, float *qy,
+                           float *err, window *s)
 {
     const int win = prm->win;
     const float half = (float)(win - 1) * 0.5f;
@@ -146,7 +214,7 @@ static uint8_t track_point(const sh_flow_params *prm, const sh_flow_pyramid *pre
         }
         const int16_t *I, *GX, *GY;
         int64_t sum[3];
-        int ps = prev_window(prev, cache, ci, lv, px, py, win, s, &I, &GX, &GY, sum);
+        int ps = prev_window(prev, cache, ci, lv, px, py, M, win, s, &I, &GX, &GY, sum);
         if (ps == PREV_OUTSIDE) {
             if (lv == 0) status = SH_FLOW_OUTSIDE;
             continue;
@@ -210,8 +278,8 @@ static uint8_t track_point(const sh_flow_params *prm, const sh_flow_pyramid *pre
  * NULL) of xy, its guess, out, status and err at j. */
 static void track_points(const sh_flow_params *params, const sh_flow_pyramid *prev,
                          const sh_flow_windows *cache, const sh_flow_pyramid *next, int levels,
-                         int n, const int *idx, const float *xy, const float *guess, float *out,
-                         uint8_t *status, float *err)
+                         int n, const int *idx, const float *xy, const float *guess,
+                         const float *warp, float *out, uint8_t *status, float *err)
 {
     window s; /* 24 KB at the largest window: the stack, not the heap, in the per-frame path */
     for (int j = 0; j < n; j++) {
@@ -227,8 +295,8 @@ static void track_points(const sh_flow_params *params, const sh_flow_pyramid *pr
             status[j] = SH_FLOW_OUTSIDE;
             continue;
         }
-        status[j] = track_point(params, prev, cache, i, next, levels, px, py, &qx, &qy,
-                                err ? &err[j] : NULL, &s);
+        status[j] = track_point(params, prev, cache, i, next, levels, px, py,
+                                warp ? warp + 4 * j : NULL, &qx, &qy, err ? &err[j] : NULL, &s);
         out[2 * j] = qx;
         out[2 * j + 1] = qy;
     }
@@ -249,7 +317,7 @@ sh_status sh_flow_track(const sh_flow_params *params, const sh_flow_pyramid *pre
     int levels = params->levels;
     if (levels > prev->levels) levels = prev->levels;
     if (levels > next->levels) levels = next->levels;
-    track_points(params, prev, NULL, next, levels, n, NULL, xy, guess, out, status, err);
+    track_points(params, prev, NULL, next, levels, n, NULL, xy, guess, NULL, out, status, err);
     return SH_OK;
 }
 
@@ -264,6 +332,7 @@ sh_status sh_flow_windows_create(const sh_flow_params *params, const sh_flow_pyr
         return sh_error_set(SH_EINVAL, "flow: windows: a pyramid of another window, or without gradients");
     sh_flow_windows *c = calloc(1, sizeof *c);
     if (!c) return sh_error_set(SH_ENOMEM, "flow: out of memory");
+    c->pyr = prev;
     c->n = n;
     c->win = params->win;
     c->params_levels = params->levels;
@@ -309,9 +378,10 @@ void sh_flow_windows_destroy(sh_flow_windows *c)
     free(c);
 }
 
-sh_status sh_flow_track_windows(const sh_flow_params *params, const sh_flow_windows *prev,
-                                const sh_flow_pyramid *next, int m, const int *idx,
-                                const float *guess, float *out, uint8_t *status, float *err)
+sh_status sh_flow_track_windows_warped(const sh_flow_params *params, const sh_flow_windows *prev,
+                                       const sh_flow_pyramid *next, int m, const int *idx,
+                                       const float *guess, const float *warp, float *out,
+                                       uint8_t *status, float *err)
 {
     if (!params || !prev || !next || m < 0 || (m > 0 && (!out || !status)))
         return sh_error_set(SH_EINVAL, "flow: track: missing argument");
@@ -325,6 +395,13 @@ sh_status sh_flow_track_windows(const sh_flow_params *params, const sh_flow_wind
         return sh_error_set(SH_EINVAL, "flow: track: %d points of %d", m, prev->n);
     int levels = prev->levels;
     if (levels > next->levels) levels = next->levels;
-    track_points(params, NULL, prev, next, levels, m, idx, prev->xy, guess, out, status, err);
+    track_points(params, NULL, prev, next, levels, m, idx, prev->xy, guess, warp, out, status, err);
     return SH_OK;
+}
+
+sh_status sh_flow_track_windows(const sh_flow_params *params, const sh_flow_windows *prev,
+                                const sh_flow_pyramid *next, int m, const int *idx,
+                                const float *guess, float *out, uint8_t *status, float *err)
+{
+    return sh_flow_track_windows_warped(params, prev, next, m, idx, guess, NULL, out, status, err);
 }
