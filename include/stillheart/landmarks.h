@@ -47,6 +47,10 @@
  *    own error is smooth between the markers, so neighbours that are right correct it alike;
  *    one whose window matched the wrong place, consistently both ways and within the map's
  *    reach, stands out. This test needs a prediction.
+ * With `affine`, the forward search's finest reference window is sampled through the inverse of
+ * the markers' map's local affine at the landmark: a translation-only search is biased where the
+ * tissue deforms across its window, which is where most landmarks accepted more than 1 px off
+ * were (docs/landmarks.md, "The tail").
  * Only the part of the frame the searches read is band-passed and put in the pyramid: the part
  * around the box of the predictions grown by the disagreement bound and 8 px
  * (sh_flow_pyramid_build_box). A search that leaves it is done again on a larger part around
@@ -119,6 +123,12 @@ typedef struct {
                                  * through each three neighbours that surround the landmark
                                  * predict, their median where no three do (0: their median);
                                  * at most 16 neighbours */
+    int affine;                 /* 1: each forward search's level-0 reference window is sampled
+                                 * through the inverse of the markers' map's local affine at the
+                                 * landmark (the least-squares affine of the predictions of it and
+                                 * its neighbours), so that a translation matches a window that the
+                                 * tissue sheared or scaled (sh_flow_track_windows_warped); needs a
+                                 * prediction and neighbours >= 2 (0: square windows) */
     sh_flow_params flow;        /* the tracker (sh_flow_params_default) */
 } sh_landmarks_params;
 

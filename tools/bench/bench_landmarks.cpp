@@ -7,7 +7,9 @@
 // forward from the same predictions (OPTFLOW_USE_INITIAL_FLOW), and backward from the same
 // inverse guesses; the same tests but the neighbours'. Both keep the reference's pyramid (with
 // gradients), built once. Also without the backward test (its own row: ours with
-// max_backward_px 0, OpenCV forward only, no gradients of the frame). The goal: at most
+// max_backward_px 0, OpenCV forward only, no gradients of the frame), and with the forward
+// windows pre-warped by the map's local affine (sh_landmarks_params.affine; beside the same
+// OpenCV work, which has no such search). The goal: at most
 // 3 ms a 1080p frame with 200 landmarks on one thread, and at most OpenCV's time.
 //
 // Frames: the phantom renderer of this build (exvivo preset, paper rig, 1920x1080, seed 1, with
@@ -89,7 +91,7 @@ static void cv_band(const cv::Mat &in, cv::Mat &fine, cv::Mat &coarse, cv::Mat &
 }
 
 struct Timed {
-    std::vector<double> ours, cv, ours_fwd, cv_fwd, predict;
+    std::vector<double> ours, cv, ours_fwd, cv_fwd, ours_aff, predict;
 };
 
 int main(int argc, char **argv)
@@ -149,14 +151,17 @@ int main(int argc, char **argv)
     sh_landmarks_params_default(&lp);
     lp.max_points = POINTS;
     lp.min_distance = MIN_DIST;
-    sh_landmarks_params lp_fwd = lp;
+    sh_landmarks_params lp_fwd = lp, lp_aff = lp;
     lp_fwd.max_backward_px = 0;
+    lp_aff.affine = 1;
     sh_plane ref = {frames[0].ptr(), W, H, (int)frames[0].step};
-    sh_landmarks *lm = nullptr, *lm_fwd = nullptr;
+    sh_landmarks *lm = nullptr, *lm_fwd = nullptr, *lm_aff = nullptr;
     bench_check("bench_landmarks", sh_landmarks_create(&lp, &ref, &hull, quads.data(), (int)quads.size() / 8, &lm),
                 "landmarks");
     bench_check("bench_landmarks",
                 sh_landmarks_create(&lp_fwd, &ref, &hull, quads.data(), (int)quads.size() / 8, &lm_fwd), "landmarks");
+    bench_check("bench_landmarks",
+                sh_landmarks_create(&lp_aff, &ref, &hull, quads.data(), (int)quads.size() / 8, &lm_aff), "landmarks");
     const int n = sh_landmarks_count(lm);
     const float *lref = sh_landmarks_reference(lm);
     double bx0 = W, bx1 = 0, by0 = H, by1 = 0;
@@ -196,7 +201,7 @@ int main(int argc, char **argv)
     std::vector<uint8_t> verdict(n);
     Timed tm;
     uint64_t hash = 1469598103934665603ull;
-    long accepted = 0, accepted_fwd = 0, cv_accepted = 0, cv_accepted_fwd = 0, judged = 0, again = 0, again_frames = 0, whole = 0;
+    long accepted = 0, accepted_fwd = 0, accepted_aff = 0, cv_accepted = 0, cv_accepted_fwd = 0, judged = 0, again = 0, again_frames = 0, whole = 0;
     for (int pass = 0; pass < PASSES; pass++)
         for (int t = 1; t < FRAMES; t++) {
             std::vector<double> r, c;
@@ -268,6 +273,13 @@ int main(int argc, char **argv)
                       std::hypot(p1[i].x - pr[2 * i], p1[i].y - pr[2 * i + 1]) <= lp.max_disagreement_px;
             tm.cv_fwd.push_back(bench_now_ms() - a);
             if (pass == 0) cv_accepted_fwd += ok;
+
+            // the forward windows pre-warped by the map's local affine
+            a = bench_now_ms();
+            bench_check("bench_landmarks", sh_landmarks_track(lm_aff, &cur, pr, xy.data(), verdict.data(), &cnt),
+                        "track");
+            tm.ours_aff.push_back(bench_now_ms() - a);
+            if (pass == 0) accepted_aff += cnt.verdicts[SH_LANDMARK_ACCEPTED];
         }
     double load[3] = {0, 0, 0};
     if (getloadavg(load, 3) < 1) load[0] = -1;
@@ -281,12 +293,14 @@ int main(int argc, char **argv)
            cf = bench_median(tm.cv_fwd);
     std::printf("%-40s %9.3f ms %9.3f ms %8.2f\n", "landmarks, with the backward test", o, c, o / c);
     std::printf("%-40s %9.3f ms %9.3f ms %8.2f\n", "landmarks, without it", of, cf, of / cf);
+    const double oa = bench_median(tm.ours_aff);
+    std::printf("%-40s %9.3f ms %9.3f ms %8.2f\n", "landmarks, backward test, affine windows", oa, c, oa / c);
     std::printf("%-40s %9.3f ms\n", "the prediction (TPS on the tags)", bench_median(tm.predict));
     std::printf("%-40s %9.3f ms %9.3f ms\n", "the slowest frame, with the backward test",
                 *std::max_element(tm.ours.begin(), tm.ours.end()), *std::max_element(tm.cv.begin(), tm.cv.end()));
-    std::printf("accepted of %ld landmark-frames: %ld ours (%ld without the backward test), %ld OpenCV's tests "
-                "but the neighbours' (%ld); checksum %016llx\n",
-                judged, accepted, accepted_fwd, cv_accepted, cv_accepted_fwd, (unsigned long long)hash);
+    std::printf("accepted of %ld landmark-frames: %ld ours (%ld without the backward test, %ld with affine windows), "
+                "%ld OpenCV's tests but the neighbours' (%ld); checksum %016llx\n",
+                judged, accepted, accepted_fwd, accepted_aff, cv_accepted, cv_accepted_fwd, (unsigned long long)hash);
     std::printf("searches that left the part of the frame built around the predictions, done again on a larger "
                 "part: %ld in %ld of %d frames; the whole frame built in %ld\n",
                 again, again_frames, FRAMES - 1, whole);
@@ -294,5 +308,6 @@ int main(int argc, char **argv)
                 o <= 3 && o <= c ? "held" : "not held", of <= 3 && of <= cf ? "held" : "not held");
     sh_landmarks_destroy(lm);
     sh_landmarks_destroy(lm_fwd);
+    sh_landmarks_destroy(lm_aff);
     return 0;
 }

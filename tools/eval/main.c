@@ -104,6 +104,8 @@ static void usage(FILE *f)
         "  --lm-bound-factor K  the bound: K times the median distance from the map of the\n"
         "                     landmarks the tests before it keep, never below --lm-disagreement\n"
         "  --lm-plane         the neighbour test expects the planes through three neighbours\n"
+        "  --lm-affine        the forward search's window pre-warped by the markers' map's\n"
+        "                     local affine (sh_landmarks_params.affine)\n"
         "The phantom's texture (docs/landmarks.md):\n"
         "  --spectrum         instead of the above: the luma's amplitude spectrum ~ 1/f^alpha over\n"
         "                     64 px patches of tissue alone inside the tags' hull (8 frames of\n"
@@ -491,7 +493,7 @@ int main(int argc, char **argv)
         {"landmarks", required_argument, 0, 'L'}, {"lm-photometric", required_argument, 0, 1001},
         {"lm-backward", required_argument, 0, 1002}, {"lm-disagreement", required_argument, 0, 1003},
         {"lm-sparse", no_argument, 0, 1004}, {"lm-bound-factor", required_argument, 0, 1005},
-        {"lm-plane", no_argument, 0, 1006},
+        {"lm-plane", no_argument, 0, 1006}, {"lm-affine", no_argument, 0, 1009},
         {"landmarks-points", required_argument, 0, 1007},
         {"spectrum", no_argument, 0, 1008},
         {"json", no_argument, 0, 'j'},           SH_CLI_OPTIONS, {0, 0, 0, 0}};
@@ -526,6 +528,7 @@ int main(int argc, char **argv)
         case 1004: o.lp.bound_factor = 4, o.lp.plane = 1; break;
         case 1005: if (!sh_cli_parse_double("--lm-bound-factor", optarg, 0, 1000, &o.lp.bound_factor)) return 2; break;
         case 1006: o.lp.plane = 1; break;
+        case 1009: o.lp.affine = 1; break;
         case 1007: o.landmarks_points = optarg; break;
         case 1008: o.spectrum = 1; break;
         case 'h': usage(stdout); return 0;
