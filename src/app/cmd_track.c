@@ -51,6 +51,9 @@ static void usage(FILE *out)
         "                     within 3 px of the tissue (four at the corners of the field): the\n"
         "                     disagreement bound follows the map's error measured on each frame\n"
         "                     and the neighbour test expects a plane (docs/landmarks.md)\n"
+        "  --landmarks-affine with --landmarks, the forward search's reference window warped by\n"
+        "                     the markers' map's local affine at each landmark: fewer landmarks\n"
+        "                     over 1 px off where the tissue deforms (docs/landmarks.md)\n"
         "  --stats            tracking figures on standard error at the end\n"
         "  --json             with --stats: the figures as one JSON object, the last line on\n"
         "                     standard error (standard output carries the points): frames,\n"
@@ -113,6 +116,7 @@ typedef struct {
     int measured_only, stats, json;
     int landmarks; /* --landmarks N; 0: none */
     int landmarks_sparse; /* --landmarks-sparse */
+    int landmarks_affine; /* --landmarks-affine */
 } track_options;
 
 /* Fills o from argv: APP_GO_ON, or the exit code (usage and refusals printed). */
@@ -125,6 +129,7 @@ static int parse_options(int argc, char **argv, track_options *o)
         {"spatial", required_argument, 0, 's'}, {"measured-only", no_argument, 0, 'm'},
         {"stats", no_argument, 0, 'S'},         {"json", no_argument, 0, 'j'},
         {"landmarks", required_argument, 0, 'L'}, {"landmarks-sparse", no_argument, 0, 'P'},
+        {"landmarks-affine", no_argument, 0, 'A'},
         SH_CLI_OPTIONS,                         {0, 0, 0, 0}};
     memset(o, 0, sizeof *o);
     sh_track_options_default(&o->topts);
@@ -153,6 +158,7 @@ static int parse_options(int argc, char **argv, track_options *o)
         case 'j': o->json = 1; break;
         case 'L': if (!sh_cli_parse_int("--landmarks", optarg, 1, 100000, &o->landmarks)) return 2; break;
         case 'P': o->landmarks_sparse = 1; break;
+        case 'A': o->landmarks_affine = 1; break;
         case 'h': usage(stdout); return 0;
         default: { int rc = sh_cli_option(&cli, ch, argv); if (rc >= 0) return rc; } break;
         }
@@ -163,6 +169,7 @@ static int parse_options(int argc, char **argv, track_options *o)
         return sh_cli_usage_error(&cli, "need one to %d videos", SH_TRACK_MAX_CAMERAS);
     for (int c = 0; c < o->ncam; c++) o->in[c] = argv[optind + c];
     if (o->landmarks_sparse && !o->landmarks) return sh_cli_usage_error(&cli, "--landmarks-sparse goes with --landmarks");
+    if (o->landmarks_affine && !o->landmarks) return sh_cli_usage_error(&cli, "--landmarks-affine goes with --landmarks");
     if (o->landmarks && (o->ncam > 1 || o->calib_path))
         return sh_cli_usage_error(&cli, "--landmarks: one camera, without --cameras (landmarks in 3D are not built yet)");
     return APP_GO_ON;
@@ -335,7 +342,7 @@ static int write_rows(const track_job *job, track_pass *p, int f, FILE *out)
     p->nrows = nr;
     if (!ok || !job->o->landmarks) return !ok;
     /* the tissue's landmarks after the frame's markers (their ids sort after) */
-    if (f == 0) return track_landmarks_start(job->o->landmarks, job->o->landmarks_sparse, &p->img[0], dets[0], p->ndet0, rows, nr, out, &p->lm);
+    if (f == 0) return track_landmarks_start(job->o->landmarks, job->o->landmarks_sparse, job->o->landmarks_affine, &p->img[0], dets[0], p->ndet0, rows, nr, out, &p->lm);
     return p->lm && track_landmarks_frame(p->lm, &p->img[0], f, rows, nr, out);
 }
 

@@ -53,7 +53,7 @@ static int write_landmarks(const track_landmarks *tl, int f, const float *xy, FI
     return 0;
 }
 
-int track_landmarks_start(int n, int sparse, const sh_image *frame, const sh_detection *dets, int ndet, const sh_point *rows,
+int track_landmarks_start(int n, int sparse, int affine, const sh_image *frame, const sh_detection *dets, int ndet, const sh_point *rows,
                           int nrows, FILE *out, track_landmarks **out_tl)
 {
     *out_tl = NULL;
@@ -91,6 +91,7 @@ int track_landmarks_start(int n, int sparse, const sh_image *frame, const sh_det
         sh_landmarks_params_sparse(&p);
     else
         sh_landmarks_params_default(&p);
+    p.affine = affine;
     p.max_points = n;
     const sh_plane *y = luma(tl, frame);
     int rc = 0;

@@ -18,7 +18,7 @@ typedef struct track_landmarks track_landmarks;
 /* Frame 0 of camera 0: up to n landmarks (with sparse, sh_landmarks_params_sparse's tests), inside the hull of its marker rows and off the tags
  * detected there; their rows written. 0, or 1 with the reason printed. With fewer than 3 marker
  * rows there is no hull: a warning, 0 and *tl NULL (the markers go on without landmarks). */
-int track_landmarks_start(int n, int sparse, const sh_image *frame, const sh_detection *dets, int ndet, const sh_point *rows,
+int track_landmarks_start(int n, int sparse, int affine, const sh_image *frame, const sh_detection *dets, int ndet, const sh_point *rows,
                           int nrows, FILE *out, track_landmarks **tl);
 /* Frame f: each landmark predicted by the markers' map (TPS on the marker rows f shares with
  * frame 0), found and judged; the accepted ones written. 0, or 1 with the reason printed. */

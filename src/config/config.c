@@ -67,6 +67,8 @@ static const keydef keys[] = {
      "natural landmarks of the tissue besides the markers (0: none; tps, affine; 2D)"},
     {"track", "landmarks_sparse", "landmarks-sparse", K_BOOL, PROC, F(landmarks_sparse), 0, 0, 1,
      "landmarks for markers too sparse for their map (four at the corners): the disagreement bound follows the map's measured error"},
+    {"track", "landmarks_affine", "landmarks-affine", K_BOOL, PROC, F(landmarks_affine), 0, 0, 1,
+     "landmarks searched through the markers' map's local affine: fewer over 1 px off where the tissue deforms"},
     {"method", "name", "method", K_METHOD, PROC, F(method_name), S(method_name), 0, 0, "affine pwlinear bspline rbf-local[-pure] tps[-pure] gaussian[-pure]"},
     {"method", "sigma", "sigma", K_DOUBLE, PROC, F(sigma), 0, -1, 1e6, "RBF scale in px (-1: the method's default)"},
     {"method", "levels", "levels", K_INT, PROC, F(levels), 0, 0, 16, "B-spline levels (0: automatic)"},

@@ -104,6 +104,7 @@ static sh_status landmarks_create(run_proc *p, const sh_config *cfg)
         sh_landmarks_params_sparse(&lp);
     else
         sh_landmarks_params_default(&lp);
+    lp.affine = cfg->landmarks_affine;
     lp.max_points = p->lm_cap;
     run_models_set_landmarks(p->models, &lp);
     if (!cfg->points[0]) return SH_OK;

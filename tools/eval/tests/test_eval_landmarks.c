@@ -219,24 +219,18 @@ static void test_track_landmarks_through_the_warp(void **state)
  * the one and of the exact ones in the other: a landmark at the edge of a test may go either way),
  * and its frames have the geometric error against the truth of `stillheart warp` through that
  * file, lower than the markers' alone. Methods that cannot follow a changing set are refused. */
-static void test_daemon_landmarks(void **state)
+/* One pass of the comparison below with the landmarks' options `flags` (the same to both). */
+static void daemon_against_track(const char *dir, const char *flags)
 {
-    (void)state;
-    enum { DFRAMES = 40 };
-    char dir[] = "/tmp/sh_run_lm_XXXXXX";
-    assert_non_null(mkdtemp(dir));
-    if (test_run("'%s' --preset exvivo --rig paper --cameras 1 --width 960 --height 540 --occlusions --seed 1 "
-                 "--frames %d --quiet --out '%s'", RENDER_BIN, DFRAMES, dir) != 0)
-        fail_msg("%s\n%s", test_cmd, test_out);
-    if (test_run("cd '%s' && '%s' track --quiet --ids 0-15 cam0.y4m > markers.csv && "
-                 "'%s' track --quiet --ids 0-15 --landmarks 100 cam0.y4m > landmarks.csv && "
+    if (test_run("cd '%s' && rm -f rec.y4m && '%s' track --quiet --ids 0-15 cam0.y4m > markers.csv && "
+                 "'%s' track --quiet --ids 0-15 --landmarks 100 %s cam0.y4m > landmarks.csv && "
                  "'%s' warp --quiet --method tps --points markers.csv cam0.y4m plain.y4m && "
                  "'%s' warp --quiet --method tps --points landmarks.csv cam0.y4m stab.y4m", dir, APP_BIN, APP_BIN,
-                 APP_BIN, APP_BIN) != 0)
+                 flags, APP_BIN, APP_BIN) != 0)
         fail_msg("%s\n%s", test_cmd, test_out);
     if (test_run("cd '%s' && '%s' run --source y4m:cam0.y4m --no-realtime --no-loop --points markers.csv "
-                 "--landmarks 100 --method tps --sink none --group= --threads 2 --record rec.y4m --trace-points used.csv",
-                 dir, APP_BIN) != 0)
+                 "--landmarks 100 %s --method tps --sink none --group= --threads 2 --record rec.y4m "
+                 "--trace-points used.csv", dir, APP_BIN, flags) != 0)
         fail_msg("%s\n%s", test_cmd, test_out);
     assert_non_null(strstr(test_out, " landmarks"));
     assert_non_null(strstr(test_out, "landmark-frames: accepted"));
@@ -249,8 +243,8 @@ static void test_daemon_landmarks(void **state)
     int track_rows, shared, only_daemon;
     double far;
     assert_int_equal(sscanf(test_out, "%d %d %d %lf", &track_rows, &shared, &only_daemon, &far), 4);
-    print_message("  landmark rows: %d of track's, %d shared, %d the daemon's alone; largest distance %.4f px\n",
-                  track_rows, shared, only_daemon, far);
+    print_message("  %s: landmark rows: %d of track's, %d shared, %d the daemon's alone; largest distance %.4f px\n",
+                  flags[0] ? flags : "defaults", track_rows, shared, only_daemon, far);
     assert_true(track_rows > 0);
     assert_true(shared >= track_rows * 0.98 && only_daemon <= track_rows * 0.02);
     assert_true(far < 0.05);
@@ -266,6 +260,23 @@ static void test_daemon_landmarks(void **state)
     assert_true(daemon < plain);
     assert_true(fabs(daemon - warp) < 0.01);
     assert_true(fabs(e_daemon - e_warp) < 0.002 * e_warp); /* the same frames but for rounding */
+}
+
+static void test_daemon_landmarks(void **state)
+{
+    (void)state;
+    enum { DFRAMES = 40 };
+    char dir[] = "/tmp/sh_run_lm_XXXXXX";
+    assert_non_null(mkdtemp(dir));
+    if (test_run("'%s' --preset exvivo --rig paper --cameras 1 --width 960 --height 540 --occlusions --seed 1 "
+                 "--frames %d --quiet --out '%s'", RENDER_BIN, DFRAMES, dir) != 0)
+        fail_msg("%s\n%s", test_cmd, test_out);
+    /* the defaults, and the affine windows ([track] landmarks_affine, track --landmarks-affine) */
+    daemon_against_track(dir, "");
+    assert_int_equal(test_run("cd '%s' && cp landmarks.csv square.csv", dir), 0);
+    daemon_against_track(dir, "--landmarks-affine");
+    /* the option changes the landmarks found (the markers' rows are the same) */
+    assert_int_not_equal(test_run("cd '%s' && cmp -s landmarks.csv square.csv", dir), 0);
     /* refused: methods whose model cannot leave a landmark out, one that is worse with them, 3D */
     const char *refused[][2] = {{"--method bspline", "new model for every frame"},
                                 {"--method gaussian", "worse with landmarks"},
