@@ -85,9 +85,19 @@ typedef struct sh_warp sh_warp;
 sh_status sh_warp_create(int threads, sh_warp **out);
 void sh_warp_destroy(sh_warp *warp);
 
-/* out and current: same format and size as the model's frame. Allocation-free. */
+/* out and current: same format and size as the model's frame. Allocation-free once it has seen
+ * the frame size and the output buffer (it notes which pixels of each row it left inside the
+ * hull, for the last 4 buffers it wrote). */
 sh_status sh_warp_apply(sh_warp *warp, const sh_warp_model *model, const sh_image *current,
                         sh_image *out);
+/* The same output byte for byte, into an out that holds what this warp's last apply into it
+ * wrote, untouched since (a buffer the caller takes in turn): of the outside, only the pixels
+ * that were inside the hull there and are not now are written black; the rest already is. At
+ * 4K the whole outside is about 0.5 ms of memset a frame. An out this warp has not written, or
+ * not among its last 4 buffers, is written whole. The caller that wrote into out otherwise
+ * (another fill of the outside, a raw frame) calls sh_warp_apply. */
+sh_status sh_warp_apply_again(sh_warp *warp, const sh_warp_model *model, const sh_image *current,
+                              sh_image *out);
 
 /* Outside the hull (docs/warp.md, "Outside the hull"): the warp leaves it black, as the paper
  * does. sh_warp_outside shows there the current, unstabilized frame instead, dimmed, with a

@@ -7,10 +7,26 @@
 
 #include "warp_internal.h"
 
+/* What the warp last wrote into an output buffer: each plane row's inside, pixels [first, last]
+ * (first > last: none), the rest black. sh_warp_apply_again writes black only where a row's
+ * inside was and no longer is: at 4K the whole outside is about 0.5 ms of memset a frame (both
+ * threads), and the hull of one model does not move. Kept for the last KEPT buffers. */
+#define KEPT 4
+typedef struct {
+    const uint8_t *data[SH_IMAGE_MAX_PLANES]; /* which buffer; NULL: the entry is free */
+    int width, height, format;
+    int row0[SH_IMAGE_MAX_PLANES];  /* plane p's rows in first[] and last[] from row0[p] */
+    int rows, capacity;
+    int32_t *first, *last;
+    unsigned stamp;           /* last used: the oldest goes first */
+} kept_output;
+
 typedef struct {
     const sh_warp_model *model;
     const sh_image *current;
     sh_image *out;
+    kept_output *kept;    /* where the rows' insides are noted (NULL: out of memory, not noted) */
+    int again;            /* kept describes out as it is: only the changed outside is written */
 } warp_job;
 
 struct sh_warp {
@@ -24,6 +40,8 @@ struct sh_warp {
     warp_job job;
     int row_capacity;     /* pixels per thread in row_coords */
     int32_t *row_coords;  /* per thread: fx[row_capacity], fy[row_capacity] */
+    kept_output kept[KEPT];
+    unsigned clock;
 };
 
 void warp_plane_offsets(const sh_image *img, int p, plane_geometry *g)
@@ -43,6 +61,34 @@ static int same_geometry(const plane_geometry *a, const plane_geometry *b)
 {
     return a->scale == b->scale && a->ox == b->ox && a->oy == b->oy && a->width == b->width &&
            a->height == b->height;
+}
+
+/* Black on the row's pixels [a, b] (nothing when b < a). */
+static void black_span(uint8_t *row, int channels, uint8_t black, int a, int b)
+{
+    if (b >= a) memset(row + (size_t)a * channels, black, (size_t)(b - a + 1) * channels);
+}
+
+/* The row's outside made black: all of it, or with `was` (the inside the buffer's row had, the
+ * rest of it black already) only what was inside and is not now. */
+static void black_outside(uint8_t *row, int channels, uint8_t black, int width, int first, int last, const int32_t *was)
+{
+    if (!was) {
+        if (first > last) {
+            black_span(row, channels, black, 0, width - 1);
+            return;
+        }
+        black_span(row, channels, black, 0, first - 1);
+        black_span(row, channels, black, last + 1, width - 1);
+        return;
+    }
+    int f0 = was[0], l0 = was[1];
+    if (first > last) {
+        black_span(row, channels, black, f0, l0);
+        return;
+    }
+    black_span(row, channels, black, f0, l0 < first - 1 ? l0 : first - 1);
+    black_span(row, channels, black, f0 > last + 1 ? f0 : last + 1, l0);
 }
 
 /* The stripe's rows of every plane. Planes that sit alike (4:2:0's U and V at every siting but
@@ -71,17 +117,22 @@ static void run_stripe(const warp_job *job, int stripe, int stripes, int32_t *fx
             int first, last;
             int inside = warp_model_row_extent(job->model, &g, y, &first, &last);
             if (inside) warp_model_row_fill(job->model, &g, y, first, last, fx, fy);
+            else first = g.width, last = -1;
             for (int k = p; k < q; k++) {
                 uint8_t *row = out->plane[k].data + (size_t)y * out->plane[k].stride;
                 uint8_t black = (k > 0 && cur->format != SH_PIX_RGB24) ? 128 : 0;
-                if (!inside) {
-                    memset(row, black, (size_t)g.width * channels);
-                    continue;
+                int32_t was[2] = {0, -1};
+                if (job->kept) {
+                    int32_t *nf = job->kept->first + job->kept->row0[k] + y, *nl = job->kept->last + job->kept->row0[k] + y;
+                    was[0] = *nf;
+                    was[1] = *nl;
+                    *nf = first;
+                    *nl = last;
                 }
-                memset(row, black, (size_t)first * channels);
-                memset(row + (size_t)(last + 1) * channels, black, (size_t)(g.width - 1 - last) * channels);
-                warp_sample_row(&cur->plane[k], channels, black, row + (size_t)first * channels, fx, fy,
-                                last - first + 1);
+                black_outside(row, channels, black, g.width, first, last, job->again ? was : NULL);
+                if (inside)
+                    warp_sample_row(&cur->plane[k], channels, black, row + (size_t)first * channels, fx, fy,
+                                    last - first + 1);
             }
         }
     }
@@ -157,14 +208,76 @@ void sh_warp_destroy(sh_warp *w)
     for (int i = 1; i < w->threads && w->workers; i++) pthread_join(w->workers[i - 1], NULL);
     free(w->workers);
     free(w->row_coords);
+    for (int i = 0; i < KEPT; i++) {
+        free(w->kept[i].first);
+        free(w->kept[i].last);
+    }
     pthread_mutex_destroy(&w->lock);
     pthread_cond_destroy(&w->start);
     pthread_cond_destroy(&w->done);
     free(w);
 }
 
-sh_status sh_warp_apply(sh_warp *w, const sh_warp_model *model, const sh_image *current,
-                        sh_image *out)
+static int same_buffer(const kept_output *k, const sh_image *out)
+{
+    if (k->width != out->width || k->height != out->height || k->format != (int)out->format) return 0;
+    for (int p = 0; p < out->num_planes; p++)
+        if (k->data[p] != out->plane[p].data) return 0;
+    return k->data[0] != NULL;
+}
+
+/* out's entry, with *known 1 when it was noted before; a new one takes the oldest entry's place.
+ * NULL when the rows cannot be allocated: the output is then written whole and not noted. */
+static kept_output *kept_for(sh_warp *w, const sh_image *out, int *known)
+{
+    kept_output *k = NULL;
+    *known = 0;
+    for (int i = 0; i < KEPT && !k; i++)
+        if (same_buffer(&w->kept[i], out)) k = &w->kept[i], *known = 1;
+    for (int i = 0; i < KEPT && !k; i++)
+        if (!w->kept[i].data[0]) k = &w->kept[i];
+    if (!k) {
+        k = &w->kept[0];
+        for (int i = 1; i < KEPT; i++)
+            if (w->kept[i].stamp < k->stamp) k = &w->kept[i];
+    }
+    k->stamp = ++w->clock;
+    if (*known) return k;
+    int rows = 0;
+    for (int p = 0; p < out->num_planes; p++) {
+        k->row0[p] = rows;
+        rows += out->plane[p].height;
+    }
+    k->data[0] = NULL; /* not this buffer's until it is whole */
+    if (rows > k->capacity) {
+        int32_t *f = realloc(k->first, sizeof(int32_t) * (size_t)rows);
+        if (f) k->first = f;
+        int32_t *l = f ? realloc(k->last, sizeof(int32_t) * (size_t)rows) : NULL;
+        if (l) k->last = l;
+        if (!f || !l) return NULL;
+        k->capacity = rows;
+    }
+    k->rows = rows;
+    k->width = out->width;
+    k->height = out->height;
+    k->format = (int)out->format;
+    for (int p = 0; p < SH_IMAGE_MAX_PLANES; p++) k->data[p] = p < out->num_planes ? out->plane[p].data : NULL;
+    return k;
+}
+
+static sh_status apply(sh_warp *w, const sh_warp_model *model, const sh_image *current, sh_image *out, int again);
+
+sh_status sh_warp_apply(sh_warp *w, const sh_warp_model *model, const sh_image *current, sh_image *out)
+{
+    return apply(w, model, current, out, 0);
+}
+
+sh_status sh_warp_apply_again(sh_warp *w, const sh_warp_model *model, const sh_image *current, sh_image *out)
+{
+    return apply(w, model, current, out, 1);
+}
+
+static sh_status apply(sh_warp *w, const sh_warp_model *model, const sh_image *current, sh_image *out, int again)
 {
     if (!w || !model || !current || !out)
         return sh_error_set(SH_EINVAL, "warp: missing argument");
@@ -184,7 +297,9 @@ sh_status sh_warp_apply(sh_warp *w, const sh_warp_model *model, const sh_image *
         w->row_coords = coords;
         w->row_capacity = current->width;
     }
-    warp_job job = {model, current, out};
+    int known;
+    kept_output *kept = kept_for(w, out, &known);
+    warp_job job = {model, current, out, kept, again && known};
     if (w->threads == 1) {
         run_stripe(&job, 0, 1, w->row_coords, w->row_coords + w->row_capacity);
         return SH_OK;

@@ -470,6 +470,76 @@ static void test_threads_same_bytes(void **state)
     }
 }
 
+/* sh_warp_apply_again writes black only where the hull's inside shrank; its output must be
+ * sh_warp_apply's byte for byte into a fresh buffer, while the hull moves (a subset of markers
+ * used each frame, so the inside grows and shrinks row by row), the frame moves, on 1 and 3
+ * threads, with the caller's buffers taken in turn (2, and 5 where the warp remembers only 4:
+ * those are written whole), and a buffer the warp has not seen before. The reference output is
+ * prefilled with another value every frame, so that a pixel either path leaves unwritten shows. */
+static void test_apply_again_same_bytes(void **state)
+{
+    (void)state;
+    const int w = 333, h = 211, n = 30;
+    synth_motion mo = {w, h, 9};
+    double ref[2 * n], cur[2 * n];
+    synth_markers(&mo, n, 5, ref);
+    const sh_pixfmt formats[] = {SH_PIX_I420, SH_PIX_RGB24};
+    unsigned rng = 12345;
+    for (int f = 0; f < 2; f++) {
+        for (int threads = 1; threads <= 3; threads += 2) {
+            for (int nbuf = 2; nbuf <= 5; nbuf += 3) {
+                sh_image in, fresh, buf[5];
+                assert_int_equal(sh_image_create(&in, formats[f], w, h), SH_OK);
+                assert_int_equal(sh_image_create(&fresh, formats[f], w, h), SH_OK);
+                for (int i = 0; i < nbuf; i++) assert_int_equal(sh_image_create(&buf[i], formats[f], w, h), SH_OK);
+                built b = build("tps", ref, n, w, h, NULL);
+                sh_warp *wa, *wr;
+                assert_int_equal(sh_warp_create(threads, &wa), SH_OK);
+                assert_int_equal(sh_warp_create(threads, &wr), SH_OK);
+                long changed_rows = 0;
+                for (int frame = 0; frame < 24; frame++) {
+                    double t = 0.05 * frame;
+                    unsigned char use[n];
+                    moved_markers(&mo, t, ref, n, cur);
+                    for (int i = 0; i < n; i++) {
+                        rng = rng * 1103515245u + 12345u;
+                        /* every third frame all of them; otherwise about a third left out */
+                        use[i] = frame % 3 == 0 || i < 3 || (rng >> 16) % 3 != 0;
+                        if (!use[i]) cur[2 * i] = cur[2 * i + 1] = NAN;
+                    }
+                    assert_int_equal(sh_warp_model_update_subset(b.model, cur, use), SH_OK);
+                    synth_render(&mo, t, &in);
+                    sh_image *out = &buf[frame % nbuf];
+                    for (int p = 0; p < fresh.num_planes; p++)
+                        memset(fresh.plane[p].data, 0x5a + frame, (size_t)fresh.plane[p].stride * fresh.plane[p].height);
+                    if (frame < nbuf) /* never written: whatever a new buffer holds */
+                        for (int p = 0; p < out->num_planes; p++)
+                            memset(out->plane[p].data, 0xa5, (size_t)out->plane[p].stride * out->plane[p].height);
+                    /* the first frame through sh_warp_apply, then again and again */
+                    assert_int_equal((frame == 0 ? sh_warp_apply : sh_warp_apply_again)(wa, b.model, &in, out), SH_OK);
+                    assert_int_equal(sh_warp_apply(wr, b.model, &in, &fresh), SH_OK);
+                    for (int p = 0; p < in.num_planes; p++)
+                        for (int y = 0; y < in.plane[p].height; y++) {
+                            const uint8_t *a = out->plane[p].data + (size_t)y * out->plane[p].stride,
+                                          *r = fresh.plane[p].data + (size_t)y * fresh.plane[p].stride;
+                            size_t len = (size_t)in.plane[p].width * sh_pixfmt_channels(formats[f]);
+                            assert_memory_equal(a, r, len);
+                            if (frame >= nbuf && p == 0) changed_rows += memchr(r, 0, len) != NULL;
+                        }
+                }
+                /* the outside was there to be kept: rows with black in them */
+                assert_true(changed_rows > 0);
+                sh_warp_destroy(wa);
+                sh_warp_destroy(wr);
+                unbuild(&b);
+                sh_image_destroy(&in);
+                sh_image_destroy(&fresh);
+                for (int i = 0; i < nbuf; i++) sh_image_destroy(&buf[i]);
+            }
+        }
+    }
+}
+
 /* Paper Table II's shape on a sequence with known motion: every method lowers e, and every
  * local method beats affine, in e and in geometric error against the true motion. */
 static void test_synthetic_sequence(void **state)
@@ -651,6 +721,7 @@ int main(void)
         cmocka_unit_test(test_translation_every_format),
         cmocka_unit_test(test_bilinear_closed_form),
         cmocka_unit_test(test_threads_same_bytes),
+        cmocka_unit_test(test_apply_again_same_bytes),
         cmocka_unit_test(test_synthetic_sequence),
         cmocka_unit_test(test_bad_input),
     };
