@@ -1,9 +1,10 @@
 /* The display segment against a running daemon (issue 14): a hostile writer with the segment
- * mapped read-write, daemon restarts followed by a reader, and a squatter on the name.
+ * mapped read-write, one scribbling on the slots' pixels while the daemon publishes and records
+ * (issue 20), daemon restarts followed by a reader, and a squatter on the name.
  * Each runs `stillheart run` (the sibling of this binary's folder) on a small Y4M replay this
  * test writes, with a NOTIFY_SOCKET the test opens and reads throughout, as systemd does.
  *
- * Over 600 lines: the three scenarios share the harness at the top (the replay written here, the
+ * Over 600 lines: the scenarios share the harness at the top (the replay written here, the
  * daemon started, the NOTIFY_SOCKET reader thread); split, each file would carry a copy of it. */
 #include <errno.h>
 #include <math.h>
@@ -605,6 +606,172 @@ static void test_capture_times_are_the_cameras(void **state)
     shm_unlink(shm);
 }
 
+/* ---- a writer scribbling on the slots' pixels (issue 20) ---- */
+enum { SCRIBBLE = 0xEE, PLAIN_FRAMES = 80, SCRIBBLED_FRAMES = 300, SCRIBBLE_KEPT = 8 };
+
+/* `stillheart run` on REPLAY (small.y4m's frames) with the points file into the segment,
+ * recording into tmp/REC: in real time (looping), or as fast as it goes (nothing dropped); its pid. */
+static pid_t start_recording(const char *replay, int realtime, int frames, const char *rec, const char *log)
+{
+    char spec[160], points[160], record[160], logpath[160], sink[80], n[16];
+    snprintf(spec, sizeof spec, "y4m:%s/%s", tmp, replay);
+    snprintf(points, sizeof points, "%s/small-points.csv", tmp);
+    snprintf(record, sizeof record, "%s/%s", tmp, rec);
+    snprintf(logpath, sizeof logpath, "%s/%s", tmp, log);
+    snprintf(sink, sizeof sink, "shm:%s", shm);
+    snprintf(n, sizeof n, "%d", frames);
+    unlink(record);
+    pid_t pid = fork();
+    assert_true(pid >= 0);
+    if (pid == 0) {
+        int fd = open(logpath, O_WRONLY | O_CREAT | O_TRUNC, 0644);
+        if (fd >= 0) dup2(fd, 2), dup2(fd, 1);
+        unsetenv("NOTIFY_SOCKET");
+        execl(daemon_bin, daemon_bin, "run", "--group=", "--quiet", "--source", spec,
+              realtime ? "--realtime=1" : "--realtime=0", "--loop=1", "--points", points, "--method", "tps",
+              "--sink", sink, "--record", record, "--max-frames", n, (char *)NULL);
+        _exit(127);
+    }
+    return pid;
+}
+
+/* A recording's frames (I420, SMALL_W x SMALL_H, planes packed), at most cap; the count in *n. */
+static uint8_t *read_record(const char *rec, int cap, int *n)
+{
+    char path[160];
+    snprintf(path, sizeof path, "%s/%s", tmp, rec);
+    sh_y4m_reader *y;
+    if (sh_y4m_reader_open(path, &y) != SH_OK) fail_msg("%s: %s", path, sh_error_message());
+    size_t fb = (size_t)SMALL_W * SMALL_H * 3 / 2;
+    uint8_t *all = malloc(fb * (size_t)cap);
+    assert_non_null(all);
+    sh_image img;
+    assert_int_equal(sh_image_create(&img, SH_PIX_I420, SMALL_W, SMALL_H), SH_OK);
+    int k = 0;
+    while (k < cap && sh_y4m_reader_read(y, &img) == SH_OK) {
+        uint8_t *o = all + fb * (size_t)k++;
+        for (int p = 0; p < img.num_planes; p++)
+            for (int r = 0; r < img.plane[p].height; r++, o += img.plane[p].width)
+                memcpy(o, img.plane[p].data + (size_t)r * img.plane[p].stride, (size_t)img.plane[p].width);
+    }
+    sh_image_destroy(&img);
+    sh_y4m_reader_close(y);
+    *n = k;
+    return all;
+}
+
+/* Another process with write access to the segment (the service's own uid) fills every slot's
+ * pixels with SCRIBBLE, in bursts of 10 ms, while the daemon warps, publishes (its publisher
+ * thread copying one frame while the next is processed) and records, in real time at 100
+ * frames/s. What it writes is never read back:
+ *  - every recorded frame is the frame a run without it recorded for the same replay frame (known
+ *    by its value, 40 + 5k; the warp of a frame depends on that frame's points alone), and none
+ *    holds SCRIBBLE;
+ *  - each frame published after a burst (one whose copy began after the burst ended: the one
+ *    after the first published after it) is, as a reader takes it, the recorded frame of the same
+ *    sequence: every publish writes its whole slot again. */
+static void test_scribbler_changes_nothing_recorded(void **state)
+{
+    (void)state;
+    shm_unlink(shm);
+    pid_t a = start_recording("small.y4m", 0, PLAIN_FRAMES, "plain.y4m", "plain.log");
+    int status;
+    waitpid(a, &status, 0);
+    if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) fail_msg("the run without a scribbler: %s", slurp("plain.log"));
+    shm_unlink(shm); /* its segment, closed: the reader below waits for the next one's */
+    pid_t d = start_recording("small100.y4m", 1, SCRIBBLED_FRAMES, "scribbled.y4m", "scribbled.log");
+    sh_display_reader *r;
+    sh_display_reader_options o = {.owner_uid = SH_DISPLAY_OWNER_SELF, .follow = 0};
+    if (sh_display_reader_open(shm, &o, (int)(ready_s * 1000), &r) != SH_OK)
+        fail_msg("no segment: %s; daemon %s: %s", sh_error_message(), daemon_state(d), slurp("scribbled.log"));
+    int fd = shm_open(shm, O_RDWR, 0);
+    assert_true(fd >= 0);
+    struct stat sb;
+    assert_int_equal(fstat(fd, &sb), 0);
+    uint8_t *seg = mmap(NULL, (size_t)sb.st_size, PROT_READ | PROT_WRITE, MAP_SHARED, fd, 0);
+    assert_true(seg != MAP_FAILED);
+    close(fd);
+    const sh_display_header *h = sh_display_reader_header(r);
+    uint32_t slots = h->slot_count, slot_bytes = h->slot_bytes, frame_bytes = h->frame_bytes;
+    size_t fb = (size_t)SMALL_W * SMALL_H * 3 / 2;
+    uint8_t *kept = malloc(fb * SCRIBBLE_KEPT);
+    assert_non_null(kept);
+    uint64_t kept_seq[SCRIBBLE_KEPT];
+    int nkept = 0, bursts = 0;
+    sh_image img;
+    assert_int_equal(sh_image_create(&img, SH_PIX_I420, SMALL_W, SMALL_H), SH_OK);
+    for (int ended = 0; !ended && nkept < SCRIBBLE_KEPT;) {
+        double burst_end = now_s() + 0.01;
+        while (now_s() < burst_end)
+            for (uint32_t k = 0; k < slots; k++)
+                memset(seg + sizeof(sh_display_header) + (size_t)k * slot_bytes + SH_DISPLAY_SLOT_HEADER_BYTES,
+                       SCRIBBLE, frame_bytes);
+        bursts++;
+        struct timespec ts;
+        clock_gettime(CLOCK_MONOTONIC, &ts);
+        int64_t quiet_ns = (int64_t)ts.tv_sec * 1000000000 + ts.tv_nsec;
+        uint64_t after = 0;
+        for (;;) {
+            sh_display_frame_info info;
+            sh_status st = sh_display_reader_next(r, &img, &info, 2000);
+            if (st != SH_OK) {
+                printf("  the reader: %d %s\n", st, sh_error_message());
+                ended = 1;
+                break;
+            }
+            if (!after) {
+                if (info.publish_ns > quiet_ns) after = info.sequence;
+                continue;
+            }
+            if (info.sequence <= after) continue;
+            uint8_t *out = kept + fb * (size_t)nkept;
+            for (int p = 0; p < img.num_planes; p++)
+                for (int y = 0; y < img.plane[p].height; y++, out += img.plane[p].width)
+                    memcpy(out, img.plane[p].data + (size_t)y * img.plane[p].stride, (size_t)img.plane[p].width);
+            kept_seq[nkept++] = info.sequence;
+            break;
+        }
+    }
+    sh_image_destroy(&img);
+    sh_display_reader_close(r);
+    waitpid(d, &status, 0);
+    munmap(seg, (size_t)sb.st_size);
+    if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) fail_msg("the scribbled run: %s", slurp("scribbled.log"));
+    int na, nb;
+    uint8_t *ra = read_record("plain.y4m", PLAIN_FRAMES, &na), *rb = read_record("scribbled.y4m", SCRIBBLED_FRAMES, &nb);
+    assert_int_equal(na, PLAIN_FRAMES);
+    assert_int_equal(nb, SCRIBBLED_FRAMES);
+    assert_null(memchr(rb, SCRIBBLE, fb * SCRIBBLED_FRAMES));
+    /* each recorded frame against the plain run's second loop (its frame 40 + k is replay frame
+     * k, stabilized); raw frames (no black corner) only while the reference is being built */
+    int compared = 0, leading_raw = 0;
+    for (int j = 0; j < nb; j++) {
+        const uint8_t *f = rb + fb * (size_t)j;
+        int v = f[(size_t)(SMALL_H / 2) * SMALL_W + SMALL_W / 2], k = (v - 40) / 5;
+        if (v < 40 || (v - 40) % 5 || k >= 40) fail_msg("recorded frame %d: centre %d is no replay frame's", j, v);
+        if (f[0] == v) { /* raw */
+            if (compared) fail_msg("recorded frame %d raw after stabilized ones", j);
+            leading_raw++;
+            continue;
+        }
+        if (memcmp(f, ra + fb * (size_t)(40 + k), fb)) fail_msg("recorded frame %d (replay frame %d) differs from the plain run's", j, k);
+        compared++;
+    }
+    printf("  %d bursts on %u slots; %d frames recorded (%d raw at the start), %d compared with the plain run's; %d "
+           "frames a reader took after a burst\n", bursts, slots, nb, leading_raw, compared, nkept);
+    assert_true(compared > SCRIBBLED_FRAMES / 2);
+    assert_true(nkept >= 2);
+    for (int k = 0; k < nkept; k++) {
+        assert_true(kept_seq[k] >= 1 && kept_seq[k] <= SCRIBBLED_FRAMES);
+        if (memcmp(kept + fb * (size_t)k, rb + fb * (size_t)(kept_seq[k] - 1), fb))
+            fail_msg("frame %llu as a reader took it after a burst is not the recorded one", (unsigned long long)kept_seq[k]);
+    }
+    free(ra);
+    free(rb);
+    free(kept);
+    shm_unlink(shm);
+}
+
 /* ---- a squatter: the name created first by another uid ---- */
 static void test_squatter_refused(void **state)
 {
@@ -668,6 +835,18 @@ static int setup(void **state)
     char path[160];
     snprintf(path, sizeof path, "%s/small.y4m", tmp);
     write_replay(path, SMALL_W, SMALL_H, 40, FPS);
+    /* its markers, for the points test mode: eight still points inside the frame, whose hull
+     * leaves a black border */
+    snprintf(path, sizeof path, "%s/small-points.csv", tmp);
+    FILE *f = fopen(path, "w");
+    if (!f) return -1;
+    fprintf(f, "frame,id,x,y\n");
+    static const double pts[8][2] = {{12, 10}, {32, 7}, {52, 11}, {55, 24}, {51, 38}, {31, 41}, {10, 37}, {8, 23}};
+    for (int k = 0; k < 40; k++)
+        for (int i = 0; i < 8; i++) fprintf(f, "%d,%d,%.4f,%.4f\n", k, i, pts[i][0] + 0.1 * (k % 5), pts[i][1]);
+    if (fclose(f)) return -1;
+    snprintf(path, sizeof path, "%s/small100.y4m", tmp);
+    write_replay(path, SMALL_W, SMALL_H, 40, HOSTILE_FPS);
     snprintf(path, sizeof path, "%s/fast.y4m", tmp);
     write_replay(path, SMALL_W, SMALL_H, 100, HOSTILE_FPS);
     snprintf(path, sizeof path, "%s/other.y4m", tmp);
@@ -697,6 +876,7 @@ int main(int argc, char **argv)
         cmocka_unit_test(test_hostile_writer),
         cmocka_unit_test(test_reader_follows_restarts),
         cmocka_unit_test(test_capture_times_are_the_cameras),
+        cmocka_unit_test(test_scribbler_changes_nothing_recorded),
         cmocka_unit_test(test_squatter_refused),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
