@@ -46,8 +46,11 @@ static void sample_checked(const sh_plane *src, int channels, int32_t fx, int32_
                        r1 + ix1 * channels + c, wx, wy);
 }
 
-static void sample_row_gray(const sh_plane *src, uint8_t black, uint8_t *dst, const int32_t *fx,
-                            const int32_t *fy, int count)
+/* One channel, the one definition every path computes bit for bit: the exact bilinear sum of
+ * the four taps rounded once (blend). Positions on the last row or column, or off the plane,
+ * take sample_checked, as in the SIMD paths. */
+void warp_sample_row_gray_portable(const sh_plane *src, uint8_t black, uint8_t *dst,
+                                   const int32_t *fx, const int32_t *fy, int count)
 {
     const unsigned last_x = (unsigned)src->width - 1, last_y = (unsigned)src->height - 1;
     const size_t stride = (size_t)src->stride;
@@ -181,6 +184,81 @@ static void sample_row_rgb(const sh_plane *src, uint8_t black, uint8_t *dst, con
     for (; k < count; k++, dst += 3)
         sample_one(src, black, dst, fx[k], fy[k], fast_x, last_y);
 }
+/* One channel, 8 pixels per step: positions, checks and weights in 32-bit lanes; each pixel's
+ * two taps of a row are one 16-bit load into a word lane (pinsrw), the rows widened to 16 bits
+ * give (left, right) pairs that pmaddwd weighs by (ONE - wx, wx): top and bottom, exact, below
+ * 2^15; (top, bottom) pairs weighed by (ONE - wy, wy) are the portable sum, below 2^22. */
+static inline __m128i weight_pairs(__m128i pos, __m128i wmask)
+{
+    __m128i w = _mm_and_si128(_mm_srli_epi32(pos, FRAC_BITS - WEIGHT_BITS), wmask);
+    return _mm_or_si128(_mm_slli_epi32(w, 16), _mm_sub_epi32(_mm_set1_epi32(ONE), w));
+}
+
+static inline __m128i gray_sums(__m128i top, __m128i bottom, __m128i wx, __m128i wy)
+{
+    __m128i t = _mm_madd_epi16(top, wx), b = _mm_madd_epi16(bottom, wx);
+    __m128i v = _mm_madd_epi16(_mm_or_si128(t, _mm_slli_epi32(b, 16)), wy);
+    return _mm_srli_epi32(_mm_add_epi32(v, _mm_set1_epi32(1 << (2 * WEIGHT_BITS - 1))),
+                          2 * WEIGHT_BITS);
+}
+
+static inline uint16_t load_pair(const uint8_t *p)
+{
+    uint16_t v;
+    memcpy(&v, p, 2);
+    return v;
+}
+
+static void sample_row_gray(const sh_plane *src, uint8_t black, uint8_t *dst, const int32_t *fx,
+                            const int32_t *fy, int count)
+{
+    const uint8_t *const data = src->data, *const below = data + src->stride;
+    int k = 0;
+    /* offsets by pmaddwd as in sample_row_rgb: ix, iy (below SH_IMAGE_MAX_SIZE) and the stride
+     * in 0..32767 */
+    if (src->stride <= 32767 && src->width >= 2 && src->height >= 2) {
+        const __m128i zero = _mm_setzero_si128(), sign = _mm_set1_epi32(INT32_MIN);
+        const __m128i addr_mul = _mm_set1_epi32((int)((uint32_t)src->stride << 16 | 1u));
+        /* inside: ix < width - 1 and iy < height - 1 unsigned, as signed compares of the
+         * values with the sign bit flipped (negative positions wrap to huge) */
+        const __m128i lim_x = _mm_set1_epi32((src->width - 2) ^ INT32_MIN);
+        const __m128i lim_y = _mm_set1_epi32((src->height - 2) ^ INT32_MIN);
+        const __m128i wmask = _mm_set1_epi32(ONE - 1);
+        for (; k + 8 <= count; k += 8) {
+            __m128i px0 = _mm_loadu_si128((const __m128i *)(fx + k));
+            __m128i px1 = _mm_loadu_si128((const __m128i *)(fx + k + 4));
+            __m128i py0 = _mm_loadu_si128((const __m128i *)(fy + k));
+            __m128i py1 = _mm_loadu_si128((const __m128i *)(fy + k + 4));
+            __m128i ix0 = _mm_srai_epi32(px0, FRAC_BITS), ix1 = _mm_srai_epi32(px1, FRAC_BITS);
+            __m128i iy0 = _mm_srai_epi32(py0, FRAC_BITS), iy1 = _mm_srai_epi32(py1, FRAC_BITS);
+            __m128i bad = _mm_or_si128(
+                _mm_or_si128(_mm_cmpgt_epi32(_mm_xor_si128(ix0, sign), lim_x),
+                             _mm_cmpgt_epi32(_mm_xor_si128(ix1, sign), lim_x)),
+                _mm_or_si128(_mm_cmpgt_epi32(_mm_xor_si128(iy0, sign), lim_y),
+                             _mm_cmpgt_epi32(_mm_xor_si128(iy1, sign), lim_y)));
+            if (_mm_movemask_epi8(bad)) { /* pixel by pixel: the inside ones as always */
+                warp_sample_row_gray_portable(src, black, dst + k, fx + k, fy + k, 8);
+                continue;
+            }
+            int32_t off[8];
+            _mm_storeu_si128((__m128i *)off, _mm_madd_epi16(_mm_or_si128(_mm_slli_epi32(iy0, 16), ix0), addr_mul));
+            _mm_storeu_si128((__m128i *)(off + 4), _mm_madd_epi16(_mm_or_si128(_mm_slli_epi32(iy1, 16), ix1), addr_mul));
+            __m128i top = zero, bottom = zero;
+#define PAIR(q)                                                         \
+            top = _mm_insert_epi16(top, load_pair(data + off[q]), q);   \
+            bottom = _mm_insert_epi16(bottom, load_pair(below + off[q]), q)
+            PAIR(0); PAIR(1); PAIR(2); PAIR(3); PAIR(4); PAIR(5); PAIR(6); PAIR(7);
+#undef PAIR
+            __m128i v0 = gray_sums(_mm_unpacklo_epi8(top, zero), _mm_unpacklo_epi8(bottom, zero),
+                                   weight_pairs(px0, wmask), weight_pairs(py0, wmask));
+            __m128i v1 = gray_sums(_mm_unpackhi_epi8(top, zero), _mm_unpackhi_epi8(bottom, zero),
+                                   weight_pairs(px1, wmask), weight_pairs(py1, wmask));
+            v0 = _mm_packs_epi32(v0, v1);
+            _mm_storel_epi64((__m128i *)(dst + k), _mm_packus_epi16(v0, v0));
+        }
+    }
+    warp_sample_row_gray_portable(src, black, dst + k, fx + k, fy + k, count - k);
+}
 #elif defined(__aarch64__) && defined(__ARM_NEON)
 #include <arm_neon.h>
 
@@ -265,6 +343,69 @@ static void sample_row_rgb(const sh_plane *src, uint8_t black, uint8_t *dst, con
     for (; k < count; k++, dst += 3)
         sample_one(src, black, dst, fx[k], fy[k], fast_x, last_y);
 }
+/* One channel, 8 pixels per step: checks, offsets and weights in 32-bit lanes, narrowed to
+ * bytes; each pixel's two taps of a row are one 16-bit load into a word lane (ld1 to a lane:
+ * ld2's register pairs cost gcc 12 moves and spills), split into left and right bytes by xtn
+ * and shrn #8; umull/umlal give top and bottom exactly in 16 bits (<= 255 * 128), umull/umlal
+ * of those by (ONE - wy, wy) the portable sum in 32 bits, and rshrn #14 its rounding. */
+static void sample_row_gray(const sh_plane *src, uint8_t black, uint8_t *dst, const int32_t *fx,
+                            const int32_t *fy, int count)
+{
+    const uint8_t *const data = src->data;
+    const size_t stride = (size_t)src->stride;
+    int k = 0;
+    /* offsets iy * stride + ix below 2^29 (iy below SH_IMAGE_MAX_SIZE) */
+    if (src->stride <= 32767 && src->width >= 2 && src->height >= 2) {
+        const uint32x4_t lim_x = vdupq_n_u32((uint32_t)src->width - 1);
+        const uint32x4_t lim_y = vdupq_n_u32((uint32_t)src->height - 1);
+        const uint32x4_t wmask = vdupq_n_u32(ONE - 1);
+        for (; k + 8 <= count; k += 8) {
+            int32x4_t px0 = vld1q_s32(fx + k), px1 = vld1q_s32(fx + k + 4);
+            int32x4_t py0 = vld1q_s32(fy + k), py1 = vld1q_s32(fy + k + 4);
+            uint32x4_t ix0 = vreinterpretq_u32_s32(vshrq_n_s32(px0, FRAC_BITS));
+            uint32x4_t ix1 = vreinterpretq_u32_s32(vshrq_n_s32(px1, FRAC_BITS));
+            uint32x4_t iy0 = vreinterpretq_u32_s32(vshrq_n_s32(py0, FRAC_BITS));
+            uint32x4_t iy1 = vreinterpretq_u32_s32(vshrq_n_s32(py1, FRAC_BITS));
+            /* inside: ix < width - 1 and iy < height - 1 as unsigned (negatives wrap to huge) */
+            uint32x4_t bad = vorrq_u32(vorrq_u32(vcgeq_u32(ix0, lim_x), vcgeq_u32(ix1, lim_x)),
+                                       vorrq_u32(vcgeq_u32(iy0, lim_y), vcgeq_u32(iy1, lim_y)));
+            if (vmaxvq_u32(bad)) { /* pixel by pixel: the inside ones as always */
+                warp_sample_row_gray_portable(src, black, dst + k, fx + k, fy + k, 8);
+                continue;
+            }
+            uint32x4_t off0 = vmlaq_n_u32(ix0, iy0, (uint32_t)stride);
+            uint32x4_t off1 = vmlaq_n_u32(ix1, iy1, (uint32_t)stride);
+            uint16x8_t top = vdupq_n_u16(0), bottom = top;
+#define PAIR(v, q)                                                                 \
+            do {                                                                   \
+                const uint8_t *p = data + vgetq_lane_u32(v, (q) & 3);              \
+                top = vld1q_lane_u16((const uint16_t *)(const void *)p, top, q);   \
+                bottom = vld1q_lane_u16((const uint16_t *)(const void *)(p + stride), bottom, q); \
+            } while (0)
+            PAIR(off0, 0); PAIR(off0, 1); PAIR(off0, 2); PAIR(off0, 3);
+            PAIR(off1, 4); PAIR(off1, 5); PAIR(off1, 6); PAIR(off1, 7);
+#undef PAIR
+#define WEIGHTS(p0, p1)                                                                    \
+            vmovn_u16(vcombine_u16(                                                        \
+                vmovn_u32(vandq_u32(vreinterpretq_u32_s32(vshrq_n_s32(p0, FRAC_BITS - WEIGHT_BITS)), wmask)), \
+                vmovn_u32(vandq_u32(vreinterpretq_u32_s32(vshrq_n_s32(p1, FRAC_BITS - WEIGHT_BITS)), wmask))))
+            uint8x8_t wx = WEIGHTS(px0, px1), wy = WEIGHTS(py0, py1);
+#undef WEIGHTS
+            uint8x8_t iwx = vsub_u8(vdup_n_u8(ONE), wx);
+            /* each word is a row's left tap in its low byte, the right one in its high byte */
+            uint16x8_t t = vmlal_u8(vmull_u8(vmovn_u16(top), iwx), vshrn_n_u16(top, 8), wx);
+            uint16x8_t b = vmlal_u8(vmull_u8(vmovn_u16(bottom), iwx), vshrn_n_u16(bottom, 8), wx);
+            uint16x8_t wy16 = vmovl_u8(wy), iwy16 = vsubq_u16(vdupq_n_u16(ONE), wy16);
+            uint32x4_t lo = vmlal_u16(vmull_u16(vget_low_u16(t), vget_low_u16(iwy16)),
+                                      vget_low_u16(b), vget_low_u16(wy16));
+            uint32x4_t hi = vmlal_u16(vmull_u16(vget_high_u16(t), vget_high_u16(iwy16)),
+                                      vget_high_u16(b), vget_high_u16(wy16));
+            uint16x8_t v = vcombine_u16(vrshrn_n_u32(lo, 2 * WEIGHT_BITS), vrshrn_n_u32(hi, 2 * WEIGHT_BITS));
+            vst1_u8(dst + k, vmovn_u16(v));
+        }
+    }
+    warp_sample_row_gray_portable(src, black, dst + k, fx + k, fy + k, count - k);
+}
 #else
 static void init_weights(void) {}
 
@@ -272,6 +413,12 @@ static void sample_row_rgb(const sh_plane *src, uint8_t black, uint8_t *dst, con
                            const int32_t *fy, int count)
 {
     warp_sample_row_rgb_portable(src, black, dst, fx, fy, count);
+}
+
+static void sample_row_gray(const sh_plane *src, uint8_t black, uint8_t *dst, const int32_t *fx,
+                            const int32_t *fy, int count)
+{
+    warp_sample_row_gray_portable(src, black, dst, fx, fy, count);
 }
 #endif
 

@@ -91,4 +91,8 @@ void warp_sample_row(const sh_plane *src, int channels, uint8_t black, uint8_t *
 void warp_sample_row_rgb_portable(const sh_plane *src, uint8_t black, uint8_t *dst,
                                   const int32_t *fx, const int32_t *fy, int count);
 
+/* The same for one-channel planes: one rounding of the exact bilinear sum. */
+void warp_sample_row_gray_portable(const sh_plane *src, uint8_t black, uint8_t *dst,
+                                   const int32_t *fx, const int32_t *fy, int count);
+
 #endif

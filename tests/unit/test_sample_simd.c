@@ -1,7 +1,7 @@
-/* The warp's RGB sampler: the SIMD path of this build (SSE2 on x86-64, NEON on AArch64) against
- * the portable C definition, bit for bit, on random positions inside, across the edges and far
- * outside the plane, on planes of several sizes and strides. Run under qemu-aarch64 by
- * `make check-arm64`, this is the NEON path's test. */
+/* The warp's samplers, RGB24 and one channel: the SIMD path of this build (SSE2 on x86-64, NEON
+ * on AArch64) against the portable C definition, bit for bit, on random positions inside, across
+ * the edges and far outside the plane, on planes of several sizes and strides, at several
+ * alignments. Run under qemu-aarch64 by `make check-arm64`, this is the NEON paths' test. */
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -20,34 +20,42 @@ static uint32_t next_u32(void)
     return (uint32_t)(rng >> 16);
 }
 
-static void compare_on(int width, int height, int stride, int count, int spread)
+typedef void (*portable_fn)(const sh_plane *, uint8_t, uint8_t *, const int32_t *, const int32_t *, int);
+
+/* The plane's buffer is exactly stride x height bytes, so that a read past it shows under ASan. */
+static void compare_on(int channels, int width, int height, int stride, int count, int spread)
 {
+    const portable_fn portable = channels == 3 ? warp_sample_row_rgb_portable : warp_sample_row_gray_portable;
+    /* one-channel blocks are 8 pixels, RGB's 4: every start within a block */
+    const int starts = channels == 3 ? 3 : 8;
     uint8_t *data = malloc((size_t)stride * (size_t)height);
     assert_non_null(data);
     for (size_t i = 0; i < (size_t)stride * (size_t)height; i++) data[i] = (uint8_t)next_u32();
     sh_plane plane = {data, width, height, stride};
     int32_t *fx = malloc(sizeof(int32_t) * (size_t)count), *fy = malloc(sizeof(int32_t) * (size_t)count);
-    uint8_t *simd = malloc((size_t)count * 3 + 1), *ref = malloc((size_t)count * 3 + 1);
+    const size_t bytes = (size_t)count * (size_t)channels + 1;
+    uint8_t *simd = malloc(bytes), *ref = malloc(bytes);
     assert_true(fx && fy && simd && ref);
     for (int k = 0; k < count; k++) {
         /* positions in [-spread, size + spread) px with any 16-bit fraction; runs of inside
-         * positions so that the 4-pixel blocks take their fast path often */
+         * positions so that the blocks take their fast path often */
         int64_t rx = (int64_t)(next_u32() % (uint32_t)((width + 2 * spread) << 8)) - ((int64_t)spread << 8);
         int64_t ry = (int64_t)(next_u32() % (uint32_t)((height + 2 * spread) << 8)) - ((int64_t)spread << 8);
         fx[k] = (int32_t)(rx * 256 + (next_u32() & 255));
         fy[k] = (int32_t)(ry * 256 + (next_u32() & 255));
     }
-    for (int start = 0; start < 3; start++) {
+    for (int start = 0; start < starts; start++) {
         int n = count - start;
-        memset(simd, 0xa5, (size_t)count * 3 + 1);
-        memset(ref, 0xa5, (size_t)count * 3 + 1);
+        memset(simd, 0xa5, bytes);
+        memset(ref, 0xa5, bytes);
         warp_sample_init();
-        warp_sample_row(&plane, 3, 7, simd, fx + start, fy + start, n);
-        warp_sample_row_rgb_portable(&plane, 7, ref, fx + start, fy + start, n);
-        for (int k = 0; k < 3 * count + 1; k++) {
+        warp_sample_row(&plane, channels, 7, simd, fx + start, fy + start, n);
+        portable(&plane, 7, ref, fx + start, fy + start, n);
+        for (size_t k = 0; k < bytes; k++) {
             if (simd[k] != ref[k])
-                fail_msg("%dx%d stride %d: byte %d (pixel %d): simd %u, portable %u", width, height,
-                         stride, k, k / 3, simd[k], ref[k]);
+                fail_msg("%d channel(s), %dx%d stride %d, start %d: byte %zu (pixel %zu): simd %u, "
+                         "portable %u", channels, width, height, stride, start, k,
+                         k / (size_t)channels, simd[k], ref[k]);
         }
     }
     free(data); free(fx); free(fy); free(simd); free(ref);
@@ -56,43 +64,71 @@ static void compare_on(int width, int height, int stride, int count, int spread)
 static void test_inside(void **state)
 {
     (void)state;
-    compare_on(640, 480, 640 * 3, 200000, 0);
-    compare_on(97, 61, 97 * 3 + 5, 50000, 0);
+    compare_on(3, 640, 480, 640 * 3, 200000, 0);
+    compare_on(3, 97, 61, 97 * 3 + 5, 50000, 0);
 }
 
 static void test_edges_and_outside(void **state)
 {
     (void)state;
-    compare_on(64, 48, 64 * 3, 100000, 4);
-    compare_on(5, 4, 16, 20000, 3);
-    compare_on(2, 2, 6, 5000, 2);
-    compare_on(1, 1, 3, 1000, 1);
+    compare_on(3, 64, 48, 64 * 3, 100000, 4);
+    compare_on(3, 5, 4, 16, 20000, 3);
+    compare_on(3, 2, 2, 6, 5000, 2);
+    compare_on(3, 1, 1, 3, 1000, 1);
 }
 
 static void test_wide_stride(void **state)
 {
     (void)state;
     /* stride > 32767: the 4-pixel blocks are skipped, the tail loop does it all */
-    compare_on(11000, 3, 33003, 30000, 2);
+    compare_on(3, 11000, 3, 33003, 30000, 2);
 }
 
-static void test_extreme_positions(void **state)
+static void extreme_positions(int channels)
 {
-    (void)state;
+    const portable_fn portable = channels == 3 ? warp_sample_row_rgb_portable : warp_sample_row_gray_portable;
     uint8_t data[8 * 3 * 8];
     for (size_t i = 0; i < sizeof data; i++) data[i] = (uint8_t)(i * 37);
-    sh_plane plane = {data, 8, 8, 24};
-    const int32_t v[] = {INT32_MIN, INT32_MIN + 1, -1, 0, 1, 65535, 65536, (7 << 16) - 1, 7 << 16,
-                         (7 << 16) + 1, 5 << 16, (4 << 16) + 32768, INT32_MAX - 1, INT32_MAX};
+    sh_plane plane = {data, 8, 8, 8 * channels};
+    const int32_t v[] = {INT32_MIN, INT32_MIN + 1, -1, 0, 1, 65535, 65536, (6 << 16) + 65535,
+                         7 << 16, (7 << 16) - 1, (7 << 16) + 1, 5 << 16, (4 << 16) + 32768,
+                         INT32_MAX - 1, INT32_MAX};
     enum { N = sizeof v / sizeof v[0] };
     int32_t fx[N * N], fy[N * N];
     for (int i = 0; i < N; i++)
         for (int j = 0; j < N; j++) { fx[i * N + j] = v[i]; fy[i * N + j] = v[j]; }
     uint8_t simd[N * N * 3], ref[N * N * 3];
     warp_sample_init();
-    warp_sample_row(&plane, 3, 0, simd, fx, fy, N * N);
-    warp_sample_row_rgb_portable(&plane, 0, ref, fx, fy, N * N);
-    assert_memory_equal(simd, ref, sizeof simd);
+    warp_sample_row(&plane, channels, 0, simd, fx, fy, N * N);
+    portable(&plane, 0, ref, fx, fy, N * N);
+    assert_memory_equal(simd, ref, (size_t)(N * N * channels));
+}
+
+static void test_extreme_positions(void **state)
+{
+    (void)state;
+    extreme_positions(3);
+    extreme_positions(1);
+}
+
+/* One channel: the 8-pixel blocks inside, across the edges, far outside; odd strides, the
+ * plane's last column and row (a block's taps there are the row's last two bytes), planes too
+ * small for the blocks or too wide (stride > 32767: no blocks), the tallest plane there is
+ * (SH_IMAGE_MAX_SIZE rows). */
+static void test_gray(void **state)
+{
+    (void)state;
+    compare_on(1, 640, 480, 640, 200000, 0);
+    compare_on(1, 97, 61, 101, 50000, 0);
+    compare_on(1, 1920, 8, 1920, 50000, 0);
+    compare_on(1, 64, 48, 64, 100000, 4);
+    compare_on(1, 64, 48, 67, 100000, 40);
+    compare_on(1, 5, 4, 7, 20000, 3);
+    compare_on(1, 2, 2, 2, 5000, 2);
+    compare_on(1, 2, 1, 3, 2000, 1);
+    compare_on(1, 1, 1, 1, 1000, 1);
+    compare_on(1, 3, SH_IMAGE_MAX_SIZE, 3, 30000, 2);
+    compare_on(1, SH_IMAGE_MAX_SIZE, 3, 33001, 30000, 2);
 }
 
 /* The definition itself, on numbers worked by hand: two roundings. */
@@ -118,6 +154,34 @@ static void test_portable_by_hand(void **state)
     assert_int_equal(out[2], 100);
 }
 
+/* One channel: one rounding of the exact sum, on numbers worked by hand. */
+static void test_gray_portable_by_hand(void **state)
+{
+    (void)state;
+    /* 3x3, taps 10 200 / 30 40 at (0.25, 0.75): wx = 32, wy = 96; top = 10 * 96 + 200 * 32 =
+     * 7360, bottom = 30 * 96 + 40 * 32 = 4160; (7360 * 32 + 4160 * 96 + 8192) >> 14 = 39
+     * (exact bilinear 38.75) */
+    uint8_t b[9] = {10, 200, 0, 30, 40, 0, 0, 0, 0};
+    sh_plane pb = {b, 3, 3, 3};
+    int32_t fx = 1 << 14, fy = 3 << 14;
+    uint8_t out;
+    warp_sample_row_gray_portable(&pb, 0, &out, &fx, &fy, 1);
+    assert_int_equal(out, 39);
+    /* 2x2 10 200 / 30 40 at (1, 0.75), the last column (checked path): 200 * 128 * 32 +
+     * 40 * 128 * 96 + 8192 >> 14 = 80 (exact 80) */
+    sh_plane pa = {b, 2, 2, 3};
+    fx = 1 << 16;
+    warp_sample_row_gray_portable(&pa, 0, &out, &fx, &fy, 1);
+    assert_int_equal(out, 80);
+    /* taps 0 255 / 255 255 at (0.5, 0.5): (255 * 64) * 64 + (255 * 128) * 64 = 3133440,
+     * + 8192 >> 14 = 191 (exact 191.25) */
+    uint8_t c[9] = {0, 255, 0, 255, 255, 0, 0, 0, 0};
+    sh_plane pc = {c, 3, 3, 3};
+    fx = fy = 1 << 15;
+    warp_sample_row_gray_portable(&pc, 0, &out, &fx, &fy, 1);
+    assert_int_equal(out, 191);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -126,6 +190,8 @@ int main(void)
         cmocka_unit_test(test_edges_and_outside),
         cmocka_unit_test(test_wide_stride),
         cmocka_unit_test(test_extreme_positions),
+        cmocka_unit_test(test_gray_portable_by_hand),
+        cmocka_unit_test(test_gray),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -1,7 +1,9 @@
 #!/usr/bin/env python3
-"""Instructions per output pixel of the warp's RGB block loop (4 pixels per iteration), counted in
-the disassembly of src/warp/sample.o: the loop runs from the branch target of the 'any pixel
-outside?' test (pmovmskb on SSE2, umaxv on NEON) through that test's branch, header included.
+"""Instructions per output pixel of the warp's block loops, counted in the disassembly of
+src/warp/sample.o: RGB24's (4 pixels per iteration) and the one-channel planes' (8 pixels; told
+apart by their 16-bit tap loads into a lane, pinsrw on SSE2 and ld1 {v.h}[i] on NEON). Each loop runs from the branch
+target of its 'any pixel outside?' test (pmovmskb on SSE2, umaxv on NEON) through that test's
+branch, header included.
     tools/cross/insns-per-pixel.py OBJDUMP OBJECT      e.g. aarch64-linux-gnu-objdump build-arm64/src/warp/sample.o
 """
 import re, subprocess, sys
@@ -14,13 +16,18 @@ for line in fn.splitlines():
     m = re.match(r"\s*([0-9a-f]+):\s+(\S+)\s*(.*)", line)
     if m:
         insns.append((int(m.group(1), 16), m.group(2), m.group(3)))
-check = next(i for i, (_, op, _a) in enumerate(insns) if op in ("pmovmskb", "umaxv"))
-branch = next(i for i in range(check, len(insns))
-              if re.match(r"(j[a-z]+|b\.[a-z]+|cbn?z|tbn?z)$", insns[i][1]))
-target = int(re.search(r"\b([0-9a-f]+) <", insns[branch][2]).group(1), 16)
-loop = [x for x in insns if target <= x[0] <= insns[branch][0]]
-ops = {}
-for _, op, _a in loop:
-    ops[op] = ops.get(op, 0) + 1
-print(f"{obj}: {len(loop)} instructions per 4 pixels = {len(loop) / 4:.2f} per pixel")
-print("  " + ", ".join(f"{op} {n}" for op, n in sorted(ops.items(), key=lambda t: -t[1])))
+for check, (_, op, _a) in enumerate(insns):
+    if op not in ("pmovmskb", "umaxv"):
+        continue
+    branch = next(i for i in range(check, len(insns))
+                  if re.match(r"(j[a-z]+|b\.[a-z]+|cbn?z|tbn?z)$", insns[i][1]))
+    target = int(re.search(r"\b([0-9a-f]+) <", insns[branch][2]).group(1), 16)
+    loop = [x for x in insns if target <= x[0] <= insns[branch][0]]
+    ops = {}
+    for _, o, _a in loop:
+        ops[o] = ops.get(o, 0) + 1
+    gray = any(o == "pinsrw" or (o == "ld1" and "}[" in a) for _, o, a in loop)
+    pixels = 8 if gray else 4
+    print(f"{obj}, {'one channel' if gray else 'RGB24'}: {len(loop)} instructions per {pixels} pixels"
+          f" = {len(loop) / pixels:.2f} per pixel")
+    print("  " + ", ".join(f"{o} {n}" for o, n in sorted(ops.items(), key=lambda t: -t[1])))
