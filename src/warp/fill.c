@@ -357,6 +357,41 @@ static int fill_grid_aligned(const sh_warp_model *m, const double *row0, const d
     return fill_cells(m, row0, row1, ty, i0, i1, i1, first, last, fx, fy);
 }
 
+#if defined(__SSE2__)
+/* One cell of fill_grid's loop below, x and y in the two lanes of the same operations, so the
+ * same doubles and the same rounding (cvtpd2dq rounds to nearest as lrint): the cell's right
+ * node value from a, b (its row0 and row1 entries), then start and step as fill_linear takes
+ * them. When fill_linear would take its careful path (a cell over RESTART pixels, a value out
+ * of range or NaN) returns 0 and leaves left[] alone; else fills the n pixels, sets left[] to
+ * the right node's values and returns 1. Subsampled chroma rows are cells of a few pixels,
+ * where two fill_linear calls a cell cost more than their pixels. */
+static int fill_cell_pair(const double *a, const double *b, double ty, const double *off,
+                          double inv_scale, double inv_h, double scale, double dx, int n,
+                          double *left, int32_t *fx, int32_t *fy)
+{
+    const double unit = 1 << WARP_FRAC_BITS, limit = (double)WARP_COORD_LIMIT / unit;
+    if (n > RESTART) return 0;
+    __m128d va = _mm_loadu_pd(a), vb = _mm_loadu_pd(b);
+    __m128d right = _mm_mul_pd(_mm_sub_pd(_mm_add_pd(va, _mm_mul_pd(_mm_set1_pd(ty), _mm_sub_pd(vb, va))),
+                                          _mm_loadu_pd(off)), _mm_set1_pd(inv_scale));
+    __m128d slope = _mm_mul_pd(_mm_sub_pd(right, _mm_loadu_pd(left)), _mm_set1_pd(inv_h));
+    __m128d start = _mm_add_pd(_mm_loadu_pd(left), _mm_mul_pd(slope, _mm_set1_pd(dx)));
+    __m128d step = _mm_mul_pd(slope, _mm_set1_pd(scale));
+    __m128d end = _mm_add_pd(start, _mm_mul_pd(_mm_set1_pd((double)(n - 1)), step));
+    const __m128d sign = _mm_set1_pd(-0.0), lim = _mm_set1_pd(limit);
+    __m128d ok = _mm_and_pd(_mm_cmplt_pd(_mm_andnot_pd(sign, start), lim),
+                            _mm_cmplt_pd(_mm_andnot_pd(sign, end), lim)); /* false for NaN */
+    if (_mm_movemask_pd(ok) != 3) return 0;
+    const __m128d u = _mm_set1_pd(unit);
+    int32_t v[4], dv[4];
+    _mm_storeu_si128((__m128i *)v, _mm_cvtpd_epi32(_mm_mul_pd(start, u)));
+    _mm_storeu_si128((__m128i *)dv, _mm_cvtpd_epi32(_mm_mul_pd(step, u)));
+    fill_steps(fx, fy, n, v[0], v[1], dv[0], dv[1]);
+    _mm_storeu_pd(left, right);
+    return 1;
+}
+#endif
+
 /* Grid rows: the map's value on this row at each node column (in plane units) is interpolated
  * once and carried from one cell to the next; within a cell the position moves linearly. */
 static void fill_grid(const sh_warp_model *m, const plane_geometry *g, double Y, int first,
@@ -386,6 +421,10 @@ static void fill_grid(const sh_warp_model *m, const plane_geometry *g, double Y,
         int e = i == m->nx - 2 ? last : (int)ceil((Xc + h - g->ox) * inv_scale) - 1;
         if (e > last) e = last;
         if (e < x) e = x;
+#if defined(__SSE2__)
+        if (!fill_cell_pair(row0 + 2 * i + 2, row1 + 2 * i + 2, ty, off, inv_scale, inv_h, g->scale,
+                            X - Xc, e - x + 1, left, fx + (x - first), fy + (x - first)))
+#endif
         for (int c = 0; c < 2; c++) {
             right[c] = (row0[2 * i + 2 + c] + ty * (row1[2 * i + 2 + c] - row0[2 * i + 2 + c]) -
                         off[c]) * inv_scale;
