@@ -284,6 +284,31 @@ static int fill_cells(const sh_warp_model *m, const double *row0, const double *
 }
 
 #if defined(__SSE2__)
+/* fill_steps for n a multiple of 4 with v = (vx, vy) and s = (sx, sy) in the low lanes: the four
+ * lanes v + {0, 1, 2, 3} s of x and y built in registers. */
+static inline void store_steps(__m128i v, __m128i s, int n, int32_t *ox, int32_t *oy)
+{
+    __m128i s2 = _mm_add_epi32(s, s);
+    s2 = _mm_unpacklo_epi64(s2, s2);
+    __m128i q = _mm_unpacklo_epi64(v, _mm_add_epi32(v, s)); /* x0 y0 x1 y1 */
+    __m128i r = _mm_add_epi32(q, s2);                       /* x2 y2 x3 y3 */
+    q = _mm_shuffle_epi32(q, _MM_SHUFFLE(3, 1, 2, 0));      /* x0 x1 y0 y1 */
+    r = _mm_shuffle_epi32(r, _MM_SHUFFLE(3, 1, 2, 0));
+    __m128i x = _mm_unpacklo_epi64(q, r), y = _mm_unpackhi_epi64(q, r);
+    _mm_storeu_si128((__m128i *)ox, x);
+    _mm_storeu_si128((__m128i *)oy, y);
+    if (n > 4) {
+        __m128i s4 = _mm_add_epi32(s2, s2);
+        __m128i ix = _mm_shuffle_epi32(s4, 0x00), iy = _mm_shuffle_epi32(s4, 0x55);
+        for (int k = 4; k < n; k += 4) {
+            x = _mm_add_epi32(x, ix);
+            y = _mm_add_epi32(y, iy);
+            _mm_storeu_si128((__m128i *)(ox + k), x);
+            _mm_storeu_si128((__m128i *)(oy + k), y);
+        }
+    }
+}
+
 /* Whole cells ia..ib of a grid whose spacing is a multiple of 4: node_pass and fill_steps fused,
  * the four lanes v + {0, 1, 2, 3} s of x and y built from the node's (x, y) pairs in registers.
  * Same values as fill_cells. */
@@ -301,27 +326,9 @@ static int fill_whole_cells(const sh_warp_model *m, const double *row0, const do
         a += 2, b += 2;
         __m128d next = _mm_add_pd(_mm_loadu_pd(a), _mm_mul_pd(t, _mm_sub_pd(_mm_loadu_pd(b), _mm_loadu_pd(a))));
         ok = _mm_and_pd(ok, _mm_cmplt_pd(_mm_andnot_pd(sign, next), lim));
-        __m128i v = _mm_cvtpd_epi32(_mm_mul_pd(prev, u));                     /* vx vy 0 0 */
-        __m128i s = _mm_cvtpd_epi32(_mm_mul_pd(_mm_sub_pd(next, prev), su));  /* sx sy 0 0 */
-        __m128i s2 = _mm_add_epi32(s, s);
-        s2 = _mm_unpacklo_epi64(s2, s2);
-        __m128i q = _mm_unpacklo_epi64(v, _mm_add_epi32(v, s)); /* x0 y0 x1 y1 */
-        __m128i r = _mm_add_epi32(q, s2);                       /* x2 y2 x3 y3 */
-        q = _mm_shuffle_epi32(q, _MM_SHUFFLE(3, 1, 2, 0));      /* x0 x1 y0 y1 */
-        r = _mm_shuffle_epi32(r, _MM_SHUFFLE(3, 1, 2, 0));
-        __m128i x = _mm_unpacklo_epi64(q, r), y = _mm_unpackhi_epi64(q, r);
-        _mm_storeu_si128((__m128i *)ox, x);
-        _mm_storeu_si128((__m128i *)oy, y);
-        if (h > 4) {
-            __m128i s4 = _mm_add_epi32(s2, s2);
-            __m128i ix = _mm_shuffle_epi32(s4, 0x00), iy = _mm_shuffle_epi32(s4, 0x55);
-            for (int k = 4; k < h; k += 4) {
-                x = _mm_add_epi32(x, ix);
-                y = _mm_add_epi32(y, iy);
-                _mm_storeu_si128((__m128i *)(ox + k), x);
-                _mm_storeu_si128((__m128i *)(oy + k), y);
-            }
-        }
+        store_steps(_mm_cvtpd_epi32(_mm_mul_pd(prev, u)),                      /* vx vy 0 0 */
+                    _mm_cvtpd_epi32(_mm_mul_pd(_mm_sub_pd(next, prev), su)),   /* sx sy 0 0 */
+                    h, ox, oy);
         prev = next;
     }
     return _mm_movemask_pd(ok) == 3;
@@ -358,36 +365,47 @@ static int fill_grid_aligned(const sh_warp_model *m, const double *row0, const d
 }
 
 #if defined(__SSE2__)
-/* One cell of fill_grid's loop below, x and y in the two lanes of the same operations, so the
- * same doubles and the same rounding (cvtpd2dq rounds to nearest as lrint): the cell's right
- * node value from a, b (its row0 and row1 entries), then start and step as fill_linear takes
- * them. When fill_linear would take its careful path (a cell over RESTART pixels, a value out
- * of range or NaN) returns 0 and leaves left[] alone; else fills the n pixels, sets left[] to
- * the right node's values and returns 1. Subsampled chroma rows are cells of a few pixels,
- * where two fill_linear calls a cell cost more than their pixels. */
-static int fill_cell_pair(const double *a, const double *b, double ty, const double *off,
-                          double inv_scale, double inv_h, double scale, double dx, int n,
-                          double *left, int32_t *fx, int32_t *fy)
+/* Cells of fill_grid's loop below, x and y in the two lanes of the same operations, so the same
+ * doubles and the same rounding (cvtpd2dq rounds to nearest as lrint): each cell's right node
+ * value from a, b (its row0 and row1 entries; the next cell's follow), then start and step as
+ * fill_linear takes them, for `cells` cells of n pixels each, the first pixel of each dx from its
+ * left node. When fill_linear would take its careful path in one of them (a cell over RESTART
+ * pixels, a value out of range or NaN) returns 0, pixels partly written and left[] unchanged;
+ * else sets left[] to the last right node's values and returns 1. Subsampled chroma rows are
+ * cells of a few pixels, where two fill_linear calls a cell cost more than their pixels. */
+static int fill_cells_scaled(const double *a, const double *b, double ty, const double *off,
+                             double inv_scale, double inv_h, double scale, double dx, int n,
+                             int cells, double *left, int32_t *fx, int32_t *fy)
 {
     const double unit = 1 << WARP_FRAC_BITS, limit = (double)WARP_COORD_LIMIT / unit;
     if (n > RESTART) return 0;
-    __m128d va = _mm_loadu_pd(a), vb = _mm_loadu_pd(b);
-    __m128d right = _mm_mul_pd(_mm_sub_pd(_mm_add_pd(va, _mm_mul_pd(_mm_set1_pd(ty), _mm_sub_pd(vb, va))),
-                                          _mm_loadu_pd(off)), _mm_set1_pd(inv_scale));
-    __m128d slope = _mm_mul_pd(_mm_sub_pd(right, _mm_loadu_pd(left)), _mm_set1_pd(inv_h));
-    __m128d start = _mm_add_pd(_mm_loadu_pd(left), _mm_mul_pd(slope, _mm_set1_pd(dx)));
-    __m128d step = _mm_mul_pd(slope, _mm_set1_pd(scale));
-    __m128d end = _mm_add_pd(start, _mm_mul_pd(_mm_set1_pd((double)(n - 1)), step));
+    const __m128d t = _mm_set1_pd(ty), o = _mm_loadu_pd(off), is = _mm_set1_pd(inv_scale);
+    const __m128d ih = _mm_set1_pd(inv_h), d = _mm_set1_pd(dx), sc = _mm_set1_pd(scale);
+    const __m128d span = _mm_set1_pd((double)(n - 1)), u = _mm_set1_pd(unit);
     const __m128d sign = _mm_set1_pd(-0.0), lim = _mm_set1_pd(limit);
-    __m128d ok = _mm_and_pd(_mm_cmplt_pd(_mm_andnot_pd(sign, start), lim),
-                            _mm_cmplt_pd(_mm_andnot_pd(sign, end), lim)); /* false for NaN */
+    __m128d l = _mm_loadu_pd(left), ok = _mm_cmpeq_pd(l, l);
+    for (int c = 0; c < cells; c++, a += 2, b += 2, fx += n, fy += n) {
+        __m128d va = _mm_loadu_pd(a), vb = _mm_loadu_pd(b);
+        __m128d right = _mm_mul_pd(_mm_sub_pd(_mm_add_pd(va, _mm_mul_pd(t, _mm_sub_pd(vb, va))), o), is);
+        __m128d slope = _mm_mul_pd(_mm_sub_pd(right, l), ih);
+        __m128d start = _mm_add_pd(l, _mm_mul_pd(slope, d));
+        __m128d step = _mm_mul_pd(slope, sc);
+        __m128d end = _mm_add_pd(start, _mm_mul_pd(span, step));
+        ok = _mm_and_pd(ok, _mm_and_pd(_mm_cmplt_pd(_mm_andnot_pd(sign, start), lim),
+                                       _mm_cmplt_pd(_mm_andnot_pd(sign, end), lim))); /* NaN: false */
+        __m128i v = _mm_cvtpd_epi32(_mm_mul_pd(start, u)), s = _mm_cvtpd_epi32(_mm_mul_pd(step, u));
+        if (n % 4 == 0) {
+            store_steps(v, s, n, fx, fy);
+        } else {
+            int32_t vv[4], ss[4];
+            _mm_storeu_si128((__m128i *)vv, v);
+            _mm_storeu_si128((__m128i *)ss, s);
+            fill_steps(fx, fy, n, vv[0], vv[1], ss[0], ss[1]);
+        }
+        l = right;
+    }
     if (_mm_movemask_pd(ok) != 3) return 0;
-    const __m128d u = _mm_set1_pd(unit);
-    int32_t v[4], dv[4];
-    _mm_storeu_si128((__m128i *)v, _mm_cvtpd_epi32(_mm_mul_pd(start, u)));
-    _mm_storeu_si128((__m128i *)dv, _mm_cvtpd_epi32(_mm_mul_pd(step, u)));
-    fill_steps(fx, fy, n, v[0], v[1], dv[0], dv[1]);
-    _mm_storeu_pd(left, right);
+    _mm_storeu_pd(left, l);
     return 1;
 }
 #endif
@@ -416,14 +434,34 @@ static void fill_grid(const sh_warp_model *m, const plane_geometry *g, double Y,
     double left[2], right[2];
     for (int c = 0; c < 2; c++)
         left[c] = (row0[2 * i + c] + ty * (row1[2 * i + c] - row0[2 * i + c]) - off[c]) * inv_scale;
+#if defined(__SSE2__)
+    /* 4:2:0 chroma: after the first cell every cell has h / 2 pixels, its first one at the same
+     * distance from its left node (h even: the cell bounds below advance by exactly h / 2) */
+    int whole = g->scale == 2 && h % 8 == 0;
+#endif
     while (x <= last) {
         double Xc = m->gx0 + (double)i * h;
         int e = i == m->nx - 2 ? last : (int)ceil((Xc + h - g->ox) * inv_scale) - 1;
         if (e > last) e = last;
         if (e < x) e = x;
 #if defined(__SSE2__)
-        if (!fill_cell_pair(row0 + 2 * i + 2, row1 + 2 * i + 2, ty, off, inv_scale, inv_h, g->scale,
-                            X - Xc, e - x + 1, left, fx + (x - first), fy + (x - first)))
+        int cells = 1;
+        if (whole && x > first) { /* the whole cells before the last one and the row's end */
+            int k = (last - x + 1) / (h / 2);
+            if (k > m->nx - 2 - i) k = m->nx - 2 - i;
+            if (k > 1) cells = k, e = x + k * (h / 2) - 1;
+        }
+        if (fill_cells_scaled(row0 + 2 * i + 2, row1 + 2 * i + 2, ty, off, inv_scale, inv_h, g->scale,
+                              X - Xc, (e - x + 1) / cells, cells, left, fx + (x - first), fy + (x - first))) {
+            x = e + 1;
+            X = g->scale * x + g->ox;
+            i += cells;
+            continue;
+        }
+        if (cells > 1) { /* a careful cell among them: one at a time from here */
+            whole = 0;
+            continue;
+        }
 #endif
         for (int c = 0; c < 2; c++) {
             right[c] = (row0[2 * i + 2 + c] + ty * (row1[2 * i + 2 + c] - row0[2 * i + 2 + c]) -

@@ -367,6 +367,47 @@ static void test_translation_every_format(void **state)
     sh_warp_destroy(warp);
 }
 
+/* A translation past the fixed-point range (+-16384 px in plane units): the 4:2:0 chroma rows
+ * cross it in their middle (chroma x = (32568 + X) / 2 passes 16384 at X = 200), where the row
+ * fill leaves its fast cells for fill_linear's careful ones; the luma rows lie past it whole.
+ * Every source position is far outside the frame: black inside the hull, as outside it. */
+static void test_translation_beyond_range(void **state)
+{
+    (void)state;
+    const int w = 480, h = 120;
+    double ref[] = {20, 15, 460, 20, 450, 105, 30, 100, 240, 60, 120, 40};
+    int n = 6;
+    double cur[12];
+    for (int i = 0; i < n; i++) {
+        cur[2 * i] = ref[2 * i] + 32568;
+        cur[2 * i + 1] = ref[2 * i + 1] + 3;
+    }
+    sh_warp *warp;
+    assert_int_equal(sh_warp_create(1, &warp), SH_OK);
+    sh_image in, out;
+    assert_int_equal(sh_image_create(&in, SH_PIX_I420, w, h), SH_OK);
+    assert_int_equal(sh_image_create(&out, SH_PIX_I420, w, h), SH_OK);
+    fill_pattern(&in);
+    const char *methods[] = {"tps", "bspline", "gaussian"};
+    for (size_t k = 0; k < sizeof methods / sizeof methods[0]; k++) {
+        built b = build(methods[k], ref, n, w, h, NULL);
+        assert_int_equal(sh_warp_model_update(b.model, cur), SH_OK);
+        fill_pattern(&out);
+        assert_int_equal(sh_warp_apply(warp, b.model, &in, &out), SH_OK);
+        for (int p = 0; p < 3; p++)
+            for (int y = 0; y < out.plane[p].height; y++)
+                for (int x = 0; x < out.plane[p].width; x++) {
+                    uint8_t got = out.plane[p].data[(size_t)y * out.plane[p].stride + x];
+                    if (got != (p ? 128 : 0))
+                        fail_msg("%s plane %d (%d,%d): %d, not black", methods[k], p, x, y, got);
+                }
+        unbuild(&b);
+    }
+    sh_image_destroy(&in);
+    sh_image_destroy(&out);
+    sh_warp_destroy(warp);
+}
+
 /* Bilinear sampling against the closed form, at fractional positions (a rotation and scaling),
  * with black where the position leaves the frame (paper Algorithm 1). */
 static void test_bilinear_closed_form(void **state)
@@ -719,6 +760,7 @@ int main(void)
         cmocka_unit_test(test_update_subset),
         cmocka_unit_test(test_dense_rows_as_exact),
         cmocka_unit_test(test_translation_every_format),
+        cmocka_unit_test(test_translation_beyond_range),
         cmocka_unit_test(test_bilinear_closed_form),
         cmocka_unit_test(test_threads_same_bytes),
         cmocka_unit_test(test_apply_again_same_bytes),
