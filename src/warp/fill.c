@@ -383,7 +383,7 @@ static int fill_cells_scaled(const double *a, const double *b, double ty, const 
     const __m128d ih = _mm_set1_pd(inv_h), d = _mm_set1_pd(dx), sc = _mm_set1_pd(scale);
     const __m128d span = _mm_set1_pd((double)(n - 1)), u = _mm_set1_pd(unit);
     const __m128d sign = _mm_set1_pd(-0.0), lim = _mm_set1_pd(limit);
-    __m128d l = _mm_loadu_pd(left), ok = _mm_cmpeq_pd(l, l);
+    __m128d l = _mm_loadu_pd(left);
     for (int c = 0; c < cells; c++, a += 2, b += 2, fx += n, fy += n) {
         __m128d va = _mm_loadu_pd(a), vb = _mm_loadu_pd(b);
         __m128d right = _mm_mul_pd(_mm_sub_pd(_mm_add_pd(va, _mm_mul_pd(t, _mm_sub_pd(vb, va))), o), is);
@@ -391,8 +391,9 @@ static int fill_cells_scaled(const double *a, const double *b, double ty, const 
         __m128d start = _mm_add_pd(l, _mm_mul_pd(slope, d));
         __m128d step = _mm_mul_pd(slope, sc);
         __m128d end = _mm_add_pd(start, _mm_mul_pd(span, step));
-        ok = _mm_and_pd(ok, _mm_and_pd(_mm_cmplt_pd(_mm_andnot_pd(sign, start), lim),
-                                       _mm_cmplt_pd(_mm_andnot_pd(sign, end), lim))); /* NaN: false */
+        __m128d ok = _mm_and_pd(_mm_cmplt_pd(_mm_andnot_pd(sign, start), lim),
+                                _mm_cmplt_pd(_mm_andnot_pd(sign, end), lim)); /* NaN: false */
+        if (_mm_movemask_pd(ok) != 3) return 0; /* before fill_steps' int arithmetic */
         __m128i v = _mm_cvtpd_epi32(_mm_mul_pd(start, u)), s = _mm_cvtpd_epi32(_mm_mul_pd(step, u));
         if (n % 4 == 0) {
             store_steps(v, s, n, fx, fy);
@@ -404,7 +405,6 @@ static int fill_cells_scaled(const double *a, const double *b, double ty, const 
         }
         l = right;
     }
-    if (_mm_movemask_pd(ok) != 3) return 0;
     _mm_storeu_pd(left, l);
     return 1;
 }
