@@ -13,7 +13,6 @@
 #include <unistd.h>
 
 #include "run_pipeline.h"
-#include "run_publish.h"
 #include "stillheart/cli.h"
 #include "stillheart/daemon.h"
 #include "stillheart/display.h"
@@ -25,25 +24,12 @@
 
 static const char *const status_names[] = {"raw", "stabilized", "degraded"};
 
-/* A camera frame handed to the publisher thread, with what its trace lines and status say: the
- * processing thread is on the next frame by the time its publish is done. */
-typedef struct {
-    int index;
-    int64_t avail_ns;
-    sh_display_frame_info info;    /* the publisher's copy: unchanged until it is waited for */
-    double markers_ms, model_ms, warp_ms, landmarks_ms; /* --trace */
-    int landmarks;
-} in_flight;
-
 /* The loop's state: counters, what was shown, systemd, the output camera lost. */
 struct sh_daemon {
     run_pipeline pl;
     sh_daemon_options opt;
     FILE *trace, *trace_points;
     int fatal;                     /* a reload left the pipeline unable to run */
-    run_publisher *pub;            /* the sinks' copies, beside the next frame's processing */
-    in_flight fl;
-    uint64_t handed;               /* camera frames handed to the publisher */
 
     /* counters and latency (the stats line) */
     uint64_t published, raw_count, degraded_count, black_count;
@@ -111,9 +97,6 @@ static int close_traces(sh_daemon *d)
     return bad;
 }
 
-static void publish_frame(void *ctx, const sh_image *shown, const sh_display_frame_info *info);
-static void settle(sh_daemon *d);
-
 sh_status sh_daemon_create(const sh_config *cfg, const sh_daemon_options *opt, sh_daemon **out)
 {
     *out = NULL;
@@ -127,7 +110,6 @@ sh_status sh_daemon_create(const sh_config *cfg, const sh_daemon_options *opt, s
     d->lat = lat;
     if (opt) d->opt = *opt;
     sh_status st = run_pipeline_open(&d->pl, cfg); /* on error nothing stays open */
-    if (st == SH_OK && (st = run_publisher_create(publish_frame, d, &d->pub)) != SH_OK) run_pipeline_close(&d->pl);
     if (st != SH_OK) {
         free(d->lat);
         free(d);
@@ -253,7 +235,6 @@ static int apply_reload(sh_daemon *d)
  * are a new stream (their rate, nothing lost yet, their first frame logged). -1: fatal. */
 static int reload(sh_daemon *d)
 {
-    settle(d); /* the pieces may be swapped: none is in use meanwhile */
     int cams = apply_reload(d);
     if (cams < 0) return -1;
     d->wd_usec = d->pl.cfg.watchdog ? sh_notify_watchdog_usec() : 0;
@@ -357,7 +338,6 @@ static void output_lost(sh_daemon *d)
         sh_log_warn("%s: black raw frames shown until it returns", d->lost_text);
     }
     if (!why || now - d->last_black < d->period) return;
-    settle(d); /* the sinks are this thread's again */
     sh_display_frame_info *info = &d->shown_info;
     memset(info, 0, sizeof *info);
     info->status = SH_DISPLAY_RAW;
@@ -372,11 +352,6 @@ static void output_lost(sh_daemon *d)
                  (unsigned long long)run_pipeline_dropped(&d->pl)) < 0)
         d->status_line[0] = 0;
     set_status_json(d, "camera lost", 0, NULL);
-}
-
-static void publish_frame(void *ctx, const sh_image *shown, const sh_display_frame_info *info)
-{
-    publish(ctx, shown, info);
 }
 
 /* A change of status (or of a degraded or raw frame's reason) is one log line; a frame shown raw
@@ -404,48 +379,17 @@ static void sample_memory(sh_daemon *d, int64_t now)
     if (!d->rss_1min && now - d->t_start >= 60000000000LL) d->rss_1min = rss_kb();
 }
 
-/* The frame in flight published: its latency (from the set's availability to the end of its
- * publish, as before the publisher thread), counters, status and --trace line. */
-static void settle(sh_daemon *d)
+/* --trace and --trace-points: one frame's lines. */
+static void trace_frame(sh_daemon *d, const run_frame *s, const sh_display_frame_info *info, double latency_ms)
 {
-    int64_t done_ns;
-    if (!run_publisher_wait(d->pub, &done_ns)) return;
-    const in_flight *f = &d->fl;
-    const sh_display_frame_info *info = &f->info;
-    double latency_ms = (double)(done_ns - f->avail_ns) / 1e6;
-    if (d->nlat < LAT_CAP) d->lat[d->nlat++] = (float)latency_ms;
-    d->published++;
-    if (!d->locked && run_proc_locked(d->pl.proc)) {
-        d->locked = 1;
-        d->published_at_lock = d->published;
-        d->dropped_at_lock = run_pipeline_dropped(&d->pl);
-        sh_log_info("frame %d: the tracker's rates locked, %llu frames published and %llu sets dropped before", f->index,
-                    (unsigned long long)d->published, (unsigned long long)d->dropped_at_lock);
+    if (d->trace) {
+        double tm, tmod, tw, tl;
+        int nl;
+        run_proc_times(d->pl.proc, &tm, &tmod, &tw);
+        run_proc_landmarks(d->pl.proc, &nl, &tl);
+        fprintf(d->trace, "%d,%s,%u,%.3f,\"%s\",%.3f,%.3f,%.3f,%.3f,%d,%.3f\n", s->index, status_names[info->status],
+                info->markers_used, (double)info->residual_px, info->reason, tm, tmod, tw, latency_ms, nl, tl);
     }
-    sample_memory(d, done_ns);
-    snprintf(d->status_line, sizeof d->status_line,
-             "frame %d: %s%s%s, %u markers, residual %.2f px, %llu published, %llu dropped", f->index,
-             status_names[info->status], info->reason[0] ? ": " : "", info->reason, info->markers_used,
-             (double)info->residual_px, (unsigned long long)d->published,
-             (unsigned long long)run_pipeline_dropped(&d->pl));
-    set_status_json(d, "running", f->index, info);
-    if (d->trace)
-        fprintf(d->trace, "%d,%s,%u,%.3f,\"%s\",%.3f,%.3f,%.3f,%.3f,%d,%.3f\n", f->index, status_names[info->status],
-                info->markers_used, (double)info->residual_px, info->reason, f->markers_ms, f->model_ms, f->warp_ms,
-                latency_ms, f->landmarks, f->landmarks_ms);
-    d->shown_info = *info;
-}
-
-/* A processed frame to the publisher thread, with what settle will need of it once the
- * processing has moved on; its --trace-points lines now, while they are the processing's. */
-static void hand_over(sh_daemon *d, const run_frame *s, const sh_image *shown, const sh_display_frame_info *info)
-{
-    in_flight *f = &d->fl;
-    f->index = s->index;
-    f->avail_ns = s->avail_ns;
-    f->info = *info;
-    run_proc_times(d->pl.proc, &f->markers_ms, &f->model_ms, &f->warp_ms);
-    run_proc_landmarks(d->pl.proc, &f->landmarks, &f->landmarks_ms);
     if (d->trace_points) {
         const int *ids;
         const double *xy;
@@ -453,12 +397,9 @@ static void hand_over(sh_daemon *d, const run_frame *s, const sh_image *shown, c
         for (int k = 0; k < n; k++)
             fprintf(d->trace_points, "%d,%d,%.4f,%.4f\n", s->index, ids[k], xy[2 * k], xy[2 * k + 1]);
     }
-    run_publisher_submit(d->pub, shown, &f->info);
-    d->handed++;
 }
 
-/* One set from the source: processed, then handed to the publisher thread while the next one is
- * taken and processed; the frame before it settled first (published, counted, traced). */
+/* One set from the source: processed, published, counted, traced. */
 static void camera_frame(sh_daemon *d, const run_frame *s)
 {
     if (d->lost) {
@@ -476,11 +417,27 @@ static void camera_frame(sh_daemon *d, const run_frame *s)
     if (info.status == SH_DISPLAY_RAW) d->raw_count++;
     if (info.status == SH_DISPLAY_DEGRADED) d->degraded_count++;
     log_status_change(d, s->index, &info);
-    /* run_proc_frame keeps the frame before this one's pixels as they are (run_proc.h) */
-    settle(d);
-    hand_over(d, s, shown, &info);
-    /* a frame shown raw is the camera's buffer, which goes back to the source at the next take */
-    if (shown == &s->img) settle(d);
+    publish(d, shown, &info);
+    int64_t done_ns = sh_monotonic_ns();
+    double latency_ms = (double)(done_ns - s->avail_ns) / 1e6;
+    if (d->nlat < LAT_CAP) d->lat[d->nlat++] = (float)latency_ms;
+    d->published++;
+    if (!d->locked && run_proc_locked(d->pl.proc)) {
+        d->locked = 1;
+        d->published_at_lock = d->published;
+        d->dropped_at_lock = run_pipeline_dropped(&d->pl);
+        sh_log_info("frame %d: the tracker's rates locked, %llu frames published and %llu sets dropped before", s->index,
+                    (unsigned long long)d->published, (unsigned long long)d->dropped_at_lock);
+    }
+    sample_memory(d, done_ns);
+    snprintf(d->status_line, sizeof d->status_line,
+             "frame %d: %s%s%s, %u markers, residual %.2f px, %llu published, %llu dropped", s->index,
+             status_names[info.status], info.reason[0] ? ": " : "", info.reason, info.markers_used,
+             (double)info.residual_px, (unsigned long long)d->published,
+             (unsigned long long)run_pipeline_dropped(&d->pl));
+    set_status_json(d, "running", s->index, &info);
+    trace_frame(d, s, &info, latency_ms);
+    d->shown_info = info;
 }
 
 sh_status sh_daemon_run(sh_daemon *d, sh_daemon_signals *sig)
@@ -506,9 +463,8 @@ sh_status sh_daemon_run(sh_daemon *d, sh_daemon_signals *sig)
         int64_t now = sh_monotonic_ns();
         notify_status(d, now);
         notify_watchdog(d, now);
-        if (s && d->opt.max_frames && d->handed >= (uint64_t)d->opt.max_frames) break;
+        if (s && d->opt.max_frames && d->published >= (uint64_t)d->opt.max_frames) break;
     }
-    settle(d);
     sh_notify("STOPPING=1");
     if (d->fatal) return sh_error_set(SH_EIO, "a reload left the pipeline unable to run");
     if (d->pl.src && run_source_ended(d->pl.src) && run_source_failed(d->pl.src))
@@ -603,7 +559,6 @@ void sh_daemon_stats_json(sh_daemon *d, FILE *out)
 sh_status sh_daemon_destroy(sh_daemon *d)
 {
     if (!d) return SH_OK;
-    run_publisher_destroy(d->pub); /* waits for the frame in flight */
     sh_status st = run_pipeline_close(&d->pl);
     if (close_traces(d) && st == SH_OK) st = sh_error_set(SH_EIO, "a trace file could not be written");
     free(d->lat);

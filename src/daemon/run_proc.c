@@ -21,11 +21,8 @@ struct run_proc {
     sh_points points;
     sh_warp *warp;
     sh_warp_outside *outside[2]; /* [sink] outside = dimmed-raw (one per eye): made at start, as a reload may turn it on */
-    /* what is shown when warped, and in stereo the raw frame in each eye's place: two, taken in
-     * turn, so that the frame before stays whole while the daemon publishes it (run_proc.h) */
-    sh_image out[2];
-    int cur;              /* out[cur]: this frame's */
-    int kept[2];          /* out[i] holds the warp's last output into it as the warp wrote it */
+    sh_image out;         /* what is shown when warped, and in stereo the raw frame in each eye's place */
+    int out_kept;         /* out holds the warp's last output into it as the warp wrote it */
     sh_y4m_header out_hdr;/* the shown frames: the output camera's, or the stereo layout's */
     int stereo;           /* [method] view = stereo */
     sh_warp3d_layout layout;
@@ -210,7 +207,7 @@ sh_status run_proc_create(const sh_config *cfg, const sh_y4m_header *hdr, double
     sh_warp_options_default(&wopts);
     if (cfg->grid > 0) wopts.grid_spacing = (int)cfg->grid;
     sh_status st = out_frames(p, cfg, hdr);
-    for (int i = 0; i < 2 && st == SH_OK; i++) st = sh_image_create(&p->out[i], hdr->format, p->out_hdr.width, p->out_hdr.height);
+    if (st == SH_OK) st = sh_image_create(&p->out, hdr->format, p->out_hdr.width, p->out_hdr.height);
     if (st == SH_OK && p->stereo && sh_warp3d_layout_half(p->layout))
         st = sh_image_create(&p->eye, hdr->format, hdr->width, hdr->height);
     /* test mode waits for every model: its output must equal `stillheart warp`'s frame by frame */
@@ -265,8 +262,7 @@ void run_proc_destroy(run_proc *p)
     sh_warp_destroy(p->warp);
     sh_warp_outside_destroy(p->outside[0]);
     sh_warp_outside_destroy(p->outside[1]);
-    sh_image_destroy(&p->out[0]);
-    sh_image_destroy(&p->out[1]);
+    sh_image_destroy(&p->out);
     sh_image_destroy(&p->eye);
     free(p);
 }
@@ -569,23 +565,21 @@ static void warped_status(const run_selection *sel, int building, sh_display_fra
     }
 }
 
-/* The warped frame into this frame's buffer: one view, or the two eyes in their layout; [sink] outside's fill. */
+/* The warped frame into p->out: one view, or the two eyes in their layout; [sink] outside's fill. */
 static sh_status warp(run_proc *p, const run_model *md, const sh_image *img)
 {
     int dimmed = p->cfg.outside == SH_OUTSIDE_DIMMED_RAW;
-    sh_image *out = &p->out[p->cur];
-    int *kept = &p->kept[p->cur];
     if (p->stereo) {
-        *kept = 0;
         const sh_warp3d_view *views[2];
         if (run_model_views(md, views) != 2) return sh_error_set(SH_EINVAL, "stereo: the model has no two eyes");
-        return sh_warp3d_stereo_apply(p->warp, views, dimmed ? p->outside : NULL, p->layout, img, &p->eye, out);
+        p->out_kept = 0;
+        return sh_warp3d_stereo_apply(p->warp, views, dimmed ? p->outside : NULL, p->layout, img, &p->eye, &p->out);
     }
-    /* the black outside the hull written again only where it changed, when the buffer holds the
-     * warp's own last output (not the dimmed frame's outside) */
-    sh_status st = (*kept ? sh_warp_apply_again : sh_warp_apply)(p->warp, run_model_warp(md), img, out);
-    *kept = st == SH_OK && !dimmed;
-    if (st == SH_OK && dimmed) st = sh_warp_outside_apply(p->outside[0], run_model_warp(md), img, out);
+    /* the black outside the hull written again only where it changed, when out holds the warp's
+     * own last output (not the dimmed frame's outside, nor a stereo pair) */
+    sh_status st = (p->out_kept ? sh_warp_apply_again : sh_warp_apply)(p->warp, run_model_warp(md), img, &p->out);
+    p->out_kept = st == SH_OK && !dimmed;
+    if (st == SH_OK && dimmed) st = sh_warp_outside_apply(p->outside[0], run_model_warp(md), img, &p->out);
     return st;
 }
 
@@ -594,14 +588,14 @@ static sh_status warp(run_proc *p, const run_model *md, const sh_image *img)
 static const sh_image *raw(run_proc *p, const sh_image *img)
 {
     if (!p->stereo) return img;
-    sh_image *out = &p->out[p->cur];
-    p->kept[p->cur] = 0;
-    if (sh_warp3d_layout_place(p->layout, 0, img, out) != SH_OK || sh_warp3d_layout_place(p->layout, 1, img, out) != SH_OK) {
+    p->out_kept = 0;
+    if (sh_warp3d_layout_place(p->layout, 0, img, &p->out) != SH_OK ||
+        sh_warp3d_layout_place(p->layout, 1, img, &p->out) != SH_OK) {
         /* cannot happen with the frames the layout was sized for: black rather than a stale pair */
         sh_log_limited(&p->model_err, SH_LOG_ERROR, "stereo: %s", sh_error_message());
-        sh_image_clear(out);
+        sh_image_clear(&p->out);
     }
-    return out;
+    return &p->out;
 }
 
 static const sh_image *frame(run_proc *p, const sh_image *img, const sh_image *const *cams, int index,
@@ -674,7 +668,6 @@ static void keep_used(run_proc *p, const run_model *md, const double *xy, const 
 const sh_image *run_proc_frame(run_proc *p, const sh_image *img, const sh_image *const *cams, int index,
                                unsigned epoch, sh_display_frame_info *info)
 {
-    p->cur ^= 1; /* the other buffer: the last frame's may still be being published */
     const sh_image *shown = frame(p, img, cams, index, epoch, info);
     return info->status == SH_DISPLAY_RAW ? raw(p, img) : shown;
 }
@@ -738,5 +731,5 @@ static const sh_image *frame(run_proc *p, const sh_image *img, const sh_image *c
     }
     keep_used(p, md, xy, use);
     warped_status(&sel, building, info);
-    return &p->out[p->cur];
+    return &p->out;
 }

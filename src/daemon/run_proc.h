@@ -32,8 +32,7 @@ void run_proc_request_reference(run_proc *p);
  * where missing, read in 3D only; index and epoch as in run_frame): returns what to show (img itself when raw,
  * in stereo img in each eye's place) and fills info's status,
  * reason, markers_used and residual_px (-1 when not measured; never NaN). The returned image
- * stays valid and unchanged until the call after the next one (the daemon publishes it while
- * the next frame is processed), img itself until the caller gives it back. */
+ * stays valid until the next call. */
 const sh_image *run_proc_frame(run_proc *p, const sh_image *img, const sh_image *const *cams, int index,
                                unsigned epoch, sh_display_frame_info *info);
 int run_proc_builds(const run_proc *p);

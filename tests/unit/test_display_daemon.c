@@ -661,9 +661,8 @@ static uint8_t *read_record(const char *rec, int cap, int *n)
 }
 
 /* Another process with write access to the segment (the service's own uid) fills every slot's
- * pixels with SCRIBBLE, in bursts of 10 ms, while the daemon warps, publishes (its publisher
- * thread copying one frame while the next is processed) and records, in real time at 100
- * frames/s. What it writes is never read back:
+ * pixels with SCRIBBLE, in bursts of 10 ms, while the daemon warps, publishes and records, in
+ * real time at 100 frames/s. What it writes is never read back:
  *  - every recorded frame is the frame a run without it recorded for the same replay frame (known
  *    by its value, 40 + 5k; the warp of a frame depends on that frame's points alone), and none
  *    holds SCRIBBLE;
