@@ -300,18 +300,8 @@ int main(int argc, char **argv)
     return 0;
 #else
     (void)argc;
-    std::string rbin;
-    if (const char *env = std::getenv("STILLHEART_RENDER")) rbin = env;
-    else {
-        // $(BUILD)/bench/bench_detect_track -> $(BUILD)/stillheart-render
-        std::string self = argv[0];
-        size_t slash = self.rfind('/');
-        rbin = (slash == std::string::npos ? std::string(".") : self.substr(0, slash)) + "/../stillheart-render";
-    }
-    if (access(rbin.c_str(), X_OK) != 0) {
-        std::printf("bench_detect_track: no phantom renderer at %s (needs OSMesa), skipped\n", rbin.c_str());
-        return 0;
-    }
+    std::string rbin = bench_renderer("bench_detect_track", argv[0]);
+    if (rbin.empty()) return 0;
     const int PASSES = 3;
     char dir[] = "/tmp/sh_bench_detect_track_XXXXXX";
     if (!mkdtemp(dir)) return 1;

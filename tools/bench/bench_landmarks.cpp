@@ -97,17 +97,8 @@ struct Timed {
 int main(int argc, char **argv)
 {
     (void)argc;
-    std::string rbin;
-    if (const char *env = std::getenv("STILLHEART_RENDER")) rbin = env;
-    else {
-        std::string self = argv[0];
-        size_t slash = self.rfind('/');
-        rbin = (slash == std::string::npos ? std::string(".") : self.substr(0, slash)) + "/../stillheart-render";
-    }
-    if (access(rbin.c_str(), X_OK) != 0) {
-        std::printf("bench_landmarks: no phantom renderer at %s (needs OSMesa), skipped\n", rbin.c_str());
-        return 0;
-    }
+    std::string rbin = bench_renderer("bench_landmarks", argv[0]);
+    if (rbin.empty()) return 0;
     cv::setNumThreads(1);
     char dir[] = "/tmp/sh_bench_landmarks_XXXXXX";
     if (!mkdtemp(dir)) return 1;
