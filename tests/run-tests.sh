@@ -20,6 +20,8 @@ run_folder() {
         f=$(printf '%s\n' "$out" | sed -n 's/^\[  FAILED  \] \([0-9]*\) test.*/\1/p' | tail -1)
         p_sum=$((p_sum + ${p:-0})); f_sum=$((f_sum + ${f:-0}))
         if [ "$rc" -ne 0 ] && [ -z "$f" ]; then f_sum=$((f_sum + 1)); c_list="$c_list $t"; fi
+        # the failed cases by name, for the closing lines (CI shows only the end of the output)
+        printf '%s\n' "$out" | sed -n "s|^\[  FAILED  \] \(test_[A-Za-z0-9_]*\)\$| $(basename "$t"):\1|p" | sort -u | tr -d '\n' >> "$work/$2.names"
     done > "$work/$2.log" 2>&1
     echo "$p_sum $f_sum$c_list" > "$work/$2.sum"
 }
@@ -35,6 +37,7 @@ while [ $i -lt $n ]; do
     i=$((i + 1))
     cat "$work/$i.log"
     read -r p f c < "$work/$i.sum" || { p=0; f=1; c="(folder $i: no summary)"; }
+    [ -s "$work/$i.names" ] && names="${names:-}$(sed "s| | $(basename "$(eval echo \${$i})")/|g" "$work/$i.names")"
     passed=$((passed + p)); failed=$((failed + f)); [ -n "${c:-}" ] && crashed="$crashed $c"
 done
 # make vmtest's closing lines ("vmtest: N passed, N failed": the capture guest's and the
@@ -78,6 +81,12 @@ if [ -n "${ARM64_OUT:-}" ]; then
         failed=$((failed + 1)); crashed="$crashed check-arm64(no summary: see $ARM64_OUT)"
     fi
 fi
+# the aarch64 lanes' failed cases by name (tools/cross/run-lanes.sh prints the same line)
+if [ -n "${ARM64_OUT:-}" ]; then
+    a=$(sed -n 's/^failed tests://p' "$ARM64_OUT" 2>/dev/null | tr -d '\n')
+    [ -n "$a" ] && names="${names:-}$(echo "$a" | sed 's| | arm64:|g')"
+fi
+[ -n "${names:-}" ] && echo "failed tests:$names"
 [ -n "$crashed" ] && echo "crashed or exited non-zero:$crashed"
 echo "$passed passed, $failed failed"
 [ "$failed" -eq 0 ] && [ "$passed" -gt 0 ]

@@ -27,14 +27,16 @@ passed=0; failed=0; crashed=""
 for d in "$lanes"/main/ "$lanes"/*/; do
     case "$d" in "$lanes/main/") [ -n "${seen_main:-}" ] && continue; seen_main=1 ;; esac
     last=$(tail -n 1 "$d/log")
-    sed '$d' "$d/log" | grep -v '^crashed or exited non-zero:'
+    sed '$d' "$d/log" | grep -v -e '^crashed or exited non-zero:' -e '^failed tests:'
     c=$(grep '^crashed or exited non-zero:' "$d/log" | sed 's/^crashed or exited non-zero://')
     crashed="$crashed$c"
+    names="${names:-}$(sed -n 's/^failed tests://p' "$d/log")"
     p=$(printf '%s\n' "$last" | sed -n 's/^\([0-9]*\) passed, \([0-9]*\) failed$/\1/p')
     f=$(printf '%s\n' "$last" | sed -n 's/^\([0-9]*\) passed, \([0-9]*\) failed$/\2/p')
     [ -z "$p" ] && { echo "$d: no summary line"; f=1; p=0; }
     passed=$((passed + p)); failed=$((failed + f))
 done
+[ -n "${names:-}" ] && echo "failed tests:$names"
 [ -n "$crashed" ] && echo "crashed or exited non-zero:$crashed"
 echo "$passed passed, $failed failed"
 [ "$failed" -eq 0 ] && [ "$passed" -gt 0 ]
