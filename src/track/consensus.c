@@ -380,14 +380,22 @@ static void camera(sh_tracker *t, frame_set *fs, int fresh)
 static void widen_baselines(sh_tracker *t, const frame_set *fs)
 {
     int jumped = 0;
+    double dt = (t->prev_frame >= 0 ? t->frame - t->prev_frame : 1) / t->o.fps;
     for (int i = 0; i < t->nm; i++) {
         if (!fs->use[i]) continue;
         marker *mk = &t->m[i];
         double m2 = 0;
         for (int a = 0; a < t->dim; a++) m2 += fs->e[i][a] * fs->e[i][a] / (trk_hph(t, &mk->f[a]) + fs->r[i][a]);
         if (m2 <= t->o.gate) continue;
-        for (int a = 0; a < t->dim; a++)
-            mk->f[a].P[0] += fmax(0, fs->e[i][a] * fs->e[i][a] - trk_hph(t, &mk->f[a]) - fs->r[i][a]);
+        for (int a = 0; a < t->dim; a++) {
+            double x = fmax(0, fs->e[i][a] * fs->e[i][a] - trk_hph(t, &mk->f[a]) - fs->r[i][a]);
+            mk->f[a].P[0] += x;
+            if (!t->locked && dt > 0) { /* an acceleration impulse over the last step */
+                mk->f[a].P[1] += 2 * x / dt;
+                mk->f[a].P[NS] += 2 * x / dt;
+                mk->f[a].P[NS + 1] += 4 * x / (dt * dt);
+            }
+        }
         jumped++;
     }
     t->motion.jumped = jumped;
