@@ -390,10 +390,10 @@ static void widen_baselines(sh_tracker *t, const frame_set *fs)
         for (int a = 0; a < t->dim; a++) {
             double x = fmax(0, fs->e[i][a] * fs->e[i][a] - trk_hph(t, &mk->f[a]) - fs->r[i][a]);
             mk->f[a].P[0] += x;
-            if (!t->locked && dt > 0) { /* an acceleration impulse over the last step */
-                mk->f[a].P[1] += 2 * x / dt;
-                mk->f[a].P[NS] += 2 * x / dt;
-                mk->f[a].P[NS + 1] += 4 * x / (dt * dt);
+            if (!t->locked && dt > 0) { /* a velocity step at the start of the last step */
+                mk->f[a].P[1] += x / dt;
+                mk->f[a].P[NS] += x / dt;
+                mk->f[a].P[NS + 1] += x / (dt * dt);
             }
         }
         jumped++;
