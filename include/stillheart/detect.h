@@ -92,6 +92,21 @@ sh_status sh_detector_detect_plane(sh_detector *det, const uint8_t *luma, int wi
                                    int stride, const sh_window *windows, int num_windows,
                                    sh_detection *out, int max, int *count);
 
+/* The smallest tag's side in the image, px, as a tracker knows it from its last accepted quads
+ * (0: not known, the default). Known, each scan is decimated further than the options' when that
+ * keeps at least SH_DETECT_MODULE_PX decimated pixels per module of the family's border (a
+ * 4K view's tags are twice the size of a 1080p view's: the same ratio at twice the decimation,
+ * a quarter of the pixels), up to SH_DETECT_MAX_DECIMATE; never less than the options'. */
+sh_status sh_detector_set_tag_side(sh_detector *det, double side_px);
+/* The decimations the next whole-frame and windowed scans use. */
+void sh_detector_decimation(const sh_detector *det, double *quad_decimate, double *window_decimate);
+/* Decimated pixels per module kept: window_decimate 2 on the phantom's 93 px tag36h11 tags
+ * (8 modules: 5.8 px) was measured as accurate as full resolution (docs/tracking.md) */
+#define SH_DETECT_MODULE_PX 5.8
+/* The largest decimation the tag size may choose: measured at 4K (195 px tags: corner error the
+ * same as at 2, docs/tracking.md, "Decimation from the tags' size") */
+#define SH_DETECT_MAX_DECIMATE 4
+
 /* The windows the last windowed call actually scanned after clipping and merging (for
  * benchmarks and tests): returns their number, copies at most max of them. */
 int sh_detector_last_windows(const sh_detector *det, sh_window *out, int max);

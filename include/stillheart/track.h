@@ -160,6 +160,9 @@ sh_status sh_tracker_reacquire(sh_tracker *t, int cam, sh_window *out, int *coun
  * markers the windows were for (at least 3 of them): the scene moved further than the windows
  * reach (a bumped endoscope), and the caller should detect in the whole frame instead. */
 int sh_tracker_rescan(const sh_tracker *t, int cam, const sh_detection *det, int n);
+/* The smallest side (mean of its four) of the tracked markers' last accepted quads in camera cam,
+ * px; 0 before any (sh_detector_set_tag_side: the detector's decimation follows it). */
+double sh_tracker_tag_side(const sh_tracker *t, int cam);
 
 /* Updates with this frame's detections: det[c] (count[c] entries) for camera c < num_cameras.
  * Must follow sh_tracker_predict for the same frame. */

@@ -147,7 +147,10 @@ sh_status run_tracker_frame(run_tracker *rt, const sh_image *const *cams, int in
         dp[c] = rt->dets[c];
         count[c] = 0;
         if (!cams[c]) continue; /* this set lacks camera c */
-        st = sh_tracker_windows(rt->t, c, rt->win, SH_TRACK_MAX_MARKERS, &nw);
+        /* at 4K the tags are twice the pixels of 1080p's: as many decimated pixels per module
+         * at twice the decimation (detect.h), a quarter of the pixels to scan */
+        st = sh_detector_set_tag_side(rt->det, sh_tracker_tag_side(rt->t, c));
+        if (st == SH_OK) st = sh_tracker_windows(rt->t, c, rt->win, SH_TRACK_MAX_MARKERS, &nw);
         if (st == SH_OK) st = sh_tracker_reacquire(rt->t, c, &rt->win[nw], &nb);
         if (st != SH_OK) return st;
         st = !rt->started || nw == 0

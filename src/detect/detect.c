@@ -106,6 +106,7 @@ struct sh_detector {
     unsigned generation;    /* bumped per call that wakes the helpers */
     int busy;               /* helpers still scanning this call's windows */
     int quit;
+    double quad_dec, win_dec; /* the decimations in use (sh_detector_set_tag_side) */
     const uint8_t *base;    /* this call's plane and its stride */
     int stride;
     int next;               /* windows handed out so far, in order[] */
@@ -152,6 +153,7 @@ static void *helper_main(void *arg)
         while (!det->quit && det->generation == seen) pthread_cond_wait(&det->go, &det->mu);
         if (det->quit) break;
         seen = det->generation;
+        h->td->quad_decimate = (float)det->win_dec;
         pthread_mutex_unlock(&det->mu);
         scan_windows(det, h->td);
         pthread_mutex_lock(&det->mu);
@@ -249,6 +251,8 @@ sh_status sh_detector_create(const sh_detector_options *opts, sh_detector **out)
     if (!det) return sh_error_set(SH_ENOMEM, "detect: cannot allocate the detector");
     det->opts = o;
     det->opts.family = families[f].name; /* a static string: the caller's may not outlive us */
+    det->quad_dec = o.quad_decimate;
+    det->win_dec = o.window_decimate;
     det->tf = families[f].create();
     det->tf_destroy = families[f].destroy;
     det->td = apriltag_detector_create();
@@ -464,7 +468,7 @@ sh_status sh_detector_detect_plane(sh_detector *det, const uint8_t *luma, int wi
     int n = 0;
     sh_status st;
     if (!windows || num_windows == 0) {
-        det->td->quad_decimate = (float)det->opts.quad_decimate;
+        det->td->quad_decimate = (float)det->quad_dec;
         det->num_scan = 0;
         const sh_window whole = {0, 0, width, height};
         zarray_t *dets = detect_view(det->td, luma, stride, &whole);
@@ -474,12 +478,33 @@ sh_status sh_detector_detect_plane(sh_detector *det, const uint8_t *luma, int wi
         apriltag_detections_destroy(dets);
         st = SH_OK;
     } else {
-        det->td->quad_decimate = (float)det->opts.window_decimate;
+        det->td->quad_decimate = (float)det->win_dec;
         plan_windows(det, width, height, windows, num_windows);
         st = scan(det, luma, width, height, stride, out, max, &n);
     }
     *count = n;
     return st;
+}
+
+sh_status sh_detector_set_tag_side(sh_detector *det, double side_px)
+{
+    if (!det || !(side_px >= 0) || !isfinite(side_px))
+        return sh_error_set(SH_EINVAL, "detect: tag side %g px", side_px);
+    double d = 1;
+    if (side_px > 0) {
+        int modules = det->tf->width_at_border > 0 ? det->tf->width_at_border : 1;
+        d = floor(side_px / modules / SH_DETECT_MODULE_PX);
+        if (d > SH_DETECT_MAX_DECIMATE) d = SH_DETECT_MAX_DECIMATE;
+    }
+    det->quad_dec = fmax(det->opts.quad_decimate, d);
+    det->win_dec = fmax(det->opts.window_decimate, d);
+    return SH_OK;
+}
+
+void sh_detector_decimation(const sh_detector *det, double *quad_decimate, double *window_decimate)
+{
+    if (quad_decimate) *quad_decimate = det->quad_dec;
+    if (window_decimate) *window_decimate = det->win_dec;
 }
 
 int sh_detector_last_windows(const sh_detector *det, sh_window *out, int max)
@@ -616,6 +641,17 @@ int sh_detector_last_windows(const sh_detector *det, sh_window *out, int max)
 {
     (void)det, (void)out, (void)max;
     return 0;
+}
+
+sh_status sh_detector_set_tag_side(sh_detector *det, double side_px)
+{
+    (void)det, (void)side_px;
+    return sh_error_set(SH_EUNSUPPORTED, "detect: built without libapriltag");
+}
+
+void sh_detector_decimation(const sh_detector *det, double *quad_decimate, double *window_decimate)
+{
+    (void)det, (void)quad_decimate, (void)window_decimate;
 }
 
 #endif

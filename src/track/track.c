@@ -287,6 +287,22 @@ int sh_tracker_rescan(const sh_tracker *t, int cam, const sh_detection *det, int
     return expected >= 3 && 2 * found < expected;
 }
 
+double sh_tracker_tag_side(const sh_tracker *t, int cam)
+{
+    if (!t || cam < 0 || cam >= t->ncam) return 0;
+    double best = 0;
+    for (int i = 0; i < t->nm; i++) {
+        const marker *mk = &t->m[i];
+        if (!mk->init || mk->lost || !mk->quad_ok[cam]) continue;
+        double side = 0;
+        for (int k = 0; k < 4; k++)
+            side += 0.25 * hypot(mk->quad[cam][(k + 1) % 4][0] - mk->quad[cam][k][0],
+                                 mk->quad[cam][(k + 1) % 4][1] - mk->quad[cam][k][1]);
+        if (side > 0 && (best == 0 || side < best)) best = side;
+    }
+    return best;
+}
+
 /* Counts each marker's detections per camera (a negative or untracked id, or a centre not
  * finite, counts as unknown); with auto ids an unseen id takes a new slot. */
 static void assign_detections(sh_tracker *t, const sh_detection *const *det, const int *count, int num_cameras)

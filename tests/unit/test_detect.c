@@ -111,6 +111,50 @@ static void detect_the_tag(sh_detector *det, const uint8_t *buf, int stride, con
     check_square(&d[0], x0, y0, x1, y1, SHARP_TOL);
 }
 
+/* The decimation a known tag size chooses: the closed form floor(side / 8 modules / 5.8 px),
+ * at most 4, never below the options' (quad 2, windows 1 by default); then a 4K-sized tag (24 px
+ * cells, a 192 px border) drawn with exact edges is found on its exact square at the
+ * decimation chosen (4), whole-frame and in a window scanned by a helper thread. */
+static void test_decimation_follows_tag_side(void **state)
+{
+    (void)state;
+    sh_detector_options o;
+    sh_detector_options_default(&o);
+    o.window_threads = 2;
+    sh_detector *det;
+    assert_int_equal(sh_detector_create(&o, &det), SH_OK);
+    const struct {
+        double side, quad, win;
+    } rule[] = {{0, 2, 1}, {40, 2, 1}, {60, 2, 1}, {93, 2, 2}, {139.2, 3, 3}, {192, 4, 4}, {1000, 4, 4}};
+    for (size_t i = 0; i < sizeof rule / sizeof rule[0]; i++) {
+        double q, w;
+        assert_int_equal(sh_detector_set_tag_side(det, rule[i].side), SH_OK);
+        sh_detector_decimation(det, &q, &w);
+        if (q != rule[i].quad || w != rule[i].win)
+            fail_msg("side %g px: decimation %g / %g, expected %g / %g", rule[i].side, q, w, rule[i].quad, rule[i].win);
+    }
+    assert_int_equal(sh_detector_set_tag_side(det, -1), SH_EINVAL);
+    assert_int_equal(sh_detector_set_tag_side(det, NAN), SH_EINVAL);
+    enum { W = 640, H = 480, K = 24, OX = 101, OY = 77 };
+    uint8_t *buf = malloc((size_t)W * H);
+    assert_non_null(buf);
+    draw_tag(buf, W, H, W, TAG_ID, K, OX, OY);
+    double x0 = OX + K - 0.5, x1 = OX + 9 * K - 0.5, y0 = OY + K - 0.5, y1 = OY + 9 * K - 0.5;
+    assert_int_equal(sh_detector_set_tag_side(det, 8 * K), SH_OK);
+    /* two windows, so that the helper scans one: the tag's and an empty one */
+    const sh_window win[2] = {{OX - 10, OY - 10, 10 * K + 20, 10 * K + 20}, {W - 120, H - 120, 110, 110}};
+    for (int nwin = 0; nwin <= 2; nwin += 2) {
+        sh_detection d[MAXD];
+        int n = -1;
+        assert_int_equal(sh_detector_detect_plane(det, buf, W, H, W, nwin ? win : NULL, nwin, d, MAXD, &n), SH_OK);
+        assert_int_equal(n, 1);
+        assert_int_equal(d[0].id, TAG_ID);
+        check_square(&d[0], x0, y0, x1, y1, SHARP_TOL);
+    }
+    free(buf);
+    sh_detector_destroy(det);
+}
+
 static void test_pixel_centre_convention(void **state)
 {
     (void)state;
@@ -634,6 +678,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_arguments),
         cmocka_unit_test(test_pixel_centre_convention),
+        cmocka_unit_test(test_decimation_follows_tag_side),
         cmocka_unit_test(test_cut_view_loses_to_whole_view),
         cmocka_unit_test(test_photos_match_libapriltag),
         cmocka_unit_test(test_photos_expected_corners),
