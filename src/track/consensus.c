@@ -376,7 +376,14 @@ static void camera(sh_tracker *t, frame_set *fs, int fresh)
  * so that the ordinary update takes the detection and moves the baseline most; the rhythm keeps
  * its covariance and learns from the updates that follow. Widening the whole covariance (a
  * fading memory) was tried first: one detection then threw the harmonics about, and on irregular
- * beats the next predictions were off by hundreds of pixels. */
+ * beats the next predictions were off by hundreds of pixels. Before the lock the model is a
+ * constant velocity, and a marker outside its gate is one whose velocity lags the beat: the
+ * excess then also goes into the velocity, as a velocity step at the start of the last step
+ * (x, x/dt, x/dt^2), so the update takes the velocity that explains the innovation; left in the
+ * position alone, the lag grew frame after frame until the consensus refused the marker (a
+ * 110 beats/min heart at 4K, docs/tracking.md). As an acceleration over the step instead (the
+ * model's own dt^4/4 : dt^3/2 : dt^2) the update moved the velocity twice as far and, on a
+ * stronger bulge, overshot until a marker was lost. */
 static void widen_baselines(sh_tracker *t, const frame_set *fs)
 {
     int jumped = 0;
