@@ -21,7 +21,7 @@ run_folder() {
         p_sum=$((p_sum + ${p:-0})); f_sum=$((f_sum + ${f:-0}))
         if [ "$rc" -ne 0 ] && [ -z "$f" ]; then f_sum=$((f_sum + 1)); c_list="$c_list $t"; fi
         # the failed cases by name, for the closing lines (CI shows only the end of the output)
-        printf '%s\n' "$out" | sed -n "s|^\[  FAILED  \] \(test_[A-Za-z0-9_]*\)\$| $(basename "$t"):\1|p" | sort -u | tr -d '\n' >> "$work/$2.names"
+        printf '%s\n' "$out" | sed -n "s|^\[  FAILED  \] \(test_[A-Za-z0-9_]*\)\$| $(basename "$1")/$(basename "$t"):\1|p" | sort -u | tr -d '\n' >> "$work/$2.names"
     done > "$work/$2.log" 2>&1
     echo "$p_sum $f_sum$c_list" > "$work/$2.sum"
 }
@@ -37,7 +37,7 @@ while [ $i -lt $n ]; do
     i=$((i + 1))
     cat "$work/$i.log"
     read -r p f c < "$work/$i.sum" || { p=0; f=1; c="(folder $i: no summary)"; }
-    [ -s "$work/$i.names" ] && names="${names:-}$(sed "s| | $(basename "$(eval echo \${$i})")/|g" "$work/$i.names")"
+    [ -s "$work/$i.names" ] && names="${names:-}$(cat "$work/$i.names")"
     passed=$((passed + p)); failed=$((failed + f)); [ -n "${c:-}" ] && crashed="$crashed $c"
 done
 # make vmtest's closing lines ("vmtest: N passed, N failed": the capture guest's and the

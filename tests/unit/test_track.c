@@ -65,12 +65,13 @@ static void detection(int id, double x, double y, sh_detection *d)
     d->margin = 60;
 }
 
-/* A tracker for n markers with ids first..first+n-1 listed (n = 0: ids learnt) in a w x h view. */
-static sh_tracker *make_sized(int first, int n, int w, int h)
+/* A tracker for n markers with ids first..first+n-1 listed (n = 0: ids learnt) in a w x h view
+ * at fps frames/s. */
+static sh_tracker *make_at(int first, int n, int w, int h, double fps)
 {
     sh_track_options o;
     sh_track_options_default(&o);
-    o.fps = FPS;
+    o.fps = fps;
     o.width = w;
     o.height = h;
     int ids[SH_TRACK_MAX_MARKERS];
@@ -81,6 +82,8 @@ static sh_tracker *make_sized(int first, int n, int w, int h)
     assert_int_equal(sh_tracker_create(&o, NULL, &t), SH_OK);
     return t;
 }
+
+static sh_tracker *make_sized(int first, int n, int w, int h) { return make_at(first, n, w, h, FPS); }
 
 static sh_tracker *make_ids(int first, int n) { return make_sized(first, n, 1280, 720); }
 
@@ -438,17 +441,7 @@ static void fast_beat(int i, int f, double *x, double *y)
 static void test_fast_beat_seen_large_followed(void **state)
 {
     (void)state;
-    sh_track_options o;
-    sh_track_options_default(&o);
-    o.fps = FAST_FPS;
-    o.width = 3840;
-    o.height = 2160;
-    int ids[16];
-    for (int i = 0; i < 16; i++) ids[i] = i;
-    o.ids = ids;
-    o.num_ids = 16;
-    sh_tracker *t = NULL;
-    assert_int_equal(sh_tracker_create(&o, NULL, &t), SH_OK);
+    sh_tracker *t = make_at(0, 16, 3840, 2160, FAST_FPS);
     sh_track_estimate e[SH_TRACK_MAX_MARKERS];
     double worst = 0, sum = 0, vmax = 0;
     int count = 0, locked_at = -1, unmeasured = 0;

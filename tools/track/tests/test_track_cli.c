@@ -428,6 +428,7 @@ static void daemon_case(const motion_case *mc, const char *on_motion)
      * qemu-aarch64; a new reference after the camera moved is one): the time to stabilize again
      * is counted without those frames */
     int status[400] = {0}, building[400] = {0}, frames = 0, moving = 0, raw = 0;
+    int end = (int)ceil(mc->end * MOTION_FPS - 1e-9), back = -1, waited = 0;
     for (char *line = strtok(strchr(text, '\n') + 1, "\n"); line; line = strtok(NULL, "\n")) {
         int idx;
         char st[16];
@@ -437,12 +438,11 @@ static void daemon_case(const motion_case *mc, const char *on_motion)
                                                 strstr(line, "new reference ("));
         moving += strstr(line, "camera moving") != NULL;
         raw += status[idx] == 3;
-        if (idx >= (int)ceil(mc->end * MOTION_FPS - 1e-9) && status[idx] != 1 && idx < 400)
+        if (idx >= end && status[idx] != 1)
             fprintf(stderr, "    after the motion: %s\n", line); /* what kept it from stabilizing, should it fail */
         frames = idx + 1 > frames ? idx + 1 : frames;
     }
     free(text);
-    int end = (int)ceil(mc->end * MOTION_FPS - 1e-9), back = -1, waited = 0;
     for (int f = end; f < frames && back < 0; f++) {
         if (status[f] == 1) back = f - end - waited;
         waited += building[f];
