@@ -230,7 +230,7 @@ static int warp_frame(void *job)
     double t0 = app_now();
     const sh_image *shown = &s->out;
     if (n < 3 || cache_get(s->cache, s->ids, n, &j->model) != SH_OK ||
-        sh_warp_model_update(j->model, s->cur) != SH_OK ||
+        sh_warp_update(s->warp, j->model, s->cur, NULL) != SH_OK ||
         sh_warp_apply(s->warp, j->model, &s->in, &s->out) != SH_OK) {
         shown = &s->in; /* nothing trustworthy to warp with: pass the frame through, counted */
         app_stab_raw(s, "warp", n, 3, j->o->quiet);

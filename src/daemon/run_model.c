@@ -218,18 +218,19 @@ static void refine_ask(run_model *md)
     pthread_mutex_unlock(&m->mu);
 }
 
-sh_status run_model_update(run_model *md, const double *cur_xy, const double *cur_xyz, const double *det_xy,
-                           const unsigned char *use, double *residual)
+sh_status run_model_update(run_model *md, sh_warp *warp, const double *cur_xy, const double *cur_xyz,
+                           const double *det_xy, const unsigned char *use, double *residual)
 {
     const sh_modelcache_entry *e = &md->e;
     if (e->m3) return update_3d(md->owner, md, cur_xyz, det_xy, residual);
     refine_swap(md);
     if (use) {
-        sh_status st = sh_warp_model_update_subset(e->model, cur_xy, use);
+        sh_status st = warp ? sh_warp_update(warp, e->model, cur_xy, use)
+                            : sh_warp_model_update_subset(e->model, cur_xy, use);
         if (st == SH_OK) refine_ask(md);
         return st == SH_OK ? residual_subset(md, det_xy, residual) : st;
     }
-    sh_status st = sh_warp_model_update(e->model, cur_xy);
+    sh_status st = warp ? sh_warp_update(warp, e->model, cur_xy, NULL) : sh_warp_model_update(e->model, cur_xy);
     if (st != SH_OK) return st;
     refine_ask(md);
     /* The map at a marker's reference position, f(q) = q + D(q), against where the detector saw
@@ -278,7 +279,7 @@ sh_status run_residual(const sh_interp_params *params, const double *ref_xy, con
     }
     sh_status st = sh_modelcache_entry_set(&md->e, ref, n, ids, n);
     if (st == SH_OK) st = model_build(&m, md);
-    if (st == SH_OK) st = run_model_update(md, cur_xy, NULL, det_xy, NULL, residual);
+    if (st == SH_OK) st = run_model_update(md, NULL, cur_xy, NULL, det_xy, NULL, residual);
     model_free(md);
     free(md);
     return st;

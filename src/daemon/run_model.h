@@ -64,9 +64,10 @@ int run_models_get(run_models *m, const int *ids, int n, run_model **out);
  * map puts the marker's reference position and where the detector saw it (det_xy; NaN for a
  * marker not detected, and for every landmark). *residual is -1 when no marker was detected, NaN
  * if the map cannot be evaluated at a marker. use: NULL, or per point whether the map goes
- * through it (a landmark refused this frame is left out, 2D only). */
-sh_status run_model_update(run_model *md, const double *cur_xy, const double *cur_xyz, const double *det_xy,
-                           const unsigned char *use, double *residual);
+ * through it (a landmark refused this frame is left out, 2D only). warp: the executor whose
+ * threads share a 2D grid's nodes (sh_warp_update), or NULL for this thread alone. */
+sh_status run_model_update(run_model *md, sh_warp *warp, const double *cur_xy, const double *cur_xyz,
+                           const double *det_xy, const unsigned char *use, double *residual);
 /* The model's markers: the first run_model_markers(md) of its ids (the rest are landmarks), and
  * the reference positions of all its points (2 n doubles, the ids' order). */
 int run_model_markers(const run_model *md);

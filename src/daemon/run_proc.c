@@ -706,7 +706,7 @@ static const sh_image *frame(run_proc *p, const sh_image *img, const sh_image *c
         xy = p->all_xy, det = p->all_det, use = p->all_use;
     }
     double residual;
-    sh_status ust = run_model_update(md, xy, xyz, det, use, &residual);
+    sh_status ust = run_model_update(md, p->warp, xy, xyz, det, use, &residual);
     double t2 = now_ms();
     p->ms[1] = t2 - t1 - p->lm_ms;
     if (ust != SH_OK) {

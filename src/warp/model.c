@@ -5,41 +5,11 @@
 
 #include "warp_internal.h"
 
-#if defined(__SSE2__)
-#include <emmintrin.h>
-#endif
-
-/* The second difference averages f'' over two cells; the largest |f''| inside a cell can exceed
- * the average at its corners. Measured on TPS, Gaussian, local RBF and B-spline maps of
- * non-affine motions (tests/unit/test_warp.c), the true error reaches 1.2 x the raw estimate;
- * 2 leaves a margin over that. */
-#define ERROR_SAFETY 2.0
-
 void sh_warp_options_default(sh_warp_options *opts)
 {
     opts->max_error = 0.05;
     opts->grid_spacing = 16;
     opts->defer_refine = 0;
-}
-
-static void free_grid(sh_warp_model *m)
-{
-    free(m->row_start);
-    free(m->index);
-    free(m->weight);
-    free(m->map);
-    free(m->curvature);
-    free(m->sep_x);
-    free(m->sep_y);
-    free(m->sep_row);
-    free(m->dense);
-    free(m->dense_coef);
-    m->dense = NULL;
-    m->dense_coef = NULL;
-    m->dense_terms = 0;
-    m->row_start = m->index = NULL;
-    m->weight = m->map = m->curvature = m->sep_x = m->sep_y = m->sep_row = NULL;
-    m->sep_n = 0;
 }
 
 /* Triangles listed per band of TRIANGLE_BAND rows, so a row visits only the few triangles
@@ -75,7 +45,7 @@ static sh_status build_bands(sh_warp_model *m)
 void sh_warp_model_destroy(sh_warp_model *m)
 {
     if (!m) return;
-    free_grid(m);
+    warp_grid_free(m);
     free(m->coef);
     free(m->tri_map);
     free(m->tri_ybounds);
@@ -88,138 +58,6 @@ void sh_warp_model_destroy(sh_warp_model *m)
     free(m->subset_work);
     free(m->subset_xy);
     free(m);
-}
-
-/* A Gaussian kernel's factors per node column and row (see sh_interp_kernel_factors); returns
- * 0 with nothing allocated for the other methods. */
-static sh_status build_separable(sh_warp_model *m)
-{
-    const int n = m->n, h = m->h;
-    m->sep_y = malloc(sizeof(double) * (size_t)m->ny * n);
-    if (!m->sep_y) return sh_error_set(SH_ENOMEM, "warp: out of memory");
-    if (sh_interp_kernel_factors(m->interp, 1, m->gy0, m->sep_y) != n) {
-        free(m->sep_y);
-        m->sep_y = NULL;
-        return SH_OK;
-    }
-    const size_t pairs = ((size_t)m->nx + 1) / 2;
-    m->sep_x = calloc(2 * pairs * (size_t)n, sizeof(double));
-    m->sep_row = malloc(sizeof(double) * 4 * (size_t)n);
-    double *f = malloc(sizeof(double) * (size_t)n);
-    if (!m->sep_x || !m->sep_row || !f) {
-        free(f);
-        return sh_error_set(SH_ENOMEM, "warp: out of memory");
-    }
-    for (int j = 1; j < m->ny; j++)
-        sh_interp_kernel_factors(m->interp, 1, m->gy0 + (double)j * h, m->sep_y + (size_t)j * n);
-    for (int i = 0; i < m->nx; i++) { /* an odd grid's last pair keeps a zero column */
-        sh_interp_kernel_factors(m->interp, 0, m->gx0 + (double)i * h, f);
-        for (int k = 0; k < n; k++) m->sep_x[2 * ((size_t)(i / 2) * n + k) + i % 2] = f[k];
-    }
-    free(f);
-    m->sep_n = n;
-    return SH_OK;
-}
-
-/* Rows that hold every coefficient in order (the dense RBFs: TPS) are kept as floats without
- * the CSR's indices: grid_map streams the whole basis every update (nodes x (n + 3) terms, 10 MB
- * at 1080p for 150 points), and 4 bytes a term instead of 12 cut that traffic and the model's
- * memory to a third. A weight's rounding moves the map by far less than the grid's tolerance
- * (test_dense_rows_as_exact). Returns 1 when the rows were stored so, 0 when they are not dense
- * (nothing kept), or an error. */
-static int build_dense_rows(sh_warp_model *m, size_t nodes, int max_terms, int *row_index, double *row_weight)
-{
-    if (m->sep_n) return 0;
-    for (size_t node = 0; node < nodes; node++) {
-        size_t i = node % (size_t)m->nx, j = node / (size_t)m->nx;
-        int k = sh_interp_basis(m->interp, m->gx0 + (double)i * m->h, m->gy0 + (double)j * m->h, row_index,
-                                row_weight);
-        if (k < 0) return k;
-        int dense = k == max_terms;
-        for (int t = 0; dense && t < k; t++) dense = row_index[t] == t;
-        if (!dense) {
-            free(m->dense);
-            m->dense = NULL;
-            return 0;
-        }
-        if (!m->dense && !(m->dense = malloc(sizeof(float) * nodes * (size_t)max_terms)))
-            return sh_error_set(SH_ENOMEM, "warp: grid of %zu nodes does not fit in memory", nodes);
-        for (int t = 0; t < k; t++) m->dense[node * (size_t)max_terms + (size_t)t] = (float)row_weight[t];
-    }
-    if (!(m->dense_coef = malloc(sizeof(double) * 2 * (size_t)max_terms)))
-        return sh_error_set(SH_ENOMEM, "warp: out of memory");
-    m->dense_terms = max_terms;
-    return 1;
-}
-
-static sh_status build_grid(sh_warp_model *m, int h)
-{
-    free_grid(m);
-    m->h = h;
-    /* Every point's hull, not the last update's: a grid refined while a subset update showed a
-     * smaller hull must still cover the next update through all of them. */
-    const sh_hull *all = &m->hull_all;
-    m->gx0 = (int)floor(all->xmin / h) * h;
-    m->gy0 = (int)floor(all->ymin / h) * h;
-    m->nx = ((int)ceil(all->xmax / h) * h - m->gx0) / h + 1;
-    m->ny = ((int)ceil(all->ymax / h) * h - m->gy0) / h + 1;
-    size_t nodes = (size_t)m->nx * (size_t)m->ny;
-    sh_status st = build_separable(m);
-    if (st != SH_OK) return st;
-    int max_terms = sh_interp_max_terms(m->interp);
-    m->map = malloc(sizeof(double) * 2 * nodes);
-    m->curvature = malloc(sizeof(double) * 4 * nodes);
-    int *row_index = malloc(sizeof(int) * (size_t)max_terms);
-    double *row_weight = malloc(sizeof(double) * (size_t)max_terms);
-    if (!m->map || !m->curvature || !row_index || !row_weight) {
-        free(row_index);
-        free(row_weight);
-        return sh_error_set(SH_ENOMEM, "warp: grid of %zu nodes does not fit in memory", nodes);
-    }
-    int dense = build_dense_rows(m, nodes, max_terms, row_index, row_weight);
-    if (dense) {
-        free(row_index);
-        free(row_weight);
-        return dense < 0 ? (sh_status)dense : SH_OK;
-    }
-    /* separable: the CSR rows keep only the terms past the kernel's n */
-    size_t cap = nodes * (size_t)(max_terms - m->sep_n) + 1;
-    m->row_start = malloc(sizeof(int) * (nodes + 1));
-    m->index = malloc(sizeof(int) * cap);
-    m->weight = malloc(sizeof(double) * cap);
-    if (!m->row_start || !m->index || !m->weight) {
-        free(row_index);
-        free(row_weight);
-        return sh_error_set(SH_ENOMEM, "warp: grid of %zu nodes does not fit in memory", nodes);
-    }
-    size_t used = 0;
-    for (int j = 0; j < m->ny; j++) {
-        for (int i = 0; i < m->nx; i++) {
-            size_t node = (size_t)j * m->nx + i;
-            m->row_start[node] = (int)used;
-            double x = m->gx0 + (double)i * h, y = m->gy0 + (double)j * h;
-            if (!m->sep_n) {
-                int k = sh_interp_basis(m->interp, x, y, m->index + used, m->weight + used);
-                if (k < 0) {
-                    free(row_index);
-                    free(row_weight);
-                    return (sh_status)k;
-                }
-                used += (size_t)k;
-                continue;
-            }
-            int k = sh_interp_basis(m->interp, x, y, row_index, row_weight);
-            for (int t = 0; t < k; t++) {
-                if (row_index[t] < m->sep_n) continue;
-                m->index[used] = row_index[t];
-                m->weight[used++] = row_weight[t];
-            }
-        }
-    }
-    free(row_index);
-    free(row_weight);
-    m->row_start[nodes] = (int)used;
-    return SH_OK;
 }
 
 sh_status sh_warp_model_create(const sh_interp *interp, const double *ref_xy, int n, int width,
@@ -280,7 +118,7 @@ sh_status sh_warp_model_create(const sh_interp *interp, const double *ref_xy, in
         m->kind = MODEL_AFFINE;
     } else {
         m->kind = MODEL_GRID;
-        if ((st = build_grid(m, m->opts.grid_spacing)) != SH_OK) goto fail;
+        if ((st = warp_grid_build(m, m->opts.grid_spacing)) != SH_OK) goto fail;
     }
     *out = m;
     return SH_OK;
@@ -305,206 +143,6 @@ static int triangle_map(const double *p0, const double *p1, const double *p2, co
         a[3 * c] = q0[c] - gx * p0[0] - gy * p0[1];
     }
     return 1;
-}
-
-/* The separable kernel part of grid row j's values, sum_k gx_k(x_i) (gy_k(y_j) c_k), into
- * out (x, y per node): the bracket once per row, then two node columns at a time (their
- * factors side by side in sep_x), so each factor pair is loaded once for x and y. */
-static void separable_row(sh_warp_model *m, size_t j, double *out)
-{
-    const int n = m->sep_n;
-    double *a = m->sep_row; /* per k: c_x gy, twice; c_y gy, twice */
-    for (int k = 0; k < n; k++) {
-        double g = m->sep_y[j * (size_t)n + k];
-        a[4 * k] = a[4 * k + 1] = m->coef[2 * k] * g;
-        a[4 * k + 2] = a[4 * k + 3] = m->coef[2 * k + 1] * g;
-    }
-    for (int i = 0; i < m->nx; i += 2) {
-        const double *f = m->sep_x + 2 * (size_t)(i / 2) * n;
-        double x[2], y[2]; /* columns i and i + 1 */
-#if defined(__SSE2__)
-        /* four chains to hide the adder's latency */
-        __m128d sx = _mm_setzero_pd(), sy = _mm_setzero_pd(), tx = sx, ty = sx;
-        int k = 0;
-        for (; k + 2 <= n; k += 2) {
-            __m128d g = _mm_loadu_pd(f + 2 * k), h = _mm_loadu_pd(f + 2 * k + 2);
-            sx = _mm_add_pd(sx, _mm_mul_pd(g, _mm_loadu_pd(a + 4 * k)));
-            sy = _mm_add_pd(sy, _mm_mul_pd(g, _mm_loadu_pd(a + 4 * k + 2)));
-            tx = _mm_add_pd(tx, _mm_mul_pd(h, _mm_loadu_pd(a + 4 * k + 4)));
-            ty = _mm_add_pd(ty, _mm_mul_pd(h, _mm_loadu_pd(a + 4 * k + 6)));
-        }
-        if (k < n) {
-            __m128d g = _mm_loadu_pd(f + 2 * k);
-            sx = _mm_add_pd(sx, _mm_mul_pd(g, _mm_loadu_pd(a + 4 * k)));
-            sy = _mm_add_pd(sy, _mm_mul_pd(g, _mm_loadu_pd(a + 4 * k + 2)));
-        }
-        _mm_storeu_pd(x, _mm_add_pd(sx, tx));
-        _mm_storeu_pd(y, _mm_add_pd(sy, ty));
-#else
-        x[0] = x[1] = y[0] = y[1] = 0;
-        for (int k = 0; k < n; k++) {
-            for (int c = 0; c < 2; c++) {
-                x[c] += f[2 * k + c] * a[4 * k + c];
-                y[c] += f[2 * k + c] * a[4 * k + 2 + c];
-            }
-        }
-#endif
-        out[2 * i] = x[0], out[2 * i + 1] = y[0];
-        if (i + 1 < m->nx) out[2 * i + 2] = x[1], out[2 * i + 3] = y[1];
-    }
-}
-
-/* One node's displacement from a dense row, x and y coefficients apart, in four lanes of partial
- * sums so that the adds' latency does not bound a row of 150+ terms. SSE2 keeps lanes 0-1 and
- * 2-3 in two registers per axis: the same operations in the same order as the portable loop,
- * so both give the same bits. */
-static inline void dense_row(const float *restrict weight, int terms, const double *restrict cx,
-                             const double *restrict cy, double xy[2])
-{
-    double ax[4] = {0, 0, 0, 0}, ay[4] = {0, 0, 0, 0};
-    int k = 0;
-#if defined(__SSE2__)
-    __m128d x01 = _mm_setzero_pd(), x23 = x01, y01 = x01, y23 = x01;
-    for (; k + 4 <= terms; k += 4) {
-        __m128d w01 = _mm_cvtps_pd(_mm_castsi128_ps(_mm_loadl_epi64((const __m128i *)(weight + k))));
-        __m128d w23 = _mm_cvtps_pd(_mm_castsi128_ps(_mm_loadl_epi64((const __m128i *)(weight + k + 2))));
-        x01 = _mm_add_pd(x01, _mm_mul_pd(w01, _mm_loadu_pd(cx + k)));
-        x23 = _mm_add_pd(x23, _mm_mul_pd(w23, _mm_loadu_pd(cx + k + 2)));
-        y01 = _mm_add_pd(y01, _mm_mul_pd(w01, _mm_loadu_pd(cy + k)));
-        y23 = _mm_add_pd(y23, _mm_mul_pd(w23, _mm_loadu_pd(cy + k + 2)));
-    }
-    _mm_storeu_pd(ax, x01), _mm_storeu_pd(ax + 2, x23), _mm_storeu_pd(ay, y01), _mm_storeu_pd(ay + 2, y23);
-#else
-    for (; k + 4 <= terms; k += 4)
-        for (int l = 0; l < 4; l++) {
-            double w = weight[k + l];
-            ax[l] += w * cx[k + l];
-            ay[l] += w * cy[k + l];
-        }
-#endif
-    for (int l = 0; k < terms; k++, l++) {
-        ax[l] += (double)weight[k] * cx[k];
-        ay[l] += (double)weight[k] * cy[k];
-    }
-    xy[0] = (ax[0] + ax[1]) + (ax[2] + ax[3]);
-    xy[1] = (ay[0] + ay[1]) + (ay[2] + ay[3]);
-}
-
-static void grid_map(sh_warp_model *m)
-{
-    double *cx = m->dense_coef, *cy = cx + m->dense_terms;
-    for (int k = 0; k < m->dense_terms; k++) cx[k] = m->coef[2 * k], cy[k] = m->coef[2 * k + 1];
-    for (size_t node = 0, j = 0; j < (size_t)m->ny; j++) {
-        double *row = m->map + 2 * node;
-        if (m->sep_n) separable_row(m, j, row);
-        for (size_t i = 0; i < (size_t)m->nx; i++, node++) {
-            double xy[2];
-            if (m->dense) {
-                dense_row(m->dense + node * (size_t)m->dense_terms, m->dense_terms, cx, cy, xy);
-                m->map[2 * node] = m->gx0 + (double)i * m->h + xy[0];
-                m->map[2 * node + 1] = m->gy0 + (double)j * m->h + xy[1];
-                continue;
-            }
-            const int *index = m->index + m->row_start[node];
-            const double *weight = m->weight + m->row_start[node];
-            int terms = m->row_start[node + 1] - m->row_start[node];
-#if defined(__SSE2__)
-            /* x and y side by side in one register; two chains to hide the adder's latency */
-            __m128d even = _mm_setzero_pd(), odd = _mm_setzero_pd();
-            int k = 0;
-            for (; k + 2 <= terms; k += 2) {
-                even = _mm_add_pd(even, _mm_mul_pd(_mm_set1_pd(weight[k]),
-                                                   _mm_loadu_pd(m->coef + 2 * (size_t)index[k])));
-                odd = _mm_add_pd(odd, _mm_mul_pd(_mm_set1_pd(weight[k + 1]),
-                                                 _mm_loadu_pd(m->coef + 2 * (size_t)index[k + 1])));
-            }
-            if (k < terms)
-                even = _mm_add_pd(even, _mm_mul_pd(_mm_set1_pd(weight[k]),
-                                                   _mm_loadu_pd(m->coef + 2 * (size_t)index[k])));
-            _mm_storeu_pd(xy, _mm_add_pd(even, odd));
-#else
-            xy[0] = xy[1] = 0;
-            for (int k = 0; k < terms; k++) {
-                xy[0] += weight[k] * m->coef[2 * (size_t)index[k]];
-                xy[1] += weight[k] * m->coef[2 * (size_t)index[k] + 1];
-            }
-#endif
-            double sep[2] = {0, 0};
-            if (m->sep_n) sep[0] = row[2 * i], sep[1] = row[2 * i + 1];
-            m->map[2 * node] = m->gx0 + (double)i * m->h + (xy[0] + sep[0]);
-            m->map[2 * node + 1] = m->gy0 + (double)j * m->h + (xy[1] + sep[1]);
-        }
-    }
-}
-
-#if !defined(__SSE2__) /* the SSE2 path takes _mm_max_pd; clang warns of an unused inline */
-static inline double max2(double a, double b)
-{
-    return a > b ? a : b; /* maxsd: fmax is a libm call, and the values are never NaN here */
-}
-#endif
-
-/* Per node, |second difference| of x and y along both axes (nodes on the grid's edge take
- * their inner neighbour's), then per cell the bilinear interpolation error bound
- * h^2/8 (|f_xx| + |f_yy|) with each second derivative's largest value at the cell's corners.
- * x and y sit side by side in the map, so each step works on both at once (SSE2: one register). */
-static double grid_error_bound(sh_warp_model *m)
-{
-    if (m->h == 1) return 0; /* every pixel is a node */
-    if (m->nx < 3 || m->ny < 3) return INFINITY;
-    const int nx = m->nx, ny = m->ny;
-    const ptrdiff_t row = 2 * (ptrdiff_t)nx;
-    double *curv = m->curvature; /* per node: |dxx x|, |dxx y|, |dyy x|, |dyy y| */
-    for (int j = 0; j < ny; j++) {
-        int jc = j == 0 ? 1 : (j == ny - 1 ? ny - 2 : j);
-        for (int i = 0; i < nx; i++) {
-            int ic = i == 0 ? 1 : (i == nx - 1 ? nx - 2 : i);
-            const double *mx = m->map + 2 * ((size_t)j * nx + ic);
-            const double *my = m->map + 2 * ((size_t)jc * nx + i);
-            double *c = curv + 4 * ((size_t)j * nx + i);
-#if defined(__SSE2__)
-            const __m128d two = _mm_set1_pd(2.0), sign = _mm_set1_pd(-0.0);
-            __m128d dxx = _mm_add_pd(_mm_sub_pd(_mm_loadu_pd(mx - 2), _mm_mul_pd(two, _mm_loadu_pd(mx))),
-                                     _mm_loadu_pd(mx + 2));
-            __m128d dyy = _mm_add_pd(_mm_sub_pd(_mm_loadu_pd(my - row), _mm_mul_pd(two, _mm_loadu_pd(my))),
-                                     _mm_loadu_pd(my + row));
-            _mm_storeu_pd(c, _mm_andnot_pd(sign, dxx));
-            _mm_storeu_pd(c + 2, _mm_andnot_pd(sign, dyy));
-#else
-            c[0] = fabs(mx[-2] - 2 * mx[0] + mx[2]);
-            c[1] = fabs(mx[-1] - 2 * mx[1] + mx[3]);
-            c[2] = fabs(my[-row] - 2 * my[0] + my[row]);
-            c[3] = fabs(my[1 - row] - 2 * my[1] + my[row + 1]);
-#endif
-        }
-    }
-    double worst = 0;
-#if defined(__SSE2__)
-    __m128d worst2 = _mm_setzero_pd();
-#endif
-    for (int j = 0; j + 1 < ny; j++) {
-        for (int i = 0; i + 1 < nx; i++) {
-            const double *a = curv + 4 * ((size_t)j * nx + i), *b = a + 4, *c = a + 4 * nx,
-                         *d = c + 4;
-#if defined(__SSE2__)
-            __m128d exx = _mm_max_pd(_mm_max_pd(_mm_loadu_pd(a), _mm_loadu_pd(b)),
-                                     _mm_max_pd(_mm_loadu_pd(c), _mm_loadu_pd(d)));
-            __m128d eyy = _mm_max_pd(_mm_max_pd(_mm_loadu_pd(a + 2), _mm_loadu_pd(b + 2)),
-                                     _mm_max_pd(_mm_loadu_pd(c + 2), _mm_loadu_pd(d + 2)));
-            __m128d e = _mm_add_pd(exx, eyy), sq = _mm_mul_pd(e, e); /* ex, ey; squared */
-            worst2 = _mm_max_pd(worst2, _mm_add_sd(sq, _mm_unpackhi_pd(sq, sq)));
-#else
-            double e[4];
-            for (int k = 0; k < 4; k++) e[k] = max2(max2(a[k], b[k]), max2(c[k], d[k]));
-            double ex = e[0] + e[2], ey = e[1] + e[3];
-            worst = max2(worst, ex * ex + ey * ey);
-#endif
-        }
-    }
-#if defined(__SSE2__)
-    worst = _mm_cvtsd_f64(worst2);
-#endif
-    return ERROR_SAFETY / 8 * sqrt(worst);
 }
 
 /* The interpolant's coefficients for values (n x 2) and the hull: through every point, or
@@ -537,6 +175,12 @@ sh_status sh_warp_model_update(sh_warp_model *m, const double *cur_xy)
 }
 
 sh_status sh_warp_model_update_subset(sh_warp_model *m, const double *cur_xy, const unsigned char *use)
+{
+    return warp_model_update_with(m, cur_xy, use, NULL, NULL, 1);
+}
+
+sh_status warp_model_update_with(sh_warp_model *m, const double *cur_xy, const unsigned char *use,
+                                 warp_grid_fn map, void *ctx, int slots)
 {
     if (!m || !cur_xy) return sh_error_set(SH_EINVAL, "warp: no positions");
     if (use && m->kind == MODEL_TRIANGLES)
@@ -577,15 +221,15 @@ sh_status sh_warp_model_update_subset(sh_warp_model *m, const double *cur_xy, co
          * from the markers. */
         for (int i = 0; i < 2 * m->n; i++) m->disp[i] = !use || use[i / 2] ? cur_xy[i] - m->ref_xy[i] : 0.0;
         if ((st = fit(m, m->disp, use)) != SH_OK) return st;
-        grid_map(m);
-        m->error_bound = grid_error_bound(m);
+        if ((st = warp_grid_map(m, map, ctx, slots)) != SH_OK) return st;
+        m->error_bound = warp_grid_error_bound(m);
         while (!m->opts.defer_refine && m->error_bound > m->opts.max_error && m->h > 1) {
             /* Halving, not a jump predicted from h^2 scaling: a coarse grid can overstate the
              * curvature of a map with finer structure (multilevel B-splines) and overshoot. */
-            if ((st = build_grid(m, m->h / 2)) != SH_OK) return st;
+            if ((st = warp_grid_build(m, m->h / 2)) != SH_OK) return st;
             m->refinements++;
-            grid_map(m);
-            m->error_bound = grid_error_bound(m);
+            if ((st = warp_grid_map(m, map, ctx, slots)) != SH_OK) return st;
+            m->error_bound = warp_grid_error_bound(m);
         }
         return SH_OK;
     }

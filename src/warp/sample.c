@@ -260,6 +260,61 @@ static void sample_row_gray(const sh_plane *src, uint8_t black, uint8_t *dst, co
     }
     warp_sample_row_gray_portable(src, black, dst + k, fx + k, fy + k, count - k);
 }
+
+/* AVX2, where the CPU has it (chosen once at run time; the build stays x86-64's baseline): the
+ * 16 pinsrw of SSE2's 8 pixels are the loop's bound (two uops each, all on one shuffle port),
+ * so each row's taps come from one gather of a 32-bit word per pixel, bytes (p, p + 1, p + 2,
+ * p + 3), and pshufb keeps (p, p + 1) as the same word pairs. The weights and sums are SSE2's
+ * operations on 8 lanes at once, so the bytes are the portable ones. Reading p + 3 takes
+ * ix <= width - 4; the block's other cases go SSE2's way. */
+#if defined(__GNUC__) && (defined(__x86_64__) || defined(__i386__))
+#include <immintrin.h>
+#define SH_WARP_AVX2 1
+
+__attribute__((target("avx2"))) static void sample_row_gray_avx2(const sh_plane *src, uint8_t black,
+                                                                   uint8_t *dst, const int32_t *fx,
+                                                                   const int32_t *fy, int count)
+{
+    const uint8_t *const data = src->data, *const below = data + src->stride;
+    int k = 0;
+    /* offsets are the gather's signed 32-bit indices */
+    if (src->width >= 4 && src->height >= 2 && (int64_t)src->stride * src->height <= INT32_MAX) {
+        const __m256i lim_x = _mm256_set1_epi32(src->width - 4), lim_y = _mm256_set1_epi32(src->height - 2);
+        const __m256i stride = _mm256_set1_epi32(src->stride), wmask = _mm256_set1_epi32(ONE - 1);
+        const __m256i one = _mm256_set1_epi32(ONE), half = _mm256_set1_epi32(1 << (2 * WEIGHT_BITS - 1));
+        const __m256i pairs = _mm256_setr_epi8(0, -1, 1, -1, 4, -1, 5, -1, 8, -1, 9, -1, 12, -1, 13, -1,
+                                               0, -1, 1, -1, 4, -1, 5, -1, 8, -1, 9, -1, 12, -1, 13, -1);
+        const __m256i bytes = _mm256_setr_epi8(0, 4, 8, 12, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1,
+                                               0, 4, 8, 12, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1);
+        const __m256i halves = _mm256_setr_epi32(0, 4, 1, 1, 1, 1, 1, 1);
+        for (; k + 8 <= count; k += 8) {
+            __m256i px = _mm256_loadu_si256((const __m256i *)(fx + k));
+            __m256i py = _mm256_loadu_si256((const __m256i *)(fy + k));
+            __m256i ix = _mm256_srai_epi32(px, FRAC_BITS), iy = _mm256_srai_epi32(py, FRAC_BITS);
+            /* unsigned: negatives are huge */
+            __m256i inside = _mm256_and_si256(_mm256_cmpeq_epi32(_mm256_max_epu32(ix, lim_x), lim_x),
+                                              _mm256_cmpeq_epi32(_mm256_max_epu32(iy, lim_y), lim_y));
+            if (_mm256_movemask_epi8(inside) != -1) {
+                sample_row_gray(src, black, dst + k, fx + k, fy + k, 8);
+                continue;
+            }
+            __m256i off = _mm256_add_epi32(_mm256_mullo_epi32(iy, stride), ix);
+            __m256i top = _mm256_shuffle_epi8(_mm256_i32gather_epi32((const int *)data, off, 1), pairs);
+            __m256i bottom = _mm256_shuffle_epi8(_mm256_i32gather_epi32((const int *)below, off, 1), pairs);
+            __m256i w = _mm256_and_si256(_mm256_srli_epi32(px, FRAC_BITS - WEIGHT_BITS), wmask);
+            __m256i wx = _mm256_or_si256(_mm256_slli_epi32(w, 16), _mm256_sub_epi32(one, w));
+            w = _mm256_and_si256(_mm256_srli_epi32(py, FRAC_BITS - WEIGHT_BITS), wmask);
+            __m256i wy = _mm256_or_si256(_mm256_slli_epi32(w, 16), _mm256_sub_epi32(one, w));
+            __m256i t = _mm256_madd_epi16(top, wx), b = _mm256_madd_epi16(bottom, wx);
+            __m256i v = _mm256_madd_epi16(_mm256_or_si256(t, _mm256_slli_epi32(b, 16)), wy);
+            v = _mm256_srli_epi32(_mm256_add_epi32(v, half), 2 * WEIGHT_BITS);
+            v = _mm256_permutevar8x32_epi32(_mm256_shuffle_epi8(v, bytes), halves);
+            _mm_storel_epi64((__m128i *)(dst + k), _mm256_castsi256_si128(v));
+        }
+    }
+    sample_row_gray(src, black, dst + k, fx + k, fy + k, count - k);
+}
+#endif
 #elif defined(__aarch64__) && defined(__ARM_NEON)
 #include <arm_neon.h>
 
@@ -423,15 +478,42 @@ static void sample_row_gray(const sh_plane *src, uint8_t black, uint8_t *dst, co
 }
 #endif
 
+#ifdef SH_WARP_AVX2
+typedef void (*gray_fn)(const sh_plane *, uint8_t, uint8_t *, const int32_t *, const int32_t *, int);
+static gray_fn gray_row = sample_row_gray;
+#else
+#define gray_row sample_row_gray /* one loop: called directly, inlined */
+#endif
+
+static void init_tables(void)
+{
+    init_weights();
+#ifdef SH_WARP_AVX2
+    if (__builtin_cpu_supports("avx2")) gray_row = sample_row_gray_avx2;
+#endif
+}
+
 void warp_sample_init(void)
 {
     static pthread_once_t once = PTHREAD_ONCE_INIT;
-    pthread_once(&once, init_weights);
+    pthread_once(&once, init_tables);
+}
+
+int warp_sample_avx2(int wanted)
+{
+    warp_sample_init();
+#ifdef SH_WARP_AVX2
+    gray_row = wanted && __builtin_cpu_supports("avx2") ? sample_row_gray_avx2 : sample_row_gray;
+    return gray_row == sample_row_gray_avx2;
+#else
+    (void)wanted;
+    return 0;
+#endif
 }
 
 void warp_sample_row(const sh_plane *src, int channels, uint8_t black, uint8_t *dst,
                      const int32_t *fx, const int32_t *fy, int count)
 {
     if (channels == 3) sample_row_rgb(src, black, dst, fx, fy, count);
-    else sample_row_gray(src, black, dst, fx, fy, count);
+    else gray_row(src, black, dst, fx, fy, count);
 }

@@ -44,11 +44,34 @@ struct sh_warp_model {
     int sep_n;               /* > 0: the kernel terms factor per axis (Gaussian), n of them; */
     double *sep_x;           /*   per pair of node columns, per k: their two factors; */
     double *sep_y;           /*   per node row: the n factors; the CSR rows hold only the rest */
-    double *sep_row;         /*   (affine terms). Scratch: 4n, coef times one row's factors */
+    double *sep_row;         /*   (affine terms). Scratch: 4n per thread (sep_slots of them), */
+    int sep_slots;           /*   coef times one row's factors */
     double *curvature;       /* per node: second differences (grid_error_bound's scratch) */
     double error_bound;
     int refinements;
 };
+
+/* grid.c: the grid of spacing h over every point's hull, its basis rows made (the old grid
+ * freed first); and everything it holds freed. */
+sh_status warp_grid_build(sh_warp_model *m, int h);
+void warp_grid_free(sh_warp_model *m);
+/* Its largest interpolation error, from the map's second differences at the nodes. */
+double warp_grid_error_bound(sh_warp_model *m);
+
+/* The grid's node rows j0..j1-1 of the last fit, thread `slot` of those the update was made
+ * for (warp_model_update_with). Rows apart write apart: threads may share a map. */
+void warp_model_grid_rows(sh_warp_model *m, int j0, int j1, int slot);
+
+/* Makes all `rows` node rows of m's grid with warp_model_grid_rows, on up to `slots` threads. */
+typedef void (*warp_grid_fn)(void *ctx, sh_warp_model *m, int rows);
+
+/* The grid's map from the last fit: on this thread (map NULL) or by map over `slots` threads. */
+sh_status warp_grid_map(sh_warp_model *m, warp_grid_fn map, void *ctx, int slots);
+
+/* sh_warp_model_update_subset with the grid's map made by map(ctx, ...) (NULL: here, on this
+ * thread). */
+sh_status warp_model_update_with(sh_warp_model *m, const double *cur_xy, const unsigned char *use,
+                                 warp_grid_fn map, void *ctx, int slots);
 
 /* Where a plane's pixels sit in full-resolution coordinates: X = scale * x + ox. */
 typedef struct {
@@ -85,6 +108,11 @@ void warp_sample_init(void);
  * positions fx, fy; black (`black` in every channel) where a position leaves the plane. */
 void warp_sample_row(const sh_plane *src, int channels, uint8_t black, uint8_t *dst,
                      const int32_t *fx, const int32_t *fy, int count);
+
+/* One-channel planes take the AVX2 loop where the CPU has it (x86-64; chosen in
+ * warp_sample_init). wanted = 0 keeps the build's own SIMD path instead, so tests and benches
+ * can run both on one machine; returns whether the AVX2 loop is in use. */
+int warp_sample_avx2(int wanted);
 
 /* The RGB path's definition in portable C: the SSE2 and NEON paths of warp_sample_row give
  * exactly these bytes (tests/unit/test_sample_simd.c). */

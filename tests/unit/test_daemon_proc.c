@@ -225,7 +225,7 @@ static void test_models_refine_on_helper(void **state)
         double residual;
         int frames = 0;
         do {
-            assert_int_equal(run_model_update(md, cur, NULL, det, NULL, &residual), SH_OK);
+            assert_int_equal(run_model_update(md, NULL, cur, NULL, det, NULL, &residual), SH_OK);
             /* live, an update never rebuilds its grid */
             if (!wait) assert_int_equal(sh_warp_model_refinements(run_model_warp(md)), 0);
             if (sh_warp_model_grid_spacing(run_model_warp(md)) != sh_warp_model_grid_spacing(inplace)) wait_ms(5);

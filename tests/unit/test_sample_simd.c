@@ -1,7 +1,8 @@
 /* The warp's samplers, RGB24 and one channel: the SIMD path of this build (SSE2 on x86-64, NEON
- * on AArch64) against the portable C definition, bit for bit, on random positions inside, across
- * the edges and far outside the plane, on planes of several sizes and strides, at several
- * alignments. Run under qemu-aarch64 by `make check-arm64`, this is the NEON paths' test. */
+ * on AArch64; and one channel's AVX2 loop where the CPU has it) against the portable C
+ * definition, bit for bit, on random positions inside, across the edges and far outside the
+ * plane, on planes of several sizes and strides, at several alignments. Run under qemu-aarch64
+ * by `make check-arm64`, this is the NEON paths' test. */
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -21,6 +22,13 @@ static uint32_t next_u32(void)
 }
 
 typedef void (*portable_fn)(const sh_plane *, uint8_t, uint8_t *, const int32_t *, const int32_t *, int);
+
+/* The build's SIMD path, and on an x86-64 CPU with AVX2 also the one-channel AVX2 loop that
+ * warp_sample_row takes there by default (path 1). */
+static int simd_paths(void)
+{
+    return 1 + warp_sample_avx2(1);
+}
 
 /* The plane's buffer is exactly stride x height bytes, so that a read past it shows under ASan. */
 static void compare_on(int channels, int width, int height, int stride, int count, int spread)
@@ -44,20 +52,23 @@ static void compare_on(int channels, int width, int height, int stride, int coun
         fx[k] = (int32_t)(rx * 256 + (next_u32() & 255));
         fy[k] = (int32_t)(ry * 256 + (next_u32() & 255));
     }
-    for (int start = 0; start < starts; start++) {
-        int n = count - start;
-        memset(simd, 0xa5, bytes);
-        memset(ref, 0xa5, bytes);
-        warp_sample_init();
-        warp_sample_row(&plane, channels, 7, simd, fx + start, fy + start, n);
-        portable(&plane, 7, ref, fx + start, fy + start, n);
-        for (size_t k = 0; k < bytes; k++) {
-            if (simd[k] != ref[k])
-                fail_msg("%d channel(s), %dx%d stride %d, start %d: byte %zu (pixel %zu): simd %u, "
-                         "portable %u", channels, width, height, stride, start, k,
-                         k / (size_t)channels, simd[k], ref[k]);
+    for (int path = 0; path < simd_paths(); path++) {
+        warp_sample_avx2(path);
+        for (int start = 0; start < starts; start++) {
+            int n = count - start;
+            memset(simd, 0xa5, bytes);
+            memset(ref, 0xa5, bytes);
+            warp_sample_row(&plane, channels, 7, simd, fx + start, fy + start, n);
+            portable(&plane, 7, ref, fx + start, fy + start, n);
+            for (size_t k = 0; k < bytes; k++) {
+                if (simd[k] != ref[k])
+                    fail_msg("%d channel(s), %dx%d stride %d, start %d, %s: byte %zu (pixel %zu): simd %u, "
+                             "portable %u", channels, width, height, stride, start, path ? "AVX2" : "SIMD", k,
+                             k / (size_t)channels, simd[k], ref[k]);
+            }
         }
     }
+    warp_sample_avx2(1);
     free(data); free(fx); free(fy); free(simd); free(ref);
 }
 
@@ -98,10 +109,13 @@ static void extreme_positions(int channels)
     for (int i = 0; i < N; i++)
         for (int j = 0; j < N; j++) { fx[i * N + j] = v[i]; fy[i * N + j] = v[j]; }
     uint8_t simd[N * N * 3], ref[N * N * 3];
-    warp_sample_init();
-    warp_sample_row(&plane, channels, 0, simd, fx, fy, N * N);
     portable(&plane, 0, ref, fx, fy, N * N);
-    assert_memory_equal(simd, ref, (size_t)(N * N * channels));
+    for (int path = 0; path < simd_paths(); path++) {
+        warp_sample_avx2(path);
+        warp_sample_row(&plane, channels, 0, simd, fx, fy, N * N);
+        assert_memory_equal(simd, ref, (size_t)(N * N * channels));
+    }
+    warp_sample_avx2(1);
 }
 
 static void test_extreme_positions(void **state)

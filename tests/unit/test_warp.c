@@ -511,6 +511,66 @@ static void test_threads_same_bytes(void **state)
     }
 }
 
+/* sh_warp_update shares the grid's nodes among the warp's threads: the map, its bound and the
+ * refinements are sh_warp_model_update's bit for bit, for the dense rows (tps), the separable
+ * kernel (gaussian), the CSR rows (bspline, rbf-local), through a subset, and when the tolerance
+ * makes the update refine its grid (each finer grid made on the threads too). The grids are
+ * large enough that the threads take part (more than 4096 nodes). */
+static void test_update_on_threads_same_map(void **state)
+{
+    (void)state;
+    const int w = 1920, h = 1080, n = 20;
+    synth_motion mo = {w, h, 16};
+    double ref[2 * n], cur[2 * n];
+    unsigned char use[n];
+    synth_markers(&mo, n, 5, ref);
+    moved_markers(&mo, 0.35, ref, n, cur);
+    for (int i = 0; i < n; i++) use[i] = i < 4 || i % 5 != 3;
+    float *ma = malloc(sizeof(float) * 2 * (size_t)w * h), *mb = malloc(sizeof(float) * 2 * (size_t)w * h);
+    assert_true(ma && mb);
+    sh_warp *warp[2];
+    assert_int_equal(sh_warp_create(2, &warp[0]), SH_OK);
+    assert_int_equal(sh_warp_create(3, &warp[1]), SH_OK);
+    const struct {
+        const char *method;
+        double max_error;
+        int subset;
+    } cases[] = {{"tps", 0.05, 0}, {"tps", 0.05, 1}, {"tps", 0.004, 0}, {"gaussian", 0.05, 0},
+                 {"gaussian", 0.05, 1}, {"bspline", 0.05, 0}, {"rbf-local", 0.05, 0}};
+    for (size_t c = 0; c < sizeof cases / sizeof cases[0]; c++) {
+        for (int t = 0; t < 2; t++) {
+            sh_warp_options opts;
+            sh_warp_options_default(&opts);
+            opts.max_error = cases[c].max_error;
+            built one = build(cases[c].method, ref, n, w, h, &opts), many = build(cases[c].method, ref, n, w, h, &opts);
+            const unsigned char *u = cases[c].subset ? use : NULL;
+            for (int rep = 0; rep < 2; rep++) { /* the second update on the grid the first made */
+                assert_int_equal(sh_warp_model_update_subset(one.model, cur, u), SH_OK);
+                assert_int_equal(sh_warp_update(warp[t], many.model, cur, u), SH_OK);
+                const sh_hull *hull = sh_warp_model_hull(many.model);
+                int g = sh_warp_model_grid_spacing(many.model);
+                assert_true(g > 0);
+                assert_true(((hull->xmax - hull->xmin) / g) * ((hull->ymax - hull->ymin) / g) > 4096);
+                assert_int_equal(g, sh_warp_model_grid_spacing(one.model));
+                assert_int_equal(sh_warp_model_refinements(many.model), sh_warp_model_refinements(one.model));
+                assert_true(sh_warp_model_error_bound(many.model) == sh_warp_model_error_bound(one.model));
+                assert_int_equal(sh_warp_model_map(one.model, ma), SH_OK);
+                assert_int_equal(sh_warp_model_map(many.model, mb), SH_OK);
+                if (memcmp(ma, mb, sizeof(float) * 2 * (size_t)w * h) != 0)
+                    fail_msg("%s (max error %g%s), %d threads: the maps differ", cases[c].method,
+                             cases[c].max_error, cases[c].subset ? ", subset" : "", t ? 3 : 2);
+            }
+            if (cases[c].max_error < 0.05) assert_true(sh_warp_model_refinements(many.model) > 0);
+            unbuild(&one);
+            unbuild(&many);
+        }
+    }
+    assert_int_equal(sh_warp_update(NULL, NULL, cur, NULL), SH_EINVAL);
+    sh_warp_destroy(warp[0]);
+    sh_warp_destroy(warp[1]);
+    free(ma), free(mb);
+}
+
 /* sh_warp_apply_again writes black only where the hull's inside shrank; its output must be
  * sh_warp_apply's byte for byte into a fresh buffer, while the hull moves (a subset of markers
  * used each frame, so the inside grows and shrinks row by row), the frame moves, on 1 and 3
@@ -763,6 +823,7 @@ int main(void)
         cmocka_unit_test(test_translation_beyond_range),
         cmocka_unit_test(test_bilinear_closed_form),
         cmocka_unit_test(test_threads_same_bytes),
+        cmocka_unit_test(test_update_on_threads_same_map),
         cmocka_unit_test(test_apply_again_same_bytes),
         cmocka_unit_test(test_synthetic_sequence),
         cmocka_unit_test(test_bad_input),
