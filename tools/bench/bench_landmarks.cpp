@@ -9,8 +9,11 @@
 // gradients), built once. Also without the backward test (its own row: ours with
 // max_backward_px 0, OpenCV forward only, no gradients of the frame), and with the forward
 // windows pre-warped by the map's local affine (sh_landmarks_params.affine; beside the same
-// OpenCV work, which has no such search). The goal: at most
-// 3 ms a 1080p frame with 200 landmarks on one thread, and at most OpenCV's time.
+// OpenCV work, which has no such search). And with four tags, the corners of the field: the
+// landmarks chosen inside those four's hull, predicted by TPS on them, judged by the tests for
+// sparse markers (sh_landmarks_params_sparse), beside OpenCV's two searches from the same
+// predictions. The goal: at most 3 ms a 1080p frame with 200 landmarks on one thread,
+// and at most OpenCV's time.
 //
 // Frames: the phantom renderer of this build (exvivo preset, paper rig, 1920x1080, seed 1, with
 // the instrument and blood), FRAMES frames rendered into a temporary directory per run (about
@@ -91,8 +94,26 @@ static void cv_band(const cv::Mat &in, cv::Mat &fine, cv::Mat &coarse, cv::Mat &
 }
 
 struct Timed {
-    std::vector<double> ours, cv, ours_fwd, cv_fwd, ours_aff, predict;
+    std::vector<double> ours, cv, ours_fwd, cv_fwd, ours_aff, predict, ours4, cv4;
 };
+
+// The four visible markers of a frame nearest the corners of the field (least x+y, x-y, -x+y,
+// -x-y), as tools/eval/corners.awk picks them for `make landmarks-table` and table2's 4-tag rows.
+static std::vector<int> corner_ids(const std::map<int, Marker> &frame)
+{
+    std::vector<int> ids;
+    const int sign[4][2] = {{1, 1}, {1, -1}, {-1, 1}, {-1, -1}};
+    for (const auto &d : sign) {
+        int pick = -1;
+        double best = 0;
+        for (const auto &kv : frame) {
+            double v = d[0] * kv.second.c[0] + d[1] * kv.second.c[1];
+            if (kv.second.visible && (pick < 0 || v < best)) best = v, pick = kv.first;
+        }
+        ids.push_back(pick);
+    }
+    return ids;
+}
 
 int main(int argc, char **argv)
 {
@@ -153,6 +174,20 @@ int main(int argc, char **argv)
                 sh_landmarks_create(&lp_fwd, &ref, &hull, quads.data(), (int)quads.size() / 8, &lm_fwd), "landmarks");
     bench_check("bench_landmarks",
                 sh_landmarks_create(&lp_aff, &ref, &hull, quads.data(), (int)quads.size() / 8, &lm_aff), "landmarks");
+    // four tags (corners of the field): landmarks inside their hull, off every tag's quad (the
+    // others are still drawn on the tissue), with the tests for sparse markers
+    const std::vector<int> corners = corner_ids(truth[0]);
+    std::vector<double> cxy4;
+    for (int id : corners) cxy4.push_back(truth[0].at(id).c[0]), cxy4.push_back(truth[0].at(id).c[1]);
+    sh_hull hull4;
+    bench_check("bench_landmarks", sh_hull_compute(cxy4.data(), 4, &hull4), "hull of 4 tags");
+    sh_landmarks_params lp4 = lp;
+    sh_landmarks_params_sparse(&lp4);
+    sh_landmarks *lm4 = nullptr;
+    bench_check("bench_landmarks", sh_landmarks_create(&lp4, &ref, &hull4, quads.data(), (int)quads.size() / 8, &lm4),
+                "landmarks, 4 tags");
+    const int n4 = sh_landmarks_count(lm4);
+    const float *lref4 = sh_landmarks_reference(lm4);
     const int n = sh_landmarks_count(lm);
     const float *lref = sh_landmarks_reference(lm);
     double bx0 = W, bx1 = 0, by0 = H, by1 = 0;
@@ -179,8 +214,9 @@ int main(int argc, char **argv)
     }
     std::vector<cv::Mat> cv_ref_pyr, cv_cur_pyr;
     cv::buildOpticalFlowPyramid(cv_band_ref, cv_ref_pyr, win, fp.levels, true);
-    std::vector<cv::Point2f> p0(n), p1(n), p2(n);
+    std::vector<cv::Point2f> p0(n), p1(n), p2(n), q0(n4), q1(n4), q2(n4);
     for (int i = 0; i < n; i++) p0[i] = cv::Point2f(lref[2 * i], lref[2 * i + 1]);
+    for (int i = 0; i < n4; i++) q0[i] = cv::Point2f(lref4[2 * i], lref4[2 * i + 1]);
     std::vector<uchar> cst, cst2;
     std::vector<float> cerr, cerr2;
 
@@ -188,8 +224,9 @@ int main(int argc, char **argv)
     sh_interp_params ip;
     sh_interp_params_default(&ip, SH_METHOD_TPS);
     std::vector<std::vector<float>> pred(FRAMES, std::vector<float>(2 * n));
-    std::vector<float> xy(2 * n);
-    std::vector<uint8_t> verdict(n);
+    std::vector<float> xy(2 * std::max(n, n4)), pred4(2 * n4);
+    std::vector<uint8_t> verdict(std::max(n, n4));
+    long accepted4 = 0, judged4 = 0, frames4 = 0;
     Timed tm;
     uint64_t hash = 1469598103934665603ull;
     long accepted = 0, accepted_fwd = 0, accepted_aff = 0, cv_accepted = 0, cv_accepted_fwd = 0, judged = 0, again = 0, again_frames = 0, whole = 0;
@@ -271,6 +308,36 @@ int main(int argc, char **argv)
                         "track");
             tm.ours_aff.push_back(bench_now_ms() - a);
             if (pass == 0) accepted_aff += cnt.verdicts[SH_LANDMARK_ACCEPTED];
+
+            // four tags: the prediction from those of the corner tags that frame t shares with
+            // frame 0 (three make an affine map), then ours with the sparse tests beside
+            // OpenCV's forward and backward searches from the same predictions
+            std::vector<double> r4, c4;
+            for (int id : corners) {
+                auto it = truth[t].find(id);
+                if (it == truth[t].end() || !it->second.visible) continue;
+                r4.push_back(truth[0].at(id).c[0]), r4.push_back(truth[0].at(id).c[1]);
+                c4.push_back(it->second.c[0]), c4.push_back(it->second.c[1]);
+            }
+            if (r4.size() < 6) continue;
+            bench_check("bench_landmarks",
+                        sh_interp_map_points(&ip, r4.data(), c4.data(), (int)r4.size() / 2, lref4, n4, pred4.data()),
+                        "prediction, 4 tags");
+            a = bench_now_ms();
+            bench_check("bench_landmarks", sh_landmarks_track(lm4, &cur, pred4.data(), xy.data(), verdict.data(), &cnt),
+                        "track, 4 tags");
+            tm.ours4.push_back(bench_now_ms() - a);
+            if (pass == 0) accepted4 += cnt.verdicts[SH_LANDMARK_ACCEPTED], judged4 += n4, frames4++;
+            a = bench_now_ms();
+            cv_band(frames[t], fine, coarse, band, lp.band, gain);
+            cv::buildOpticalFlowPyramid(band, cv_cur_pyr, win, fp.levels, true);
+            for (int i = 0; i < n4; i++) q1[i] = cv::Point2f(pred4[2 * i], pred4[2 * i + 1]);
+            cv::calcOpticalFlowPyrLK(cv_ref_pyr, cv_cur_pyr, q0, q1, cst, cerr, win, fp.levels, crit,
+                                     cv::OPTFLOW_USE_INITIAL_FLOW, fp.min_eig);
+            for (int i = 0; i < n4; i++) q2[i] = q1[i] - (cv::Point2f(pred4[2 * i], pred4[2 * i + 1]) - q0[i]);
+            cv::calcOpticalFlowPyrLK(cv_cur_pyr, cv_ref_pyr, q1, q2, cst2, cerr2, win, fp.levels, crit,
+                                     cv::OPTFLOW_USE_INITIAL_FLOW, fp.min_eig);
+            tm.cv4.push_back(bench_now_ms() - a);
         }
     double load[3] = {0, 0, 0};
     if (getloadavg(load, 3) < 1) load[0] = -1;
@@ -286,12 +353,17 @@ int main(int argc, char **argv)
     std::printf("%-40s %9.3f ms %9.3f ms %8.2f\n", "landmarks, without it", of, cf, of / cf);
     const double oa = bench_median(tm.ours_aff);
     std::printf("%-40s %9.3f ms %9.3f ms %8.2f\n", "landmarks, backward test, affine windows", oa, c, oa / c);
+    const double o4 = bench_median(tm.ours4), c4 = bench_median(tm.cv4);
+    std::printf("%-40s %9.3f ms %9.3f ms %8.2f\n", "landmarks, 4 tags, sparse tests", o4, c4, o4 / c4);
     std::printf("%-40s %9.3f ms\n", "the prediction (TPS on the tags)", bench_median(tm.predict));
     std::printf("%-40s %9.3f ms %9.3f ms\n", "the slowest frame, with the backward test",
                 *std::max_element(tm.ours.begin(), tm.ours.end()), *std::max_element(tm.cv.begin(), tm.cv.end()));
     std::printf("accepted of %ld landmark-frames: %ld ours (%ld without the backward test, %ld with affine windows), "
                 "%ld OpenCV's tests but the neighbours' (%ld); checksum %016llx\n",
                 judged, accepted, accepted_fwd, accepted_aff, cv_accepted, cv_accepted_fwd, (unsigned long long)hash);
+    std::printf("4 tags (ids %d %d %d %d, the corners of the field): %d landmarks, %ld accepted of %ld landmark-frames "
+                "in %ld frames (the sparse tests; OpenCV's row: its two searches alone)\n",
+                corners[0], corners[1], corners[2], corners[3], n4, accepted4, judged4, frames4);
     std::printf("searches that left the part of the frame built around the predictions, done again on a larger "
                 "part: %ld in %ld of %d frames; the whole frame built in %ld\n",
                 again, again_frames, FRAMES - 1, whole);
@@ -300,5 +372,6 @@ int main(int argc, char **argv)
     sh_landmarks_destroy(lm);
     sh_landmarks_destroy(lm_fwd);
     sh_landmarks_destroy(lm_aff);
+    sh_landmarks_destroy(lm4);
     return 0;
 }
