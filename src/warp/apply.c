@@ -2,6 +2,7 @@
  * plane row from the model's spans. Threads are started once and wait on a condition variable
  * between frames, so a frame costs no thread creation and no allocation. */
 #include <pthread.h>
+#include <sched.h>
 #include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
@@ -161,7 +162,8 @@ static void run_part(sh_warp *w, const warp_job *job, int index)
  * about as much as the map update it would share. So a thread that is out of work looks for
  * the next job, or for the others' end, this long before it sleeps: the update's job and the
  * warp's follow each other within it, and stripes of equal work end within it. At 60 frames/s
- * that is at most 1.2 % of a core per thread. */
+ * that is at most 1.2 % of a core per thread; it yields between looks, so that a thread of the
+ * daemon's that has work (detection, capture) gets the core first. */
 #define SPIN_NS 200000L
 
 static long long now_ns(void)
@@ -190,6 +192,7 @@ static void spin_while_uint(atomic_uint *v, unsigned was)
             relax();
         }
         if (now_ns() > end) return;
+        sched_yield();
     }
 }
 
@@ -202,6 +205,7 @@ static void spin_while_positive(atomic_int *v)
             relax();
         }
         if (now_ns() > end) return;
+        sched_yield();
     }
 }
 
