@@ -162,8 +162,9 @@ static void run_part(sh_warp *w, const warp_job *job, int index)
  * about as much as the map update it would share. So a thread that is out of work looks for
  * the next job, or for the others' end, this long before it sleeps: the update's job and the
  * warp's follow each other within it, and stripes of equal work end within it. At 60 frames/s
- * that is at most 1.2 % of a core per thread; it yields between looks, so that a thread of the
- * daemon's that has work (detection, capture) gets the core first. */
+ * that is at most 1.2 % of a core per thread for each job a frame brings (2.4 % with the
+ * update's); it yields between looks, so that a thread of the daemon's that has work
+ * (detection, capture) gets the core first. */
 #define SPIN_NS 200000L
 
 static long long now_ns(void)
