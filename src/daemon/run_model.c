@@ -224,15 +224,12 @@ sh_status run_model_update(run_model *md, sh_warp *warp, const double *cur_xy, c
     const sh_modelcache_entry *e = &md->e;
     if (e->m3) return update_3d(md->owner, md, cur_xyz, det_xy, residual);
     refine_swap(md);
-    if (use) {
-        sh_status st = warp ? sh_warp_update(warp, e->model, cur_xy, use)
-                            : sh_warp_model_update_subset(e->model, cur_xy, use);
-        if (st == SH_OK) refine_ask(md);
-        return st == SH_OK ? residual_subset(md, det_xy, residual) : st;
-    }
-    sh_status st = warp ? sh_warp_update(warp, e->model, cur_xy, NULL) : sh_warp_model_update(e->model, cur_xy);
+    /* use NULL: every point (sh_warp_model_update) */
+    sh_status st = warp ? sh_warp_update(warp, e->model, cur_xy, use)
+                        : sh_warp_model_update_subset(e->model, cur_xy, use);
     if (st != SH_OK) return st;
     refine_ask(md);
+    if (use) return residual_subset(md, det_xy, residual);
     /* The map at a marker's reference position, f(q) = q + D(q), against where the detector saw
      * it this frame: the tracker's smoothing plus what an approximating method leaves out. */
     for (int k = 0; k < 2 * e->n; k++) md->vals[k] = cur_xy[k] - e->ref_xy[k];

@@ -219,6 +219,20 @@ int main(int argc, char **argv)
     for (int i = 0; i < n4; i++) q0[i] = cv::Point2f(lref4[2 * i], lref4[2 * i + 1]);
     std::vector<uchar> cst, cst2;
     std::vector<float> cerr, cerr2;
+    // OpenCV's searches of one frame: its band-pass and pyramid (with gradients), forward from
+    // the predictions pred of the points `from` into `to`, backward from the prediction's
+    // inverse into `back`
+    auto cv_round_trip = [&](const cv::Mat &frame, const float *pred, const std::vector<cv::Point2f> &from,
+                             std::vector<cv::Point2f> &to, std::vector<cv::Point2f> &back) {
+        cv_band(frame, fine, coarse, band, lp.band, gain);
+        cv::buildOpticalFlowPyramid(band, cv_cur_pyr, win, fp.levels, true);
+        for (size_t i = 0; i < from.size(); i++) to[i] = cv::Point2f(pred[2 * i], pred[2 * i + 1]);
+        cv::calcOpticalFlowPyrLK(cv_ref_pyr, cv_cur_pyr, from, to, cst, cerr, win, fp.levels, crit,
+                                 cv::OPTFLOW_USE_INITIAL_FLOW, fp.min_eig);
+        for (size_t i = 0; i < from.size(); i++) back[i] = to[i] - (cv::Point2f(pred[2 * i], pred[2 * i + 1]) - from[i]);
+        cv::calcOpticalFlowPyrLK(cv_cur_pyr, cv_ref_pyr, to, back, cst2, cerr2, win, fp.levels, crit,
+                                 cv::OPTFLOW_USE_INITIAL_FLOW, fp.min_eig);
+    };
 
     // the predictions: TPS on the truth's centres that frame t shares with frame 0
     sh_interp_params ip;
@@ -267,14 +281,7 @@ int main(int argc, char **argv)
 
             // OpenCV, with the backward search
             a = bench_now_ms();
-            cv_band(frames[t], fine, coarse, band, lp.band, gain);
-            cv::buildOpticalFlowPyramid(band, cv_cur_pyr, win, fp.levels, true);
-            for (int i = 0; i < n; i++) p1[i] = cv::Point2f(pr[2 * i], pr[2 * i + 1]);
-            cv::calcOpticalFlowPyrLK(cv_ref_pyr, cv_cur_pyr, p0, p1, cst, cerr, win, fp.levels, crit,
-                                     cv::OPTFLOW_USE_INITIAL_FLOW, fp.min_eig);
-            for (int i = 0; i < n; i++) p2[i] = p1[i] - (cv::Point2f(pr[2 * i], pr[2 * i + 1]) - p0[i]);
-            cv::calcOpticalFlowPyrLK(cv_cur_pyr, cv_ref_pyr, p1, p2, cst2, cerr2, win, fp.levels, crit,
-                                     cv::OPTFLOW_USE_INITIAL_FLOW, fp.min_eig);
+            cv_round_trip(frames[t], pr, p0, p1, p2);
             long ok = 0;
             for (int i = 0; i < n; i++)
                 ok += cst[i] && cst2[i] && cerr[i] <= lp.max_photometric &&
@@ -329,14 +336,7 @@ int main(int argc, char **argv)
             tm.ours4.push_back(bench_now_ms() - a);
             if (pass == 0) accepted4 += cnt.verdicts[SH_LANDMARK_ACCEPTED], judged4 += n4, frames4++;
             a = bench_now_ms();
-            cv_band(frames[t], fine, coarse, band, lp.band, gain);
-            cv::buildOpticalFlowPyramid(band, cv_cur_pyr, win, fp.levels, true);
-            for (int i = 0; i < n4; i++) q1[i] = cv::Point2f(pred4[2 * i], pred4[2 * i + 1]);
-            cv::calcOpticalFlowPyrLK(cv_ref_pyr, cv_cur_pyr, q0, q1, cst, cerr, win, fp.levels, crit,
-                                     cv::OPTFLOW_USE_INITIAL_FLOW, fp.min_eig);
-            for (int i = 0; i < n4; i++) q2[i] = q1[i] - (cv::Point2f(pred4[2 * i], pred4[2 * i + 1]) - q0[i]);
-            cv::calcOpticalFlowPyrLK(cv_cur_pyr, cv_ref_pyr, q1, q2, cst2, cerr2, win, fp.levels, crit,
-                                     cv::OPTFLOW_USE_INITIAL_FLOW, fp.min_eig);
+            cv_round_trip(frames[t], pred4.data(), q0, q1, q2);
             tm.cv4.push_back(bench_now_ms() - a);
         }
     double load[3] = {0, 0, 0};
