@@ -1,4 +1,4 @@
-/* Private to src/warp: the model's layout and the span interface between the map (model.c)
+/* Private to src/warp: the model's layout and the span interface between the map (model.c, grid.c)
  * and the pixel loops (sample.c). */
 #ifndef STILLHEART_WARP_INTERNAL_H
 #define STILLHEART_WARP_INTERNAL_H

@@ -8,7 +8,7 @@
 #include "../warp/warp_internal.h"
 #include "warp3d_internal.h"
 
-/* As the 2D engine's grid (src/warp/model.c): the second difference at the nodes understates
+/* As the 2D engine's grid (src/warp/grid.c): the second difference at the nodes understates
  * the largest curvature inside a cell; 2 leaves a margin. */
 #define ERROR_SAFETY 2.0
 /* Where a node whose ray misses the surface sends its pixels: outside every frame (black). */
@@ -270,7 +270,7 @@ static inline double max_or_nan(double a, double b)
     return b > a || a != a ? b : a;
 }
 
-/* The 2D engine's bound (src/warp/model.c): per cell h^2/8 (|f_xx| + |f_yy|) from the second
+/* The 2D engine's bound (src/warp/grid.c): per cell h^2/8 (|f_xx| + |f_yy|) from the second
  * differences at its corners; cells touching a missed node are left out (they are black). */
 static double error_bound(sh_warp3d_view *v)
 {

@@ -101,7 +101,7 @@ static void test_grid_map_within_tolerance(void **state)
     }
 }
 
-/* TPS keeps its grid rows as floats (model.c, build_dense_rows): at the grid's nodes the map
+/* TPS keeps its grid rows as floats (grid.c, build_dense_rows): at the grid's nodes the map
  * is the interpolant itself, so there the warp's map and the exact interpolant may differ only by
  * the weights' rounding and the map's own float storage; with 150 points over a 1080p frame (the
  * daemon's markers and landmarks) that stays under 1e-3 px, fifty times below the tolerance. */
