@@ -50,6 +50,8 @@ static const keydef keys[] = {
     {"source", "camera_timeout_ms", "camera-timeout-ms", K_INT, SRC, F(camera_timeout_ms), 0, 10, 60000, "no frame for this long: the camera is reopened"},
     {"source", "max_frame_pixels", "max-frame-pixels", K_INT, SRC, F(max_frame_pixels), 0, 1, SH_IMAGE_MAX_SIZE * SH_IMAGE_MAX_SIZE,
      "a camera's frames of more pixels (width x height) are refused at open, before any is allocated (default: 3840x2160)"},
+    {"source", "queue_ms", "queue-ms", K_INT, SRC, F(queue_ms), 0, 0, 1000,
+     "real time: sets wait for processing in order while at most this many ms old (at most 8 sets); 0: only the newest waits, a set replaced is dropped"},
     CAMERA_KEYS(0),
     CAMERA_KEYS(1),
     CAMERA_KEYS(2),

@@ -1,14 +1,16 @@
-/* stillheart run's cameras: a thread per camera, sets grouped under one lock, a one-set mailbox
- * (run_source.h). Frame buffers live in a small pool per camera; a buffer is free, being filled
- * by its camera's thread, in a pending set (sync.h holds its index as `user`), in the waiting set
- * or in the set processing holds.
- * About 670 lines, on purpose: the pool, the grouping, the mailbox and the camera threads share
+/* stillheart run's cameras: a thread per camera, sets grouped under one lock, the sets waiting for
+ * processing (run_source.h: the newest only, or a short queue with [source] queue_ms). Frame
+ * buffers live in a small pool per camera; a buffer is free, being filled by its camera's thread,
+ * in a pending set (sync.h holds its index as `user`), in a waiting set or in the set processing
+ * holds.
+ * About 700 lines, on purpose: the pool, the grouping, the waiting sets and the camera threads share
  * one lock and one buffer life cycle, and split across files each would have to know the
  * others' invariants (the options that are not, source_options.c, already went). */
 #include "run_source.h"
 #include "stillheart/daemon.h"
 
 #include <errno.h>
+#include <math.h>
 #include <poll.h>
 #include <pthread.h>
 #include <stdio.h>
@@ -20,6 +22,11 @@
 #include "stillheart/log.h"
 
 #define POOL 8 /* per camera: filling + pending sets (a few frame periods) + waiting + held */
+/* Sets that may wait with queue_ms. Each beyond the first holds a buffer more of every camera's
+ * pool (12.4 MB a 4K camera), allocated and touched at open so that RSS does not step up at the
+ * first stall; 8 sets are 133 ms at 60 frames/s, longer than any stall measured (docs/daemon.md). */
+#define QUEUE_MAX 8
+#define POOL_MAX (POOL + QUEUE_MAX - 1)
 #define DEQUEUE_MS 100
 
 enum { FREE = 0, FILLING, PENDING, IN_SET };
@@ -35,11 +42,12 @@ typedef struct {
     int width, height, fps_num, fps_den;
     int replay;            /* y4m: or rec: */
     int nframes;           /* y4m: frames in the file (points test mode), 0 = unknown */
-    sh_image pool[POOL];
-    uint64_t seq[POOL];
-    unsigned epoch[POOL];  /* the source's discontinuities up to the buffer's frame */
+    sh_image pool[POOL_MAX];
+    int npool;             /* buffers allocated: POOL + the queue's */
+    uint64_t seq[POOL_MAX];
+    unsigned epoch[POOL_MAX]; /* the source's discontinuities up to the buffer's frame */
     unsigned discontinuities;
-    int state[POOL];
+    int state[POOL_MAX];
     int inflight;          /* buffers PENDING */
     run_camera_stats st;
     int64_t beat_ns;       /* the thread last went round its loop (run_source_alive) */
@@ -60,12 +68,17 @@ struct run_source {
     int trig_started;
     int64_t trig_beat_ns;
     int64_t output_ns;     /* a set with the output camera's frame was last delivered (or the start) */
-    run_frame waiting, held;
-    int have_waiting, have_held;
+    run_frame queue[QUEUE_MAX]; /* the sets waiting, oldest first from qhead (a ring) */
+    int qhead, nwaiting, qcap;
+    int64_t queue_ns;      /* queue_ms: a waiting set older than this (since capture) is dropped
+                            * unless it is the newest */
+    run_frame held;
+    int have_held;
     int paced;             /* as fast as possible, nothing dropped: every camera a replay */
     int nended, eof, stop;
     int failed;            /* the output camera ended in an error (run_source_failed) */
-    uint64_t dropped;      /* sets replaced while waiting: processing was behind */
+    uint64_t dropped;      /* sets dropped while waiting (the queue full, or too old): processing
+                            * was behind */
     uint64_t no_output;    /* sets without the output camera's frame */
     sh_y4m_header hdr;
     double fps;
@@ -78,7 +91,17 @@ static void free_buffers(run_source *rs, const run_frame *f)
         if (f->cam[c]) rs->cam[c].state[f->cam[c] - rs->cam[c].pool] = FREE;
 }
 
-/* A set popped from the grouping goes to the mailbox (replacing, and dropping, the waiting one). */
+/* The oldest waiting set is dropped: processing is behind. */
+static void drop_oldest(run_source *rs)
+{
+    free_buffers(rs, &rs->queue[rs->qhead]);
+    rs->qhead = (rs->qhead + 1) % QUEUE_MAX;
+    rs->nwaiting--;
+    rs->dropped++;
+}
+
+/* A set popped from the grouping joins the waiting sets; when they are as many as may wait, the
+ * oldest is dropped (with one, the newest replaces it). */
 static void deliver(run_source *rs, const sh_frame_set *set)
 {
     run_frame f;
@@ -107,12 +130,9 @@ static void deliver(run_source *rs, const sh_frame_set *set)
     f.complete = set->complete;
     f.avail_ns = sh_monotonic_ns();
     rs->output_ns = f.avail_ns;
-    if (rs->have_waiting) { /* behind: the waiting set is the oldest, drop it */
-        free_buffers(rs, &rs->waiting);
-        rs->dropped++;
-    }
-    rs->waiting = f;
-    rs->have_waiting = 1;
+    if (rs->nwaiting == rs->qcap) drop_oldest(rs);
+    rs->queue[(rs->qhead + rs->nwaiting) % QUEUE_MAX] = f;
+    rs->nwaiting++;
     pthread_cond_broadcast(&rs->cv);
 }
 
@@ -150,8 +170,8 @@ static void camera_ended(run_source *rs, camera *k, int failed)
 static void pace(run_source *rs, camera *k)
 {
     pthread_mutex_lock(&rs->mu);
-    while (rs->paced && !rs->stop && (rs->have_waiting || k->inflight)) {
-        int stuck = !rs->have_waiting;
+    while (rs->paced && !rs->stop && (rs->nwaiting || k->inflight)) {
+        int stuck = !rs->nwaiting;
         for (int c = 0; c < rs->ncam; c++) stuck &= rs->cam[c].st.ended || rs->cam[c].inflight > 0;
         if (stuck) {
             flush(rs);
@@ -209,7 +229,7 @@ static int take_buffer(run_source *rs, camera *k)
 {
     pthread_mutex_lock(&rs->mu);
     int b = -1;
-    for (int i = 0; i < POOL && b < 0; i++)
+    for (int i = 0; i < k->npool && b < 0; i++)
         if (k->state[i] == FREE) b = i;
     if (b >= 0) k->state[b] = FILLING;
     pthread_mutex_unlock(&rs->mu);
@@ -354,6 +374,17 @@ static int count_y4m_frames(const char *path, int max_pixels)
     return n;
 }
 
+/* The camera's pool up to n buffers in its working format (sh_image_create touches every page). */
+static sh_status grow_pool(camera *k, int n)
+{
+    sh_pixfmt pf = k->format == SH_RAW_GREY ? SH_PIX_GRAY8 : SH_PIX_I420;
+    for (; k->npool < n; k->npool++) {
+        sh_status st = sh_image_create(&k->pool[k->npool], pf, k->width, k->height);
+        if (st != SH_OK) return st;
+    }
+    return SH_OK;
+}
+
 static sh_status open_camera(run_source *rs, const sh_config *cfg, int i)
 {
     camera *k = &rs->cam[i];
@@ -374,9 +405,7 @@ static sh_status open_camera(run_source *rs, const sh_config *cfg, int i)
     if (st != SH_OK) return sh_error_set(st, "%s: %s", what, sh_error_message());
     sh_source_format(k->src, &k->format, &k->width, &k->height, &k->fps_num, &k->fps_den);
     if (k->format == SH_RAW_MJPEG && (st = sh_pixconv_create(k->width, k->height, &k->conv)) != SH_OK) return st;
-    sh_pixfmt pf = k->format == SH_RAW_GREY ? SH_PIX_GRAY8 : SH_PIX_I420;
-    for (int b = 0; b < POOL; b++)
-        if ((st = sh_image_create(&k->pool[b], pf, k->width, k->height)) != SH_OK) return st;
+    if ((st = grow_pool(k, POOL)) != SH_OK) return st;
     if (cfg->points[0] && !strncmp(spec, "y4m:", 4))
         k->nframes = count_y4m_frames(spec + 4, cfg->max_frame_pixels);
     return SH_OK;
@@ -405,6 +434,19 @@ sh_status run_source_open(const sh_config *cfg, run_source **out)
         return st;
     }
     rs->paced = all_replay && !cfg->realtime;
+    /* the sets a stall of queue_ms spans, and the newest; as fast as possible one waits at most */
+    double period = run_period_ns(rs->cam[rs->out].fps_num, rs->cam[rs->out].fps_den);
+    rs->qcap = 1;
+    rs->queue_ns = (int64_t)cfg->queue_ms * 1000000;
+    if (!rs->paced && cfg->queue_ms > 0) {
+        double spans = ceil(rs->queue_ns / period);
+        rs->qcap = spans + 1 >= QUEUE_MAX ? QUEUE_MAX : 1 + (int)spans;
+    }
+    for (int i = 0; i < n && st == SH_OK; i++) st = grow_pool(&rs->cam[i], POOL + rs->qcap - 1);
+    if (st != SH_OK) {
+        run_source_destroy(rs);
+        return st;
+    }
     for (int i = 0; i < n; i++) { /* a slow replay's frames are further apart than a camera's timeout */
         camera *k = &rs->cam[i];
         double t = 1e6 * (cfg->camera_timeout_ms > 0 ? cfg->camera_timeout_ms : 1000);
@@ -470,6 +512,9 @@ sh_status run_source_start(run_source *rs)
             return sh_error_set(SH_ENOMEM, "trigger: cannot start its thread");
         rs->trig_started = 1;
     }
+    if (rs->qcap > 1)
+        sh_log_info("sets wait for processing in order while captured at most %lld ms ago (%d at most)",
+                (long long)(rs->queue_ns / 1000000), rs->qcap);
     for (int i = 0; i < rs->ncam; i++) {
         camera *k = &rs->cam[i];
         sh_log_info("%s: %dx%d %s at %d/%d fps%s%s", k->name, k->width, k->height,
@@ -495,12 +540,23 @@ const run_frame *run_source_take(run_source *rs, int timeout_ms)
     ts.tv_nsec += (long)timeout_ms * 1000000;
     ts.tv_sec += ts.tv_nsec / 1000000000;
     ts.tv_nsec %= 1000000000;
-    while (!rs->have_waiting && !rs->eof && !rs->stop)
+    while (!rs->nwaiting && !rs->eof && !rs->stop)
         if (pthread_cond_timedwait(&rs->cv, &rs->mu, &ts) == ETIMEDOUT) break;
-    if (rs->have_waiting) {
-        rs->held = rs->waiting;
+    /* sets captured more than queue_ms ago are dropped, the newest never: after a stall the
+     * queue shows what is still recent in order and skips what is too late to show */
+    if (rs->queue_ns > 0) {
+        int64_t now = sh_monotonic_ns();
+        while (rs->nwaiting > 1) {
+            const run_frame *f = &rs->queue[rs->qhead];
+            if (now - (f->capture_ns > 0 ? f->capture_ns : f->avail_ns) <= rs->queue_ns) break;
+            drop_oldest(rs);
+        }
+    }
+    if (rs->nwaiting) {
+        rs->held = rs->queue[rs->qhead];
+        rs->qhead = (rs->qhead + 1) % QUEUE_MAX;
+        rs->nwaiting--;
         rs->have_held = 1;
-        rs->have_waiting = 0;
         pthread_cond_broadcast(&rs->cv);
     }
     int got = rs->have_held;
@@ -511,7 +567,7 @@ const run_frame *run_source_take(run_source *rs, int timeout_ms)
 int run_source_ended(run_source *rs)
 {
     pthread_mutex_lock(&rs->mu);
-    int e = rs->eof && !rs->have_waiting;
+    int e = rs->eof && !rs->nwaiting;
     pthread_mutex_unlock(&rs->mu);
     return e;
 }
@@ -579,7 +635,7 @@ int run_source_output_lost(run_source *rs, char *text, size_t cap)
     const camera *k = &rs->cam[rs->out];
     const char *why = camera_down(rs, k, now);
     int lost = 0;
-    if (!rs->eof && !rs->have_waiting && !rs->have_held) {
+    if (!rs->eof && !rs->nwaiting && !rs->have_held) {
         if (why && !strcmp(why, "lost")) lost = 1;
         else if (!rs->paced && now - rs->output_ns > k->timeout_ns) lost = 2;
     }
@@ -660,7 +716,7 @@ void run_source_destroy(run_source *rs)
         camera *k = &rs->cam[i];
         sh_source_close(k->src);
         sh_pixconv_destroy(k->conv);
-        for (int b = 0; b < POOL; b++) sh_image_destroy(&k->pool[b]);
+        for (int b = 0; b < k->npool; b++) sh_image_destroy(&k->pool[b]);
     }
     sh_gpio_trigger_close(rs->trig);
     sh_sync_destroy(rs->sync);

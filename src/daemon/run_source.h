@@ -4,8 +4,11 @@
  * camera, I420 otherwise) and groups it with the other cameras' into a set (sync.h: by trigger
  * edge with [trigger], else by timestamp). The newest set that holds the output camera's frame
  * waits for the processing thread in a one-set mailbox: when processing falls behind, the waiting
- * set is the oldest and is dropped and counted, never queued. Replay as fast as possible (every
- * camera a y4m: or rec:, realtime off) drops nothing: the cameras wait for processing instead.
+ * set is the oldest and is dropped and counted. With [source] queue_ms, sets wait in order
+ * instead (up to 8) while captured at most that long ago, so that a short stall of the machine
+ * shows its sets late rather than dropping them; older ones are dropped and counted, the newest
+ * never. Replay as fast as possible (every camera a y4m: or rec:, realtime off) drops nothing:
+ * the cameras wait for processing instead.
  * A camera that vanishes is reopened by source.h with back-off while the others go on (its frames
  * are missing from the sets meanwhile: incomplete sets, counted). */
 #ifndef STILLHEART_RUN_SOURCE_H
@@ -55,8 +58,9 @@ const sh_y4m_header *run_source_header(const run_source *rs);
 double run_source_fps(const run_source *rs);
 int run_source_cameras(const run_source *rs);
 sh_status run_source_start(run_source *rs);
-/* The newest set, waiting up to timeout_ms; NULL on timeout or at the end. The set (and the
- * frames it points to) stays valid until the next call. */
+/* The next set (the newest, or with queue_ms the oldest still recent), waiting up to timeout_ms;
+ * NULL on timeout or at the end. The set (and the frames it points to) stays valid until the next
+ * call. */
 const run_frame *run_source_take(run_source *rs, int timeout_ms);
 /* 1 once the source has ended (replays without loop, or the output camera failed for good) and
  * its last set was taken. */

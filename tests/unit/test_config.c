@@ -124,7 +124,7 @@ static void test_cameras_and_trigger(void **state)
     assert_int_equal(sh_config_cameras(&c), 1);
     assert_true(c.camera[0].exposure == SH_CONFIG_CTRL_UNSET);
     const char *text = "[source]\nrealtime = no\noutput = 1\nsync_tolerance_ms = 4.5\nsync_wait_ms = 80\n"
-                       "camera_timeout_ms = 500\n"
+                       "camera_timeout_ms = 500\nqueue_ms = 80\n"
                        "[camera0]\nspec = v4l2:/dev/video0\nformat = YUYV\nsize = 1920x1080\nfps = 30000/1001\n"
                        "exposure = 120\ngain = 0\nwhite_balance = 4600\n"
                        "[camera1]\nspec = libcamera:imx219\nformat = mjpeg\nsize = 640X480\nfps = 29.97\n"
@@ -151,6 +151,7 @@ static void test_cameras_and_trigger(void **state)
     assert_int_equal(c.output_camera, 1);
     assert_true(c.sync_tolerance_ms == 4.5 && c.sync_wait_ms == 80);
     assert_int_equal(c.camera_timeout_ms, 500);
+    assert_int_equal(c.queue_ms, 80);
     assert_int_equal(c.trigger, SH_TRIGGER_OUT);
     assert_string_equal(c.trigger_chip, "/dev/gpiochip1");
     assert_int_equal(c.trigger_line, 17);

@@ -3,8 +3,10 @@
  * max_frames raw frames; a stop flag set before the loop publishes nothing; a reload whose config
  * cannot be read is refused and the loop goes on; a [method] no model can come from on these
  * frames is refused at start and at a reload, naming its file and line; a Y4M record names its
- * method in its header and keeps it across reloads; [sink] v4l2 refuses what is not a V4L2 output. The counts come from the
- * input (N frames, no markers in them, max_frames), read back through the stats line. */
+ * method in its header and keeps it across reloads; [sink] v4l2 refuses what is not a V4L2 output; [source] queue_ms
+ * keeps the sets a processing stall spans in order while they are recent (the cameras alone,
+ * run_source.h). The counts come from the input (N frames, no markers in them, max_frames), read
+ * back through the stats line. */
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -15,6 +17,7 @@
 #include <errno.h>
 #include <fcntl.h>
 #include <sys/stat.h>
+#include <time.h>
 #include <unistd.h>
 
 #include <cmocka.h>
@@ -24,6 +27,7 @@
 #include "stillheart/log.h"
 #include "stillheart/y4m.h"
 #include "../../src/daemon/run_sink.h"
+#include "../../src/daemon/run_source.h"
 
 #define W 64
 #define H 48
@@ -31,33 +35,38 @@
 
 static char tmp[64], video[128];
 
-/* N grey gradient frames: nothing a detector could take for a marker. */
-static int setup(void **state)
+/* n grey gradient frames at fps: nothing a detector could take for a marker. */
+static int write_video(const char *path, int fps, int n)
 {
-    (void)state;
-    snprintf(tmp, sizeof tmp, "/tmp/sh-test-dmod-%d", (int)getpid());
-    if (mkdir(tmp, 0700)) return -1;
-    snprintf(video, sizeof video, "%s/cam0.y4m", tmp);
     sh_y4m_header h;
     memset(&h, 0, sizeof h);
     h.width = W;
     h.height = H;
     h.format = SH_PIX_I420;
-    h.fps_num = 25;
+    h.fps_num = fps;
     h.fps_den = 1;
     sh_y4m_writer *wr;
-    if (sh_y4m_writer_open(video, &h, &wr) != SH_OK) return -1;
+    if (sh_y4m_writer_open(path, &h, &wr) != SH_OK) return -1;
     sh_image img;
     if (sh_image_create(&img, SH_PIX_I420, W, H) != SH_OK) return -1;
-    for (int k = 0; k < N; k++) {
+    for (int k = 0; k < n; k++) {
         for (int p = 0; p < 3; p++)
             for (int y = 0; y < img.plane[p].height; y++)
                 memset(img.plane[p].data + y * img.plane[p].stride, (k * 9 + y) & 255, (size_t)img.plane[p].width);
         if (sh_y4m_writer_write(wr, &img) != SH_OK) return -1;
     }
     sh_image_destroy(&img);
-    sh_log_setup(SH_LOG_DAEMON, "test_daemon_module", SH_LOG_WARN);
     return sh_y4m_writer_close(wr) == SH_OK ? 0 : -1;
+}
+
+static int setup(void **state)
+{
+    (void)state;
+    snprintf(tmp, sizeof tmp, "/tmp/sh-test-dmod-%d", (int)getpid());
+    if (mkdir(tmp, 0700)) return -1;
+    snprintf(video, sizeof video, "%s/cam0.y4m", tmp);
+    sh_log_setup(SH_LOG_DAEMON, "test_daemon_module", SH_LOG_WARN);
+    return write_video(video, 25, N);
 }
 
 static int teardown(void **state)
@@ -345,6 +354,63 @@ static void test_v4l2_refusals(void **state)
     assert_int_equal(unlink(path), 0);
 }
 
+/* [source] queue_ms, on the cameras alone: processing stalls 410 ms while a 50 frames/s replay
+ * goes on in real time. With queue_ms = 100 the sets it then takes, back to back, are in capture
+ * order without a gap, at most 1 + 100 / 20 = 6 of them, each but the newest captured at most
+ * 100 ms before it was taken (the age is taken before the call: no later than the rule's); every
+ * set before the first is counted dropped. With queue_ms = 0 it takes the newest set alone. The
+ * bounds come from the replay's schedule (frame k at start + 20 k ms), not from the code. */
+static void stall_and_take(int queue_ms, int *taken, int *first)
+{
+    char path[160], ini[512], err[SH_CONFIG_ERR];
+    snprintf(path, sizeof path, "%s/fifty.y4m", tmp);
+    assert_int_equal(write_video(path, 50, 60), 0);
+    snprintf(ini, sizeof ini, "[camera0]\nspec = y4m:%s\n[source]\nrealtime = 1\nloop = 0\nqueue_ms = %d\n",
+             path, queue_ms);
+    sh_config cfg;
+    sh_config_default(&cfg);
+    assert_int_equal(sh_config_parse_string(&cfg, ini, "test", err), SH_OK);
+    run_source *rs;
+    assert_int_equal(run_source_open(&cfg, &rs), SH_OK);
+    assert_int_equal(run_source_start(rs), SH_OK);
+    struct timespec pause = {0, 410000000}; /* frame 20 due 10 ms before: the ages are 10 ms off the bound */
+    nanosleep(&pause, NULL);
+    int index[64];
+    double age_ms[64];
+    int n = 0;
+    for (; n < 64; n++) { /* the burst: every set waiting, back to back */
+        int64_t before = sh_monotonic_ns();
+        const run_frame *f = run_source_take(rs, 0);
+        if (!f) break;
+        index[n] = f->index;
+        age_ms[n] = (double)(before - f->capture_ns) / 1e6;
+    }
+    assert_true(n >= 1);
+    for (int i = 1; i < n; i++) {
+        if (index[i] != index[i - 1] + 1) fail_msg("set %d after set %d", index[i], index[i - 1]);
+        /* another set waited when set i - 1 was taken: it was recent */
+        if (queue_ms && age_ms[i - 1] > queue_ms)
+            fail_msg("frame %d taken %.1f ms after its capture, another waiting", index[i - 1], age_ms[i - 1]);
+    }
+    *taken = n;
+    *first = index[0];
+    assert_int_equal(run_source_dropped(rs), (uint64_t)*first);
+    run_source_destroy(rs);
+    unlink(path);
+}
+
+static void test_queue_after_a_stall(void **state)
+{
+    (void)state;
+    int taken, first;
+    stall_and_take(100, &taken, &first);
+    if (taken < 2 || taken > 6) fail_msg("%d sets taken after the stall, from frame %d", taken, first);
+    assert_true(first >= 10); /* 410 ms: frame 20 is due, the queue holds 6 sets at most */
+    stall_and_take(0, &taken, &first);
+    assert_int_equal(taken, 1);
+    assert_true(first >= 15);
+}
+
 /* A replay without loop ends: the loop stops after its last frame, every frame published. */
 static void test_replay_ends(void **state)
 {
@@ -365,6 +431,7 @@ int main(void)
         cmocka_unit_test(test_stop_before),
         cmocka_unit_test(test_reload_refused),
         cmocka_unit_test(test_replay_ends),
+        cmocka_unit_test(test_queue_after_a_stall),
         cmocka_unit_test(test_model_the_frames_cannot_give),
         cmocka_unit_test(test_record_names_its_method),
         cmocka_unit_test(test_v4l2_refusals),
