@@ -86,14 +86,18 @@ sh_status sh_interp_fit(const sh_interp *interp, const double *values, int dim, 
  * this interpolant's coefficient layout: a left-out point's coefficients are 0, so that
  * sh_interp_basis, sh_interp_eval and a warp grid built over all the points give its map. For
  * correspondences that come and go every frame (natural landmarks, landmarks.h): one interpolant
- * and one grid basis per reference instead of one per subset. Affine and the RBFs only: their basis
- * at a point does not depend on which points are used, whereas the Delaunay triangles and the
- * B-spline lattices do (SH_EINVAL for those). Up to rounding the function sh_interp_create on the
- * used points gives (the affine part keeps this interpolant's centring and scale: the same
- * functions). values: n x dim as for sh_interp_fit (a left-out point's values are not read).
+ * and one grid basis per reference instead of one per subset. Affine and the RBFs: up to rounding
+ * the function sh_interp_create on the used points gives (the affine part keeps this
+ * interpolant's centring and scale: the same functions). Bspline: the multilevel B-spline
+ * iteration over the used points on this interpolant's lattices (their box and levels come from
+ * every point, so it is not sh_interp_create's on the used points; with the automatic levels,
+ * which separate every point and so any subset, it passes through them too). Pwlinear refuses (SH_EINVAL):
+ * its triangles depend on which points are used. values: n x dim as for sh_interp_fit (a
+ * left-out point's values are not read).
  * work: sh_interp_subset_work_size(interp) bytes, aligned for double; nothing is allocated.
  * SH_EDEGENERATE for too few used points, collinear ones where the method has an affine part, or
- * a singular system. Cost: O(s^3) for s used points (the system is factored anew). */
+ * a singular system. Cost: O(s^3) for s used points with the RBFs (the system is factored anew),
+ * O(levels (16 s + lattice)) with bspline. */
 size_t sh_interp_subset_work_size(const sh_interp *interp);
 sh_status sh_interp_fit_subset(const sh_interp *interp, const unsigned char *use, const double *values, int dim,
                                double *coef, void *work);

@@ -66,7 +66,7 @@ static const keydef keys[] = {
     {"detect", "family", "family", K_STR, PROC, F(family), S(family), 0, 0, "AprilTag family (tag36h11, ...)"},
     {"detect", "ids", "ids", K_IDS, PROC, F(ids_text), S(ids_text), 0, 0, "marker ids: 0-15 or 1,3,5-9"},
     {"track", "landmarks", "landmarks", K_INT, PROC, F(landmarks), 0, 0, 2000,
-     "natural landmarks of the tissue besides the markers (0: none; tps, affine; 2D)"},
+     "natural landmarks of the tissue besides the markers (0: none; tps, affine, bspline; 2D)"},
     {"track", "landmarks_sparse", "landmarks-sparse", K_BOOL, PROC, F(landmarks_sparse), 0, 0, 1,
      "landmarks for markers too sparse for their map (four at the corners): the disagreement bound follows the map's measured error"},
     {"track", "landmarks_affine", "landmarks-affine", K_BOOL, PROC, F(landmarks_affine), 0, 0, 1,
@@ -413,9 +413,8 @@ static sh_status check_method(const sh_config *cfg, char *err)
                       cfg->landmarks);
     /* a landmark set that changes every frame needs a method whose map can leave points out
      * without a new model (sh_interp_fit_subset), and one that is better with them */
-    if (cfg->landmarks && (!sh_landmarks_method_uses(method.method) || method.method == SH_METHOD_PWLINEAR ||
-                           method.method == SH_METHOD_BSPLINE))
-        return refuse(cfg, "track", "landmarks", err, "%d, but %s %s (tps and affine follow landmarks; "
+    if (cfg->landmarks && (!sh_landmarks_method_uses(method.method) || method.method == SH_METHOD_PWLINEAR))
+        return refuse(cfg, "track", "landmarks", err, "%d, but %s %s (tps, affine and bspline follow landmarks; "
                       "docs/landmarks.md)", cfg->landmarks, cfg->method_name,
                       sh_landmarks_method_uses(method.method) ? "would need a new model for every frame's landmarks"
                                                               : "is worse with landmarks");

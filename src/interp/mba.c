@@ -165,12 +165,72 @@ static void mba_destroy(void *p)
     free(b);
 }
 
-static const sh_interp_ops mba_ops = {mba_fit, mba_basis, NULL, mba_destroy, NULL, NULL};
-
 static size_t lattice_size(const mba_impl *b, int levels)
 {
     return (size_t)((b->m0 << (levels - 1)) + 3) * (size_t)((b->n0 << (levels - 1)) + 3);
 }
+
+/* A subset fit's work: the residuals at the points (3 values each at most) and one level's D_c. */
+static size_t mba_subset_work(const sh_interp *it)
+{
+    const mba_impl *b = it->impl;
+    return sizeof(double) * (3 * (size_t)it->n + lattice_size(b, b->levels));
+}
+
+/* The textbook iteration over the used points alone, on this interpolant's lattices (its box,
+ * cells and levels; each point's weights are create's): level k scatters the residual the levels
+ * before it left at the used points, with D_c summed over those points only, into the accumulated
+ * lattice, and the residual is then read off that lattice at them. The T operators cannot serve:
+ * they are products over every point. O(levels (16 s + lattice)) a fit, no allocation. With
+ * every point used it is mba_fit's spline (test_interp). */
+static sh_status mba_fit_subset(const sh_interp *it, const unsigned char *use, int s, const double *values, int dim,
+                                double *coef, void *work)
+{
+    (void)s;
+    const mba_impl *b = it->impl;
+    int n = it->n, W = b->W;
+    double *r = work, *D = r + 3 * (size_t)n;
+    for (int p = 0; p < n; p++)
+        for (int d = 0; d < dim; d++) r[p * dim + d] = use[p] ? values[p * dim + d] : 0.0;
+    for (int row = 0; row < b->n0 + 3; row++)
+        memset(coef + (size_t)row * W * dim, 0, sizeof(double) * (size_t)(b->m0 + 3) * dim);
+    for (int k = 0; k < b->levels; k++) {
+        if (k > 0) refine2d(coef, W, b->m0 << (k - 1), b->n0 << (k - 1), dim);
+        int Wk = (b->m0 << k) + 3;
+        const int *cell = b->cell + 2 * (size_t)k * n;
+        const double *w = b->w + 16 * (size_t)k * n;
+        memset(D, 0, sizeof(double) * lattice_size(b, k + 1));
+        for (int q = 0; q < n; q++)
+            if (use[q])
+                for (int t = 0; t < 16; t++)
+                    D[(size_t)(cell[2 * q + 1] + t / 4) * Wk + cell[2 * q] + t % 4] += w[16 * q + t] * w[16 * q + t];
+        for (int q = 0; q < n; q++) {
+            if (!use[q]) continue;
+            const double *wq = w + 16 * q;
+            double S = 0;
+            for (int t = 0; t < 16; t++) S += wq[t] * wq[t];
+            for (int t = 0; t < 16; t++) {
+                double Dc = D[(size_t)(cell[2 * q + 1] + t / 4) * Wk + cell[2 * q] + t % 4];
+                double a = Dc > 0 ? wq[t] * wq[t] * wq[t] / (S * Dc) : 0.0;
+                double *dst = coef + ((size_t)(cell[2 * q + 1] + t / 4) * W + cell[2 * q] + t % 4) * dim;
+                for (int d = 0; d < dim; d++) dst[d] += a * r[q * dim + d];
+            }
+        }
+        if (k + 1 == b->levels) break;
+        for (int q = 0; q < n; q++) {
+            if (!use[q]) continue;
+            for (int d = 0; d < dim; d++) {
+                double f = 0;
+                for (int t = 0; t < 16; t++)
+                    f += w[16 * q + t] * coef[((size_t)(cell[2 * q + 1] + t / 4) * W + cell[2 * q] + t % 4) * dim + d];
+                r[q * dim + d] = values[q * dim + d] - f;
+            }
+        }
+    }
+    return SH_OK;
+}
+
+static const sh_interp_ops mba_ops = {mba_fit, mba_basis, NULL, mba_destroy, mba_subset_work, mba_fit_subset};
 
 /* M_k[q][p] = sum over the control points both see of w_cq * scatter_cp. */
 static void level_operator(const mba_impl *b, int k, int n, double *M)

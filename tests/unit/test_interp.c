@@ -508,6 +508,21 @@ static void test_gaussian_factors(void **state)
     }
 }
 
+/* The largest difference between two maps (each an interpolant and its coefficients, 2 values)
+ * at nq query points, evaluated through the basis as the warp does. */
+static double max_difference(const sh_interp *a, const double *ca, const sh_interp *b, const double *cb,
+                             const double *q, int nq)
+{
+    double worst = 0;
+    for (int k = 0; k < nq; k++) {
+        double va[2], vb[2];
+        eval_basis(a, ca, 2, q[2 * k], q[2 * k + 1], va);
+        eval_basis(b, cb, 2, q[2 * k], q[2 * k + 1], vb);
+        worst = fmax(worst, fmax(fabs(va[0] - vb[0]), fabs(va[1] - vb[1])));
+    }
+    return worst;
+}
+
 /* A fit through a subset equals the interpolant built on that subset alone (sh_interp_create,
  * the path every other test checks), evaluated through the full set's basis as the warp does;
  * the methods whose basis depends on the points used refuse. */
@@ -539,13 +554,7 @@ static void test_fit_subset(void **state)
         assert_true(ca && cs && work);
         if (sh_interp_fit_subset(all, use, val, 2, ca, work) != SH_OK) fail_msg("%s: %s", names[m], sh_error_message());
         assert_int_equal(sh_interp_fit(sub, sub_val, 2, cs), SH_OK);
-        double worst = 0;
-        for (int k = 0; k < Q; k++) {
-            double a[2], b[2];
-            eval_basis(all, ca, 2, q[2 * k], q[2 * k + 1], a);
-            eval_basis(sub, cs, 2, q[2 * k], q[2 * k + 1], b);
-            worst = fmax(worst, fmax(fabs(a[0] - b[0]), fabs(a[1] - b[1])));
-        }
+        double worst = max_difference(all, ca, sub, cs, q, Q);
         if (!(worst < 1e-7)) fail_msg("%s: subset fit differs by %g", names[m], worst);
         /* a left-out point weighs nothing: its coefficients are 0 (affine has none per point) */
         for (int i = 0; i < N && strcmp(names[m], "affine"); i++)
@@ -561,13 +570,109 @@ static void test_fit_subset(void **state)
     assert_int_equal(sh_interp_fit_subset(tps, two, val, 2, c, work), SH_EDEGENERATE);
     free(work), free(c);
     sh_interp_destroy(tps);
-    const char *refuse[] = {"pwlinear", "bspline"};
-    for (int m = 0; m < 2; m++) {
-        sh_interp *it = create_named(refuse[m], xy, N);
-        assert_int_equal(sh_interp_subset_work_size(it), 0);
-        double cc[1];
-        assert_int_equal(sh_interp_fit_subset(it, use, val, 2, cc, cc), SH_EINVAL);
-        sh_interp_destroy(it);
+    sh_interp *it = create_named("pwlinear", xy, N);
+    assert_int_equal(sh_interp_subset_work_size(it), 0);
+    double cc[1];
+    assert_int_equal(sh_interp_fit_subset(it, use, val, 2, cc, cc), SH_EINVAL);
+    sh_interp_destroy(it);
+}
+
+/* B-splines through a subset, on the full set's lattices (their box and levels depend on every
+ * point, so not sh_interp_create on the subset): with every point used it is the spline sh_interp_fit
+ * makes through its multiplied-out residual operators (another path); with a third left out it
+ * passes through the used points (the levels are enough for all of them, so for any subset), a
+ * left-out point's values are never read (NaN), and it does not pass through the left-out
+ * points' values (they are not silently kept). And (the next test) where the subset keeps the
+ * points that bound the box, sh_interp_create on the subset alone has the same lattices at the
+ * same levels: its sh_interp_fit (the operators of the subset) is then the oracle everywhere, also
+ * at fewer levels than exact interpolation needs. */
+static void test_fit_subset_bspline(void **state)
+{
+    (void)state;
+    enum { N = 40, Q = 60 };
+    double xy[2 * N], val[2 * N], q[2 * Q];
+    unsigned char all[N], use[N];
+    random_points(xy, N, 640, 480);
+    random_points(q, Q, 640, 480);
+    for (int i = 0; i < 2 * N; i++) val[i] = uniform(-10, 10);
+    sh_interp *it = create_named("bspline", xy, N);
+    size_t nc = 2 * (size_t)sh_interp_num_coefs(it);
+    double *cf = malloc(sizeof(double) * nc), *cs = malloc(sizeof(double) * nc);
+    void *work = malloc(sh_interp_subset_work_size(it));
+    assert_true(cf && cs && work);
+    memset(all, 1, sizeof all);
+    assert_int_equal(sh_interp_fit(it, val, 2, cf), SH_OK);
+    assert_int_equal(sh_interp_fit_subset(it, all, val, 2, cs, work), SH_OK);
+    double worst = max_difference(it, cf, it, cs, q, Q);
+    if (!(worst < 1e-9)) fail_msg("every point used: differs from sh_interp_fit by %g", worst);
+    double kept[2 * N];
+    memcpy(kept, val, sizeof kept);
+    for (int i = 0; i < N; i++) {
+        use[i] = i % 3 != 1;
+        if (!use[i]) val[2 * i] = val[2 * i + 1] = NAN;
+    }
+    assert_int_equal(sh_interp_fit_subset(it, use, val, 2, cs, work), SH_OK);
+    double on_used = 0, off_left_out = 0;
+    for (int i = 0; i < N; i++) {
+        double a[2];
+        eval_basis(it, cs, 2, xy[2 * i], xy[2 * i + 1], a);
+        assert_true(isfinite(a[0]) && isfinite(a[1]));
+        if (use[i]) on_used = fmax(on_used, fmax(fabs(a[0] - val[2 * i]), fabs(a[1] - val[2 * i + 1])));
+        else off_left_out = fmax(off_left_out, fmax(fabs(a[0] - kept[2 * i]), fabs(a[1] - kept[2 * i + 1])));
+    }
+    if (!(on_used < 1e-9) || !(off_left_out > 1)) fail_msg("used points off by %g, left-out ones by %g", on_used, off_left_out);
+    free(cf), free(cs), free(work);
+    sh_interp_destroy(it);
+}
+
+static void test_fit_subset_bspline_same_lattice(void **state)
+{
+    (void)state;
+    enum { N = 40, Q = 60 };
+    double xy[2 * N], val[2 * N], kept[2 * N], q[2 * Q];
+    unsigned char use[N];
+    random_points(xy, N, 640, 480);
+    random_points(q, Q, 640, 480);
+    for (int i = 0; i < 2 * N; i++) kept[i] = uniform(-10, 10);
+    /* the box's four extreme points used, a third of the others left out */
+    int ext[4] = {0, 0, 0, 0};
+    for (int i = 1; i < N; i++) {
+        if (xy[2 * i] < xy[2 * ext[0]]) ext[0] = i;
+        if (xy[2 * i] > xy[2 * ext[1]]) ext[1] = i;
+        if (xy[2 * i + 1] < xy[2 * ext[2] + 1]) ext[2] = i;
+        if (xy[2 * i + 1] > xy[2 * ext[3] + 1]) ext[3] = i;
+    }
+    double sub_xy[2 * N], sub_val[2 * N];
+    int s = 0;
+    for (int i = 0; i < N; i++) {
+        use[i] = i % 3 != 1 || i == ext[0] || i == ext[1] || i == ext[2] || i == ext[3];
+        val[2 * i] = kept[2 * i], val[2 * i + 1] = kept[2 * i + 1];
+        if (use[i]) sub_xy[2 * s] = xy[2 * i], sub_xy[2 * s + 1] = xy[2 * i + 1], sub_val[2 * s] = val[2 * i],
+                    sub_val[2 * s + 1] = val[2 * i + 1], s++;
+        else val[2 * i] = val[2 * i + 1] = NAN;
+    }
+    int levels = 0;
+    sh_interp *full = create_named("bspline", xy, N);
+    assert_int_equal(sh_interp_bspline_residuals(full, kept, 2, NULL, &levels), SH_OK);
+    sh_interp_destroy(full);
+    for (int L = 3; L <= levels; L += levels - 3 > 0 ? levels - 3 : 1) {
+        sh_interp_params prm;
+        assert_int_equal(sh_interp_params_parse("bspline", &prm), SH_OK);
+        prm.levels = L;
+        sh_interp *all_pts = NULL, *sub = NULL;
+        assert_int_equal(sh_interp_create(&prm, xy, N, &all_pts), SH_OK);
+        assert_int_equal(sh_interp_create(&prm, sub_xy, s, &sub), SH_OK);
+        size_t nc = 2 * (size_t)sh_interp_num_coefs(all_pts);
+        assert_int_equal(nc, 2 * (size_t)sh_interp_num_coefs(sub)); /* the same lattice */
+        double *ca = malloc(sizeof(double) * nc), *cb = malloc(sizeof(double) * nc);
+        void *wk = malloc(sh_interp_subset_work_size(all_pts));
+        assert_true(ca && cb && wk);
+        assert_int_equal(sh_interp_fit_subset(all_pts, use, val, 2, ca, wk), SH_OK);
+        assert_int_equal(sh_interp_fit(sub, sub_val, 2, cb), SH_OK);
+        double diff = max_difference(all_pts, ca, sub, cb, q, Q);
+        if (!(diff < 1e-9)) fail_msg("%d levels: the subset fit differs from the subset's own by %g", L, diff);
+        free(ca), free(cb), free(wk);
+        sh_interp_destroy(all_pts), sh_interp_destroy(sub);
     }
 }
 
@@ -611,6 +716,8 @@ int main(void)
         cmocka_unit_test(test_local_sparse),
         cmocka_unit_test(test_gaussian_factors),
         cmocka_unit_test(test_fit_subset),
+        cmocka_unit_test(test_fit_subset_bspline),
+        cmocka_unit_test(test_fit_subset_bspline_same_lattice),
         cmocka_unit_test(test_lu_inplace),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

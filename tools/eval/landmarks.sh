@@ -12,11 +12,11 @@
 # Writes OUTDIR/landmarks.csv, OUTDIR/warp.csv, OUTDIR/daemon.csv and OUTDIR/json/*.json;
 # renders go to OUTDIR/work and are deleted as they are measured. FRAMES (default 200) sets the
 # length; LANDMARKS (200) how many are asked; WARP_METHODS (tps pwlinear bspline affine) the
-# warp's methods.
+# warp's methods, DAEMON_METHODS (tps bspline) the daemon's.
 set -eu
 BUILD=$(cd "$1" && pwd) OUT=$2 HERE=$(cd "$(dirname "$0")" && pwd)
 RENDER=$BUILD/stillheart-render EVAL=$BUILD/stillheart-eval APP=$BUILD/stillheart
-WARP_METHODS=${WARP_METHODS:-tps pwlinear bspline affine}
+WARP_METHODS=${WARP_METHODS:-tps pwlinear bspline affine} DAEMON_METHODS=${DAEMON_METHODS:-tps bspline}
 FRAMES=${FRAMES:-200} LANDMARKS=${LANDMARKS:-200}
 for b in "$RENDER" "$EVAL" "$APP"; do [ -x "$b" ] || { echo "landmarks: $b is not built" >&2; exit 1; }; done
 mkdir -p "$OUT/work" "$OUT/json"
@@ -51,26 +51,30 @@ through_warp() { # through_warp NAME DIR IDS
     rm -f "$2/stab.y4m"
 }
 
-# The daemon's path: `stillheart run` without and with [track] landmarks, TPS, as fast as it goes,
+# The daemon's path: `stillheart run` without and with [track] landmarks, each of DAEMON_METHODS
+# (tps bspline: the methods it takes landmarks with, but affine, which is worse), as fast as it goes,
 # its markers those of `stillheart track` above (test mode: its reference is frame 0 and is
 # warped, so its --trace-points, the markers and landmarks each frame's map went through, is a
 # points file the evaluator takes); e and the geometric error of what it showed, the landmark
 # stage's and the model update's CPU ms per frame (medians, --trace), and its RSS.
 through_daemon() { # through_daemon NAME DIR (after through_warp: its track.csv)
+    for m in $DAEMON_METHODS; do
     for v in 0 "$LANDMARKS"; do
         rm -f "$2/run.y4m"
-        "$APP" run --source "y4m:$2/cam0.y4m" --no-realtime --no-loop --points "$2/track.csv" --method tps --landmarks "$v" \
+        "$APP" run --source "y4m:$2/cam0.y4m" --no-realtime --no-loop --points "$2/track.csv" --method "$m" --landmarks "$v" \
             --sink none --group= --threads 2 --quiet --stats --record "$2/run.y4m" --trace "$2/trace.csv" \
             --trace-points "$2/used.csv" > "$2/stats.txt"
-        "$EVAL" --quiet --json --truth "$2" --points "$2/used.csv" "$2/run.y4m" "$2/cam0.y4m" > "$OUT/json/$1-daemon-$v.json"
+        "$EVAL" --quiet --json --truth "$2" --points "$2/used.csv" "$2/run.y4m" "$2/cam0.y4m" > "$OUT/json/$1-daemon-$m-$v.json"
         ms=$(python3 -c 'import csv,sys,statistics as s; r=list(csv.DictReader(open(sys.argv[1]))); print("%.2f,%.2f" % (s.median(float(x["landmarks_ms"]) for x in r), s.median(float(x["model_ms"]) for x in r)))' "$2/trace.csv")
         rss=$(sed -n 's/.*RSS kB start [0-9]* max \([0-9]*\).*/\1/p' "$2/stats.txt")
-        echo "$1,$v,$(num "$1-daemon-$v" e_stabilized),$(num "$1-daemon-$v" mean),$(num "$1-daemon-$v" p95),$ms,$rss" >> "$OUT/daemon.csv"
+        j=$1-daemon-$m-$v
+        echo "$1,$m,$v,$(num "$j" e_stabilized),$(num "$j" mean),$(num "$j" p95),$ms,$rss" >> "$OUT/daemon.csv"
+    done
     done
     rm -f "$2/run.y4m"
 }
 
-echo "run,landmarks,e,geo_mean,geo_p95,landmarks_ms,model_ms,rss_kb_max" > "$OUT/daemon.csv"
+echo "run,method,landmarks,e,geo_mean,geo_p95,landmarks_ms,model_ms,rss_kb_max" > "$OUT/daemon.csv"
 echo "run,method,e_markers,e_landmarks,geo_mean_markers,geo_mean_landmarks,geo_p95_markers,geo_p95_landmarks" > "$OUT/warp.csv"
 echo "run,seeded,accepted,measured,mean,p99,max,over_1px,hidden,accepted_hidden,map_at_landmarks,geo_markers_mean,geo_markers_p95,geo_landmarks_mean,geo_landmarks_p95,ms" > "$OUT/landmarks.csv"
 for p in exvivo invivo; do
