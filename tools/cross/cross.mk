@@ -8,11 +8,13 @@ deps-arm64:
 	@sh scripts/install-deps.sh --arm64
 
 # The tests that take minutes under emulation (the phantom renders, the tracker on the phantom's
-# truth, the warps) run side by side, each in a lane of its own (tools/cross/run-lanes.sh); the
-# rest one after another; ARM64_LANES= runs everything one after another.
+# truth, the warps, the landmarks' daemon runs) run side by side, each in a lane of its own
+# (tools/cross/run-lanes.sh); the rest one after another; ARM64_LANES= runs everything one after
+# another. test_eval_landmarks has its own since 2026-12-04: in the rest's lane (823 s then, of
+# it 403 s) that lane was the last to end, alone on one core for about three minutes.
 ARM64_JOBS  ?= $(shell nproc)
 ARM64_LANES ?= test_render test_track_phantom test_warp3d_phantom test_warp3d test_warp test_phantom_truth \
-               test_daemon test_track_cli
+               test_daemon test_track_cli test_eval_landmarks
 # The phantom fixtures of the other tests come from the host build's renderer (SH_TEST_RENDER,
 # tools/cross/qemu-wrap.sh); test_render tests the aarch64 renderer itself.
 check-arm64: deps-arm64 $(BUILD)/stillheart-render
