@@ -91,9 +91,9 @@ sh_status sh_interp_fit(const sh_interp *interp, const double *values, int dim, 
  * interpolant's centring and scale: the same functions). Bspline: the multilevel B-spline
  * iteration over the used points on this interpolant's lattices (their box and levels come from
  * every point, so it is not sh_interp_create's on the used points; with the automatic levels,
- * which separate every point and so any subset, it passes through them too). Pwlinear refuses (SH_EINVAL):
- * its triangles depend on which points are used. values: n x dim as for sh_interp_fit (a
- * left-out point's values are not read).
+ * which separate every point and so any subset, it passes through them too). Pwlinear refuses
+ * (SH_EINVAL): its triangles depend on which points are used. values: n x dim as for
+ * sh_interp_fit (a left-out point's values are not read).
  * work: sh_interp_subset_work_size(interp) bytes, aligned for double; nothing is allocated.
  * SH_EDEGENERATE for too few used points, collinear ones where the method has an affine part, or
  * a singular system. Cost: O(s^3) for s used points with the RBFs (the system is factored anew),
