@@ -37,6 +37,13 @@ typedef struct {
     double *T;       /* (levels - 1) x n x n: T_1 .. T_{levels-1}; T_0 = I */
 } mba_impl;
 
+/* Index, in a lattice `stride` control points wide, of tap t (row t / 4, column t % 4) of the
+ * 4 x 4 block whose first control point is cell[0], cell[1] (a point's, as `cell` stores them). */
+static inline size_t tap(const int *cell, int t, int stride)
+{
+    return (size_t)(cell[1] + t / 4) * stride + cell[0] + t % 4;
+}
+
 static void cubic_weights(double u, double b[4])
 {
     double u2 = u * u, u3 = u2 * u, v = 1.0 - u;
@@ -203,16 +210,16 @@ static sh_status mba_fit_subset(const sh_interp *it, const unsigned char *use, i
         for (int q = 0; q < n; q++)
             if (use[q])
                 for (int t = 0; t < 16; t++)
-                    D[(size_t)(cell[2 * q + 1] + t / 4) * Wk + cell[2 * q] + t % 4] += w[16 * q + t] * w[16 * q + t];
+                    D[tap(cell + 2 * q, t, Wk)] += w[16 * q + t] * w[16 * q + t];
         for (int q = 0; q < n; q++) {
             if (!use[q]) continue;
             const double *wq = w + 16 * q;
             double S = 0;
             for (int t = 0; t < 16; t++) S += wq[t] * wq[t];
             for (int t = 0; t < 16; t++) {
-                double Dc = D[(size_t)(cell[2 * q + 1] + t / 4) * Wk + cell[2 * q] + t % 4];
+                double Dc = D[tap(cell + 2 * q, t, Wk)];
                 double a = Dc > 0 ? wq[t] * wq[t] * wq[t] / (S * Dc) : 0.0;
-                double *dst = coef + ((size_t)(cell[2 * q + 1] + t / 4) * W + cell[2 * q] + t % 4) * dim;
+                double *dst = coef + tap(cell + 2 * q, t, W) * dim;
                 for (int d = 0; d < dim; d++) dst[d] += a * r[q * dim + d];
             }
         }
@@ -222,7 +229,7 @@ static sh_status mba_fit_subset(const sh_interp *it, const unsigned char *use, i
             for (int d = 0; d < dim; d++) {
                 double f = 0;
                 for (int t = 0; t < 16; t++)
-                    f += w[16 * q + t] * coef[((size_t)(cell[2 * q + 1] + t / 4) * W + cell[2 * q] + t % 4) * dim + d];
+                    f += w[16 * q + t] * coef[tap(cell + 2 * q, t, W) * dim + d];
                 r[q * dim + d] = values[q * dim + d] - f;
             }
         }
@@ -261,7 +268,7 @@ static sh_status level_setup(const sh_interp *it, mba_impl *b, int k)
     if (!D) return sh_error_set(SH_ENOMEM, "interp bspline: out of memory at level %d", k);
     int *cell = b->cell + 2 * (size_t)k * n;
     double *w = b->w + 16 * (size_t)k * n, *a = b->scatter + 16 * (size_t)k * n;
-#define AT(q, t) D[(size_t)(cell[2 * (q) + 1] + (t) / 4) * Wk + cell[2 * (q)] + (t) % 4]
+#define AT(q, t) D[tap(cell + 2 * (q), t, Wk)]
     for (int q = 0; q < n; q++) {
         locate(b, p[2 * q], p[2 * q + 1], ldexp(b->h0, -k), mk, nk, &cell[2 * q], &cell[2 * q + 1],
                w + 16 * q);
@@ -452,7 +459,7 @@ sh_status sh_interp_bspline_residuals(const sh_interp *it, const double *values,
         for (int q = 0; q < n; q++)
             for (int t = 0; t < 16; t++)
                 for (int d = 0; d < dim; d++)
-                    phi[((size_t)(cell[2 * q + 1] + t / 4) * Wk + cell[2 * q] + t % 4) * dim + d] +=
+                    phi[tap(cell + 2 * q, t, Wk) * dim + d] +=
                         a[16 * q + t] * r[q * dim + d];
         double mx = 0;
         for (int q = 0; q < n; q++)
@@ -460,7 +467,7 @@ sh_status sh_interp_bspline_residuals(const sh_interp *it, const double *values,
                 double s = 0;
                 for (int t = 0; t < 16; t++)
                     s += w[16 * q + t] *
-                         phi[((size_t)(cell[2 * q + 1] + t / 4) * Wk + cell[2 * q] + t % 4) * dim + d];
+                         phi[tap(cell + 2 * q, t, Wk) * dim + d];
                 r[q * dim + d] -= s;
                 mx = fmax(mx, fabs(r[q * dim + d]));
             }
