@@ -60,7 +60,8 @@ typedef struct {
     int camera_timeout_ms;           /* no frame for this long: the camera is lost and reopened */
     int max_frame_pixels;            /* a camera's frames of more pixels are refused at open */
     int queue_ms;                    /* sets wait for processing in order while at most this old
-                                      * (since capture); 0: only the newest waits */
+                                      * (since capture) and processing keeps up; 0: only the newest
+                                      * waits. Default 100 */
     /* [trigger] */
     sh_trigger_mode trigger;
     char trigger_chip[64];           /* gpiochip0, /dev/gpiochip0, a label or a number */

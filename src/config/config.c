@@ -51,7 +51,7 @@ static const keydef keys[] = {
     {"source", "max_frame_pixels", "max-frame-pixels", K_INT, SRC, F(max_frame_pixels), 0, 1, SH_IMAGE_MAX_SIZE * SH_IMAGE_MAX_SIZE,
      "a camera's frames of more pixels (width x height) are refused at open, before any is allocated (default: 3840x2160)"},
     {"source", "queue_ms", "queue-ms", K_INT, SRC, F(queue_ms), 0, 0, 1000,
-     "real time: sets wait for processing in order while at most this many ms old (at most 8 sets); 0: only the newest waits, a set replaced is dropped"},
+     "real time: sets wait for processing in order while at most this many ms old (at most 8 sets) and processing keeps up with the camera; 0: only the newest waits, a set replaced is dropped (default: 100)"},
     CAMERA_KEYS(0),
     CAMERA_KEYS(1),
     CAMERA_KEYS(2),
@@ -124,6 +124,7 @@ void sh_config_default(sh_config *cfg)
     cfg->realtime = 1;
     cfg->loop = 1;
     cfg->camera_timeout_ms = 1000;
+    cfg->queue_ms = 100;
     cfg->max_frame_pixels = SH_FRAME_PIXELS_DEFAULT;
     snprintf(cfg->trigger_chip, sizeof cfg->trigger_chip, "gpiochip0");
     cfg->trigger_pulse_us = 1000;

@@ -27,6 +27,15 @@
  * first stall; 8 sets are 133 ms at 60 frames/s, longer than any stall measured (docs/daemon.md). */
 #define QUEUE_MAX 8
 #define POOL_MAX (POOL + QUEUE_MAX - 1)
+/* Processing times of the last sets, whose median says whether processing keeps up with the
+ * camera: odd, so that the median is one of them; long enough that a few slow sets (a model
+ * built, a stall) do not switch it, short enough to follow a change of load soon (8 sets switch
+ * it: 133 ms at 60 frames/s, 320 ms at 25). */
+#define BUSY_WINDOW 15
+#define BUSY_MIN 5
+/* Behind for this long before it is logged: every start is behind for a few sets (the first
+ * detections search the whole frame, the reference's models are built), which is no news. */
+#define BEHIND_LOG_NS 1000000000LL
 #define DEQUEUE_MS 100
 
 enum { FREE = 0, FILLING, PENDING, IN_SET };
@@ -72,6 +81,14 @@ struct run_source {
     int qhead, nwaiting, qcap;
     int64_t queue_ns;      /* queue_ms: a waiting set older than this (since capture) is dropped
                             * unless it is the newest */
+    int64_t period_ns;     /* the output camera's frame period */
+    int64_t taken_ns;      /* the held set was taken (its processing began) */
+    int64_t busy_ns[BUSY_WINDOW]; /* processing times of the last sets (a ring), with queue_ms */
+    int nbusy, busy_next;
+    int behind;            /* their median is over the period: only the newest set is taken */
+    int64_t behind_ns;     /* since when */
+    int behind_logged;     /* and said so */
+    sh_log_limit behind_log, caught_up_log; /* a load that comes and goes: once a minute */
     run_frame held;
     int have_held;
     int paced;             /* as fast as possible, nothing dropped: every camera a replay */
@@ -438,6 +455,8 @@ sh_status run_source_open(const sh_config *cfg, run_source **out)
     double period = run_period_ns(rs->cam[rs->out].fps_num, rs->cam[rs->out].fps_den);
     rs->qcap = 1;
     rs->queue_ns = (int64_t)cfg->queue_ms * 1000000;
+    rs->period_ns = (int64_t)period;
+    rs->behind_log.period_s = rs->caught_up_log.period_s = 60;
     if (!rs->paced && cfg->queue_ms > 0) {
         double spans = ceil(rs->queue_ns / period);
         rs->qcap = spans + 1 >= QUEUE_MAX ? QUEUE_MAX : 1 + (int)spans;
@@ -527,9 +546,47 @@ sh_status run_source_start(run_source *rs)
     return SH_OK;
 }
 
+/* Under rs->mu, with queue_ms: the held set's processing took busy_ns. A queue helps only while
+ * processing keeps up with the camera: after a stall it catches up, showing the sets late for a
+ * moment. When processing is slower than the camera for good (a busy machine, a camera faster than
+ * the pipeline), waiting sets would only show every frame queue_ms late for as long as that
+ * lasts; while the median of the last sets' processing times is over the frame period, only the
+ * newest set is taken, as with the mailbox. Returns +1 when that has lasted BEHIND_LOG_NS (to be
+ * logged), -1 when such a spell ends, else 0. */
+static int note_busy(run_source *rs, int64_t busy_ns, int64_t now)
+{
+    rs->busy_ns[rs->busy_next] = busy_ns;
+    rs->busy_next = (rs->busy_next + 1) % BUSY_WINDOW;
+    if (rs->nbusy < BUSY_WINDOW) rs->nbusy++;
+    if (rs->nbusy < BUSY_MIN) return 0;
+    int64_t v[BUSY_WINDOW];
+    int n = rs->nbusy;
+    for (int i = 0; i < n; i++) { /* insertion sort: 15 values */
+        int64_t x = rs->busy_ns[i];
+        int j = i;
+        for (; j > 0 && v[j - 1] > x; j--) v[j] = v[j - 1];
+        v[j] = x;
+    }
+    int behind = v[n / 2] > rs->period_ns, say = 0;
+    if (behind && !rs->behind) {
+        rs->behind_ns = now;
+        rs->behind_logged = 0;
+    } else if (behind && !rs->behind_logged && now - rs->behind_ns >= BEHIND_LOG_NS) {
+        rs->behind_logged = 1;
+        say = 1;
+    } else if (!behind && rs->behind && rs->behind_logged) {
+        say = -1;
+    }
+    rs->behind = behind;
+    return say;
+}
+
 const run_frame *run_source_take(run_source *rs, int timeout_ms)
 {
+    int64_t entry = sh_monotonic_ns();
+    int change = 0;
     pthread_mutex_lock(&rs->mu);
+    if (rs->have_held && rs->qcap > 1) change = note_busy(rs, entry - rs->taken_ns, entry);
     if (rs->have_held) {
         free_buffers(rs, &rs->held);
         rs->have_held = 0;
@@ -543,12 +600,13 @@ const run_frame *run_source_take(run_source *rs, int timeout_ms)
     while (!rs->nwaiting && !rs->eof && !rs->stop)
         if (pthread_cond_timedwait(&rs->cv, &rs->mu, &ts) == ETIMEDOUT) break;
     /* sets captured more than queue_ms ago are dropped, the newest never: after a stall the
-     * queue shows what is still recent in order and skips what is too late to show */
+     * queue shows what is still recent in order and skips what is too late to show; while
+     * processing is behind for good, only the newest is shown (note_busy) */
     if (rs->queue_ns > 0) {
         int64_t now = sh_monotonic_ns();
         while (rs->nwaiting > 1) {
             const run_frame *f = &rs->queue[rs->qhead];
-            if (now - (f->capture_ns > 0 ? f->capture_ns : f->avail_ns) <= rs->queue_ns) break;
+            if (!rs->behind && now - (f->capture_ns > 0 ? f->capture_ns : f->avail_ns) <= rs->queue_ns) break;
             drop_oldest(rs);
         }
     }
@@ -557,10 +615,20 @@ const run_frame *run_source_take(run_source *rs, int timeout_ms)
         rs->qhead = (rs->qhead + 1) % QUEUE_MAX;
         rs->nwaiting--;
         rs->have_held = 1;
+        rs->taken_ns = sh_monotonic_ns();
         pthread_cond_broadcast(&rs->cv);
     }
     int got = rs->have_held;
     pthread_mutex_unlock(&rs->mu);
+    /* logged outside the lock: the cameras' threads wait on it */
+    if (change > 0)
+        sh_log_limited(&rs->behind_log, SH_LOG_WARN,
+                       "processing has been slower than the camera for a second (a set takes longer than its "
+                       "%.1f ms period, median of the last %d): only the newest set is shown until it keeps up",
+                       (double)rs->period_ns / 1e6, BUSY_WINDOW);
+    else if (change < 0)
+        sh_log_limited(&rs->caught_up_log, SH_LOG_INFO,
+                       "processing keeps up with the camera again: sets wait in order (queue_ms)");
     return got ? &rs->held : NULL;
 }
 

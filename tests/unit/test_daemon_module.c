@@ -36,6 +36,12 @@
 static char tmp[64], video[128];
 
 /* n grey gradient frames at fps: nothing a detector could take for a marker. */
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
 static int write_video(const char *path, int fps, int n)
 {
     sh_y4m_header h;
@@ -354,17 +360,11 @@ static void test_v4l2_refusals(void **state)
     assert_int_equal(unlink(path), 0);
 }
 
-/* [source] queue_ms, on the cameras alone: processing stalls 410 ms while a 50 frames/s replay
- * goes on in real time. With queue_ms = 100 the sets it then takes, back to back, are in capture
- * order without a gap, at most 1 + 100 / 20 = 6 of them, each but the newest captured at most
- * 100 ms before it was taken (the age is taken before the call: no later than the rule's); every
- * set before the first is counted dropped. With queue_ms = 0 it takes the newest set alone. The
- * bounds come from the replay's schedule (frame k at start + 20 k ms), not from the code. */
-static void stall_and_take(int queue_ms, int *taken, int *first)
+/* The cameras alone on a new 50 frames/s replay of n frames at path, in real time, started. */
+static run_source *start_replay(const char *path, int n, int queue_ms)
 {
-    char path[160], ini[512], err[SH_CONFIG_ERR];
-    snprintf(path, sizeof path, "%s/fifty.y4m", tmp);
-    assert_int_equal(write_video(path, 50, 60), 0);
+    char ini[512], err[SH_CONFIG_ERR];
+    assert_int_equal(write_video(path, 50, n), 0);
     snprintf(ini, sizeof ini, "[camera0]\nspec = y4m:%s\n[source]\nrealtime = 1\nloop = 0\nqueue_ms = %d\n",
              path, queue_ms);
     sh_config cfg;
@@ -373,6 +373,20 @@ static void stall_and_take(int queue_ms, int *taken, int *first)
     run_source *rs;
     assert_int_equal(run_source_open(&cfg, &rs), SH_OK);
     assert_int_equal(run_source_start(rs), SH_OK);
+    return rs;
+}
+
+/* [source] queue_ms, on the cameras alone: processing stalls 410 ms while a 50 frames/s replay
+ * goes on in real time. With queue_ms = 100 the sets it then takes, back to back, are in capture
+ * order without a gap, at most 1 + 100 / 20 = 6 of them, each but the newest captured at most
+ * 100 ms before it was taken (the age is taken before the call: no later than the rule's); every
+ * set before the first is counted dropped. With queue_ms = 0 it takes the newest set alone. The
+ * bounds come from the replay's schedule (frame k at start + 20 k ms), not from the code. */
+static void stall_and_take(int queue_ms, int *taken, int *first)
+{
+    char path[160];
+    snprintf(path, sizeof path, "%s/fifty.y4m", tmp);
+    run_source *rs = start_replay(path, 60, queue_ms);
     struct timespec pause = {0, 410000000}; /* frame 20 due 10 ms before: the ages are 10 ms off the bound */
     nanosleep(&pause, NULL);
     int index[64];
@@ -411,6 +425,50 @@ static void test_queue_after_a_stall(void **state)
     assert_true(first >= 15);
 }
 
+/* [source] queue_ms while processing is slower than the camera for good: a queue would show every
+ * set as late as queue_ms allows, so only the newest is taken until processing keeps up again.
+ * A 50 frames/s replay (frame k due at start + 20 k ms), queue_ms = 300 (8 sets may wait):
+ * processing takes 30 ms a set for 40 sets, then next to nothing for 25, then stalls 150 ms.
+ * While slow, once the last sets' median says so (15 sets at most), each set taken is the newest:
+ * the median age at take of sets 20-39 is under 60 ms (the period, and 40 ms for a loaded
+ * machine; a queue that kept waiting sets would hold 8 and show them about 150 ms late). Once fast
+ * again, a stall's sets wait in order as before: the burst after it is several consecutive sets. */
+static void test_queue_not_while_behind(void **state)
+{
+    (void)state;
+    char path[160];
+    snprintf(path, sizeof path, "%s/behind.y4m", tmp);
+    run_source *rs = start_replay(path, 150, 300);
+    double age_ms[40];
+    struct timespec slow = {0, 30000000};
+    for (int i = 0; i < 40; i++) {
+        const run_frame *f = run_source_take(rs, 1000);
+        assert_non_null(f);
+        age_ms[i] = (double)(sh_monotonic_ns() - f->capture_ns) / 1e6;
+        nanosleep(&slow, NULL);
+    }
+    double late[20];
+    memcpy(late, age_ms + 20, sizeof late);
+    qsort(late, 20, sizeof *late, cmp_double);
+    printf("  processing 30 ms a set at 20 ms a frame: sets 20-39 shown %.1f ms after capture (median), "
+           "sets 0-4 %.1f %.1f %.1f %.1f %.1f\n", late[10], age_ms[0], age_ms[1], age_ms[2], age_ms[3], age_ms[4]);
+    if (late[10] >= 60) fail_msg("processing behind: sets shown %.1f ms after capture (median)", late[10]);
+    for (int i = 0; i < 25; i++) assert_non_null(run_source_take(rs, 1000));
+    struct timespec stall = {0, 150000000};
+    nanosleep(&stall, NULL);
+    int index[16], n = 0;
+    for (; n < 16; n++) {
+        const run_frame *f = run_source_take(rs, 0);
+        if (!f) break;
+        index[n] = f->index;
+    }
+    for (int i = 1; i < n; i++)
+        if (index[i] != index[i - 1] + 1) fail_msg("after the stall: set %d after set %d", index[i], index[i - 1]);
+    if (n < 5) fail_msg("keeping up again, a 150 ms stall: %d sets waited in order", n);
+    run_source_destroy(rs);
+    unlink(path);
+}
+
 /* A replay without loop ends: the loop stops after its last frame, every frame published. */
 static void test_replay_ends(void **state)
 {
@@ -432,6 +490,7 @@ int main(void)
         cmocka_unit_test(test_reload_refused),
         cmocka_unit_test(test_replay_ends),
         cmocka_unit_test(test_queue_after_a_stall),
+        cmocka_unit_test(test_queue_not_while_behind),
         cmocka_unit_test(test_model_the_frames_cannot_give),
         cmocka_unit_test(test_record_names_its_method),
         cmocka_unit_test(test_v4l2_refusals),
