@@ -8,8 +8,9 @@
  * in order instead (up to 8) while captured at most that long ago, so that a short stall of the
  * machine shows its sets late rather than dropping them; older ones are dropped and counted, the
  * newest never; and while processing is slower than the camera (the median of the last sets'
- * processing times over the frame period) only the newest is taken, as with the mailbox. Replay as fast as possible (every camera a y4m: or rec:, realtime off) drops nothing:
- * the cameras wait for processing instead.
+ * processing times over the frame period) only the newest is taken, as with the mailbox. Replay
+ * as fast as possible (every camera a y4m: or rec:, realtime off) drops nothing: the cameras wait
+ * for processing instead.
  * A camera that vanishes is reopened by source.h with back-off while the others go on (its frames
  * are missing from the sets meanwhile: incomplete sets, counted). */
 #ifndef STILLHEART_RUN_SOURCE_H

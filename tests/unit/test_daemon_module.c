@@ -35,13 +35,13 @@
 
 static char tmp[64], video[128];
 
-/* n grey gradient frames at fps: nothing a detector could take for a marker. */
 static int cmp_double(const void *a, const void *b)
 {
     double x = *(const double *)a, y = *(const double *)b;
     return (x > y) - (x < y);
 }
 
+/* n grey gradient frames at fps: nothing a detector could take for a marker. */
 static int write_video(const char *path, int fps, int n)
 {
     sh_y4m_header h;
