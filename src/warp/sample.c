@@ -314,6 +314,49 @@ __attribute__((target("avx2"))) static void sample_row_gray_avx2(const sh_plane 
     }
     sample_row_gray(src, black, dst + k, fx + k, fy + k, count - k);
 }
+
+/* AVX-512 (F and BW), where the CPU has it: AVX2's loop on 16 lanes, its gathers of 16 words
+ * and the inside test a mask compare; the same operations on each lane, so the same bytes.
+ * perf on the 4K warp (32 markers, one thread) put about two thirds of the frame's time in
+ * AVX2's loop, bound by its instruction count, not by memory: 16 lanes take 0.75-0.78 of its
+ * time (docs/warp.md). Blocks with a pixel outside go AVX2's way, 8 at a time. */
+__attribute__((target("avx512f,avx512bw"))) static void sample_row_gray_avx512(const sh_plane *src,
+                                                                               uint8_t black, uint8_t *dst,
+                                                                               const int32_t *fx,
+                                                                               const int32_t *fy, int count)
+{
+    const uint8_t *const data = src->data, *const below = data + src->stride;
+    int k = 0;
+    if (src->width >= 4 && src->height >= 2 && (int64_t)src->stride * src->height <= INT32_MAX) {
+        const __m512i lim_x = _mm512_set1_epi32(src->width - 4), lim_y = _mm512_set1_epi32(src->height - 2);
+        const __m512i stride = _mm512_set1_epi32(src->stride), wmask = _mm512_set1_epi32(ONE - 1);
+        const __m512i one = _mm512_set1_epi32(ONE), half = _mm512_set1_epi32(1 << (2 * WEIGHT_BITS - 1));
+        /* AVX2's `pairs` in each 128-bit lane: bytes (0, -, 1, -, 4, -, 5, -, ...) */
+        const __m512i pairs = _mm512_set4_epi32((int)0x800d800cu, (int)0x80098008u, (int)0x80058004u,
+                                                (int)0x80018000u);
+        for (; k + 16 <= count; k += 16) {
+            __m512i px = _mm512_loadu_si512(fx + k), py = _mm512_loadu_si512(fy + k);
+            __m512i ix = _mm512_srai_epi32(px, FRAC_BITS), iy = _mm512_srai_epi32(py, FRAC_BITS);
+            /* unsigned: negatives are huge */
+            if ((__mmask16)(_mm512_cmple_epu32_mask(ix, lim_x) & _mm512_cmple_epu32_mask(iy, lim_y)) != 0xffff) {
+                sample_row_gray_avx2(src, black, dst + k, fx + k, fy + k, 16);
+                continue;
+            }
+            __m512i off = _mm512_add_epi32(_mm512_mullo_epi32(iy, stride), ix);
+            __m512i top = _mm512_shuffle_epi8(_mm512_i32gather_epi32(off, (const void *)data, 1), pairs);
+            __m512i bottom = _mm512_shuffle_epi8(_mm512_i32gather_epi32(off, (const void *)below, 1), pairs);
+            __m512i w = _mm512_and_si512(_mm512_srli_epi32(px, FRAC_BITS - WEIGHT_BITS), wmask);
+            __m512i wx = _mm512_or_si512(_mm512_slli_epi32(w, 16), _mm512_sub_epi32(one, w));
+            w = _mm512_and_si512(_mm512_srli_epi32(py, FRAC_BITS - WEIGHT_BITS), wmask);
+            __m512i wy = _mm512_or_si512(_mm512_slli_epi32(w, 16), _mm512_sub_epi32(one, w));
+            __m512i t = _mm512_madd_epi16(top, wx), b = _mm512_madd_epi16(bottom, wx);
+            __m512i v = _mm512_madd_epi16(_mm512_or_si512(t, _mm512_slli_epi32(b, 16)), wy);
+            v = _mm512_srli_epi32(_mm512_add_epi32(v, half), 2 * WEIGHT_BITS);
+            _mm_storeu_si128((__m128i *)(dst + k), _mm512_cvtepi32_epi8(v)); /* v <= 255: exact */
+        }
+    }
+    sample_row_gray_avx2(src, black, dst + k, fx + k, fy + k, count - k);
+}
 #endif
 #elif defined(__aarch64__) && defined(__ARM_NEON)
 #include <arm_neon.h>
@@ -485,12 +528,30 @@ static gray_fn gray_row = sample_row_gray;
 #define gray_row sample_row_gray /* one loop: called directly, inlined */
 #endif
 
+/* The widest one-channel loop up to `wanted` (0 the build's SIMD path, 1 AVX2, 2 AVX-512) that
+ * the CPU has, put in use; returns its level. */
+static int choose_gray(int wanted)
+{
+#ifdef SH_WARP_AVX2
+    if (wanted >= 2 && __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512bw")) {
+        gray_row = sample_row_gray_avx512;
+        return 2;
+    }
+    if (wanted >= 1 && __builtin_cpu_supports("avx2")) {
+        gray_row = sample_row_gray_avx2;
+        return 1;
+    }
+    gray_row = sample_row_gray;
+#else
+    (void)wanted;
+#endif
+    return 0;
+}
+
 static void init_tables(void)
 {
     init_weights();
-#ifdef SH_WARP_AVX2
-    if (__builtin_cpu_supports("avx2")) gray_row = sample_row_gray_avx2;
-#endif
+    choose_gray(2);
 }
 
 void warp_sample_init(void)
@@ -499,16 +560,10 @@ void warp_sample_init(void)
     pthread_once(&once, init_tables);
 }
 
-int warp_sample_avx2(int wanted)
+int warp_sample_path(int wanted)
 {
     warp_sample_init();
-#ifdef SH_WARP_AVX2
-    gray_row = wanted && __builtin_cpu_supports("avx2") ? sample_row_gray_avx2 : sample_row_gray;
-    return gray_row == sample_row_gray_avx2;
-#else
-    (void)wanted;
-    return 0;
-#endif
+    return choose_gray(wanted);
 }
 
 void warp_sample_row(const sh_plane *src, int channels, uint8_t black, uint8_t *dst,

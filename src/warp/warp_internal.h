@@ -109,10 +109,11 @@ void warp_sample_init(void);
 void warp_sample_row(const sh_plane *src, int channels, uint8_t black, uint8_t *dst,
                      const int32_t *fx, const int32_t *fy, int count);
 
-/* One-channel planes take the AVX2 loop where the CPU has it (x86-64; chosen in
- * warp_sample_init). wanted = 0 keeps the build's own SIMD path instead, so tests and benches
- * can run both on one machine; returns whether the AVX2 loop is in use. */
-int warp_sample_avx2(int wanted);
+/* One-channel planes take the widest loop the CPU has (x86-64: AVX-512, else AVX2, else SSE2;
+ * chosen in warp_sample_init). This puts the widest one up to `wanted` in use instead (0 the
+ * build's own SIMD path, 1 AVX2, 2 AVX-512), so tests and benches can run each on one machine;
+ * returns the level now in use. Not to be called while another thread samples. */
+int warp_sample_path(int wanted);
 
 /* The RGB path's definition in portable C: the SSE2 and NEON paths of warp_sample_row give
  * exactly these bytes (tests/unit/test_sample_simd.c). */

@@ -1,5 +1,5 @@
 /* The warp's samplers, RGB24 and one channel: the SIMD path of this build (SSE2 on x86-64, NEON
- * on AArch64; and one channel's AVX2 loop where the CPU has it) against the portable C
+ * on AArch64; and one channel's AVX2 and AVX-512 loops where the CPU has them) against the portable C
  * definition, bit for bit, on random positions inside, across the edges and far outside the
  * plane, on planes of several sizes and strides, at several alignments. Run under qemu-aarch64
  * by `make check-arm64`, this is the NEON paths' test. */
@@ -23,19 +23,22 @@ static uint32_t next_u32(void)
 
 typedef void (*portable_fn)(const sh_plane *, uint8_t, uint8_t *, const int32_t *, const int32_t *, int);
 
-/* The build's SIMD path, and on an x86-64 CPU with AVX2 also the one-channel AVX2 loop that
- * warp_sample_row takes there by default (path 1). */
-static int simd_paths(void)
+/* The paths this machine has: the build's SIMD path (0), and on an x86-64 CPU with them the
+ * one-channel AVX2 (1) and AVX-512 (2) loops. Puts `path` in use; 0 when the CPU lacks it. */
+static int use_path(int path)
 {
-    return 1 + warp_sample_avx2(1);
+    return warp_sample_path(path) == path;
 }
+
+static const char *const path_names[] = {"SIMD", "AVX2", "AVX-512"};
+enum { PATHS = 3 };
 
 /* The plane's buffer is exactly stride x height bytes, so that a read past it shows under ASan. */
 static void compare_on(int channels, int width, int height, int stride, int count, int spread)
 {
     const portable_fn portable = channels == 3 ? warp_sample_row_rgb_portable : warp_sample_row_gray_portable;
-    /* one-channel blocks are 8 pixels, RGB's 4: every start within a block */
-    const int starts = channels == 3 ? 3 : 8;
+    /* one-channel blocks are 8 pixels (16 with AVX-512), RGB's 4: every start within a block */
+    const int starts = channels == 3 ? 3 : 16;
     uint8_t *data = malloc((size_t)stride * (size_t)height);
     assert_non_null(data);
     for (size_t i = 0; i < (size_t)stride * (size_t)height; i++) data[i] = (uint8_t)next_u32();
@@ -52,8 +55,8 @@ static void compare_on(int channels, int width, int height, int stride, int coun
         fx[k] = (int32_t)(rx * 256 + (next_u32() & 255));
         fy[k] = (int32_t)(ry * 256 + (next_u32() & 255));
     }
-    for (int path = 0; path < simd_paths(); path++) {
-        warp_sample_avx2(path);
+    for (int path = 0; path < PATHS; path++) {
+        if (!use_path(path)) continue;
         for (int start = 0; start < starts; start++) {
             int n = count - start;
             memset(simd, 0xa5, bytes);
@@ -63,12 +66,12 @@ static void compare_on(int channels, int width, int height, int stride, int coun
             for (size_t k = 0; k < bytes; k++) {
                 if (simd[k] != ref[k])
                     fail_msg("%d channel(s), %dx%d stride %d, start %d, %s: byte %zu (pixel %zu): simd %u, "
-                             "portable %u", channels, width, height, stride, start, path ? "AVX2" : "SIMD", k,
+                             "portable %u", channels, width, height, stride, start, path_names[path], k,
                              k / (size_t)channels, simd[k], ref[k]);
             }
         }
     }
-    warp_sample_avx2(1);
+    warp_sample_path(PATHS - 1);
     free(data); free(fx); free(fy); free(simd); free(ref);
 }
 
@@ -110,12 +113,12 @@ static void extreme_positions(int channels)
         for (int j = 0; j < N; j++) { fx[i * N + j] = v[i]; fy[i * N + j] = v[j]; }
     uint8_t simd[N * N * 3], ref[N * N * 3];
     portable(&plane, 0, ref, fx, fy, N * N);
-    for (int path = 0; path < simd_paths(); path++) {
-        warp_sample_avx2(path);
+    for (int path = 0; path < PATHS; path++) {
+        if (!use_path(path)) continue;
         warp_sample_row(&plane, channels, 0, simd, fx, fy, N * N);
         assert_memory_equal(simd, ref, (size_t)(N * N * channels));
     }
-    warp_sample_avx2(1);
+    warp_sample_path(PATHS - 1);
 }
 
 static void test_extreme_positions(void **state)
@@ -198,6 +201,11 @@ static void test_gray_portable_by_hand(void **state)
 
 int main(void)
 {
+    /* which of the paths this CPU runs (the others pass unchecked here; AVX-512 is not in
+     * Debian 12's qemu either) */
+    for (int path = 0; path < PATHS; path++)
+        print_message("sampler path %s: %s\n", path_names[path], use_path(path) ? "compared" : "not on this CPU");
+    warp_sample_path(PATHS - 1);
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_portable_by_hand),
         cmocka_unit_test(test_inside),
