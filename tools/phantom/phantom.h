@@ -132,6 +132,10 @@ typedef struct {
     /* the tissue texture's contrast about its mean colour (renderer only): 0 as designed (1);
      * phantom.txt carries it only when set */
     double texture_contrast;
+    /* the tissue texture's minification (renderer only): 0 the nearest mip level, 1 trilinear
+     * (the two nearest blended: no seam where the level changes); phantom.txt carries it only
+     * when 1 */
+    int texture_trilinear;
 } phantom_model;
 
 enum { PHANTOM_CAM_NONE = 0, PHANTOM_CAM_PAN = 1, PHANTOM_CAM_BUMP = 2 };
@@ -231,6 +235,7 @@ typedef struct {
     int first_beat;       /* 1: rest, then a first contraction 4x faster; not with periodic */
     double first_beat_at; /* seconds of rest from frame 0; <= 0: 0.5 s */
     double texture_contrast; /* <= 0 or 1: the texture as designed; else its contrast scaled */
+    int texture_trilinear;   /* 1: the tissue texture filtered trilinearly (phantom_model's) */
 } phantom_options;
 
 void phantom_options_default(phantom_options *o);

@@ -327,6 +327,7 @@ static sh_status build_events(const phantom_options *o, phantom_model *m)
     m->noise = o->noise >= 0 ? o->noise : 1.5;
     m->exposure = o->exposure > 0 ? o->exposure : 1.0;
     m->texture_contrast = o->texture_contrast > 0 && o->texture_contrast != 1 ? o->texture_contrast : 0;
+    m->texture_trilinear = o->texture_trilinear != 0;
     return SH_OK;
 }
 

@@ -78,6 +78,12 @@ static void usage(FILE *f)
 "                     the tissue texture's colours about their mean scaled by F (default 1;\n"
 "                     0.5 halves its contrast: landmarks must not find the phantom easier\n"
 "                     than tissue); in phantom.txt\n"
+"  --texture-filter nearest-mip|trilinear\n"
+"                     how the tissue texture is minified: from the nearest mip level (the\n"
+"                     default, as every measured table was rendered), or trilinear (the two\n"
+"                     nearest levels blended), which has no seam sweeping over the tissue\n"
+"                     where the level changes as the heart scales; tissue has none. The tags\n"
+"                     keep the nearest level. In phantom.txt\n"
 "  --calib-target checkerboard:COLSxROWS:SQUARE_MM\n"
 "                     instead of the heart: a planar checkerboard (COLS x ROWS inner corners,\n"
 "                     one count odd and one even; squares SQUARE_MM) in --frames poses\n"
@@ -289,7 +295,7 @@ static int parse_args(int argc, char **argv, render_args *a)
     a->out = NULL;
     a->board_mode = 0;
     enum { O_PRESET = 256, O_FRAMES, O_CAMERAS, O_WIDTH, O_HEIGHT, O_SEED, O_OCC, O_BPM, O_MARKERS,
-           O_TAG, O_FAMILY, O_IDS, O_FPS, O_DIST, O_NOISE, O_EXPOSURE, O_TEXTURE_CONTRAST, O_OUT,
+           O_TAG, O_FAMILY, O_IDS, O_FPS, O_DIST, O_NOISE, O_EXPOSURE, O_TEXTURE_CONTRAST, O_TEXTURE_FILTER, O_OUT,
            O_TARGET, O_PERIODIC, O_CAM_MOTION, O_CAM_MOTION_AT, O_FIRST_BEAT, O_FIRST_BEAT_AT, O_RIG };
     static const struct option opts[] = {
         {"preset", 1, 0, O_PRESET}, {"frames", 1, 0, O_FRAMES}, {"cameras", 1, 0, O_CAMERAS},
@@ -297,7 +303,8 @@ static int parse_args(int argc, char **argv, render_args *a)
         {"occlusions", 0, 0, O_OCC}, {"bpm", 1, 0, O_BPM}, {"markers", 1, 0, O_MARKERS},
         {"tag-size", 1, 0, O_TAG}, {"family", 1, 0, O_FAMILY}, {"ids", 1, 0, O_IDS},
         {"fps", 1, 0, O_FPS}, {"distortion", 1, 0, O_DIST}, {"noise", 1, 0, O_NOISE},
-        {"exposure", 1, 0, O_EXPOSURE}, {"texture-contrast", 1, 0, O_TEXTURE_CONTRAST}, {"out", 1, 0, O_OUT},
+        {"exposure", 1, 0, O_EXPOSURE}, {"texture-contrast", 1, 0, O_TEXTURE_CONTRAST},
+        {"texture-filter", 1, 0, O_TEXTURE_FILTER}, {"out", 1, 0, O_OUT},
         SH_CLI_OPTIONS,
         {"calib-target", 1, 0, O_TARGET},
         {"periodic", 0, 0, O_PERIODIC}, {"camera-motion", 1, 0, O_CAM_MOTION},
@@ -314,7 +321,7 @@ static int parse_args(int argc, char **argv, render_args *a)
     while ((ch = getopt_long(argc, argv, ":h", opts, &idx)) != -1) {
         if (ch == O_PRESET || ch == O_OCC || ch == O_BPM || ch == O_MARKERS || ch == O_TAG || ch == O_FAMILY ||
             ch == O_IDS || ch == O_PERIODIC || ch == O_CAM_MOTION || ch == O_CAM_MOTION_AT || ch == O_FIRST_BEAT ||
-            ch == O_FIRST_BEAT_AT)
+            ch == O_FIRST_BEAT_AT || ch == O_TEXTURE_CONTRAST || ch == O_TEXTURE_FILTER)
             heart_option = opts[idx].name;
         switch (ch) {
         case O_PRESET: o->preset = optarg; break;
@@ -356,6 +363,11 @@ static int parse_args(int argc, char **argv, render_args *a)
         case O_DIST: if (parse_list(optarg, a->dist, 5) != 5) BAD("--distortion '%s': five numbers k1,k2,p1,p2,k3", optarg); o->dist = a->dist; break;
         case O_NOISE: if (!parse_double(optarg, &dv) || !(dv >= 0 && dv <= 100)) BAD("--noise '%s': 0 to 100 DN", optarg); o->noise = dv; break;
         case O_EXPOSURE: if (!parse_double(optarg, &dv) || !(dv > 0 && dv <= 16)) BAD("--exposure '%s': a gain in (0, 16]", optarg); o->exposure = dv; break;
+        case O_TEXTURE_FILTER:
+            if (strcmp(optarg, "nearest-mip") == 0) o->texture_trilinear = 0;
+            else if (strcmp(optarg, "trilinear") == 0) o->texture_trilinear = 1;
+            else BAD("--texture-filter '%s': nearest-mip or trilinear", optarg);
+            break;
         case O_TEXTURE_CONTRAST: if (!parse_double(optarg, &dv) || !(dv > 0 && dv <= 16)) BAD("--texture-contrast '%s': a factor in (0, 16]", optarg); o->texture_contrast = dv; break;
         case O_OUT: a->out = optarg; break;
         case O_PERIODIC: o->periodic = 1; break;

@@ -153,7 +153,7 @@ static void capsule_place(mesh *me, const double a[3], const double b[3], double
     }
 }
 
-static GLuint upload(const rd_texture *t)
+static GLuint upload(const rd_texture *t, GLint min_filter)
 {
     GLuint id;
     glGenTextures(1, &id);
@@ -161,7 +161,7 @@ static GLuint upload(const rd_texture *t)
     glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
     glTexImage2D(GL_TEXTURE_2D, 0, GL_RGB8, t->width, t->height, 0, GL_RGB, GL_UNSIGNED_BYTE, t->rgb);
     glGenerateMipmap(GL_TEXTURE_2D);
-    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR_MIPMAP_NEAREST);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, min_filter);
     glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
     /* With the nearest mip level, a level still minified up to 1.4x makes bilinear edges
      * narrower than a pixel: aliased, and tag corners read from them scatter by 0.4 px. The
@@ -209,12 +209,15 @@ static sh_status make_textures(rd_scene *s, const phantom_model *m, int *total, 
     while (tw < 2 * patch_px && tw < 4096 && tw < maxtex) tw *= 2;
     int th = (int)(tw * m->size_v / m->size_u);
     if ((st = rd_texture_tissue(m, tw, th, &tex)) != SH_OK) return st;
-    s->tissue_tex = upload(&tex);
+    /* --texture-filter trilinear: the nearest level switches where the heart's scale crosses a
+     * level, and a seam between a sharper and a blurrier texture sweeps over the tissue, which
+     * tissue has not (docs/landmarks.md, "The tail") */
+    s->tissue_tex = upload(&tex, m->texture_trilinear ? GL_LINEAR_MIPMAP_LINEAR : GL_LINEAR_MIPMAP_NEAREST);
     rd_texture_free(&tex);
     *total = *border = 0;
     for (int i = 0; i < m->num_markers; i++) {
         if ((st = rd_texture_tag(m->family, m->marker[i].id, 16, &tex, total, border)) != SH_OK) return st;
-        s->tag_tex[i] = upload(&tex);
+        s->tag_tex[i] = upload(&tex, GL_LINEAR_MIPMAP_NEAREST);
         rd_texture_free(&tex);
     }
     return SH_OK;
@@ -308,7 +311,7 @@ static sh_status make_decoy(rd_scene *s, const phantom_model *m, int total, int 
     mesh *card = &s->card, *tag = &s->decoy;
     if ((st = mesh_alloc(card, 4, 6)) != SH_OK || (st = mesh_alloc(tag, 4, 6)) != SH_OK) return st;
     if ((st = rd_texture_tag(m->family, m->decoy_id, 16, &tex, &total, &border)) != SH_OK) return st;
-    s->decoy_tex = upload(&tex);
+    s->decoy_tex = upload(&tex, GL_LINEAR_MIPMAP_NEAREST);
     rd_texture_free(&tex);
     static const double su[4] = {-1, 1, 1, -1}, sv[4] = {1, 1, -1, -1};
     double c = cos(m->decoy_yaw), sn = sin(m->decoy_yaw);

@@ -48,10 +48,12 @@ static void test_params_round_trip(void **state)
     assert_int_equal(phantom_model_read(path, &b), SH_OK);
     remove(path);
     assert_memory_equal(&a, &b, sizeof a); /* both were zeroed first: padding compares too */
-    /* the texture's contrast, written only when set, read back as given */
+    /* the texture's contrast and trilinear filter, written only when set, read back as given */
     o.texture_contrast = 0.5;
+    o.texture_trilinear = 1;
     assert_int_equal(phantom_model_build(&o, &a), SH_OK);
     assert_true(a.texture_contrast == 0.5);
+    assert_int_equal(a.texture_trilinear, 1);
     close(fd);
     strcpy(path + strlen(path) - 6, "XXXXXX");
     fd = mkstemp(path);

@@ -205,12 +205,14 @@ static double sample(const sh_plane *p, double x, double y)
  * pixel with phantom_truth_where, must line up with what frame 1 shows there. Lucas-Kanade on
  * the normalised patches measures what shift is left over.
  * Over 80 lines: one measurement read top to bottom: sample patches, refine each one's leftover
- * shift by Lucas-Kanade on the patch's own arrays, then the median and the 90th percentile. */
-static void test_dense_truth_matches_pixels(void **state)
+ * shift by Lucas-Kanade on the patch's own arrays, then the median and the 90th percentile.
+ * `extra`: more options for the render. */
+static void dense_truth_matches_pixels(const char *extra)
 {
-    (void)state;
-    const char *dir = pt_render(3, "--preset exvivo --frames 2 --fps 3 --cameras 1 --width 960 --height 540 "
-                                   "--noise 0 --seed 8 --distortion -0.2,0.2,0,0,0");
+    char args[512];
+    snprintf(args, sizeof args, "--preset exvivo --frames 2 --fps 3 --cameras 1 --width 960 --height 540 "
+                                "--noise 0 --seed 8 --distortion -0.2,0.2,0,0,0 %s", extra);
+    const char *dir = pt_render(3, args);
     assert_non_null(dir);
     phantom_truth *t;
     assert_int_equal(phantom_truth_open(dir, &t), SH_OK);
@@ -281,8 +283,9 @@ static void test_dense_truth_matches_pixels(void **state)
         }
     double maxmove = 0;
     for (int i = 0; i < n; i++) maxmove = fmax(maxmove, moved[i]);
-    printf("# dense truth: %d tissue patches moved up to %.1f px; left-over shift median %.3f, "
-           "90%% %.3f px\n", n, maxmove, n ? shifts[n / 2] : NAN, n ? shifts[n * 9 / 10] : NAN);
+    printf("# dense truth%s%s: %d tissue patches moved up to %.1f px; left-over shift median %.3f, "
+           "90%% %.3f px\n", *extra ? ", " : "", extra, n, maxmove, n ? shifts[n / 2] : NAN,
+           n ? shifts[n * 9 / 10] : NAN);
     assert_true(n > 100);
     assert_true(maxmove > 3.0); /* the test means something only if the tissue moved */
     /* What is left is mostly photometric: specular highlights slide over the tissue as it
@@ -292,6 +295,25 @@ static void test_dense_truth_matches_pixels(void **state)
     assert_true(shifts[n * 9 / 10] < 0.45);
     sh_image_destroy(&im[0]);
     sh_image_destroy(&im[1]);
+    phantom_truth_close(t);
+}
+
+static void test_dense_truth_matches_pixels(void **state)
+{
+    (void)state;
+    dense_truth_matches_pixels("");
+}
+
+/* The tissue filtered trilinearly lines up with the truth as well, and the option is in
+ * phantom.txt (the truth library reads the model the renderer used). */
+static void test_dense_truth_trilinear(void **state)
+{
+    (void)state;
+    dense_truth_matches_pixels("--texture-filter trilinear");
+    phantom_truth *t;
+    assert_int_equal(phantom_truth_open(pt_render(3, "--preset exvivo --frames 1 --cameras 1 --width 320 "
+                                                     "--height 240 --texture-filter trilinear"), &t), SH_OK);
+    assert_int_equal(phantom_truth_model(t)->texture_trilinear, 1);
     phantom_truth_close(t);
 }
 
@@ -425,7 +447,8 @@ static void test_command_line(void **state)
                                  "--occlusions", "--bpm", "--markers", "--tag-size", "--out", "--family",
                                  "--ids", "--fps", "--distortion", "--noise", "--exposure", "--quiet",
                                  "--calib-target", "--periodic", "--camera-motion", "--camera-motion-at",
-                                 "--first-beat", "--first-beat-at", "--rig"};
+                                 "--first-beat", "--first-beat-at", "--rig", "--texture-contrast",
+                                 "--texture-filter"};
     for (size_t i = 0; i < sizeof opts / sizeof opts[0]; i++)
         if (!strstr(help, opts[i])) fail_msg("--help does not mention %s", opts[i]);
     static const char *bad[] = {"--preset nope --out /tmp/x", "--preset exvivo", "--cameras 4 --out /tmp/x",
@@ -442,7 +465,10 @@ static void test_command_line(void **state)
                                 "--periodic --first-beat --out /tmp/x", "--camera-motion-at 2 --out /tmp/x",
                                 "--camera-motion bump --camera-motion-at 100 --frames 10 --out /tmp/x",
                                 "--first-beat --first-beat-at 0 --out /tmp/x",
-                                "--calib-target checkerboard:9x6:8 --camera-motion pan --out /tmp/x", "--rig huge --out /tmp/x"};
+                                "--calib-target checkerboard:9x6:8 --camera-motion pan --out /tmp/x", "--rig huge --out /tmp/x",
+                                /* the tissue's filter: unknown, or with the board (no tissue) */
+                                "--texture-filter bilinear --out /tmp/x",
+                                "--calib-target checkerboard:9x6:8 --texture-filter trilinear --out /tmp/x"};
     for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
         snprintf(cmd, sizeof cmd, "'%s' %s 2>/dev/null", RENDER_BIN, bad[i]);
         int rc = system(cmd);
@@ -465,6 +491,7 @@ int main(void)
         cmocka_unit_test_teardown(test_families_and_ids, teardown),
         cmocka_unit_test_teardown(test_occlusions, teardown),
         cmocka_unit_test_teardown(test_dense_truth_matches_pixels, teardown),
+        cmocka_unit_test_teardown(test_dense_truth_trilinear, teardown),
         cmocka_unit_test_teardown(test_same_seed_same_bytes, teardown),
         cmocka_unit_test_teardown(test_camera_bump_render, teardown),
         cmocka_unit_test(test_command_line),
