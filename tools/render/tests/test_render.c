@@ -206,8 +206,8 @@ static double sample(const sh_plane *p, double x, double y)
  * the normalised patches measures what shift is left over.
  * Over 80 lines: one measurement read top to bottom: sample patches, refine each one's leftover
  * shift by Lucas-Kanade on the patch's own arrays, then the median and the 90th percentile.
- * `extra`: more options for the render. */
-static void dense_truth_matches_pixels(const char *extra)
+ * `extra`: more options for the render. Returns the render's folder. */
+static const char *dense_truth_matches_pixels(const char *extra)
 {
     char args[512];
     snprintf(args, sizeof args, "--preset exvivo --frames 2 --fps 3 --cameras 1 --width 960 --height 540 "
@@ -296,6 +296,7 @@ static void dense_truth_matches_pixels(const char *extra)
     sh_image_destroy(&im[0]);
     sh_image_destroy(&im[1]);
     phantom_truth_close(t);
+    return dir;
 }
 
 static void test_dense_truth_matches_pixels(void **state)
@@ -309,10 +310,9 @@ static void test_dense_truth_matches_pixels(void **state)
 static void test_dense_truth_trilinear(void **state)
 {
     (void)state;
-    dense_truth_matches_pixels("--texture-filter trilinear");
+    const char *dir = dense_truth_matches_pixels("--texture-filter trilinear");
     phantom_truth *t;
-    assert_int_equal(phantom_truth_open(pt_render(3, "--preset exvivo --frames 1 --cameras 1 --width 320 "
-                                                     "--height 240 --texture-filter trilinear"), &t), SH_OK);
+    assert_int_equal(phantom_truth_open(dir, &t), SH_OK);
     assert_int_equal(phantom_truth_model(t)->texture_trilinear, 1);
     phantom_truth_close(t);
 }
