@@ -129,12 +129,16 @@ typedef struct {
                                  * its neighbours), so that a translation matches a window that the
                                  * tissue sheared or scaled (sh_flow_track_windows_warped); needs a
                                  * prediction and neighbours >= 2 (0: square windows) */
-    sh_flow_params flow;        /* the tracker (sh_flow_params_default) */
+    sh_flow_params flow;        /* the tracker (sh_flow_params_default, but 1 level above the
+                                 * frame: enough for searches that start within a few px of the
+                                 * answer, as predicted ones do; a caller that tracks without
+                                 * predictions, or with a map farther off, raises it) */
 } sh_landmarks_params;
 
 void sh_landmarks_params_default(sh_landmarks_params *p);
 /* The defaults changed for a markers' map that may lie farther from the tissue than the
- * defaults' 3 px (four markers at the corners of the field): bound_factor 4, plane 1. */
+ * defaults' 3 px (four markers at the corners of the field): bound_factor 4, plane 1, and
+ * 3 pyramid levels. */
 void sh_landmarks_params_sparse(sh_landmarks_params *p);
 
 typedef struct sh_landmarks sh_landmarks;

@@ -212,25 +212,28 @@ int main(int argc, char **argv)
         gain = std::min(16.0, std::max(1.0, 100.0 / (std::floor(v[v.size() * 99 / 100]) + 1)));
         cv_band(frames[0], fine, coarse, cv_band_ref, lp.band, gain);
     }
-    std::vector<cv::Mat> cv_ref_pyr, cv_cur_pyr;
+    // the sparse tests search more levels (sh_landmarks_params_sparse): their own reference pyramid
+    std::vector<cv::Mat> cv_ref_pyr, cv_ref_pyr4, cv_cur_pyr;
     cv::buildOpticalFlowPyramid(cv_band_ref, cv_ref_pyr, win, fp.levels, true);
+    cv::buildOpticalFlowPyramid(cv_band_ref, cv_ref_pyr4, win, lp4.flow.levels, true);
     std::vector<cv::Point2f> p0(n), p1(n), p2(n), q0(n4), q1(n4), q2(n4);
     for (int i = 0; i < n; i++) p0[i] = cv::Point2f(lref[2 * i], lref[2 * i + 1]);
     for (int i = 0; i < n4; i++) q0[i] = cv::Point2f(lref4[2 * i], lref4[2 * i + 1]);
     std::vector<uchar> cst, cst2;
     std::vector<float> cerr, cerr2;
-    // OpenCV's searches of one frame: its band-pass and pyramid (with gradients), forward from
-    // the predictions pred of the points `from` into `to`, backward from the prediction's
-    // inverse into `back`
+    // OpenCV's searches of one frame on `levels` levels above it (ref: the reference's pyramid
+    // of as many): its band-pass and pyramid (with gradients), forward from the predictions pred
+    // of the points `from` into `to`, backward from the prediction's inverse into `back`
     auto cv_round_trip = [&](const cv::Mat &frame, const float *pred, const std::vector<cv::Point2f> &from,
-                             std::vector<cv::Point2f> &to, std::vector<cv::Point2f> &back) {
+                             std::vector<cv::Point2f> &to, std::vector<cv::Point2f> &back,
+                             const std::vector<cv::Mat> &ref, int levels) {
         cv_band(frame, fine, coarse, band, lp.band, gain);
-        cv::buildOpticalFlowPyramid(band, cv_cur_pyr, win, fp.levels, true);
+        cv::buildOpticalFlowPyramid(band, cv_cur_pyr, win, levels, true);
         for (size_t i = 0; i < from.size(); i++) to[i] = cv::Point2f(pred[2 * i], pred[2 * i + 1]);
-        cv::calcOpticalFlowPyrLK(cv_ref_pyr, cv_cur_pyr, from, to, cst, cerr, win, fp.levels, crit,
+        cv::calcOpticalFlowPyrLK(ref, cv_cur_pyr, from, to, cst, cerr, win, levels, crit,
                                  cv::OPTFLOW_USE_INITIAL_FLOW, fp.min_eig);
         for (size_t i = 0; i < from.size(); i++) back[i] = to[i] - (cv::Point2f(pred[2 * i], pred[2 * i + 1]) - from[i]);
-        cv::calcOpticalFlowPyrLK(cv_cur_pyr, cv_ref_pyr, to, back, cst2, cerr2, win, fp.levels, crit,
+        cv::calcOpticalFlowPyrLK(cv_cur_pyr, ref, to, back, cst2, cerr2, win, levels, crit,
                                  cv::OPTFLOW_USE_INITIAL_FLOW, fp.min_eig);
     };
 
@@ -281,7 +284,7 @@ int main(int argc, char **argv)
 
             // OpenCV, with the backward search
             a = bench_now_ms();
-            cv_round_trip(frames[t], pr, p0, p1, p2);
+            cv_round_trip(frames[t], pr, p0, p1, p2, cv_ref_pyr, fp.levels);
             long ok = 0;
             for (int i = 0; i < n; i++)
                 ok += cst[i] && cst2[i] && cerr[i] <= lp.max_photometric &&
@@ -336,16 +339,17 @@ int main(int argc, char **argv)
             tm.ours4.push_back(bench_now_ms() - a);
             if (pass == 0) accepted4 += cnt.verdicts[SH_LANDMARK_ACCEPTED], judged4 += n4, frames4++;
             a = bench_now_ms();
-            cv_round_trip(frames[t], pred4.data(), q0, q1, q2);
+            cv_round_trip(frames[t], pred4.data(), q0, q1, q2, cv_ref_pyr4, lp4.flow.levels);
             tm.cv4.push_back(bench_now_ms() - a);
         }
     double load[3] = {0, 0, 0};
     if (getloadavg(load, 3) < 1) load[0] = -1;
     std::printf("machine: %u cores, load %.2f; frame %dx%d, %d landmarks (of %d asked, min_distance %.0f px) in "
-                "%.0fx%.0f px of the frame, window %d, %d levels, band %d; one thread, medians of %zu frames "
+                "%.0fx%.0f px of the frame, window %d, %d pyramid level(s) (%d with the sparse tests), band %d; one "
+                "thread, medians of %zu frames "
                 "(thread CPU time)\n",
                 std::thread::hardware_concurrency(), load[0], W, H, n, POINTS, MIN_DIST, bx1 - bx0, by1 - by0, fp.win,
-                fp.levels, lp.band, tm.ours.size());
+                fp.levels, lp4.flow.levels, lp.band, tm.ours.size());
     std::printf("%-40s %12s %12s %8s\n", "per frame", "stillheart", "OpenCV", "ratio");
     double o = bench_median(tm.ours), c = bench_median(tm.cv), of = bench_median(tm.ours_fwd),
            cf = bench_median(tm.cv_fwd);
