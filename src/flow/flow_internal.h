@@ -23,6 +23,7 @@ typedef struct {
 
 #define FLOW_SLACK 64
 
+
 struct sh_flow_pyramid {
     int levels;  /* built above the base */
     int pad;     /* the window side */
@@ -45,13 +46,34 @@ void flow_window_prev(const flow_level *l, int ix, int iy, const int w[4], int w
  * d * gx and d * gy, d being the difference in 1/32 grey levels (b). */
 void flow_window_mismatch(const flow_level *l, int ix, int iy, const int w[4], int win,
                           const int16_t *I, const int16_t *gx, const int16_t *gy, int64_t b[2]);
-/* The C definitions both compute bit for bit (the SIMD ones are what the two above run on
+/* The sum of |d| over the window: OpenCV's error measure, once per point and search. */
+int64_t flow_window_abs_mismatch(const flow_level *l, int ix, int iy, const int w[4], int win, const int16_t *I);
+/* The C definitions each computes bit for bit (the SIMD ones are what the two above run on
  * x86-64 and AArch64; test_flow_simd compares them). */
 void flow_window_prev_portable(const flow_level *l, int ix, int iy, const int w[4], int win,
                                int16_t *I, int16_t *gx, int16_t *gy, int64_t a[3]);
 void flow_window_mismatch_portable(const flow_level *l, int ix, int iy, const int w[4], int win,
                                    const int16_t *I, const int16_t *gx, const int16_t *gy,
                                    int64_t b[2]);
+int64_t flow_window_abs_mismatch_portable(const flow_level *l, int ix, int iy, const int w[4], int win,
+                                          const int16_t *I);
+
+#if defined(__x86_64__) && defined(__SSE2__) && defined(__GNUC__)
+#define FLOW_X86 1
+/* The comparisons' x86-64 loops, each the same integers as the portable one: SSE2 (8 lanes, every
+ * x86-64), and AVX-512 (a window row of up to 32 lanes a step), which flow_window_mismatch and
+ * flow_window_abs_mismatch run instead where flow_window_avx512() says this CPU has AVX-512 F
+ * and BW. */
+void flow_window_mismatch_sse2(const flow_level *l, int ix, int iy, const int w[4], int win,
+                               const int16_t *I, const int16_t *gx, const int16_t *gy, int64_t b[2]);
+void flow_window_mismatch_avx512(const flow_level *l, int ix, int iy, const int w[4], int win,
+                                 const int16_t *I, const int16_t *gx, const int16_t *gy, int64_t b[2]);
+int flow_window_avx512(void);
+int64_t flow_window_abs_mismatch_sse2(const flow_level *l, int ix, int iy, const int w[4], int win,
+                                      const int16_t *I);
+int64_t flow_window_abs_mismatch_avx512(const flow_level *l, int ix, int iy, const int w[4], int win,
+                                        const int16_t *I);
+#endif
 
 /* The index a mirror border (x -> -x, n-1+k -> n-1-k) gives to x, for any x and n >= 1. */
 static inline int flow_reflect101(int x, int n)

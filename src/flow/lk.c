@@ -60,24 +60,6 @@ typedef struct {
     int16_t gy[SH_FLOW_MAX_WIN * FLOW_WROW(SH_FLOW_MAX_WIN)];
 } window;
 
-/* The sum of |d| over the window: OpenCV's error measure, once per point (portable C). */
-static int64_t abs_mismatch(const flow_level *l, int ix, int iy, const int w[4], int win,
-                            const int16_t *I)
-{
-    const int wr = FLOW_WROW(win);
-    int64_t sa = 0;
-    for (int y = 0; y < win; y++) {
-        const uint8_t *p = l->img + (ptrdiff_t)(iy + y) * l->stride + ix;
-        for (int x = 0; x < win; x++) {
-            int v = p[x] * w[0] + p[x + 1] * w[1] + p[x + l->stride] * w[2] +
-                    p[x + l->stride + 1] * w[3];
-            int d = DESCALE(v, W_BITS - 5) - I[y * wr + x];
-            sa += d < 0 ? -d : d;
-        }
-    }
-    return sa;
-}
-
 /* A point's window in the previous frame on level lv: sampled into I, gx, gy with its sums, or
  * why not (outside the image, or in a part of the pyramid not built). */
 enum { PREV_SAMPLED, PREV_OUTSIDE, PREV_UNBUILT };
@@ -265,7 +247,7 @@ static uint8_t track_point(const sh_flow_params *prm, const sh_flow_pyramid *pre
                 int jx = (int)floorf(ex), jy = (int)floorf(ey);
                 if (!built(L1->img_box, jx, jy, win)) return unbuilt(nx, ny, lv, qx, qy);
                 bilinear(ex - (float)jx, ey - (float)jy, w);
-                *err = (float)abs_mismatch(L1, jx, jy, w, win, I) * (1.f / (float)(32 * win * win));
+                *err = (float)flow_window_abs_mismatch(L1, jx, jy, w, win, I) * (1.f / (float)(32 * win * win));
             }
         }
     }

@@ -65,6 +65,22 @@ void flow_window_mismatch_portable(const flow_level *l, int ix, int iy, const in
     b[1] = s2;
 }
 
+int64_t flow_window_abs_mismatch_portable(const flow_level *l, int ix, int iy, const int w[4], int win,
+                                          const int16_t *I)
+{
+    const int wr = FLOW_WROW(win), s = l->stride;
+    int64_t sa = 0;
+    for (int y = 0; y < win; y++) {
+        const uint8_t *p = l->img + (ptrdiff_t)(iy + y) * s + ix;
+        for (int x = 0; x < win; x++) {
+            int v = p[x] * w[0] + p[x + 1] * w[1] + p[x + s] * w[2] + p[x + s + 1] * w[3];
+            int d = DESCALE(v, W_BITS - 5) - I[y * wr + x];
+            sa += d < 0 ? -d : d;
+        }
+    }
+    return sa;
+}
+
 #if defined(__SSE2__)
 #include <emmintrin.h>
 
@@ -97,6 +113,13 @@ static inline __m128i load8s(const int16_t *p)
     return _mm_loadu_si128((const __m128i *)p);
 }
 
+/* All ones in the first `left` 16-bit lanes (all 8 when left >= 8), zero in the others */
+static inline __m128i lanes_kept(int left)
+{
+    return left >= 8 ? _mm_set1_epi16(-1)
+                     : _mm_cmpgt_epi16(_mm_set1_epi16((short)left), _mm_setr_epi16(0, 1, 2, 3, 4, 5, 6, 7));
+}
+
 /* (v + 2^(n-1)) >> n on both halves, packed back to 16 bits (the values fit: no saturation) */
 static inline __m128i descale_pack(__m128i lo, __m128i hi, int n)
 {
@@ -121,10 +144,7 @@ void flow_window_prev(const flow_level *l, int ix, int iy, const int w[4], int w
         for (int x = 0; x < wr; x += 8) {
             __m128i lo, hi;
             /* lanes past the side: zero, so that they add nothing to any sum */
-            const int left = win - x;
-            const __m128i keep = left >= 8 ? _mm_set1_epi16(-1)
-                                           : _mm_cmpgt_epi16(_mm_set1_epi16((short)left),
-                                                             _mm_setr_epi16(0, 1, 2, 3, 4, 5, 6, 7));
+            const __m128i keep = lanes_kept(win - x);
             bilinear8(load8u(p + x), load8u(p + x + 1), load8u(p + x + s), load8u(p + x + s + 1),
                       w01, w23, &lo, &hi);
             __m128i vi = _mm_and_si128(descale_pack(lo, hi, W_BITS - 5), keep);
@@ -150,8 +170,8 @@ void flow_window_prev(const flow_level *l, int ix, int iy, const int w[4], int w
     a[2] = s22;
 }
 
-void flow_window_mismatch(const flow_level *l, int ix, int iy, const int w[4], int win,
-                          const int16_t *I, const int16_t *gx, const int16_t *gy, int64_t b[2])
+void flow_window_mismatch_sse2(const flow_level *l, int ix, int iy, const int w[4], int win,
+                               const int16_t *I, const int16_t *gx, const int16_t *gy, int64_t b[2])
 {
     const int wr = FLOW_WROW(win), s = l->stride;
     const __m128i w01 = _mm_set1_epi32((int)((uint32_t)w[1] << 16 | (uint32_t)w[0]));
@@ -175,6 +195,141 @@ void flow_window_mismatch(const flow_level *l, int ix, int iy, const int w[4], i
     }
     b[0] = s1;
     b[1] = s2;
+}
+
+/* |d| summed: past the side the template is zero but the samples are not, so those lanes are
+ * masked off; a row's 32-bit sum is at most 64 * 8160. */
+int64_t flow_window_abs_mismatch_sse2(const flow_level *l, int ix, int iy, const int w[4], int win,
+                                      const int16_t *I)
+{
+    const int wr = FLOW_WROW(win), s = l->stride;
+    const __m128i w01 = _mm_set1_epi32((int)((uint32_t)w[1] << 16 | (uint32_t)w[0]));
+    const __m128i w23 = _mm_set1_epi32((int)((uint32_t)w[3] << 16 | (uint32_t)w[2]));
+    const __m128i one = _mm_set1_epi16(1), zero = _mm_setzero_si128();
+    int64_t sa = 0;
+    for (int y = 0; y < win; y++) {
+        const uint8_t *p = l->img + (ptrdiff_t)(iy + y) * s + ix;
+        const int16_t *ri = I + y * wr;
+        __m128i q = zero;
+        for (int x = 0; x < wr; x += 8) {
+            __m128i lo, hi;
+            const __m128i keep = lanes_kept(win - x);
+            bilinear8(load8u(p + x), load8u(p + x + 1), load8u(p + x + s), load8u(p + x + s + 1),
+                      w01, w23, &lo, &hi);
+            __m128i d = _mm_and_si128(_mm_sub_epi16(descale_pack(lo, hi, W_BITS - 5), load8s(ri + x)), keep);
+            d = _mm_max_epi16(d, _mm_sub_epi16(zero, d));
+            q = _mm_add_epi32(q, _mm_madd_epi16(d, one));
+        }
+        sa += hsum32(q);
+    }
+    return sa;
+}
+
+#if defined(__GNUC__)
+#include <immintrin.h>
+
+int flow_window_avx512(void)
+{
+    return __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512bw");
+}
+
+/* A window row, up to 32 columns, a step: the SSE2 loop's arithmetic on 32 lanes (unpack and pack
+ * stay within each 128-bit lane, so the lanes come back in order). The loads are masked to the
+ * window's columns: past the side every sample, template value and gradient is zero, and nothing
+ * past the window's last column (and its bilinear neighbour) is read. A lane's 32-bit sum grows by
+ * at most 2 * 8160 * 4080 a step (one madd: two products), so 32 steps stay below 2^31; they are
+ * added into 64-bit totals every 32 steps and at the end. */
+/* 32 bilinear samples of row p (and the row s below it) in 1/32 grey levels, lanes outside k
+ * zero (the loads masked: nothing past them is read). */
+__attribute__((target("avx512f,avx512bw"))) static inline __m512i sample32(const uint8_t *p, int s, __mmask32 k,
+                                                                          __m512i w01, __m512i w23)
+{
+#define LOAD32U(q) _mm512_cvtepu8_epi16(_mm512_castsi512_si256(_mm512_maskz_loadu_epi8((__mmask64)k, (q))))
+    const __m512i a = LOAD32U(p), b = LOAD32U(p + 1), c = LOAD32U(p + s), d = LOAD32U(p + s + 1);
+#undef LOAD32U
+    const __m512i rnd = _mm512_set1_epi32(1 << (W_BITS - 6));
+    __m512i lo = _mm512_add_epi32(_mm512_madd_epi16(_mm512_unpacklo_epi16(a, b), w01),
+                                  _mm512_madd_epi16(_mm512_unpacklo_epi16(c, d), w23));
+    __m512i hi = _mm512_add_epi32(_mm512_madd_epi16(_mm512_unpackhi_epi16(a, b), w01),
+                                  _mm512_madd_epi16(_mm512_unpackhi_epi16(c, d), w23));
+    lo = _mm512_srai_epi32(_mm512_add_epi32(lo, rnd), W_BITS - 5);
+    hi = _mm512_srai_epi32(_mm512_add_epi32(hi, rnd), W_BITS - 5);
+    return _mm512_packs_epi32(lo, hi);
+}
+
+/* |d| summed, 32 lanes a step; a lane's 32-bit sum is at most 2 * 8160 a step, 126 steps at most */
+__attribute__((target("avx512f,avx512bw"))) int64_t
+flow_window_abs_mismatch_avx512(const flow_level *l, int ix, int iy, const int w[4], int win, const int16_t *I)
+{
+    const int wr = FLOW_WROW(win), s = l->stride;
+    const __m512i w01 = _mm512_set1_epi32((int)((uint32_t)w[1] << 16 | (uint32_t)w[0]));
+    const __m512i w23 = _mm512_set1_epi32((int)((uint32_t)w[3] << 16 | (uint32_t)w[2]));
+    const __m512i one = _mm512_set1_epi16(1);
+    __m512i q = _mm512_setzero_si512();
+    for (int y = 0; y < win; y++) {
+        const uint8_t *p = l->img + (ptrdiff_t)(iy + y) * s + ix;
+        const int16_t *ri = I + y * wr;
+        for (int x = 0; x < win; x += 32) {
+            const int left = win - x;
+            const __mmask32 k = left >= 32 ? 0xffffffffu : (1u << left) - 1;
+            const __m512i d = _mm512_sub_epi16(sample32(p + x, s, k, w01, w23), _mm512_maskz_loadu_epi16(k, ri + x));
+            q = _mm512_add_epi32(q, _mm512_madd_epi16(_mm512_abs_epi16(d), one));
+        }
+    }
+    return _mm512_reduce_add_epi32(q);
+}
+
+__attribute__((target("avx512f,avx512bw"))) void
+flow_window_mismatch_avx512(const flow_level *l, int ix, int iy, const int w[4], int win, const int16_t *I,
+                            const int16_t *gx, const int16_t *gy, int64_t b[2])
+{
+    const int wr = FLOW_WROW(win), s = l->stride;
+    const __m512i w01 = _mm512_set1_epi32((int)((uint32_t)w[1] << 16 | (uint32_t)w[0]));
+    const __m512i w23 = _mm512_set1_epi32((int)((uint32_t)w[3] << 16 | (uint32_t)w[2]));
+    __m512i q1 = _mm512_setzero_si512(), q2 = q1, t1 = q1, t2 = q1;
+    int steps = 0;
+    for (int y = 0; y < win; y++) {
+        const uint8_t *p = l->img + (ptrdiff_t)(iy + y) * s + ix;
+        const int16_t *ri = I + y * wr, *rx = gx + y * wr, *ry = gy + y * wr;
+        for (int x = 0; x < win; x += 32) {
+            const int left = win - x;
+            const __mmask32 k = left >= 32 ? 0xffffffffu : (1u << left) - 1;
+            const __m512i diff = _mm512_sub_epi16(sample32(p + x, s, k, w01, w23), _mm512_maskz_loadu_epi16(k, ri + x));
+            q1 = _mm512_add_epi32(q1, _mm512_madd_epi16(diff, _mm512_maskz_loadu_epi16(k, rx + x)));
+            q2 = _mm512_add_epi32(q2, _mm512_madd_epi16(diff, _mm512_maskz_loadu_epi16(k, ry + x)));
+            if (++steps == 32 || (y == win - 1 && x + 32 >= win)) {
+                t1 = _mm512_add_epi64(t1, _mm512_cvtepi32_epi64(_mm512_castsi512_si256(q1)));
+                t1 = _mm512_add_epi64(t1, _mm512_cvtepi32_epi64(_mm512_extracti64x4_epi64(q1, 1)));
+                t2 = _mm512_add_epi64(t2, _mm512_cvtepi32_epi64(_mm512_castsi512_si256(q2)));
+                t2 = _mm512_add_epi64(t2, _mm512_cvtepi32_epi64(_mm512_extracti64x4_epi64(q2, 1)));
+                q1 = q2 = _mm512_setzero_si512();
+                steps = 0;
+            }
+        }
+    }
+    b[0] = _mm512_reduce_add_epi64(t1);
+    b[1] = _mm512_reduce_add_epi64(t2);
+}
+#endif
+
+void flow_window_mismatch(const flow_level *l, int ix, int iy, const int w[4], int win,
+                          const int16_t *I, const int16_t *gx, const int16_t *gy, int64_t b[2])
+{
+#if defined(__GNUC__)
+    if (flow_window_avx512()) {
+        flow_window_mismatch_avx512(l, ix, iy, w, win, I, gx, gy, b);
+        return;
+    }
+#endif
+    flow_window_mismatch_sse2(l, ix, iy, w, win, I, gx, gy, b);
+}
+
+int64_t flow_window_abs_mismatch(const flow_level *l, int ix, int iy, const int w[4], int win, const int16_t *I)
+{
+#if defined(__GNUC__)
+    if (flow_window_avx512()) return flow_window_abs_mismatch_avx512(l, ix, iy, w, win, I);
+#endif
+    return flow_window_abs_mismatch_sse2(l, ix, iy, w, win, I);
 }
 
 #elif defined(__aarch64__) && defined(__ARM_NEON)
@@ -282,7 +437,18 @@ void flow_window_mismatch(const flow_level *l, int ix, int iy, const int w[4], i
     b[1] = s2;
 }
 
+/* once per point and search: NEON lanes not measured to pay here */
+int64_t flow_window_abs_mismatch(const flow_level *l, int ix, int iy, const int w[4], int win, const int16_t *I)
+{
+    return flow_window_abs_mismatch_portable(l, ix, iy, w, win, I);
+}
+
 #else
+int64_t flow_window_abs_mismatch(const flow_level *l, int ix, int iy, const int w[4], int win, const int16_t *I)
+{
+    return flow_window_abs_mismatch_portable(l, ix, iy, w, win, I);
+}
+
 void flow_window_prev(const flow_level *l, int ix, int iy, const int w[4], int win, int16_t *I,
                       int16_t *gx, int16_t *gy, int64_t a[3])
 {

@@ -9,6 +9,16 @@
 
 #include "stillheart/landmarks.h"
 
+/* The band-pass built for AVX-512 and AVX2 too, chosen when the program starts (gcc's
+ * target_clones, an ifunc, as src/pixconv does): the same C, and with -ffp-contract=off the same
+ * float operations in every lane, so the same bytes (bench_landmarks' checksum). AVX-512's wider
+ * lanes took 0.2-0.3 ms off a 1080p frame's 3.2; AVX2's alone was within the noise. */
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+#define LM_CLONES __attribute__((target_clones("arch=x86-64-v4", "avx2", "default")))
+#else
+#define LM_CLONES
+#endif
+
 /* The band-pass's fine box: 3x3, against the pixel noise */
 #define BAND_FINE 1
 
@@ -209,9 +219,10 @@ static sh_status make_mask(const sh_landmarks_params *p, const sh_plane *ref, co
  * rows (a row added as it enters, one taken away as it leaves), then per row a prefix sum of
  * those, whose differences are the boxes. Sequential memory and no division per pixel. Only the
  * pixels of a part of the frame are made (a frame's, the part its pyramid reads): each is the
- * same function of the frame's pixels wherever the part lies, as the sums are exact. */
-static void band_row(const sh_landmarks *lm, int w, int y, int h, int r1, int r2, const int part[4], int pass,
-                     uint32_t *hist)
+ * same function of the frame's pixels wherever the part lies, as the sums are exact. Inlined, as
+ * column_add is, into each of band_pass's clones (LM_CLONES), so that each is built for its target. */
+static inline __attribute__((always_inline)) void band_row(const sh_landmarks *lm, int w, int y, int h, int r1,
+                                                           int r2, const int part[4], int pass, uint32_t *hist)
 {
     const uint32_t *v1 = lm->colsum, *v2 = v1 + w;
     uint32_t *restrict p1 = lm->prefix, *restrict p2 = p1 + w + 1;
@@ -275,7 +286,8 @@ static void band_row(const sh_landmarks *lm, int w, int y, int h, int r1, int r2
 }
 
 /* Adds (sign 1) or takes away (-1) row y of src, columns [x0, x1), to a box's column sums. */
-static void column_add(uint32_t *restrict v, const sh_plane *src, int y, int x0, int x1, int sign)
+static inline __attribute__((always_inline)) void column_add(uint32_t *restrict v, const sh_plane *src, int y,
+                                                             int x0, int x1, int sign)
 {
     const uint8_t *restrict in = src->data + (size_t)y * src->stride;
     if (sign > 0)
@@ -300,7 +312,7 @@ static void band_columns(sh_landmarks *lm, int r1, int r2)
 
 /* The band-passed pixels of src in part (x0, y0, x1, y1, half-open, within the frame) into
  * lm->band; first the gain when it is not set yet (the whole frame then). */
-static void band_pass(sh_landmarks *lm, const sh_plane *src, int r1, int r2, const int part[4])
+LM_CLONES static void band_pass(sh_landmarks *lm, const sh_plane *src, int r1, int r2, const int part[4])
 {
     const int w = src->width, h = src->height;
     /* the columns whose sums the part's boxes read */

@@ -1,8 +1,9 @@
-/* The tracker's window loops: the SIMD path of this build (SSE2 on x86-64, NEON on AArch64)
- * against the portable C definition, bit for bit, on random pixels and gradients including the
- * extremes (0 and 255, +-4080, the largest Scharr gradients), at random sub-pixel positions up to
- * one window outside the level, for every window side. Run under qemu-aarch64 by
- * `make check-arm64`, this is the NEON path's test. */
+/* The tracker's window loops (sampling, a step's comparison, the error measure): the SIMD paths
+ * of this build (SSE2 and, where the CPU has it, AVX-512 on x86-64; NEON on AArch64) against the
+ * portable C definitions, bit for bit, on random pixels and gradients including the extremes (0
+ * and 255, +-4080, the largest Scharr gradients), at random sub-pixel positions up to one window
+ * outside the level, for every window side. Run under qemu-aarch64 by `make check-arm64`, this is
+ * the NEON path's test. */
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -113,6 +114,19 @@ static void compare(int win, int extreme, int trials)
         flow_window_mismatch_portable(&n.l, jx, jy, wt, win, I0, X0, Y0, b0);
         flow_window_mismatch(&n.l, jx, jy, wt, win, I0, X0, Y0, b1);
         assert_memory_equal(b0, b1, sizeof b0);
+        const int64_t e0 = flow_window_abs_mismatch_portable(&n.l, jx, jy, wt, win, I0);
+        assert_true(flow_window_abs_mismatch(&n.l, jx, jy, wt, win, I0) == e0);
+#ifdef FLOW_X86
+        /* both x86 loops, whichever the dispatch above chose */
+        flow_window_mismatch_sse2(&n.l, jx, jy, wt, win, I0, X0, Y0, b1);
+        assert_memory_equal(b0, b1, sizeof b0);
+        assert_true(flow_window_abs_mismatch_sse2(&n.l, jx, jy, wt, win, I0) == e0);
+        if (flow_window_avx512()) {
+            flow_window_mismatch_avx512(&n.l, jx, jy, wt, win, I0, X0, Y0, b1);
+            assert_memory_equal(b0, b1, sizeof b0);
+            assert_true(flow_window_abs_mismatch_avx512(&n.l, jx, jy, wt, win, I0) == e0);
+        }
+#endif
     }
     free(I0);
     free(X0);
@@ -141,6 +155,11 @@ static void test_extremes(void **state)
 
 int main(void)
 {
+#ifdef FLOW_X86
+    /* what this CPU can check: the AVX-512 loop only where it runs */
+    print_message("window comparison: portable, SSE2%s\n",
+                  flow_window_avx512() ? ", AVX-512" : " (no AVX-512 on this CPU)");
+#endif
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_every_window_side),
         cmocka_unit_test(test_extremes),
