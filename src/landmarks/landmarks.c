@@ -35,7 +35,7 @@ struct sh_landmarks {
     int *near;       /* n x neighbours: each landmark's nearest others in the reference */
     float *scratch;  /* 2 x neighbours */
     uint32_t *colsum;   /* 2 w: the band-pass's boxes' column sums */
-    uint32_t *prefix;   /* 2 (w + 1): their prefix sums along a row */
+    uint32_t *prefix;   /* w + 1: the coarse box's column sums' prefix sums along a row */
     int *cols;          /* 4 w ints and 2 w floats: the boxes' columns (band_pass) */
     uint8_t *band;   /* w x h: the band-passed frame the tracker sees */
     float gain;      /* the band-pass's, fixed by the reference */
@@ -209,34 +209,44 @@ static sh_status make_mask(const sh_landmarks_params *p, const sh_plane *ref, co
     return clear_highlights(mask, ref, p->highlight, half);
 }
 
+/* v[lo] + ... + v[hi - 1] */
+static inline uint32_t cols_sum(const uint32_t *v, int lo, int hi)
+{
+    uint32_t t = 0;
+    for (int k = lo; k < hi; k++) t += v[k];
+    return t;
+}
 
 /* The band-pass (landmarks.h): 128 + gain (mean over (2 r1 + 1)^2 - mean over (2 r2 + 1)^2),
- * clamped to 0..255, the boxes clipped at the image's edge. gain <= 0: chosen here so that the
- * 99th percentile of |mean difference| maps to 100 grey levels (within 1..16), which uses the 8
- * bits without clipping the texture; the reference sets it and every frame keeps it.
+ * r1 = BAND_FINE, clamped to 0..255, the boxes clipped at the image's edge. gain <= 0: chosen
+ * here so that the 99th percentile of |mean difference| maps to 100 grey levels (within 1..16),
+ * which uses the 8 bits without clipping the texture; the reference sets it and every frame
+ * keeps it.
  *
  * The box sums are exact integers, kept as running sums: per column, the sum over each box's
- * rows (a row added as it enters, one taken away as it leaves), then per row a prefix sum of
- * those, whose differences are the boxes. Sequential memory and no division per pixel. Only the
+ * rows (a row added as it enters, one taken away as it leaves); then per row the fine box's
+ * three such columns added, and the coarse box's as the difference of a prefix sum of them.
+ * Sequential memory and no division per pixel. Only the
  * pixels of a part of the frame are made (a frame's, the part its pyramid reads): each is the
  * same function of the frame's pixels wherever the part lies, as the sums are exact. Inlined, as
  * column_add is, into each of band_pass's clones (LM_CLONES), so that each is built for its target. */
-static inline __attribute__((always_inline)) void band_row(const sh_landmarks *lm, int w, int y, int h, int r1,
-                                                           int r2, const int part[4], int pass, uint32_t *hist)
+static inline __attribute__((always_inline)) void band_row(const sh_landmarks *lm, int w, int y, int h, int r2,
+                                                           const int part[4], int pass, uint32_t *hist)
 {
+    const int r1 = BAND_FINE;
     const uint32_t *v1 = lm->colsum, *v2 = v1 + w;
-    uint32_t *restrict p1 = lm->prefix, *restrict p2 = p1 + w + 1;
+    uint32_t *restrict p2 = lm->prefix;
     const int *l1 = lm->cols, *m1 = l1 + w, *l2 = m1 + w, *m2 = l2 + w;
     const float *iw1 = (const float *)(m2 + w), *iw2 = iw1 + w;
-    /* the prefix sums over the columns the part's boxes reach, indexed by column: p[c0] = 0 */
+    /* the coarse box's prefix sums over the columns the part's boxes reach, indexed by column:
+     * p2[c0] = 0 (a serial loop: the fine box, three columns, is summed directly instead, in
+     * the vectorized loops below) */
     const int c0 = part[0] - r2 > 0 ? part[0] - r2 : 0, c1 = part[2] + r2 < w ? part[2] + r2 : w;
-    /* the running sums in registers: through memory, each step would wait for the last store */
-    uint32_t run1 = 0, run2 = 0;
-    p1[c0] = p2[c0] = 0;
+    /* the running sum in a register: through memory, each step would wait for the last store */
+    uint32_t run2 = 0;
+    p2[c0] = 0;
     for (int x = c0; x < c1; x++) {
-        run1 += v1[x];
         run2 += v2[x];
-        p1[x + 1] = run1;
         p2[x + 1] = run2;
     }
     int a1 = y - r1 < 0 ? 0 : y - r1, b1 = y + r1 + 1 > h ? h : y + r1 + 1;
@@ -245,7 +255,7 @@ static inline __attribute__((always_inline)) void band_row(const sh_landmarks *l
     uint8_t *restrict out = lm->band + (size_t)y * w;
     if (pass) {
         for (int x = part[0]; x < part[2]; x++) {
-            float s1 = (float)(p1[m1[x]] - p1[l1[x]]) * (ih1 * iw1[x]);
+            float s1 = (float)cols_sum(v1, l1[x], m1[x]) * (ih1 * iw1[x]);
             float s2 = (float)(p2[m2[x]] - p2[l2[x]]) * (ih2 * iw2[x]);
             float d = fabsf(s1 - s2);
             hist[d >= 255 ? 255 : (int)d]++;
@@ -264,7 +274,9 @@ static inline __attribute__((always_inline)) void band_row(const sh_landmarks *l
     const int x0 = part[0] > xa ? part[0] : xa, x1 = part[2] < xb ? part[2] : xb;
     const float k1 = ih1 * (1.0f / (float)(2 * r1 + 1)), k2 = ih2 * (1.0f / (float)(2 * r2 + 1));
     for (int x = x0; x < x1; x++) {
-        float s1 = (float)(int32_t)(p1[x + r1 + 1] - p1[x - r1]) * k1;
+        uint32_t f = 0;
+        for (int k = -r1; k <= r1; k++) f += v1[x + k];
+        float s1 = (float)(int32_t)f * k1;
         float s2 = (float)(int32_t)(p2[x + r2 + 1] - p2[x - r2]) * k2;
         /* rounded, then clamped to 0..255 as integers (float compares are branches to gcc): the
          * same as clamped then rounded, 0 and 255 being integers; |v| < 128 + 16 * 255 < 2^22,
@@ -276,7 +288,7 @@ static inline __attribute__((always_inline)) void band_row(const sh_landmarks *l
     for (int x = part[0]; x < part[2]; x++) {
         if (x == x0 && x0 < x1) x = x1;
         if (x >= part[2]) break;
-        float s1 = (float)(p1[m1[x]] - p1[l1[x]]) * (ih1 * iw1[x]);
+        float s1 = (float)cols_sum(v1, l1[x], m1[x]) * (ih1 * iw1[x]);
         float s2 = (float)(p2[m2[x]] - p2[l2[x]]) * (ih2 * iw2[x]);
         float v = 128 + gain * (s1 - s2);
         v = v > 0 ? v : 0;
@@ -312,8 +324,9 @@ static void band_columns(sh_landmarks *lm, int r1, int r2)
 
 /* The band-passed pixels of src in part (x0, y0, x1, y1, half-open, within the frame) into
  * lm->band; first the gain when it is not set yet (the whole frame then). */
-LM_CLONES static void band_pass(sh_landmarks *lm, const sh_plane *src, int r1, int r2, const int part[4])
+LM_CLONES static void band_pass(sh_landmarks *lm, const sh_plane *src, int r2, const int part[4])
 {
+    const int r1 = BAND_FINE;
     const int w = src->width, h = src->height;
     /* the columns whose sums the part's boxes read */
     const int c0 = part[0] - r2 > 0 ? part[0] - r2 : 0, c1 = part[2] + r2 < w ? part[2] + r2 : w;
@@ -333,7 +346,7 @@ LM_CLONES static void band_pass(sh_landmarks *lm, const sh_plane *src, int r1, i
                 if (y + r2 < h) column_add(v2, src, y + r2, c0, c1, 1);
                 if (y - r2 - 1 >= 0) column_add(v2, src, y - r2 - 1, c0, c1, -1);
             }
-            band_row(lm, w, y, h, r1, r2, part, pass, hist);
+            band_row(lm, w, y, h, r2, part, pass, hist);
         }
         if (pass) {
             uint64_t want = (uint64_t)w * h * 99 / 100, seen = 0;
@@ -408,7 +421,7 @@ sh_status sh_landmarks_create(const sh_landmarks_params *params, const sh_plane 
     lm->near = malloc(m * (size_t)(params->neighbours + 1) * sizeof *lm->near);
     lm->scratch = malloc(2 * (size_t)(params->neighbours + 1) * sizeof *lm->scratch);
     lm->colsum = malloc(2 * (size_t)lm->width * sizeof *lm->colsum);
-    lm->prefix = malloc(2 * ((size_t)lm->width + 1) * sizeof *lm->prefix);
+    lm->prefix = malloc(((size_t)lm->width + 1) * sizeof *lm->prefix);
     lm->band = malloc((size_t)lm->width * lm->height);
     lm->cols = malloc(6 * (size_t)lm->width * sizeof(int));
     lm->redo = malloc(m * sizeof *lm->redo);
@@ -434,7 +447,7 @@ sh_status sh_landmarks_create(const sh_landmarks_params *params, const sh_plane 
     if (params->band > 0) {
         const int all[4] = {0, 0, lm->width, lm->height};
         band_columns(lm, BAND_FINE, params->band);
-        band_pass(lm, reference, BAND_FINE, params->band, all);
+        band_pass(lm, reference, params->band, all);
         band = (sh_plane){lm->band, lm->width, lm->height, lm->width};
     }
     if (st == SH_OK) {
@@ -660,7 +673,7 @@ static sh_status build_part(sh_landmarks *lm, const sh_plane *luma, const float 
     sh_status st = box ? sh_flow_pyramid_box_part(lm->cur, box, backward, part) : SH_OK;
     sh_plane band = *luma;
     if (st == SH_OK && lm->p.band > 0) {
-        band_pass(lm, luma, BAND_FINE, lm->p.band, part);
+        band_pass(lm, luma, lm->p.band, part);
         band = (sh_plane){lm->band, lm->width, lm->height, lm->width};
     }
     if (st != SH_OK) return st;
