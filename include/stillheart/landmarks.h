@@ -130,9 +130,10 @@ typedef struct {
                                  * tissue sheared or scaled (sh_flow_track_windows_warped); needs a
                                  * prediction and neighbours >= 2 (0: square windows) */
     sh_flow_params flow;        /* the tracker (sh_flow_params_default, but 1 level above the
-                                 * frame: enough for searches that start within a few px of the
-                                 * answer, as predicted ones do; a caller that tracks without
-                                 * predictions, or with a map farther off, raises it) */
+                                 * frame, enough for searches that start within a few px of the
+                                 * answer, as predicted ones do: a caller that tracks without
+                                 * predictions, or with a map farther off, raises it; and steps
+                                 * down to 0.03 px, not 0.01) */
 } sh_landmarks_params;
 
 void sh_landmarks_params_default(sh_landmarks_params *p);

@@ -1,9 +1,10 @@
 /* The tracker's two window loops, where its time goes: sampling the previous frame's window
- * (once per point and level) and comparing the next frame's with it (once per step). Each has a
- * portable C definition and an 8-lane version for SSE2 (part of x86-64) and NEON (part of
- * AArch64) that computes the same integers: every product and sum is exact, so the SIMD and
- * the portable results are equal bit for bit (test_flow_simd), and make bench (bench_flow)
- * shows what the lanes buy.
+ * (once per point and level) and comparing the next frame's with it (once per step); and the
+ * error measure (once per point and search). Each has a portable C definition and an 8-lane
+ * version for SSE2 (part of x86-64) and, but the error measure, NEON (part of AArch64); the two
+ * comparisons also a 32-lane AVX-512 one, chosen at run time. All compute the same integers:
+ * every product and sum is exact, so the SIMD and the portable results are equal bit for bit
+ * (test_flow_simd), and make bench (bench_flow, bench_landmarks) shows what the lanes buy.
  *
  * Bounds that keep the lanes' 32-bit sums exact: a pixel is at most 255 and a gradient at most
  * 16 * 255 = 4080 in magnitude, a bilinear weight at most 2^14, so one sample's weighted sum is

@@ -87,6 +87,11 @@ void sh_landmarks_params_default(sh_landmarks_params *p)
      * the same accepted landmarks, error and tail with 1, 2 or 3 levels, at half the cost; with
      * none, 9 % more over 1 px. */
     p->flow.levels = 1;
+    /* A search stops at a step shorter than 0.03 px, not OpenCV's 0.01: a tenth of the 0.2-0.3 px
+     * the accepted landmarks lie from the truth, a sixteenth of the backward test's 0.5 px.
+     * Measured on the same eight renders: 1 % more accepted, 166 over 1 px instead of 174, the
+     * same geometric error, 8-12 % less time. */
+    p->flow.eps = 0.03;
 }
 
 void sh_landmarks_params_sparse(sh_landmarks_params *p)

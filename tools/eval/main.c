@@ -100,7 +100,8 @@ static void usage(FILE *f)
         "  --lm-sparse        for markers too sparse for their map (four at the corners): the\n"
         "                     disagreement bound follows the frame's measured map error\n"
         "                     (--lm-bound-factor 4) and the neighbour test expects a plane\n"
-        "                     (--lm-plane), as `stillheart track --landmarks-sparse`\n"
+        "                     (--lm-plane), and the searches use 3 pyramid levels, not 1\n"
+        "                     (the map may be 10 px off), as `stillheart track --landmarks-sparse`\n"
         "  --lm-bound-factor K  the bound: K times the median distance from the map of the\n"
         "                     landmarks the tests before it keep, never below --lm-disagreement\n"
         "  --lm-plane         the neighbour test expects the planes through three neighbours\n"
@@ -525,7 +526,12 @@ int main(int argc, char **argv)
         case 1001: if (!sh_cli_parse_double("--lm-photometric", optarg, 1e-3, 255, &o.lp.max_photometric)) return 2; break;
         case 1002: if (!sh_cli_parse_double("--lm-backward", optarg, 0, 1000, &o.lp.max_backward_px)) return 2; break;
         case 1003: if (!sh_cli_parse_double("--lm-disagreement", optarg, 1e-3, 1000, &o.lp.max_disagreement_px)) return 2; break;
-        case 1004: o.lp.bound_factor = 4, o.lp.plane = 1; break;
+        case 1004: { /* sh_landmarks_params_sparse's changes, over the options given before */
+            sh_landmarks_params sp;
+            sh_landmarks_params_sparse(&sp);
+            o.lp.bound_factor = sp.bound_factor, o.lp.plane = sp.plane, o.lp.flow.levels = sp.flow.levels;
+            break;
+        }
         case 1005: if (!sh_cli_parse_double("--lm-bound-factor", optarg, 0, 1000, &o.lp.bound_factor)) return 2; break;
         case 1006: o.lp.plane = 1; break;
         case 1009: o.lp.affine = 1; break;
