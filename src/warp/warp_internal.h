@@ -115,6 +115,11 @@ void warp_sample_row(const sh_plane *src, int channels, uint8_t black, uint8_t *
  * returns the level now in use. Not to be called while another thread samples. */
 int warp_sample_path(int wanted);
 
+/* TPS's dense grid rows take AVX2 where the CPU has it (grid.c, two nodes at a time, the same
+ * bits). This puts AVX2 (wanted 1, where the CPU has it) or the build's own path (0) in use, for
+ * tests and benches; returns the level now in use. Not to be called while another thread maps. */
+int warp_grid_dense_path(int wanted);
+
 /* The RGB path's definition in portable C: the SSE2 and NEON paths of warp_sample_row give
  * exactly these bytes (tests/unit/test_sample_simd.c). */
 void warp_sample_row_rgb_portable(const sh_plane *src, uint8_t black, uint8_t *dst,

@@ -14,6 +14,7 @@
 #include "stillheart/metrics.h"
 #include "stillheart/warp.h"
 #include "synth.h"
+#include "../../src/warp/warp_internal.h"
 
 typedef struct {
     sh_interp *interp;
@@ -137,6 +138,39 @@ static void test_dense_rows_as_exact(void **state)
     assert_true(worst < 1e-3);
     unbuild(&b);
     free(ref), free(coef), free(disp), free(map);
+}
+
+/* TPS's dense grid rows on AVX2 (two nodes at a time, grid.c) against the build's own path, bit
+ * for bit: the whole map of 150-point TPS models over three frame sizes (rows of odd and even
+ * node counts: the last node of an odd row takes the other path). */
+static void test_dense_rows_avx2_same_bits(void **state)
+{
+    (void)state;
+    if (warp_grid_dense_path(1) != 1) {
+        print_message("  no AVX2 on this CPU: only the build's own path here\n");
+        return;
+    }
+    const int sizes[3][2] = {{1920, 1080}, {1000, 700}, {1283, 721}};
+    for (int c = 0; c < 3; c++) {
+        const int w = sizes[c][0], h = sizes[c][1], n = 150;
+        synth_motion mo = {w, h, 14 + c};
+        double *ref = malloc(sizeof(double) * 4 * n), *cur = ref + 2 * n;
+        synth_markers(&mo, n, 9 + c, ref);
+        moved_markers(&mo, 0.35, ref, n, cur);
+        built b = build("tps", ref, n, w, h, NULL);
+        float *m0 = malloc(sizeof(float) * 2 * (size_t)w * h), *m1 = malloc(sizeof(float) * 2 * (size_t)w * h);
+        assert_non_null(m0);
+        assert_non_null(m1);
+        assert_int_equal(warp_grid_dense_path(0), 0);
+        assert_int_equal(sh_warp_model_update(b.model, cur), SH_OK);
+        assert_int_equal(sh_warp_model_map(b.model, m0), SH_OK);
+        assert_int_equal(warp_grid_dense_path(1), 1);
+        assert_int_equal(sh_warp_model_update(b.model, cur), SH_OK);
+        assert_int_equal(sh_warp_model_map(b.model, m1), SH_OK);
+        assert_memory_equal(m0, m1, sizeof(float) * 2 * (size_t)w * h);
+        unbuild(&b);
+        free(ref), free(m0), free(m1);
+    }
 }
 
 /* A tighter tolerance forces refinement, and the refined grid honours it. */
@@ -829,6 +863,7 @@ int main(void)
         cmocka_unit_test(test_exact_methods),
         cmocka_unit_test(test_update_subset),
         cmocka_unit_test(test_dense_rows_as_exact),
+        cmocka_unit_test(test_dense_rows_avx2_same_bits),
         cmocka_unit_test(test_translation_every_format),
         cmocka_unit_test(test_translation_beyond_range),
         cmocka_unit_test(test_bilinear_closed_form),
