@@ -217,7 +217,8 @@ int64_t flow_window_abs_mismatch_sse2(const flow_level *l, int ix, int iy, const
             const __m128i keep = lanes_kept(win - x);
             bilinear8(load8u(p + x), load8u(p + x + 1), load8u(p + x + s), load8u(p + x + s + 1),
                       w01, w23, &lo, &hi);
-            __m128i d = _mm_and_si128(_mm_sub_epi16(descale_pack(lo, hi, W_BITS - 5), load8s(ri + x)), keep);
+            __m128i d =
+                _mm_and_si128(_mm_sub_epi16(descale_pack(lo, hi, W_BITS - 5), load8s(ri + x)), keep);
             d = _mm_max_epi16(d, _mm_sub_epi16(zero, d));
             q = _mm_add_epi32(q, _mm_madd_epi16(d, one));
         }
@@ -234,16 +235,10 @@ int flow_window_avx512(void)
     return __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512bw");
 }
 
-/* A window row, up to 32 columns, a step: the SSE2 loop's arithmetic on 32 lanes (unpack and pack
- * stay within each 128-bit lane, so the lanes come back in order). The loads are masked to the
- * window's columns: past the side every sample, template value and gradient is zero, and nothing
- * past the window's last column (and its bilinear neighbour) is read. A lane's 32-bit sum grows by
- * at most 2 * 8160 * 4080 a step (one madd: two products), so 32 steps stay below 2^31; they are
- * added into 64-bit totals every 32 steps and at the end. */
 /* 32 bilinear samples of row p (and the row s below it) in 1/32 grey levels, lanes outside k
  * zero (the loads masked: nothing past them is read). */
-__attribute__((target("avx512f,avx512bw"))) static inline __m512i sample32(const uint8_t *p, int s, __mmask32 k,
-                                                                          __m512i w01, __m512i w23)
+__attribute__((target("avx512f,avx512bw"))) static inline __m512i
+sample32(const uint8_t *p, int s, __mmask32 k, __m512i w01, __m512i w23)
 {
 #define LOAD32U(q) _mm512_cvtepu8_epi16(_mm512_castsi512_si256(_mm512_maskz_loadu_epi8((__mmask64)k, (q))))
     const __m512i a = LOAD32U(p), b = LOAD32U(p + 1), c = LOAD32U(p + s), d = LOAD32U(p + s + 1);
@@ -273,13 +268,20 @@ flow_window_abs_mismatch_avx512(const flow_level *l, int ix, int iy, const int w
         for (int x = 0; x < win; x += 32) {
             const int left = win - x;
             const __mmask32 k = left >= 32 ? 0xffffffffu : (1u << left) - 1;
-            const __m512i d = _mm512_sub_epi16(sample32(p + x, s, k, w01, w23), _mm512_maskz_loadu_epi16(k, ri + x));
+            const __m512i d =
+                _mm512_sub_epi16(sample32(p + x, s, k, w01, w23), _mm512_maskz_loadu_epi16(k, ri + x));
             q = _mm512_add_epi32(q, _mm512_madd_epi16(_mm512_abs_epi16(d), one));
         }
     }
     return _mm512_reduce_add_epi32(q);
 }
 
+/* A window row, up to 32 columns, a step: the SSE2 loop's arithmetic on 32 lanes (unpack and pack
+ * stay within each 128-bit lane, so the lanes come back in order). The loads are masked to the
+ * window's columns: past the side every sample, template value and gradient is zero, and nothing
+ * past the window's last column (and its bilinear neighbour) is read. A lane's 32-bit sum grows by
+ * at most 2 * 8160 * 4080 a step (one madd: two products), so 32 steps stay below 2^31; they are
+ * added into 64-bit totals every 32 steps and at the end. */
 __attribute__((target("avx512f,avx512bw"))) void
 flow_window_mismatch_avx512(const flow_level *l, int ix, int iy, const int w[4], int win, const int16_t *I,
                             const int16_t *gx, const int16_t *gy, int64_t b[2])
@@ -295,7 +297,8 @@ flow_window_mismatch_avx512(const flow_level *l, int ix, int iy, const int w[4],
         for (int x = 0; x < win; x += 32) {
             const int left = win - x;
             const __mmask32 k = left >= 32 ? 0xffffffffu : (1u << left) - 1;
-            const __m512i diff = _mm512_sub_epi16(sample32(p + x, s, k, w01, w23), _mm512_maskz_loadu_epi16(k, ri + x));
+            const __m512i diff =
+                _mm512_sub_epi16(sample32(p + x, s, k, w01, w23), _mm512_maskz_loadu_epi16(k, ri + x));
             q1 = _mm512_add_epi32(q1, _mm512_madd_epi16(diff, _mm512_maskz_loadu_epi16(k, rx + x)));
             q2 = _mm512_add_epi32(q2, _mm512_madd_epi16(diff, _mm512_maskz_loadu_epi16(k, ry + x)));
             if (++steps == 32 || (y == win - 1 && x + 32 >= win)) {
