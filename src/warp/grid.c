@@ -257,20 +257,22 @@ static inline void dense_row(const float *restrict weight, int terms, const doub
 #include <immintrin.h>
 #define GRID_AVX2 1
 
-/* -1: the CPU decides (warp_grid_dense_path) */
+/* -1: not chosen yet (the first map chooses by the CPU); read and set atomically, as the grid's
+ * rows may be mapped on several threads */
 static int dense_level = -1;
 
 int warp_grid_dense_path(int wanted)
 {
-    dense_level = wanted >= 1 && __builtin_cpu_supports("avx2") ? 1 : 0;
-    return dense_level;
+    const int level = wanted >= 1 && __builtin_cpu_supports("avx2") ? 1 : 0;
+    __atomic_store_n(&dense_level, level, __ATOMIC_RELAXED);
+    return level;
 }
 
 /* Two nodes' dense rows with AVX2, each node's x and y partial sums in one register of four
  * lanes: lane l adds the terms k = l mod 4 in order, as dense_row's lanes do, so each node gets
- * dense_row's bits. Four chains of adds instead of one node's two, and half the instructions of
- * SSE2 a term: about 0.6 ns a term on SSE2, which is most of a frame's model update with the
- * landmarks' 100-150 points on a 4 px grid (25 000 nodes, 1.6 ms). */
+ * dense_row's bits. The two nodes' four chains of adds run side by side, and a term takes half of
+ * SSE2's instructions. On SSE2 a term took about 0.6 ns, which made the grid map most of a
+ * frame's model update with the landmarks' 100-150 points on a 4 px grid (25 000 nodes, 1.6 ms). */
 __attribute__((target("avx2"))) static void dense_pair_avx2(const float *restrict wa, const float *restrict wb,
                                                             int terms, const double *restrict cx,
                                                             const double *restrict cy, double xa[2], double xb[2])
@@ -312,8 +314,9 @@ static void dense_nodes(const sh_warp_model *m, size_t node, size_t j, const dou
     const size_t t = (size_t)m->dense_terms;
     size_t i = 0;
 #ifdef GRID_AVX2
-    if (dense_level < 0) warp_grid_dense_path(1); /* the same answer on every thread: no harm in a race */
-    if (dense_level == 1)
+    int level = __atomic_load_n(&dense_level, __ATOMIC_RELAXED);
+    if (level < 0) level = warp_grid_dense_path(1);
+    if (level == 1)
         for (; i + 1 < (size_t)m->nx; i += 2) {
             double a[2], b[2];
             const size_t k = node + i;
