@@ -82,8 +82,8 @@ void sh_landmarks_params_default(sh_landmarks_params *p)
     /* One level above the frame, not OpenCV's three. A landmark is accepted only within
      * max_disagreement_px (3) of its prediction, where its searches start, and one level halves
      * that to 1.5 px, well inside a search's reach; and the band-pass takes out wavelengths past
-     * about 22 px, so that levels 2 and 3 hold little of the texture (their searches took 6 and
-     * 12 steps where level 0's took 6). Measured on the eight renders of docs/landmarks.md:
+     * about 22 px, so that levels 2 and 3 hold little of the texture (level 3's backward searches
+     * took 11.6 steps on average, level 0's 6.4). Measured on the eight renders of docs/landmarks.md:
      * the same accepted landmarks, error and tail with 1, 2 or 3 levels, at half the cost; with
      * none, 9 % more over 1 px. */
     p->flow.levels = 1;
