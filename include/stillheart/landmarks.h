@@ -141,6 +141,8 @@ void sh_landmarks_params_default(sh_landmarks_params *p);
  * defaults' 3 px (four markers at the corners of the field): bound_factor 4, plane 1, and
  * 3 pyramid levels. */
 void sh_landmarks_params_sparse(sh_landmarks_params *p);
+/* Those changes alone, made to p in place (the other parameters as they are). */
+void sh_landmarks_params_make_sparse(sh_landmarks_params *p);
 
 typedef struct sh_landmarks sh_landmarks;
 

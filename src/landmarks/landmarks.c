@@ -97,6 +97,11 @@ void sh_landmarks_params_default(sh_landmarks_params *p)
 void sh_landmarks_params_sparse(sh_landmarks_params *p)
 {
     sh_landmarks_params_default(p);
+    sh_landmarks_params_make_sparse(p);
+}
+
+void sh_landmarks_params_make_sparse(sh_landmarks_params *p)
+{
     p->bound_factor = 4;
     p->plane = 1;
     /* the four corner markers' map lies 3-5 px from the tissue, at worst 11: their searches

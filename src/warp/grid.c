@@ -308,6 +308,13 @@ int warp_grid_dense_path(int wanted)
 }
 #endif
 
+/* Node k, at column i of row j: the map there, from its displacement d */
+static inline void put_node(const sh_warp_model *m, size_t k, size_t i, size_t j, const double d[2])
+{
+    m->map[2 * k] = m->gx0 + (double)i * m->h + d[0];
+    m->map[2 * k + 1] = m->gy0 + (double)j * m->h + d[1];
+}
+
 /* A row of nodes' dense rows: in pairs with AVX2 where the CPU has it, else one at a time. */
 static void dense_nodes(const sh_warp_model *m, size_t node, size_t j, const double *cx, const double *cy)
 {
@@ -321,18 +328,15 @@ static void dense_nodes(const sh_warp_model *m, size_t node, size_t j, const dou
             double a[2], b[2];
             const size_t k = node + i;
             dense_pair_avx2(m->dense + k * t, m->dense + (k + 1) * t, m->dense_terms, cx, cy, a, b);
-            m->map[2 * k] = m->gx0 + (double)i * m->h + a[0];
-            m->map[2 * k + 1] = m->gy0 + (double)j * m->h + a[1];
-            m->map[2 * k + 2] = m->gx0 + (double)(i + 1) * m->h + b[0];
-            m->map[2 * k + 3] = m->gy0 + (double)j * m->h + b[1];
+            put_node(m, k, i, j, a);
+            put_node(m, k + 1, i + 1, j, b);
         }
 #endif
     for (; i < (size_t)m->nx; i++) {
         double xy[2];
         const size_t k = node + i;
         dense_row(m->dense + k * t, m->dense_terms, cx, cy, xy);
-        m->map[2 * k] = m->gx0 + (double)i * m->h + xy[0];
-        m->map[2 * k + 1] = m->gy0 + (double)j * m->h + xy[1];
+        put_node(m, k, i, j, xy);
     }
 }
 

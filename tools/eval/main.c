@@ -526,12 +526,7 @@ int main(int argc, char **argv)
         case 1001: if (!sh_cli_parse_double("--lm-photometric", optarg, 1e-3, 255, &o.lp.max_photometric)) return 2; break;
         case 1002: if (!sh_cli_parse_double("--lm-backward", optarg, 0, 1000, &o.lp.max_backward_px)) return 2; break;
         case 1003: if (!sh_cli_parse_double("--lm-disagreement", optarg, 1e-3, 1000, &o.lp.max_disagreement_px)) return 2; break;
-        case 1004: { /* sh_landmarks_params_sparse's changes, over the options given before */
-            sh_landmarks_params sp;
-            sh_landmarks_params_sparse(&sp);
-            o.lp.bound_factor = sp.bound_factor, o.lp.plane = sp.plane, o.lp.flow.levels = sp.flow.levels;
-            break;
-        }
+        case 1004: sh_landmarks_params_make_sparse(&o.lp); break; /* over the options given before */
         case 1005: if (!sh_cli_parse_double("--lm-bound-factor", optarg, 0, 1000, &o.lp.bound_factor)) return 2; break;
         case 1006: o.lp.plane = 1; break;
         case 1009: o.lp.affine = 1; break;
