@@ -59,6 +59,10 @@ const sh_point *sh_points_frame(const sh_points *points, int frame, int *count);
  * when not NULL) and the current frame's. Returns the count (at most min(nref, ncur)). */
 int sh_points_match(const sh_point *ref, int nref, const sh_point *cur, int ncur, int *ids,
                     double *ref_xy, double *cur_xy);
+/* The same for 3D: only ids whose rows have finite X, Y, Z in both frames; writes the ids and the
+ * current frame's X, Y, Z (3 a point). Returns the count. */
+int sh_points_match_xyz(const sh_point *ref, int nref, const sh_point *cur, int ncur, int *ids,
+                        double *cur_xyz);
 
 /* Writes rows as CSV with the header: frame,id,x,y, and X,Y,Z when has_3d; has_3d
  * SH_POINTS_XYZ_ONLY leaves out x,y. */

@@ -42,11 +42,14 @@ static void usage(FILE *out)
         "  --lost-after S     seconds unseen before a marker is dropped (default 2)\n"
         "  --spatial off|fuse occluded markers from time only, or also from neighbours (default fuse)\n"
         "  --measured-only    write only markers detected in that frame\n"
-        "  --landmarks N      also up to N landmarks of the tissue (docs/landmarks.md), one camera:\n"
-        "                     chosen in frame 0 inside its markers' hull and off its tags, written\n"
-        "                     as rows with ids from 1000000 (their positions in frame 0 there),\n"
-        "                     then in each frame the ones found and accepted, which `stillheart\n"
-        "                     warp` takes as correspondences like the markers; off by default\n"
+        "  --landmarks N      also up to N landmarks of the tissue (docs/landmarks.md): chosen in\n"
+        "                     frame 0 inside its markers' hull and off its tags, written as rows\n"
+        "                     with ids from 1000000 (their positions in frame 0 there), then in\n"
+        "                     each frame the ones found and accepted, which `stillheart warp` and\n"
+        "                     `warp3d` take as correspondences like the markers; off by default.\n"
+        "                     With --cameras, chosen in the first camera and matched in the others\n"
+        "                     along epipolar lines: a row only for a landmark triangulated within\n"
+        "                     0.5 px of every camera that accepted it, two at least\n"
         "  --landmarks-sparse with --landmarks, for markers too sparse for their map to come\n"
         "                     within 3 px of the tissue (four at the corners of the field): the\n"
         "                     disagreement bound follows the map's error measured on each frame,\n"
@@ -61,7 +64,10 @@ static void usage(FILE *out)
         "                     heart_hz and respiration_hz (null before an estimate), detections\n"
         "                     {used, gated, duplicated, unknown, inconsistent_3d, misshapen, held,\n"
         "                     jumped}, markers_lost, camera_moved_frames, ids [...], calibration\n"
-        "                     {samples, median_px, worst_camera, worst_px, behind} (null in 2D)\n"
+        "                     {samples, median_px, worst_camera, worst_px, behind} (null in 2D);\n"
+        "                     with --landmarks, landmarks {chosen, accepted, lost, photometric,\n"
+        "                     backward, disagrees, deviates: camera 0's landmark-frames; with\n"
+        "                     --cameras also in_3d, unmatched_3d, inconsistent_3d}\n"
         SH_CLI_USAGE
         "A progress line (frames, ETA) is shown on standard error when it is a terminal.\n");
 }
@@ -171,8 +177,6 @@ static int parse_options(int argc, char **argv, track_options *o)
     for (int c = 0; c < o->ncam; c++) o->in[c] = argv[optind + c];
     if (o->landmarks_sparse && !o->landmarks) return sh_cli_usage_error(&cli, "--landmarks-sparse goes with --landmarks");
     if (o->landmarks_affine && !o->landmarks) return sh_cli_usage_error(&cli, "--landmarks-affine goes with --landmarks");
-    if (o->landmarks && (o->ncam > 1 || o->calib_path))
-        return sh_cli_usage_error(&cli, "--landmarks: one camera, without --cameras (landmarks in 3D are not built yet)");
     return APP_GO_ON;
 }
 
@@ -343,8 +347,12 @@ static int write_rows(const track_job *job, track_pass *p, int f, FILE *out)
     p->nrows = nr;
     if (!ok || !job->o->landmarks) return !ok;
     /* the tissue's landmarks after the frame's markers (their ids sort after) */
-    if (f == 0) return track_landmarks_start(job->o->landmarks, job->o->landmarks_sparse, job->o->landmarks_affine, &p->img[0], dets[0], p->ndet0, rows, nr, out, &p->lm);
-    return p->lm && track_landmarks_frame(p->lm, &p->img[0], f, rows, nr, out);
+    if (f == 0) {
+        track_landmarks_options lo = {job->o->landmarks, job->o->landmarks_sparse, job->o->landmarks_affine, job->o->ncam,
+                                      job->have_calib ? &job->calib : NULL};
+        return track_landmarks_start(&lo, p->img, dets[0], p->ndet0, rows, nr, out, &p->lm);
+    }
+    return p->lm && track_landmarks_frame(p->lm, p->img, f, rows, nr, out);
 }
 
 enum { FRAME_DONE, FRAME_FAILED, FRAME_END };
@@ -424,7 +432,38 @@ static void stats_json(const track_job *job, track_pass *p)
     } else {
         sh_cli_json_null(&j, "calibration");
     }
+    if (p->lm) {
+        track_landmarks_stats ls;
+        track_landmarks_stats_get(p->lm, &ls);
+        sh_cli_json_object(&j, "landmarks");
+        sh_cli_json_int(&j, "chosen", ls.chosen);
+        for (int v = 0; v < SH_LANDMARK_VERDICTS; v++)
+            sh_cli_json_int(&j, sh_landmark_verdict_name((sh_landmark_verdict)v), ls.verdicts[v]);
+        if (job->have_calib) {
+            sh_cli_json_int(&j, "in_3d", ls.in_3d);
+            sh_cli_json_int(&j, "unmatched_3d", ls.unmatched);
+            sh_cli_json_int(&j, "inconsistent_3d", ls.inconsistent);
+        }
+        sh_cli_json_end(&j);
+    }
     sh_cli_json_end(&j);
+}
+
+/* --stats with --landmarks: what became of them. */
+static void landmarks_report(const track_job *job, const track_pass *p)
+{
+    if (!p->lm) return;
+    track_landmarks_stats s;
+    track_landmarks_stats_get(p->lm, &s);
+    const long long *v = s.verdicts;
+    sh_log_info("landmarks: %d chosen; landmark-frames of camera 0: accepted %lld, lost %lld, photometric %lld, "
+                "backward %lld, disagrees %lld, deviates %lld",
+                s.chosen, v[SH_LANDMARK_ACCEPTED], v[SH_LANDMARK_LOST], v[SH_LANDMARK_PHOTOMETRIC],
+                v[SH_LANDMARK_BACKWARD], v[SH_LANDMARK_DISAGREES], v[SH_LANDMARK_DEVIATES]);
+    if (job->have_calib)
+        sh_log_info("landmarks in 3D: %d with a reference (matched in frame 0); of camera 0's accepted, %lld matched "
+                    "by no other camera, %lld refused by the reprojection test (%.1f px)",
+                    s.in_3d, s.unmatched, s.inconsistent, TRACK_LANDMARKS_MAX_REPROJ_PX);
 }
 
 /* The end of a pass: the verdicts on every tag seen (sh_tracker_judge_ids, when asked for) and,
@@ -453,6 +492,7 @@ static void pass_report(const track_job *job, track_pass *p, FILE *out, sh_track
         sh_log_info("calibration: reprojection median %.3f px over the last %d markers seen by two or more "
                     "cameras, camera %d's views %.3f px, %.0f %% behind a camera",
                     cc.median_px, cc.samples, cc.worst_camera, cc.worst_px, 100 * cc.failed);
+    landmarks_report(job, p);
 }
 
 /* One pass: max_frames (< 0: all). out NULL: no output; judged (when not NULL) gets the verdicts

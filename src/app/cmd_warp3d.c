@@ -9,6 +9,7 @@
 
 #include "stab.h"
 #include "stillheart/calib.h"
+#include "stillheart/landmarks.h"
 #include "stillheart/log.h"
 #include "stillheart/warp3d.h"
 
@@ -29,7 +30,9 @@ static void usage(FILE *out)
         "options:\n"
         "  --cameras FILE     calibration (OpenCV FileStorage YAML: K_i, dist_i, R_i, t_i)\n"
         "  --points FILE      markers, CSV 'frame,id,x,y,X,Y,Z' or 'frame,id,X,Y,Z' (world\n"
-        "                     mm; x,y are not used, X,Y,Z are required)\n"
+        "                     mm; x,y are not used, X,Y,Z are required); ids from 1000000 are\n"
+        "                     the tissue's landmarks (stillheart track --cameras --landmarks),\n"
+        "                     left out when either interpolant is gaussian or rbf-local\n"
         "  --camera K         the camera IN comes from (default 0)\n"
         "  --method NAME      interpolant of the surface and of the displacement (over the\n"
         "                     surface's plane, mm): affine | pwlinear | bspline | rbf-local |\n"
@@ -65,33 +68,6 @@ static void usage(FILE *out)
         "                     6-9 times the run's time without it)\n"
         SH_CLI_USAGE
         "OUT's header names the interpolants (XSTILLHEART=method3d:NAME[/NAME]).\n");
-}
-
-static int has_xyz(const sh_point *p)
-{
-    return isfinite(p->X) && isfinite(p->Y) && isfinite(p->Z);
-}
-
-/* Markers of this frame that the reference frame also has, both with 3D positions. */
-static int common_markers(const sh_point *ref, int nref, const sh_point *cur, int ncur, int *ids,
-                          double *cur_xyz)
-{
-    int n = 0;
-    for (int i = 0, j = 0; i < nref && j < ncur;) {
-        if (ref[i].id < cur[j].id) i++;
-        else if (ref[i].id > cur[j].id) j++;
-        else {
-            if (has_xyz(&ref[i]) && has_xyz(&cur[j])) {
-                ids[n] = cur[j].id;
-                cur_xyz[3 * n] = cur[j].X;
-                cur_xyz[3 * n + 1] = cur[j].Y;
-                cur_xyz[3 * n + 2] = cur[j].Z;
-                n++;
-            }
-            i++, j++;
-        }
-    }
-    return n;
 }
 
 /* pose:RX,RY,RZ[,TX,TY,TZ] */
@@ -279,6 +255,10 @@ static int open_input(warp3d_job *j)
         sh_log_error("%s has no X,Y,Z columns", o->points_path);
         return 1;
     }
+    if (!sh_landmarks_method_uses(o->p3.surface.method) || !sh_landmarks_method_uses(o->p3.displacement.method)) {
+        int n = sh_points_drop_ids(&s->points, SH_LANDMARK_ID_BASE);
+        if (n) sh_log_info("%d landmark rows left out: %s is worse with them (docs/landmarks.md)", n, o->method);
+    }
     if (sh_y4m_reader_open(o->in_path, &s->reader) != SH_OK) return app_fail("input");
     const sh_y4m_header *hdr = sh_y4m_reader_header(s->reader);
     if (j->calib.width != hdr->width || j->calib.height != hdr->height) {
@@ -293,7 +273,7 @@ static int open_input(warp3d_job *j)
     s->ids = malloc(sizeof(int) * ((size_t)s->ref_count + 1));
     s->cur = malloc(sizeof(double) * 3 * ((size_t)s->ref_count + 1));
     if (!s->ids || !s->cur) return app_fail("out of memory");
-    j->nref = common_markers(s->ref_rows, s->ref_count, s->ref_rows, s->ref_count, s->ids, s->cur);
+    j->nref = sh_points_match_xyz(s->ref_rows, s->ref_count, s->ref_rows, s->ref_count, s->ids, s->cur);
     if (j->nref < 4) {
         sh_log_error("%s: the reference frame %d has %d markers with X,Y,Z, need 4",
                      o->points_path, o->reference, j->nref);
@@ -316,9 +296,14 @@ static int set_views(warp3d_job *j)
         sh_warp3d_stereo_cameras(&r->source_cam, o->baseline, &r->view_cam[0], &r->view_cam[1]);
         r->nviews = 2;
     } else if (o->pose) {
+        /* the markers' centre: landmark rows (stillheart track --landmarks) would move it with
+         * how many of them frame 0 has */
         double c[3] = {0, 0, 0};
+        int nm = 0;
+        for (int i = 0; i < j->nref; i++) nm += s->ids[i] < SH_LANDMARK_ID_BASE;
         for (int i = 0; i < j->nref; i++)
-            for (int k = 0; k < 3; k++) c[k] += ref_xyz[3 * i + k] / j->nref;
+            if (s->ids[i] < SH_LANDMARK_ID_BASE || nm == 0)
+                for (int k = 0; k < 3; k++) c[k] += ref_xyz[3 * i + k] / (nm ? nm : j->nref);
         sh_warp3d_pose_camera(&r->source_cam, c, o->rvec, o->tvec, &r->view_cam[0]);
         r->nviews = 1;
     } else {
@@ -438,7 +423,7 @@ static int warp3d_frame(void *job)
     app_stab *s = &j->s;
     int ncur, nviews = j->recipe.nviews;
     const sh_point *cur = sh_points_frame(&s->points, s->frames, &ncur);
-    int n = common_markers(s->ref_rows, s->ref_count, cur, ncur, s->ids, s->cur);
+    int n = sh_points_match_xyz(s->ref_rows, s->ref_count, cur, ncur, s->ids, s->cur);
     double t0 = app_now();
     int raw = n < 4 || sh_modelcache_get(s->cache, s->ids, n, &j->slot) != SH_OK ||
               sh_warp3d_model_update(j->slot->m3, s->cur) != SH_OK;

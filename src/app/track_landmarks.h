@@ -2,30 +2,58 @@
  * file, with ids from SH_LANDMARK_ID_BASE (landmark k: base + k). The reference is frame 0:
  * there they are chosen, and their rows give their reference positions; in each later frame the
  * accepted ones (landmarks.h's tests) are written, so that `stillheart warp` and stillheart-eval
- * take them as correspondences like the markers they share with frame 0. Private to src/app. */
+ * take them as correspondences like the markers they share with frame 0.
+ * With a calibrated rig (--cameras, two or three videos) they are chosen in camera 0 and matched
+ * in the other cameras, frame by frame, each search started on the epipolar line of camera 0's
+ * position: a landmark's row carries the X, Y, Z triangulated from every camera that accepted it,
+ * and is written only when camera 0 and at least one other accepted it and the triangulation
+ * reprojects within TRACK_LANDMARKS_MAX_REPROJ_PX in each (docs/landmarks.md, "In 3D"); a
+ * landmark not matched so in frame 0 has no reference in 3D and is never written. Private to
+ * src/app. */
 #ifndef STILLHEART_APP_TRACK_LANDMARKS_H
 #define STILLHEART_APP_TRACK_LANDMARKS_H
 
 #include <stdio.h>
 
+#include "stillheart/calib.h"
 #include "stillheart/detect.h"
 #include "stillheart/image.h"
 #include "stillheart/landmarks.h"
 #include "stillheart/points.h"
 
+/* Half of the 1 px a landmark must be good to, as the backward test: with two cameras the
+ * triangulation splits the distance from the epipolar line between the two views. */
+#define TRACK_LANDMARKS_MAX_REPROJ_PX 0.5
+
+typedef struct {
+    int n;                 /* up to n landmarks */
+    int sparse, affine;    /* --landmarks-sparse, --landmarks-affine */
+    int ncam;              /* videos; with calib and ncam > 1, landmarks in 3D */
+    const sh_calib *calib; /* NULL: 2D (camera 0 alone) */
+} track_landmarks_options;
+
+typedef struct {
+    int chosen;                                /* landmarks chosen in frame 0 */
+    int in_3d;                                 /* of them, matched and triangulated in frame 0 */
+    long long verdicts[SH_LANDMARK_VERDICTS];  /* camera 0's landmark-frames by verdict */
+    long long unmatched;  /* 3D: accepted in camera 0, by no other camera */
+    long long inconsistent; /* 3D: accepted in two or more, refused by the reprojection test */
+} track_landmarks_stats;
+
 typedef struct track_landmarks track_landmarks;
 
-/* Frame 0 of camera 0: up to n landmarks (with sparse, sh_landmarks_params_sparse's tests), inside the hull of its marker rows and off the tags
- * detected there; their rows written. 0, or 1 with the reason printed. With fewer than 3 marker
- * rows there is no hull: a warning, 0 and *tl NULL (the markers go on without landmarks). */
-int track_landmarks_start(int n, int sparse, int affine, const sh_image *frame, const sh_detection *dets, int ndet, const sh_point *rows,
-                          int nrows, FILE *out, track_landmarks **tl);
+/* Frame 0 (frames: one image per camera): up to o->n landmarks inside the hull of camera 0's
+ * marker rows and off the tags detected there; their rows written. 0, or 1 with the reason
+ * printed. With fewer than 3 marker rows there is no hull: a warning, 0 and *tl NULL (the
+ * markers go on without landmarks). */
+int track_landmarks_start(const track_landmarks_options *o, const sh_image *frames, const sh_detection *dets, int ndet,
+                          const sh_point *rows, int nrows, FILE *out, track_landmarks **tl);
 /* Frame f: each landmark predicted by the markers' map (TPS on the marker rows f shares with
- * frame 0), found and judged; the accepted ones written. 0, or 1 with the reason printed. */
-int track_landmarks_frame(track_landmarks *tl, const sh_image *frame, int f, const sh_point *rows, int nrows,
+ * frame 0), found and judged (in 3D, in every camera); the accepted ones written. 0, or 1 with
+ * the reason printed. */
+int track_landmarks_frame(track_landmarks *tl, const sh_image *frames, int f, const sh_point *rows, int nrows,
                           FILE *out);
-/* Landmark-frames by verdict so far, and how many landmarks were chosen. */
-void track_landmarks_counts(const track_landmarks *tl, long long verdicts[SH_LANDMARK_VERDICTS], int *chosen);
+void track_landmarks_stats_get(const track_landmarks *tl, track_landmarks_stats *s);
 void track_landmarks_destroy(track_landmarks *tl);
 
 #endif

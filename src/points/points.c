@@ -372,6 +372,34 @@ int sh_points_match(const sh_point *ref, int nref, const sh_point *cur, int ncur
     return n;
 }
 
+static int has_xyz(const sh_point *p)
+{
+    return isfinite(p->X) && isfinite(p->Y) && isfinite(p->Z);
+}
+
+int sh_points_match_xyz(const sh_point *ref, int nref, const sh_point *cur, int ncur, int *ids,
+                        double *cur_xyz)
+{
+    int n = 0;
+    for (int i = 0, j = 0; i < nref && j < ncur;) {
+        if (ref[i].id < cur[j].id) {
+            i++;
+        } else if (ref[i].id > cur[j].id) {
+            j++;
+        } else {
+            if (has_xyz(&ref[i]) && has_xyz(&cur[j])) {
+                ids[n] = cur[j].id;
+                cur_xyz[3 * n] = cur[j].X;
+                cur_xyz[3 * n + 1] = cur[j].Y;
+                cur_xyz[3 * n + 2] = cur[j].Z;
+                n++;
+            }
+            i++, j++;
+        }
+    }
+    return n;
+}
+
 sh_status sh_points_write(FILE *out, const sh_point *rows, int count, int has_3d)
 {
     if (!out || (count > 0 && !rows) || count < 0)

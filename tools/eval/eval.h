@@ -13,6 +13,7 @@
 #include "stillheart/metrics.h"
 #include "stillheart/points.h"
 #include "stillheart/warp.h"
+#include "stillheart/warp3d.h"
 
 /* ---- geometric error (geometric.c) ---- */
 
@@ -24,6 +25,11 @@ typedef struct {
     int identity;              /* --method none: the map is q -> q (the unstabilized video) */
     sh_interp_params params;   /* as `stillheart warp` builds its interpolant */
     sh_warp_options wopts;
+    /* --cameras: the map of `stillheart warp3d`'s reference view of `camera` (calib->cam[camera]
+     * both source and view), rebuilt from the points' X, Y, Z with p3 and vopts; NULL: 2D */
+    const sh_calib *calib;
+    sh_warp3d_params p3;
+    sh_warp3d_view_options vopts;
 } eval_geo_options;
 
 typedef struct eval_geo eval_geo;
@@ -93,6 +99,14 @@ void eval_landmarks_print(const eval_lm_result *r, const char *video_path, int r
 /* The 2D rows of `points` and r->rows together, sorted by frame and id: a points file that
  * `stillheart warp` takes, the truth's markers with the landmarks. */
 sh_status eval_landmarks_write_points(const sh_points *points, const eval_lm_result *r, FILE *out);
+
+/* ---- landmark rows against the truth (rows.c) ---- */
+
+/* --landmark-rows: the landmark rows of points_path (their x, y in `camera`; with calib, their
+ * X, Y, Z in every camera) against the phantom in truth_dir; prints JSON or text; the exit
+ * status. */
+int eval_rows_main(const char *truth_dir, const char *points_path, const sh_calib *calib, int camera, int reference,
+                   int json);
 
 /* ---- the texture's spatial spectrum (spectrum.c) ---- */
 

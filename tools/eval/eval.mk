@@ -82,3 +82,10 @@ LANDMARKS_DIR ?= out/landmarks
 .PHONY: landmarks-table
 landmarks-table: $(EVAL_BIN) $(BUILD)/stillheart-render
 	@sh tools/eval/landmarks.sh $(BUILD) $(LANDMARKS_DIR)
+
+# Landmarks in 3D on trinocular renders (tools/eval/landmarks3d.sh, docs/landmarks.md "In 3D"):
+# track, the rows against the truth, warp3d and the geometric error; about 25 minutes.
+LANDMARKS3D_DIR ?= out/landmarks3d
+.PHONY: landmarks3d-table
+landmarks3d-table: $(EVAL_BIN) $(BUILD)/stillheart-render $(APP)
+	@sh tools/eval/landmarks3d.sh $(BUILD) $(LANDMARKS3D_DIR)

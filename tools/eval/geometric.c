@@ -8,7 +8,12 @@
  * reference positions of the markers frame t shares with frame N, a warp model on it, updated with
  * frame t's positions, and sh_warp_model_map for the map the executor samples with (grid
  * interpolation and fixed-point rounding included). A frame with fewer than 3 shared markers, or
- * whose model the library refuses, was passed through raw by the warp: its map is the identity. */
+ * whose model the library refuses, was passed through raw by the warp: its map is the identity.
+ * With a calibration (--cameras), f_t is `stillheart warp3d`'s reference view instead
+ * (src/app/cmd_warp3d.c): a 3D model on the reference X, Y, Z of the markers frame t shares with
+ * frame N (4 at least), its view from the phantom's camera, the reference frame's map made first
+ * as warp3d makes it; the view's grid refines with what it has seen, so the map may differ from
+ * warp3d's within the view's max_error where the two saw different frames before. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -30,6 +35,9 @@ struct eval_geo {
     double *model_ref;
     sh_interp *interp;
     sh_warp_model *model;
+    sh_warp3d_model *m3; /* 3D (calib): the model and view for the current marker set */
+    sh_warp3d_view *v3;
+    double *xyz, *cur_xyz; /* 3D: the set's reference X, Y, Z; the frame's */
     int *ids;
     double *cur_xy;
     float *map;
@@ -46,6 +54,10 @@ void eval_geo_destroy(eval_geo *g)
     if (!g) return;
     sh_warp_model_destroy(g->model);
     sh_interp_destroy(g->interp);
+    sh_warp3d_view_destroy(g->v3);
+    sh_warp3d_model_destroy(g->m3);
+    free(g->xyz);
+    free(g->cur_xyz);
     free(g->sx);
     free(g->sy);
     free(g->seen);
@@ -65,6 +77,11 @@ sh_status eval_geo_create(const eval_geo_options *opts, const sh_points *points,
     if (opts->camera < 0 || opts->camera >= pm->num_cameras)
         return sh_error_set(SH_EINVAL, "--camera %d: the phantom has %d camera(s)", opts->camera,
                             pm->num_cameras);
+    if (opts->calib && (opts->camera >= opts->calib->num_cameras || opts->calib->width != width ||
+                        opts->calib->height != height))
+        return sh_error_set(SH_EINVAL, "--cameras: camera %d of a %d-camera calibration for %dx%d, the video is %dx%d",
+                            opts->camera, opts->calib->num_cameras, opts->calib->width, opts->calib->height, width,
+                            height);
     if (pm->width != width || pm->height != height)
         return sh_error_set(SH_EINVAL, "the phantom's images are %dx%d, the video's %dx%d",
                             pm->width, pm->height, width, height);
@@ -92,7 +109,9 @@ sh_status eval_geo_create(const eval_geo_options *opts, const sh_points *points,
     g->cur_xy = malloc(sizeof(double) * 2 * (size_t)(g->ref_count + 1));
     g->model_ref = malloc(sizeof(double) * 2 * (size_t)(g->ref_count + 1));
     g->map = opts->identity ? NULL : malloc(sizeof(float) * 2 * npix);
-    if (!g->sx || !g->sy || !g->seen || !g->ids || !g->model_ids || !g->cur_xy ||
+    g->xyz = malloc(sizeof(double) * 3 * (size_t)(g->ref_count + 1));
+    g->cur_xyz = malloc(sizeof(double) * 3 * (size_t)(g->ref_count + 1));
+    if (!g->sx || !g->sy || !g->seen || !g->ids || !g->model_ids || !g->cur_xy || !g->xyz || !g->cur_xyz ||
         !g->model_ref || (!opts->identity && !g->map)) {
         eval_geo_destroy(g);
         return sh_error_set(SH_ENOMEM, "geometric error: out of memory");
@@ -142,10 +161,47 @@ static sh_status build_model(eval_geo *g, int n)
     return SH_OK;
 }
 
+/* 3D: the model and view of the n ids in g->ids, the reference frame's map made first. */
+static sh_status build_model3(eval_geo *g, int n)
+{
+    sh_warp3d_view_destroy(g->v3);
+    sh_warp3d_model_destroy(g->m3);
+    g->v3 = NULL;
+    g->m3 = NULL;
+    g->model_n = 0;
+    for (int k = 0, r = 0; k < n; k++) {
+        while (g->ref_rows[r].id != g->ids[k]) r++;
+        g->xyz[3 * k] = g->ref_rows[r].X, g->xyz[3 * k + 1] = g->ref_rows[r].Y, g->xyz[3 * k + 2] = g->ref_rows[r].Z;
+    }
+    const sh_calib_camera *cam = &g->o.calib->cam[g->o.camera];
+    sh_status st = sh_warp3d_model_create(&g->o.p3, g->xyz, n, &g->m3);
+    if (st == SH_OK) st = sh_warp3d_view_create(g->m3, cam, cam, g->width, g->height, &g->o.vopts, &g->v3);
+    if (st == SH_OK) st = sh_warp3d_model_update(g->m3, g->xyz);
+    if (st == SH_OK) st = sh_warp3d_view_update(g->v3);
+    if (st != SH_OK) return st;
+    memcpy(g->model_ids, g->ids, sizeof(int) * (size_t)n);
+    g->model_n = n;
+    return SH_OK;
+}
+
+/* 3D: the map of frame t into g->map; 0 when warp3d passed the frame through raw. */
+static int frame_map3(eval_geo *g, int t)
+{
+    int ncur;
+    const sh_point *cur = sh_points_frame(g->points, t, &ncur);
+    int n = sh_points_match_xyz(g->ref_rows, g->ref_count, cur, ncur, g->ids, g->cur_xyz);
+    if (n < 4) return 0;
+    int ok = (g->m3 && g->model_n == n && !memcmp(g->model_ids, g->ids, sizeof(int) * (size_t)n)) ||
+             build_model3(g, n) == SH_OK;
+    return ok && sh_warp3d_model_update(g->m3, g->cur_xyz) == SH_OK && sh_warp3d_view_update(g->v3) == SH_OK &&
+           sh_warp_model_map(sh_warp3d_view_map_model(g->v3), g->map) == SH_OK;
+}
+
 /* The map of frame t into g->map; returns 0 when the warp passed the frame through raw. */
 static int frame_map(eval_geo *g, int t)
 {
     if (g->o.identity) return 0;
+    if (g->o.calib) return frame_map3(g, t);
     int ncur;
     const sh_point *cur = sh_points_frame(g->points, t, &ncur);
     int n = sh_points_match(g->ref_rows, g->ref_count, cur, ncur, g->ids, NULL, g->cur_xy);

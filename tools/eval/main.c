@@ -64,6 +64,12 @@ static void usage(FILE *f)
         "                     hidden in frame t (or at q in frame N) are skipped and counted, as\n"
         "                     are pixels outside the warp's hull when markers were missing.\n"
         "                     Frames the warp left raw (fewer than 3 markers) have f_t(q) = q.\n"
+        "  --cameras CALIB    STABILIZED is `stillheart warp3d --view reference`'s output: its\n"
+        "                     map is rebuilt from P.csv's X,Y,Z as warp3d builds it, the camera\n"
+        "                     --camera of CALIB (the render's calibration.yaml) both source and\n"
+        "                     view; the method from the header's method3d:NAME[/NAME] or --method\n"
+        "                     (NAME or SURFACE/DISPLACEMENT); frames with fewer than 4 markers\n"
+        "                     are raw\n"
         "  --camera C         camera of the phantom the video shows (default 0)\n"
         "  --geo-stride S     sample spacing in pixels (default 4)\n"
         "  --method M         the warp's method: affine, pwlinear, bspline, rbf-local, tps,\n"
@@ -112,6 +118,15 @@ static void usage(FILE *f)
         "                     64 px patches of tissue alone inside the tags' hull (8 frames of\n"
         "                     VIDEO, the truth's tags and occluders): alpha over 4..16 cycles per\n"
         "                     patch and per octave, and the RMS contrast\n"
+        "\nLandmark rows against the truth: " PROG " --truth DIR --points P.csv --landmark-rows\n"
+        "    [--cameras CALIB] [--camera C] [--reference N] [--json]\n"
+        "  --landmark-rows    the rows of P.csv with ids from 1000000 (`stillheart track\n"
+        "                     --landmarks`), each landmark's material point located from its row\n"
+        "                     in frame N: every later row's x, y against where the truth puts the\n"
+        "                     point in camera C (rows the truth says are hidden counted: wrong\n"
+        "                     ones); with --cameras, every row's X,Y,Z (frame N's too) projected\n"
+        "                     into each camera that sees the point, the worst of them: mean, p99,\n"
+        "                     max and rows over 1 px\n"
         "STABILIZED may be '-' (standard input) with --reference 0.\n");
 }
 
@@ -183,6 +198,8 @@ static sh_status video_next(video *v, const sh_hull *hull, int t)
 
 typedef struct {
     const char *points_path, *truth_dir, *heatmap, *method, *export_out;
+    const char *calib_path;          /* --cameras: STABILIZED is warp3d's reference view */
+    sh_calib calib;
     int reference, camera, stride, json, contours;
     double heatmap_max, heatmap_scale;
     eval_geo_options geo;
@@ -192,6 +209,7 @@ typedef struct {
     int landmarks;                   /* --landmarks N: 0 when not asked */
     const char *landmarks_points;    /* --landmarks-points OUT.csv */
     int spectrum;                    /* --spectrum */
+    int landmark_rows;               /* --landmark-rows */
     sh_landmarks_params lp;
 } options;
 
@@ -252,19 +270,42 @@ static void report(const options *o, const video *stab, const video *orig, const
 /* The method whose map --truth measures: --method, else the one the video's header names
  * (XSTILLHEART=method:NAME, written by `stillheart warp` and `run`); given both, they must agree.
  * 0, or 2 with the refusal printed. */
+static int known_method(const char *name)
+{
+    sh_interp_params p;
+    return sh_interp_params_parse(name, &p) == SH_OK;
+}
+
+/* warp3d's interpolants: NAME for both, or SURFACE/DISPLACEMENT (its header's form). */
+static sh_status parse_method3d(const char *m, sh_interp_params *surface, sh_interp_params *displacement)
+{
+    char a[64];
+    const char *slash = strchr(m, '/');
+    size_t len = slash ? (size_t)(slash - m) : strlen(m);
+    if (len >= sizeof a) return sh_error_set(SH_EINVAL, "unknown method '%s'", m);
+    memcpy(a, m, len);
+    a[len] = '\0';
+    sh_status st = sh_interp_params_parse(a, surface);
+    return st != SH_OK ? st : sh_interp_params_parse(slash ? slash + 1 : a, displacement);
+}
+
 static int resolve_method(options *o, const char *path, const sh_y4m_header *h)
 {
     char tag[SH_Y4M_MAX_EXTRA];
     int tagged = sh_y4m_header_tag(h, SH_Y4M_STILLHEART, tag, sizeof tag);
-    const char *named = tagged && !strncmp(tag, "method:", 7) ? tag + 7 : NULL;
+    /* 2D: method:NAME (stillheart warp, run); 3D: method3d:NAME or method3d:SURFACE/DISPLACEMENT */
+    const char *kind = o->calib_path ? "method3d:" : "method:";
+    const char *named = tagged && !strncmp(tag, kind, strlen(kind)) ? tag + strlen(kind) : NULL;
     if (tagged && !named) {
         if (!o->truth_dir) return 0; /* e does not depend on the method */
-        sh_log_error("%s: its header says %s=%s, not a 2D warp's method:NAME; --truth measures the "
-                     "map of `stillheart warp`", path, SH_Y4M_STILLHEART, tag);
+        sh_log_error("%s: its header says %s=%s, not %sNAME; --truth measures the map of %s", path,
+                     SH_Y4M_STILLHEART, tag, kind,
+                     o->calib_path ? "`stillheart warp3d` (with --cameras)" : "`stillheart warp` (without --cameras)");
         return 2;
     }
-    sh_interp_params known;
-    if (named && strcmp(named, "none") && sh_interp_params_parse(named, &known) != SH_OK) {
+    sh_interp_params s3, d3;
+    if (named && strcmp(named, "none") &&
+        (o->calib_path ? parse_method3d(named, &s3, &d3) != SH_OK : !known_method(named))) {
         sh_log_error("%s: its header names the method '%s', which this stillheart-eval does not know",
                      path, named);
         return 2;
@@ -296,7 +337,16 @@ static int geo_method(options *o)
     o->geo.reference = o->reference;
     o->geo.stride = o->stride;
     o->geo.identity = !strcmp(o->method, "none");
-    if (!o->geo.identity) {
+    if (!o->geo.identity && o->calib_path) {
+        o->geo.calib = &o->calib;
+        sh_warp3d_params_default(&o->geo.p3);
+        if (parse_method3d(o->method, &o->geo.p3.surface, &o->geo.p3.displacement) != SH_OK) return 1 + fail("--method");
+        if (o->have_sigma) o->geo.p3.surface.sigma = o->geo.p3.displacement.sigma = o->sigma;
+        sh_warp3d_view_options_default(&o->geo.vopts);
+        o->geo.vopts.warp.max_error = o->max_error;
+        /* the 2D parameters name the surface's method (the landmark rows' test) */
+        o->geo.params = o->geo.p3.surface;
+    } else if (!o->geo.identity) {
         if (sh_interp_params_parse(o->method, &o->geo.params) != SH_OK) return 1 + fail("--method");
         if (o->have_sigma) o->geo.params.sigma = o->sigma;
         o->geo.params.levels = o->levels;
@@ -454,7 +504,8 @@ static int evaluate(options *o, const char *stab_path, const char *orig_path)
         o->geo.truth = truth;
         /* the map the warp used: without landmark rows for a method that leaves them out (the
          * hull stays the markers': landmarks are chosen inside it) */
-        if (!o->geo.identity && !sh_landmarks_method_uses(o->geo.params.method))
+        if (!o->geo.identity && (!sh_landmarks_method_uses(o->geo.params.method) ||
+                                 (o->geo.calib && !sh_landmarks_method_uses(o->geo.p3.displacement.method))))
             sh_points_drop_ids(&points, SH_LANDMARK_ID_BASE);
         if (eval_geo_create(&o->geo, &points, &hull, f->width, f->height, &geo) != SH_OK) {
             sh_log_error("%s: %s", o->truth_dir, sh_error_message());
@@ -496,7 +547,8 @@ int main(int argc, char **argv)
         {"lm-sparse", no_argument, 0, 1004}, {"lm-bound-factor", required_argument, 0, 1005},
         {"lm-plane", no_argument, 0, 1006}, {"lm-affine", no_argument, 0, 1009},
         {"landmarks-points", required_argument, 0, 1007},
-        {"spectrum", no_argument, 0, 1008},
+        {"spectrum", no_argument, 0, 1008}, {"cameras", required_argument, 0, 1010},
+        {"landmark-rows", no_argument, 0, 1011},
         {"json", no_argument, 0, 'j'},           SH_CLI_OPTIONS, {0, 0, 0, 0}};
     options o = {.stride = 4, .heatmap_max = 0.2, .heatmap_scale = 1, .contours = 4, .max_error = 0.05};
     sh_landmarks_params_default(&o.lp);
@@ -507,6 +559,8 @@ int main(int argc, char **argv)
         case 'p': o.points_path = optarg; break;
         case 'r': if (!sh_cli_parse_int("--reference", optarg, 0, SH_POINTS_MAX_FRAME, &o.reference)) return 2; break;
         case 'T': o.truth_dir = optarg; break;
+        case 1010: o.calib_path = optarg; break;
+        case 1011: o.landmark_rows = 1; break;
         case 'c': if (!sh_cli_parse_int("--camera", optarg, 0, PHANTOM_MAX_CAMERAS - 1, &o.camera)) return 2; break;
         case 'm': o.method = optarg; break;
         case 's': if (!sh_cli_parse_double("--sigma", optarg, 1e-6, 1e9, &o.sigma)) return 2;
@@ -556,6 +610,12 @@ int main(int argc, char **argv)
         if (!o.truth_dir || argc - optind != 1) return sh_cli_usage_error(&cli, "--spectrum needs --truth DIR and one video");
         return eval_spectrum_main(o.truth_dir, o.camera, o.json, argv[optind]);
     }
+    if (o.landmark_rows) {
+        if (!o.truth_dir || !o.points_path || optind != argc)
+            return sh_cli_usage_error(&cli, "--landmark-rows needs --truth DIR and --points, and no video");
+        if (o.calib_path && sh_calib_read(o.calib_path, &o.calib) != SH_OK) return fail("--cameras");
+        return eval_rows_main(o.truth_dir, o.points_path, o.calib_path ? &o.calib : NULL, o.camera, o.reference, o.json);
+    }
     if (o.landmarks_points && !o.landmarks) return sh_cli_usage_error(&cli, "--landmarks-points needs --landmarks N");
     if (o.landmarks) {
         if (!o.truth_dir || !o.points_path || argc - optind != 1)
@@ -564,8 +624,11 @@ int main(int argc, char **argv)
     }
     if (!o.points_path || argc - optind < 1 || argc - optind > 2)
         return sh_cli_usage_error(&cli, "need --points and the stabilized video (and optionally the original)");
-    sh_interp_params named;
-    if (o.method && strcmp(o.method, "none") && sh_interp_params_parse(o.method, &named) != SH_OK)
+    sh_interp_params named, named3;
+    if (o.method && strcmp(o.method, "none") &&
+        (o.calib_path ? parse_method3d(o.method, &named, &named3) : sh_interp_params_parse(o.method, &named)) != SH_OK)
         return 1 + fail("--method"); /* a usage error, exit 2, as in warp and warp3d */
+    if (o.calib_path && !o.truth_dir) return sh_cli_usage_error(&cli, "--cameras goes with --truth");
+    if (o.calib_path && sh_calib_read(o.calib_path, &o.calib) != SH_OK) return fail("--cameras");
     return evaluate(&o, argv[optind], argc - optind == 2 ? argv[optind + 1] : NULL);
 }
