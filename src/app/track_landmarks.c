@@ -14,6 +14,7 @@
 
 struct track_landmarks {
     sh_landmarks *lm;
+    sh_landmarks *lm_other; /* 3D: the other cameras' searches (affine windows), unless lm's are */
     int n;
     int ncam;              /* > 1: landmarks in 3D */
     const sh_calib *calib;
@@ -123,7 +124,7 @@ static void onto_epipolar_line(const track_landmarks *tl, int c, const float x0[
 }
 
 /* Camera c (> 0) of the frame: every landmark searched from its prediction moved onto the
- * epipolar line of camera 0's position (tl->xy[0]), and judged. Without a prediction (fewer than
+ * epipolar line of camera 0's position (tl->xy[0]), through affine windows, and judged. Without a prediction (fewer than
  * 3 markers with X, Y, Z) every landmark is lost there. 0, or 1 with the reason printed. */
 static int match_camera(track_landmarks *tl, int c, const sh_image *frame, int f, const sh_point *cur, int ncur)
 {
@@ -133,7 +134,7 @@ static int match_camera(track_landmarks *tl, int c, const sh_image *frame, int f
     }
     for (int i = 0; i < tl->n; i++) onto_epipolar_line(tl, c, &tl->xy[0][2 * i], &tl->pred[2 * i]);
     const sh_plane *y = luma(tl, c, frame);
-    if (!y || sh_landmarks_track(tl->lm, y, tl->pred, tl->xy[c], tl->verdict[c], NULL) != SH_OK) {
+    if (!y || sh_landmarks_track(tl->lm_other ? tl->lm_other : tl->lm, y, tl->pred, tl->xy[c], tl->verdict[c], NULL) != SH_OK) {
         sh_log_error("--landmarks: camera %d, frame %d: %s", c, f, sh_error_message());
         return 1;
     }
@@ -262,6 +263,14 @@ int track_landmarks_start(const track_landmarks_options *o, const sh_image *fram
     if (!y || sh_hull_compute(tl->ref_xy, nrows, &hull) != SH_OK ||
         sh_landmarks_create(&p, y, &hull, tags, ndet, &tl->lm) != SH_OK)
         rc = fail("frame 0");
+    /* The other cameras see the tissue from elsewhere, its windows foreshortened unlike camera
+     * 0's: their searches always warp the reference window by the local affine of the markers'
+     * map into that camera (measured: docs/landmarks.md, "In 3D"). The same choice, as it does
+     * not depend on `affine`. */
+    if (!rc && tl->ncam > 1 && !o->affine) {
+        p.affine = 1;
+        if (sh_landmarks_create(&p, y, &hull, tags, ndet, &tl->lm_other) != SH_OK) rc = fail("frame 0");
+    }
     free(tags);
     if (!rc) {
         tl->n = tl->stats.chosen = sh_landmarks_count(tl->lm);
@@ -320,6 +329,7 @@ void track_landmarks_destroy(track_landmarks *tl)
 {
     if (!tl) return;
     sh_landmarks_destroy(tl->lm);
+    sh_landmarks_destroy(tl->lm_other);
     for (int c = 0; c < MAXCAM; c++) {
         sh_image_destroy(&tl->gray[c]);
         free(tl->xy[c]), free(tl->verdict[c]);

@@ -410,7 +410,9 @@ static sh_status check_method(const sh_config *cfg, char *err)
     sh_interp_params method;
     sh_config_method(cfg, &method);
     if (cfg->landmarks && cfg->calibration[0])
-        return refuse(cfg, "track", "landmarks", err, "%d, but landmarks are 2D only (not with [method] calibration)",
+        return refuse(cfg, "track", "landmarks", err,
+                      "%d, but the daemon's landmarks are 2D only (not with [method] calibration; in 3D, offline: "
+                      "stillheart track --cameras --landmarks, then stillheart warp3d)",
                       cfg->landmarks);
     /* a landmark set that changes every frame needs a method whose map can leave points out
      * without a new model (sh_interp_fit_subset), and one that is better with them */

@@ -64,7 +64,7 @@ static void usage(FILE *f)
         "                     hidden in frame t (or at q in frame N) are skipped and counted, as\n"
         "                     are pixels outside the warp's hull when markers were missing.\n"
         "                     Frames the warp left raw (fewer than 3 markers) have f_t(q) = q.\n"
-        "  --cameras CALIB    STABILIZED is `stillheart warp3d --view reference`'s output: its\n"
+        "  --cameras CALIB    STABILIZED is `stillheart warp3d`'s reference view (its default): its\n"
         "                     map is rebuilt from P.csv's X,Y,Z as warp3d builds it, the camera\n"
         "                     --camera of CALIB (the render's calibration.yaml) both source and\n"
         "                     view; the method from the header's method3d:NAME[/NAME] or --method\n"
