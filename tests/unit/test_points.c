@@ -305,6 +305,29 @@ static void test_match(void **state)
     assert_int_equal(sh_points_match(ref, 4, cur, 0, ids, NULL, xy), 0);
 }
 
+/* The ids two frames share with X, Y, Z in both, worked by hand: a row without them on either
+ * side is no shared 3D point. */
+static void test_match_xyz(void **state)
+{
+    (void)state;
+    const sh_point ref[] = {{.id = 1, .X = 1, .Y = 1, .Z = 1},
+                            {.id = 3, .X = 3, .Y = 3, .Z = 3},
+                            {.id = 4, .X = NAN, .Y = 4, .Z = 4},
+                            {.id = 9, .X = 9, .Y = 9, .Z = 9}};
+    const sh_point cur[] = {{.id = 1, .X = 10, .Y = 11, .Z = NAN},
+                            {.id = 3, .X = 30, .Y = 31, .Z = 32},
+                            {.id = 4, .X = 40, .Y = 41, .Z = 42},
+                            {.id = 9, .X = 90, .Y = 91, .Z = 92},
+                            {.id = 12, .X = 1, .Y = 2, .Z = 3}};
+    int ids[5];
+    double xyz[15];
+    assert_int_equal(sh_points_match_xyz(ref, 4, cur, 5, ids, xyz), 2);
+    assert_int_equal(ids[0], 3);
+    assert_int_equal(ids[1], 9);
+    assert_true(xyz[0] == 30 && xyz[1] == 31 && xyz[2] == 32 && xyz[3] == 90 && xyz[4] == 91 && xyz[5] == 92);
+    assert_int_equal(sh_points_match_xyz(ref, 4, cur, 0, ids, xyz), 0);
+}
+
 /* Landmark rows (ids from a limit on) dropped: every other row kept in order, every frame still
  * there, a frame left with no row answering none. */
 static void test_drop_ids(void **state)
@@ -340,6 +363,7 @@ int main(void)
         cmocka_unit_test(test_write_read_round_trip),
         cmocka_unit_test(test_read_file),
         cmocka_unit_test(test_match),
+        cmocka_unit_test(test_match_xyz),
         cmocka_unit_test(test_drop_ids),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
