@@ -124,8 +124,9 @@ static void onto_epipolar_line(const track_landmarks *tl, int c, const float x0[
 }
 
 /* Camera c (> 0) of the frame: every landmark searched from its prediction moved onto the
- * epipolar line of camera 0's position (tl->xy[0]), through affine windows, and judged. Without a prediction (fewer than
- * 3 markers with X, Y, Z) every landmark is lost there. 0, or 1 with the reason printed. */
+ * epipolar line of camera 0's position (tl->xy[0]), through affine windows, and judged. Without
+ * a prediction (fewer than 3 markers with X, Y, Z) every landmark is lost there. 0, or 1 with the
+ * reason printed. */
 static int match_camera(track_landmarks *tl, int c, const sh_image *frame, int f, const sh_point *cur, int ncur)
 {
     if (!predict(tl, c, cur, ncur)) {

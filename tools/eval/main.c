@@ -267,9 +267,6 @@ static void report(const options *o, const video *stab, const video *orig, const
     if (o->heatmap) printf("heatmap: %s\n", o->heatmap);
 }
 
-/* The method whose map --truth measures: --method, else the one the video's header names
- * (XSTILLHEART=method:NAME, written by `stillheart warp` and `run`); given both, they must agree.
- * 0, or 2 with the refusal printed. */
 static int known_method(const char *name)
 {
     sh_interp_params p;
@@ -289,6 +286,10 @@ static sh_status parse_method3d(const char *m, sh_interp_params *surface, sh_int
     return st != SH_OK ? st : sh_interp_params_parse(slash ? slash + 1 : a, displacement);
 }
 
+/* The method whose map --truth measures: --method, else the one the video's header names
+ * (XSTILLHEART=method:NAME, written by `stillheart warp` and `run`; with --cameras
+ * method3d:NAME[/NAME], written by `stillheart warp3d`); given both, they must agree.
+ * 0, or 2 with the refusal printed. */
 static int resolve_method(options *o, const char *path, const sh_y4m_header *h)
 {
     char tag[SH_Y4M_MAX_EXTRA];
