@@ -63,6 +63,13 @@ int sh_points_match(const sh_point *ref, int nref, const sh_point *cur, int ncur
  * current frame's X, Y, Z (3 a point). Returns the count. */
 int sh_points_match_xyz(const sh_point *ref, int nref, const sh_point *cur, int ncur, int *ids,
                         double *cur_xyz);
+/* The same for a 3D model that holds every landmark of the reference and fits each frame through
+ * the ones it has (sh_warp3d_model_update_subset): the markers both frames have with X, Y, Z (ids
+ * below min_id), then every reference row from min_id on with X, Y, Z, in id order; cur_xyz their
+ * current positions (a landmark the frame lacks, or has without X, Y, Z: its reference position)
+ * and use[k] whether the frame has it. Returns the count; *used: how many are used. */
+int sh_points_match_xyz_keep(const sh_point *ref, int nref, const sh_point *cur, int ncur, int min_id, int *ids,
+                             double *cur_xyz, unsigned char *use, int *used);
 
 /* Writes rows as CSV with the header: frame,id,x,y, and X,Y,Z when has_3d; has_3d
  * SH_POINTS_XYZ_ONLY leaves out x,y. */

@@ -62,6 +62,14 @@ int sh_warp3d_model_num_points(const sh_warp3d_model *model);
 
 /* The current positions of the same n markers, in the same order. Allocation-free. */
 sh_status sh_warp3d_model_update(sh_warp3d_model *model, const double *cur_xyz);
+/* The displacement through the points with use[k] != 0 alone (natural landmarks that come and
+ * go every frame, landmarks.h): its trend by least squares over them, its interpolant by
+ * sh_interp_fit_subset (affine and the RBFs: the interpolant through them alone; bspline on the
+ * model's lattices; pwlinear refuses). The surface stays the one through every reference point.
+ * A left-out point's cur_xyz is not read. use NULL: sh_warp3d_model_update. The first call
+ * allocates the subset fit's work (kept with the model), later ones nothing. SH_EDEGENERATE for
+ * fewer used points than the trend has terms, or ones that do not determine it. */
+sh_status sh_warp3d_model_update_subset(sh_warp3d_model *model, const double *cur_xyz, const unsigned char *use);
 
 /* The surface frame: origin and rows e1, e2, normal (world). A world point is
  * origin + X' e1 + Y' e2 + Z' normal. */

@@ -233,6 +233,10 @@ typedef struct {
     sh_modelcache_entry *slot; /* the models of the current frame's marker set */
     sh_calib calib;
     int nref;                  /* the reference frame's markers with X,Y,Z */
+    /* the reference has landmark rows: every model holds all of them, and each frame is fitted
+     * through the ones it has (use; sh_warp3d_model_update_subset) */
+    int landmarks;
+    unsigned char *use;
     sh_y4m_header out_hdr;
     sh_image rgb, eye;         /* --export-ply's colours; a half layout's eye */
     int exported;
@@ -274,6 +278,10 @@ static int open_input(warp3d_job *j)
     s->cur = malloc(sizeof(double) * 3 * ((size_t)s->ref_count + 1));
     if (!s->ids || !s->cur) return app_fail("out of memory");
     j->nref = sh_points_match_xyz(s->ref_rows, s->ref_count, s->ref_rows, s->ref_count, s->ids, s->cur);
+    /* pwlinear cannot leave points out (its triangles depend on which are used): a model per set */
+    for (int i = 0; i < j->nref; i++)
+        j->landmarks |= s->ids[i] >= SH_LANDMARK_ID_BASE && o->p3.displacement.method != SH_METHOD_PWLINEAR;
+    if (j->landmarks && !(j->use = malloc((size_t)s->ref_count + 1))) return app_fail("out of memory");
     if (j->nref < 4) {
         sh_log_error("%s: the reference frame %d has %d markers with X,Y,Z, need 4",
                      o->points_path, o->reference, j->nref);
@@ -423,15 +431,17 @@ static int warp3d_frame(void *job)
     app_stab *s = &j->s;
     int ncur, nviews = j->recipe.nviews;
     const sh_point *cur = sh_points_frame(&s->points, s->frames, &ncur);
-    int n = sh_points_match_xyz(s->ref_rows, s->ref_count, cur, ncur, s->ids, s->cur);
+    int used, n = j->landmarks ? sh_points_match_xyz_keep(s->ref_rows, s->ref_count, cur, ncur, SH_LANDMARK_ID_BASE,
+                                                          s->ids, s->cur, j->use, &used)
+                               : (used = sh_points_match_xyz(s->ref_rows, s->ref_count, cur, ncur, s->ids, s->cur));
     double t0 = app_now();
-    int raw = n < 4 || sh_modelcache_get(s->cache, s->ids, n, &j->slot) != SH_OK ||
-              sh_warp3d_model_update(j->slot->m3, s->cur) != SH_OK;
+    int raw = used < 4 || sh_modelcache_get(s->cache, s->ids, n, &j->slot) != SH_OK ||
+              sh_warp3d_model_update_subset(j->slot->m3, s->cur, j->landmarks ? j->use : NULL) != SH_OK;
     for (int v = 0; v < nviews && !raw; v++)
         raw = sh_warp3d_view_update(j->slot->view[v]) != SH_OK;
     if (!raw && render(s->warp, j->slot, nviews, o->layout_id, &j->eye, &s->in, &s->out, 0) != SH_OK) raw = 1;
     if (raw) {
-        app_stab_raw(s, "warp3d", n, 4, o->quiet);
+        app_stab_raw(s, "warp3d", used, 4, o->quiet);
         render(s->warp, j->slot, nviews, o->layout_id, &j->eye, &s->in, &s->out, 1);
     }
     s->warp_seconds += app_now() - t0;
@@ -467,6 +477,7 @@ static void warp3d_close(warp3d_job *j)
     app_stab_close(&j->s);
     sh_image_destroy(&j->rgb);
     sh_image_destroy(&j->eye);
+    free(j->use);
 }
 
 int cmd_warp3d(int argc, char **argv)

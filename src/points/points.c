@@ -400,6 +400,25 @@ int sh_points_match_xyz(const sh_point *ref, int nref, const sh_point *cur, int 
     return n;
 }
 
+int sh_points_match_xyz_keep(const sh_point *ref, int nref, const sh_point *cur, int ncur, int min_id, int *ids,
+                             double *cur_xyz, unsigned char *use, int *used)
+{
+    int n = 0;
+    *used = 0;
+    for (int i = 0, j = 0; i < nref; i++) {
+        while (j < ncur && cur[j].id < ref[i].id) j++;
+        int here = j < ncur && cur[j].id == ref[i].id && has_xyz(&cur[j]);
+        if (!has_xyz(&ref[i]) || (ref[i].id < min_id && !here)) continue;
+        const sh_point *p = here ? &cur[j] : &ref[i];
+        ids[n] = ref[i].id;
+        cur_xyz[3 * n] = p->X, cur_xyz[3 * n + 1] = p->Y, cur_xyz[3 * n + 2] = p->Z;
+        use[n] = (unsigned char)here;
+        *used += here;
+        n++;
+    }
+    return n;
+}
+
 sh_status sh_points_write(FILE *out, const sh_point *rows, int count, int has_3d)
 {
     if (!out || (count > 0 && !rows) || count < 0)

@@ -115,6 +115,7 @@ void sh_warp3d_model_destroy(sh_warp3d_model *m)
     free(m->h_pinv);
     free(m->h_basis);
     sh_interp_destroy(m->h_interp);
+    free(m->subset_work);
     free(m->h_coef);
     free(m->disp);
     free(m->resid);
@@ -327,4 +328,48 @@ sh_status sh_warp3d_model_update(sh_warp3d_model *m, const double *cur)
             m->resid[3 * i + c] = s;
         }
     return sh_interp_fit(m->h_interp, m->resid, 3, m->h_coef);
+}
+
+/* The trend over the used points by its normal equations (t <= 4 unknowns: on the stack), then the
+ * residual's interpolant through them. */
+sh_status sh_warp3d_model_update_subset(sh_warp3d_model *m, const double *cur, const unsigned char *use)
+{
+    if (!use) return sh_warp3d_model_update(m, cur);
+    if (!m || !cur) return sh_error_set(SH_EINVAL, "warp3d: no positions");
+    const int n = m->n, t = m->h_terms;
+    int s = 0;
+    for (int i = 0; i < n; i++) {
+        if (!use[i]) continue;
+        s++;
+        for (int c = 0; c < 3; c++) {
+            if (!isfinite(cur[3 * i + c]))
+                return sh_error_set(SH_EINVAL, "warp3d: current position of point %d is not finite", i);
+            m->disp[3 * i + c] = cur[3 * i + c] - m->ref[3 * i + c];
+        }
+    }
+    if (s < t) return sh_error_set(SH_EDEGENERATE, "warp3d: %d points used, the displacement's trend has %d terms", s, t);
+    if (!m->subset_work && !(m->subset_work = malloc(sh_interp_subset_work_size(m->h_interp) + 1)))
+        return sh_error_set(SH_ENOMEM, "warp3d: out of memory");
+    double ata[W3_H_TREND * W3_H_TREND] = {0}, atd[W3_H_TREND * 3] = {0};
+    int src[W3_H_TREND];
+    for (int i = 0; i < n; i++) {
+        if (!use[i]) continue;
+        const double *b = m->h_basis + (size_t)i * t;
+        for (int k = 0; k < t; k++) {
+            for (int l = 0; l < t; l++) ata[k * t + l] += b[k] * b[l];
+            for (int c = 0; c < 3; c++) atd[k * 3 + c] += b[k] * m->disp[3 * i + c];
+        }
+    }
+    if (sh_linalg_lu_factor_inplace(t, ata, src) != SH_OK)
+        return sh_error_set(SH_EDEGENERATE, "warp3d: the %d points used do not determine the displacement's trend", s);
+    sh_linalg_lu_solve(t, ata, src, atd, t, 3, m->h_trend);
+    for (int i = 0; i < n; i++) {
+        if (!use[i]) continue;
+        for (int c = 0; c < 3; c++) {
+            double r = m->disp[3 * i + c];
+            for (int k = 0; k < t; k++) r -= m->h_basis[(size_t)i * t + k] * m->h_trend[3 * k + c];
+            m->resid[3 * i + c] = r;
+        }
+    }
+    return sh_interp_fit_subset(m->h_interp, use, m->resid, 3, m->h_coef, m->subset_work);
 }

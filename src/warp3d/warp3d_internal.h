@@ -28,6 +28,7 @@ struct sh_warp3d_model {
     double *h_coef;           /* num_coefs x 3 */
     double h_trend[W3_H_TREND * 3];
     double *disp, *resid;     /* n x 3 */
+    void *subset_work;        /* sh_warp3d_model_update_subset's (made by its first call) */
 };
 
 

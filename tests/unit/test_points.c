@@ -326,6 +326,19 @@ static void test_match_xyz(void **state)
     assert_int_equal(ids[1], 9);
     assert_true(xyz[0] == 30 && xyz[1] == 31 && xyz[2] == 32 && xyz[3] == 90 && xyz[4] == 91 && xyz[5] == 92);
     assert_int_equal(sh_points_match_xyz(ref, 4, cur, 0, ids, xyz), 0);
+    /* every reference row from id 4 on kept (4 has no X in the reference: not a 3D point), the
+     * frame's positions where it has them, the reference's where not */
+    unsigned char use[5];
+    int used = -1;
+    const sh_point cur2[] = {{.id = 1, .X = 10, .Y = 11, .Z = 12}, {.id = 3, .X = 30, .Y = 31, .Z = 32}};
+    assert_int_equal(sh_points_match_xyz_keep(ref, 4, cur2, 2, 4, ids, xyz, use, &used), 3);
+    assert_int_equal(used, 2);
+    assert_true(ids[0] == 1 && ids[1] == 3 && ids[2] == 9);
+    assert_true(use[0] == 1 && use[1] == 1 && use[2] == 0);
+    assert_true(xyz[0] == 10 && xyz[3] == 30 && xyz[6] == 9 && xyz[7] == 9 && xyz[8] == 9);
+    assert_int_equal(sh_points_match_xyz_keep(ref, 4, cur, 5, 4, ids, xyz, use, &used), 2);
+    assert_int_equal(used, 2);
+    assert_true(ids[0] == 3 && ids[1] == 9 && use[0] == 1 && use[1] == 1 && xyz[3] == 90);
 }
 
 /* Landmark rows (ids from a limit on) dropped: every other row kept in order, every frame still

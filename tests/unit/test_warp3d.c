@@ -176,6 +176,74 @@ static void test_rigid_motion_removed_exactly(void **state)
     }
 }
 
+/* sh_warp3d_model_update_subset: the surface moved rigidly, every other marker used and the
+ * others' current positions NaN (not read): the displacement's trend (affine in 3D over the
+ * surface) takes the motion whole, so the map is the true one as with every marker; with every
+ * marker used it is the full update's; too few used, or pwlinear, are refused. */
+static void test_subset_update(void **state)
+{
+    (void)state;
+    sh_calib_camera cam;
+    make_camera(&cam, 1);
+    double ref[48], cur[48], half[48], Rm[9];
+    int n = make_markers(ref);
+    unsigned char use[16], all[16], three[16];
+    rotation(motion_axis, MOTION_ANGLE, Rm);
+    for (int i = 0; i < n; i++) {
+        transform(Rm, motion_t, ref + 3 * i, cur + 3 * i);
+        use[i] = i % 2 == 0, all[i] = 1, three[i] = i < 3;
+        for (int c = 0; c < 3; c++) half[3 * i + c] = use[i] ? cur[3 * i + c] : NAN;
+    }
+    const char *methods[] = {"tps", "bspline"};
+    for (size_t mi = 0; mi < sizeof methods / sizeof methods[0]; mi++) {
+        sh_warp3d_params params;
+        sh_warp3d_params_default(&params);
+        assert_int_equal(sh_interp_params_parse(methods[mi], &params.surface), SH_OK);
+        assert_int_equal(sh_interp_params_parse(methods[mi], &params.displacement), SH_OK);
+        sh_warp3d_model *model;
+        if (sh_warp3d_model_create(&params, ref, n, &model) != SH_OK) fail_msg("%s", sh_error_message());
+        sh_warp3d_view *view;
+        if (sh_warp3d_view_create(model, &cam, &cam, W, H, NULL, &view) != SH_OK) fail_msg("%s", sh_error_message());
+        if (sh_warp3d_model_update_subset(model, half, use) != SH_OK) fail_msg("%s", sh_error_message());
+        assert_int_equal(sh_warp3d_view_update(view), SH_OK);
+        float *map = malloc(sizeof(float) * 2 * W * H);
+        assert_non_null(map);
+        assert_int_equal(sh_warp_model_map(sh_warp3d_view_map_model(view), map), SH_OK);
+        const sh_hull *hull = sh_warp3d_view_hull(view);
+        double worst = 0;
+        for (int y = 0; y < H; y += 5)
+            for (int x = 0; x < W; x += 5) {
+                if (!sh_hull_contains(hull, x, y)) continue;
+                double P[3], Q[3], tx, ty;
+                assert_true(locate(&cam, x, y, P));
+                transform(Rm, motion_t, P, Q);
+                project(&cam, Q, &tx, &ty);
+                const float *m = map + 2 * ((size_t)y * W + x);
+                worst = fmax(worst, hypot(m[0] - tx, m[1] - ty));
+            }
+        printf("rigid motion through 8 of 16 markers, %s: largest error %.4f px\n", methods[mi], worst);
+        assert_true(worst < 0.05);
+        /* every marker used: the full update's displacement */
+        double a[3], b[3];
+        assert_int_equal(sh_warp3d_model_update_subset(model, cur, all), SH_OK);
+        sh_warp3d_model_point(model, 3, -2, 1, 1, a);
+        assert_int_equal(sh_warp3d_model_update(model, cur), SH_OK);
+        sh_warp3d_model_point(model, 3, -2, 1, 1, b);
+        for (int c = 0; c < 3; c++) assert_true(fabs(a[c] - b[c]) < 1e-9);
+        assert_int_equal(sh_warp3d_model_update_subset(model, cur, three), SH_EDEGENERATE);
+        free(map);
+        sh_warp3d_view_destroy(view);
+        sh_warp3d_model_destroy(model);
+    }
+    sh_warp3d_params params;
+    sh_warp3d_params_default(&params);
+    assert_int_equal(sh_interp_params_parse("pwlinear", &params.displacement), SH_OK);
+    sh_warp3d_model *model;
+    assert_int_equal(sh_warp3d_model_create(&params, ref, n, &model), SH_OK);
+    assert_int_equal(sh_warp3d_model_update_subset(model, cur, use), SH_EINVAL);
+    sh_warp3d_model_destroy(model);
+}
+
 /* Gaussian dots glued to the paraboloid at known (X, Y), rendered by ray casting (the current
  * frame: the surface moved rigidly by Rm, t). */
 #define DOTS 9
@@ -648,6 +716,7 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_rigid_motion_removed_exactly),
+        cmocka_unit_test(test_subset_update),
         cmocka_unit_test(test_stereo_disparity),
         cmocka_unit_test(test_squeeze),
         cmocka_unit_test(test_stereo_layouts),

@@ -11,9 +11,11 @@
  * whose model the library refuses, was passed through raw by the warp: its map is the identity.
  * With a calibration (--cameras), f_t is `stillheart warp3d`'s reference view instead
  * (src/app/cmd_warp3d.c): a 3D model on the reference X, Y, Z of the markers frame t shares with
- * frame N (4 at least), its view from the phantom's camera, the reference frame's map made first
- * as warp3d makes it; the view's grid refines with what it has seen, so the map may differ from
- * warp3d's within the view's max_error where the two saw different frames before. */
+ * frame N (4 at least; with landmark rows, every landmark of frame N in the model and the frame's
+ * displacement fitted through the ones it has, as warp3d does), its view from the phantom's
+ * camera, the reference frame's map made first as warp3d makes it; the view's grid refines with
+ * what it has seen, so the map may differ from warp3d's within the view's max_error where the two
+ * saw different frames before. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -38,6 +40,8 @@ struct eval_geo {
     sh_warp3d_model *m3; /* 3D (calib): the model and view for the current marker set */
     sh_warp3d_view *v3;
     double *xyz, *cur_xyz; /* 3D: the set's reference X, Y, Z; the frame's */
+    int landmarks;         /* 3D: as warp3d, every model holds all the reference's landmarks */
+    unsigned char *use;    /*   and each frame uses the ones it has */
     int *ids;
     double *cur_xy;
     float *map;
@@ -58,6 +62,7 @@ void eval_geo_destroy(eval_geo *g)
     sh_warp3d_model_destroy(g->m3);
     free(g->xyz);
     free(g->cur_xyz);
+    free(g->use);
     free(g->sx);
     free(g->sy);
     free(g->seen);
@@ -111,11 +116,18 @@ sh_status eval_geo_create(const eval_geo_options *opts, const sh_points *points,
     g->map = opts->identity ? NULL : malloc(sizeof(float) * 2 * npix);
     g->xyz = malloc(sizeof(double) * 3 * (size_t)(g->ref_count + 1));
     g->cur_xyz = malloc(sizeof(double) * 3 * (size_t)(g->ref_count + 1));
-    if (!g->sx || !g->sy || !g->seen || !g->ids || !g->model_ids || !g->cur_xy || !g->xyz || !g->cur_xyz ||
+    g->use = malloc((size_t)g->ref_count + 1);
+    if (!g->sx || !g->sy || !g->seen || !g->ids || !g->model_ids || !g->cur_xy || !g->xyz || !g->cur_xyz || !g->use ||
         !g->model_ref || (!opts->identity && !g->map)) {
         eval_geo_destroy(g);
         return sh_error_set(SH_ENOMEM, "geometric error: out of memory");
     }
+    /* warp3d's choice (src/app/cmd_warp3d.c): landmark rows with X, Y, Z in the reference, and a
+     * displacement that can leave points out */
+    for (int k = 0; opts->calib && k < g->ref_count; k++)
+        g->landmarks |= g->ref_rows[k].id >= SH_LANDMARK_ID_BASE && isfinite(g->ref_rows[k].X) &&
+                        isfinite(g->ref_rows[k].Y) && isfinite(g->ref_rows[k].Z) &&
+                        opts->p3.displacement.method != SH_METHOD_PWLINEAR;
     /* Samples on the stride lattice (multiples of stride, so runs with different hulls share
      * their points); a pixel that does not see the patch, or sees it hidden, has no truth. */
     for (int y = 0; y < height; y += opts->stride) {
@@ -189,12 +201,14 @@ static int frame_map3(eval_geo *g, int t)
 {
     int ncur;
     const sh_point *cur = sh_points_frame(g->points, t, &ncur);
-    int n = sh_points_match_xyz(g->ref_rows, g->ref_count, cur, ncur, g->ids, g->cur_xyz);
-    if (n < 4) return 0;
+    int used, n = g->landmarks ? sh_points_match_xyz_keep(g->ref_rows, g->ref_count, cur, ncur, SH_LANDMARK_ID_BASE,
+                                                          g->ids, g->cur_xyz, g->use, &used)
+                               : (used = sh_points_match_xyz(g->ref_rows, g->ref_count, cur, ncur, g->ids, g->cur_xyz));
+    if (used < 4) return 0;
     int ok = (g->m3 && g->model_n == n && !memcmp(g->model_ids, g->ids, sizeof(int) * (size_t)n)) ||
              build_model3(g, n) == SH_OK;
-    return ok && sh_warp3d_model_update(g->m3, g->cur_xyz) == SH_OK && sh_warp3d_view_update(g->v3) == SH_OK &&
-           sh_warp_model_map(sh_warp3d_view_map_model(g->v3), g->map) == SH_OK;
+    return ok && sh_warp3d_model_update_subset(g->m3, g->cur_xyz, g->landmarks ? g->use : NULL) == SH_OK &&
+           sh_warp3d_view_update(g->v3) == SH_OK && sh_warp_model_map(sh_warp3d_view_map_model(g->v3), g->map) == SH_OK;
 }
 
 /* The map of frame t into g->map; returns 0 when the warp passed the frame through raw. */
