@@ -125,6 +125,33 @@ static const double motion_axis[3] = {0.3, -1, 0.4};
 static const double motion_t[3] = {4, -3, 2.5};
 #define MOTION_ANGLE (4 * M_PI / 180)
 
+/* The largest distance, over the view's hull every `step` px, between the view's map and where
+ * the surface point seen there is after the rigid motion (Rm, motion_t): every hull pixel mapped. */
+static double rigid_error(const sh_warp3d_view *view, const sh_calib_camera *cam, const double Rm[9], int step,
+                          int *samples)
+{
+    float *map = malloc(sizeof(float) * 2 * W * H);
+    assert_non_null(map);
+    assert_int_equal(sh_warp_model_map(sh_warp3d_view_map_model(view), map), SH_OK);
+    const sh_hull *hull = sh_warp3d_view_hull(view);
+    double worst = 0;
+    *samples = 0;
+    for (int y = 0; y < H; y += step)
+        for (int x = 0; x < W; x += step) {
+            if (!sh_hull_contains(hull, x, y)) continue;
+            double P[3], Q[3], tx, ty;
+            assert_true(locate(cam, x, y, P));
+            transform(Rm, motion_t, P, Q);
+            project(cam, Q, &tx, &ty);
+            const float *m = map + 2 * ((size_t)y * W + x);
+            assert_false(isnan(m[0]));
+            worst = fmax(worst, hypot(m[0] - tx, m[1] - ty));
+            (*samples)++;
+        }
+    free(map);
+    return worst;
+}
+
 static void test_rigid_motion_removed_exactly(void **state)
 {
     (void)state;
@@ -148,29 +175,12 @@ static void test_rigid_motion_removed_exactly(void **state)
             fail_msg("%s", sh_error_message());
         assert_int_equal(sh_warp3d_model_update(model, cur), SH_OK);
         assert_int_equal(sh_warp3d_view_update(view), SH_OK);
-        float *map = malloc(sizeof(float) * 2 * W * H);
-        assert_non_null(map);
-        assert_int_equal(sh_warp_model_map(sh_warp3d_view_map_model(view), map), SH_OK);
-        const sh_hull *hull = sh_warp3d_view_hull(view);
-        double worst = 0;
-        int samples = 0;
-        for (int y = 0; y < H; y += 3)
-            for (int x = 0; x < W; x += 3) {
-                if (!sh_hull_contains(hull, x, y)) continue;
-                double P[3], Q[3], tx, ty;
-                assert_true(locate(&cam, x, y, P));
-                transform(Rm, motion_t, P, Q);
-                project(&cam, Q, &tx, &ty);
-                const float *m = map + 2 * ((size_t)y * W + x);
-                assert_false(isnan(m[0]));
-                worst = fmax(worst, hypot(m[0] - tx, m[1] - ty));
-                samples++;
-            }
+        int samples;
+        double worst = rigid_error(view, &cam, Rm, 3, &samples);
         printf("rigid motion, %s: %d samples, largest error %.4f px (grid %d px)\n", methods[mi],
                samples, worst, sh_warp3d_view_grid_spacing(view));
         assert_true(samples > 4000);
         assert_true(worst < 0.05);
-        free(map);
         sh_warp3d_view_destroy(view);
         sh_warp3d_model_destroy(model);
     }
@@ -206,21 +216,8 @@ static void test_subset_update(void **state)
         if (sh_warp3d_view_create(model, &cam, &cam, W, H, NULL, &view) != SH_OK) fail_msg("%s", sh_error_message());
         if (sh_warp3d_model_update_subset(model, half, use) != SH_OK) fail_msg("%s", sh_error_message());
         assert_int_equal(sh_warp3d_view_update(view), SH_OK);
-        float *map = malloc(sizeof(float) * 2 * W * H);
-        assert_non_null(map);
-        assert_int_equal(sh_warp_model_map(sh_warp3d_view_map_model(view), map), SH_OK);
-        const sh_hull *hull = sh_warp3d_view_hull(view);
-        double worst = 0;
-        for (int y = 0; y < H; y += 5)
-            for (int x = 0; x < W; x += 5) {
-                if (!sh_hull_contains(hull, x, y)) continue;
-                double P[3], Q[3], tx, ty;
-                assert_true(locate(&cam, x, y, P));
-                transform(Rm, motion_t, P, Q);
-                project(&cam, Q, &tx, &ty);
-                const float *m = map + 2 * ((size_t)y * W + x);
-                worst = fmax(worst, hypot(m[0] - tx, m[1] - ty));
-            }
+        int samples;
+        double worst = rigid_error(view, &cam, Rm, 5, &samples);
         printf("rigid motion through 8 of 16 markers, %s: largest error %.4f px\n", methods[mi], worst);
         assert_true(worst < 0.05);
         /* every marker used: the full update's displacement */
@@ -231,7 +228,6 @@ static void test_subset_update(void **state)
         sh_warp3d_model_point(model, 3, -2, 1, 1, b);
         for (int c = 0; c < 3; c++) assert_true(fabs(a[c] - b[c]) < 1e-9);
         assert_int_equal(sh_warp3d_model_update_subset(model, cur, three), SH_EDEGENERATE);
-        free(map);
         sh_warp3d_view_destroy(view);
         sh_warp3d_model_destroy(model);
     }
