@@ -227,7 +227,8 @@ static double geometric_3d(const char *dir, const char *points, const char *meth
  * shaft and blood: the marker rows are those of the run without landmarks; no landmark row where
  * the truth says its point is hidden; every landmark row's X, Y, Z, projected into each camera
  * that sees its point, lies within half the issue's 1 px of the truth in the mean; the 3D warp's
- * geometric error and e are lower with them; gaussian leaves them out (the same bytes). */
+ * geometric error and e are lower with them; gaussian leaves them out (the same bytes); pwlinear
+ * (a model per set) stabilizes every frame. */
 static void test_track_landmarks_3d(void **state)
 {
     (void)state;
@@ -274,6 +275,12 @@ static void test_track_landmarks_3d(void **state)
     assert_int_equal(test_run("cd '%s' && W='%s warp3d --quiet --cameras calibration.yaml --method gaussian' && "
                               "$W --points markers.csv cam0.y4m g0.y4m && $W --points landmarks.csv cam0.y4m g1.y4m && "
                               "cmp g0.y4m g1.y4m", dir, APP_BIN), 0);
+    /* a pwlinear displacement cannot leave points out: a model per set of landmarks, every frame
+     * stabilized */
+    if (test_run("cd '%s' && '%s' warp3d --cameras calibration.yaml --method pwlinear --points landmarks.csv "
+                 "cam0.y4m p.y4m 2>&1", dir, APP_BIN) != 0)
+        fail_msg("%s\n%s", test_cmd, test_out);
+    assert_non_null(strstr(test_out, "30 frames (0 unstabilized)"));
     /* a 2D warp's video is not warp3d's: refused, not measured as the wrong map */
     assert_int_equal(test_run("cd '%s' && '%s' warp --quiet --method tps --points markers.csv cam0.y4m s2.y4m && "
                               "'%s' --truth . --cameras calibration.yaml --points markers.csv s2.y4m", dir, APP_BIN,
