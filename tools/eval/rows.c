@@ -159,8 +159,11 @@ int eval_rows_main(const char *truth_dir, const char *points_path, const sh_cali
     } else {
         printf("%s: %d landmarks in frame %d, %lld rows after it: %lld the truth says are hidden, %lld without a "
                "truth\n", points_path, landmarks, reference, j.rows, j.hidden, j.unjudged);
-        print_errors(NULL, "image position (x, y) of camera", &j.e2, 0);
-        if (calib) print_errors(NULL, "X, Y, Z in the worst camera (frame 0's rows too)", &j.e3, 0);
+        char what[96];
+        snprintf(what, sizeof what, "x, y in camera %d", camera);
+        print_errors(NULL, what, &j.e2, 0);
+        snprintf(what, sizeof what, "X, Y, Z in the worst camera (frame %d's rows too)", reference);
+        if (calib) print_errors(NULL, what, &j.e3, 0);
     }
     free(uv), free(ids);
     free(j.e2.err), free(j.e3.err);
