@@ -67,7 +67,8 @@ int sh_points_match_xyz(const sh_point *ref, int nref, const sh_point *cur, int 
  * the ones it has (sh_warp3d_model_update_subset): the markers both frames have with X, Y, Z (ids
  * below min_id), then every reference row from min_id on with X, Y, Z, in id order; cur_xyz their
  * current positions (a landmark the frame lacks, or has without X, Y, Z: its reference position)
- * and use[k] whether the frame has it. Returns the count; *used: how many are used. */
+ * and use[k] whether the frame has it (use may be NULL). Returns the count; *used: how many are
+ * used. */
 int sh_points_match_xyz_keep(const sh_point *ref, int nref, const sh_point *cur, int ncur, int min_id, int *ids,
                              double *cur_xyz, unsigned char *use, int *used);
 

@@ -377,27 +377,12 @@ static int has_xyz(const sh_point *p)
     return isfinite(p->X) && isfinite(p->Y) && isfinite(p->Z);
 }
 
+/* The keeping walk with no landmark id: only the points both frames have. */
 int sh_points_match_xyz(const sh_point *ref, int nref, const sh_point *cur, int ncur, int *ids,
                         double *cur_xyz)
 {
-    int n = 0;
-    for (int i = 0, j = 0; i < nref && j < ncur;) {
-        if (ref[i].id < cur[j].id) {
-            i++;
-        } else if (ref[i].id > cur[j].id) {
-            j++;
-        } else {
-            if (has_xyz(&ref[i]) && has_xyz(&cur[j])) {
-                ids[n] = cur[j].id;
-                cur_xyz[3 * n] = cur[j].X;
-                cur_xyz[3 * n + 1] = cur[j].Y;
-                cur_xyz[3 * n + 2] = cur[j].Z;
-                n++;
-            }
-            i++, j++;
-        }
-    }
-    return n;
+    int used;
+    return sh_points_match_xyz_keep(ref, nref, cur, ncur, INT_MAX, ids, cur_xyz, NULL, &used);
 }
 
 int sh_points_match_xyz_keep(const sh_point *ref, int nref, const sh_point *cur, int ncur, int min_id, int *ids,
@@ -412,7 +397,7 @@ int sh_points_match_xyz_keep(const sh_point *ref, int nref, const sh_point *cur,
         const sh_point *p = here ? &cur[j] : &ref[i];
         ids[n] = ref[i].id;
         cur_xyz[3 * n] = p->X, cur_xyz[3 * n + 1] = p->Y, cur_xyz[3 * n + 2] = p->Z;
-        use[n] = (unsigned char)here;
+        if (use) use[n] = (unsigned char)here;
         *used += here;
         n++;
     }

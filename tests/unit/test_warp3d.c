@@ -125,6 +125,18 @@ static const double motion_axis[3] = {0.3, -1, 0.4};
 static const double motion_t[3] = {4, -3, 2.5};
 #define MOTION_ANGLE (4 * M_PI / 180)
 
+/* A model through ref with `method` for both interpolants, and camera cam's view of it. */
+static void model_and_view(const char *method, const double *ref, int n, const sh_calib_camera *cam,
+                           sh_warp3d_model **model, sh_warp3d_view **view)
+{
+    sh_warp3d_params params;
+    sh_warp3d_params_default(&params);
+    assert_int_equal(sh_interp_params_parse(method, &params.surface), SH_OK);
+    assert_int_equal(sh_interp_params_parse(method, &params.displacement), SH_OK);
+    if (sh_warp3d_model_create(&params, ref, n, model) != SH_OK) fail_msg("%s", sh_error_message());
+    if (sh_warp3d_view_create(*model, cam, cam, W, H, NULL, view) != SH_OK) fail_msg("%s", sh_error_message());
+}
+
 /* The largest distance, over the view's hull every `step` px, between the view's map and where
  * the surface point seen there is after the rigid motion (Rm, motion_t): every hull pixel mapped. */
 static double rigid_error(const sh_warp3d_view *view, const sh_calib_camera *cam, const double Rm[9], int step,
@@ -164,15 +176,9 @@ static void test_rigid_motion_removed_exactly(void **state)
 
     const char *methods[] = {"bspline", "tps", "pwlinear"};
     for (size_t mi = 0; mi < sizeof methods / sizeof methods[0]; mi++) {
-        sh_warp3d_params params;
-        sh_warp3d_params_default(&params);
-        assert_int_equal(sh_interp_params_parse(methods[mi], &params.surface), SH_OK);
-        assert_int_equal(sh_interp_params_parse(methods[mi], &params.displacement), SH_OK);
         sh_warp3d_model *model;
-        if (sh_warp3d_model_create(&params, ref, n, &model) != SH_OK) fail_msg("%s", sh_error_message());
         sh_warp3d_view *view;
-        if (sh_warp3d_view_create(model, &cam, &cam, W, H, NULL, &view) != SH_OK)
-            fail_msg("%s", sh_error_message());
+        model_and_view(methods[mi], ref, n, &cam, &model, &view);
         assert_int_equal(sh_warp3d_model_update(model, cur), SH_OK);
         assert_int_equal(sh_warp3d_view_update(view), SH_OK);
         int samples;
@@ -206,14 +212,9 @@ static void test_subset_update(void **state)
     }
     const char *methods[] = {"tps", "bspline"};
     for (size_t mi = 0; mi < sizeof methods / sizeof methods[0]; mi++) {
-        sh_warp3d_params params;
-        sh_warp3d_params_default(&params);
-        assert_int_equal(sh_interp_params_parse(methods[mi], &params.surface), SH_OK);
-        assert_int_equal(sh_interp_params_parse(methods[mi], &params.displacement), SH_OK);
         sh_warp3d_model *model;
-        if (sh_warp3d_model_create(&params, ref, n, &model) != SH_OK) fail_msg("%s", sh_error_message());
         sh_warp3d_view *view;
-        if (sh_warp3d_view_create(model, &cam, &cam, W, H, NULL, &view) != SH_OK) fail_msg("%s", sh_error_message());
+        model_and_view(methods[mi], ref, n, &cam, &model, &view);
         if (sh_warp3d_model_update_subset(model, half, use) != SH_OK) fail_msg("%s", sh_error_message());
         assert_int_equal(sh_warp3d_view_update(view), SH_OK);
         int samples;

@@ -150,13 +150,19 @@ static int landmark_rows(const char *path, int *frame0, int *later, int *strange
     return 0;
 }
 
+/* The geometric error's mean in the evaluator's JSON just read (test_out). */
+static double out_geometric_mean(void)
+{
+    const char *g = strstr(test_out, "\"geometric\"");
+    assert_non_null(g);
+    return json_num(g, "mean");
+}
+
 static double geometric_mean(const char *dir, const char *points, const char *stab)
 {
     if (test_run("'%s' --quiet --json --truth '%s' --points '%s' '%s'", EVAL_BIN, dir, points, stab) != 0)
         fail_msg("%s\n%s", test_cmd, test_out);
-    const char *g = strstr(test_out, "\"geometric\"");
-    assert_non_null(g);
-    return json_num(g, "mean");
+    return out_geometric_mean();
 }
 
 static void test_track_landmarks_through_the_warp(void **state)
@@ -218,9 +224,7 @@ static double geometric_3d(const char *dir, const char *points, const char *meth
                  dir, APP_BIN, method, points, EVAL_BIN, points) != 0)
         fail_msg("%s\n%s", test_cmd, test_out);
     *e = json_num(test_out, "e_stabilized");
-    const char *g = strstr(test_out, "\"geometric\"");
-    assert_non_null(g);
-    return json_num(g, "mean");
+    return out_geometric_mean();
 }
 
 /* Landmarks in 3D (`stillheart track --cameras --landmarks`) on a three-camera render with the
