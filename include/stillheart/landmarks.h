@@ -62,6 +62,7 @@
 
 #include <stdint.h>
 
+#include "stillheart/calib.h"
 #include "stillheart/core.h"
 #include "stillheart/flow.h"
 #include "stillheart/hull.h"
@@ -177,6 +178,62 @@ sh_status sh_landmarks_track(sh_landmarks *lm, const sh_plane *luma, const float
  * copy), or the BT.601 luma of an RGB24 frame computed into buf (made, or made again at another
  * size, as needed; zeroed by the caller before first use, destroyed with sh_image_destroy). */
 sh_status sh_landmarks_luma(const sh_image *frame, sh_image *buf, const sh_plane **out);
+
+
+/* ---- In 3D: a calibrated rig (docs/landmarks.md, "In 3D") ----
+ * The landmarks are chosen in one camera (the primary: the one whose frames are shown) and found
+ * in every other camera of the rig, each search started on the epipolar line of the primary's
+ * position and its reference window warped by the local affine of the markers' map into that
+ * camera (a camera elsewhere sees the tissue foreshortened unlike the primary); each landmark is
+ * triangulated (sh_camera_triangulate) from the primary and every other camera that accepted it.
+ * The reference frame does this once: a landmark not matched and triangulated there has no
+ * reference in 3D and is never used. */
+
+/* The largest reprojection error, px, of any view of a triangulated landmark: half of the 1 px a
+ * landmark must be good to, as the backward test; with two cameras the triangulation splits the
+ * distance from the epipolar line between the two views. */
+#define SH_LANDMARKS_MAX_REPROJ_PX 0.5
+
+typedef struct sh_landmarks_rig sh_landmarks_rig;
+
+/* Chooses the landmarks in camera `primary`'s reference luma (as sh_landmarks_create, inside the
+ * hull of the markers' ref_xy, off the tags), then matches them into every other camera's
+ * reference luma and triangulates them. luma: calib->num_cameras planes of the reference frame,
+ * in the calibration's order; ref_xy, ref_xyz: the n reference markers' positions in the primary
+ * (n pairs) and their X, Y, Z (n triples; NaN where unknown: that marker does not predict the
+ * other cameras), n >= 3. Later frames pass at most n markers. SH_EINVAL for bad arguments. */
+sh_status sh_landmarks_rig_create(const sh_landmarks_params *params, const sh_calib *calib, int primary,
+                                  const sh_plane *const *luma, const double *ref_xy, const double *ref_xyz, int n,
+                                  const double *tags, int n_tags, sh_landmarks_rig **out);
+void sh_landmarks_rig_destroy(sh_landmarks_rig *rig);
+
+/* The primary camera's landmarks (count, reference positions). */
+const sh_landmarks *sh_landmarks_rig_primary(const sh_landmarks_rig *rig);
+/* Of them, the ones with a reference in 3D (count values, 1 or 0), and their X, Y, Z (count
+ * triples, NaN where none). */
+const uint8_t *sh_landmarks_rig_in_3d(const sh_landmarks_rig *rig);
+const double *sh_landmarks_rig_reference_xyz(const sh_landmarks_rig *rig);
+
+typedef struct {
+    int mapped;                  /* 0: fewer than 3 markers, nothing searched, nothing used */
+    sh_landmarks_counts primary; /* the primary camera's search */
+    int used;                    /* accepted in the primary and triangulated */
+    int unmatched;               /* accepted in the primary, with a 3D reference, but by no other camera */
+    int inconsistent;            /* accepted in two or more, a view beyond SH_LANDMARKS_MAX_REPROJ_PX */
+} sh_landmarks_rig_counts;
+
+/* One frame of the rig (luma: a plane per camera, as at create): the n markers' reference
+ * positions in the primary (ref_xy), where the primary sees them now (cur_xy) and their X, Y, Z
+ * now (cur_xyz, NaN where unknown). Each landmark is predicted in the primary by TPS through the
+ * markers, in another camera by TPS between the reference positions and the markers' X, Y, Z
+ * projected into it, then found and judged (sh_landmarks_track) and triangulated. Out: xy (count
+ * pairs, the primary's positions), xyz (count triples) and use (count values: 1 where accepted in
+ * the primary, with a 3D reference and triangulated within SH_LANDMARKS_MAX_REPROJ_PX; xyz is
+ * meaningful there alone). counts may be NULL. The rig's buffers are made at create; the TPS
+ * predictions allocate as sh_interp_map_points does (the 2D daemon's do too). */
+sh_status sh_landmarks_rig_track(sh_landmarks_rig *rig, const sh_plane *const *luma, const double *ref_xy,
+                                 const double *cur_xy, const double *cur_xyz, int n, float *xy, double *xyz,
+                                 uint8_t *use, sh_landmarks_rig_counts *counts);
 
 #ifdef __cplusplus
 }

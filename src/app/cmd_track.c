@@ -463,7 +463,7 @@ static void landmarks_report(const track_job *job, const track_pass *p)
     if (job->have_calib)
         sh_log_info("landmarks in 3D: %d with a reference (matched in frame 0); of camera 0's accepted, %lld matched "
                     "by no other camera, %lld refused by the reprojection test (%.1f px)",
-                    s.in_3d, s.unmatched, s.inconsistent, TRACK_LANDMARKS_MAX_REPROJ_PX);
+                    s.in_3d, s.unmatched, s.inconsistent, SH_LANDMARKS_MAX_REPROJ_PX);
 }
 
 /* The end of a pass: the verdicts on every tag seen (sh_tracker_judge_ids, when asked for) and,

@@ -8,7 +8,7 @@
  * position and its reference window warped by the local affine of the markers' map into that
  * camera (as --landmarks-affine does in camera 0): a landmark's row carries the X, Y, Z triangulated from every camera that accepted it,
  * and is written only when camera 0 and at least one other accepted it and the triangulation
- * reprojects within TRACK_LANDMARKS_MAX_REPROJ_PX in each (docs/landmarks.md, "In 3D"); a
+ * reprojects within SH_LANDMARKS_MAX_REPROJ_PX in each (docs/landmarks.md, "In 3D"); a
  * landmark not matched so in frame 0 has no reference in 3D and is never written. Private to
  * src/app. */
 #ifndef STILLHEART_APP_TRACK_LANDMARKS_H
@@ -21,10 +21,6 @@
 #include "stillheart/image.h"
 #include "stillheart/landmarks.h"
 #include "stillheart/points.h"
-
-/* Half of the 1 px a landmark must be good to, as the backward test: with two cameras the
- * triangulation splits the distance from the epipolar line between the two views. */
-#define TRACK_LANDMARKS_MAX_REPROJ_PX 0.5
 
 typedef struct {
     int n;                 /* up to n landmarks */
