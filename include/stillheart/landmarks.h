@@ -199,7 +199,7 @@ typedef struct sh_landmarks_rig sh_landmarks_rig;
 /* Chooses the landmarks in camera `primary`'s reference luma (as sh_landmarks_create, inside the
  * hull of the markers' ref_xy, off the tags), then matches them into every other camera's
  * reference luma and triangulates them. luma: calib->num_cameras planes of the reference frame,
- * in the calibration's order; ref_xy, ref_xyz: the n reference markers' positions in the primary
+ * in the calibration's order (NULL for a camera whose frame is missing: nothing is found there); ref_xy, ref_xyz: the n reference markers' positions in the primary
  * (n pairs) and their X, Y, Z (n triples; NaN where unknown: that marker does not predict the
  * other cameras), n >= 3. Later frames pass at most n markers. SH_EINVAL for bad arguments. */
 sh_status sh_landmarks_rig_create(const sh_landmarks_params *params, const sh_calib *calib, int primary,
@@ -222,7 +222,7 @@ typedef struct {
     int inconsistent;            /* accepted in two or more, a view beyond SH_LANDMARKS_MAX_REPROJ_PX */
 } sh_landmarks_rig_counts;
 
-/* One frame of the rig (luma: a plane per camera, as at create): the n markers' reference
+/* One frame of the rig (luma: a plane per camera, as at create, NULL where missing): the n markers' reference
  * positions in the primary (ref_xy), where the primary sees them now (cur_xy) and their X, Y, Z
  * now (cur_xyz, NaN where unknown). Each landmark is predicted in the primary by TPS through the
  * markers, in another camera by TPS between the reference positions and the markers' X, Y, Z

@@ -66,7 +66,7 @@ static const keydef keys[] = {
     {"detect", "family", "family", K_STR, PROC, F(family), S(family), 0, 0, "AprilTag family (tag36h11, ...)"},
     {"detect", "ids", "ids", K_IDS, PROC, F(ids_text), S(ids_text), 0, 0, "marker ids: 0-15 or 1,3,5-9"},
     {"track", "landmarks", "landmarks", K_INT, PROC, F(landmarks), 0, 0, 2000,
-     "natural landmarks of the tissue besides the markers (0: none; tps, affine, bspline; 2D)"},
+     "natural landmarks of the tissue besides the markers (0: none; tps, affine, bspline; in 3D found in every camera)"},
     {"track", "landmarks_sparse", "landmarks-sparse", K_BOOL, PROC, F(landmarks_sparse), 0, 0, 1,
      "landmarks for markers too sparse for their map (four at the corners): the disagreement bound follows the map's measured error"},
     {"track", "landmarks_affine", "landmarks-affine", K_BOOL, PROC, F(landmarks_affine), 0, 0, 1,
@@ -409,11 +409,6 @@ static sh_status check_method(const sh_config *cfg, char *err)
         return refuse(cfg, "method", "layout", err, "only the stereo view has a layout ([method] view = stereo)");
     sh_interp_params method;
     sh_config_method(cfg, &method);
-    if (cfg->landmarks && cfg->calibration[0])
-        return refuse(cfg, "track", "landmarks", err,
-                      "%d, but the daemon's landmarks are 2D only (not with [method] calibration; in 3D, offline: "
-                      "stillheart track --cameras --landmarks, then stillheart warp3d)",
-                      cfg->landmarks);
     /* a landmark set that changes every frame needs a method whose map can leave points out
      * without a new model (sh_interp_fit_subset), and one that is better with them */
     if (cfg->landmarks && (!sh_landmarks_method_uses(method.method) || method.method == SH_METHOD_PWLINEAR))

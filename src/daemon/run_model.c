@@ -32,7 +32,7 @@ enum { REFINE_NONE = 0, REFINE_ASKED, REFINE_TAKEN, REFINE_READY, REFINE_FAILED 
 struct run_model {
     sh_modelcache_entry e; /* 3D: the surface and its views (the output camera's, or the two eyes) */
     double uv[2 * SH_TRACK_MAX_MARKERS]; /* 3D: each marker's surface parameter (for the residual; NaN
-                                     * where the view's ray misses) */
+                                     * where the view's ray misses); not the landmarks' */
     run_models *owner; /* its camera, for the 3D residual; its lock, for refine_swap */
     double *coef;   /* the interpolant's coefficients, 2 columns (for the residual) */
     double vals[2 * SH_TRACK_MAX_MARKERS];
@@ -50,15 +50,17 @@ typedef struct {
     run_model slot[SLOTS];
     unsigned long clock;
     /* landmarks: chosen by the helper (choosing 1 until then, no full slot yet) from a copy of the
-     * reference frame's luma and tags; rows = ref then the landmarks, sorted by id (the models'
-     * keys are made from it) */
+     * reference frame's luma (3D: every camera's) and tags; rows = ref then the landmarks, sorted
+     * by id (the models' keys are made from it); in 3D only the landmarks triangulated in the
+     * reference are rows (lm_ids: theirs, SH_LANDMARK_ID_BASE + the rig's index) */
     int choosing, choice_taken;
-    uint8_t *luma;
-    int width, height;
+    uint8_t *luma[SH_CALIB_MAX_CAMERAS];
+    int nluma, width, height;
     double *tags;
     int ntags;
-    sh_landmarks *lm;
-    int nlm;
+    sh_landmarks *lm;      /* 2D */
+    sh_landmarks_rig *rig; /* 3D */
+    int nlm, *lm_ids;
     sh_point *rows;
     int nrows;
     char note[160];
@@ -80,6 +82,8 @@ struct run_models {
     sh_warp_model *replaced[4]; /* grids swapped out by refine_swap, to free on the helper */
     int refined;            /* finer grids built by the helper and swapped in */
     sh_landmarks_params lp; /* max_points 0: no landmarks */
+    sh_calib calib;         /* 3D: the rig, for the landmarks */
+    int camera;             /* 3D: the output camera's index in it */
 };
 
 static void model_free(run_model *md)
@@ -95,7 +99,9 @@ static void generation_free(generation *g)
     if (!g) return;
     for (int i = 0; i < SLOTS; i++) model_free(&g->slot[i]);
     sh_landmarks_destroy(g->lm);
-    free(g->luma), free(g->tags), free(g->rows);
+    sh_landmarks_rig_destroy(g->rig);
+    for (int c = 0; c < g->nluma; c++) free(g->luma[c]);
+    free(g->tags), free(g->rows), free(g->lm_ids);
     free(g);
 }
 
@@ -117,8 +123,9 @@ static sh_status model_build(run_models *m, run_model *md)
     if (st != SH_OK) return st;
     if (m->recipe.three_d) {
         /* where the output camera's ray through the marker meets the surface: the residual is
-         * measured in that camera whichever cameras the views are seen from */
-        for (int k = 0; k < e->n; k++)
+         * measured in that camera whichever cameras the views are seen from (the markers'
+         * alone: the landmarks after them have no detection to measure it against) */
+        for (int k = 0; k < run_model_markers(md); k++)
             if (sh_warp3d_model_locate(e->m3, &m->recipe.source_cam, m->recipe.vopts.depth_scale, e->ref_xy[2 * k],
                                        e->ref_xy[2 * k + 1], &md->uv[2 * k]) != SH_OK)
                 md->uv[2 * k] = md->uv[2 * k + 1] = NAN;
@@ -132,13 +139,13 @@ static sh_status model_build(run_models *m, run_model *md)
 /* 3D: the same residual, the map at a marker's reference pixel being the projection of its
  * surface point displaced by h. */
 static sh_status update_3d(const run_models *m, run_model *md, const double *cur_xyz, const double *det_xy,
-                           double *residual)
+                           const unsigned char *use, double *residual)
 {
-    sh_status st = sh_warp3d_model_update(md->e.m3, cur_xyz);
+    sh_status st = sh_warp3d_model_update_subset(md->e.m3, cur_xyz, use);
     for (int v = 0; v < m->recipe.nviews && st == SH_OK; v++) st = sh_warp3d_view_update(md->e.view[v]);
     if (st != SH_OK) return st;
     double worst = -1;
-    for (int k = 0; k < md->e.n; k++) {
+    for (int k = 0; k < run_model_markers(md); k++) {
         if (!isfinite(det_xy[2 * k])) continue;
         double X[3], x = NAN, y = NAN;
         if (isfinite(md->uv[2 * k])) {
@@ -222,7 +229,7 @@ sh_status run_model_update(run_model *md, sh_warp *warp, const double *cur_xy, c
                            const double *det_xy, const unsigned char *use, double *residual)
 {
     const sh_modelcache_entry *e = &md->e;
-    if (e->m3) return update_3d(md->owner, md, cur_xyz, det_xy, residual);
+    if (e->m3) return update_3d(md->owner, md, cur_xyz, det_xy, use, residual);
     refine_swap(md);
     /* use NULL: every point (sh_warp_model_update) */
     sh_status st = warp ? sh_warp_update(warp, e->model, cur_xy, use)
@@ -283,48 +290,73 @@ sh_status run_residual(const sh_interp_params *params, const double *ref_xy, con
 }
 
 /* ---- the helper thread ---- */
-/* Outside the lock: g's landmarks from its frame, inside its markers' hull and off its tags. g
- * itself is not touched until the result is stored (under the lock) by the caller. */
-static sh_status choose_landmarks(const run_models *m, const generation *g, sh_landmarks **lm)
+/* Outside the lock: g's landmarks from its frame, inside its markers' hull and off its tags (3D:
+ * chosen in the output camera's frame, matched in the others' and triangulated). g itself is not
+ * touched until the result is stored (under the lock) by the caller. */
+static sh_status choose_landmarks(const run_models *m, const generation *g, sh_landmarks **lm, sh_landmarks_rig **rig)
 {
-    double xy[2 * SH_TRACK_MAX_MARKERS];
-    for (int k = 0; k < g->nref; k++) xy[2 * k] = g->ref[k].x, xy[2 * k + 1] = g->ref[k].y;
+    double xy[2 * SH_TRACK_MAX_MARKERS], xyz[3 * SH_TRACK_MAX_MARKERS];
+    for (int k = 0; k < g->nref; k++) {
+        xy[2 * k] = g->ref[k].x, xy[2 * k + 1] = g->ref[k].y;
+        xyz[3 * k] = g->ref[k].X, xyz[3 * k + 1] = g->ref[k].Y, xyz[3 * k + 2] = g->ref[k].Z;
+    }
+    sh_plane planes[SH_CALIB_MAX_CAMERAS];
+    const sh_plane *luma[SH_CALIB_MAX_CAMERAS];
+    for (int c = 0; c < g->nluma; c++) {
+        planes[c] = (sh_plane){g->luma[c], g->width, g->height, g->width};
+        luma[c] = g->luma[c] ? &planes[c] : NULL;
+    }
+    if (m->recipe.three_d)
+        return sh_landmarks_rig_create(&m->lp, &m->calib, m->camera, luma, xy, xyz, g->nref, g->tags, g->ntags, rig);
     sh_hull hull;
-    sh_plane luma = {g->luma, g->width, g->height, g->width};
     sh_status st = sh_hull_compute(xy, g->nref, &hull);
-    if (st == SH_OK) st = sh_landmarks_create(&m->lp, &luma, &hull, g->tags, g->ntags, lm);
+    if (st == SH_OK) st = sh_landmarks_create(&m->lp, luma[0], &hull, g->tags, g->ntags, lm);
     return st;
 }
 
-/* Under the lock, after choose_landmarks: g's rows (markers, then the landmarks) and its full-set
- * slot, whose key holds them all. Without landmarks (none found, or the choice failed: the note
- * says why) the markers go on alone. */
-static void landmarks_chosen(run_models *m, generation *g, sh_landmarks *lm, sh_status st)
+/* Under the lock, after choose_landmarks: g's rows (markers, then the landmarks: in 3D the ones
+ * with a reference X, Y, Z) and its full-set slot, whose key holds them all. Without landmarks
+ * (none found, or the choice failed: the note says why) the markers go on alone. */
+static void landmarks_chosen(run_models *m, generation *g, sh_landmarks *lm, sh_landmarks_rig *rig, sh_status st)
 {
     g->choosing = 0;
     g->lm = lm;
-    g->nlm = st == SH_OK ? sh_landmarks_count(lm) : 0;
+    g->rig = rig;
+    const sh_landmarks *primary = rig ? sh_landmarks_rig_primary(rig) : lm;
+    const uint8_t *in3d = rig ? sh_landmarks_rig_in_3d(rig) : NULL;
+    const double *X = rig ? sh_landmarks_rig_reference_xyz(rig) : NULL;
+    int chosen = st == SH_OK && primary ? sh_landmarks_count(primary) : 0;
+    g->nlm = 0;
+    for (int k = 0; k < chosen; k++) g->nlm += !in3d || in3d[k];
     if (st != SH_OK)
         snprintf(g->note, sizeof g->note, "landmarks not chosen: %s", sh_error_message());
-    else if (!g->nlm)
+    else if (!chosen)
         snprintf(g->note, sizeof g->note, "no landmarks found inside the markers' hull (no corner textured enough)");
-    if (g->nlm && !(g->rows = malloc(sizeof(sh_point) * (size_t)(g->nref + g->nlm)))) {
+    else if (!g->nlm)
+        snprintf(g->note, sizeof g->note, "none of the %d landmarks chosen was matched in another camera", chosen);
+    if (g->nlm && (!(g->rows = malloc(sizeof(sh_point) * (size_t)(g->nref + g->nlm))) ||
+                   !(g->lm_ids = malloc(sizeof(int) * (size_t)g->nlm)))) {
         snprintf(g->note, sizeof g->note, "landmarks: out of memory");
         g->nlm = 0;
     }
     if (!g->nlm) {
         sh_landmarks_destroy(g->lm);
+        sh_landmarks_rig_destroy(g->rig);
         g->lm = NULL;
+        g->rig = NULL;
     }
     int ids[SH_TRACK_MAX_MARKERS + RUN_MAX_LANDMARKS];
     for (int i = 0; i < g->nref; i++) ids[i] = g->ref[i].id;
     if (g->nlm) {
         memcpy(g->rows, g->ref, sizeof(sh_point) * (size_t)g->nref);
-        const float *at = sh_landmarks_reference(g->lm);
-        for (int k = 0; k < g->nlm; k++) {
-            g->rows[g->nref + k] = (sh_point){.frame = g->frame, .id = SH_LANDMARK_ID_BASE + k, .x = at[2 * k],
-                                              .y = at[2 * k + 1], .X = NAN, .Y = NAN, .Z = NAN};
-            ids[g->nref + k] = SH_LANDMARK_ID_BASE + k;
+        const float *at = sh_landmarks_reference(primary);
+        for (int k = 0, j = 0; k < chosen; k++) {
+            if (in3d && !in3d[k]) continue;
+            g->lm_ids[j] = ids[g->nref + j] = SH_LANDMARK_ID_BASE + k;
+            g->rows[g->nref + j] = (sh_point){.frame = g->frame, .id = SH_LANDMARK_ID_BASE + k, .x = at[2 * k],
+                                              .y = at[2 * k + 1], .X = X ? X[3 * k] : NAN, .Y = X ? X[3 * k + 1] : NAN,
+                                              .Z = X ? X[3 * k + 2] : NAN};
+            j++;
         }
         g->nrows = g->nref + g->nlm;
     }
@@ -406,11 +438,12 @@ static void *helper_main(void *arg)
             choose->choice_taken = 1;
             pthread_mutex_unlock(&m->mu);
             sh_landmarks *lm = NULL;
-            sh_status st = choose_landmarks(m, choose, &lm);
+            sh_landmarks_rig *rig = NULL;
+            sh_status st = choose_landmarks(m, choose, &lm, &rig);
             pthread_mutex_lock(&m->mu);
             /* stored even when choose was replaced meanwhile (it then waits in the trash, and
              * generation_free frees what it holds) */
-            landmarks_chosen(m, choose, lm, st);
+            landmarks_chosen(m, choose, lm, rig, st);
             continue;
         }
         /* the next reference first: the running one still works meanwhile */
@@ -577,23 +610,32 @@ void run_models_set_landmarks(run_models *m, const sh_landmarks_params *lp)
     m->lp = *lp;
 }
 
-/* g's copy of what the landmarks are chosen from. */
-static sh_status keep_frame(generation *g, const sh_plane *luma, const double *tags, int ntags)
+/* g's copy of what the landmarks are chosen from (a NULL luma: a camera whose frame is missing). */
+static sh_status keep_frame(generation *g, const sh_plane *const *luma, int nluma, int primary, const double *tags,
+                            int ntags)
 {
-    g->width = luma->width;
-    g->height = luma->height;
-    g->luma = malloc((size_t)luma->width * (size_t)luma->height);
+    g->width = luma[primary]->width;
+    g->height = luma[primary]->height;
+    g->nluma = nluma;
     g->tags = malloc(sizeof(double) * 8 * (size_t)(ntags > 0 ? ntags : 1));
-    if (!g->luma || !g->tags) return sh_error_set(SH_ENOMEM, "reference: out of memory for its frame");
-    for (int y = 0; y < luma->height; y++)
-        memcpy(g->luma + (size_t)y * luma->width, luma->data + (size_t)y * luma->stride, (size_t)luma->width);
+    if (!g->tags) return sh_error_set(SH_ENOMEM, "reference: out of memory for its frame");
+    for (int c = 0; c < nluma; c++) {
+        if (!luma[c]) continue;
+        if (luma[c]->width != g->width || luma[c]->height != g->height)
+            return sh_error_set(SH_EINVAL, "reference: camera %d's frame is %dx%d, not %dx%d", c, luma[c]->width,
+                                luma[c]->height, g->width, g->height);
+        if (!(g->luma[c] = malloc((size_t)g->width * (size_t)g->height)))
+            return sh_error_set(SH_ENOMEM, "reference: out of memory for its frame");
+        for (int y = 0; y < g->height; y++)
+            memcpy(g->luma[c] + (size_t)y * g->width, luma[c]->data + (size_t)y * luma[c]->stride, (size_t)g->width);
+    }
     if (ntags > 0) memcpy(g->tags, tags, sizeof(double) * 8 * (size_t)ntags);
     g->ntags = ntags;
     g->choosing = 1;
     return SH_OK;
 }
 
-sh_status run_models_set_reference(run_models *m, const sh_point *ref, int n, int frame, const sh_plane *luma,
+sh_status run_models_set_reference(run_models *m, const sh_point *ref, int n, int frame, const sh_plane *const *luma,
                                    const double *tags, int ntags)
 {
     if (n < 1 || n > SH_TRACK_MAX_MARKERS) return sh_error_set(SH_EINVAL, "reference: %d markers", n);
@@ -602,8 +644,12 @@ sh_status run_models_set_reference(run_models *m, const sh_point *ref, int n, in
     memcpy(g->ref, ref, sizeof(sh_point) * (size_t)n);
     g->nref = n;
     g->frame = frame;
-    if (m->lp.max_points > 0 && !m->recipe.three_d) {
-        sh_status st = luma ? keep_frame(g, luma, tags, ntags) : sh_error_set(SH_EINVAL, "reference: no frame for the landmarks");
+    if (m->lp.max_points > 0) {
+        /* 2D: the output camera's frame (luma[0]); 3D: every camera's, in the calibration's order */
+        int nluma = m->recipe.three_d ? m->calib.num_cameras : 1;
+        int primary = m->recipe.three_d ? m->camera : 0;
+        sh_status st = luma && luma[primary] ? keep_frame(g, luma, nluma, primary, tags, ntags)
+                                             : sh_error_set(SH_EINVAL, "reference: no frame for the landmarks");
         if (st != SH_OK) {
             generation_free(g);
             return st;
@@ -627,6 +673,11 @@ sh_landmarks *run_models_landmarks(run_models *m)
 {
     /* cur changes only in run_models_poll, on the calling (processing) thread */
     return m->cur ? m->cur->lm : NULL;
+}
+
+sh_landmarks_rig *run_models_rig(run_models *m)
+{
+    return m->cur ? m->cur->rig : NULL;
 }
 
 const char *run_models_landmarks_note(const run_models *m)
@@ -675,7 +726,7 @@ int run_models_get(run_models *m, const int *ids, int n, run_model **out)
     if (nlm) {
         if (n > SH_TRACK_MAX_MARKERS) return sh_error_set(SH_EINVAL, "model: %d markers", n), -1;
         memcpy(key, ids, sizeof(int) * (size_t)n);
-        for (int k = 0; k < nlm; k++) key[n + k] = SH_LANDMARK_ID_BASE + k;
+        memcpy(key + n, m->cur->lm_ids, sizeof(int) * (size_t)nlm);
         ids = key;
         n += nlm;
     }
@@ -720,6 +771,8 @@ sh_status run_models_set_3d(run_models *m, const sh_calib *calib, int camera, do
     r->wopts.defer_refine = 0;
     r->vopts.warp = r->wopts;
     r->three_d = 1;
+    m->calib = *calib;
+    m->camera = camera;
     return SH_OK;
 }
 

@@ -31,22 +31,27 @@ sh_status run_models_create(const sh_interp_params *params, const sh_warp_option
  * eyes of a stereo pair around it (sh_warp3d_stereo_cameras). */
 sh_status run_models_set_3d(run_models *m, const sh_calib *calib, int camera, double baseline);
 void run_models_destroy(run_models *m);
-/* Natural landmarks (issue 19, landmarks.h; 2D, before the first reference): with
- * lp->max_points > 0 every new reference chooses up to that many landmarks in its frame (on the
- * helper thread, before its full-set model is built: a corner search takes tens of ms), and every
- * model of that reference holds them after its markers, ids SH_LANDMARK_ID_BASE + k, so that a
- * frame uses any subset of them without a new model (run_model_update's use). */
+/* Natural landmarks (issue 19, landmarks.h; before the first reference, after run_models_set_3d):
+ * with lp->max_points > 0 every new reference chooses up to that many landmarks in its frame (on
+ * the helper thread, before its full-set model is built: a corner search takes tens of ms; in 3D
+ * chosen in the output camera's frame, matched in the others' and triangulated:
+ * sh_landmarks_rig), and every model of that reference holds them after its markers, ids
+ * SH_LANDMARK_ID_BASE + k (in 3D only the k triangulated in the reference), so that a frame uses
+ * any subset of them without a new model (run_model_update's use). */
 void run_models_set_landmarks(run_models *m, const sh_landmarks_params *lp);
 #define RUN_MAX_LANDMARKS 2000 /* [track] landmarks' bound (config.c) */
 /* Requests a new reference (markers sorted by id, n <= SH_TRACK_MAX_MARKERS); its full-set model is
  * built first. A reference still being built is replaced. frame: for the log. With landmarks:
- * luma, the reference frame's luma plane, and tags (ntags quads, 8 doubles each: the markers'
- * corners, which landmarks keep off) are copied; otherwise they may be NULL. */
-sh_status run_models_set_reference(run_models *m, const sh_point *ref, int n, int frame, const sh_plane *luma,
+ * luma, the reference frame's luma plane (2D: luma[0]; 3D: one per calibration camera, NULL for
+ * one whose frame is missing), and tags (ntags quads, 8 doubles each: the output camera's
+ * markers' corners, which landmarks keep off) are copied; otherwise they may be NULL. */
+sh_status run_models_set_reference(run_models *m, const sh_point *ref, int n, int frame, const sh_plane *const *luma,
                                    const double *tags, int ntags);
 /* The reference in use's landmarks, NULL when it has none (none asked, none found, or their
  * choice failed: run_models_landmarks_note says why); for the processing thread alone. */
 sh_landmarks *run_models_landmarks(run_models *m);
+/* The same in 3D: the rig's (its landmark k is id SH_LANDMARK_ID_BASE + k of the models). */
+sh_landmarks_rig *run_models_rig(run_models *m);
 /* Why the reference in use has no landmarks though they were asked for ("" otherwise). */
 const char *run_models_landmarks_note(const run_models *m);
 /* Swaps in a new reference once its full-set model is built: returns 1 (and its frame and
@@ -64,7 +69,7 @@ int run_models_get(run_models *m, const int *ids, int n, run_model **out);
  * map puts the marker's reference position and where the detector saw it (det_xy; NaN for a
  * marker not detected, and for every landmark). *residual is -1 when no marker was detected, NaN
  * if the map cannot be evaluated at a marker. use: NULL, or per point whether the map goes
- * through it (a landmark refused this frame is left out, 2D only). warp: the executor whose
+ * through it (a landmark refused this frame is left out). warp: the executor whose
  * threads share a 2D grid's nodes (sh_warp_update), or NULL for this thread alone. */
 sh_status run_model_update(run_model *md, sh_warp *warp, const double *cur_xy, const double *cur_xyz,
                            const double *det_xy, const unsigned char *use, double *residual);

@@ -45,16 +45,19 @@ struct run_proc {
      * room for SH_TRACK_MAX_MARKERS + lm_cap points */
     int used_n, *used_ids;
     double *used_xy;
-    /* [track] landmarks (2D; lm_cap 0: none): the model's points are its markers, then the
+    /* [track] landmarks (lm_cap 0: none): the model's points are its markers, then the
      * reference's landmarks; this frame's positions, detections and which are used */
     int lm_cap;
     sh_detector *lm_det;        /* test mode: the reference frame's tags (the tracker has them otherwise) */
-    sh_image lm_gray;           /* an RGB24 frame's luma */
+    sh_image lm_gray[SH_CALIB_MAX_CAMERAS]; /* an RGB24 frame's luma (2D: [0]; 3D: each camera's) */
     float *lm_pred, *lm_xy;     /* lm_cap pairs */
-    uint8_t *lm_verdict;
+    uint8_t *lm_verdict;        /* 2D: lm_cap; 3D: which landmarks the rig used */
+    double *lm_xyz;             /* 3D: lm_cap triples */
     double *all_xy, *all_det;   /* (SH_TRACK_MAX_MARKERS + lm_cap) pairs */
+    double *all_xyz;            /* 3D: as many triples */
     unsigned char *all_use;
     long long lm_verdicts[SH_LANDMARK_VERDICTS];
+    long long lm_unmatched, lm_inconsistent; /* 3D: sh_landmarks_rig_counts' */
     int lm_frames, lm_accepted; /* frames the landmarks were looked for in; this frame's accepted */
     double lm_ms;               /* this frame's landmark stage, CPU ms */
     sh_log_limit lm_err;
@@ -86,7 +89,7 @@ void run_proc_landmarks(const run_proc *p, int *accepted, double *ms)
 /* The buffers of [track] landmarks (and of the points a map is made from, which they join). */
 static sh_status landmarks_create(run_proc *p, const sh_config *cfg)
 {
-    p->lm_cap = p->three_d ? 0 : cfg->landmarks;
+    p->lm_cap = cfg->landmarks;
     size_t most = SH_TRACK_MAX_MARKERS + (size_t)p->lm_cap;
     p->used_ids = malloc(sizeof(int) * most);
     p->used_xy = malloc(sizeof(double) * 2 * most);
@@ -98,7 +101,12 @@ static sh_status landmarks_create(run_proc *p, const sh_config *cfg)
     p->all_xy = malloc(sizeof(double) * 2 * most);
     p->all_det = malloc(sizeof(double) * 2 * most);
     p->all_use = malloc(most);
-    if (!p->lm_pred || !p->lm_xy || !p->lm_verdict || !p->all_xy || !p->all_det || !p->all_use)
+    if (p->three_d) {
+        p->lm_xyz = malloc(sizeof(double) * 3 * (size_t)p->lm_cap);
+        p->all_xyz = malloc(sizeof(double) * 3 * most);
+    }
+    if (!p->lm_pred || !p->lm_xy || !p->lm_verdict || !p->all_xy || !p->all_det || !p->all_use ||
+        (p->three_d && (!p->lm_xyz || !p->all_xyz)))
         return sh_error_set(SH_ENOMEM, "processing: out of memory for %d landmarks", p->lm_cap);
     sh_landmarks_params lp;
     if (cfg->landmarks_sparse)
@@ -251,10 +259,15 @@ void run_proc_destroy(run_proc *p)
                     "backward %lld, disagrees %lld, deviates %lld", p->lm_frames, all, v[SH_LANDMARK_ACCEPTED],
                     v[SH_LANDMARK_LOST], v[SH_LANDMARK_PHOTOMETRIC], v[SH_LANDMARK_BACKWARD],
                     v[SH_LANDMARK_DISAGREES], v[SH_LANDMARK_DEVIATES]);
+        if (p->three_d)
+            sh_log_info("landmarks in 3D: of the accepted, %lld matched by no other camera, %lld refused by the "
+                        "reprojection test (%.1f px); the others triangulated and used", p->lm_unmatched,
+                        p->lm_inconsistent, SH_LANDMARKS_MAX_REPROJ_PX);
     }
     sh_detector_destroy(p->lm_det);
-    sh_image_destroy(&p->lm_gray);
+    for (int c = 0; c < SH_CALIB_MAX_CAMERAS; c++) sh_image_destroy(&p->lm_gray[c]);
     free(p->lm_pred), free(p->lm_xy), free(p->lm_verdict), free(p->all_xy), free(p->all_det), free(p->all_use);
+    free(p->lm_xyz), free(p->all_xyz);
     free(p->used_ids), free(p->used_xy);
     run_models_destroy(p->models);
     run_tracker_destroy(p->tracker);
@@ -328,17 +341,32 @@ static int markers(run_proc *p, const sh_image *img, const sh_image *const *cams
     return n;
 }
 
-/* With landmarks: the reference frame's luma and its tags' corners (the tracker's detections of
- * this frame; in test mode a detection of the whole frame), for run_models_set_reference. 0 when
- * they cannot be had (logged): the reference waits for a later frame. */
-static int reference_frame(run_proc *p, const sh_image *img, const sh_plane **luma, double *tags, int *ntags)
+/* Each camera's luma plane of this frame (2D: img's alone, into luma[0]; 3D: cams', NULL for a
+ * missing one). */
+static sh_status lumas(run_proc *p, const sh_image *img, const sh_image *const *cams, const sh_plane **luma)
+{
+    if (!p->three_d) return sh_landmarks_luma(img, &p->lm_gray[0], &luma[0]);
+    sh_status st = SH_OK;
+    for (int c = 0; c < p->calib.num_cameras && st == SH_OK; c++) {
+        luma[c] = NULL;
+        if (cams[c]) st = sh_landmarks_luma(cams[c], &p->lm_gray[c], &luma[c]);
+    }
+    return st;
+}
+
+/* With landmarks: the reference frame's luma planes and its tags' corners (the tracker's
+ * detections of this frame in the output camera; in test mode a detection of the whole frame), for
+ * run_models_set_reference. 0 when they cannot be had (logged): the reference waits for a later
+ * frame. */
+static int reference_frame(run_proc *p, const sh_image *img, const sh_image *const *cams, const sh_plane **luma,
+                           double *tags, int *ntags)
 {
     *ntags = 0;
     if (!p->lm_cap) return 1;
     sh_detection own[SH_TRACK_MAX_DETECTIONS];
     const sh_detection *d = own;
     int n = 0;
-    sh_status st = sh_landmarks_luma(img, &p->lm_gray, luma);
+    sh_status st = lumas(p, img, cams, luma);
     if (st == SH_OK && p->tracker)
         n = run_tracker_detections(p->tracker, &d);
     else if (st == SH_OK)
@@ -354,7 +382,7 @@ static int reference_frame(run_proc *p, const sh_image *img, const sh_plane **lu
     return 1;
 }
 
-static void take_reference(run_proc *p, const sh_image *img, int index, int nm)
+static void take_reference(run_proc *p, const sh_image *img, const sh_image *const *cams, int index, int nm)
 {
     sh_point ref[SH_TRACK_MAX_MARKERS];
     int n = 0;
@@ -368,10 +396,10 @@ static void take_reference(run_proc *p, const sh_image *img, int index, int nm)
             : p->cfg.reference_frame > 0 ? index == p->cfg.reference_frame - 1
             : n >= p->cfg.min_markers;
     if (!due || n < 3) return;
-    const sh_plane *luma = NULL;
+    const sh_plane *luma[SH_CALIB_MAX_CAMERAS] = {NULL};
     double tags[8 * SH_TRACK_MAX_DETECTIONS];
     int ntags;
-    if (!reference_frame(p, img, &luma, tags, &ntags)) return;
+    if (!reference_frame(p, img, cams, luma, tags, &ntags)) return;
     if (run_models_set_reference(p->models, ref, n, index, luma, tags, ntags) != SH_OK) {
         sh_log_error("reference: %s", sh_error_message());
         return;
@@ -465,18 +493,25 @@ static int camera_motion(run_proc *p, int index, sh_display_frame_info *info)
 
 /* The gates before any model: a moving camera, a calibration that does not fit, a reference
  * awaited or not there yet. 1 when the frame goes on (the reference in use in *ref, *nref). */
-static int reference_ready(run_proc *p, const sh_image *img, int index, int nm, sh_display_frame_info *info,
-                           const sh_point **ref, int *nref)
+static int reference_ready(run_proc *p, const sh_image *img, const sh_image *const *cams, int index, int nm,
+                           sh_display_frame_info *info, const sh_point **ref, int *nref)
 {
     if (camera_motion(p, index, info) || calibration_off(p, index, info)) return 0;
-    take_reference(p, img, index, nm);
+    take_reference(p, img, cams, index, nm);
     int ref_frame, ref_n;
     if (run_models_poll(p->models, &ref_frame, &ref_n)) {
         p->last = NULL; /* it belonged to the old reference, now freed */
         p->await_ref = 0;
         sh_landmarks *lm = run_models_landmarks(p->models);
-        if (lm)
+        sh_landmarks_rig *rig = run_models_rig(p->models);
+        if (lm) {
             sh_log_info("reference: frame %d, %d markers, %d landmarks", ref_frame, ref_n, sh_landmarks_count(lm));
+        } else if (rig) {
+            int chosen = sh_landmarks_count(sh_landmarks_rig_primary(rig)), in3d = 0;
+            for (int k = 0; k < chosen; k++) in3d += sh_landmarks_rig_in_3d(rig)[k];
+            sh_log_info("reference: frame %d, %d markers, %d landmarks (of %d chosen in camera %d, the ones matched "
+                        "in another camera and triangulated)", ref_frame, ref_n, in3d, chosen, p->out_cam);
+        }
         else if (p->lm_cap)
             sh_log_warn("reference: frame %d, %d markers; %s", ref_frame, ref_n, run_models_landmarks_note(p->models));
         else
@@ -625,7 +660,7 @@ static void landmarks(run_proc *p, const run_model *md, const sh_image *img, con
     sh_landmarks_counts c;
     sh_status st = lm && sh_landmarks_count(lm) == nlm ? SH_OK
                                                        : sh_error_set(SH_EINVAL, "the model's landmarks are not the reference's");
-    if (st == SH_OK) st = sh_landmarks_luma(img, &p->lm_gray, &y);
+    if (st == SH_OK) st = sh_landmarks_luma(img, &p->lm_gray[0], &y);
     if (st == SH_OK)
         st = sh_interp_map_points(&tps, run_model_ref_xy(md), xy, nmk, sh_landmarks_reference(lm), nlm, p->lm_pred);
     if (st == SH_OK) st = sh_landmarks_track(lm, y, p->lm_pred, p->lm_xy, p->lm_verdict, &c);
@@ -641,6 +676,53 @@ static void landmarks(run_proc *p, const run_model *md, const sh_image *img, con
         for (int v = 0; v < SH_LANDMARK_VERDICTS; v++) p->lm_verdicts[v] += c.verdicts[v];
         p->lm_accepted = c.verdicts[SH_LANDMARK_ACCEPTED];
         p->lm_frames++;
+    }
+    for (int k = nmk; k < n; k++) {
+        if (!p->all_use[k]) p->all_xy[2 * k] = p->all_xy[2 * k + 1] = NAN; /* never read */
+        p->all_det[2 * k] = p->all_det[2 * k + 1] = NAN;
+    }
+    p->lm_ms = now_ms() - t0;
+}
+
+/* The same with a calibrated rig (sh_landmarks_rig): every camera searched (cams), the landmarks
+ * triangulated; p->all_xyz gets the markers' X, Y, Z (xyz), then the used landmarks'. The model's
+ * landmarks are the ones with a reference in 3D, id SH_LANDMARK_ID_BASE + the rig's index. */
+static void landmarks_3d(run_proc *p, const run_model *md, const sh_image *img, const sh_image *const *cams,
+                         const double *xy, const double *xyz, const double *det)
+{
+    double t0 = now_ms();
+    int n, nmk = run_model_markers(md);
+    const int *ids = run_model_ids(md, &n);
+    sh_landmarks_rig *rig = run_models_rig(p->models);
+    memcpy(p->all_xy, xy, sizeof(double) * 2 * (size_t)nmk);
+    memcpy(p->all_xyz, xyz, sizeof(double) * 3 * (size_t)nmk);
+    memcpy(p->all_det, det, sizeof(double) * 2 * (size_t)nmk);
+    memset(p->all_use, 1, (size_t)nmk);
+    memset(p->all_use + nmk, 0, (size_t)(n - nmk));
+    p->lm_accepted = 0;
+    const sh_plane *y[SH_CALIB_MAX_CAMERAS];
+    sh_landmarks_rig_counts c;
+    sh_status st = rig ? lumas(p, img, cams, y) : sh_error_set(SH_EINVAL, "the model's landmarks are not the reference's");
+    if (st == SH_OK)
+        st = sh_landmarks_rig_track(rig, y, run_model_ref_xy(md), xy, xyz, nmk, p->lm_xy, p->lm_xyz, p->lm_verdict, &c);
+    if (st != SH_OK) {
+        sh_log_limited(&p->lm_err, SH_LOG_ERROR, "landmarks: %s (the markers alone)", sh_error_message());
+    } else {
+        sh_log_limit_clear(&p->lm_err);
+        for (int k = nmk; k < n; k++) {
+            int i = ids[k] - SH_LANDMARK_ID_BASE;
+            p->all_xy[2 * k] = p->lm_xy[2 * i];
+            p->all_xy[2 * k + 1] = p->lm_xy[2 * i + 1];
+            memcpy(&p->all_xyz[3 * k], &p->lm_xyz[3 * i], sizeof(double) * 3);
+            p->all_use[k] = p->lm_verdict[i];
+        }
+        if (c.mapped) {
+            for (int v = 0; v < SH_LANDMARK_VERDICTS; v++) p->lm_verdicts[v] += c.primary.verdicts[v];
+            p->lm_unmatched += c.unmatched;
+            p->lm_inconsistent += c.inconsistent;
+            p->lm_frames++;
+        }
+        p->lm_accepted = c.used;
     }
     for (int k = nmk; k < n; k++) {
         if (!p->all_use[k]) p->all_xy[2 * k] = p->all_xy[2 * k + 1] = NAN; /* never read */
@@ -690,7 +772,7 @@ static const sh_image *frame(run_proc *p, const sh_image *img, const sh_image *c
     const sh_point *ref;
     int nref;
     run_selection sel;
-    if (!reference_ready(p, img, index, nm, info, &ref, &nref) || !selection_ok(p, ref, nref, nm, &sel, info))
+    if (!reference_ready(p, img, cams, index, nm, info, &ref, &nref) || !selection_ok(p, ref, nref, nm, &sel, info))
         return img;
     run_positions fb;
     int building = 0;
@@ -701,7 +783,10 @@ static const sh_image *frame(run_proc *p, const sh_image *img, const sh_image *c
     const unsigned char *use = NULL;
     int npts;
     run_model_ids(md, &npts);
-    if (npts > run_model_markers(md)) { /* the reference has landmarks */
+    if (npts > run_model_markers(md) && p->three_d) { /* the reference has landmarks */
+        landmarks_3d(p, md, img, cams, xy, xyz, det);
+        xy = p->all_xy, xyz = p->all_xyz, det = p->all_det, use = p->all_use;
+    } else if (npts > run_model_markers(md)) {
         landmarks(p, md, img, xy, det);
         xy = p->all_xy, det = p->all_det, use = p->all_use;
     }

@@ -78,12 +78,12 @@ static void onto_epipolar_line(const sh_landmarks_rig *rig, int c, const float x
 }
 
 /* Camera c (not the primary): every landmark searched from its prediction moved onto the epipolar
- * line of the primary's position (rig->xy[primary]) and judged. Without a prediction (fewer than
- * 3 markers with X, Y, Z in front of it) every landmark is lost there. */
+ * line of the primary's position (rig->xy[primary]) and judged. Without its frame (luma NULL) or a
+ * prediction (fewer than 3 markers with X, Y, Z in front of it) every landmark is lost there. */
 static sh_status match_camera(sh_landmarks_rig *rig, int c, const sh_plane *luma, const double *ref_xy,
                               const double *cur_xyz, int n)
 {
-    if (predict(rig, c, ref_xy, NULL, cur_xyz, n) != SH_OK) {
+    if (!luma || predict(rig, c, ref_xy, NULL, cur_xyz, n) != SH_OK) {
         memset(rig->verdict[c], SH_LANDMARK_LOST, (size_t)rig->n);
         return SH_OK;
     }
@@ -159,8 +159,9 @@ sh_status sh_landmarks_rig_create(const sh_landmarks_params *params, const sh_ca
         calib->num_cameras > MAXCAM || primary < 0 || primary >= calib->num_cameras || n < 3)
         return sh_error_set(SH_EINVAL, "landmarks in 3D: a rig of 2 to %d cameras, its primary among them, and 3 "
                                        "markers or more", MAXCAM);
+    if (!luma[primary]) return sh_error_set(SH_EINVAL, "landmarks in 3D: no frame of the primary camera");
     for (int c = 0; c < calib->num_cameras; c++)
-        if (!luma[c] || luma[c]->width != luma[primary]->width || luma[c]->height != luma[primary]->height)
+        if (luma[c] && (luma[c]->width != luma[primary]->width || luma[c]->height != luma[primary]->height))
             return sh_error_set(SH_EINVAL, "landmarks in 3D: camera %d's frame is not the primary's size", c);
     sh_landmarks_rig *rig = calloc(1, sizeof *rig);
     if (!rig) return sh_error_set(SH_ENOMEM, "landmarks: out of memory");

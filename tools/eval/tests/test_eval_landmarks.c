@@ -227,12 +227,76 @@ static double geometric_3d(const char *dir, const char *points, const char *meth
     return out_geometric_mean();
 }
 
+/* The landmark rows of frames 1.. in `stillheart track --landmarks`'s landmarks.csv and the
+ * daemon's used.csv (--trace-points): how many track wrote, (frame, id) in both, in the daemon's
+ * alone; returns the largest distance between the two positions of one. */
+static double rows_against_track(const char *dir, int *track_rows, int *shared, int *only_daemon)
+{
+    if (test_run("cd '%s' && awk -F, 'FNR > 1 && $1 > 0 && $2 >= 1000000 { k = $1 \",\" $2; "
+                 "if (FILENAME == \"landmarks.csv\") { x[k] = $3; y[k] = $4; t++ } else if (k in x) { s++; "
+                 "d = ($3 - x[k]) ^ 2 + ($4 - y[k]) ^ 2; if (d > m) m = d } else o++ } "
+                 "END { printf \"%%d %%d %%d %%.6f\\n\", t, s, o, sqrt(m) }' landmarks.csv used.csv", dir) != 0)
+        fail_msg("%s\n%s", test_cmd, test_out);
+    double far;
+    assert_int_equal(sscanf(test_out, "%d %d %d %lf", track_rows, shared, only_daemon, &far), 4);
+    return far;
+}
+
+/* The bytes of luma (and chroma) in which two videos of one size differ, as a fraction of all. */
+static double differing(const char *dir, const char *a, const char *b)
+{
+    if (test_run("cd '%s' && n=$(cmp -l %s %s | wc -l) && echo \"$n $(stat -c %%s %s)\"", dir, a, b, a) != 0)
+        fail_msg("%s\n%s", test_cmd, test_out);
+    double n, size;
+    assert_int_equal(sscanf(test_out, "%lf %lf", &n, &size), 2);
+    return n / size;
+}
+
+/* The daemon's [track] landmarks with [method] calibration, its 3D markers from the points file
+ * `stillheart track --cameras` wrote (test mode), against that command's --landmarks and
+ * `stillheart warp3d` through its rows (s.y4m; s0.y4m through the markers alone): the landmarks
+ * it uses in each frame are the ones the offline path writes, at the same positions, and its
+ * frames are warp3d's but for rounding (the file's positions are rounded, the daemon's are not),
+ * nearer to them than to the frames of the markers alone by two orders of magnitude. Then live
+ * (its own tracker over the three cameras): every frame stabilized uses landmarks. */
+static void daemon_3d_against_track(const char *dir)
+{
+    const char *cams = "--source y4m:cam0.y4m --camera1-spec y4m:cam1.y4m --camera2-spec y4m:cam2.y4m "
+                       "--calibration calibration.yaml --group= --no-realtime --sink none --threads 2 "
+                       "--method tps --landmarks 100";
+    if (test_run("cd '%s' && '%s' run %s --no-loop --points markers.csv --record rec.y4m --trace-points used.csv", dir,
+                 APP_BIN, cams) != 0)
+        fail_msg("%s\n%s", test_cmd, test_out);
+    assert_non_null(strstr(test_out, "landmarks in 3D: of the accepted"));
+    int track_rows, shared, only_daemon;
+    double far = rows_against_track(dir, &track_rows, &shared, &only_daemon);
+    double same = differing(dir, "rec.y4m", "s.y4m"), markers = differing(dir, "s0.y4m", "s.y4m");
+    print_message("  daemon in 3D: landmark rows: %d of track's, %d shared, %d the daemon's alone, largest distance "
+                  "%.4f px; bytes unlike warp3d's with the landmarks %.5f %%, the markers' alone %.3f %%\n",
+                  track_rows, shared, only_daemon, far, 100 * same, 100 * markers);
+    assert_true(track_rows > 0);
+    assert_true(shared >= track_rows * 0.98 && only_daemon <= track_rows * 0.02);
+    assert_true(far < 0.05);
+    assert_true(same * 100 < markers);
+    /* the replay looped once: the reference (landmarks chosen and matched on the helper) takes
+     * the first half second */
+    if (test_run("cd '%s' && '%s' run %s --loop --max-frames 60 --trace live.csv 2>/dev/null >/dev/null && awk -F, "
+                 "'NR > 1 && $2 == \"stabilized\" { n++; if ($10 > 0) l++ } END { print n + 0, l + 0 }' live.csv", dir,
+                 APP_BIN, cams) != 0)
+        fail_msg("%s\n%s", test_cmd, test_out);
+    int stabilized, with_landmarks;
+    assert_int_equal(sscanf(test_out, "%d %d", &stabilized, &with_landmarks), 2);
+    print_message("  daemon in 3D, live: %d frames of 60 stabilized, %d of them with landmarks\n", stabilized,
+                  with_landmarks);
+    assert_true(stabilized >= 5 && with_landmarks == stabilized);
+}
+
 /* Landmarks in 3D (`stillheart track --cameras --landmarks`) on a three-camera render with the
  * shaft and blood: the marker rows are those of the run without landmarks; no landmark row where
  * the truth says its point is hidden; every landmark row's X, Y, Z, projected into each camera
  * that sees its point, lies within half the issue's 1 px of the truth in the mean; the 3D warp's
- * geometric error and e are lower with them; gaussian leaves them out (the same bytes); pwlinear
- * (a model per set) stabilizes every frame. */
+ * geometric error and e are lower with them; the daemon does the same (daemon_3d_against_track);
+ * gaussian leaves them out (the same bytes); pwlinear (a model per set) stabilizes every frame. */
 static void test_track_landmarks_3d(void **state)
 {
     (void)state;
@@ -272,10 +336,13 @@ static void test_track_landmarks_3d(void **state)
     assert_true(json_num(r, "rows") > in_3d);
     assert_true(mean < 0.5);
     double e0, e1;
-    double plain = geometric_3d(dir, "markers.csv", "tps", &e0), with = geometric_3d(dir, "landmarks.csv", "tps", &e1);
+    double plain = geometric_3d(dir, "markers.csv", "tps", &e0);
+    assert_int_equal(test_run("cd '%s' && mv s.y4m s0.y4m", dir), 0);
+    double with = geometric_3d(dir, "landmarks.csv", "tps", &e1);
     print_message("  3D TPS: geometric error %.4f -> %.4f px, e %.5f -> %.5f\n", plain, with, e0, e1);
     assert_true(with < plain);
     assert_true(e1 < e0);
+    daemon_3d_against_track(dir);
     assert_int_equal(test_run("cd '%s' && W='%s warp3d --quiet --cameras calibration.yaml --method gaussian' && "
                               "$W --points markers.csv cam0.y4m g0.y4m && $W --points landmarks.csv cam0.y4m g1.y4m && "
                               "cmp g0.y4m g1.y4m", dir, APP_BIN), 0);
@@ -316,15 +383,8 @@ static void daemon_against_track(const char *dir, const char *flags)
         fail_msg("%s\n%s", test_cmd, test_out);
     assert_non_null(strstr(test_out, " landmarks"));
     assert_non_null(strstr(test_out, "landmark-frames: accepted"));
-    /* the landmark rows of frames 1.. in both: (frame, id) shared, only in one, largest distance */
-    if (test_run("cd '%s' && awk -F, 'FNR > 1 && $1 > 0 && $2 >= 1000000 { k = $1 \",\" $2; "
-                 "if (FILENAME == \"landmarks.csv\") { x[k] = $3; y[k] = $4; t++ } else if (k in x) { s++; "
-                 "d = ($3 - x[k]) ^ 2 + ($4 - y[k]) ^ 2; if (d > m) m = d } else o++ } "
-                 "END { printf \"%%d %%d %%d %%.6f\\n\", t, s, o, sqrt(m) }' landmarks.csv used.csv", dir) != 0)
-        fail_msg("%s\n%s", test_cmd, test_out);
     int track_rows, shared, only_daemon;
-    double far;
-    assert_int_equal(sscanf(test_out, "%d %d %d %lf", &track_rows, &shared, &only_daemon, &far), 4);
+    double far = rows_against_track(dir, &track_rows, &shared, &only_daemon);
     print_message("  %s: landmark rows: %d of track's, %d shared, %d the daemon's alone; largest distance %.4f px\n",
                   flags[0] ? flags : "defaults", track_rows, shared, only_daemon, far);
     assert_true(track_rows > 0);
@@ -379,11 +439,10 @@ static void test_daemon_landmarks(void **state)
     }
     print_message("  bspline geometric error in the daemon: markers %.4f px, with landmarks %.4f\n", bs[0], bs[1]);
     assert_true(bs[1] < bs[0]);
-    /* refused: methods whose model cannot leave a landmark out, one that is worse with them, 3D */
+    /* refused: methods whose model cannot leave a landmark out, one that is worse with them */
     const char *refused[][2] = {{"--method pwlinear", "new model for every frame"},
-                                {"--method gaussian", "worse with landmarks"},
-                                {"--calibration rig.yaml", "2D only"}};
-    for (int k = 0; k < 3; k++) {
+                                {"--method gaussian", "worse with landmarks"}};
+    for (int k = 0; k < 2; k++) {
         assert_int_equal(test_run("'%s' run --source y4m:%s/cam0.y4m --landmarks 10 %s --sink none", APP_BIN, dir,
                                   refused[k][0]), 2);
         if (!strstr(test_out, refused[k][1])) fail_msg("%s: no '%s' in:\n%s", refused[k][0], refused[k][1], test_out);
