@@ -126,8 +126,21 @@ sh_status sh_warp3d_view_create(const sh_warp3d_model *model, const sh_calib_cam
                                 const sh_warp3d_view_options *opts, sh_warp3d_view **out);
 void sh_warp3d_view_destroy(sh_warp3d_view *view);
 
-/* The map for the model's last update (allocates only when the grid must be refined). */
+/* The map for the model's last update (allocates only when the grid must be refined). With
+ * opts.warp.defer_refine the grid is kept whatever its bound: sh_warp_model_finer_spacing of the
+ * view's map model says which spacing is due, for a caller with a deadline to build that grid on
+ * another thread (sh_warp3d_view_grid_build) and swap it in between updates. */
 sh_status sh_warp3d_view_update(sh_warp3d_view *view);
+
+typedef struct sh_warp3d_grid sh_warp3d_grid;
+/* A grid for view at spacing h (a power of two), apart from the view. It reads only what the
+ * view's creation and the model's reference fixed, so it may run while another thread updates
+ * the model and the view; the model must outlive it. */
+sh_status sh_warp3d_view_grid_build(const sh_warp3d_view *view, int h, sh_warp3d_grid **out);
+/* Puts grid in view's place, projected with the model's last update, and the view's old grid in
+ * grid (to destroy). Same thread as the updates. */
+void sh_warp3d_view_grid_swap(sh_warp3d_view *view, sh_warp3d_grid *grid);
+void sh_warp3d_grid_destroy(sh_warp3d_grid *grid);
 
 /* The 2D warp model holding the view's map: give it to sh_warp_apply / sh_warp_model_map. */
 const sh_warp_model *sh_warp3d_view_map_model(const sh_warp3d_view *view);

@@ -40,7 +40,9 @@ struct run_model {
     int taken;      /* the helper is building it */
     char err[160];  /* why the build failed */
     int refine, refine_h;  /* REFINE_*, and the spacing asked for */
-    sh_warp_model *finer;  /* REFINE_READY: the model on the finer grid, to swap in */
+    int refine_view;       /* 3D: the view whose grid it is */
+    sh_warp_model *finer;  /* REFINE_READY, 2D: the model on the finer grid, to swap in */
+    sh_warp3d_grid *finer_grid; /* REFINE_READY, 3D: the view's finer grid */
 };
 
 typedef struct {
@@ -80,6 +82,7 @@ struct run_models {
     int builds;
     run_model *pinned;      /* the model last handed out: never evicted (the fallback) */
     sh_warp_model *replaced[4]; /* grids swapped out by refine_swap, to free on the helper */
+    sh_warp3d_grid *replaced_grid[4]; /* the same, of 3D views */
     int refined;            /* finer grids built by the helper and swapped in */
     sh_landmarks_params lp; /* max_points 0: no landmarks */
     sh_calib calib;         /* 3D: the rig, for the landmarks */
@@ -89,6 +92,7 @@ struct run_models {
 static void model_free(run_model *md)
 {
     sh_warp_model_destroy(md->finer);
+    sh_warp3d_grid_destroy(md->finer_grid);
     sh_modelcache_entry_clear(&md->e);
     free(md->coef);
     memset(md, 0, sizeof *md);
@@ -138,12 +142,17 @@ static sh_status model_build(run_models *m, run_model *md)
 
 /* 3D: the same residual, the map at a marker's reference pixel being the projection of its
  * surface point displaced by h. */
+static void refine_swap(run_model *md);
+static void refine_ask(run_model *md);
+
 static sh_status update_3d(const run_models *m, run_model *md, const double *cur_xyz, const double *det_xy,
                            const unsigned char *use, double *residual)
 {
+    refine_swap(md);
     sh_status st = sh_warp3d_model_update_subset(md->e.m3, cur_xyz, use);
     for (int v = 0; v < m->recipe.nviews && st == SH_OK; v++) st = sh_warp3d_view_update(md->e.view[v]);
     if (st != SH_OK) return st;
+    refine_ask(md);
     double worst = -1;
     for (int k = 0; k < run_model_markers(md); k++) {
         if (!isfinite(det_xy[2 * k])) continue;
@@ -179,33 +188,43 @@ static sh_status residual_subset(run_model *md, const double *det_xy, double *re
     return SH_OK;
 }
 
-/* Live 2D models are made with defer_refine (run_models_create): a grid too coarse for a frame's
- * map would otherwise be rebuilt inside that frame's update, 15-100 ms with the landmarks' 130-140
- * points at 1080p (measured: refinements to 4 and 2 px), a frame or three lost in real time. Here
- * a model the helper built on the finer grid replaces the old one before the update, and after
- * it a finer grid is asked for when the map's bound wants one; meanwhile the map is within its
- * bound, not max_error (0.05-0.34 px measured as refinements came due on the phantom with and
- * without landmarks). */
+/* Live models are made with defer_refine (run_models_create, run_models_set_3d): a grid too coarse
+ * for a frame's map would otherwise be rebuilt inside that frame's update, 15-100 ms with the
+ * landmarks' 130-140 points at 1080p in 2D (measured: refinements to 4 and 2 px), 235 ms for a 3D
+ * view through 119 points (three 1080p cameras, 200 landmarks asked: docs/landmarks.md), a frame
+ * or several lost in real time. Here what the helper built on the finer grid (a 2D model, or a 3D
+ * view's grid) replaces the old one before the update, and after it a finer grid is asked for
+ * when the map's bound wants one; meanwhile the map is within its bound, not max_error (0.05-0.34
+ * px measured as refinements came due on the phantom in 2D with and without landmarks). */
 static void refine_swap(run_model *md)
 {
     run_models *m = md->owner;
-    if (!m || !m->recipe.wopts.defer_refine) return;
+    int live = m && (m->recipe.three_d ? m->recipe.vopts.warp.defer_refine : m->recipe.wopts.defer_refine);
+    if (!live) return;
     pthread_mutex_lock(&m->mu);
     if (md->refine == REFINE_READY) {
-        sh_warp_model *old = md->e.model;
-        md->e.model = md->finer;
-        md->finer = NULL;
+        sh_warp_model *old = NULL;
+        sh_warp3d_grid *old_grid = NULL;
+        if (md->finer_grid) {
+            sh_warp3d_view_grid_swap(md->e.view[md->refine_view], md->finer_grid);
+            old_grid = md->finer_grid; /* the view's old grid, now */
+            md->finer_grid = NULL;
+        } else {
+            old = md->e.model;
+            md->e.model = md->finer;
+            md->finer = NULL;
+        }
         md->refine = REFINE_NONE;
         m->refined++;
-        int i = 0;
-        while (i < 4 && m->replaced[i]) i++;
-        if (i < 4) {
-            m->replaced[i] = old;
-            old = NULL;
-            pthread_cond_broadcast(&m->cv);
+        for (int i = 0; i < 4 && (old || old_grid); i++) {
+            if (old && !m->replaced[i]) m->replaced[i] = old, old = NULL;
+            else if (old_grid && !m->replaced_grid[i]) m->replaced_grid[i] = old_grid, old_grid = NULL;
         }
+        pthread_cond_broadcast(&m->cv);
         pthread_mutex_unlock(&m->mu);
-        sh_warp_model_destroy(old); /* the helper's list is full: here, once in a long while */
+        /* the helper's list is full: here, once in a long while */
+        sh_warp_model_destroy(old);
+        sh_warp3d_grid_destroy(old_grid);
         return;
     }
     pthread_mutex_unlock(&m->mu);
@@ -214,12 +233,19 @@ static void refine_swap(run_model *md)
 static void refine_ask(run_model *md)
 {
     run_models *m = md->owner;
-    int h = m && m->recipe.wopts.defer_refine ? sh_warp_model_finer_spacing(md->e.model) : 0;
+    int h = 0, view = 0;
+    if (m && m->recipe.three_d) {
+        for (int v = 0; v < m->recipe.nviews && !h; v++)
+            if ((h = sh_warp_model_finer_spacing(sh_warp3d_view_map_model(md->e.view[v])))) view = v;
+    } else if (m && m->recipe.wopts.defer_refine) {
+        h = sh_warp_model_finer_spacing(md->e.model);
+    }
     if (!h) return;
     pthread_mutex_lock(&m->mu);
     if (md->refine == REFINE_NONE) {
         md->refine = REFINE_ASKED;
         md->refine_h = h;
+        md->refine_view = view;
         pthread_cond_broadcast(&m->cv);
     }
     pthread_mutex_unlock(&m->mu);
@@ -380,12 +406,15 @@ static run_model *find_refine(generation *g)
     return NULL;
 }
 
-/* Under the lock, unlocked while it builds: md's model again on the finer grid it asked for, for
- * refine_swap. The interpolant and reference positions it reads are freed only by this thread;
- * the result lands only if md still holds the model it was asked for (not evicted, not replaced). */
+/* Under the lock, unlocked while it builds: md's model again on the finer grid it asked for (3D:
+ * its view's grid), for refine_swap. The interpolant, reference positions and view it reads are
+ * freed only by this thread; the result lands only if md still holds the model (view) it was
+ * asked for (not evicted, not replaced). */
 static void refine_model(run_models *m, run_model *md)
 {
     sh_warp_model *asked_for = md->e.model, *fresh = NULL;
+    sh_warp3d_view *view = m->recipe.three_d ? md->e.view[md->refine_view] : NULL;
+    sh_warp3d_grid *grid = NULL;
     const sh_interp *interp = md->e.interp;
     const double *ref_xy = md->e.ref_xy;
     int n = md->e.n;
@@ -393,15 +422,20 @@ static void refine_model(run_models *m, run_model *md)
     o.grid_spacing = md->refine_h;
     md->refine = REFINE_TAKEN;
     pthread_mutex_unlock(&m->mu);
-    sh_status st = sh_warp_model_create(interp, ref_xy, n, m->recipe.width, m->recipe.height, &o, &fresh);
+    sh_status st = view ? sh_warp3d_view_grid_build(view, o.grid_spacing, &grid)
+                        : sh_warp_model_create(interp, ref_xy, n, m->recipe.width, m->recipe.height, &o, &fresh);
     pthread_mutex_lock(&m->mu);
-    if (md->e.model == asked_for && md->refine == REFINE_TAKEN) {
+    int still = view ? md->e.view[md->refine_view] == view : md->e.model == asked_for;
+    if (still && md->refine == REFINE_TAKEN) {
         md->refine = st == SH_OK ? REFINE_READY : REFINE_FAILED;
-        md->finer = st == SH_OK ? fresh : NULL;
-        if (st == SH_OK) fresh = NULL;
+        if (st == SH_OK) {
+            md->finer = fresh, md->finer_grid = grid;
+            fresh = NULL, grid = NULL;
+        }
     }
     pthread_mutex_unlock(&m->mu);
     sh_warp_model_destroy(fresh);
+    sh_warp3d_grid_destroy(grid);
     pthread_mutex_lock(&m->mu);
 }
 
@@ -417,11 +451,15 @@ static void *helper_main(void *arg)
         for (int i = 0; i < 4 && !trash; i++)
             if (m->trash[i]) { trash = m->trash[i]; m->trash[i] = NULL; }
         sh_warp_model *replaced = NULL;
-        for (int i = 0; i < 4 && !trash && !replaced; i++)
+        sh_warp3d_grid *replaced_grid = NULL;
+        for (int i = 0; i < 4 && !trash && !replaced && !replaced_grid; i++) {
             if (m->replaced[i]) { replaced = m->replaced[i]; m->replaced[i] = NULL; }
-        if (replaced) {
+            else if (m->replaced_grid[i]) { replaced_grid = m->replaced_grid[i]; m->replaced_grid[i] = NULL; }
+        }
+        if (replaced || replaced_grid) {
             pthread_mutex_unlock(&m->mu);
             sh_warp_model_destroy(replaced);
+            sh_warp3d_grid_destroy(replaced_grid);
             pthread_mutex_lock(&m->mu);
             continue;
         }
@@ -548,7 +586,7 @@ void run_models_destroy(run_models *m)
     generation_free(m->next);
     for (int i = 0; i < 4; i++) generation_free(m->trash[i]);
     for (int i = 0; i < m->nevicted; i++) { model_free(m->evicted[i]); free(m->evicted[i]); }
-    for (int i = 0; i < 4; i++) sh_warp_model_destroy(m->replaced[i]);
+    for (int i = 0; i < 4; i++) sh_warp_model_destroy(m->replaced[i]), sh_warp3d_grid_destroy(m->replaced_grid[i]);
     pthread_mutex_destroy(&m->mu);
     pthread_cond_destroy(&m->cv);
     free(m);
@@ -767,9 +805,10 @@ sh_status run_models_set_3d(run_models *m, const sh_calib *calib, int camera, do
     sh_warp3d_params_default(&r->p3);
     r->p3.surface = r->p3.displacement = r->params;
     sh_warp3d_view_options_default(&r->vopts);
-    /* the views' maps refine in their own updates (warp3d.h): no model of theirs is swapped */
-    r->wopts.defer_refine = 0;
+    /* live, the views' finer grids are built on the helper and swapped in (refine_swap) as the 2D
+     * models' are; the model's own 2D grid is not used */
     r->vopts.warp = r->wopts;
+    r->wopts.defer_refine = 0;
     r->three_d = 1;
     m->calib = *calib;
     m->camera = camera;

@@ -85,62 +85,104 @@ sh_status sh_warp3d_view_locate(const sh_warp3d_view *v, double x, double y, dou
     return sh_warp3d_model_locate(v->model, &v->vcam, v->opts.depth_scale, x, y, uv);
 }
 
-static void free_grid(sh_warp3d_view *v)
+/* A grid of the view: its geometry (as the 2D engine's sh_warp_model holds it) and, per node, what
+ * the reference fixes (the surface point its ray hits, the displacement's basis there) and the
+ * map the last update projected. */
+struct sh_warp3d_grid {
+    int h, gx0, gy0, nx, ny;
+    double *S;                /* per node: reference world point (NaN: the ray missed) */
+    double *b;                /* per node: displacement trend basis */
+    int *row_start, *index;   /* per node: sparse basis of the displacement interpolant */
+    double *weight;
+    double *curv;
+    double *map;
+};
+
+static void grid_free(sh_warp3d_grid *g)
 {
-    free(v->S);
-    free(v->b);
-    free(v->row_start);
-    free(v->index);
-    free(v->weight);
-    free(v->curv);
-    free(v->wm->map);
-    v->S = v->b = v->weight = v->curv = v->wm->map = NULL;
-    v->row_start = v->index = NULL;
+    free(g->S);
+    free(g->b);
+    free(g->row_start);
+    free(g->index);
+    free(g->weight);
+    free(g->curv);
+    free(g->map);
+    memset(g, 0, sizeof *g);
 }
 
-static sh_status build_grid(sh_warp3d_view *v, int h)
+/* g for spacing h, its map not projected. Reads only what the view's creation fixed and the
+ * model's reference surface and interpolant (never the coefficients an update writes), so it may
+ * run beside sh_warp3d_view_update and sh_warp3d_model_update on another thread. */
+static sh_status grid_build(const sh_warp3d_view *v, int h, sh_warp3d_grid *g)
 {
-    sh_warp_model *wm = v->wm;
     const sh_warp3d_model *m = v->model;
-    free_grid(v);
-    wm->h = h;
-    wm->gx0 = (int)floor(v->bx0 / h) * h;
-    wm->gy0 = (int)floor(v->by0 / h) * h;
-    wm->nx = ((int)ceil(v->bx1 / h) * h - wm->gx0) / h + 1;
-    wm->ny = ((int)ceil(v->by1 / h) * h - wm->gy0) / h + 1;
-    if (wm->nx < 2) wm->nx = 2;
-    if (wm->ny < 2) wm->ny = 2;
-    size_t nodes = (size_t)wm->nx * (size_t)wm->ny;
+    memset(g, 0, sizeof *g);
+    g->h = h;
+    g->gx0 = (int)floor(v->bx0 / h) * h;
+    g->gy0 = (int)floor(v->by0 / h) * h;
+    g->nx = ((int)ceil(v->bx1 / h) * h - g->gx0) / h + 1;
+    g->ny = ((int)ceil(v->by1 / h) * h - g->gy0) / h + 1;
+    if (g->nx < 2) g->nx = 2;
+    if (g->ny < 2) g->ny = 2;
+    size_t nodes = (size_t)g->nx * (size_t)g->ny;
     int max_terms = sh_interp_max_terms(m->h_interp);
-    v->S = malloc(sizeof(double) * 3 * nodes);
-    v->b = malloc(sizeof(double) * W3_H_TREND * nodes);
-    v->row_start = malloc(sizeof(int) * (nodes + 1));
-    v->index = malloc(sizeof(int) * nodes * (size_t)max_terms);
-    v->weight = malloc(sizeof(double) * nodes * (size_t)max_terms);
-    v->curv = malloc(sizeof(double) * 4 * nodes);
-    wm->map = malloc(sizeof(double) * 2 * nodes);
-    if (!v->S || !v->b || !v->row_start || !v->index || !v->weight || !v->curv || !wm->map)
+    g->S = malloc(sizeof(double) * 3 * nodes);
+    g->b = malloc(sizeof(double) * W3_H_TREND * nodes);
+    g->row_start = malloc(sizeof(int) * (nodes + 1));
+    g->index = malloc(sizeof(int) * nodes * (size_t)max_terms);
+    g->weight = malloc(sizeof(double) * nodes * (size_t)max_terms);
+    g->curv = malloc(sizeof(double) * 4 * nodes);
+    g->map = malloc(sizeof(double) * 2 * nodes);
+    if (!g->S || !g->b || !g->row_start || !g->index || !g->weight || !g->curv || !g->map) {
+        grid_free(g);
         return sh_error_set(SH_ENOMEM, "warp3d: grid of %zu nodes does not fit in memory", nodes);
+    }
     size_t used = 0;
-    for (int j = 0; j < wm->ny; j++) {
-        for (int i = 0; i < wm->nx; i++) {
-            size_t node = (size_t)j * wm->nx + i;
+    for (int j = 0; j < g->ny; j++) {
+        for (int i = 0; i < g->nx; i++) {
+            size_t node = (size_t)j * g->nx + i;
             double C[3], d[3], uv[2];
-            v->row_start[node] = (int)used;
-            double *S = v->S + 3 * node;
-            if (!sh_warp3d_ray(&v->vcam, wm->gx0 + (double)i * h, wm->gy0 + (double)j * h, C, d) ||
+            g->row_start[node] = (int)used;
+            double *S = g->S + 3 * node;
+            if (!sh_warp3d_ray(&v->vcam, g->gx0 + (double)i * h, g->gy0 + (double)j * h, C, d) ||
                 !intersect(m, v->opts.depth_scale, C, d, uv)) {
                 S[0] = S[1] = S[2] = NAN;
                 continue;
             }
             w3_surface_point(m, uv[0], uv[1], 1, S);
-            w3_h_basis(m, uv[0], uv[1], v->b + W3_H_TREND * node);
-            int k = sh_interp_basis(m->h_interp, uv[0], uv[1], v->index + used, v->weight + used);
-            if (k < 0) return (sh_status)k;
+            w3_h_basis(m, uv[0], uv[1], g->b + W3_H_TREND * node);
+            int k = sh_interp_basis(m->h_interp, uv[0], uv[1], g->index + used, g->weight + used);
+            if (k < 0) {
+                grid_free(g);
+                return (sh_status)k;
+            }
             used += (size_t)k;
         }
     }
-    v->row_start[nodes] = (int)used;
+    g->row_start[nodes] = (int)used;
+    return SH_OK;
+}
+
+/* Puts g in v's place and v's old grid in g's. */
+static void grid_exchange(sh_warp3d_view *v, sh_warp3d_grid *g)
+{
+    sh_warp_model *wm = v->wm;
+    sh_warp3d_grid old = {wm->h, wm->gx0, wm->gy0, wm->nx, wm->ny, v->S, v->b, v->row_start, v->index,
+                          v->weight, v->curv, wm->map};
+    wm->h = g->h, wm->gx0 = g->gx0, wm->gy0 = g->gy0, wm->nx = g->nx, wm->ny = g->ny;
+    v->S = g->S, v->b = g->b, v->row_start = g->row_start, v->index = g->index;
+    v->weight = g->weight, v->curv = g->curv, wm->map = g->map;
+    *g = old;
+}
+
+/* v's grid at spacing h (the old one kept when that fails). */
+static sh_status build_grid(sh_warp3d_view *v, int h)
+{
+    sh_warp3d_grid g;
+    sh_status st = grid_build(v, h, &g);
+    if (st != SH_OK) return st;
+    grid_exchange(v, &g);
+    grid_free(&g);
     return SH_OK;
 }
 
@@ -148,7 +190,9 @@ void sh_warp3d_view_destroy(sh_warp3d_view *v)
 {
     if (!v) return;
     if (v->wm) {
-        free_grid(v);
+        sh_warp3d_grid g = {0};
+        grid_exchange(v, &g); /* the view's arrays into g, to free */
+        grid_free(&g);
         sh_warp_model_destroy(v->wm);
     }
     free(v);
@@ -318,7 +362,7 @@ sh_status sh_warp3d_view_update(sh_warp3d_view *v)
     sh_status st;
     project_nodes(v);
     v->error_bound = error_bound(v);
-    while (v->error_bound > v->opts.warp.max_error && v->wm->h > 1) {
+    while (!v->opts.warp.defer_refine && v->error_bound > v->opts.warp.max_error && v->wm->h > 1) {
         if ((st = build_grid(v, v->wm->h / 2)) != SH_OK) return st;
         v->wm->refinements++;
         project_nodes(v);
@@ -326,6 +370,36 @@ sh_status sh_warp3d_view_update(sh_warp3d_view *v)
     }
     v->wm->error_bound = v->error_bound;
     return SH_OK;
+}
+
+sh_status sh_warp3d_view_grid_build(const sh_warp3d_view *v, int h, sh_warp3d_grid **out)
+{
+    *out = NULL;
+    if (!v || h < 1 || (h & (h - 1))) return sh_error_set(SH_EINVAL, "warp3d: grid spacing %d is not a power of two", h);
+    sh_warp3d_grid *g = malloc(sizeof *g);
+    if (!g) return sh_error_set(SH_ENOMEM, "warp3d: out of memory");
+    sh_status st = grid_build(v, h, g);
+    if (st != SH_OK) {
+        free(g);
+        return st;
+    }
+    *out = g;
+    return SH_OK;
+}
+
+void sh_warp3d_view_grid_swap(sh_warp3d_view *v, sh_warp3d_grid *grid)
+{
+    grid_exchange(v, grid);
+    v->wm->refinements++;
+    project_nodes(v);
+    v->wm->error_bound = v->error_bound = error_bound(v);
+}
+
+void sh_warp3d_grid_destroy(sh_warp3d_grid *grid)
+{
+    if (!grid) return;
+    grid_free(grid);
+    free(grid);
 }
 
 const sh_warp_model *sh_warp3d_view_map_model(const sh_warp3d_view *v)

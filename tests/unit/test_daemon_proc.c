@@ -178,6 +178,39 @@ static void test_models_swap(void **state)
     run_models_destroy(m);
 }
 
+/* Models m of one reference (N markers, ids 0..N-1: the reference is set by the caller), updated
+ * with xy, xyz (3D) and det until the map's grid is want's: live, no update rebuilds a grid (a 2D
+ * model is replaced whole, a 3D view's grid swapped: its count is the swaps), and the map is then
+ * want's (mb), bit for bit; in test mode the first update refines in place. Destroys m. */
+static void refine_until_want(run_models *m, int wait, int three_d, const double *xy, const double *xyz,
+                              const double *det, const sh_warp_model *want, const float *mb, float *ma)
+{
+    int ids[N];
+    for (int i = 0; i < N; i++) ids[i] = i;
+    int swapped = 0, frame, n;
+    for (int t = 0; t < 2000 && !swapped; t++) {
+        swapped = run_models_poll(m, &frame, &n);
+        if (!swapped) wait_ms(5);
+    }
+    assert_true(swapped);
+    run_model *md = NULL;
+    for (int t = 0; t < 2000 && run_models_get(m, ids, N, &md) != 1; t++) wait_ms(5);
+    assert_non_null(md);
+    double residual;
+    int frames = 0;
+    do {
+        assert_int_equal(run_model_update(md, NULL, xy, xyz, det, NULL, &residual), SH_OK);
+        if (!wait)
+            assert_int_equal(sh_warp_model_refinements(run_model_warp(md)), three_d ? run_models_refined(m) : 0);
+        if (sh_warp_model_grid_spacing(run_model_warp(md)) != sh_warp_model_grid_spacing(want)) wait_ms(5);
+    } while (++frames < 2000 && sh_warp_model_grid_spacing(run_model_warp(md)) != sh_warp_model_grid_spacing(want));
+    assert_int_equal(run_models_refined(m), wait ? 0 : sh_warp_model_refinements(want));
+    if (wait) assert_int_equal(frames, 1);
+    assert_int_equal(sh_warp_model_map(run_model_warp(md), ma), SH_OK);
+    assert_memory_equal(ma, mb, sizeof(float) * 2 * 640 * 480);
+    run_models_destroy(m);
+}
+
 /* Live, a map whose grid is too coarse is not refined in the frame's update: the helper builds
  * the finer grid's model and a later update swaps it in, until the grid is the one a refinement in
  * place reaches (the same map, bit for bit); test mode refines in place, as stillheart warp does. */
@@ -192,10 +225,8 @@ static void test_models_refine_on_helper(void **state)
     double xy[2 * N], cur[2 * N], det[2 * N];
     grid(xy);
     sh_point ref[N];
-    int ids[N];
     for (int i = 0; i < N; i++) {
         ref[i] = (sh_point){.frame = 0, .id = i, .x = xy[2 * i], .y = xy[2 * i + 1], .X = NAN, .Y = NAN, .Z = NAN};
-        ids[i] = i;
         double dx = xy[2 * i] - 300, dy = xy[2 * i + 1] - 250; /* a bulge: no affine map follows it */
         cur[2 * i] = xy[2 * i] + 12 * exp(-(dx * dx + dy * dy) / 8000.0);
         cur[2 * i + 1] = xy[2 * i + 1] - 9 * exp(-(dx * dx + dy * dy) / 8000.0);
@@ -214,32 +245,74 @@ static void test_models_refine_on_helper(void **state)
         run_models *m;
         assert_int_equal(run_models_create(&p, &wo, 640, 480, wait, &m), SH_OK);
         assert_int_equal(run_models_set_reference(m, ref, N, 0, NULL, NULL, 0), SH_OK);
-        int swapped = 0, frame, n;
-        for (int t = 0; t < 2000 && !swapped; t++) {
-            swapped = run_models_poll(m, &frame, &n);
-            if (!swapped) wait_ms(5);
-        }
-        assert_true(swapped);
-        run_model *md = NULL;
-        assert_int_equal(run_models_get(m, ids, N, &md), 1);
-        double residual;
-        int frames = 0;
-        do {
-            assert_int_equal(run_model_update(md, NULL, cur, NULL, det, NULL, &residual), SH_OK);
-            /* live, an update never rebuilds its grid */
-            if (!wait) assert_int_equal(sh_warp_model_refinements(run_model_warp(md)), 0);
-            if (sh_warp_model_grid_spacing(run_model_warp(md)) != sh_warp_model_grid_spacing(inplace)) wait_ms(5);
-        } while (++frames < 2000 &&
-                 sh_warp_model_grid_spacing(run_model_warp(md)) != sh_warp_model_grid_spacing(inplace));
-        assert_int_equal(run_models_refined(m), wait ? 0 : sh_warp_model_refinements(inplace));
-        if (wait) assert_int_equal(frames, 1);
-        assert_int_equal(sh_warp_model_map(run_model_warp(md), ma), SH_OK);
-        assert_memory_equal(ma, mb, sizeof(float) * 2 * 640 * 480);
-        run_models_destroy(m);
+        refine_until_want(m, wait, 0, cur, NULL, det, inplace, mb, ma);
     }
     free(ma), free(mb);
     sh_warp_model_destroy(inplace);
     sh_interp_destroy(it);
+}
+
+/* The same in 3D: live, a view whose grid is too coarse is not refined in the frame's update; the
+ * helper builds the finer grid (sh_warp3d_view_grid_build) and a later update swaps it in, until
+ * the view's map is, bit for bit, the one a view refined in its update reaches (warp3d.h). The
+ * surface: 9 points on a bowl 500 mm before a pinhole camera, a bulge of 12 mm moving them. */
+static void test_models_refine_3d_on_helper(void **state)
+{
+    (void)state;
+    sh_interp_params p;
+    sh_interp_params_parse("tps", &p);
+    sh_warp_options wo;
+    sh_warp_options_default(&wo);
+    wo.max_error = 0.002;
+    sh_calib calib;
+    memset(&calib, 0, sizeof calib);
+    calib.num_cameras = 2, calib.width = 640, calib.height = 480;
+    for (int c = 0; c < 2; c++) {
+        sh_calib_camera *cam = &calib.cam[c];
+        cam->K[0] = cam->K[4] = 500, cam->K[2] = 320, cam->K[5] = 240, cam->K[8] = 1;
+        cam->R[0] = cam->R[4] = cam->R[8] = 1;
+        cam->t[0] = -60.0 * c; /* the second camera 60 mm to the right */
+        cam->num_dist = 5;
+    }
+    sh_calib_compute_p(&calib);
+    double xyz[3 * N], cur[3 * N], xy[2 * N], det[2 * N];
+    sh_point ref[N];
+    for (int i = 0; i < N; i++) {
+        double X = -150 + 150 * (i % 3) + 9 * (i == 4), Y = -120 + 120 * (i / 3), Z = 500 + 0.0006 * (X * X + Y * Y);
+        xyz[3 * i] = X, xyz[3 * i + 1] = Y, xyz[3 * i + 2] = Z;
+        xy[2 * i] = 320 + 500 * X / Z, xy[2 * i + 1] = 240 + 500 * Y / Z;
+        double bump = exp(-((X - 40) * (X - 40) + Y * Y) / 12000.0);
+        cur[3 * i] = X + 12 * bump, cur[3 * i + 1] = Y - 9 * bump, cur[3 * i + 2] = Z - 10 * bump;
+        ref[i] = (sh_point){.frame = 0, .id = i, .x = xy[2 * i], .y = xy[2 * i + 1], .X = X, .Y = Y, .Z = Z};
+        det[2 * i] = det[2 * i + 1] = NAN;
+    }
+    /* the refinement in the view's own update, for comparison */
+    sh_warp3d_params p3;
+    sh_warp3d_params_default(&p3);
+    p3.surface = p3.displacement = p;
+    sh_warp3d_view_options vo;
+    sh_warp3d_view_options_default(&vo);
+    vo.warp = wo;
+    sh_warp3d_model *model;
+    sh_warp3d_view *inplace;
+    assert_int_equal(sh_warp3d_model_create(&p3, xyz, N, &model), SH_OK);
+    assert_int_equal(sh_warp3d_view_create(model, &calib.cam[0], &calib.cam[0], 640, 480, &vo, &inplace), SH_OK);
+    assert_int_equal(sh_warp3d_model_update(model, cur), SH_OK);
+    assert_int_equal(sh_warp3d_view_update(inplace), SH_OK);
+    const sh_warp_model *want = sh_warp3d_view_map_model(inplace);
+    assert_true(sh_warp_model_refinements(want) >= 2);
+    float *ma = malloc(sizeof(float) * 2 * 640 * 480), *mb = malloc(sizeof(float) * 2 * 640 * 480);
+    assert_int_equal(sh_warp_model_map(want, mb), SH_OK);
+    for (int wait = 0; wait <= 1; wait++) {
+        run_models *m;
+        assert_int_equal(run_models_create(&p, &wo, 640, 480, wait, &m), SH_OK);
+        assert_int_equal(run_models_set_3d(m, &calib, 0, 0), SH_OK);
+        assert_int_equal(run_models_set_reference(m, ref, N, 0, NULL, NULL, 0), SH_OK);
+        refine_until_want(m, wait, 1, xy, cur, det, want, mb, ma);
+    }
+    free(ma), free(mb);
+    sh_warp3d_view_destroy(inplace);
+    sh_warp3d_model_destroy(model);
 }
 
 int main(void)
@@ -250,6 +323,7 @@ int main(void)
         cmocka_unit_test(test_select_dropout),
         cmocka_unit_test(test_models_swap),
         cmocka_unit_test(test_models_refine_on_helper),
+        cmocka_unit_test(test_models_refine_3d_on_helper),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
