@@ -199,9 +199,10 @@ typedef struct sh_landmarks_rig sh_landmarks_rig;
 /* Chooses the landmarks in camera `primary`'s reference luma (as sh_landmarks_create, inside the
  * hull of the markers' ref_xy, off the tags), then matches them into every other camera's
  * reference luma and triangulates them. luma: calib->num_cameras planes of the reference frame,
- * in the calibration's order (NULL for a camera whose frame is missing: nothing is found there); ref_xy, ref_xyz: the n reference markers' positions in the primary
- * (n pairs) and their X, Y, Z (n triples; NaN where unknown: that marker does not predict the
- * other cameras), n >= 3. Later frames pass at most n markers. SH_EINVAL for bad arguments. */
+ * in the calibration's order (NULL for a camera whose frame is missing: nothing is found there);
+ * ref_xy, ref_xyz: the n reference markers' positions in the primary (n pairs) and their X, Y, Z
+ * (n triples; NaN where unknown: that marker does not predict the other cameras), n >= 3. Later
+ * frames pass at most n markers. SH_EINVAL for bad arguments. */
 sh_status sh_landmarks_rig_create(const sh_landmarks_params *params, const sh_calib *calib, int primary,
                                   const sh_plane *const *luma, const double *ref_xy, const double *ref_xyz, int n,
                                   const double *tags, int n_tags, sh_landmarks_rig **out);
@@ -218,13 +219,15 @@ typedef struct {
     int mapped;                  /* 0: fewer than 3 markers, nothing searched, nothing used */
     sh_landmarks_counts primary; /* the primary camera's search */
     int used;                    /* accepted in the primary and triangulated */
-    int unmatched;               /* accepted in the primary, with a 3D reference, but by no other camera */
-    int inconsistent;            /* accepted in two or more, a view beyond SH_LANDMARKS_MAX_REPROJ_PX */
+    int unmatched;               /* accepted in the primary, with a 3D reference, by no other
+                                  * camera */
+    int inconsistent;            /* accepted in two or more, a view beyond
+                                  * SH_LANDMARKS_MAX_REPROJ_PX */
 } sh_landmarks_rig_counts;
 
-/* One frame of the rig (luma: a plane per camera, as at create, NULL where missing): the n markers' reference
- * positions in the primary (ref_xy), where the primary sees them now (cur_xy) and their X, Y, Z
- * now (cur_xyz, NaN where unknown). Each landmark is predicted in the primary by TPS through the
+/* One frame of the rig (luma: a plane per camera, as at create, NULL where missing): the n
+ * markers' reference positions in the primary (ref_xy), where the primary sees them now (cur_xy)
+ * and their X, Y, Z now (cur_xyz, NaN where unknown). Each landmark is predicted in the primary by TPS through the
  * markers, in another camera by TPS between the reference positions and the markers' X, Y, Z
  * projected into it, then found and judged (sh_landmarks_track) and triangulated. Out: xy (count
  * pairs, the primary's positions), xyz (count triples) and use (count values: 1 where accepted in

@@ -6,11 +6,11 @@
  * With a calibrated rig (--cameras, two or three videos) they are chosen in camera 0 and matched
  * in the other cameras, frame by frame, each search started on the epipolar line of camera 0's
  * position and its reference window warped by the local affine of the markers' map into that
- * camera (as --landmarks-affine does in camera 0): a landmark's row carries the X, Y, Z triangulated from every camera that accepted it,
- * and is written only when camera 0 and at least one other accepted it and the triangulation
- * reprojects within SH_LANDMARKS_MAX_REPROJ_PX in each (docs/landmarks.md, "In 3D"); a
- * landmark not matched so in frame 0 has no reference in 3D and is never written. Private to
- * src/app. */
+ * camera (as --landmarks-affine does in camera 0), by sh_landmarks_rig: a landmark's row carries
+ * the X, Y, Z triangulated from every camera that accepted it, and is written only when camera 0
+ * and at least one other accepted it and the triangulation reprojects within
+ * SH_LANDMARKS_MAX_REPROJ_PX in each (docs/landmarks.md, "In 3D"); a landmark not matched so in
+ * frame 0 has no reference in 3D and is never written. Private to src/app. */
 #ifndef STILLHEART_APP_TRACK_LANDMARKS_H
 #define STILLHEART_APP_TRACK_LANDMARKS_H
 

@@ -3,7 +3,8 @@
  * landmarks are chosen (inside the hull, off a tag's quad and its quiet zone, off a highlight by
  * half a window), that every accepted landmark lies within 1 px of its truth while an occluder
  * covers part of the frame, that the occluded ones are refused and counted, and that a landmark
- * the markers' map places wrongly is refused as disagreeing. */
+ * the markers' map places wrongly is refused as disagreeing. In 3D (sh_landmarks_rig), a textured
+ * plane seen by three cameras gives every landmark's X, Y, Z in closed form. */
 #include <math.h>
 #include <setjmp.h>
 #include <stdarg.h>
@@ -488,6 +489,161 @@ static void test_refusals(void **state)
     sh_image_destroy(&small);
 }
 
+/* ---- in 3D (sh_landmarks_rig) ----
+ * Three pinhole cameras (f 400 px, centres at (0, 0, 0), (40, 0, 0) and (0, 30, 0) mm, looking
+ * down Z) see a tilted textured plane Z = 400 + 0.1 X mm; a frame moves it by D. Each pixel is
+ * rendered from the plane's point its ray hits, so the truth of every landmark is a closed form:
+ * the point where camera 0's ray through its reference position meets the plane, moved by D. */
+enum { RIG_CAMS = 3 };
+static const double rig_centre[RIG_CAMS][3] = {{0, 0, 0}, {40, 0, 0}, {0, 30, 0}};
+
+static void rig_calib(sh_calib *calib)
+{
+    memset(calib, 0, sizeof *calib);
+    calib->num_cameras = RIG_CAMS, calib->width = W, calib->height = H;
+    for (int c = 0; c < RIG_CAMS; c++) {
+        sh_calib_camera *cam = &calib->cam[c];
+        cam->K[0] = cam->K[4] = 400, cam->K[2] = W / 2.0, cam->K[5] = H / 2.0, cam->K[8] = 1;
+        cam->R[0] = cam->R[4] = cam->R[8] = 1;
+        for (int i = 0; i < 3; i++) cam->t[i] = -rig_centre[c][i];
+        cam->num_dist = 5;
+    }
+    sh_calib_compute_p(calib);
+}
+
+/* Where camera c's ray through pixel (x, y) meets the plane moved by D. */
+static void rig_hit(int c, double x, double y, const double D[3], double P[3])
+{
+    const double *C = rig_centre[c];
+    double d[3] = {(x - W / 2.0) / 400, (y - H / 2.0) / 400, 1};
+    /* C_z + s = 400 + D_z + 0.1 (C_x + s d_x - D_x) */
+    double s = (400 + D[2] + 0.1 * (C[0] - D[0]) - C[2]) / (1 - 0.1 * d[0]);
+    for (int i = 0; i < 3; i++) P[i] = C[i] + s * d[i];
+}
+
+static void rig_project(int c, const double P[3], double *x, double *y)
+{
+    const double *C = rig_centre[c];
+    *x = W / 2.0 + 400 * (P[0] - C[0]) / (P[2] - C[2]);
+    *y = H / 2.0 + 400 * (P[1] - C[1]) / (P[2] - C[2]);
+}
+
+static void rig_render(sh_image *img, int c, const double D[3])
+{
+    assert_int_equal(sh_image_create(img, SH_PIX_GRAY8, W, H), SH_OK);
+    for (int y = 0; y < H; y++)
+        for (int x = 0; x < W; x++) {
+            double P[3];
+            rig_hit(c, x, y, D, P);
+            double v = 120 + fine_texture(P[0] - D[0], P[1] - D[1]);
+            img->plane[0].data[(size_t)y * img->plane[0].stride + x] = (uint8_t)lrint(v < 0 ? 0 : v > 255 ? 255 : v);
+        }
+}
+
+/* The largest distance, over the cameras, between a landmark's X, Y, Z projected and the truth's. */
+static double rig_error(const double *X, const double truth[3])
+{
+    double worst = 0;
+    for (int c = 0; c < RIG_CAMS; c++) {
+        double x, y, tx, ty;
+        rig_project(c, X, &x, &y);
+        rig_project(c, truth, &tx, &ty);
+        worst = fmax(worst, hypot(x - tx, y - ty));
+    }
+    return worst;
+}
+
+static void test_rig_against_closed_form(void **state)
+{
+    (void)state;
+    sh_calib calib;
+    rig_calib(&calib);
+    const double still[3] = {0, 0, 0}, moved[3] = {3, -2, 4};
+    sh_image ref[RIG_CAMS], cur[RIG_CAMS];
+    const sh_plane *ref_luma[RIG_CAMS], *cur_luma[RIG_CAMS];
+    for (int c = 0; c < RIG_CAMS; c++) {
+        rig_render(&ref[c], c, still), rig_render(&cur[c], c, moved);
+        ref_luma[c] = &ref[c].plane[0], cur_luma[c] = &cur[c].plane[0];
+    }
+    /* nine markers on the plane; their reference positions in camera 0, then where D takes them */
+    double ref_xy[18], ref_xyz[27], cur_xy[18], cur_xyz[27];
+    for (int k = 0; k < 9; k++) {
+        double *P = &ref_xyz[3 * k], *Q = &cur_xyz[3 * k];
+        P[0] = -80 + 80 * (k % 3), P[1] = -60 + 60 * (k / 3), P[2] = 400 + 0.1 * P[0];
+        for (int i = 0; i < 3; i++) Q[i] = P[i] + moved[i];
+        rig_project(0, P, &ref_xy[2 * k], &ref_xy[2 * k + 1]);
+        rig_project(0, Q, &cur_xy[2 * k], &cur_xy[2 * k + 1]);
+    }
+    sh_landmarks_params p;
+    sh_landmarks_params_default(&p);
+    p.max_points = 60;
+    sh_landmarks_rig *rig;
+    assert_int_equal(sh_landmarks_rig_create(&p, &calib, 0, ref_luma, ref_xy, ref_xyz, 9, NULL, 0, &rig), SH_OK);
+    const sh_landmarks *lm = sh_landmarks_rig_primary(rig);
+    int n = sh_landmarks_count(lm), in3d = 0;
+    const float *at = sh_landmarks_reference(lm);
+    const uint8_t *has = sh_landmarks_rig_in_3d(rig);
+    const double *X = sh_landmarks_rig_reference_xyz(rig);
+    double worst = 0, sum = 0;
+    for (int i = 0; i < n; i++) {
+        if (!has[i]) {
+            assert_true(isnan(X[3 * i]));
+            continue;
+        }
+        double truth[3];
+        rig_hit(0, at[2 * i], at[2 * i + 1], still, truth);
+        double e = rig_error(&X[3 * i], truth);
+        worst = fmax(worst, e), sum += e, in3d++;
+    }
+    print_message("  reference: %d landmarks, %d triangulated, X, Y, Z against the plane: mean %.3f px, worst %.3f px "
+                  "in the worst camera\n", n, in3d, sum / in3d, worst);
+    assert_true(n >= 10 && in3d >= n * 0.8);
+    assert_true(worst < 0.1 && sum / in3d < 0.05);
+    /* the frame the plane moved in: every landmark used lies where D took its truth */
+    float xy[120];
+    double xyz[180];
+    uint8_t use[60];
+    sh_landmarks_rig_counts rc;
+    assert_int_equal(sh_landmarks_rig_track(rig, cur_luma, ref_xy, cur_xy, cur_xyz, 9, xy, xyz, use, &rc), SH_OK);
+    int used = 0;
+    worst = sum = 0;
+    for (int i = 0; i < n; i++) {
+        if (!use[i]) continue;
+        assert_true(has[i]);
+        double truth[3], tx, ty;
+        rig_hit(0, at[2 * i], at[2 * i + 1], still, truth);
+        for (int k = 0; k < 3; k++) truth[k] += moved[k];
+        rig_project(0, truth, &tx, &ty);
+        assert_true(hypot(xy[2 * i] - tx, xy[2 * i + 1] - ty) < 1);
+        double e = rig_error(&xyz[3 * i], truth);
+        worst = fmax(worst, e), sum += e, used++;
+    }
+    print_message("  moved by (3, -2, 4) mm: %d used (counts: %d), X, Y, Z: mean %.3f px, worst %.3f px; %d unmatched, "
+                  "%d inconsistent\n", used, rc.used, sum / used, worst, rc.unmatched, rc.inconsistent);
+    assert_true(rc.mapped && rc.used == used && used >= in3d * 0.7);
+    assert_true(worst < 0.1 && sum / used < 0.05);
+    /* a camera's frame missing: the other two still triangulate; both missing: nothing is used */
+    cur_luma[2] = NULL;
+    assert_int_equal(sh_landmarks_rig_track(rig, cur_luma, ref_xy, cur_xy, cur_xyz, 9, xy, xyz, use, &rc), SH_OK);
+    assert_true(rc.used > 0);
+    cur_luma[1] = NULL;
+    assert_int_equal(sh_landmarks_rig_track(rig, cur_luma, ref_xy, cur_xy, cur_xyz, 9, xy, xyz, use, &rc), SH_OK);
+    assert_int_equal(rc.used, 0);
+    assert_true(rc.unmatched > 0);
+    /* fewer than 3 markers: no map, nothing searched; more than the reference's: refused */
+    assert_int_equal(sh_landmarks_rig_track(rig, cur_luma, ref_xy, cur_xy, cur_xyz, 2, xy, xyz, use, &rc), SH_OK);
+    assert_int_equal(rc.mapped, 0);
+    assert_int_equal(sh_landmarks_rig_track(rig, cur_luma, ref_xy, cur_xy, cur_xyz, 10, xy, xyz, use, &rc), SH_EINVAL);
+    sh_landmarks_rig_destroy(rig);
+    /* refused: the primary's frame missing, fewer than 3 markers, a primary not in the rig */
+    ref_luma[0] = NULL;
+    assert_int_equal(sh_landmarks_rig_create(&p, &calib, 0, ref_luma, ref_xy, ref_xyz, 9, NULL, 0, &rig), SH_EINVAL);
+    ref_luma[0] = &ref[0].plane[0];
+    assert_int_equal(sh_landmarks_rig_create(&p, &calib, 0, ref_luma, ref_xy, ref_xyz, 2, NULL, 0, &rig), SH_EINVAL);
+    assert_int_equal(sh_landmarks_rig_create(&p, &calib, 3, ref_luma, ref_xy, ref_xyz, 9, NULL, 0, &rig), SH_EINVAL);
+    for (int c = 0; c < RIG_CAMS; c++) sh_image_destroy(&ref[c]), sh_image_destroy(&cur[c]);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -498,6 +654,7 @@ int main(void)
         cmocka_unit_test(test_band_pass_against_shading),
         cmocka_unit_test(test_affine_windows),
         cmocka_unit_test(test_refusals),
+        cmocka_unit_test(test_rig_against_closed_form),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
