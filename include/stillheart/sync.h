@@ -13,7 +13,8 @@
  * - as soon as every camera has a frame in it;
  * - incomplete, when a later set is complete (a camera's missing frame never stalls the sets
  *   after it), when frames max_wait_ns newer than its reference have arrived, when more than
- *   SH_SYNC_MAX_PENDING sets are open, or at sh_sync_flush.
+ *   SH_SYNC_MAX_PENDING sets are open, or at sh_sync_flush;
+ * - once every camera not gone (sh_sync_camera_gone) has a frame in it (incomplete).
  * A frame whose set was already emitted is refused as late; a second frame of one camera in one
  * set is refused as a duplicate (the first stays). The caller owns the frames: `user` is carried
  * along for it, and a refused frame is the caller's to release. Nothing is allocated after
@@ -79,6 +80,12 @@ sh_status sh_sync_push(sh_sync *sync, int camera, uint64_t sequence, int64_t tim
 int sh_sync_pop(sh_sync *sync, sh_frame_set *out);
 /* Marks every pending set ready (they come out of sh_sync_pop, incomplete or not). */
 void sh_sync_flush(sh_sync *sync);
+/* Camera `camera` sends no more frames (its stream ended or failed for good): no set waits for it
+ * any longer, so the sets the other cameras are still filling come out as soon as they have all
+ * their frames (incomplete, without this camera's), not before: a frame of theirs is never made
+ * late by the gone camera. Flushing instead would emit the sets the others have not yet filled
+ * and refuse their frames as late when they come. */
+sh_status sh_sync_camera_gone(sh_sync *sync, int camera);
 void sh_sync_get_stats(const sh_sync *sync, sh_sync_stats *stats);
 
 /* ---- GPIO trigger (libgpiod 1.6, the v1 API; built when pkg-config finds libgpiod) ----

@@ -165,15 +165,20 @@ static void flush(run_source *rs)
     drain(rs);
 }
 
-/* The camera's replay ended or failed for good: the others go on (their sets incomplete); when
- * every camera, or the output camera, is gone the source has ended. */
+/* The camera's replay ended or failed for good: the others go on (their sets incomplete, each
+ * out once the cameras still going have their frames in it); when every camera, or the output
+ * camera, is gone the source has ended. */
 static void camera_ended(run_source *rs, camera *k, int failed)
 {
     pthread_mutex_lock(&rs->mu);
     k->st.ended = 1;
     rs->failed |= failed && k->index == rs->out;
     rs->nended++;
-    flush(rs);
+    sh_sync_camera_gone(rs->sync, k->index);
+    if (rs->nended == rs->ncam || k->index == rs->out)
+        flush(rs);
+    else
+        drain(rs);
     if (rs->nended == rs->ncam || k->index == rs->out) rs->eof = 1;
     pthread_cond_broadcast(&rs->cv);
     pthread_mutex_unlock(&rs->mu);
@@ -236,7 +241,6 @@ static void settle(run_source *rs, camera *k, int b, sh_status cst, uint64_t seq
             k->inflight--;
         }
         drain(rs);
-        if (rs->nended) flush(rs); /* a camera is gone for good: its frame will not come */
     }
     pthread_mutex_unlock(&rs->mu);
 }

@@ -10,6 +10,8 @@ struct sh_sync {
     int npending;
     int nready;            /* the first nready pending sets are ready to pop */
     uint32_t all;          /* bits of every camera */
+    uint32_t expected;     /* of them, the ones not gone (sh_sync_camera_gone): a set has waited
+                            * enough once it holds all of theirs */
     int64_t newest;        /* newest frame timestamp seen */
     int have_newest;
     int64_t horizon;       /* reference of the last emitted (ready) set */
@@ -28,7 +30,7 @@ sh_status sh_sync_create(const sh_sync_options *o, sh_sync **out)
     sh_sync *s = calloc(1, sizeof *s);
     if (!s) return sh_error_set(SH_ENOMEM, "sync: out of memory");
     s->o = *o;
-    s->all = o->cameras == 32 ? 0xffffffffu : (1u << o->cameras) - 1;
+    s->all = s->expected = o->cameras == 32 ? 0xffffffffu : (1u << o->cameras) - 1;
     *out = s;
     return SH_OK;
 }
@@ -49,9 +51,9 @@ static void ready_upto(sh_sync *s, int upto)
 /* Applies the emission rules after a change. */
 static void settle(sh_sync *s)
 {
-    /* the latest complete set makes every set before it ready */
+    /* the latest complete set (of the cameras not gone) makes every set before it ready */
     for (int i = s->npending - 1; i >= s->nready; i--)
-        if ((s->pending[i].present & s->all) == s->all) {
+        if ((s->pending[i].present & s->expected) == s->expected) {
             ready_upto(s, i + 1);
             break;
         }
@@ -176,6 +178,16 @@ int sh_sync_pop(sh_sync *s, sh_frame_set *out)
 void sh_sync_flush(sh_sync *s)
 {
     if (s) ready_upto(s, s->npending);
+}
+
+sh_status sh_sync_camera_gone(sh_sync *s, int camera)
+{
+    if (!s) return sh_error_set(SH_EINVAL, "sync: NULL");
+    if (camera < 0 || camera >= s->o.cameras)
+        return sh_error_set(SH_EINVAL, "sync: camera %d out of 0..%d", camera, s->o.cameras - 1);
+    s->expected &= ~(1u << camera);
+    settle(s);
+    return SH_OK;
 }
 
 void sh_sync_get_stats(const sh_sync *s, sh_sync_stats *st)

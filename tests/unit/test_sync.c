@@ -1,5 +1,5 @@
 /* Frame-set grouping on synthetic timestamp streams: steady, jittered, missing, late, duplicate
- * and out-of-order frames, triggers before and after their frames, stalls, flush. Expected sets
+ * and out-of-order frames, triggers before and after their frames, stalls, flush, a camera gone. Expected sets
  * follow from the streams' construction (frame k of every camera belongs to set k). */
 #include <setjmp.h>
 #include <stdarg.h>
@@ -160,6 +160,55 @@ static void test_stall_and_flush(void **state)
     sh_sync_destroy(s);
 }
 
+/* Camera 1 of three stops after frame 4 (its stream ended): the set it left half filled comes out
+ * as soon as camera 1 is gone, and every later set once cameras 0 and 2 are both in it, whichever
+ * comes first: no frame of theirs is refused as late (a flush at every frame after the loss
+ * emitted the sets camera 2 opened before camera 0's frame came, and refused that frame). */
+static void test_camera_gone(void **state)
+{
+    (void)state;
+    sh_sync *s = make(3, 10 * P, 0);
+    sh_frame_set f;
+    int popped = 0;
+    for (int k = 0; k < 5; k++) {
+        for (int c = 0; c < 3; c++) assert_int_equal(push(s, c, k, T0 + k * P + jitter(c, k)), SH_SYNC_ADDED);
+        while (sh_sync_pop(s, &f)) assert_true(f.complete), popped++;
+    }
+    /* frame 5 of cameras 0 and 2 in, camera 1's never: waiting, until camera 1 is gone */
+    push(s, 0, 5, T0 + 5 * P + jitter(0, 5));
+    push(s, 2, 5, T0 + 5 * P + jitter(2, 5));
+    assert_int_equal(sh_sync_pop(s, &f), 0);
+    assert_int_equal(sh_sync_camera_gone(s, 1), SH_OK);
+    assert_int_equal(sh_sync_pop(s, &f), 1);
+    assert_false(f.complete);
+    assert_int_equal(f.present, 5);
+    popped++;
+    for (int k = 6; k < 20; k++) {
+        int first = k % 2 ? 2 : 0; /* either camera may be first */
+        assert_int_equal(push(s, first, k, T0 + k * P + jitter(first, k)), SH_SYNC_ADDED);
+        assert_int_equal(sh_sync_pop(s, &f), 0); /* the other's frame is still to come */
+        assert_int_equal(push(s, 2 - first, k, T0 + k * P + jitter(2 - first, k)), SH_SYNC_ADDED);
+        assert_int_equal(sh_sync_pop(s, &f), 1);
+        assert_int_equal(f.present, 5);
+        assert_int_equal(f.member[0].sequence, (uint64_t)k);
+        popped++;
+    }
+    sh_sync_stats st;
+    sh_sync_get_stats(s, &st);
+    assert_int_equal(popped, 20);
+    assert_int_equal(st.late, 0);
+    assert_int_equal(st.complete, 5);
+    assert_int_equal(st.incomplete, 15);
+    assert_int_equal(sh_sync_camera_gone(s, 3), SH_EINVAL);
+    /* every camera gone: nothing waits */
+    push(s, 0, 20, T0 + 20 * P);
+    assert_int_equal(sh_sync_pop(s, &f), 0);
+    assert_int_equal(sh_sync_camera_gone(s, 0), SH_OK);
+    assert_int_equal(sh_sync_camera_gone(s, 2), SH_OK);
+    assert_int_equal(sh_sync_pop(s, &f), 1);
+    sh_sync_destroy(s);
+}
+
 /* Trigger edges: frames 5 ms after the edge. The set's time is the edge (+ offset), whether the
  * edge event comes before or after the frames; an edge with no frames is an incomplete set. */
 static void test_trigger(void **state)
@@ -237,10 +286,11 @@ static void test_gpio_refusals(void **state)
 int main(void)
 {
     const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_steady),        cmocka_unit_test(test_missing_and_late),
-        cmocka_unit_test(test_duplicate),     cmocka_unit_test(test_out_of_order),
-        cmocka_unit_test(test_stall_and_flush), cmocka_unit_test(test_trigger),
-        cmocka_unit_test(test_bad_args),      cmocka_unit_test(test_gpio_refusals),
+        cmocka_unit_test(test_steady),          cmocka_unit_test(test_missing_and_late),
+        cmocka_unit_test(test_duplicate),       cmocka_unit_test(test_out_of_order),
+        cmocka_unit_test(test_stall_and_flush), cmocka_unit_test(test_camera_gone),
+        cmocka_unit_test(test_trigger),         cmocka_unit_test(test_bad_args),
+        cmocka_unit_test(test_gpio_refusals),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -608,6 +608,18 @@ PY
 CAMS="--source y4m:$T/s3/cam0.y4m --camera1-spec y4m:$T/s3/cam1.y4m --camera2-spec y4m:$T/s3/cam2.y4m --calibration $T/s3/calibration.yaml"
 $RUN $CAMS --no-loop --no-realtime --sink none --points "$T/p3.csv" --method tps --threads 2 --record "$T/r3.y4m" \
     && cmp -s "$T/r3.y4m" "$T/w3.y4m" && ok "3D: record equals stillheart warp3d" || bad "3D: record equals stillheart warp3d" "differs"
+# camera 1's replay ends after 20 of the 40 frames (as a camera that fails for good): the sets
+# go on without it, each once cameras 0 and 2 are in it, and no frame of the output camera is
+# refused as late or lost (a flush at each frame after the loss lost a third of them, 2026-12-05)
+hdr=$(head -n 1 "$T/s3/cam1.y4m" | wc -c)
+head -c $((hdr + 20 * (6 + 640 * 360 * 3 / 2))) "$T/s3/cam1.y4m" > "$T/short1.y4m"
+msg=$("$B/stillheart" run --group= ${CAMS%%--camera1-spec*} --camera1-spec "y4m:$T/short1.y4m" \
+    --camera2-spec "y4m:$T/s3/cam2.y4m" --calibration "$T/s3/calibration.yaml" --no-loop --no-realtime --sink none \
+    --points "$T/p3.csv" --method tps --threads 2 --stats 2>&1)
+{ echo "$msg" | grep -q "camera 0 (y4m:.*): 40 frames, .* 0 late" && echo "$msg" | grep -q "sets: 40 (20 incomplete)" \
+    && echo "$msg" | grep -q "0 without the output camera's frame" && echo "$msg" | grep -q "^stats: 40 published"; } \
+    && ok "3D: a camera gone for good, the others' frames all in their sets" \
+    || bad "3D: a camera gone for good, the others' frames all in their sets" "$(echo "$msg" | grep 'sets:\|camera 0\|^stats')"
 # --outside dimmed-raw in 3D (the view's hull, the projected reference markers): a byte differs from
 # warp3d's only where warp3d left black (0 luma, 128 chroma), and is there the camera's dimmed or
 # the cyan line; every frame has such bytes (sampled every 7th byte: Python is slow)
