@@ -1,44 +1,73 @@
 #!/bin/sh
 # Runs every cmocka test binary in the given build folders and closes with one summary line
 # ("N passed, N failed") that counts test cases, not binaries. Each binary's time follows its
-# output ("-- BINARY: S s"). The folders run side by side (the plain and the ASan build: each
-# runs its binaries one after another, so on 2 cores the two together take about as long as the
-# ASan one); their output is printed folder by folder once all are done.
+# output ("-- BINARY: S s"). As many workers as folders (the plain and the ASan build: 2) take the
+# binaries of all the folders from one list, interleaved, each the next one nobody has taken
+# (claimed by mkdir, which is atomic), so that the one whose binaries are slower (ASan: about 480
+# s against 340 on this 2-core VM, 2026-12-05) does not finish alone while the other core idles;
+# the tests make their own temporary names (mkdtemp, the process id), as the aarch64 lanes
+# already need. The output is printed folder by folder, in each folder's order, once all are done.
 work=$(mktemp -d /tmp/sh-run-tests.XXXXXX)
 trap 'rm -rf "$work"' EXIT
-# run_folder DIR N: DIR's binaries one after another, output in $work/N.log, counts in $work/N.sum
-run_folder() {
-    p_sum=0; f_sum=0; c_list=""
-    for t in "$1"/tests/test_*; do
+# the list: "FOLDER_NUMBER BINARY" lines, the folders' binaries interleaved
+n=$#
+d=0
+for dir in "$@"; do
+    d=$((d + 1))
+    k=0
+    for t in "$dir"/tests/test_*; do
         [ -x "$t" ] || continue
+        k=$((k + 1))
+        echo "$k $d $t"
+    done
+done | sort -n -k1,1 -k2,2 | cut -d' ' -f2- > "$work/list"
+# run_item I FOLDER_NUMBER BINARY: its output in $work/I.log, its counts in $work/I.sum, the failed
+# cases by name in $work/I.names
+run_item() {
+    t=$3
+    {
         echo "== $t"
         t0=$(date +%s.%N)
-        out=$("$t" 2>&1); rc=$?
+        out=$("$t" 2>&1 </dev/null); rc=$?
         printf '%s\n' "$out"
         echo "-- $t: $(echo "$t0 $(date +%s.%N)" | awk '{printf "%.1f", $2 - $1}') s"
-        p=$(printf '%s\n' "$out" | sed -n 's/^\[  PASSED  \] \([0-9]*\) test.*/\1/p' | tail -1)
-        f=$(printf '%s\n' "$out" | sed -n 's/^\[  FAILED  \] \([0-9]*\) test.*/\1/p' | tail -1)
-        p_sum=$((p_sum + ${p:-0})); f_sum=$((f_sum + ${f:-0}))
-        if [ "$rc" -ne 0 ] && [ -z "$f" ]; then f_sum=$((f_sum + 1)); c_list="$c_list $t"; fi
-        # the failed cases by name, for the closing lines (CI shows only the end of the output)
-        printf '%s\n' "$out" | sed -n "s|^\[  FAILED  \] \(test_[A-Za-z0-9_]*\)\$| $(basename "$1")/$(basename "$t"):\1|p" | sort -u | tr -d '\n' >> "$work/$2.names"
-    done > "$work/$2.log" 2>&1
-    echo "$p_sum $f_sum$c_list" > "$work/$2.sum"
+    } > "$work/$1.log" 2>&1
+    p=$(printf '%s\n' "$out" | sed -n 's/^\[  PASSED  \] \([0-9]*\) test.*/\1/p' | tail -1)
+    f=$(printf '%s\n' "$out" | sed -n 's/^\[  FAILED  \] \([0-9]*\) test.*/\1/p' | tail -1)
+    c=""
+    if [ "$rc" -ne 0 ] && [ -z "$f" ]; then f=1; c=" $t"; fi
+    echo "${p:-0} ${f:-0}$c" > "$work/$1.sum"
+    # the failed cases by name, for the closing lines (CI shows only the end of the output)
+    dir=$(dirname "$(dirname "$t")")
+    printf '%s\n' "$out" | sed -n "s|^\[  FAILED  \] \(test_[A-Za-z0-9_]*\)\$| $(basename "$dir")/$(basename "$t"):\1|p" | sort -u | tr -d '\n' > "$work/$1.names"
 }
-n=0
-for dir in "$@"; do
-    n=$((n + 1))
-    run_folder "$dir" $n &
+worker() {
+    i=0
+    while read -r folder t; do
+        i=$((i + 1))
+        mkdir "$work/claim.$i" 2>/dev/null || continue
+        run_item $i "$folder" "$t"
+    done < "$work/list"
+}
+w=0
+while [ $w -lt $n ]; do
+    w=$((w + 1))
+    worker &
 done
 wait
 passed=0; failed=0; crashed=""
-i=0
-while [ $i -lt $n ]; do
-    i=$((i + 1))
-    cat "$work/$i.log"
-    read -r p f c < "$work/$i.sum" || { p=0; f=1; c="(folder $i: no summary)"; }
-    [ -s "$work/$i.names" ] && names="${names:-}$(cat "$work/$i.names")"
-    passed=$((passed + p)); failed=$((failed + f)); [ -n "${c:-}" ] && crashed="$crashed $c"
+d=0
+while [ $d -lt $n ]; do
+    d=$((d + 1))
+    i=0
+    while read -r folder t; do
+        i=$((i + 1))
+        [ "$folder" = $d ] || continue
+        cat "$work/$i.log" 2>/dev/null
+        read -r p f c < "$work/$i.sum" || { p=0; f=1; c="$t(no summary)"; }
+        [ -s "$work/$i.names" ] && names="${names:-}$(cat "$work/$i.names")"
+        passed=$((passed + p)); failed=$((failed + f)); [ -n "${c:-}" ] && crashed="$crashed $c"
+    done < "$work/list"
 done
 # make vmtest's closing lines ("vmtest: N passed, N failed": the capture guest's and the
 # display guest's, tests/vm/run.sh and show.sh), added up, when the suite ran it
