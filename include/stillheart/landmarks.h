@@ -216,7 +216,8 @@ const uint8_t *sh_landmarks_rig_in_3d(const sh_landmarks_rig *rig);
 const double *sh_landmarks_rig_reference_xyz(const sh_landmarks_rig *rig);
 
 typedef struct {
-    int mapped;                  /* 0: fewer than 3 markers, nothing searched, nothing used */
+    int mapped;                  /* 0: no markers' map into the primary (fewer than 3 markers,
+                                  * or none fitted through them): nothing searched or used */
     sh_landmarks_counts primary; /* the primary camera's search */
     int used;                    /* accepted in the primary and triangulated */
     int unmatched;               /* accepted in the primary, with a 3D reference, by no other
