@@ -78,22 +78,14 @@ static int predict(track_landmarks *tl, const sh_point *cur, int ncur)
            SH_OK;
 }
 
-/* In 3D: the markers cur (sorted by id) shares with frame 0, their reference positions, where
- * camera 0 sees them and their X, Y, Z, for sh_landmarks_rig_track. */
+/* In 3D: the markers cur (sorted by id) shares with frame 0 (sh_points_match: their reference
+ * positions and where camera 0 sees them), and their X, Y, Z, for sh_landmarks_rig_track. */
 static int shared_markers(track_landmarks *tl, const sh_point *cur, int ncur)
 {
-    int m = 0;
-    for (int i = 0, j = 0; i < tl->nref && j < ncur;) {
-        if (tl->ref[i].id < cur[j].id) {
-            i++;
-        } else if (tl->ref[i].id > cur[j].id) {
-            j++;
-        } else {
-            tl->ref_xy[2 * m] = tl->ref[i].x, tl->ref_xy[2 * m + 1] = tl->ref[i].y;
-            tl->cur_xy[2 * m] = cur[j].x, tl->cur_xy[2 * m + 1] = cur[j].y;
-            tl->cur_xyz[3 * m] = cur[j].X, tl->cur_xyz[3 * m + 1] = cur[j].Y, tl->cur_xyz[3 * m + 2] = cur[j].Z;
-            m++, i++, j++;
-        }
+    int m = sh_points_match(tl->ref, tl->nref, cur, ncur, tl->ids, tl->ref_xy, tl->cur_xy);
+    for (int k = 0, j = 0; k < m; k++, j++) {
+        while (cur[j].id != tl->ids[k]) j++; /* both sorted by id: the row is there */
+        tl->cur_xyz[3 * k] = cur[j].X, tl->cur_xyz[3 * k + 1] = cur[j].Y, tl->cur_xyz[3 * k + 2] = cur[j].Z;
     }
     return m;
 }

@@ -54,7 +54,7 @@ typedef struct {
     /* landmarks: chosen by the helper (choosing 1 until then, no full slot yet) from a copy of the
      * reference frame's luma (3D: every camera's) and tags; rows = ref then the landmarks, sorted
      * by id (the models' keys are made from it); in 3D only the landmarks triangulated in the
-     * reference are rows (lm_ids: theirs, SH_LANDMARK_ID_BASE + the rig's index) */
+     * reference are rows (ids SH_LANDMARK_ID_BASE + the rig's index) */
     int choosing, choice_taken;
     uint8_t *luma[SH_CALIB_MAX_CAMERAS];
     int nluma, width, height;
@@ -62,7 +62,7 @@ typedef struct {
     int ntags;
     sh_landmarks *lm;      /* 2D */
     sh_landmarks_rig *rig; /* 3D */
-    int nlm, *lm_ids;
+    int nlm;
     sh_point *rows;
     int nrows;
     char note[160];
@@ -105,7 +105,7 @@ static void generation_free(generation *g)
     sh_landmarks_destroy(g->lm);
     sh_landmarks_rig_destroy(g->rig);
     for (int c = 0; c < g->nluma; c++) free(g->luma[c]);
-    free(g->tags), free(g->rows), free(g->lm_ids);
+    free(g->tags), free(g->rows);
     free(g);
 }
 
@@ -360,8 +360,7 @@ static void landmarks_chosen(run_models *m, generation *g, sh_landmarks *lm, sh_
         snprintf(g->note, sizeof g->note, "no landmarks found inside the markers' hull (no corner textured enough)");
     else if (!g->nlm)
         snprintf(g->note, sizeof g->note, "none of the %d landmarks chosen was matched in another camera", chosen);
-    if (g->nlm && (!(g->rows = malloc(sizeof(sh_point) * (size_t)(g->nref + g->nlm))) ||
-                   !(g->lm_ids = malloc(sizeof(int) * (size_t)g->nlm)))) {
+    if (g->nlm && !(g->rows = malloc(sizeof(sh_point) * (size_t)(g->nref + g->nlm)))) {
         snprintf(g->note, sizeof g->note, "landmarks: out of memory");
         g->nlm = 0;
     }
@@ -378,7 +377,7 @@ static void landmarks_chosen(run_models *m, generation *g, sh_landmarks *lm, sh_
         const float *at = sh_landmarks_reference(primary);
         for (int k = 0, j = 0; k < chosen; k++) {
             if (in3d && !in3d[k]) continue;
-            g->lm_ids[j] = ids[g->nref + j] = SH_LANDMARK_ID_BASE + k;
+            ids[g->nref + j] = SH_LANDMARK_ID_BASE + k;
             g->rows[g->nref + j] = (sh_point){.frame = g->frame, .id = SH_LANDMARK_ID_BASE + k, .x = at[2 * k],
                                               .y = at[2 * k + 1], .X = X ? X[3 * k] : NAN, .Y = X ? X[3 * k + 1] : NAN,
                                               .Z = X ? X[3 * k + 2] : NAN};
@@ -764,7 +763,7 @@ int run_models_get(run_models *m, const int *ids, int n, run_model **out)
     if (nlm) {
         if (n > SH_TRACK_MAX_MARKERS) return sh_error_set(SH_EINVAL, "model: %d markers", n), -1;
         memcpy(key, ids, sizeof(int) * (size_t)n);
-        memcpy(key + n, m->cur->lm_ids, sizeof(int) * (size_t)nlm);
+        for (int k = 0; k < nlm; k++) key[n + k] = m->cur->rows[m->cur->nref + k].id;
         ids = key;
         n += nlm;
     }

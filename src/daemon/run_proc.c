@@ -51,7 +51,7 @@ struct run_proc {
     sh_detector *lm_det;        /* test mode: the reference frame's tags (the tracker has them otherwise) */
     sh_image lm_gray[SH_CALIB_MAX_CAMERAS]; /* an RGB24 frame's luma (2D: [0]; 3D: each camera's) */
     float *lm_pred, *lm_xy;     /* lm_cap pairs */
-    uint8_t *lm_verdict;        /* 2D: lm_cap; 3D: which landmarks the rig used */
+    uint8_t *lm_verdict;        /* lm_cap: the landmarks' verdicts, then 1 where used */
     double *lm_xyz;             /* 3D: lm_cap triples */
     double *all_xy, *all_det;   /* (SH_TRACK_MAX_MARKERS + lm_cap) pairs */
     double *all_xyz;            /* 3D: as many triples */
@@ -636,76 +636,74 @@ static const sh_image *raw(run_proc *p, const sh_image *img)
 static const sh_image *frame(run_proc *p, const sh_image *img, const sh_image *const *cams, int index,
                              unsigned epoch, sh_display_frame_info *info);
 
-/* A model with landmarks (ids after its markers'): this frame's positions of all its points into
- * p->all_xy (the markers' xy, then each landmark found in img), their detections into p->all_det
- * (NaN for the landmarks: the residual is the markers'), and which the map goes through into
- * p->all_use (the markers, and the landmarks landmarks.h accepts). Each landmark's search starts
- * where the markers' TPS map puts it, as in `stillheart track --landmarks`, whatever [method]
- * is. A failure leaves every landmark out (the markers' map alone), logged. */
-static void landmarks(run_proc *p, const run_model *md, const sh_image *img, const double *xy, const double *det)
+/* 2D: the nlm landmarks of the reference (all of them, as the model holds) predicted by the markers' TPS map of this frame, found
+ * in img and judged; p->lm_xy their positions, p->lm_verdict 1 where accepted. The accepted
+ * count, or -1 (sh_error_message says why). */
+static int search_2d(run_proc *p, const run_model *md, const sh_image *img, const double *xy, int nmk, int nlm)
 {
-    double t0 = now_ms();
-    int n, nmk = run_model_markers(md);
-    run_model_ids(md, &n);
-    int nlm = n - nmk;
     sh_landmarks *lm = run_models_landmarks(p->models);
-    memcpy(p->all_xy, xy, sizeof(double) * 2 * (size_t)nmk);
-    memcpy(p->all_det, det, sizeof(double) * 2 * (size_t)nmk);
-    memset(p->all_use, 1, (size_t)nmk);
-    memset(p->all_use + nmk, 0, (size_t)nlm);
-    p->lm_accepted = 0;
     sh_interp_params tps;
     sh_interp_params_default(&tps, SH_METHOD_TPS);
     const sh_plane *y;
     sh_landmarks_counts c;
-    sh_status st = lm && sh_landmarks_count(lm) == nlm ? SH_OK
-                                                       : sh_error_set(SH_EINVAL, "the model's landmarks are not the reference's");
+    sh_status st = lm && sh_landmarks_count(lm) == nlm
+                       ? SH_OK
+                       : sh_error_set(SH_EINVAL, "the model's landmarks are not the reference's");
     if (st == SH_OK) st = sh_landmarks_luma(img, &p->lm_gray[0], &y);
     if (st == SH_OK)
         st = sh_interp_map_points(&tps, run_model_ref_xy(md), xy, nmk, sh_landmarks_reference(lm), nlm, p->lm_pred);
     if (st == SH_OK) st = sh_landmarks_track(lm, y, p->lm_pred, p->lm_xy, p->lm_verdict, &c);
-    if (st != SH_OK) {
-        sh_log_limited(&p->lm_err, SH_LOG_ERROR, "landmarks: %s (the markers alone)", sh_error_message());
-    } else {
-        sh_log_limit_clear(&p->lm_err);
-        for (int k = 0; k < nlm; k++) {
-            p->all_xy[2 * (nmk + k)] = p->lm_xy[2 * k];
-            p->all_xy[2 * (nmk + k) + 1] = p->lm_xy[2 * k + 1];
-            p->all_use[nmk + k] = p->lm_verdict[k] == SH_LANDMARK_ACCEPTED;
-        }
-        for (int v = 0; v < SH_LANDMARK_VERDICTS; v++) p->lm_verdicts[v] += c.verdicts[v];
-        p->lm_accepted = c.verdicts[SH_LANDMARK_ACCEPTED];
-        p->lm_frames++;
-    }
-    for (int k = nmk; k < n; k++) {
-        if (!p->all_use[k]) p->all_xy[2 * k] = p->all_xy[2 * k + 1] = NAN; /* never read */
-        p->all_det[2 * k] = p->all_det[2 * k + 1] = NAN;
-    }
-    p->lm_ms = now_ms() - t0;
+    if (st != SH_OK) return -1;
+    for (int k = 0; k < nlm; k++) p->lm_verdict[k] = p->lm_verdict[k] == SH_LANDMARK_ACCEPTED;
+    for (int v = 0; v < SH_LANDMARK_VERDICTS; v++) p->lm_verdicts[v] += c.verdicts[v];
+    p->lm_frames++;
+    return c.verdicts[SH_LANDMARK_ACCEPTED];
 }
 
-/* The same with a calibrated rig (sh_landmarks_rig): every camera searched (cams), the landmarks
- * triangulated; p->all_xyz gets the markers' X, Y, Z (xyz), then the used landmarks'. The model's
- * landmarks are the ones with a reference in 3D, id SH_LANDMARK_ID_BASE + the rig's index. */
-static void landmarks_3d(run_proc *p, const run_model *md, const sh_image *img, const sh_image *const *cams,
-                         const double *xy, const double *xyz, const double *det)
+/* 3D: the same with a calibrated rig (sh_landmarks_rig): every camera searched (cams), the
+ * landmarks triangulated; p->lm_xyz their X, Y, Z, p->lm_verdict 1 where used. The used count,
+ * or -1. */
+static int search_3d(run_proc *p, const run_model *md, const sh_image *img, const sh_image *const *cams,
+                     const double *xy, const double *xyz, int nmk)
 {
-    double t0 = now_ms();
-    int n, nmk = run_model_markers(md);
-    const int *ids = run_model_ids(md, &n);
     sh_landmarks_rig *rig = run_models_rig(p->models);
-    memcpy(p->all_xy, xy, sizeof(double) * 2 * (size_t)nmk);
-    memcpy(p->all_xyz, xyz, sizeof(double) * 3 * (size_t)nmk);
-    memcpy(p->all_det, det, sizeof(double) * 2 * (size_t)nmk);
-    memset(p->all_use, 1, (size_t)nmk);
-    memset(p->all_use + nmk, 0, (size_t)(n - nmk));
-    p->lm_accepted = 0;
     const sh_plane *y[SH_CALIB_MAX_CAMERAS];
     sh_landmarks_rig_counts c;
     sh_status st = rig ? lumas(p, img, cams, y) : sh_error_set(SH_EINVAL, "the model's landmarks are not the reference's");
     if (st == SH_OK)
         st = sh_landmarks_rig_track(rig, y, run_model_ref_xy(md), xy, xyz, nmk, p->lm_xy, p->lm_xyz, p->lm_verdict, &c);
-    if (st != SH_OK) {
+    if (st != SH_OK) return -1;
+    if (c.mapped) {
+        for (int v = 0; v < SH_LANDMARK_VERDICTS; v++) p->lm_verdicts[v] += c.primary.verdicts[v];
+        p->lm_unmatched += c.unmatched;
+        p->lm_inconsistent += c.inconsistent;
+        p->lm_frames++;
+    }
+    return c.used;
+}
+
+/* A model with landmarks (ids after its markers': SH_LANDMARK_ID_BASE + the landmark's index in
+ * the reference's; in 3D only those with a reference X, Y, Z): this frame's positions of all its
+ * points into p->all_xy (the markers' xy, then each landmark found in img) and in 3D p->all_xyz,
+ * their detections into p->all_det (NaN for the landmarks: the residual is the markers'), and
+ * which the map goes through into p->all_use (the markers, and the landmarks landmarks.h accepts
+ * and, in 3D, triangulates). Each landmark's search starts where the markers' TPS map puts it, as
+ * in `stillheart track --landmarks`, whatever [method] is. A failure leaves every landmark out
+ * (the markers' map alone), logged. */
+static void landmarks(run_proc *p, const run_model *md, const sh_image *img, const sh_image *const *cams,
+                      const double *xy, const double *xyz, const double *det)
+{
+    double t0 = now_ms();
+    int n, nmk = run_model_markers(md);
+    const int *ids = run_model_ids(md, &n);
+    memcpy(p->all_xy, xy, sizeof(double) * 2 * (size_t)nmk);
+    if (p->three_d) memcpy(p->all_xyz, xyz, sizeof(double) * 3 * (size_t)nmk);
+    memcpy(p->all_det, det, sizeof(double) * 2 * (size_t)nmk);
+    memset(p->all_use, 1, (size_t)nmk);
+    memset(p->all_use + nmk, 0, (size_t)(n - nmk));
+    int got = p->three_d ? search_3d(p, md, img, cams, xy, xyz, nmk) : search_2d(p, md, img, xy, nmk, n - nmk);
+    p->lm_accepted = got > 0 ? got : 0;
+    if (got < 0) {
         sh_log_limited(&p->lm_err, SH_LOG_ERROR, "landmarks: %s (the markers alone)", sh_error_message());
     } else {
         sh_log_limit_clear(&p->lm_err);
@@ -713,16 +711,9 @@ static void landmarks_3d(run_proc *p, const run_model *md, const sh_image *img, 
             int i = ids[k] - SH_LANDMARK_ID_BASE;
             p->all_xy[2 * k] = p->lm_xy[2 * i];
             p->all_xy[2 * k + 1] = p->lm_xy[2 * i + 1];
-            memcpy(&p->all_xyz[3 * k], &p->lm_xyz[3 * i], sizeof(double) * 3);
+            if (p->three_d) memcpy(&p->all_xyz[3 * k], &p->lm_xyz[3 * i], sizeof(double) * 3);
             p->all_use[k] = p->lm_verdict[i];
         }
-        if (c.mapped) {
-            for (int v = 0; v < SH_LANDMARK_VERDICTS; v++) p->lm_verdicts[v] += c.primary.verdicts[v];
-            p->lm_unmatched += c.unmatched;
-            p->lm_inconsistent += c.inconsistent;
-            p->lm_frames++;
-        }
-        p->lm_accepted = c.used;
     }
     for (int k = nmk; k < n; k++) {
         if (!p->all_use[k]) p->all_xy[2 * k] = p->all_xy[2 * k + 1] = NAN; /* never read */
@@ -783,12 +774,10 @@ static const sh_image *frame(run_proc *p, const sh_image *img, const sh_image *c
     const unsigned char *use = NULL;
     int npts;
     run_model_ids(md, &npts);
-    if (npts > run_model_markers(md) && p->three_d) { /* the reference has landmarks */
-        landmarks_3d(p, md, img, cams, xy, xyz, det);
-        xy = p->all_xy, xyz = p->all_xyz, det = p->all_det, use = p->all_use;
-    } else if (npts > run_model_markers(md)) {
-        landmarks(p, md, img, xy, det);
+    if (npts > run_model_markers(md)) { /* the reference has landmarks */
+        landmarks(p, md, img, cams, xy, xyz, det);
         xy = p->all_xy, det = p->all_det, use = p->all_use;
+        if (p->three_d) xyz = p->all_xyz;
     }
     double residual;
     sh_status ust = run_model_update(md, p->warp, xy, xyz, det, use, &residual);

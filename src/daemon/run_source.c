@@ -175,11 +175,11 @@ static void camera_ended(run_source *rs, camera *k, int failed)
     rs->failed |= failed && k->index == rs->out;
     rs->nended++;
     sh_sync_camera_gone(rs->sync, k->index);
-    if (rs->nended == rs->ncam || k->index == rs->out)
+    if (rs->nended == rs->ncam || k->index == rs->out) rs->eof = 1;
+    if (rs->eof)
         flush(rs);
     else
         drain(rs);
-    if (rs->nended == rs->ncam || k->index == rs->out) rs->eof = 1;
     pthread_cond_broadcast(&rs->cv);
     pthread_mutex_unlock(&rs->mu);
 }
