@@ -122,6 +122,18 @@ int sh_interp_kernel_factors(const sh_interp *interp, int axis, double v, double
 sh_status sh_interp_map_points(const sh_interp_params *params, const double *ref_xy, const double *cur_xy, int n,
                                const float *at, int count, float *out);
 
+/* The same, every frame, where the reference points stay the same for many calls (natural
+ * landmarks predicted by the map of the markers a frame shares with its reference): the
+ * interpolant and its coefficients are made again only when n or ref_xy differ from the last
+ * successful call's, so that a call with the same reference allocates nothing and skips the
+ * interpolant's build (its system's factoring). The values are sh_interp_map_points' bit for bit.
+ * After an error the next call builds afresh. */
+typedef struct sh_interp_mapper sh_interp_mapper;
+sh_status sh_interp_mapper_create(const sh_interp_params *params, sh_interp_mapper **out);
+void sh_interp_mapper_destroy(sh_interp_mapper *mapper);
+sh_status sh_interp_mapper_map(sh_interp_mapper *mapper, const double *ref_xy, const double *cur_xy, int n,
+                               const float *at, int count, float *out);
+
 /* value(x, y) = sum basis * coef, for dim components. Piecewise linear outside the convex hull:
  * SH_ERANGE with out set to 0 (no silent zero map). */
 sh_status sh_interp_eval(const sh_interp *interp, const double *coef, int dim, double x, double y,
@@ -129,8 +141,23 @@ sh_status sh_interp_eval(const sh_interp *interp, const double *coef, int dim, d
 
 /* Piecewise linear only: the Delaunay triangles as vertex-index triples (3 * count ints,
  * counter-clockwise in image coordinates as drawn with y down: i.e. positive signed area
- * (x1-x0)(y2-y0) - (x2-x0)(y1-y0) > 0). Other methods: count 0. */
+ * (x1-x0)(y2-y0) - (x2-x0)(y1-y0) > 0), in sh_interp_delaunay's canonical form (each from its
+ * vertex smallest in (x, y), sorted by position: independent of the points' order). Other
+ * methods: count 0. */
 int sh_interp_triangles(const sh_interp *interp, const int **triangles);
+
+/* The Delaunay triangulation of n >= 3 distinct points xy (x0,y0,...), not all collinear, without
+ * allocating: for a set that changes every frame (pwlinear through a frame's natural landmarks,
+ * sh_warp_model_update_subset). For points in general position it is pwlinear's (qhull's); where
+ * four or more are cocircular within rounding either diagonal may come out. work:
+ * sh_interp_delaunay_work_size(n) bytes, aligned for int; tri: room for 6n ints. Writes
+ * *ntri triangles as index triples in the canonical form sh_interp_triangles gives: positive
+ * signed area, each starting at its vertex smallest in (x, then y), the list sorted by its first
+ * two vertices' positions, so that the same points in any order give the same triangles in the
+ * same order, at the same positions; slivers of no area (within 1e-12 of the extent squared) left
+ * out. SH_EDEGENERATE when the points are collinear. */
+size_t sh_interp_delaunay_work_size(int n);
+sh_status sh_interp_delaunay(const double *xy, int n, void *work, int *tri, int *ntri);
 
 /* B-spline only, for tests and diagnostics (allocates): runs the textbook multilevel iteration on
  * values (n x dim) and writes the largest absolute residual at the reference points after each

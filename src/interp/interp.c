@@ -246,23 +246,85 @@ sh_status sh_interp_eval(const sh_interp *it, const double *coef, int dim, doubl
     return SH_OK;
 }
 
-sh_status sh_interp_map_points(const sh_interp_params *params, const double *ref_xy, const double *cur_xy, int n,
-                               const float *at, int count, float *out)
+struct sh_interp_mapper {
+    sh_interp_params params;
+    sh_interp *it;   /* NULL until a call succeeds in building it */
+    double *ref;     /* its reference points (2 cap) and coefficients (2 num_coefs) */
+    double *coef;
+    int cap;
+};
+
+sh_status sh_interp_mapper_create(const sh_interp_params *params, sh_interp_mapper **out)
 {
+    if (!params || !out) return sh_error_set(SH_EINVAL, "interp: no mapper parameters");
+    sh_interp_mapper *m = calloc(1, sizeof *m);
+    if (!m) return sh_error_set(SH_ENOMEM, "interp: out of memory");
+    m->params = *params;
+    *out = m;
+    return SH_OK;
+}
+
+void sh_interp_mapper_destroy(sh_interp_mapper *m)
+{
+    if (!m) return;
+    sh_interp_destroy(m->it);
+    free(m->ref);
+    free(m->coef);
+    free(m);
+}
+
+/* The interpolant through ref_xy, kept from the last call when it is the same. */
+static sh_status mapper_build(sh_interp_mapper *m, const double *ref_xy, int n)
+{
+    if (m->it && n == m->it->n && !memcmp(ref_xy, m->ref, sizeof(double) * 2 * (size_t)n)) return SH_OK;
+    sh_interp_destroy(m->it);
+    m->it = NULL;
+    if (n > m->cap) {
+        free(m->ref);
+        if (!(m->ref = malloc(sizeof(double) * 2 * (size_t)n))) {
+            m->cap = 0;
+            return sh_error_set(SH_ENOMEM, "interp: out of memory");
+        }
+        m->cap = n;
+    }
     sh_interp *it;
-    sh_status st = sh_interp_create(params, ref_xy, n, &it);
+    sh_status st = sh_interp_create(&m->params, ref_xy, n, &it);
     if (st != SH_OK) return st;
     /* a B-spline's coefficients are its lattice's, not one per point */
-    double *coef = malloc(2 * (size_t)sh_interp_num_coefs(it) * sizeof *coef);
-    st = coef ? sh_interp_fit(it, cur_xy, 2, coef) : sh_error_set(SH_ENOMEM, "interp: out of memory");
+    double *coef = realloc(m->coef, 2 * (size_t)sh_interp_num_coefs(it) * sizeof *coef);
+    if (!coef) {
+        sh_interp_destroy(it);
+        return sh_error_set(SH_ENOMEM, "interp: out of memory");
+    }
+    m->coef = coef;
+    memcpy(m->ref, ref_xy, sizeof(double) * 2 * (size_t)n);
+    m->it = it;
+    return SH_OK;
+}
+
+sh_status sh_interp_mapper_map(sh_interp_mapper *m, const double *ref_xy, const double *cur_xy, int n,
+                               const float *at, int count, float *out)
+{
+    if (!m || !ref_xy || !cur_xy || (count > 0 && (!at || !out)))
+        return sh_error_set(SH_EINVAL, "interp: no points to map");
+    sh_status st = mapper_build(m, ref_xy, n);
+    if (st == SH_OK) st = sh_interp_fit(m->it, cur_xy, 2, m->coef);
     for (int i = 0; st == SH_OK && i < count; i++) {
         double v[2];
-        if (sh_interp_eval(it, coef, 2, at[2 * i], at[2 * i + 1], v) != SH_OK) v[0] = v[1] = NAN;
+        if (sh_interp_eval(m->it, m->coef, 2, at[2 * i], at[2 * i + 1], v) != SH_OK) v[0] = v[1] = NAN;
         out[2 * i] = (float)v[0];
         out[2 * i + 1] = (float)v[1];
     }
-    free(coef);
-    sh_interp_destroy(it);
+    return st;
+}
+
+sh_status sh_interp_map_points(const sh_interp_params *params, const double *ref_xy, const double *cur_xy, int n,
+                               const float *at, int count, float *out)
+{
+    sh_interp_mapper *m;
+    sh_status st = sh_interp_mapper_create(params, &m);
+    if (st == SH_OK) st = sh_interp_mapper_map(m, ref_xy, cur_xy, n, at, count, out);
+    sh_interp_mapper_destroy(m);
     return st;
 }
 

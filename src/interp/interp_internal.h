@@ -47,6 +47,11 @@ sh_status sh_interp_check_distinct(const double *xy, int n, const char *method);
 /* 1 when all points lie on one line (within 1e-9 of their extent), coincident points included. */
 int sh_interp_collinear(const double *xy, int n);
 
+/* delaunay.c: tri's ntri triangles (vertex indices into xy) in canonical form, in place: positive
+ * area, each from its vertex smallest in (x, y), sorted by position (sh_interp_delaunay); slivers
+ * of no area left out. scratch: ntri ints. Returns the count kept. */
+int sh_interp_triangles_canonical(const double *xy, int *tri, int ntri, int *scratch);
+
 /* A uniform bucket grid over a rectangle: items (points, triangles) registered in every cell their
  * bounding box meets, stored CSR-style. */
 typedef struct {

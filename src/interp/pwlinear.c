@@ -147,10 +147,15 @@ static sh_status build(sh_interp *it, pwl_impl *w)
     w->bary = malloc(sizeof(double) * 6 * (size_t)(nraw > 0 ? nraw : 1));
     double *boxes = malloc(sizeof(double) * 4 * (size_t)(nraw > 0 ? nraw : 1));
     char *used = calloc((size_t)n, 1);
-    if (!w->tri || !w->bary || !boxes || !used) {
+    int *scratch = malloc(sizeof(int) * (size_t)(nraw > 0 ? nraw : 1));
+    if (!w->tri || !w->bary || !boxes || !used || !scratch) {
         st = sh_error_set(SH_ENOMEM, "interp pwlinear: out of memory");
         goto done;
     }
+    /* The canonical form (positive area, slivers out, an order of positions, not of qhull's
+     * facets): a warp through these triangles is then bit for bit the one through
+     * sh_interp_delaunay's of the same points in another order (the daemon's landmarks). */
+    nraw = sh_interp_triangles_canonical(p, raw, nraw, scratch);
     double x0 = p[0], y0 = p[1], x1 = p[0], y1 = p[1];
     for (int i = 1; i < n; i++) {
         x0 = fmin(x0, p[2 * i]), x1 = fmax(x1, p[2 * i]);
@@ -161,15 +166,6 @@ static sh_status build(sh_interp *it, pwl_impl *w)
         int v[3] = {raw[3 * t], raw[3 * t + 1], raw[3 * t + 2]};
         const double *a = p + 2 * v[0], *b = p + 2 * v[1], *c = p + 2 * v[2];
         double area = (b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1]);
-        /* Qt can leave slivers of (near) zero area between cocircular points: they cover
-         * nothing, and their barycentric map would divide by ~0. */
-        if (fabs(area) <= 1e-12 * extent * extent) continue;
-        if (area < 0) {
-            int s = v[1];
-            v[1] = v[2], v[2] = s;
-            area = -area;
-            a = p + 2 * v[0], b = p + 2 * v[1], c = p + 2 * v[2];
-        }
         int k = w->ntri++;
         memcpy(w->tri + 3 * k, v, sizeof v);
         double *m = w->bary + 6 * k;
@@ -209,6 +205,7 @@ done:
     free(raw);
     free(boxes);
     free(used);
+    free(scratch);
     return st;
 }
 

@@ -703,6 +703,91 @@ static void test_lu_inplace(void **state)
     free(a), free(b);
 }
 
+/* sh_interp_delaunay's triangles against qhull's (pwlinear's), both in canonical form: on
+ * SciPy's two reference sets, on random sets of 3 to 300 points in any order, and on subsets of
+ * them (the daemon's landmarks: a set minus the refused points, in the model's order). The same
+ * index triples in the same order, where both are given the same points in the same order. */
+static void check_delaunay_matches(const double *xy, int n)
+{
+    sh_interp *it = create_named("pwlinear", xy, n);
+    const int *want;
+    int nwant = sh_interp_triangles(it, &want);
+    void *work = malloc(sh_interp_delaunay_work_size(n));
+    int *tri = malloc(sizeof(int) * 6 * (size_t)n), nt = -1;
+    assert_non_null(work);
+    assert_non_null(tri);
+    assert_int_equal(sh_interp_delaunay(xy, n, work, tri, &nt), SH_OK);
+    assert_int_equal(nt, nwant);
+    assert_memory_equal(tri, want, sizeof(int) * 3 * (size_t)nt);
+    free(work), free(tri);
+    sh_interp_destroy(it);
+}
+
+static void test_delaunay_matches_qhull(void **state)
+{
+    (void)state;
+    check_delaunay_matches(ref_xy_0, 20);
+    check_delaunay_matches(ref_xy_1, 60);
+    enum { N = 300 };
+    static double xy[2 * N], sub[2 * N];
+    static const int sizes[] = {3, 4, 5, 7, 16, 40, 120, 216, N};
+    for (size_t k = 0; k < sizeof sizes / sizeof *sizes; k++) {
+        for (int trial = 0; trial < 3; trial++) {
+            int n = sizes[k];
+            random_points(xy, n, 1920, 1080);
+            check_delaunay_matches(xy, n);
+            /* a subset: each point kept with probability 0.7 */
+            int s = 0;
+            for (int i = 0; i < n; i++)
+                if (uniform(0, 1) < 0.7) sub[2 * s] = xy[2 * i], sub[2 * s + 1] = xy[2 * i + 1], s++;
+            if (s >= 3) check_delaunay_matches(sub, s);
+        }
+    }
+    /* a marker grid's rows (collinear runs) and points sharing x: the sweep's ties */
+    double grid[2 * 20];
+    for (int i = 0; i < 20; i++) grid[2 * i] = 100 + 200 * (i % 4) + (i / 4) * 7.3, grid[2 * i + 1] = 80 + 150 * (i / 4);
+    check_delaunay_matches(grid, 20);
+    double ties[] = {0, 0, 0, 10, 0, 20, 5, 3, 9, 0, 9, 17, 14, 8};
+    check_delaunay_matches(ties, 7);
+}
+
+/* Where four points are cocircular either diagonal is Delaunay: on a square lattice (every cell
+ * cocircular) the triangles still cover the hull exactly once, 2 per cell, and no point lies
+ * inside any triangle's circumcircle beyond rounding. Collinear points are refused. */
+static void test_delaunay_degenerate(void **state)
+{
+    (void)state;
+    enum { C = 6, R = 5 };
+    double xy[2 * C * R];
+    for (int j = 0; j < R; j++)
+        for (int i = 0; i < C; i++) xy[2 * (j * C + i)] = 40.0 * i, xy[2 * (j * C + i) + 1] = 40.0 * j;
+    void *work = malloc(sh_interp_delaunay_work_size(C * R));
+    int tri[6 * C * R], nt = 0;
+    assert_int_equal(sh_interp_delaunay(xy, C * R, work, tri, &nt), SH_OK);
+    assert_int_equal(nt, 2 * (C - 1) * (R - 1));
+    double area = 0;
+    for (int t = 0; t < nt; t++) {
+        const double *a = xy + 2 * tri[3 * t], *b = xy + 2 * tri[3 * t + 1], *c = xy + 2 * tri[3 * t + 2];
+        double ar = (b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1]);
+        assert_true(ar > 0);
+        area += ar / 2;
+        /* circumcentre and radius */
+        double d = 2 * ar, bx = b[0] - a[0], by = b[1] - a[1], cx = c[0] - a[0], cy = c[1] - a[1];
+        double ux = (cy * (bx * bx + by * by) - by * (cx * cx + cy * cy)) / d;
+        double uy = (bx * (cx * cx + cy * cy) - cx * (bx * bx + by * by)) / d;
+        double r2 = ux * ux + uy * uy;
+        for (int i = 0; i < C * R; i++) {
+            double dx = xy[2 * i] - a[0] - ux, dy = xy[2 * i + 1] - a[1] - uy;
+            assert_true(dx * dx + dy * dy >= r2 * (1 - 1e-9));
+        }
+    }
+    assert_true(fabs(area - 40.0 * (C - 1) * 40.0 * (R - 1)) < 1e-6);
+    double line[] = {0, 0, 1, 1, 2, 2, 3, 3, 5, 5};
+    assert_int_equal(sh_interp_delaunay(line, 5, work, tri, &nt), SH_EDEGENERATE);
+    assert_int_equal(nt, 0);
+    free(work);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -721,6 +806,8 @@ int main(void)
         cmocka_unit_test(test_fit_subset_bspline),
         cmocka_unit_test(test_fit_subset_bspline_same_lattice),
         cmocka_unit_test(test_lu_inplace),
+        cmocka_unit_test(test_delaunay_matches_qhull),
+        cmocka_unit_test(test_delaunay_degenerate),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
