@@ -20,7 +20,8 @@ typedef struct {
 
 /* Andrew's monotone chain over xy (n points as x0,y0,...). Fewer than 3 non-collinear points
  * gives SH_EDEGENERATE; NaN gives SH_EINVAL. Points beyond SH_HULL_MAX_VERTICES on the hull
- * are refused with SH_ERANGE. */
+ * are refused with SH_ERANGE. Allocates nothing up to 512 points (a frame's markers and
+ * landmarks in the daemon). */
 sh_status sh_hull_compute(const double *xy, int n, sh_hull *hull);
 
 /* The hull's extent on the horizontal line at y: [*x0, *x1]. Returns 0 when the line misses. */

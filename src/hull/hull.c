@@ -10,12 +10,38 @@ typedef struct {
     double x, y;
 } vec2;
 
-static int by_x_then_y(const void *a, const void *b)
+/* Up to this many points the scratch is on the stack (24 KB): the daemon computes the hull of
+ * each frame's markers and natural landmarks, a few hundred, on the processing thread, which
+ * allocates nothing. */
+#define HULL_STACK_POINTS 512
+
+static int less_xy(vec2 p, vec2 q)
 {
-    const vec2 *p = a, *q = b;
-    if (p->x != q->x) return p->x < q->x ? -1 : 1;
-    if (p->y != q->y) return p->y < q->y ? -1 : 1;
-    return 0;
+    return p.x < q.x || (p.x == q.x && p.y < q.y);
+}
+
+static void sift(vec2 *a, int root, int n)
+{
+    for (;;) {
+        int c = 2 * root + 1;
+        if (c >= n) return;
+        if (c + 1 < n && less_xy(a[c], a[c + 1])) c++;
+        if (!less_xy(a[root], a[c])) return;
+        vec2 t = a[root];
+        a[root] = a[c], a[c] = t;
+        root = c;
+    }
+}
+
+/* Heapsort by x, then y: glibc's qsort allocates for arrays over 1 KB (64 points). */
+static void sort_xy(vec2 *a, int n)
+{
+    for (int i = n / 2 - 1; i >= 0; i--) sift(a, i, n);
+    for (int e = n - 1; e > 0; e--) {
+        vec2 t = a[0];
+        a[0] = a[e], a[e] = t;
+        sift(a, 0, e);
+    }
 }
 
 static double cross(vec2 o, vec2 a, vec2 b)
@@ -30,11 +56,12 @@ sh_status sh_hull_compute(const double *xy, int n, sh_hull *hull)
         if (!isfinite(xy[i])) return sh_error_set(SH_EINVAL, "hull: point %d is not finite", i / 2);
     if (n < 3) return sh_error_set(SH_EDEGENERATE, "hull: %d points, need at least 3", n);
 
-    vec2 *pts = malloc(sizeof(vec2) * (size_t)n * 3);
+    vec2 stack[3 * HULL_STACK_POINTS];
+    vec2 *pts = n <= HULL_STACK_POINTS ? stack : malloc(sizeof(vec2) * (size_t)n * 3);
     if (!pts) return sh_error_set(SH_ENOMEM, "hull: out of memory");
     vec2 *chain = pts + n;
     for (int i = 0; i < n; i++) pts[i] = (vec2){xy[2 * i], xy[2 * i + 1]};
-    qsort(pts, (size_t)n, sizeof *pts, by_x_then_y);
+    sort_xy(pts, n);
 
     int k = 0;
     for (int i = 0; i < n; i++) { /* lower chain */
@@ -67,7 +94,7 @@ sh_status sh_hull_compute(const double *xy, int n, sh_hull *hull)
             hull->ymax = fmax(hull->ymax, chain[i].y);
         }
     }
-    free(pts);
+    if (pts != stack) free(pts);
     return st;
 }
 
