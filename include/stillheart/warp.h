@@ -50,12 +50,14 @@ void sh_warp_model_destroy(sh_warp_model *model);
 
 /* The current positions of the same n points, in the same order. */
 sh_status sh_warp_model_update(sh_warp_model *model, const double *cur_xy);
-/* The map through the points with use[k] != 0 alone (sh_interp_fit_subset: affine and the RBFs;
- * SH_EINVAL for the others); use NULL: every point, as sh_warp_model_update. The hull, what the
- * warp shows, becomes the used points' (a model built on those points alone would show the same:
- * where the map is interpolated between points trusted this frame); use NULL restores every
- * point's. A left-out point's position is not read. The first such update allocates the fit's
- * work, once per model. */
+/* The map through the points with use[k] != 0 alone (sh_interp_fit_subset: affine, the RBFs and
+ * bspline; pwlinear: the Delaunay triangles of the used points, sh_interp_delaunay, so the map is
+ * bit for bit that of a model built on them alone; SH_EDEGENERATE when they span no triangle, and
+ * the model is then every point's again); use NULL: every point, as sh_warp_model_update. The
+ * hull, what the warp shows, becomes the used points' (a model built on those points alone would
+ * show the same: where the map is interpolated between points trusted this frame); use NULL
+ * restores every point's. A left-out point's position is not read. The first such update
+ * allocates the fit's or the triangulation's work, once per model, for any subset. */
 sh_status sh_warp_model_update_subset(sh_warp_model *model, const double *cur_xy, const unsigned char *use);
 
 /* The map of the last update at reference point (x, y), evaluated exactly (the interpolant, not

@@ -13,32 +13,105 @@ void sh_warp_options_default(sh_warp_options *opts)
 }
 
 /* Triangles listed per band of TRIANGLE_BAND rows, so a row visits only the few triangles
- * that can cross it. */
+ * that can cross it: band b's are tris[start[b] .. start[b + 1]). With tris NULL, only start is
+ * made (the counts); next: bands ints of scratch. */
+static void list_bands(const sh_warp_model *m, const double *ybounds, int ntri, int *start, int *tris, int *next)
+{
+    if (!tris) memset(start, 0, sizeof(int) * ((size_t)m->bands + 1));
+    else memset(next, 0, sizeof(int) * (size_t)m->bands);
+    for (int t = 0; t < ntri; t++) {
+        int b0 = (int)((ybounds[2 * t] - 1e-6 - m->band_origin) / TRIANGLE_BAND);
+        int b1 = (int)((ybounds[2 * t + 1] + 1e-6 - m->band_origin) / TRIANGLE_BAND);
+        for (int b = b0 < 0 ? 0 : b0; b <= b1 && b < m->bands; b++) {
+            if (tris) tris[start[b] + next[b]++] = t;
+            else start[b + 1]++;
+        }
+    }
+    if (!tris)
+        for (int b = 0; b < m->bands; b++) start[b + 1] += start[b];
+}
+
 static sh_status build_bands(sh_warp_model *m)
 {
     double y0 = m->hull.ymin - 1;
     m->band_origin = y0;
     m->bands = (int)((m->hull.ymax + 1 - y0) / TRIANGLE_BAND) + 1;
-    m->band_start = calloc((size_t)m->bands + 1, sizeof(int));
-    if (!m->band_start) return sh_error_set(SH_ENOMEM, "warp: out of memory");
-    for (int pass = 0; pass < 2; pass++) { /* count, then fill */
-        int *next = pass ? calloc((size_t)m->bands, sizeof(int)) : NULL;
-        if (pass && !next) return sh_error_set(SH_ENOMEM, "warp: out of memory");
-        for (int t = 0; t < m->ntri; t++) {
-            int b0 = (int)((m->tri_ybounds[2 * t] - 1e-6 - y0) / TRIANGLE_BAND);
-            int b1 = (int)((m->tri_ybounds[2 * t + 1] + 1e-6 - y0) / TRIANGLE_BAND);
-            for (int b = b0 < 0 ? 0 : b0; b <= b1 && b < m->bands; b++) {
-                if (pass) m->band_tris[m->band_start[b] + next[b]++] = t;
-                else m->band_start[b + 1]++;
-            }
-        }
-        if (!pass) {
-            for (int b = 0; b < m->bands; b++) m->band_start[b + 1] += m->band_start[b];
-            m->band_tris = malloc(sizeof(int) * ((size_t)m->band_start[m->bands] + 1));
-            if (!m->band_tris) return sh_error_set(SH_ENOMEM, "warp: out of memory");
-        }
+    m->band_start = m->band_start_all = calloc((size_t)m->bands + 1, sizeof(int));
+    int *next = calloc((size_t)m->bands, sizeof(int));
+    if (!m->band_start || !next) {
         free(next);
+        return sh_error_set(SH_ENOMEM, "warp: out of memory");
     }
+    list_bands(m, m->tri_ybounds, m->ntri, m->band_start, NULL, next);
+    m->band_tris = m->band_tris_all = malloc(sizeof(int) * ((size_t)m->band_start[m->bands] + 1));
+    if (m->band_tris) list_bands(m, m->tri_ybounds, m->ntri, m->band_start, m->band_tris, next);
+    free(next);
+    return m->band_tris ? SH_OK : sh_error_set(SH_ENOMEM, "warp: out of memory");
+}
+
+static void triangle_ybounds(const double *ref, const int *tri, int ntri, double *ybounds)
+{
+    for (int t = 0; t < ntri; t++) {
+        double y0 = ref[2 * tri[3 * t] + 1], y1 = ref[2 * tri[3 * t + 1] + 1], y2 = ref[2 * tri[3 * t + 2] + 1];
+        ybounds[2 * t] = fmin(y0, fmin(y1, y2));
+        ybounds[2 * t + 1] = fmax(y0, fmax(y1, y2));
+    }
+}
+
+/* The triangles of every point in use again (after a subset's). */
+static void all_triangles(sh_warp_model *m)
+{
+    m->ntri = sh_interp_triangles(m->interp, &m->tri);
+    m->tri_ybounds = m->ybounds_all;
+    m->band_start = m->band_start_all;
+    m->band_tris = m->band_tris_all;
+    m->span_start = m->span_start_all;
+    m->hull = m->hull_all;
+}
+
+/* The Delaunay triangles of the used points alone (sh_interp_delaunay: qhull's, in the same
+ * canonical form as the interp's, so the map is bit for bit that of a model built on those points
+ * alone), their bands and hull. The first call allocates for any subset; the later ones
+ * nothing. */
+static sh_status subset_triangles(sh_warp_model *m, const unsigned char *use)
+{
+    size_t n = (size_t)m->n;
+    /* each made once (a call after running out of memory makes the ones still missing); a
+     * subset's triangles are 2n - 5 at most, each band's too */
+    if (!m->tri_work) m->tri_work = malloc(sh_interp_delaunay_work_size(m->n));
+    if (!m->sub_tri) m->sub_tri = malloc(sizeof(int) * 6 * n);
+    if (!m->sub_index) m->sub_index = malloc(sizeof(int) * n);
+    if (!m->sub_ybounds) m->sub_ybounds = malloc(sizeof(double) * 4 * n);
+    if (!m->sub_band_start) m->sub_band_start = malloc(sizeof(int) * ((size_t)m->bands + 1));
+    if (!m->sub_band_tris) m->sub_band_tris = malloc(sizeof(int) * (2 * n * (size_t)m->bands + 1));
+    if (!m->sub_band_next) m->sub_band_next = malloc(sizeof(int) * (size_t)m->bands);
+    if (!m->subset_xy) m->subset_xy = malloc(sizeof(double) * 2 * n);
+    if (!m->tri_work || !m->sub_tri || !m->sub_index || !m->sub_ybounds || !m->sub_band_start || !m->sub_band_tris ||
+        !m->sub_band_next || !m->subset_xy)
+        return sh_error_set(SH_ENOMEM, "warp: out of memory");
+    int s = 0;
+    for (int i = 0; i < m->n; i++)
+        if (use[i]) {
+            m->subset_xy[2 * s] = m->ref_xy[2 * i], m->subset_xy[2 * s + 1] = m->ref_xy[2 * i + 1];
+            m->sub_index[s++] = i;
+        }
+    int nt = 0;
+    sh_status st = sh_interp_delaunay(m->subset_xy, s, m->tri_work, m->sub_tri, &nt);
+    if (st == SH_OK) st = sh_hull_compute(m->subset_xy, s, &m->hull);
+    if (st != SH_OK) {
+        all_triangles(m); /* a failed update leaves a whole model behind */
+        return st;
+    }
+    for (int k = 0; k < 3 * nt; k++) m->sub_tri[k] = m->sub_index[m->sub_tri[k]];
+    m->tri = m->sub_tri;
+    m->ntri = nt;
+    triangle_ybounds(m->ref_xy, m->tri, nt, m->sub_ybounds);
+    m->tri_ybounds = m->sub_ybounds;
+    list_bands(m, m->tri_ybounds, nt, m->sub_band_start, NULL, m->sub_band_next);
+    list_bands(m, m->tri_ybounds, nt, m->sub_band_start, m->sub_band_tris, m->sub_band_next);
+    m->band_start = m->sub_band_start;
+    m->band_tris = m->sub_band_tris;
+    m->span_start = NULL;
     return SH_OK;
 }
 
@@ -48,11 +121,18 @@ void sh_warp_model_destroy(sh_warp_model *m)
     warp_grid_free(m);
     free(m->coef);
     free(m->tri_map);
-    free(m->tri_ybounds);
-    free(m->band_start);
-    free(m->band_tris);
-    free(m->span_start);
+    free(m->ybounds_all);
+    free(m->band_start_all);
+    free(m->band_tris_all);
+    free(m->span_start_all);
     free(m->spans);
+    free(m->tri_work);
+    free(m->sub_tri);
+    free(m->sub_index);
+    free(m->sub_ybounds);
+    free(m->sub_band_start);
+    free(m->sub_band_tris);
+    free(m->sub_band_next);
     free((void *)m->ref_xy);
     free(m->disp);
     free(m->subset_work);
@@ -101,19 +181,16 @@ sh_status sh_warp_model_create(const sh_interp *interp, const double *ref_xy, in
     if (m->ntri > 0) {
         m->kind = MODEL_TRIANGLES;
         m->tri = tri;
-        m->tri_map = malloc(sizeof(double) * 6 * (size_t)m->ntri);
-        m->tri_ybounds = malloc(sizeof(double) * 2 * (size_t)m->ntri);
+        /* room for a subset's triangles too (2n - 5 at most: sh_warp_model_update_subset) */
+        m->tri_map = malloc(sizeof(double) * 6 * (size_t)(m->ntri > 2 * n ? m->ntri : 2 * n));
+        m->tri_ybounds = m->ybounds_all = malloc(sizeof(double) * 2 * (size_t)m->ntri);
         if (!m->tri_map || !m->tri_ybounds) {
             st = sh_error_set(SH_ENOMEM, "warp: out of memory");
             goto fail;
         }
-        for (int t = 0; t < m->ntri; t++) {
-            double y0 = ref[2 * tri[3 * t] + 1], y1 = ref[2 * tri[3 * t + 1] + 1],
-                   y2 = ref[2 * tri[3 * t + 2] + 1];
-            m->tri_ybounds[2 * t] = fmin(y0, fmin(y1, y2));
-            m->tri_ybounds[2 * t + 1] = fmax(y0, fmax(y1, y2));
-        }
+        triangle_ybounds(ref, tri, m->ntri, m->tri_ybounds);
         if ((st = build_bands(m)) != SH_OK || (st = warp_model_list_spans(m)) != SH_OK) goto fail;
+        m->span_start_all = m->span_start;
     } else if (sh_interp_method(interp) == SH_METHOD_AFFINE) {
         m->kind = MODEL_AFFINE;
     } else {
@@ -183,8 +260,6 @@ sh_status warp_model_update_with(sh_warp_model *m, const double *cur_xy, const u
                                  warp_grid_fn map, void *ctx, int slots)
 {
     if (!m || !cur_xy) return sh_error_set(SH_EINVAL, "warp: no positions");
-    if (use && m->kind == MODEL_TRIANGLES)
-        return sh_error_set(SH_EINVAL, "warp: pwlinear cannot leave points out (its triangles depend on which are used)");
     for (int i = 0; i < 2 * m->n; i++)
         if ((!use || use[i / 2]) && !isfinite(cur_xy[i]))
             return sh_error_set(SH_EINVAL, "warp: current position of point %d is not finite", i / 2);
@@ -206,6 +281,8 @@ sh_status warp_model_update_with(sh_warp_model *m, const double *cur_xy, const u
         return SH_OK;
     }
     case MODEL_TRIANGLES:
+        if (!use) all_triangles(m);
+        else if ((st = subset_triangles(m, use)) != SH_OK) return st;
         for (int t = 0; t < m->ntri; t++) {
             const int *v = m->tri + 3 * t;
             if (!triangle_map(m->ref_xy + 2 * v[0], m->ref_xy + 2 * v[1], m->ref_xy + 2 * v[2],

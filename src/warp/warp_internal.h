@@ -19,15 +19,25 @@ struct sh_warp_model {
     double *coef;            /* num_coefs x 2 */
     double affine[6];        /* x = a0 + a1 X + a2 Y, y = a3 + a4 X + a5 Y */
 
+    /* Triangles: those of every point (the interp's), or after an update through a subset those
+     * of the used points alone (sub below); tri, ntri, tri_ybounds, band_start, band_tris and
+     * span_start point at the set in use. */
     int ntri;
-    const int *tri;          /* owned by interp */
-    double *tri_map;         /* per triangle: an affine map as in affine[] */
+    const int *tri;          /* the interp's, or sub_tri */
+    double *tri_map;         /* per triangle: an affine map as in affine[] (room for both sets) */
     double *tri_ybounds;     /* per triangle: ymin, ymax of the reference triangle */
     int bands;               /* triangles per band of rows: band b lists band_tris[band_start[b] */
     double band_origin;      /*   .. band_start[b + 1]), rows from band_origin + b * band */
     int *band_start, *band_tris;
     int *span_start;         /* full-resolution row y: spans[3 span_start[y] .. 3 span_start[y + 1]) */
-    int32_t *spans;          /*   as (triangle or -1 for none, first pixel, last pixel) */
+    int32_t *spans;          /*   as (triangle or -1 for none, first pixel, last pixel); span_start */
+                             /*   NULL for a subset's triangles: the rows find them through the bands */
+    double *ybounds_all;     /* every point's (the interp's triangles): what they own */
+    int *band_start_all, *band_tris_all, *span_start_all;
+    void *tri_work;          /* a subset's: made by the first subset update, for any subset */
+    int *sub_tri, *sub_index; /* (sh_interp_delaunay's work; 6n; the used points' indices, n; */
+    double *sub_ybounds;     /*   2n triangles at most; bands + 1; bands x 2n; bands) */
+    int *sub_band_start, *sub_band_tris, *sub_band_next;
     const double *ref_xy;    /* copy, n x 2 */
     double *disp;            /* displacement of the last update, n x 2 */
     void *subset_work;       /* sh_interp_fit_subset's, made by the first subset update */

@@ -242,7 +242,7 @@ static void test_grid_refines_for_tight_tolerance(void **state)
 
 /* A model built over every point and updated through a subset gives the map of a model built on
  * that subset alone (within twice the grid's tolerance: each grid is within 0.05 px of its exact
- * map), wherever both are defined; pwlinear refuses. */
+ * map), wherever both are defined (pwlinear: test_update_subset_pwlinear). */
 static void test_update_subset(void **state)
 {
     (void)state;
@@ -294,8 +294,6 @@ static void test_update_subset(void **state)
         unbuild(&all);
         unbuild(&sub);
     }
-    built pw = build("pwlinear", ref, n, w, h, NULL);
-    assert_int_equal(sh_warp_model_update_subset(pw.model, cur, use), SH_EINVAL);
     /* piecewise linear through every point: its exact map passes through them, and is undefined
      * outside their hull */
     built pws = build("pwlinear", sref, s, w, h, NULL);
@@ -308,7 +306,6 @@ static void test_update_subset(void **state)
     double far[2];
     assert_int_equal(sh_warp_model_eval(pws.model, -50, -50, far), SH_ERANGE);
     unbuild(&pws);
-    unbuild(&pw);
     free(ma), free(mb);
 }
 
@@ -339,6 +336,72 @@ static void fill_pattern(sh_image *img)
             for (int x = 0; x < img->plane[p].width * sh_pixfmt_channels(img->format); x++)
                 img->plane[p].data[(size_t)y * img->plane[p].stride + x] =
                     (uint8_t)((x * 37 + y * 91 + p * 53 + (x * y) % 7) & 255);
+}
+
+/* Piecewise linear through a subset: the Delaunay triangles of the used points
+ * (sh_interp_delaunay), so its map and its frames are, bit for bit, those of a model that qhull
+ * built on the used points alone, given in another order; a later update through every point is
+ * the whole model's again, and a subset too small for a triangle is refused, leaving the model
+ * whole. */
+static void test_update_subset_pwlinear(void **state)
+{
+    (void)state;
+    const int w = 480, h = 270, n = 40;
+    synth_motion mo = {w, h, 10};
+    double ref[2 * n], cur[2 * n], part[2 * n], sref[2 * n], scur[2 * n];
+    unsigned char use[n];
+    synth_markers(&mo, n, 7, ref);
+    moved_markers(&mo, 0.4, ref, n, cur);
+    float *ma = malloc(sizeof(float) * 2 * (size_t)w * h), *mb = malloc(sizeof(float) * 2 * (size_t)w * h);
+    sh_image in, oa, ob;
+    assert_true(ma && mb);
+    assert_int_equal(sh_image_create(&in, SH_PIX_I420, w, h), SH_OK);
+    assert_int_equal(sh_image_create(&oa, SH_PIX_I420, w, h), SH_OK);
+    assert_int_equal(sh_image_create(&ob, SH_PIX_I420, w, h), SH_OK);
+    fill_pattern(&in);
+    sh_warp *warp;
+    assert_int_equal(sh_warp_create(2, &warp), SH_OK);
+    built all = build("pwlinear", ref, n, w, h, NULL);
+    for (int c = 0; c < 3; c++) {
+        /* every third point left out, then every other, then every point (use NULL) */
+        int s = 0;
+        for (int i = 0; i < n; i++) {
+            use[i] = c == 2 || (c == 0 ? i % 3 != 1 : i % 2 == 0);
+            part[2 * i] = use[i] ? cur[2 * i] : NAN, part[2 * i + 1] = use[i] ? cur[2 * i + 1] : NAN;
+        }
+        for (int i = n - 1; i >= 0; i--) /* the subset's own model: its points in reverse order */
+            if (use[i]) sref[2 * s] = ref[2 * i], sref[2 * s + 1] = ref[2 * i + 1], scur[2 * s] = cur[2 * i],
+                        scur[2 * s + 1] = cur[2 * i + 1], s++;
+        built sub = build("pwlinear", sref, s, w, h, NULL);
+        assert_int_equal(sh_warp_update(warp, all.model, c == 2 ? cur : part, c == 2 ? NULL : use), SH_OK);
+        assert_int_equal(sh_warp_model_update(sub.model, scur), SH_OK);
+        assert_int_equal(sh_warp_model_map(all.model, ma), SH_OK);
+        assert_int_equal(sh_warp_model_map(sub.model, mb), SH_OK);
+        assert_memory_equal(ma, mb, sizeof(float) * 2 * (size_t)w * h);
+        assert_int_equal(sh_warp_apply(warp, all.model, &in, &oa), SH_OK);
+        assert_int_equal(sh_warp_apply(warp, sub.model, &in, &ob), SH_OK);
+        for (int p = 0; p < 3; p++)
+            for (int y = 0; y < in.plane[p].height; y++)
+                assert_memory_equal(oa.plane[p].data + (size_t)y * oa.plane[p].stride,
+                                    ob.plane[p].data + (size_t)y * ob.plane[p].stride, (size_t)in.plane[p].width);
+        long inside = 0;
+        for (size_t i = 0; i < (size_t)w * h; i++) inside += !isnan(ma[2 * i]);
+        printf("  pwlinear through %d of %d points: %ld pixels mapped, the same bits as their own model's\n", s, n,
+               inside);
+        assert_true(inside > (long)w * h / 4);
+        unbuild(&sub);
+    }
+    /* two points make no triangle: refused, and the model stays whole */
+    memset(use, 0, sizeof use);
+    use[0] = use[5] = 1;
+    assert_int_equal(sh_warp_model_update_subset(all.model, cur, use), SH_EDEGENERATE);
+    assert_int_equal(sh_warp_model_update(all.model, cur), SH_OK);
+    assert_int_equal(sh_warp_model_map(all.model, mb), SH_OK);
+    assert_memory_equal(ma, mb, sizeof(float) * 2 * (size_t)w * h);
+    unbuild(&all);
+    sh_warp_destroy(warp);
+    sh_image_destroy(&in), sh_image_destroy(&oa), sh_image_destroy(&ob);
+    free(ma), free(mb);
 }
 
 /* An integer translation of every marker: output(x, y) = input(x + dx, y + dy) exactly inside
@@ -862,6 +925,7 @@ int main(void)
         cmocka_unit_test(test_fill_every_spacing),
         cmocka_unit_test(test_exact_methods),
         cmocka_unit_test(test_update_subset),
+        cmocka_unit_test(test_update_subset_pwlinear),
         cmocka_unit_test(test_dense_rows_as_exact),
         cmocka_unit_test(test_dense_rows_avx2_same_bits),
         cmocka_unit_test(test_translation_every_format),
