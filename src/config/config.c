@@ -66,7 +66,7 @@ static const keydef keys[] = {
     {"detect", "family", "family", K_STR, PROC, F(family), S(family), 0, 0, "AprilTag family (tag36h11, ...)"},
     {"detect", "ids", "ids", K_IDS, PROC, F(ids_text), S(ids_text), 0, 0, "marker ids: 0-15 or 1,3,5-9"},
     {"track", "landmarks", "landmarks", K_INT, PROC, F(landmarks), 0, 0, 2000,
-     "natural landmarks of the tissue besides the markers (0: none; tps, affine, bspline; in 3D found in every camera)"},
+     "natural landmarks of the tissue besides the markers (0: none; tps, bspline, pwlinear (2D), affine; in 3D found in every camera)"},
     {"track", "landmarks_sparse", "landmarks-sparse", K_BOOL, PROC, F(landmarks_sparse), 0, 0, 1,
      "landmarks for markers too sparse for their map (four at the corners): the disagreement bound follows the map's measured error"},
     {"track", "landmarks_affine", "landmarks-affine", K_BOOL, PROC, F(landmarks_affine), 0, 0, 1,
@@ -409,13 +409,17 @@ static sh_status check_method(const sh_config *cfg, char *err)
         return refuse(cfg, "method", "layout", err, "only the stereo view has a layout ([method] view = stereo)");
     sh_interp_params method;
     sh_config_method(cfg, &method);
-    /* a landmark set that changes every frame needs a method whose map can leave points out
-     * without a new model (sh_interp_fit_subset), and one that is better with them */
-    if (cfg->landmarks && (!sh_landmarks_method_uses(method.method) || method.method == SH_METHOD_PWLINEAR))
-        return refuse(cfg, "track", "landmarks", err, "%d, but %s %s (tps, affine and bspline follow landmarks; "
-                      "docs/landmarks.md)", cfg->landmarks, cfg->method_name,
-                      sh_landmarks_method_uses(method.method) ? "would need a new model for every frame's landmarks"
-                                                              : "is worse with landmarks");
+    /* a method that is better with landmarks (its model follows a set that changes every frame:
+     * sh_warp_model_update_subset) */
+    if (cfg->landmarks && !sh_landmarks_method_uses(method.method))
+        return refuse(cfg, "track", "landmarks", err, "%d, but %s is worse with landmarks (tps, pwlinear, bspline and "
+                      "affine follow them; docs/landmarks.md)", cfg->landmarks, cfg->method_name);
+    /* in 3D the displacement's interpolant leaves points out by its fit (sh_interp_fit_subset),
+     * which pwlinear has not: its triangles are the 2D warp model's */
+    if (cfg->landmarks && cfg->calibration[0] && method.method == SH_METHOD_PWLINEAR)
+        return refuse(cfg, "track", "landmarks", err, "%d, but in 3D ([method] calibration) pwlinear would need a new "
+                      "model for every frame's landmarks (tps, bspline and affine follow them; docs/landmarks.md)",
+                      cfg->landmarks);
     int need = method_min_markers(method.method);
     if (cfg->min_markers < need)
         return refuse(cfg, "gating", "min_markers", err, "%d is fewer than %s needs (%d)", cfg->min_markers,

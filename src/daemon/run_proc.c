@@ -51,6 +51,7 @@ struct run_proc {
     sh_detector *lm_det;        /* test mode: the reference frame's tags (the tracker has them otherwise) */
     sh_image lm_gray[SH_CALIB_MAX_CAMERAS]; /* an RGB24 frame's luma (2D: [0]; 3D: each camera's) */
     float *lm_pred, *lm_xy;     /* lm_cap pairs */
+    sh_interp_mapper *lm_map;   /* 2D: the markers' TPS predicting them (built again per marker set) */
     uint8_t *lm_verdict;        /* lm_cap: the landmarks' verdicts, then 1 where used */
     double *lm_xyz;             /* 3D: lm_cap triples */
     double *all_xy, *all_det;   /* (SH_TRACK_MAX_MARKERS + lm_cap) pairs */
@@ -108,6 +109,10 @@ static sh_status landmarks_create(run_proc *p, const sh_config *cfg)
     if (!p->lm_pred || !p->lm_xy || !p->lm_verdict || !p->all_xy || !p->all_det || !p->all_use ||
         (p->three_d && (!p->lm_xyz || !p->all_xyz)))
         return sh_error_set(SH_ENOMEM, "processing: out of memory for %d landmarks", p->lm_cap);
+    sh_interp_params tps;
+    sh_interp_params_default(&tps, SH_METHOD_TPS);
+    sh_status st = sh_interp_mapper_create(&tps, &p->lm_map);
+    if (st != SH_OK) return st;
     sh_landmarks_params lp;
     if (cfg->landmarks_sparse)
         sh_landmarks_params_sparse(&lp);
@@ -268,6 +273,7 @@ void run_proc_destroy(run_proc *p)
     for (int c = 0; c < SH_CALIB_MAX_CAMERAS; c++) sh_image_destroy(&p->lm_gray[c]);
     free(p->lm_pred), free(p->lm_xy), free(p->lm_verdict), free(p->all_xy), free(p->all_det), free(p->all_use);
     free(p->lm_xyz), free(p->all_xyz);
+    sh_interp_mapper_destroy(p->lm_map);
     free(p->used_ids), free(p->used_xy);
     run_models_destroy(p->models);
     run_tracker_destroy(p->tracker);
@@ -642,8 +648,6 @@ static const sh_image *frame(run_proc *p, const sh_image *img, const sh_image *c
 static int search_2d(run_proc *p, const run_model *md, const sh_image *img, const double *xy, int nmk, int nlm)
 {
     sh_landmarks *lm = run_models_landmarks(p->models);
-    sh_interp_params tps;
-    sh_interp_params_default(&tps, SH_METHOD_TPS);
     const sh_plane *y;
     sh_landmarks_counts c;
     sh_status st = lm && sh_landmarks_count(lm) == nlm
@@ -651,7 +655,7 @@ static int search_2d(run_proc *p, const run_model *md, const sh_image *img, cons
                        : sh_error_set(SH_EINVAL, "the model's landmarks are not the reference's");
     if (st == SH_OK) st = sh_landmarks_luma(img, &p->lm_gray[0], &y);
     if (st == SH_OK)
-        st = sh_interp_map_points(&tps, run_model_ref_xy(md), xy, nmk, sh_landmarks_reference(lm), nlm, p->lm_pred);
+        st = sh_interp_mapper_map(p->lm_map, run_model_ref_xy(md), xy, nmk, sh_landmarks_reference(lm), nlm, p->lm_pred);
     if (st == SH_OK) st = sh_landmarks_track(lm, y, p->lm_pred, p->lm_xy, p->lm_verdict, &c);
     if (st != SH_OK) return -1;
     for (int k = 0; k < nlm; k++) p->lm_verdict[k] = p->lm_verdict[k] == SH_LANDMARK_ACCEPTED;

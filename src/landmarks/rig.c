@@ -19,6 +19,7 @@ struct sh_landmarks_rig {
     int n, cap;             /* landmarks; markers a frame at most */
     double *mref, *mcur;    /* cap pairs: the markers a camera's prediction is made from */
     float *pred;            /* n pairs */
+    sh_interp_mapper *map[MAXCAM]; /* the markers' TPS into each camera (built again when they change) */
     float *xy[MAXCAM];      /* n pairs a camera */
     uint8_t *verdict[MAXCAM];
     double *X;              /* n triples: the frame's triangulated positions */
@@ -49,9 +50,8 @@ static sh_status predict(sh_landmarks_rig *rig, int c, const double *ref_xy, con
         m++;
     }
     if (m < 3) return sh_error_set(SH_EDEGENERATE, "landmarks: %d markers seen by camera %d, 3 needed", m, c);
-    sh_interp_params ip;
-    sh_interp_params_default(&ip, SH_METHOD_TPS);
-    return sh_interp_map_points(&ip, rig->mref, rig->mcur, m, sh_landmarks_reference(rig->lm), rig->n, rig->pred);
+    return sh_interp_mapper_map(rig->map[c], rig->mref, rig->mcur, m, sh_landmarks_reference(rig->lm), rig->n,
+                                rig->pred);
 }
 
 /* Moves camera c's prediction p of a landmark that the primary sees at x0 onto the epipolar line
@@ -125,10 +125,12 @@ static sh_status allocate(sh_landmarks_rig *rig)
     rig->ref_X = malloc(3 * n * sizeof *rig->ref_X);
     rig->in3d = calloc(n, 1);
     int ok = rig->mref && rig->mcur && rig->pred && rig->X && rig->ref_X && rig->in3d;
+    sh_interp_params tps;
+    sh_interp_params_default(&tps, SH_METHOD_TPS);
     for (int c = 0; c < rig->ncam; c++) {
         rig->xy[c] = malloc(2 * n * sizeof *rig->xy[c]);
         rig->verdict[c] = malloc(n);
-        ok = ok && rig->xy[c] && rig->verdict[c];
+        ok = ok && rig->xy[c] && rig->verdict[c] && sh_interp_mapper_create(&tps, &rig->map[c]) == SH_OK;
     }
     return ok ? SH_OK : sh_error_set(SH_ENOMEM, "landmarks: out of memory");
 }
@@ -199,7 +201,7 @@ void sh_landmarks_rig_destroy(sh_landmarks_rig *rig)
     if (!rig) return;
     sh_landmarks_destroy(rig->lm);
     sh_landmarks_destroy(rig->lm_other);
-    for (int c = 0; c < MAXCAM; c++) free(rig->xy[c]), free(rig->verdict[c]);
+    for (int c = 0; c < MAXCAM; c++) free(rig->xy[c]), free(rig->verdict[c]), sh_interp_mapper_destroy(rig->map[c]);
     free(rig->mref), free(rig->mcur), free(rig->pred), free(rig->X), free(rig->ref_X), free(rig->in3d);
     free(rig);
 }

@@ -12,11 +12,11 @@
 # Writes OUTDIR/landmarks.csv, OUTDIR/warp.csv, OUTDIR/daemon.csv and OUTDIR/json/*.json;
 # renders go to OUTDIR/work and are deleted as they are measured. FRAMES (default 200) sets the
 # length; LANDMARKS (200) how many are asked; WARP_METHODS (tps pwlinear bspline affine) the
-# warp's methods, DAEMON_METHODS (tps bspline) the daemon's.
+# warp's methods, DAEMON_METHODS (tps bspline pwlinear) the daemon's.
 set -eu
 BUILD=$(cd "$1" && pwd) OUT=$2 HERE=$(cd "$(dirname "$0")" && pwd)
 RENDER=$BUILD/stillheart-render EVAL=$BUILD/stillheart-eval APP=$BUILD/stillheart
-WARP_METHODS=${WARP_METHODS:-tps pwlinear bspline affine} DAEMON_METHODS=${DAEMON_METHODS:-tps bspline}
+WARP_METHODS=${WARP_METHODS:-tps pwlinear bspline affine} DAEMON_METHODS=${DAEMON_METHODS:-tps bspline pwlinear}
 FRAMES=${FRAMES:-200} LANDMARKS=${LANDMARKS:-200}
 for b in "$RENDER" "$EVAL" "$APP"; do [ -x "$b" ] || { echo "landmarks: $b is not built" >&2; exit 1; }; done
 mkdir -p "$OUT/work" "$OUT/json"
@@ -52,7 +52,7 @@ through_warp() { # through_warp NAME DIR IDS
 }
 
 # The daemon's path: `stillheart run` without and with [track] landmarks, each of DAEMON_METHODS
-# (tps bspline: the methods it takes landmarks with, but affine, which is worse), as fast as it goes,
+# (tps bspline pwlinear: the methods it takes landmarks with, but affine, which is worse), as fast as it goes,
 # its markers those of `stillheart track` above (test mode: its reference is frame 0 and is
 # warped, so its --trace-points, the markers and landmarks each frame's map went through, is a
 # points file the evaluator takes); e and the geometric error of what it showed, the landmark

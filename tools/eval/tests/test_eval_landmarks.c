@@ -366,8 +366,9 @@ static void test_track_landmarks_3d(void **state)
  * same positions (their searches start from the markers' map of the file's rounded positions in
  * the one and of the exact ones in the other: a landmark at the edge of a test may go either way),
  * and its frames have the geometric error against the truth of `stillheart warp` through that
- * file, lower than the markers' alone; with bspline its frames are nearer the truth with the
- * landmarks than without. Methods that cannot follow a changing set are refused. */
+ * file, lower than the markers' alone, and so do its pwlinear frames; with bspline its frames are
+ * nearer the truth with the landmarks than without. A method worse with landmarks is refused, and
+ * pwlinear in 3D. */
 /* One pass of the comparison below with the landmarks' options `flags` (the same to both). */
 static void daemon_against_track(const char *dir, const char *flags)
 {
@@ -404,6 +405,36 @@ static void daemon_against_track(const char *dir, const char *flags)
     assert_true(fabs(e_daemon - e_warp) < 0.002 * e_warp); /* the same frames but for rounding */
 }
 
+/* pwlinear in the daemon: each frame's map is linear on the Delaunay triangles of the points it
+ * used (sh_warp_model_update_subset), so its frames are `stillheart warp --method pwlinear`'s
+ * through the file of track's landmarks (the same rows but for the file's rounding: the same
+ * geometric error against the truth and e), and nearer the truth than through the markers alone.
+ * After daemon_against_track(dir, ""): its landmarks.csv and markers.csv. */
+static void daemon_pwlinear_against_warp(const char *dir)
+{
+    double geo[3], e[3];
+    const char *cmds[] = {"'%s' warp --quiet --method pwlinear --points markers.csv cam0.y4m pw0.y4m",
+                          "'%s' warp --quiet --method pwlinear --points landmarks.csv cam0.y4m pw1.y4m",
+                          "'%s' run --source y4m:cam0.y4m --no-realtime --no-loop --points markers.csv --landmarks 100 "
+                          "--method pwlinear --sink none --group= --threads 2 --record pw2.y4m --trace-points pw2.csv"};
+    const char *pts[] = {"markers.csv", "landmarks.csv", "pw2.csv"};
+    for (int k = 0; k < 3; k++) {
+        char cmd[600];
+        snprintf(cmd, sizeof cmd, cmds[k], APP_BIN);
+        if (test_run("cd '%s' && %s", dir, cmd) != 0) fail_msg("%s\n%s", test_cmd, test_out);
+        char p[600], v[600];
+        snprintf(p, sizeof p, "%s/%s", dir, pts[k]), snprintf(v, sizeof v, "%s/pw%d.y4m", dir, k);
+        geo[k] = geometric_mean(dir, p, v);
+        e[k] = json_num(test_out, "e_stabilized");
+    }
+    print_message("  pwlinear geometric error: markers %.4f px, warp with landmarks %.4f, daemon with landmarks %.4f; "
+                  "e %.4f, %.4f, %.4f\n", geo[0], geo[1], geo[2], e[0], e[1], e[2]);
+    assert_true(geo[1] < geo[0]);
+    assert_true(fabs(geo[2] - geo[1]) < 0.01);
+    assert_true(fabs(e[2] - e[1]) < 0.002 * e[1]);
+    assert_true(e[2] < e[0]);
+}
+
 static void test_daemon_landmarks(void **state)
 {
     (void)state;
@@ -415,6 +446,9 @@ static void test_daemon_landmarks(void **state)
         fail_msg("%s\n%s", test_cmd, test_out);
     /* the defaults, and the affine windows ([track] landmarks_affine, track --landmarks-affine) */
     daemon_against_track(dir, "");
+    /* the host's and ASan's alone, as the affine pass below: under qemu-aarch64 test_warp's
+     * test_update_subset_pwlinear checks the same triangles and frames bit for bit */
+    if (!getenv("SH_TEST_EMULATED")) daemon_pwlinear_against_warp(dir);
     /* Under qemu-aarch64 (SH_TEST_EMULATED) this binary's lane ended the aarch64 suite two
      * minutes after the others (688 s, 2026-12-05): the affine pass, the same code paths as the
      * defaults' but for the window's resampling, which test_landmarks checks there, is the host's
@@ -439,9 +473,10 @@ static void test_daemon_landmarks(void **state)
     }
     print_message("  bspline geometric error in the daemon: markers %.4f px, with landmarks %.4f\n", bs[0], bs[1]);
     assert_true(bs[1] < bs[0]);
-    /* refused: methods whose model cannot leave a landmark out, one that is worse with them */
-    const char *refused[][2] = {{"--method pwlinear", "new model for every frame"},
-                                {"--method gaussian", "worse with landmarks"}};
+    /* refused: a method that is worse with landmarks; pwlinear in 3D, whose displacement cannot
+     * leave a landmark out (the configuration is refused before the calibration is read) */
+    const char *refused[][2] = {{"--method gaussian", "worse with landmarks"},
+                                {"--method pwlinear --calibration calibration.yaml", "in 3D"}};
     for (int k = 0; k < 2; k++) {
         assert_int_equal(test_run("'%s' run --source y4m:%s/cam0.y4m --landmarks 10 %s --sink none", APP_BIN, dir,
                                   refused[k][0]), 2);
