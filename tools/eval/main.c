@@ -103,6 +103,9 @@ static void usage(FILE *f)
         "  --lm-photometric G, --lm-backward PX, --lm-disagreement PX\n"
         "                     the tests' thresholds (defaults 12 grey levels, 0.5 px, 3 px;\n"
         "                     --lm-backward 0: no backward test)\n"
+        "  --lm-distance PX, --lm-quality Q\n"
+        "                     the choice's spacing and corner threshold (a fraction of the\n"
+        "                     strongest corner's response; defaults 20 px, 0.01)\n"
         "  --lm-sparse        for markers too sparse for their map (four at the corners): the\n"
         "                     disagreement bound follows the frame's measured map error\n"
         "                     (--lm-bound-factor 4) and the neighbour test expects a plane\n"
@@ -549,7 +552,8 @@ int main(int argc, char **argv)
         {"lm-plane", no_argument, 0, 1006}, {"lm-affine", no_argument, 0, 1009},
         {"landmarks-points", required_argument, 0, 1007},
         {"spectrum", no_argument, 0, 1008}, {"cameras", required_argument, 0, 1010},
-        {"landmark-rows", no_argument, 0, 1011},
+        {"landmark-rows", no_argument, 0, 1011}, {"lm-distance", required_argument, 0, 1012},
+        {"lm-quality", required_argument, 0, 1013},
         {"json", no_argument, 0, 'j'},           SH_CLI_OPTIONS, {0, 0, 0, 0}};
     options o = {.stride = 4, .heatmap_max = 0.2, .heatmap_scale = 1, .contours = 4, .max_error = 0.05};
     sh_landmarks_params_default(&o.lp);
@@ -585,6 +589,8 @@ int main(int argc, char **argv)
         case 1005: if (!sh_cli_parse_double("--lm-bound-factor", optarg, 0, 1000, &o.lp.bound_factor)) return 2; break;
         case 1006: o.lp.plane = 1; break;
         case 1009: o.lp.affine = 1; break;
+        case 1012: if (!sh_cli_parse_double("--lm-distance", optarg, 1, 1000, &o.lp.min_distance)) return 2; break;
+        case 1013: if (!sh_cli_parse_double("--lm-quality", optarg, 1e-6, 1, &o.lp.quality)) return 2; break;
         case 1007: o.landmarks_points = optarg; break;
         case 1008: o.spectrum = 1; break;
         case 'h': usage(stdout); return 0;
