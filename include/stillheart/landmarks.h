@@ -139,8 +139,9 @@ typedef struct {
 
 void sh_landmarks_params_default(sh_landmarks_params *p);
 /* The defaults changed for a markers' map that may lie farther from the tissue than the
- * defaults' 3 px (four markers at the corners of the field): bound_factor 4, plane 1, and
- * 3 pyramid levels. */
+ * defaults' 3 px (four markers at the corners of the field): bound_factor 4, plane 1,
+ * 3 pyramid levels, and a denser choice (min_distance 14, quality 0.003): the landmarks carry
+ * the map between so few markers. */
 void sh_landmarks_params_sparse(sh_landmarks_params *p);
 /* Those changes alone, made to p in place (the other parameters as they are). */
 void sh_landmarks_params_make_sparse(sh_landmarks_params *p);
