@@ -154,7 +154,8 @@ int sh_interp_triangles_canonical(const double *xy, int *tri, int ntri, int *scr
 /* Any triangulation of the points' hull: points in (x, y) order, each outside the hull of the
  * ones before (it is their lexicographic maximum), fanned to every hull edge it sees. The hull is
  * a ring (next, prev) in counterclockwise order, that is with orient > 0 inside. Returns the
- * triangle count, or -1 when every point is collinear. */
+ * triangle count (at most 2n: tri's room), or -1 when every point is collinear or rounding
+ * breaks the hull's convexity. */
 static int sweep(const double *xy, int n, int *order, int *next, int *prev, int *tri)
 {
     for (int i = 0; i < n; i++) order[i] = i;
@@ -182,18 +183,22 @@ static int sweep(const double *xy, int n, int *order, int *next, int *prev, int 
         const double *pp = xy + 2 * p;
         /* s, the point before, is on the hull and nearest in order: the edges p sees form one
          * chain through it */
-        int u = s, w = s;
-        while (orient(xy + 2 * w, xy + 2 * next[w], pp) < 0) {
+        int u = s, w = s, hull = i; /* the hull has at most i vertices */
+        while (orient(xy + 2 * w, xy + 2 * next[w], pp) < 0 && hull-- > 0) {
+            if (nt >= 2 * n) return -1;
             tri[3 * nt] = w, tri[3 * nt + 1] = p, tri[3 * nt + 2] = next[w];
             nt++;
             w = next[w];
         }
-        while (orient(xy + 2 * prev[u], xy + 2 * u, pp) < 0) {
+        while (orient(xy + 2 * prev[u], xy + 2 * u, pp) < 0 && hull-- > 0) {
+            if (nt >= 2 * n) return -1;
             tri[3 * nt] = prev[u], tri[3 * nt + 1] = p, tri[3 * nt + 2] = u;
             nt++;
             u = prev[u];
         }
-        if (u == w) return -1; /* sees no edge: cannot happen for distinct points */
+        /* sees no edge, or (rounding on a nearly collinear hull) every edge: neither happens
+         * for distinct points in exact arithmetic; refused rather than looped on */
+        if (u == w || hull < 0) return -1;
         next[u] = p, prev[p] = u, next[p] = w, prev[w] = p;
         s = p;
     }
@@ -263,7 +268,8 @@ sh_status sh_interp_delaunay(const double *xy, int n, void *work, int *tri, int 
     int *order = work, *next = order + n, *prev = next + n, *nb = prev + n, *edges = nb + 6 * (size_t)n,
         *scratch = edges + 6 * (size_t)n;
     int nt = sweep(xy, n, order, next, prev, tri);
-    if (nt < 0) return sh_error_set(SH_EDEGENERATE, "delaunay: the %d points are collinear: no triangle", n);
+    if (nt < 0)
+        return sh_error_set(SH_EDEGENERATE, "delaunay: the %d points are collinear or coincide: no triangulation", n);
     link(tri, nt, nb, edges);
     if (!flip_all(xy, tri, nb, nt, n))
         return sh_error_set(SH_EDEGENERATE, "delaunay: the flips of %d points did not settle", n);

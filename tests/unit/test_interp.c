@@ -753,7 +753,9 @@ static void test_delaunay_matches_qhull(void **state)
 
 /* Where four points are cocircular either diagonal is Delaunay: on a square lattice (every cell
  * cocircular) the triangles still cover the hull exactly once, 2 per cell, and no point lies
- * inside any triangle's circumcircle beyond rounding. Collinear points are refused. */
+ * inside any triangle's circumcircle beyond rounding; on 200 sets drawn from a lattice they
+ * cover what qhull's cover. Collinear points are refused, coincident ones answered without a
+ * triangle of no area. */
 static void test_delaunay_degenerate(void **state)
 {
     (void)state;
@@ -782,9 +784,52 @@ static void test_delaunay_degenerate(void **state)
         }
     }
     assert_true(fabs(area - 40.0 * (C - 1) * 40.0 * (R - 1)) < 1e-6);
+    /* distinct points drawn from a 7 x 7 lattice: runs of collinear and cocircular ones in every
+     * set; the triangles cover what qhull's cover (the hull), each with area */
+    for (int trial = 0; trial < 200; trial++) {
+        double pts[2 * 20];
+        int m = 0;
+        for (int k = 0; k < 20; k++) {
+            double x = 10.0 * (int)uniform(0, 7), y = 10.0 * (int)uniform(0, 7);
+            int dup = 0;
+            for (int i = 0; i < m; i++) dup |= pts[2 * i] == x && pts[2 * i + 1] == y;
+            if (!dup) pts[2 * m] = x, pts[2 * m + 1] = y, m++;
+        }
+        int t2[6 * 20], n2 = 0;
+        sh_interp_params pp;
+        assert_int_equal(sh_interp_params_parse("pwlinear", &pp), SH_OK);
+        sh_interp *it = NULL;
+        if (sh_interp_create(&pp, pts, m, &it) != SH_OK) { /* collinear: refused by both */
+            assert_int_equal(sh_interp_delaunay(pts, m, work, t2, &n2), SH_EDEGENERATE);
+            continue;
+        }
+        assert_int_equal(sh_interp_delaunay(pts, m, work, t2, &n2), SH_OK);
+        const int *qt;
+        int nq = sh_interp_triangles(it, &qt);
+        double mine = 0, theirs = 0;
+        for (int t = 0; t < n2 + nq; t++) {
+            const int *v = t < n2 ? t2 + 3 * t : qt + 3 * (t - n2);
+            const double *a = pts + 2 * v[0], *b = pts + 2 * v[1], *c = pts + 2 * v[2];
+            double ar = (b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1]);
+            assert_true(ar > 0);
+            if (t < n2) mine += ar;
+            else theirs += ar;
+        }
+        assert_true(fabs(mine - theirs) < 1e-9 * theirs);
+        sh_interp_destroy(it);
+    }
     double line[] = {0, 0, 1, 1, 2, 2, 3, 3, 5, 5};
     assert_int_equal(sh_interp_delaunay(line, 5, work, tri, &nt), SH_EDEGENERATE);
     assert_int_equal(nt, 0);
+    /* coincident points (which pwlinear's own check refuses before): an answer, never a hang,
+     * and no triangle without area */
+    double twice[] = {0, 0, 5, 5, 5, 5, 10, 0, 0, 0, 4, 9};
+    sh_status st = sh_interp_delaunay(twice, 6, work, tri, &nt);
+    assert_true(st == SH_OK || st == SH_EDEGENERATE);
+    for (int t = 0; st == SH_OK && t < nt; t++) {
+        const double *a = twice + 2 * tri[3 * t], *b = twice + 2 * tri[3 * t + 1], *c = twice + 2 * tri[3 * t + 2];
+        assert_true((b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1]) > 0);
+    }
     free(work);
 }
 
