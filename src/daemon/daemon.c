@@ -5,6 +5,7 @@
  * run_source.c; one frame's processing run_proc.c (run_track.c: tracker and selection,
  * run_model.c: models and residual). */
 #include <errno.h>
+#include <fcntl.h>
 #include <math.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -47,6 +48,8 @@ struct sh_daemon {
     char last_reason[44];
     char status_line[160];
     char status_json[RUN_CTL_STATUS_MAX]; /* the same as one JSON object (status-json) */
+    char status_scratch[RUN_CTL_STATUS_MAX]; /* written each frame through status_file (fmemopen, */
+    FILE *status_file;                       /* opened once: no allocation a frame) */
     sh_display_frame_info shown_info; /* the last published frame's, for STATUS */
 
     /* systemd */
@@ -70,15 +73,22 @@ static int64_t frame_period(run_source *src)
     return run_source_fps(src) > 0 ? (int64_t)(1e9 / run_source_fps(src)) : 40000000;
 }
 
+/* Resident set from /proc/self/statm (its second field, in pages); 0 where it cannot be read.
+ * Sampled every 64 frames: read with open and read into the stack, as a FILE would be allocated
+ * (tools/alloc/per-frame.sh). */
 static long rss_kb(void)
 {
-    FILE *f = fopen("/proc/self/statm", "r");
-    long pages = 0, res = 0;
-    if (f) {
-        if (fscanf(f, "%ld %ld", &pages, &res) != 2) res = 0;
-        fclose(f);
-    }
-    return res * (sysconf(_SC_PAGESIZE) / 1024);
+    char buf[128];
+    int fd = open("/proc/self/statm", O_RDONLY | O_CLOEXEC);
+    if (fd < 0) return 0;
+    ssize_t n = read(fd, buf, sizeof buf - 1);
+    close(fd);
+    if (n <= 0) return 0;
+    buf[n] = 0;
+    char *end;
+    strtol(buf, &end, 10); /* the program's size */
+    long res = strtol(end, NULL, 10);
+    return res > 0 ? res * (sysconf(_SC_PAGESIZE) / 1024) : 0;
 }
 
 static int cmp_float(const void *a, const void *b)
@@ -114,6 +124,10 @@ sh_status sh_daemon_create(const sh_config *cfg, const sh_daemon_options *opt, s
         free(d->lat);
         free(d);
         return st;
+    }
+    if (!(d->status_file = fmemopen(d->status_scratch, sizeof d->status_scratch, "w"))) {
+        sh_daemon_destroy(d);
+        return sh_error_set(SH_ENOMEM, "out of memory");
     }
     const char *which = NULL, *path = NULL;
     if (d->opt.trace_path && !(d->trace = fopen(d->opt.trace_path, "w"))) which = "--trace", path = d->opt.trace_path;
@@ -297,10 +311,9 @@ static void publish(sh_daemon *d, const sh_image *shown, const sh_display_frame_
  * that does not fit keeps the last one. */
 static void set_status_json(sh_daemon *d, const char *state, int index, const sh_display_frame_info *info)
 {
-    char *text = NULL;
-    size_t len = 0;
-    FILE *f = open_memstream(&text, &len);
-    if (!f) return;
+    FILE *f = d->status_file;
+    rewind(f);
+    clearerr(f);
     sh_cli_json j;
     sh_cli_json_start(&j, f);
     sh_cli_json_object(&j, NULL);
@@ -317,11 +330,12 @@ static void set_status_json(sh_daemon *d, const char *state, int index, const sh
     sh_cli_json_int(&j, "black_frames", (long long)d->black_count);
     sh_cli_json_int(&j, "dropped", (long long)run_pipeline_dropped(&d->pl));
     sh_cli_json_end(&j);
-    if (fclose(f) == 0 && len > 0 && len < sizeof d->status_json) {
-        text[len - 1] = 0; /* the newline: the reply is one line */
-        memcpy(d->status_json, text, len);
+    long len = fflush(f) == 0 && !ferror(f) ? ftell(f) : -1;
+    /* the whole object and its newline, with room to spare (a stream at its end has cut it) */
+    if (len > 1 && len < (long)sizeof d->status_scratch - 1 && d->status_scratch[len - 1] == '\n') {
+        memcpy(d->status_json, d->status_scratch, (size_t)len - 1);
+        d->status_json[len - 1] = 0; /* the newline: the reply is one line */
     }
-    free(text);
 }
 
 /* No set to show: when the output camera is lost (or no set holds its frame), a black raw frame
@@ -561,6 +575,7 @@ sh_status sh_daemon_destroy(sh_daemon *d)
     if (!d) return SH_OK;
     sh_status st = run_pipeline_close(&d->pl);
     if (close_traces(d) && st == SH_OK) st = sh_error_set(SH_EIO, "a trace file could not be written");
+    if (d->status_file) fclose(d->status_file);
     free(d->lat);
     free(d);
     return st;

@@ -1,12 +1,19 @@
 # The daemon (stillheart run): run demo, daemon tests and bench, install. Its config files' library
 # (inih) is set at the top of the Makefile.
 
-# The daemon's tests: a script run by the suite like a cmocka binary (needs the renderer).
-$(BUILD)/tests/test_daemon: tools/daemon/test_daemon.sh $(APP) $(BUILD)/stillheart-cat $(BUILD)/stillheart-render
+# The daemon's tests: a script run by the suite like a cmocka binary (needs the renderer, and
+# tools/alloc's allocation counter, built without the sanitizers: it is preloaded into the plain
+# build's daemon only).
+$(BUILD)/tests/test_daemon: tools/daemon/test_daemon.sh $(APP) $(BUILD)/stillheart-cat $(BUILD)/stillheart-render \
+		$(BUILD)/tests/alloc_count.so
 	@mkdir -p $(dir $@)
 	cp $< $@
 	chmod +x $@
 TOOL_TESTS += $(BUILD)/tests/test_daemon
+
+$(BUILD)/tests/alloc_count.so: tools/alloc/count.c
+	@mkdir -p $(dir $@)
+	$(CC) -O1 -Wall -Wextra -Werror -shared -fPIC -o $@ $< -ldl -lpthread
 
 # The control socket's tests: rights by peer credentials, idle clients (needs root for setpriv).
 $(BUILD)/tests/test_ctl: tools/daemon/test_ctl.sh $(APP)

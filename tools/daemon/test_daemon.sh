@@ -237,6 +237,25 @@ for i, f in enumerate(a):
 if warped < 5: print("only", warped, "of", len(a), "frames read back were warp's; statuses:", [s for _, s in shown]); sys.exit(1)
 PY
 
+# 1b. the hot loop allocates nothing (DESIGN.md): test mode on the render above with landmarks,
+#    tps and pwlinear (a grid and the per-frame triangulation), frames 15 to 30 against the first
+#    15 under tools/alloc/count.c (LD_PRELOAD): not one heap allocation more, in any library. Live,
+#    libapriltag's detection allocates inside each call (docs/architecture.md). The plain build on
+#    the host only: ASan replaces malloc itself, and the counter is built for the host.
+if [ -z "${SH_TEST_EMULATED:-}" ] && [ -e "$B/tests/alloc_count.so" ] && ! ldd "$B/stillheart" 2>/dev/null | grep -q libasan; then
+    for m in tps pwlinear; do
+        for f in 15 30; do
+            ALLOC_COUNT_OUT="$T/alloc$f" LD_PRELOAD="$B/tests/alloc_count.so" $RUN --source "y4m:$T/ph/cam0.y4m" \
+                --no-loop --no-realtime --sink none --points "$T/points.csv" --method $m --landmarks 30 \
+                --threads 2 --min-markers 3 --max-frames $f 2>/dev/null
+        done
+        more=$(awk 'FNR == NR { a[$2] = $1; next } { if ($1 != a[$2]) printf "%s %+d, ", $2, $1 - a[$2] }' \
+            "$T/alloc15" "$T/alloc30")
+        [ -s "$T/alloc30" ] && [ -z "$more" ] && ok "hot loop: no allocation in frames 15 to 30 ($m, landmarks)" \
+            || bad "hot loop: no allocation in frames 15 to 30 ($m, landmarks)" "${more:-no counts written}"
+    done
+fi
+
 # 2. gating on the phantom's occlusions against its ground truth (markers.csv: a tag counts as
 #    hidden when a corner or its centre is). 240 frames (10 s): the tracker locks the heart rate
 #    after about 4 s, so dropouts come both before the lock (uncertain at once -> raw) and after
