@@ -249,8 +249,8 @@ sh_status sh_interp_eval(const sh_interp *it, const double *coef, int dim, doubl
 struct sh_interp_mapper {
     sh_interp_params params;
     sh_interp *it;   /* NULL until a call succeeds in building it */
-    double *ref;     /* its reference points (2 cap) and coefficients (2 num_coefs) */
-    double *coef;
+    double *ref;     /* its reference points: room for 2 cap */
+    double *coef;    /* its coefficients: 2 num_coefs */
     int cap;
 };
 

@@ -113,8 +113,8 @@ void sh_landmarks_params_make_sparse(sh_landmarks_params *p)
      * chosen to that one corner, not to whether a window can be followed, which the tests decide
      * each frame; at 20 px and 1 % 79-156 of 200 were chosen on the phantom, at 14 px and 0.3 %
      * 186-200, and the geometric error fell on all eight renders (ex vivo 0.785 to 0.555 px, in
-     * vivo 0.582 to 0.457 over the seeds' means; 10 px crowds the 200 into the most textured
-     * patches: docs/landmarks.md, "The choice's density") */
+     * vivo 0.582 to 0.457 over the seeds' means; 10 px, tried with 16 tags, crowds the 200 into
+     * the most textured patches: docs/landmarks.md, "The choice's density") */
     p->min_distance = 14;
     p->quality = 0.003;
 }
