@@ -67,6 +67,19 @@ typedef struct sh_interp sh_interp;
  * duplicates, NaN/inf) returns SH_EDEGENERATE or SH_EINVAL with a message naming the problem. */
 sh_status sh_interp_create(const sh_interp_params *params, const double *ref_xy, int n,
                            sh_interp **out);
+/* The same with a smoothing of each point's own (point_smoothing: n values >= 0, copied; NULL: none),
+ * added to its diagonal entry of the RBF system besides params->smoothing: a point known less
+ * precisely than the others (a natural landmark beside the markers, landmarks.h) is approximated,
+ * the others still interpolated where theirs is 0. The fit then leaves point k off by
+ * point_smoothing[k] times its kernel coefficient. The RBFs only: another method refuses a
+ * non-zero value (SH_EINVAL), as it refuses params->smoothing. sh_interp_fit_subset keeps each used
+ * point's own. */
+sh_status sh_interp_create_smoothed(const sh_interp_params *params, const double *ref_xy, int n,
+                                    const double *point_smoothing, sh_interp **out);
+/* 1 for the methods that take a smoothing (params->smoothing, point_smoothing): the RBFs, which
+ * approximate through the diagonal of their system; the others interpolate (affine fits by least
+ * squares) with no such term. */
+int sh_interp_method_smooths(sh_method method);
 void sh_interp_destroy(sh_interp *interp);
 
 sh_method sh_interp_method(const sh_interp *interp);
@@ -122,7 +135,11 @@ int sh_interp_kernel_factors(const sh_interp *interp, int axis, double v, double
 sh_status sh_interp_map_points(const sh_interp_params *params, const double *ref_xy, const double *cur_xy, int n,
                                const float *at, int count, float *out);
 
-/* The same, every frame, where the reference points stay the same for many calls (natural
+/* sh_interp_map_points through sh_interp_create_smoothed (point_smoothing as there; NULL: none). */
+sh_status sh_interp_map_points_smoothed(const sh_interp_params *params, const double *ref_xy, const double *cur_xy,
+                                        int n, const double *point_smoothing, const float *at, int count, float *out);
+
+/* sh_interp_map_points, every frame, where the reference points stay the same for many calls (natural
  * landmarks predicted by the map of the markers a frame shares with its reference): the
  * interpolant and its coefficients are made again only when n or ref_xy differ from the last
  * successful call's, so that a call with the same reference allocates nothing and skips the

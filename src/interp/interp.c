@@ -116,6 +116,17 @@ static int min_points(const sh_interp_params *p)
 sh_status sh_interp_create(const sh_interp_params *params, const double *ref_xy, int n,
                            sh_interp **out)
 {
+    return sh_interp_create_smoothed(params, ref_xy, n, NULL, out);
+}
+
+int sh_interp_method_smooths(sh_method m)
+{
+    return m == SH_METHOD_TPS || m == SH_METHOD_GAUSSIAN || m == SH_METHOD_RBF_LOCAL;
+}
+
+sh_status sh_interp_create_smoothed(const sh_interp_params *params, const double *ref_xy, int n,
+                                    const double *point_smoothing, sh_interp **out)
+{
     if (!out) return sh_error_set(SH_EINVAL, "interp: no output pointer");
     *out = NULL;
     if (!params || (n > 0 && !ref_xy) || n < 0)
@@ -126,6 +137,15 @@ sh_status sh_interp_create(const sh_interp_params *params, const double *ref_xy,
     for (int i = 0; i < n; i++)
         if (!isfinite(ref_xy[2 * i]) || !isfinite(ref_xy[2 * i + 1]))
             return sh_error_set(SH_EINVAL, "interp %s: reference point %d is not finite", name, i);
+    int smoothed = 0;
+    for (int i = 0; point_smoothing && i < n; i++) {
+        if (!(point_smoothing[i] >= 0 && point_smoothing[i] <= 1e12))
+            return sh_error_set(SH_EINVAL, "interp %s: point %d's smoothing %g is not in [0, 1e12]", name, i,
+                                point_smoothing[i]);
+        smoothed |= point_smoothing[i] > 0;
+    }
+    if (smoothed && !sh_interp_method_smooths(params->method))
+        return sh_error_set(SH_EINVAL, "interp %s: has no smoothing (only the RBFs approximate)", name);
     if (n < min_points(params))
         return sh_error_set(SH_EDEGENERATE, "interp %s: %d reference points, needs at least %d",
                             name, n, min_points(params));
@@ -134,11 +154,13 @@ sh_status sh_interp_create(const sh_interp_params *params, const double *ref_xy,
     it->params = *params;
     it->n = n;
     it->ref = malloc(sizeof(double) * 2 * (size_t)n);
-    if (!it->ref) {
-        free(it);
+    if (smoothed) it->point_smoothing = malloc(sizeof(double) * (size_t)n);
+    if (!it->ref || (smoothed && !it->point_smoothing)) {
+        sh_interp_destroy(it);
         return sh_error_set(SH_ENOMEM, "interp: out of memory");
     }
     memcpy(it->ref, ref_xy, sizeof(double) * 2 * (size_t)n);
+    if (smoothed) memcpy(it->point_smoothing, point_smoothing, sizeof(double) * (size_t)n);
     switch (params->method) {
     case SH_METHOD_AFFINE: st = sh_interp_affine_init(it); break;
     case SH_METHOD_PWLINEAR: st = sh_interp_pwlinear_init(it); break;
@@ -158,6 +180,7 @@ void sh_interp_destroy(sh_interp *it)
     if (!it) return;
     if (it->ops && it->ops->destroy) it->ops->destroy(it->impl);
     free(it->ref);
+    free(it->point_smoothing);
     free(it);
 }
 
@@ -325,6 +348,26 @@ sh_status sh_interp_map_points(const sh_interp_params *params, const double *ref
     sh_status st = sh_interp_mapper_create(params, &m);
     if (st == SH_OK) st = sh_interp_mapper_map(m, ref_xy, cur_xy, n, at, count, out);
     sh_interp_mapper_destroy(m);
+    return st;
+}
+
+sh_status sh_interp_map_points_smoothed(const sh_interp_params *params, const double *ref_xy, const double *cur_xy,
+                                        int n, const double *point_smoothing, const float *at, int count, float *out)
+{
+    if (!ref_xy || !cur_xy || (count > 0 && (!at || !out))) return sh_error_set(SH_EINVAL, "interp: no points to map");
+    sh_interp *it;
+    sh_status st = sh_interp_create_smoothed(params, ref_xy, n, point_smoothing, &it);
+    if (st != SH_OK) return st;
+    double *coef = malloc(sizeof(double) * 2 * (size_t)sh_interp_num_coefs(it));
+    st = coef ? sh_interp_fit(it, cur_xy, 2, coef) : sh_error_set(SH_ENOMEM, "interp: out of memory");
+    for (int i = 0; st == SH_OK && i < count; i++) {
+        double v[2];
+        if (sh_interp_eval(it, coef, 2, at[2 * i], at[2 * i + 1], v) != SH_OK) v[0] = v[1] = NAN;
+        out[2 * i] = (float)v[0];
+        out[2 * i + 1] = (float)v[1];
+    }
+    free(coef);
+    sh_interp_destroy(it);
     return st;
 }
 

@@ -27,6 +27,7 @@ struct sh_interp {
     sh_interp_params params;
     int n;
     double *ref; /* 2n, the reference points */
+    double *point_smoothing; /* n, each point's own smoothing (RBFs), or NULL: none */
     int num_coefs;
     int max_terms;
     const sh_interp_ops *ops;

@@ -159,7 +159,7 @@ static sh_status rbf_fit_subset(const sh_interp *it, const unsigned char *use, i
             double dx = q[2 * i] - q[2 * j], dy = q[2 * i + 1] - q[2 * j + 1];
             a[(size_t)i * ms + j] = a[(size_t)j * ms + i] = kernel(r, dx * dx + dy * dy);
         }
-        a[(size_t)i * ms + i] += it->params.smoothing;
+        a[(size_t)i * ms + i] += it->params.smoothing + (it->point_smoothing ? it->point_smoothing[at[i]] : 0.0);
         for (int c = 0; c < 3 * r->affine; c++) {
             double g = r->poly_gain;
             double v = c == 0 ? g : c == 1 ? g * (q[2 * i] - r->cx) * r->inv_scale : g * (q[2 * i + 1] - r->cy) * r->inv_scale;
@@ -264,7 +264,7 @@ sh_status sh_interp_rbf_init(sh_interp *it)
             a[i * m + j] = a[j * m + i] = k;
             kmax = fmax(kmax, fabs(k));
         }
-        a[i * m + i] += pa->smoothing;
+        a[i * m + i] += pa->smoothing + (it->point_smoothing ? it->point_smoothing[i] : 0.0);
     }
     r->poly_gain = kmax > 0 ? kmax : 1.0;
     for (int i = 0; i < n && r->affine; i++) {

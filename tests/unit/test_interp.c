@@ -579,6 +579,97 @@ static void test_fit_subset(void **state)
     sh_interp_destroy(it);
 }
 
+/* A point's own smoothing (sh_interp_create_smoothed): the solution of the RBF system with lambda_k
+ * added to point k's diagonal entry is the one function of the kernel's span (plus the affine term)
+ * whose coefficients c satisfy the side conditions sum c_k = sum c_k x_k = sum c_k y_k = 0 and
+ * which misses each point by q_k - f(p_k) = lambda_k c_k: checked here from those identities, not
+ * from the solver, for the points interpolated (lambda 0: f(p_k) = q_k) and the smoothed ones
+ * alike. A subset fit keeps each used point's own (the interpolant made of the subset alone);
+ * the methods with no smoothing, and values that are no smoothing, are refused. */
+static void test_point_smoothing(void **state)
+{
+    (void)state;
+    enum { N = 30, M = 10 }; /* M markers exact, then N - M smoothed points */
+    double xy[2 * N], val[2 * N], lambda[N];
+    random_points(xy, N, 800, 600);
+    for (int i = 0; i < 2 * N; i++) val[i] = uniform(-5, 5);
+    for (int i = 0; i < N; i++) lambda[i] = i < M ? 0.0 : uniform(200, 3000);
+    sh_interp_params p;
+    sh_interp_params_default(&p, SH_METHOD_TPS);
+    sh_interp *it = NULL;
+    assert_int_equal(sh_interp_create_smoothed(&p, xy, N, lambda, &it), SH_OK);
+    assert_int_equal(sh_interp_num_coefs(it), N + 3);
+    double coef[2 * (N + 3)];
+    assert_int_equal(sh_interp_fit(it, val, 2, coef), SH_OK);
+    double side[3][2] = {{0}}, scale = 0, worst_miss = 0, smallest_miss = INFINITY;
+    for (int k = 0; k < N; k++) {
+        double f[2];
+        eval_basis(it, coef, 2, xy[2 * k], xy[2 * k + 1], f);
+        for (int d = 0; d < 2; d++) {
+            double c = coef[2 * k + d];
+            side[0][d] += c, side[1][d] += c * xy[2 * k], side[2][d] += c * xy[2 * k + 1];
+            scale = fmax(scale, fabs(c) * 800);
+            double miss = val[2 * k + d] - f[d];
+            worst_miss = fmax(worst_miss, fabs(miss - lambda[k] * c));
+            if (k >= M) smallest_miss = fmin(smallest_miss, fabs(miss));
+        }
+    }
+    for (int c = 0; c < 3; c++)
+        for (int d = 0; d < 2; d++) assert_true(fabs(side[c][d]) < 1e-9 * scale);
+    if (!(worst_miss < 1e-7)) fail_msg("q_k - f(p_k) differs from lambda_k c_k by %g", worst_miss);
+    /* the smoothed points are approximated, not interpolated (values of +-5 against a smooth map) */
+    assert_true(smallest_miss > 1e-6);
+
+    /* the subset's own fit: every third smoothed point and one marker left out */
+    unsigned char use[N];
+    double sub_xy[2 * N], sub_val[2 * N], sub_lambda[N], q[2 * 40];
+    int s = 0;
+    for (int i = 0; i < N; i++) {
+        use[i] = !(i == 3 || (i >= M && i % 3 == 0));
+        if (!use[i]) continue;
+        sub_xy[2 * s] = xy[2 * i], sub_xy[2 * s + 1] = xy[2 * i + 1];
+        sub_val[2 * s] = val[2 * i], sub_val[2 * s + 1] = val[2 * i + 1];
+        sub_lambda[s++] = lambda[i];
+    }
+    sh_interp *sub = NULL;
+    assert_int_equal(sh_interp_create_smoothed(&p, sub_xy, s, sub_lambda, &sub), SH_OK);
+    double cs[2 * (N + 3)], ca[2 * (N + 3)];
+    void *work = malloc(sh_interp_subset_work_size(it));
+    assert_non_null(work);
+    assert_int_equal(sh_interp_fit(sub, sub_val, 2, cs), SH_OK);
+    assert_int_equal(sh_interp_fit_subset(it, use, val, 2, ca, work), SH_OK);
+    random_points(q, 40, 800, 600);
+    double worst = max_difference(it, ca, sub, cs, q, 40);
+    if (!(worst < 1e-7)) fail_msg("subset fit with smoothing differs by %g", worst);
+    free(work);
+    sh_interp_destroy(sub);
+    sh_interp_destroy(it);
+
+    /* map_points through it: the same map (as floats) */
+    float at[2 * 4] = {100, 100, 400, 300, 700, 500, 20, 580}, out[2 * 4];
+    assert_int_equal(sh_interp_map_points_smoothed(&p, xy, val, N, lambda, at, 4, out), SH_OK);
+    assert_int_equal(sh_interp_create_smoothed(&p, xy, N, lambda, &it), SH_OK);
+    for (int k = 0; k < 4; k++) {
+        double f[2];
+        eval_basis(it, coef, 2, at[2 * k], at[2 * k + 1], f);
+        assert_true(fabs(f[0] - out[2 * k]) < 1e-3 && fabs(f[1] - out[2 * k + 1]) < 1e-3);
+    }
+    sh_interp_destroy(it);
+
+    /* refusals: a method with no smoothing, a negative or NaN value; all zero is no smoothing */
+    sh_interp_params_default(&p, SH_METHOD_BSPLINE);
+    assert_int_equal(sh_interp_create_smoothed(&p, xy, N, lambda, &it), SH_EINVAL);
+    assert_non_null(strstr(sh_error_message(), "no smoothing"));
+    double zero[N] = {0};
+    assert_int_equal(sh_interp_create_smoothed(&p, xy, N, zero, &it), SH_OK);
+    sh_interp_destroy(it);
+    sh_interp_params_default(&p, SH_METHOD_TPS);
+    lambda[N - 1] = -1;
+    assert_int_equal(sh_interp_create_smoothed(&p, xy, N, lambda, &it), SH_EINVAL);
+    lambda[N - 1] = NAN;
+    assert_int_equal(sh_interp_create_smoothed(&p, xy, N, lambda, &it), SH_EINVAL);
+}
+
 /* B-splines through a subset, on the full set's lattices (their box and levels depend on every
  * point, so not sh_interp_create on the subset): with every point used it is the spline sh_interp_fit
  * makes through its multiplied-out residual operators (another path); with a third left out it
@@ -848,6 +939,7 @@ int main(void)
         cmocka_unit_test(test_local_sparse),
         cmocka_unit_test(test_gaussian_factors),
         cmocka_unit_test(test_fit_subset),
+        cmocka_unit_test(test_point_smoothing),
         cmocka_unit_test(test_fit_subset_bspline),
         cmocka_unit_test(test_fit_subset_bspline_same_lattice),
         cmocka_unit_test(test_lu_inplace),
