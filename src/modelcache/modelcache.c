@@ -55,6 +55,22 @@ sh_status sh_modelcache_entry_set(sh_modelcache_entry *e, const sh_point *ref, i
     return SH_OK;
 }
 
+/* Another method than the RBFs has no smoothing: its rows are interpolated exactly, as without
+ * it (sh_interp_create_smoothed would refuse). */
+static sh_status build_interp(sh_modelcache_entry *e, const sh_modelcache_recipe *r)
+{
+    int rbf = sh_interp_method_smooths(r->params.method);
+    int k = 0;
+    while (k < e->n && e->ids[k] < r->smoothed_from) k++;
+    if (!(r->point_smoothing > 0) || !rbf || k == e->n) return sh_interp_create(&r->params, e->ref_xy, e->n, &e->interp);
+    double *lambda = malloc(sizeof(double) * (size_t)e->n);
+    if (!lambda) return sh_error_set(SH_ENOMEM, "models: out of memory");
+    for (int i = 0; i < e->n; i++) lambda[i] = e->ids[i] >= r->smoothed_from ? r->point_smoothing : 0.0;
+    sh_status st = sh_interp_create_smoothed(&r->params, e->ref_xy, e->n, lambda, &e->interp);
+    free(lambda);
+    return st;
+}
+
 sh_status sh_modelcache_entry_build(sh_modelcache_entry *e, const sh_modelcache_recipe *r)
 {
     sh_status st;
@@ -65,7 +81,7 @@ sh_status sh_modelcache_entry_build(sh_modelcache_entry *e, const sh_modelcache_
                                        &e->view[v]);
         if (st == SH_OK && r->ply_spacing > 0) st = sh_warp3d_ply_create(e->m3, r->ply_spacing, r->ply_mesh, &e->ply);
     } else {
-        st = sh_interp_create(&r->params, e->ref_xy, e->n, &e->interp);
+        st = build_interp(e, r);
         if (st == SH_OK)
             st = sh_warp_model_create(e->interp, e->ref_xy, e->n, r->width, r->height, &r->wopts, &e->model);
     }

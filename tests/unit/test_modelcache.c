@@ -66,13 +66,12 @@ static void test_entry_key_and_positions(void **state)
 }
 
 /* The cached model maps every pixel as a model built by hand from the same markers does. */
-static void test_model_equals_direct_build(void **state)
+/* The entry's map of all five markers after an update equals the one of an interpolant and model
+ * built directly, with each point's smoothing lambda (NULL: none). */
+static void check_direct_build(const sh_modelcache_recipe *r, const double *lambda)
 {
-    (void)state;
-    sh_modelcache_recipe r;
-    recipe_2d(&r);
     sh_modelcache *c;
-    assert_int_equal(sh_modelcache_create(&r, ref, 5, 2, &c), SH_OK);
+    assert_int_equal(sh_modelcache_create(r, ref, 5, 2, &c), SH_OK);
     const int ids[] = {2, 4, 6, 8, 10};
     sh_modelcache_entry *e;
     assert_int_equal(sh_modelcache_get(c, ids, 5, &e), SH_OK);
@@ -80,8 +79,8 @@ static void test_model_equals_direct_build(void **state)
     for (int i = 0; i < 5; i++) xy[2 * i] = ref[i].x, xy[2 * i + 1] = ref[i].y;
     sh_interp *interp;
     sh_warp_model *model;
-    assert_int_equal(sh_interp_create(&r.params, xy, 5, &interp), SH_OK);
-    assert_int_equal(sh_warp_model_create(interp, xy, 5, W, H, &r.wopts, &model), SH_OK);
+    assert_int_equal(sh_interp_create_smoothed(&r->params, xy, 5, lambda, &interp), SH_OK);
+    assert_int_equal(sh_warp_model_create(interp, xy, 5, W, H, &r->wopts, &model), SH_OK);
     double cur[10];
     for (int i = 0; i < 10; i++) cur[i] = xy[i] + (i % 2 ? 1.5 : -0.75) + 0.1 * i;
     assert_int_equal(sh_warp_model_update(model, cur), SH_OK);
@@ -97,6 +96,29 @@ static void test_model_equals_direct_build(void **state)
     sh_warp_model_destroy(model);
     sh_interp_destroy(interp);
     sh_modelcache_destroy(c);
+}
+
+static void test_model_equals_direct_build(void **state)
+{
+    (void)state;
+    sh_modelcache_recipe r;
+    recipe_2d(&r);
+    check_direct_build(&r, NULL);
+}
+
+/* point_smoothing goes to the rows from smoothed_from on (ids 8 and 10 here), and only with a
+ * method that smooths: bspline interpolates them as before. */
+static void test_point_smoothing_by_id(void **state)
+{
+    (void)state;
+    sh_modelcache_recipe r;
+    recipe_2d(&r);
+    r.point_smoothing = 500;
+    r.smoothed_from = 8;
+    const double lambda[5] = {0, 0, 0, 500, 500};
+    check_direct_build(&r, lambda);
+    assert_int_equal(sh_interp_params_parse("bspline", &r.params), SH_OK);
+    check_direct_build(&r, NULL);
 }
 
 /* Two slots: A, B, A, C keeps A and C (B least recently used); B again is a fourth build. A set
@@ -174,6 +196,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_entry_key_and_positions),
         cmocka_unit_test(test_model_equals_direct_build),
+        cmocka_unit_test(test_point_smoothing_by_id),
         cmocka_unit_test(test_lru_and_failures),
         cmocka_unit_test(test_lookup_keeps_and_prefers_empty),
     };
