@@ -77,6 +77,14 @@ extern "C" {
  * far above any tag family's ids, so the rows sort after the markers'. */
 #define SH_LANDMARK_ID_BASE 1000000
 
+/* The smoothing of a landmark row in the map (sh_interp_create_smoothed; the RBFs, TPS among them):
+ * a landmark is found to 0.2-0.3 px, a marker's centre to a few hundredths, so the map approximates
+ * the landmarks and interpolates the markers. In the kernel's units (px^2 log px at the frame's
+ * scale); measured on 1080p phantoms (docs/landmarks.md, "Weights"). `stillheart warp
+ * --landmark-smoothing`, the daemon's [track] landmarks_smoothing, stillheart-eval's
+ * --landmark-smoothing. */
+#define SH_LANDMARK_SMOOTHING 1000.0
+
 /* Whether a 2D method is better with landmark rows than without. Measured on the phantom through
  * `stillheart track --landmarks`, `warp` and stillheart-eval (docs/landmarks.md): TPS, piecewise
  * linear, B-splines and affine gain; the Gaussian and local RBFs, exact through landmarks 20 px
@@ -98,8 +106,8 @@ const char *sh_landmark_verdict_name(sh_landmark_verdict v);
 
 typedef struct {
     int max_points;             /* at most this many landmarks (200) */
-    double min_distance;        /* px between two landmarks (20) */
-    double quality;             /* corner response relative to the strongest allowed (0.01) */
+    double min_distance;        /* px between two landmarks (14) */
+    double quality;             /* corner response relative to the strongest allowed (0.003) */
     double tag_margin;          /* px kept clear beyond each tag's white quiet zone, which is
                                  * taken as one module, an eighth of the quad's side (the
                                  * families' tags have one white module round their black
@@ -139,12 +147,17 @@ typedef struct {
 
 void sh_landmarks_params_default(sh_landmarks_params *p);
 /* The defaults changed for a markers' map that may lie farther from the tissue than the
- * defaults' 3 px (four markers at the corners of the field): bound_factor 4, plane 1,
- * 3 pyramid levels, and a denser choice (min_distance 14, quality 0.003): the landmarks carry
- * the map between so few markers. */
+ * defaults' 3 px (four markers at the corners of the field): bound_factor 4, plane 1 and
+ * 3 pyramid levels. */
 void sh_landmarks_params_sparse(sh_landmarks_params *p);
 /* Those changes alone, made to p in place (the other parameters as they are). */
 void sh_landmarks_params_make_sparse(sh_landmarks_params *p);
+/* The choice a rig (3D, sh_landmarks_rig) keeps with the default tests: 20 px apart, down to 1 % of
+ * the strongest corner, the defaults' before 2026-12-05. The denser choice of the defaults was
+ * measured in 2D, where the map approximates the landmarks (SH_LANDMARK_SMOOTHING); in 3D the
+ * surfaces interpolate them, and each costs a search in every camera and a term in every view's
+ * fit (docs/landmarks.md, "Weights"). Made to p in place. */
+void sh_landmarks_params_make_rig(sh_landmarks_params *p);
 
 typedef struct sh_landmarks sh_landmarks;
 

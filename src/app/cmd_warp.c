@@ -34,6 +34,12 @@ static void usage(FILE *out)
         "  --levels L         B-spline levels (default: as many as exact interpolation needs;\n"
         "                     fewer approximate)\n"
         "  --smoothing LAMBDA RBF approximation instead of interpolation (default 0 = exact)\n"
+        "  --landmark-smoothing LAMBDA\n"
+        "                     with tps (the RBFs): the landmark rows' own smoothing, added to\n"
+        "                     their diagonal of the system; the markers stay exact (default\n"
+        "                     1000, as the daemon's [track] landmarks_smoothing; 0: the\n"
+        "                     landmarks interpolated as well); stillheart-eval needs the same\n"
+        "                     value (its --landmark-smoothing)\n"
         "  --reference N      0-based index of the reference frame (default 0)\n"
         "  --threads T        worker threads for the warp (default 1)\n"
         "  --max-error PX     largest tolerated error of the interpolated map (default 0.05)\n"
@@ -75,6 +81,7 @@ typedef struct {
     const char *points_path, *method, *map_out, *in_path, *out_path;
     sh_interp_params params; /* --method with --sigma, --levels and --smoothing applied */
     double max_error;
+    double landmark_smoothing; /* --landmark-smoothing */
     int reference, threads, quiet;
     /* The paper's e is over R, G and B (section V): a Y'CbCr frame must be converted pixel by
      * pixel, since |dR| + |dG| + |dB| is no function of the planes' own differences, so it cannot
@@ -93,10 +100,11 @@ static int parse_options(int argc, char **argv, warp_options *o)
         {"smoothing", required_argument, 0, 'S'}, {"reference", required_argument, 0, 'r'},
         {"threads", required_argument, 0, 't'}, {"max-error", required_argument, 0, 'e'},
         {"map-out", required_argument, 0, 'M'}, {"metric", no_argument, 0, 'E'},
-        SH_CLI_OPTIONS, {0, 0, 0, 0}};
+        {"landmark-smoothing", required_argument, 0, 'L'}, SH_CLI_OPTIONS, {0, 0, 0, 0}};
     memset(o, 0, sizeof *o);
     o->method = "tps";
     o->max_error = 0.05;
+    o->landmark_smoothing = SH_LANDMARK_SMOOTHING;
     o->threads = 1;
     double sigma = 0, smoothing = 0;
     int levels = 0, have_sigma = 0, opt;
@@ -114,6 +122,7 @@ static int parse_options(int argc, char **argv, warp_options *o)
         case 't': if (!sh_cli_parse_int("--threads", optarg, 1, 256, &o->threads)) return 2; break;
         case 'e': if (!sh_cli_parse_double("--max-error", optarg, 1e-4, 100, &o->max_error)) return 2; break;
         case 'M': o->map_out = optarg; break;
+        case 'L': if (!sh_cli_parse_double("--landmark-smoothing", optarg, 0, 1e12, &o->landmark_smoothing)) return 2; break;
         case 'E': o->metric = 1; break;
         case 'h': usage(stdout); return 0;
         default: { int rc = sh_cli_option(&cli, opt, argv); if (rc >= 0) return rc; } break;
@@ -185,6 +194,8 @@ static int warp_open(warp_job *j, const warp_options *o)
     j->recipe.params = o->params;
     sh_warp_options_default(&j->recipe.wopts);
     j->recipe.wopts.max_error = o->max_error;
+    j->recipe.point_smoothing = o->landmark_smoothing;
+    j->recipe.smoothed_from = SH_LANDMARK_ID_BASE;
     if (open_input(j)) return 1;
     const sh_y4m_header *hdr = sh_y4m_reader_header(s->reader);
     if (sh_image_create(&s->in, hdr->format, hdr->width, hdr->height) != SH_OK ||

@@ -642,9 +642,11 @@ static run_model *slot_for(run_models *m, generation *g, const int *ids, int n)
     return victim;
 }
 
-void run_models_set_landmarks(run_models *m, const sh_landmarks_params *lp)
+void run_models_set_landmarks(run_models *m, const sh_landmarks_params *lp, double smoothing)
 {
     m->lp = *lp;
+    m->recipe.point_smoothing = smoothing; /* the RBFs' (TPS), in 2D: 3D's surfaces interpolate them */
+    m->recipe.smoothed_from = SH_LANDMARK_ID_BASE;
 }
 
 /* g's copy of what the landmarks are chosen from (a NULL luma: a camera whose frame is missing). */

@@ -37,8 +37,9 @@ void run_models_destroy(run_models *m);
  * chosen in the output camera's frame, matched in the others' and triangulated:
  * sh_landmarks_rig), and every model of that reference holds them after its markers, ids
  * SH_LANDMARK_ID_BASE + k (in 3D only the k triangulated in the reference), so that a frame uses
- * any subset of them without a new model (run_model_update's use). */
-void run_models_set_landmarks(run_models *m, const sh_landmarks_params *lp);
+ * any subset of them without a new model (run_model_update's use). smoothing: the landmark rows'
+ * own in a 2D RBF map ([track] landmarks_smoothing, sh_interp_create_smoothed). */
+void run_models_set_landmarks(run_models *m, const sh_landmarks_params *lp, double smoothing);
 #define RUN_MAX_LANDMARKS 2000 /* [track] landmarks' bound (config.c) */
 /* Requests a new reference (markers sorted by id, n <= SH_TRACK_MAX_MARKERS); its full-set model is
  * built first. A reference still being built is replaced. frame: for the log. With landmarks:

@@ -118,9 +118,10 @@ static sh_status landmarks_create(run_proc *p, const sh_config *cfg)
         sh_landmarks_params_sparse(&lp);
     else
         sh_landmarks_params_default(&lp);
+    if (!cfg->landmarks_sparse && p->three_d) sh_landmarks_params_make_rig(&lp);
     lp.affine = cfg->landmarks_affine;
     lp.max_points = p->lm_cap;
-    run_models_set_landmarks(p->models, &lp);
+    run_models_set_landmarks(p->models, &lp, cfg->landmarks_smoothing);
     if (!cfg->points[0]) return SH_OK;
     sh_detector_options dopt;
     sh_detector_options_default(&dopt);

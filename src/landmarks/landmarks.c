@@ -68,8 +68,16 @@ void sh_landmarks_params_default(sh_landmarks_params *p)
 {
     memset(p, 0, sizeof *p);
     p->max_points = 200;
-    p->min_distance = 20;
-    p->quality = 0.01;
+    /* As many as asked, spread over the hull. A threshold of 1 % of the strongest corner's response
+     * ties how many are chosen to that one corner, not to whether a window can be followed, which
+     * the tests decide each frame: at 20 px and 1 % 83-161 of 200 were chosen on the eight renders
+     * of docs/landmarks.md, at 14 px and 0.3 % 200 (186 on one), and the geometric error fell on
+     * every render (16 tags, ex vivo 0.382 to 0.362 px over the seeds' means, in vivo 0.381 to 0.351;
+     * with the landmarks' smoothing, SH_LANDMARK_SMOOTHING, to 0.318 and 0.308). 10 px crowds the
+     * 200 into the most textured patches. With the smoothing the TPS map through them needs no
+     * finer grid than through fewer (docs/landmarks.md, "The choice's density", "Weights"). */
+    p->min_distance = 14;
+    p->quality = 0.003;
     p->tag_margin = 2;
     p->highlight = 250;
     p->max_photometric = 12;
@@ -108,15 +116,12 @@ void sh_landmarks_params_make_sparse(sh_landmarks_params *p)
      * start that far off, and need the pyramid's reach (with 1 level, 0.98 px of geometric error
      * against 0.69 with 3; 4 levels gain nothing) */
     p->flow.levels = 3;
-    /* between four corner markers the landmarks carry the map: as many as asked, spread over the
-     * hull. The defaults' threshold, 1 % of the strongest corner's response, ties how many are
-     * chosen to that one corner, not to whether a window can be followed, which the tests decide
-     * each frame; at 20 px and 1 % 79-156 of 200 were chosen on the phantom, at 14 px and 0.3 %
-     * 186-200, and the geometric error fell on all eight renders (ex vivo 0.785 to 0.555 px, in
-     * vivo 0.582 to 0.457 over the seeds' means; 10 px, tried with 16 tags, crowds the 200 into
-     * the most textured patches: docs/landmarks.md, "The choice's density") */
-    p->min_distance = 14;
-    p->quality = 0.003;
+}
+
+void sh_landmarks_params_make_rig(sh_landmarks_params *p)
+{
+    p->min_distance = 20;
+    p->quality = 0.01;
 }
 
 static sh_status check_params(const sh_landmarks_params *p)

@@ -647,10 +647,10 @@ static void test_rig_against_closed_form(void **state)
 /* The choice's threshold is relative to the strongest corner: a response scales with the square
  * of the contrast, so on a flat field with one square of contrast 100 and 24 of contrast 8 (all
  * alike but for contrast, 40 px apart, the band-pass linear), the weak squares' corners respond
- * (8 / 100)^2 = 0.0064 of the strong one's: under the defaults' 0.01, over the sparse tests'
- * 0.003 (the denser choice for four corner markers). One landmark a square at most: its corners
- * are 8 px apart, closer than either spacing. On the raw frame (band 0), where that ratio holds. */
-static void test_sparse_choice_denser(void **state)
+ * (8 / 100)^2 = 0.0064 of the strong one's: over the defaults' 0.003 (the sparse tests' too), under
+ * the 0.01 chosen before 2026-12-05. One landmark a square at most: its corners are 8 px apart,
+ * closer than the 14 px spacing. On the raw frame (band 0), where that ratio holds. */
+static void test_choice_threshold(void **state)
 {
     (void)state;
     sh_image img;
@@ -664,18 +664,19 @@ static void test_sparse_choice_denser(void **state)
             for (int y = y0; y < y0 + 8; y++)
                 for (int x = x0; x < x0 + 8; x++) img.plane[0].data[(size_t)y * img.plane[0].stride + x] = (uint8_t)(100 + c);
         }
-    for (int sparse = 0; sparse <= 1; sparse++) {
+    for (int variant = 0; variant < 3; variant++) { /* defaults, sparse, defaults at 1 % */
         sh_landmarks_params p;
-        if (sparse) sh_landmarks_params_sparse(&p);
+        if (variant == 1) sh_landmarks_params_sparse(&p);
         else sh_landmarks_params_default(&p);
+        if (variant == 2) p.quality = 0.01;
         p.band = 0; /* the raw frame: the band-pass's gain maps the texture's 99th percentile
                      * (here the weak squares) to 100 grey levels and clips the strong one */
         sh_landmarks *lm;
         assert_int_equal(sh_landmarks_create(&p, &img.plane[0], NULL, NULL, 0, &lm), SH_OK);
         int n = sh_landmarks_count(lm);
-        print_message("  %s: %d landmarks chosen (quality %g, %g px apart)\n", sparse ? "sparse" : "defaults", n,
-                      p.quality, p.min_distance);
-        assert_int_equal(n, sparse ? 1 + weak : 1);
+        print_message("  %s: %d landmarks chosen (quality %g, %g px apart)\n",
+                      variant == 0 ? "defaults" : variant == 1 ? "sparse" : "1 %", n, p.quality, p.min_distance);
+        assert_int_equal(n, variant < 2 ? 1 + weak : 1);
         sh_landmarks_destroy(lm);
     }
     sh_image_destroy(&img);
@@ -687,7 +688,7 @@ int main(void)
         cmocka_unit_test(test_where_landmarks_are_chosen),
         cmocka_unit_test(test_trust_against_truth),
         cmocka_unit_test(test_sparse_markers),
-        cmocka_unit_test(test_sparse_choice_denser),
+        cmocka_unit_test(test_choice_threshold),
         cmocka_unit_test(test_searches_outside_the_part_same_as_whole_frame),
         cmocka_unit_test(test_band_pass_against_shading),
         cmocka_unit_test(test_affine_windows),

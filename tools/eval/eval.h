@@ -24,6 +24,7 @@ typedef struct {
     int stride;                /* sample spacing in pixels */
     int identity;              /* --method none: the map is q -> q (the unstabilized video) */
     sh_interp_params params;   /* as `stillheart warp` builds its interpolant */
+    double landmark_smoothing; /* the smoothing of its landmark rows (ids from SH_LANDMARK_ID_BASE), as the warp's */
     sh_warp_options wopts;
     /* --cameras: the map of `stillheart warp3d`'s reference view of `camera` (calib->cam[camera]
      * both source and view), rebuilt from the points' X, Y, Z with p3 and vopts; NULL: 2D */
@@ -61,6 +62,7 @@ typedef struct {
     int camera;
     int reference;
     sh_interp_params params;   /* the markers' map that predicts each landmark */
+    double landmark_smoothing; /* the accepted landmarks' in the map fitted with them */
     sh_landmarks_params lp;
     int keep_rows;             /* fill eval_lm_result.rows (--landmarks-points) */
 } eval_lm_options;

@@ -163,7 +163,14 @@ static sh_status build_model(eval_geo *g, int n)
         g->model_ref[2 * k] = g->ref_rows[r].x;
         g->model_ref[2 * k + 1] = g->ref_rows[r].y;
     }
-    sh_status st = sh_interp_create(&g->o.params, g->model_ref, n, &g->interp);
+    /* the landmark rows' own smoothing, as sh_modelcache_entry_build gives the warp's */
+    double *lambda = NULL;
+    if (g->o.landmark_smoothing > 0 && sh_interp_method_smooths(g->o.params.method) && g->ids[n - 1] >= SH_LANDMARK_ID_BASE) {
+        if (!(lambda = malloc(sizeof(double) * (size_t)n))) return sh_error_set(SH_ENOMEM, "geometric error: out of memory");
+        for (int k = 0; k < n; k++) lambda[k] = g->ids[k] >= SH_LANDMARK_ID_BASE ? g->o.landmark_smoothing : 0.0;
+    }
+    sh_status st = sh_interp_create_smoothed(&g->o.params, g->model_ref, n, lambda, &g->interp);
+    free(lambda);
     if (st == SH_OK)
         st = sh_warp_model_create(g->interp, g->model_ref, n, g->width, g->height, &g->o.wopts,
                                   &g->model);

@@ -66,6 +66,21 @@ static double pct(float *v, long long n, double q)
  * shared with the reference, or the interpolant refuses them. */
 /* The hull's samples against the truth in frame t: the markers' map (s->ref_xy/cur_xy, m) and
  * the same with the accepted landmarks added as correspondences. */
+/* The method through the m markers and the k - m accepted landmarks after them, each landmark with
+ * the smoothing of its own the warp gives it (SH_LANDMARK_SMOOTHING; the markers exact). */
+static sh_status map_with_landmarks(const eval_lm_options *o, const double *ref, const double *cur, int m, int k,
+                                    const float *at, int count, float *out)
+{
+    double *lambda = NULL;
+    if (o->landmark_smoothing > 0 && sh_interp_method_smooths(o->params.method) && k > m) {
+        if (!(lambda = malloc(sizeof(double) * (size_t)k))) return sh_error_set(SH_ENOMEM, "landmarks: out of memory");
+        for (int i = 0; i < k; i++) lambda[i] = i < m ? 0.0 : o->landmark_smoothing;
+    }
+    sh_status st = sh_interp_map_points_smoothed(&o->params, ref, cur, k, lambda, at, count, out);
+    free(lambda);
+    return st;
+}
+
 static sh_status compare_maps(const eval_lm_options *o, int t, int m, const float *lm_ref, int n, scratch *s,
                               geo_samples *g)
 {
@@ -100,7 +115,7 @@ static sh_status compare_maps(const eval_lm_options *o, int t, int m, const floa
     }
     /* an interpolant the method refuses (too few, degenerate) leaves the frame out */
     if (st == SH_OK && sh_interp_map_points(&o->params, s->ref_xy, s->cur_xy, m, at, g->n, fm) == SH_OK &&
-        sh_interp_map_points(&o->params, ref_all, cur_all, k, at, g->n, fl) == SH_OK) {
+        map_with_landmarks(o, ref_all, cur_all, m, k, at, g->n, fl) == SH_OK) {
         for (int i = 0; i < g->n; i++) {
             double gx, gy;
             if (!phantom_truth_content_visible(o->truth, o->camera, t, &g->seen[i]) ||

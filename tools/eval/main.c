@@ -105,14 +105,17 @@ static void usage(FILE *f)
         "                     --lm-backward 0: no backward test)\n"
         "  --lm-distance PX, --lm-quality Q\n"
         "                     the choice's spacing and corner threshold (a fraction of the\n"
-        "                     strongest corner's response; defaults 20 px, 0.01)\n"
+        "                     strongest corner's response; defaults 14 px, 0.003)\n"
+        "  --landmark-smoothing LAMBDA\n"
+        "                     with TPS (the RBFs): the smoothing of the landmarks in the map,\n"
+        "                     added to their diagonal of its system, the markers' left exact\n"
+        "                     (default 1000; 0: the landmarks interpolated too). With --points\n"
+        "                     of landmark rows (ids from 1000000), give the warp's value\n"
         "  --lm-sparse        for markers too sparse for their map (four at the corners): the\n"
         "                     disagreement bound follows the frame's measured map error\n"
         "                     (--lm-bound-factor 4) and the neighbour test expects a plane\n"
-        "                     (--lm-plane), the searches use 3 pyramid levels, not 1 (the\n"
-        "                     map may be 10 px off), and the choice is denser (--lm-distance 14\n"
-        "                     --lm-quality 0.003, which later options override), as\n"
-        "                     `stillheart track --landmarks-sparse`\n"
+        "                     (--lm-plane), and the searches use 3 pyramid levels, not 1 (the\n"
+        "                     map may be 10 px off), as `stillheart track --landmarks-sparse`\n"
         "  --lm-bound-factor K  the bound: K times the median distance from the map of the\n"
         "                     landmarks the tests before it keep, never below --lm-disagreement\n"
         "  --lm-plane         the neighbour test expects the planes through three neighbours\n"
@@ -209,6 +212,7 @@ typedef struct {
     double heatmap_max, heatmap_scale;
     eval_geo_options geo;
     double sigma, smoothing, max_error; /* --sigma (when have_sigma), --smoothing, --max-error */
+    double landmark_smoothing;          /* --landmark-smoothing */
     int levels, have_sigma;
     char tagged_method[SH_Y4M_MAX_EXTRA]; /* the method the video's header named (o.method then) */
     int landmarks;                   /* --landmarks N: 0 when not asked */
@@ -357,6 +361,7 @@ static int geo_method(options *o)
         if (o->have_sigma) o->geo.params.sigma = o->sigma;
         o->geo.params.levels = o->levels;
         o->geo.params.smoothing = o->smoothing;
+        o->geo.landmark_smoothing = o->landmark_smoothing;
     }
     sh_warp_options_default(&o->geo.wopts);
     o->geo.wopts.max_error = o->max_error;
@@ -371,6 +376,7 @@ static int landmarks(options *o, const char *video_path)
     if (o->have_sigma) lo.params.sigma = o->sigma;
     lo.params.levels = o->levels;
     lo.params.smoothing = o->smoothing;
+    lo.landmark_smoothing = o->landmark_smoothing;
     lo.lp = o->lp;
     lo.camera = o->camera;
     lo.reference = o->reference;
@@ -555,9 +561,10 @@ int main(int argc, char **argv)
         {"landmarks-points", required_argument, 0, 1007},
         {"spectrum", no_argument, 0, 1008}, {"cameras", required_argument, 0, 1010},
         {"landmark-rows", no_argument, 0, 1011}, {"lm-distance", required_argument, 0, 1012},
-        {"lm-quality", required_argument, 0, 1013},
+        {"lm-quality", required_argument, 0, 1013}, {"landmark-smoothing", required_argument, 0, 1014},
         {"json", no_argument, 0, 'j'},           SH_CLI_OPTIONS, {0, 0, 0, 0}};
-    options o = {.stride = 4, .heatmap_max = 0.2, .heatmap_scale = 1, .contours = 4, .max_error = 0.05};
+    options o = {.stride = 4, .heatmap_max = 0.2, .heatmap_scale = 1, .contours = 4, .max_error = 0.05,
+                 .landmark_smoothing = SH_LANDMARK_SMOOTHING};
     sh_landmarks_params_default(&o.lp);
     int opt;
     opterr = 0;
@@ -593,6 +600,7 @@ int main(int argc, char **argv)
         case 1009: o.lp.affine = 1; break;
         case 1012: if (!sh_cli_parse_double("--lm-distance", optarg, 1, 1000, &o.lp.min_distance)) return 2; break;
         case 1013: if (!sh_cli_parse_double("--lm-quality", optarg, 1e-6, 1, &o.lp.quality)) return 2; break;
+        case 1014: if (!sh_cli_parse_double("--landmark-smoothing", optarg, 0, 1e12, &o.landmark_smoothing)) return 2; break;
         case 1007: o.landmarks_points = optarg; break;
         case 1008: o.spectrum = 1; break;
         case 'h': usage(stdout); return 0;

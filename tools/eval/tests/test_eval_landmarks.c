@@ -435,6 +435,34 @@ static void daemon_pwlinear_against_warp(const char *dir)
     assert_true(e[2] < e[0]);
 }
 
+/* The landmarks' smoothing ([track] landmarks_smoothing, warp --landmark-smoothing): with 0 the
+ * daemon's frames are warp's with 0 (the same geometric error against the truth, measured with the
+ * map rebuilt at 0, and e), and they are not the frames of the default smoothing (rec.y4m, after
+ * daemon_against_track(dir, "")): the value reaches the daemon's map. */
+static void daemon_smoothing_against_warp(const char *dir)
+{
+    if (test_run("cd '%s' && '%s' warp --quiet --method tps --landmark-smoothing 0 --points landmarks.csv cam0.y4m "
+                 "exact.y4m && '%s' run --source y4m:cam0.y4m --no-realtime --no-loop --points markers.csv "
+                 "--landmarks 100 --landmarks-smoothing 0 --method tps --sink none --group= --threads 2 "
+                 "--record exact_run.y4m --trace-points exact_used.csv",
+                 dir, APP_BIN, APP_BIN) != 0)
+        fail_msg("%s\n%s", test_cmd, test_out);
+    double geo[2], e[2];
+    const char *pts[] = {"landmarks.csv", "exact_used.csv"}, *vid[] = {"exact.y4m", "exact_run.y4m"};
+    for (int k = 0; k < 2; k++) {
+        if (test_run("cd '%s' && '%s' --quiet --json --truth . --landmark-smoothing 0 --points %s %s", dir, EVAL_BIN,
+                     pts[k], vid[k]) != 0)
+            fail_msg("%s\n%s", test_cmd, test_out);
+        geo[k] = out_geometric_mean();
+        e[k] = json_num(test_out, "e_stabilized");
+    }
+    print_message("  landmarks interpolated (smoothing 0): TPS geometric error warp %.4f px, daemon %.4f; e %.4f and "
+                  "%.4f\n", geo[0], geo[1], e[0], e[1]);
+    assert_true(fabs(geo[1] - geo[0]) < 0.01);
+    assert_true(fabs(e[1] - e[0]) < 0.002 * e[0]);
+    assert_int_not_equal(test_run("cd '%s' && cmp -s rec.y4m exact_run.y4m", dir), 0);
+}
+
 static void test_daemon_landmarks(void **state)
 {
     (void)state;
@@ -446,6 +474,7 @@ static void test_daemon_landmarks(void **state)
         fail_msg("%s\n%s", test_cmd, test_out);
     /* the defaults, and the affine windows ([track] landmarks_affine, track --landmarks-affine) */
     daemon_against_track(dir, "");
+    if (!getenv("SH_TEST_EMULATED")) daemon_smoothing_against_warp(dir);
     /* the host's and ASan's alone, as the affine pass below: under qemu-aarch64 test_warp's
      * test_update_subset_pwlinear checks the same triangles and frames bit for bit */
     if (!getenv("SH_TEST_EMULATED")) daemon_pwlinear_against_warp(dir);
