@@ -165,7 +165,9 @@ static sh_status build_model(eval_geo *g, int n)
     }
     /* the landmark rows' own smoothing, as sh_modelcache_entry_build gives the warp's */
     double *lambda = NULL;
-    if (g->o.landmark_smoothing > 0 && sh_interp_method_smooths(g->o.params.method) && g->ids[n - 1] >= SH_LANDMARK_ID_BASE) {
+    int rows = 0;
+    for (int k = 0; k < n; k++) rows += g->ids[k] >= SH_LANDMARK_ID_BASE;
+    if (g->o.landmark_smoothing > 0 && sh_interp_method_smooths(g->o.params.method) && rows) {
         if (!(lambda = malloc(sizeof(double) * (size_t)n))) return sh_error_set(SH_ENOMEM, "geometric error: out of memory");
         for (int k = 0; k < n; k++) lambda[k] = g->ids[k] >= SH_LANDMARK_ID_BASE ? g->o.landmark_smoothing : 0.0;
     }

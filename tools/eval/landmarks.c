@@ -62,10 +62,6 @@ static double pct(float *v, long long n, double q)
     return v[k < 0 ? 0 : k];
 }
 
-/* The markers' map of frame t at every landmark (s->pred); 0 when fewer than 3 markers are
- * shared with the reference, or the interpolant refuses them. */
-/* The hull's samples against the truth in frame t: the markers' map (s->ref_xy/cur_xy, m) and
- * the same with the accepted landmarks added as correspondences. */
 /* The method through the m markers and the k - m accepted landmarks after them, each landmark with
  * the smoothing of its own the warp gives it (SH_LANDMARK_SMOOTHING; the markers exact). */
 static sh_status map_with_landmarks(const eval_lm_options *o, const double *ref, const double *cur, int m, int k,
@@ -81,6 +77,8 @@ static sh_status map_with_landmarks(const eval_lm_options *o, const double *ref,
     return st;
 }
 
+/* The hull's samples against the truth in frame t: the markers' map (s->ref_xy/cur_xy, m) and
+ * the same with the accepted landmarks added as correspondences. */
 static sh_status compare_maps(const eval_lm_options *o, int t, int m, const float *lm_ref, int n, scratch *s,
                               geo_samples *g)
 {
@@ -130,6 +128,8 @@ static sh_status compare_maps(const eval_lm_options *o, int t, int m, const floa
     return st;
 }
 
+/* The markers' map of frame t at every landmark (s->pred); 0 when fewer than 3 markers are
+ * shared with the reference, or the interpolant refuses them. */
 static int predict(const eval_lm_options *o, const sh_points *points, const sh_point *ref, int nref, int t,
                    const float *lm_ref, int n, scratch *s, int *m_out)
 {
