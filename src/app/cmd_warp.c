@@ -39,7 +39,7 @@ static void usage(FILE *out)
         "                     their diagonal of the system; the markers stay exact (default\n"
         "                     1000, as the daemon's [track] landmarks_smoothing; 0: the\n"
         "                     landmarks interpolated as well); stillheart-eval needs the same\n"
-        "                     value (its --landmark-smoothing)\n"
+        "                     value (its --landmark-smoothing). Another method refuses it\n"
         "  --reference N      0-based index of the reference frame (default 0)\n"
         "  --threads T        worker threads for the warp (default 1)\n"
         "  --max-error PX     largest tolerated error of the interpolated map (default 0.05)\n"
@@ -107,7 +107,7 @@ static int parse_options(int argc, char **argv, warp_options *o)
     o->landmark_smoothing = SH_LANDMARK_SMOOTHING;
     o->threads = 1;
     double sigma = 0, smoothing = 0;
-    int levels = 0, have_sigma = 0, opt;
+    int levels = 0, have_sigma = 0, have_lm_smoothing = 0, opt;
     optind = 1;
     opterr = 0;
     while ((opt = getopt_long(argc, argv, ":h", options, NULL)) != -1) {
@@ -122,7 +122,8 @@ static int parse_options(int argc, char **argv, warp_options *o)
         case 't': if (!sh_cli_parse_int("--threads", optarg, 1, 256, &o->threads)) return 2; break;
         case 'e': if (!sh_cli_parse_double("--max-error", optarg, 1e-4, 100, &o->max_error)) return 2; break;
         case 'M': o->map_out = optarg; break;
-        case 'L': if (!sh_cli_parse_double("--landmark-smoothing", optarg, 0, 1e12, &o->landmark_smoothing)) return 2; break;
+        case 'L': if (!sh_cli_parse_double("--landmark-smoothing", optarg, 0, 1e12, &o->landmark_smoothing)) return 2;
+                  have_lm_smoothing = 1; break;
         case 'E': o->metric = 1; break;
         case 'h': usage(stdout); return 0;
         default: { int rc = sh_cli_option(&cli, opt, argv); if (rc >= 0) return rc; } break;
@@ -143,6 +144,10 @@ static int parse_options(int argc, char **argv, warp_options *o)
     if (have_sigma) o->params.sigma = sigma;
     o->params.levels = levels;
     o->params.smoothing = smoothing;
+    /* a smoothing the method has no use for does nothing: refused, as --smoothing is */
+    if (have_lm_smoothing && !(sh_interp_method_smooths(o->params.method) && sh_landmarks_method_uses(o->params.method)))
+        return sh_cli_usage_error(&cli, "--landmark-smoothing: %s %s the landmarks (a tps map approximates them)",
+                                  o->method, sh_landmarks_method_uses(o->params.method) ? "interpolates" : "leaves out");
     return APP_GO_ON;
 }
 

@@ -250,6 +250,12 @@ static void test_errors_name_the_problem(void **state)
     assert_int_equal(run(args), 2);
     assert_non_null(strstr(slurp(path("stderr")), "--threads"));
 
+    /* the landmarks' smoothing with a method that interpolates them does nothing: refused */
+    snprintf(args, sizeof args, "warp --method bspline --landmark-smoothing 500 --points %s %s %s", path("points.csv"),
+             path("in.y4m"), path("x.y4m"));
+    assert_int_equal(run(args), 2);
+    assert_non_null(strstr(slurp(path("stderr")), "bspline interpolates the landmarks"));
+
     FILE *bad = fopen(path("bad.csv"), "w");
     fprintf(bad, "frame,id,x,y\n0,1,10,10\n0,2,abc,5\n");
     fclose(bad);

@@ -485,6 +485,8 @@ static void test_method_refusals(void **state)
         {"tps", "method", "view", "stereo", "view", "stereo needs a calibrated rig ([method] calibration)"},
         {"tps", "method", "baseline", "20", "baseline", "20 mm, but only the stereo view has eyes"},
         {"tps", "method", "layout", "tb-half", "layout", "only the stereo view has a layout"},
+        /* the landmarks' smoothing: only with landmarks (and, below, a tps map in 2D) */
+        {"tps", "track", "landmarks_smoothing", "500", "landmarks-smoothing", "500, but there are no landmarks"},
     };
     static const struct {
         const char *method, *section, *key, *value;
@@ -497,6 +499,7 @@ static void test_method_refusals(void **state)
         {"tps", "method", "sigma", "-1"},        {"tps-pure", "method", "smoothing", "1"},
         {"affine", "gating", "min_markers", "3"},  {"tps", "method", "view", "reference"},
         {"tps", "method", "baseline", "10"},     {"tps", "method", "layout", "sbs"},
+        {"bspline", "track", "landmarks_smoothing", "1000"},
     };
     char err[SH_CONFIG_ERR], want[SH_CONFIG_ERR];
     for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
@@ -515,6 +518,17 @@ static void test_method_refusals(void **state)
     for (size_t i = 0; i < sizeof good / sizeof good[0]; i++)
         if (check_file(good[i].method, good[i].section, good[i].key, good[i].value, err) != SH_OK)
             fail_msg("valid case %zu (%s %s = %s) refused: %s", i, good[i].method, good[i].key, good[i].value, err);
+    /* with landmarks: a tps map takes the landmarks' smoothing, bspline (which interpolates them) refuses it */
+    const char *methods[] = {"tps", "bspline"};
+    for (int k = 0; k < 2; k++) {
+        sh_config c;
+        sh_config_default(&c);
+        assert_int_equal(sh_config_set(&c, "method", "name", methods[k], "command line", 0, err), SH_OK);
+        assert_int_equal(sh_config_set(&c, "track", "landmarks", "100", "command line", 0, err), SH_OK);
+        assert_int_equal(sh_config_set(&c, "track", "landmarks_smoothing", "500", "command line", 0, err), SH_OK);
+        assert_int_equal(sh_config_check(&c, err), k ? SH_EINVAL : SH_OK);
+        if (k) assert_non_null(strstr(err, "500, but bspline interpolates the landmarks"));
+    }
 }
 
 /* Where a key was set: the last place wins, a key's other name is recorded under it, a default
