@@ -4,7 +4,8 @@
  * warp used; it should show the surface point that q showed in the reference frame N, which the
  * truth puts at g_t(q) in frame t. The error is |f_t(q) - g_t(q)| in pixels.
  *
- * f_t is rebuilt exactly as `stillheart warp` builds it (src/app/cmd_warp.c): an interpolant on the
+ * f_t is rebuilt exactly as `stillheart warp` builds it (src/app/cmd_warp.c), through the same
+ * model cache (modelcache.h, one slot, the warp's recipe): an interpolant on the
  * reference positions of the markers frame t shares with frame N, a warp model on it, updated with
  * frame t's positions, and sh_warp_model_map for the map the executor samples with (grid
  * interpolation and fixed-point rounding included). A frame with fewer than 3 shared markers, or
@@ -21,6 +22,7 @@
 #include <string.h>
 
 #include "eval.h"
+#include "stillheart/modelcache.h"
 
 struct eval_geo {
     eval_geo_options o;
@@ -31,12 +33,12 @@ struct eval_geo {
     int n;
     int *sx, *sy;
     phantom_content *seen; /* what each sample shows in the reference frame: tissue or sticker */
-    /* the model for the current marker set, rebuilt when the set changes */
+    /* 2D: the model for the current marker set, built as the warp's (one slot of its cache: the
+     * same recipe, landmark rows' smoothing included) */
+    sh_modelcache *cache;
+    /* 3D: the current marker set, rebuilt when the set changes */
     int model_n;
     int *model_ids;
-    double *model_ref;
-    sh_interp *interp;
-    sh_warp_model *model;
     sh_warp3d_model *m3; /* 3D (calib): the model and view for the current marker set */
     sh_warp3d_view *v3;
     double *xyz, *cur_xyz; /* 3D: the set's reference X, Y, Z; the frame's */
@@ -56,8 +58,7 @@ struct eval_geo {
 void eval_geo_destroy(eval_geo *g)
 {
     if (!g) return;
-    sh_warp_model_destroy(g->model);
-    sh_interp_destroy(g->interp);
+    sh_modelcache_destroy(g->cache);
     sh_warp3d_view_destroy(g->v3);
     sh_warp3d_model_destroy(g->m3);
     free(g->xyz);
@@ -67,7 +68,6 @@ void eval_geo_destroy(eval_geo *g)
     free(g->sy);
     free(g->seen);
     free(g->model_ids);
-    free(g->model_ref);
     free(g->ids);
     free(g->cur_xy);
     free(g->map);
@@ -112,13 +112,12 @@ sh_status eval_geo_create(const eval_geo_options *opts, const sh_points *points,
     g->ids = malloc(sizeof(int) * (size_t)(g->ref_count + 1));
     g->model_ids = malloc(sizeof(int) * (size_t)(g->ref_count + 1));
     g->cur_xy = malloc(sizeof(double) * 2 * (size_t)(g->ref_count + 1));
-    g->model_ref = malloc(sizeof(double) * 2 * (size_t)(g->ref_count + 1));
     g->map = opts->identity ? NULL : malloc(sizeof(float) * 2 * npix);
     g->xyz = malloc(sizeof(double) * 3 * (size_t)(g->ref_count + 1));
     g->cur_xyz = malloc(sizeof(double) * 3 * (size_t)(g->ref_count + 1));
     g->use = malloc((size_t)g->ref_count + 1);
     if (!g->sx || !g->sy || !g->seen || !g->ids || !g->model_ids || !g->cur_xy || !g->xyz || !g->cur_xyz || !g->use ||
-        !g->model_ref || (!opts->identity && !g->map)) {
+        (!opts->identity && !g->map)) {
         eval_geo_destroy(g);
         return sh_error_set(SH_ENOMEM, "geometric error: out of memory");
     }
@@ -147,38 +146,16 @@ sh_status eval_geo_create(const eval_geo_options *opts, const sh_points *points,
             g->n++;
         }
     }
+    if (!opts->identity && !opts->calib) {
+        sh_modelcache_recipe r = {.width = width, .height = height, .params = opts->params, .wopts = opts->wopts,
+                                  .point_smoothing = opts->landmark_smoothing, .smoothed_from = SH_LANDMARK_ID_BASE};
+        sh_status st = sh_modelcache_create(&r, g->ref_rows, g->ref_count, 1, &g->cache);
+        if (st != SH_OK) {
+            eval_geo_destroy(g);
+            return st;
+        }
+    }
     *out = g;
-    return SH_OK;
-}
-
-static sh_status build_model(eval_geo *g, int n)
-{
-    sh_warp_model_destroy(g->model);
-    sh_interp_destroy(g->interp);
-    g->model = NULL;
-    g->interp = NULL;
-    g->model_n = 0;
-    for (int k = 0, r = 0; k < n; k++) {
-        while (g->ref_rows[r].id != g->ids[k]) r++;
-        g->model_ref[2 * k] = g->ref_rows[r].x;
-        g->model_ref[2 * k + 1] = g->ref_rows[r].y;
-    }
-    /* the landmark rows' own smoothing, as sh_modelcache_entry_build gives the warp's */
-    double *lambda = NULL;
-    int rows = 0;
-    for (int k = 0; k < n; k++) rows += g->ids[k] >= SH_LANDMARK_ID_BASE;
-    if (g->o.landmark_smoothing > 0 && sh_interp_method_smooths(g->o.params.method) && rows) {
-        if (!(lambda = malloc(sizeof(double) * (size_t)n))) return sh_error_set(SH_ENOMEM, "geometric error: out of memory");
-        for (int k = 0; k < n; k++) lambda[k] = g->ids[k] >= SH_LANDMARK_ID_BASE ? g->o.landmark_smoothing : 0.0;
-    }
-    sh_status st = sh_interp_create_smoothed(&g->o.params, g->model_ref, n, lambda, &g->interp);
-    free(lambda);
-    if (st == SH_OK)
-        st = sh_warp_model_create(g->interp, g->model_ref, n, g->width, g->height, &g->o.wopts,
-                                  &g->model);
-    if (st != SH_OK) return st;
-    memcpy(g->model_ids, g->ids, sizeof(int) * (size_t)n);
-    g->model_n = n;
     return SH_OK;
 }
 
@@ -228,12 +205,9 @@ static int frame_map(eval_geo *g, int t)
     int ncur;
     const sh_point *cur = sh_points_frame(g->points, t, &ncur);
     int n = sh_points_match(g->ref_rows, g->ref_count, cur, ncur, g->ids, NULL, g->cur_xy);
-    if (n < 3) return 0;
-    if (!(g->model && g->model_n == n && !memcmp(g->model_ids, g->ids, sizeof(int) * (size_t)n)) &&
-        build_model(g, n) != SH_OK)
-        return 0;
-    return sh_warp_model_update(g->model, g->cur_xy) == SH_OK &&
-           sh_warp_model_map(g->model, g->map) == SH_OK;
+    sh_modelcache_entry *e;
+    if (n < 3 || sh_modelcache_get(g->cache, g->ids, n, &e) != SH_OK) return 0;
+    return sh_warp_model_update(e->model, g->cur_xy) == SH_OK && sh_warp_model_map(e->model, g->map) == SH_OK;
 }
 
 sh_status eval_geo_frame(eval_geo *g, int t)
