@@ -325,6 +325,18 @@ static sh_status mapper_build(sh_interp_mapper *m, const double *ref_xy, int n)
     return SH_OK;
 }
 
+/* The 2D map of fitted coefficients at the count points `at`, into out as floats; NaN where the
+ * method has no value. */
+static void eval_at(const sh_interp *it, const double *coef, const float *at, int count, float *out)
+{
+    for (int i = 0; i < count; i++) {
+        double v[2];
+        if (sh_interp_eval(it, coef, 2, at[2 * i], at[2 * i + 1], v) != SH_OK) v[0] = v[1] = NAN;
+        out[2 * i] = (float)v[0];
+        out[2 * i + 1] = (float)v[1];
+    }
+}
+
 sh_status sh_interp_mapper_map(sh_interp_mapper *m, const double *ref_xy, const double *cur_xy, int n,
                                const float *at, int count, float *out)
 {
@@ -332,12 +344,7 @@ sh_status sh_interp_mapper_map(sh_interp_mapper *m, const double *ref_xy, const 
         return sh_error_set(SH_EINVAL, "interp: no points to map");
     sh_status st = mapper_build(m, ref_xy, n);
     if (st == SH_OK) st = sh_interp_fit(m->it, cur_xy, 2, m->coef);
-    for (int i = 0; st == SH_OK && i < count; i++) {
-        double v[2];
-        if (sh_interp_eval(m->it, m->coef, 2, at[2 * i], at[2 * i + 1], v) != SH_OK) v[0] = v[1] = NAN;
-        out[2 * i] = (float)v[0];
-        out[2 * i + 1] = (float)v[1];
-    }
+    if (st == SH_OK) eval_at(m->it, m->coef, at, count, out);
     return st;
 }
 
@@ -360,12 +367,7 @@ sh_status sh_interp_map_points_smoothed(const sh_interp_params *params, const do
     if (st != SH_OK) return st;
     double *coef = malloc(sizeof(double) * 2 * (size_t)sh_interp_num_coefs(it));
     st = coef ? sh_interp_fit(it, cur_xy, 2, coef) : sh_error_set(SH_ENOMEM, "interp: out of memory");
-    for (int i = 0; st == SH_OK && i < count; i++) {
-        double v[2];
-        if (sh_interp_eval(it, coef, 2, at[2 * i], at[2 * i + 1], v) != SH_OK) v[0] = v[1] = NAN;
-        out[2 * i] = (float)v[0];
-        out[2 * i + 1] = (float)v[1];
-    }
+    if (st == SH_OK) eval_at(it, coef, at, count, out);
     free(coef);
     sh_interp_destroy(it);
     return st;
