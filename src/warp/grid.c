@@ -17,6 +17,19 @@
  * 2 leaves a margin over that. */
 #define ERROR_SAFETY 2.0
 
+/* The dense rows' chunks (build_dense_rows): runs of DENSE_CHUNK nodes in the grid's order
+ * (across node rows) whose terms lie side by side; long enough that each term's weights are a
+ * stream of 4 KB for the prefetcher, short enough that their sums (2 x 8 bytes a node) stay in
+ * the L1 cache while the terms stream past. */
+#define DENSE_CHUNK 1024
+
+/* chunk c's nodes: DENSE_CHUNK but for the grid's last */
+static inline size_t dense_width(const sh_warp_model *m, size_t c)
+{
+    const size_t nodes = (size_t)m->nx * (size_t)m->ny;
+    return nodes - c * DENSE_CHUNK < DENSE_CHUNK ? nodes - c * DENSE_CHUNK : DENSE_CHUNK;
+}
+
 void warp_grid_free(sh_warp_model *m)
 {
     free(m->row_start);
@@ -29,8 +42,10 @@ void warp_grid_free(sh_warp_model *m)
     free(m->sep_row);
     free(m->dense);
     free(m->dense_coef);
+    free(m->dense_used);
     m->dense = NULL;
     m->dense_coef = NULL;
+    m->dense_used = NULL;
     m->dense_terms = 0;
     m->row_start = m->index = NULL;
     m->weight = m->map = m->curvature = m->sep_x = m->sep_y = m->sep_row = NULL;
@@ -70,11 +85,15 @@ static sh_status build_separable(sh_warp_model *m)
 }
 
 /* Rows that hold every coefficient in order (the dense RBFs: TPS) are kept as floats without
- * the CSR's indices: warp_grid_map streams the whole basis every update (nodes x (n + 3) terms, 10 MB
+ * the CSR's indices: warp_grid_map streams the basis every update (nodes x (n + 3) terms, 10 MB
  * at 1080p for 150 points), and 4 bytes a term instead of 12 cut that traffic and the model's
  * memory to a third. A weight's rounding moves the map by far less than the grid's tolerance
- * (test_dense_rows_as_exact). Returns 1 when the rows were stored so, 0 when they are not dense
- * (nothing kept), or an error. */
+ * (test_dense_rows_as_exact).
+ * They are stored term by term in chunks of DENSE_CHUNK nodes (dense_width):
+ * an update through a subset of the points (the landmarks a frame accepts: about half of
+ * them) has zero coefficients for the rest, and their weights are then never read, where a
+ * node's whole row of terms would be. Returns 1 when the rows were stored so, 0 when they are
+ * not dense (nothing kept), or an error. */
 static int build_dense_rows(sh_warp_model *m, size_t nodes, int max_terms, int *row_index, double *row_weight)
 {
     if (m->sep_n) return 0;
@@ -92,9 +111,12 @@ static int build_dense_rows(sh_warp_model *m, size_t nodes, int max_terms, int *
         }
         if (!m->dense && !(m->dense = malloc(sizeof(float) * nodes * (size_t)max_terms)))
             return sh_error_set(SH_ENOMEM, "warp: grid of %zu nodes does not fit in memory", nodes);
-        for (int t = 0; t < k; t++) m->dense[node * (size_t)max_terms + (size_t)t] = (float)row_weight[t];
+        const size_t c = node / DENSE_CHUNK, width = dense_width(m, c);
+        float *w = m->dense + c * DENSE_CHUNK * (size_t)max_terms + node % DENSE_CHUNK;
+        for (int t = 0; t < k; t++) w[(size_t)t * width] = (float)row_weight[t];
     }
-    if (!(m->dense_coef = malloc(sizeof(double) * 2 * (size_t)max_terms)))
+    if (!(m->dense_coef = malloc(sizeof(double) * 2 * (size_t)max_terms)) ||
+        !(m->dense_used = malloc(sizeof(int) * (size_t)max_terms)))
         return sh_error_set(SH_ENOMEM, "warp: out of memory");
     m->dense_terms = max_terms;
     return 1;
@@ -217,40 +239,29 @@ static void separable_row(sh_warp_model *m, size_t j, double *out, int slot)
     }
 }
 
-/* One node's displacement from a dense row, x and y coefficients apart, in four lanes of partial
- * sums so that the adds' latency does not bound a row of 150+ terms. SSE2 keeps lanes 0-1 and
- * 2-3 in two registers per axis: the same operations in the same order as the portable loop,
- * so both give the same bits. */
-static inline void dense_row(const float *restrict weight, int terms, const double *restrict cx,
-                             const double *restrict cy, double xy[2])
+/* count nodes' displacements from a chunk's weights w (term t's at w + t stride), x into ax and
+ * y into ay: per node the terms' products added one after the other in the order of used, the
+ * terms with zero coefficients left out (each would add w * 0, a zero, which leaves a sum as it
+ * was: leaving them out keeps the bits). Four terms a pass, so that each node's sums are loaded
+ * and stored once per four terms; the SIMD path does the same operations per node across its
+ * lanes, so every path gives these bits. */
+static void dense_chunk_portable(const float *restrict w, size_t stride, size_t count, const int *used,
+                                 int nused, const double *restrict cx, const double *restrict cy,
+                                 double *restrict ax, double *restrict ay)
 {
-    double ax[4] = {0, 0, 0, 0}, ay[4] = {0, 0, 0, 0};
-    int k = 0;
-#if defined(__SSE2__)
-    __m128d x01 = _mm_setzero_pd(), x23 = x01, y01 = x01, y23 = x01;
-    for (; k + 4 <= terms; k += 4) {
-        __m128d w01 = _mm_cvtps_pd(_mm_castsi128_ps(_mm_loadl_epi64((const __m128i *)(weight + k))));
-        __m128d w23 = _mm_cvtps_pd(_mm_castsi128_ps(_mm_loadl_epi64((const __m128i *)(weight + k + 2))));
-        x01 = _mm_add_pd(x01, _mm_mul_pd(w01, _mm_loadu_pd(cx + k)));
-        x23 = _mm_add_pd(x23, _mm_mul_pd(w23, _mm_loadu_pd(cx + k + 2)));
-        y01 = _mm_add_pd(y01, _mm_mul_pd(w01, _mm_loadu_pd(cy + k)));
-        y23 = _mm_add_pd(y23, _mm_mul_pd(w23, _mm_loadu_pd(cy + k + 2)));
-    }
-    _mm_storeu_pd(ax, x01), _mm_storeu_pd(ax + 2, x23), _mm_storeu_pd(ay, y01), _mm_storeu_pd(ay + 2, y23);
-#else
-    for (; k + 4 <= terms; k += 4)
-        for (int l = 0; l < 4; l++) {
-            double w = weight[k + l];
-            ax[l] += w * cx[k + l];
-            ay[l] += w * cy[k + l];
+    for (size_t i = 0; i < count; i++) ax[i] = ay[i] = 0;
+    for (int u = 0; u < nused; u += 4) {
+        const int q = nused - u < 4 ? nused - u : 4;
+        for (size_t i = 0; i < count; i++) {
+            double x = ax[i], y = ay[i];
+            for (int l = 0; l < q; l++) {
+                const double v = w[(size_t)used[u + l] * stride + i];
+                x += v * cx[used[u + l]];
+                y += v * cy[used[u + l]];
+            }
+            ax[i] = x, ay[i] = y;
         }
-#endif
-    for (int l = 0; k < terms; k++, l++) {
-        ax[l] += (double)weight[k] * cx[k];
-        ay[l] += (double)weight[k] * cy[k];
     }
-    xy[0] = (ax[0] + ax[1]) + (ax[2] + ax[3]);
-    xy[1] = (ay[0] + ay[1]) + (ay[2] + ay[3]);
 }
 
 #if defined(__x86_64__) && defined(__GNUC__)
@@ -268,37 +279,41 @@ int warp_grid_dense_path(int wanted)
     return level;
 }
 
-/* Two nodes' dense rows with AVX2, each node's x and y partial sums in one register of four
- * lanes: lane l adds the terms k = l mod 4 in order, as dense_row's lanes do, so each node gets
- * dense_row's bits. The two nodes' four chains of adds run side by side, and a term takes half of
- * SSE2's instructions. On SSE2 a term took about 0.6 ns, which made the grid map most of a
- * frame's model update with the landmarks' 100-150 points on a 4 px grid (25 000 nodes, 1.6 ms). */
-__attribute__((target("avx2"))) static void dense_pair_avx2(const float *restrict wa, const float *restrict wb,
-                                                            int terms, const double *restrict cx,
-                                                            const double *restrict cy, double xa[2], double xb[2])
+/* dense_chunk_portable four nodes a register: a term's four weights widened to doubles, times
+ * its coefficient broadcast. */
+__attribute__((target("avx2"))) static void dense_chunk_avx2(const float *restrict w, size_t stride,
+                                                             size_t count, const int *used, int nused,
+                                                             const double *restrict cx,
+                                                             const double *restrict cy, double *restrict ax,
+                                                             double *restrict ay)
 {
-    __m256d ax = _mm256_setzero_pd(), ay = ax, bx = ax, by = ax;
-    int k = 0;
-    for (; k + 4 <= terms; k += 4) {
-        const __m256d c = _mm256_loadu_pd(cx + k), d = _mm256_loadu_pd(cy + k);
-        const __m256d u = _mm256_cvtps_pd(_mm_loadu_ps(wa + k)), v = _mm256_cvtps_pd(_mm_loadu_ps(wb + k));
-        ax = _mm256_add_pd(ax, _mm256_mul_pd(u, c));
-        ay = _mm256_add_pd(ay, _mm256_mul_pd(u, d));
-        bx = _mm256_add_pd(bx, _mm256_mul_pd(v, c));
-        by = _mm256_add_pd(by, _mm256_mul_pd(v, d));
+    const size_t v = count & ~(size_t)3;
+    for (size_t i = 0; i < count; i++) ax[i] = ay[i] = 0;
+    for (int u = 0; u < nused; u += 4) {
+        const int q = nused - u < 4 ? nused - u : 4;
+        const float *wt[4];
+        __m256d c[4], d[4];
+        for (int l = 0; l < 4; l++) {
+            const int t = used[u + (l < q ? l : 0)];
+            wt[l] = w + (size_t)t * stride;
+            c[l] = _mm256_set1_pd(cx[t]), d[l] = _mm256_set1_pd(cy[t]);
+        }
+        for (size_t i = 0; i < v; i += 4) {
+            __m256d x = _mm256_loadu_pd(ax + i), y = _mm256_loadu_pd(ay + i);
+            for (int l = 0; l < q; l++) {
+                const __m256d g = _mm256_cvtps_pd(_mm_loadu_ps(wt[l] + i));
+                x = _mm256_add_pd(x, _mm256_mul_pd(g, c[l]));
+                y = _mm256_add_pd(y, _mm256_mul_pd(g, d[l]));
+            }
+            _mm256_storeu_pd(ax + i, x), _mm256_storeu_pd(ay + i, y);
+        }
+        for (size_t i = v; i < count; i++)
+            for (int l = 0; l < q; l++) {
+                const double g = wt[l][i];
+                ax[i] += g * cx[used[u + l]];
+                ay[i] += g * cy[used[u + l]];
+            }
     }
-    double s[4][4];
-    _mm256_storeu_pd(s[0], ax), _mm256_storeu_pd(s[1], ay), _mm256_storeu_pd(s[2], bx), _mm256_storeu_pd(s[3], by);
-    for (int l = 0; k < terms; k++, l++) {
-        s[0][l] += (double)wa[k] * cx[k];
-        s[1][l] += (double)wa[k] * cy[k];
-        s[2][l] += (double)wb[k] * cx[k];
-        s[3][l] += (double)wb[k] * cy[k];
-    }
-    xa[0] = (s[0][0] + s[0][1]) + (s[0][2] + s[0][3]);
-    xa[1] = (s[1][0] + s[1][1]) + (s[1][2] + s[1][3]);
-    xb[0] = (s[2][0] + s[2][1]) + (s[2][2] + s[2][3]);
-    xb[1] = (s[3][0] + s[3][1]) + (s[3][2] + s[3][3]);
 }
 #else
 int warp_grid_dense_path(int wanted)
@@ -308,48 +323,41 @@ int warp_grid_dense_path(int wanted)
 }
 #endif
 
-/* Node k, at column i of row j: the map there, from its displacement d */
-static inline void put_node(const sh_warp_model *m, size_t k, size_t i, size_t j, const double d[2])
+/* Nodes k0..k1-1's dense rows, a chunk (or the part of one in the range) at a time: with AVX2
+ * where the CPU has it. */
+static void dense_nodes(const sh_warp_model *m, size_t k0, size_t k1)
 {
-    m->map[2 * k] = m->gx0 + (double)i * m->h + d[0];
-    m->map[2 * k + 1] = m->gy0 + (double)j * m->h + d[1];
-}
-
-/* A row of nodes' dense rows: in pairs with AVX2 where the CPU has it, else one at a time. */
-static void dense_nodes(const sh_warp_model *m, size_t node, size_t j, const double *cx, const double *cy)
-{
-    const size_t t = (size_t)m->dense_terms;
-    size_t i = 0;
+    const double *cx = m->dense_coef, *cy = cx + m->dense_terms;
+    double ax[DENSE_CHUNK], ay[DENSE_CHUNK];
 #ifdef GRID_AVX2
     int level = __atomic_load_n(&dense_level, __ATOMIC_RELAXED);
     if (level < 0) level = warp_grid_dense_path(1);
-    if (level == 1)
-        for (; i + 1 < (size_t)m->nx; i += 2) {
-            double a[2], b[2];
-            const size_t k = node + i;
-            dense_pair_avx2(m->dense + k * t, m->dense + (k + 1) * t, m->dense_terms, cx, cy, a, b);
-            put_node(m, k, i, j, a);
-            put_node(m, k + 1, i + 1, j, b);
-        }
 #endif
-    for (; i < (size_t)m->nx; i++) {
-        double xy[2];
-        const size_t k = node + i;
-        dense_row(m->dense + k * t, m->dense_terms, cx, cy, xy);
-        put_node(m, k, i, j, xy);
+    for (size_t k = k0; k < k1;) {
+        const size_t c = k / DENSE_CHUNK, width = dense_width(m, c), off = k % DENSE_CHUNK;
+        const size_t count = k1 - k < width - off ? k1 - k : width - off;
+        const float *w = m->dense + c * DENSE_CHUNK * (size_t)m->dense_terms + off;
+#ifdef GRID_AVX2
+        if (level == 1) dense_chunk_avx2(w, width, count, m->dense_used, m->dense_nused, cx, cy, ax, ay);
+        else
+#endif
+            dense_chunk_portable(w, width, count, m->dense_used, m->dense_nused, cx, cy, ax, ay);
+        for (size_t e = 0; e < count; e++, k++) {
+            const size_t i = k % (size_t)m->nx, j = k / (size_t)m->nx;
+            m->map[2 * k] = m->gx0 + (double)i * m->h + ax[e];
+            m->map[2 * k + 1] = m->gy0 + (double)j * m->h + ay[e];
+        }
     }
 }
 
 void warp_model_grid_rows(sh_warp_model *m, int j0, int j1, int slot)
 {
-    const double *cx = m->dense_coef, *cy = cx + m->dense_terms;
+    if (m->dense) {
+        dense_nodes(m, (size_t)j0 * (size_t)m->nx, (size_t)j1 * (size_t)m->nx);
+        return;
+    }
     for (size_t node = (size_t)j0 * (size_t)m->nx, j = (size_t)j0; j < (size_t)j1; j++) {
         double *row = m->map + 2 * node;
-        if (m->dense) {
-            dense_nodes(m, node, j, cx, cy);
-            node += (size_t)m->nx;
-            continue;
-        }
         if (m->sep_n) separable_row(m, j, row, slot);
         for (size_t i = 0; i < (size_t)m->nx; i++, node++) {
             double xy[2];
@@ -390,7 +398,11 @@ void warp_model_grid_rows(sh_warp_model *m, int j0, int j1, int slot)
 sh_status warp_grid_map(sh_warp_model *m, warp_grid_fn map, void *ctx, int slots)
 {
     double *cx = m->dense_coef, *cy = cx + m->dense_terms;
-    for (int k = 0; k < m->dense_terms; k++) cx[k] = m->coef[2 * k], cy[k] = m->coef[2 * k + 1];
+    m->dense_nused = 0;
+    for (int k = 0; k < m->dense_terms; k++) {
+        cx[k] = m->coef[2 * k], cy[k] = m->coef[2 * k + 1];
+        if (cx[k] != 0 || cy[k] != 0) m->dense_used[m->dense_nused++] = k;
+    }
     if (!map) {
         warp_model_grid_rows(m, 0, m->ny, 0);
         return SH_OK;

@@ -48,8 +48,9 @@ struct sh_warp_model {
     int *row_start, *index;  /* CSR basis rows, one per node */
     double *weight;
     float *dense;            /* or, when every row holds every coefficient in order: */
-    int dense_terms;         /*   nodes x dense_terms weights, and no CSR; */
-    double *dense_coef;      /*   grid_map's scratch: the x coefficients, then the y ones */
+    int dense_terms;         /*   nodes x dense_terms weights (grid.c's chunks), and no CSR; */
+    double *dense_coef;      /*   grid_map's scratch: the x coefficients, then the y ones; */
+    int *dense_used, dense_nused; /* the terms whose coefficients are not both 0 */
     double *map;             /* per node: current x, y */
     int sep_n;               /* > 0: the kernel terms factor per axis (Gaussian), n of them; */
     double *sep_x;           /*   per pair of node columns, per k: their two factors; */
@@ -125,8 +126,8 @@ void warp_sample_row(const sh_plane *src, int channels, uint8_t black, uint8_t *
  * returns the level now in use. Not to be called while another thread samples. */
 int warp_sample_path(int wanted);
 
-/* TPS's dense grid rows take AVX2 where the CPU has it (grid.c, two nodes at a time, the same
- * bits). This puts AVX2 (wanted 1, where the CPU has it) or the build's own path (0) in use, for
+/* TPS's dense grid rows take AVX2 where the CPU has it (grid.c, four nodes a register, the
+ * same bits). This puts AVX2 (wanted 1, where the CPU has it) or the build's own path (0) in use, for
  * tests and benches; returns the level now in use. Not to be called while another thread maps. */
 int warp_grid_dense_path(int wanted);
 

@@ -105,44 +105,56 @@ static void test_grid_map_within_tolerance(void **state)
 /* TPS keeps its grid rows as floats (grid.c, build_dense_rows): at the grid's nodes the map
  * is the interpolant itself, so there the warp's map and the exact interpolant may differ only by
  * the weights' rounding and the map's own float storage; with 150 points over a 1080p frame (the
- * daemon's markers and landmarks) that stays under 1e-3 px, fifty times below the tolerance. */
+ * daemon's markers and landmarks) that stays under 1e-3 px, fifty times below the tolerance.
+ * Through every point, and through a subset (the grid then leaves out the terms of the points
+ * not used: the exact map is the subset's own interpolant, sh_interp_fit_subset's). */
 static void test_dense_rows_as_exact(void **state)
 {
     (void)state;
     const int w = 1920, h = 1080, n = 150;
     synth_motion mo = {w, h, 14};
     double *ref = malloc(sizeof(double) * 4 * n), *cur = ref + 2 * n;
+    unsigned char use[150];
     synth_markers(&mo, n, 9, ref);
     moved_markers(&mo, 0.35, ref, n, cur);
+    for (int i = 0; i < n; i++) use[i] = i < 16 || i % 3 != 1;
     built b = build("tps", ref, n, w, h, NULL);
-    assert_int_equal(sh_warp_model_update(b.model, cur), SH_OK);
-    int ncoef = sh_interp_num_coefs(b.interp), step = sh_warp_model_grid_spacing(b.model);
-    double *coef = malloc(sizeof(double) * 2 * ncoef), *disp = malloc(sizeof(double) * 2 * n);
-    float *map = malloc(sizeof(float) * 2 * (size_t)w * h);
-    for (int i = 0; i < 2 * n; i++) disp[i] = cur[i] - ref[i];
-    assert_int_equal(sh_interp_fit(b.interp, disp, 2, coef), SH_OK);
-    assert_int_equal(sh_warp_model_map(b.model, map), SH_OK);
-    double worst = 0;
-    long nodes = 0;
-    for (int y = 0; y < h; y += step)
-        for (int x = 0; x < w; x += step) {
-            const float *m = map + 2 * ((size_t)y * w + x);
-            if (isnan(m[0])) continue;
-            double exact[2];
-            assert_int_equal(sh_interp_eval(b.interp, coef, 2, x, y, exact), SH_OK);
-            worst = fmax(worst, hypot(m[0] - (x + exact[0]), m[1] - (y + exact[1])));
-            nodes++;
-        }
-    printf("  tps, %d points: %ld nodes, largest difference from the exact map %.2e px\n", n, nodes, worst);
-    assert_true(nodes > 1000);
-    assert_true(worst < 1e-3);
+    for (int subset = 0; subset < 2; subset++) {
+        const unsigned char *u = subset ? use : NULL;
+        assert_int_equal(sh_warp_model_update_subset(b.model, cur, u), SH_OK);
+        int ncoef = sh_interp_num_coefs(b.interp), step = sh_warp_model_grid_spacing(b.model);
+        double *coef = malloc(sizeof(double) * 2 * ncoef), *disp = malloc(sizeof(double) * 2 * n);
+        void *work = malloc(sh_interp_subset_work_size(b.interp));
+        float *map = malloc(sizeof(float) * 2 * (size_t)w * h);
+        for (int i = 0; i < 2 * n; i++) disp[i] = !u || u[i / 2] ? cur[i] - ref[i] : 0.0;
+        if (u) assert_int_equal(sh_interp_fit_subset(b.interp, u, disp, 2, coef, work), SH_OK);
+        else assert_int_equal(sh_interp_fit(b.interp, disp, 2, coef), SH_OK);
+        assert_int_equal(sh_warp_model_map(b.model, map), SH_OK);
+        double worst = 0;
+        long nodes = 0;
+        for (int y = 0; y < h; y += step)
+            for (int x = 0; x < w; x += step) {
+                const float *m = map + 2 * ((size_t)y * w + x);
+                if (isnan(m[0])) continue;
+                double exact[2] = {0, 0};
+                assert_int_equal(sh_interp_eval(b.interp, coef, 2, x, y, exact), SH_OK);
+                worst = fmax(worst, hypot(m[0] - (x + exact[0]), m[1] - (y + exact[1])));
+                nodes++;
+            }
+        printf("  tps, %d points%s: %ld nodes, largest difference from the exact map %.2e px\n", n,
+               u ? " (a subset)" : "", nodes, worst);
+        assert_true(nodes > 1000);
+        assert_true(worst < 1e-3);
+        free(coef), free(disp), free(work), free(map);
+    }
     unbuild(&b);
-    free(ref), free(coef), free(disp), free(map);
+    free(ref);
 }
 
-/* TPS's dense grid rows on AVX2 (two nodes at a time, grid.c) against the build's own path, bit
- * for bit: the whole map of 150-point TPS models over three frame sizes (rows of odd and even
- * node counts: the last node of an odd row takes the other path). */
+/* TPS's dense grid rows on AVX2 (four nodes a register, grid.c) against the build's own path,
+ * bit for bit: the whole map of 150-point TPS models over three frame sizes (chunks whose node
+ * counts are not multiples of four: the last nodes take the scalar tail), through every point and
+ * through a subset (the terms left out). */
 static void test_dense_rows_avx2_same_bits(void **state)
 {
     (void)state;
@@ -161,13 +173,17 @@ static void test_dense_rows_avx2_same_bits(void **state)
         float *m0 = malloc(sizeof(float) * 2 * (size_t)w * h), *m1 = malloc(sizeof(float) * 2 * (size_t)w * h);
         assert_non_null(m0);
         assert_non_null(m1);
-        assert_int_equal(warp_grid_dense_path(0), 0);
-        assert_int_equal(sh_warp_model_update(b.model, cur), SH_OK);
-        assert_int_equal(sh_warp_model_map(b.model, m0), SH_OK);
-        assert_int_equal(warp_grid_dense_path(1), 1);
-        assert_int_equal(sh_warp_model_update(b.model, cur), SH_OK);
-        assert_int_equal(sh_warp_model_map(b.model, m1), SH_OK);
-        assert_memory_equal(m0, m1, sizeof(float) * 2 * (size_t)w * h);
+        unsigned char use[150];
+        for (int i = 0; i < n; i++) use[i] = i < 16 || (i + c) % 4 != 0;
+        for (int subset = 0; subset < 2; subset++) {
+            assert_int_equal(warp_grid_dense_path(0), 0);
+            assert_int_equal(sh_warp_model_update_subset(b.model, cur, subset ? use : NULL), SH_OK);
+            assert_int_equal(sh_warp_model_map(b.model, m0), SH_OK);
+            assert_int_equal(warp_grid_dense_path(1), 1);
+            assert_int_equal(sh_warp_model_update_subset(b.model, cur, subset ? use : NULL), SH_OK);
+            assert_int_equal(sh_warp_model_map(b.model, m1), SH_OK);
+            assert_memory_equal(m0, m1, sizeof(float) * 2 * (size_t)w * h);
+        }
         unbuild(&b);
         free(ref), free(m0), free(m1);
     }
