@@ -8,7 +8,16 @@
 
 #include "stillheart/linalg.h"
 
-sh_status sh_linalg_lu_factor_inplace(int n, double *restrict a, int *restrict src)
+/* Built for AVX-512 and AVX2 too, chosen when the program starts (gcc's target_clones, as
+ * src/landmarks does): the row updates are the whole cost, and each element's a - l * b is the
+ * same operation in every lane width (-ffp-contract=off), so every clone gives the same bits. */
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+#define LU_CLONES __attribute__((target_clones("arch=x86-64-v4", "avx2", "default")))
+#else
+#define LU_CLONES
+#endif
+
+LU_CLONES sh_status sh_linalg_lu_factor_inplace(int n, double *restrict a, int *restrict src)
 {
     if (n <= 0 || !a || !src) return sh_error_set(SH_EINVAL, "linalg: bad LU arguments");
     for (int i = 0; i < n; i++) src[i] = i;
