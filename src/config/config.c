@@ -77,7 +77,7 @@ static const keydef keys[] = {
     {"method", "sigma", "sigma", K_DOUBLE, PROC, F(sigma), 0, -1, 1e6, "RBF scale in px (-1: the method's default)"},
     {"method", "levels", "levels", K_INT, PROC, F(levels), 0, 0, 16, "B-spline levels (0: automatic)"},
     {"method", "smoothing", "smoothing", K_DOUBLE, PROC, F(smoothing), 0, 0, 1e9, "RBF smoothing lambda (0: interpolate)"},
-    {"method", "grid", "grid", K_DOUBLE, PROC, F(grid), 0, 0, 256, "warp grid spacing in px (0: from the error bound)"},
+    {"method", "grid", "grid", K_DOUBLE, PROC, F(grid), 0, 0, 256, "warp grid spacing in px, the first and the coarsest (0: 16, refined by the error bound)"},
     {"method", "calibration", "calibration", K_STR, PROC, F(calibration), S(calibration), 0, 0, "cameras' calibration YAML: 3D tracking and warp (\"\": 2D)"},
     {"method", "view", "view", K_ENUM, PROC, F(view), 0, 0, 0,
      "3D: reference (the output camera's view) | stereo (the pair of virtual eyes of a 3D monitor)", "reference|stereo"},

@@ -219,7 +219,8 @@ sh_status run_proc_create(const sh_config *cfg, const sh_y4m_header *hdr, double
     p->fps = fps > 0 ? fps : 30;
     sh_warp_options wopts;
     sh_warp_options_default(&wopts);
-    if (cfg->grid > 0) wopts.grid_spacing = (int)cfg->grid;
+    /* the spacing asked for is also the coarsest a TPS map goes back to (sh_warp_options) */
+    if (cfg->grid > 0) wopts.grid_spacing = wopts.coarsest_spacing = (int)cfg->grid;
     sh_status st = out_frames(p, cfg, hdr);
     if (st == SH_OK) st = sh_image_create(&p->out, hdr->format, p->out_hdr.width, p->out_hdr.height);
     if (st == SH_OK && p->stereo && sh_warp3d_layout_half(p->layout))

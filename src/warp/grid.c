@@ -23,10 +23,25 @@
  * the L1 cache while the terms stream past. */
 #define DENSE_CHUNK 1024
 
+/* The dense rows' order: the coarse level's nodes (even i and j) first, row by row, then the
+ * rest row by row, so that each level's weights are read alone (a coarse pass reads a quarter of
+ * them). The first of the rest in node row j: */
+static inline size_t rest_start(const sh_warp_model *m, size_t j)
+{
+    const size_t cnx = ((size_t)m->bnx + 1) / 2, cny = ((size_t)m->bny + 1) / 2;
+    return cnx * cny + (j + 1) / 2 * ((size_t)m->bnx - cnx) + j / 2 * (size_t)m->bnx;
+}
+
+static inline size_t dense_index(const sh_warp_model *m, size_t i, size_t j)
+{
+    if (!(i & 1) && !(j & 1)) return j / 2 * (((size_t)m->bnx + 1) / 2) + i / 2;
+    return rest_start(m, j) + (j & 1 ? i : i / 2);
+}
+
 /* chunk c's nodes: DENSE_CHUNK but for the grid's last */
 static inline size_t dense_width(const sh_warp_model *m, size_t c)
 {
-    const size_t nodes = (size_t)m->nx * (size_t)m->ny;
+    const size_t nodes = (size_t)m->bnx * (size_t)m->bny;
     return nodes - c * DENSE_CHUNK < DENSE_CHUNK ? nodes - c * DENSE_CHUNK : DENSE_CHUNK;
 }
 
@@ -35,7 +50,10 @@ void warp_grid_free(sh_warp_model *m)
     free(m->row_start);
     free(m->index);
     free(m->weight);
-    free(m->map);
+    if (m->map != m->bmap && m->map != m->cmap) free(m->map); /* a 3D view's own */
+    free(m->bmap);
+    free(m->cmap);
+    m->bmap = m->cmap = NULL;
     free(m->curvature);
     free(m->sep_x);
     free(m->sep_y);
@@ -89,7 +107,8 @@ static sh_status build_separable(sh_warp_model *m)
  * at 1080p for 150 points), and 4 bytes a term instead of 12 cut that traffic and the model's
  * memory to a third. A weight's rounding moves the map by far less than the grid's tolerance
  * (test_dense_rows_as_exact).
- * They are stored term by term in chunks of DENSE_CHUNK nodes (dense_width):
+ * They are stored term by term in chunks of DENSE_CHUNK nodes (dense_width), the coarse level's
+ * nodes first (dense_index):
  * an update through a subset of the points (the landmarks a frame accepts: about half of
  * them) has zero coefficients for the rest, and their weights are then never read, where a
  * node's whole row of terms would be. Returns 1 when the rows were stored so, 0 when they are
@@ -111,12 +130,13 @@ static int build_dense_rows(sh_warp_model *m, size_t nodes, int max_terms, int *
         }
         if (!m->dense && !(m->dense = malloc(sizeof(float) * nodes * (size_t)max_terms)))
             return sh_error_set(SH_ENOMEM, "warp: grid of %zu nodes does not fit in memory", nodes);
-        const size_t c = node / DENSE_CHUNK, width = dense_width(m, c);
-        float *w = m->dense + c * DENSE_CHUNK * (size_t)max_terms + node % DENSE_CHUNK;
+        const size_t at = dense_index(m, i, j), c = at / DENSE_CHUNK, width = dense_width(m, c);
+        float *w = m->dense + c * DENSE_CHUNK * (size_t)max_terms + at % DENSE_CHUNK;
         for (int t = 0; t < k; t++) w[(size_t)t * width] = (float)row_weight[t];
     }
+    const size_t coarse = (((size_t)m->bnx + 1) / 2) * (((size_t)m->bny + 1) / 2);
     if (!(m->dense_coef = malloc(sizeof(double) * 2 * (size_t)max_terms)) ||
-        !(m->dense_used = malloc(sizeof(int) * (size_t)max_terms)))
+        !(m->dense_used = malloc(sizeof(int) * (size_t)max_terms)) || !(m->cmap = malloc(sizeof(double) * 2 * coarse)))
         return sh_error_set(SH_ENOMEM, "warp: out of memory");
     m->dense_terms = max_terms;
     return 1;
@@ -133,11 +153,15 @@ sh_status warp_grid_build(sh_warp_model *m, int h)
     m->gy0 = (int)floor(all->ymin / h) * h;
     m->nx = ((int)ceil(all->xmax / h) * h - m->gx0) / h + 1;
     m->ny = ((int)ceil(all->ymax / h) * h - m->gy0) / h + 1;
+    /* odd counts, so that the coarse level's every other node ends on the last */
+    m->nx += !(m->nx & 1);
+    m->ny += !(m->ny & 1);
+    m->bh = h, m->bnx = m->nx, m->bny = m->ny;
     size_t nodes = (size_t)m->nx * (size_t)m->ny;
     sh_status st = build_separable(m);
     if (st != SH_OK) return st;
     int max_terms = sh_interp_max_terms(m->interp);
-    m->map = malloc(sizeof(double) * 2 * nodes);
+    m->map = m->bmap = malloc(sizeof(double) * 2 * nodes);
     m->curvature = malloc(sizeof(double) * 4 * nodes);
     int *row_index = malloc(sizeof(int) * (size_t)max_terms);
     double *row_weight = malloc(sizeof(double) * (size_t)max_terms);
@@ -323,19 +347,26 @@ int warp_grid_dense_path(int wanted)
 }
 #endif
 
-/* Nodes k0..k1-1's dense rows, a chunk (or the part of one in the range) at a time: with AVX2
- * where the CPU has it. */
-static void dense_nodes(const sh_warp_model *m, size_t k0, size_t k1)
+/* What warp_model_grid_rows makes: every node of its rows; the coarse level's rows; the rest of
+ * its rows (the dense rows' passes, warp_grid_map). */
+enum { GRID_PASS_ALL, GRID_PASS_COARSE, GRID_PASS_REST };
+
+/* The dense rows' nodes s0..s1-1 in their order (dense_index), a chunk (or the part of one in the
+ * range) at a time, with AVX2 where the CPU has it; node (i, j) is the first, the others follow
+ * on the coarse level's nodes (coarse) or on the rest. Each goes into bmap, a coarse one into
+ * cmap too. */
+static void dense_nodes(const sh_warp_model *m, size_t s0, size_t s1, int coarse, size_t i, size_t j)
 {
     const double *cx = m->dense_coef, *cy = cx + m->dense_terms;
+    const size_t bnx = (size_t)m->bnx, cnx = (bnx + 1) / 2;
     double ax[DENSE_CHUNK], ay[DENSE_CHUNK];
 #ifdef GRID_AVX2
     int level = __atomic_load_n(&dense_level, __ATOMIC_RELAXED);
     if (level < 0) level = warp_grid_dense_path(1);
 #endif
-    for (size_t k = k0; k < k1;) {
+    for (size_t k = s0; k < s1;) {
         const size_t c = k / DENSE_CHUNK, width = dense_width(m, c), off = k % DENSE_CHUNK;
-        const size_t count = k1 - k < width - off ? k1 - k : width - off;
+        const size_t count = s1 - k < width - off ? s1 - k : width - off;
         const float *w = m->dense + c * DENSE_CHUNK * (size_t)m->dense_terms + off;
 #ifdef GRID_AVX2
         if (level == 1) dense_chunk_avx2(w, width, count, m->dense_used, m->dense_nused, cx, cy, ax, ay);
@@ -343,9 +374,17 @@ static void dense_nodes(const sh_warp_model *m, size_t k0, size_t k1)
 #endif
             dense_chunk_portable(w, width, count, m->dense_used, m->dense_nused, cx, cy, ax, ay);
         for (size_t e = 0; e < count; e++, k++) {
-            const size_t i = k % (size_t)m->nx, j = k / (size_t)m->nx;
-            m->map[2 * k] = m->gx0 + (double)i * m->h + ax[e];
-            m->map[2 * k + 1] = m->gy0 + (double)j * m->h + ay[e];
+            double *b = m->bmap + 2 * (j * bnx + i);
+            b[0] = m->gx0 + (double)i * m->bh + ax[e];
+            b[1] = m->gy0 + (double)j * m->bh + ay[e];
+            if (coarse) {
+                double *cm = m->cmap + 2 * (j / 2 * cnx + i / 2);
+                cm[0] = b[0], cm[1] = b[1];
+                if ((i += 2) >= bnx) i = 0, j += 2;
+            } else if ((i += j & 1 ? 1 : 2) >= bnx) {
+                j++;
+                i = j & 1 ? 0 : 1;
+            }
         }
     }
 }
@@ -353,7 +392,13 @@ static void dense_nodes(const sh_warp_model *m, size_t k0, size_t k1)
 void warp_model_grid_rows(sh_warp_model *m, int j0, int j1, int slot)
 {
     if (m->dense) {
-        dense_nodes(m, (size_t)j0 * (size_t)m->nx, (size_t)j1 * (size_t)m->nx);
+        const size_t cnx = ((size_t)m->bnx + 1) / 2, a = (size_t)j0, b = (size_t)j1;
+        if (m->pass == GRID_PASS_COARSE) { /* rows of the coarse level */
+            dense_nodes(m, a * cnx, b * cnx, 1, 0, 2 * a);
+            return;
+        }
+        if (m->pass == GRID_PASS_ALL) dense_nodes(m, (a + 1) / 2 * cnx, (b + 1) / 2 * cnx, 1, 0, (a + 1) / 2 * 2);
+        if (a < b) dense_nodes(m, rest_start(m, a), rest_start(m, b), 0, a & 1 ? 0 : 1, a);
         return;
     }
     for (size_t node = (size_t)j0 * (size_t)m->nx, j = (size_t)j0; j < (size_t)j1; j++) {
@@ -393,9 +438,19 @@ void warp_model_grid_rows(sh_warp_model *m, int j0, int j1, int slot)
     }
 }
 
+/* Rows of the grid's map made by the pass (on this thread when map is NULL) */
+static void map_rows(sh_warp_model *m, warp_grid_fn map, void *ctx, int pass, int rows)
+{
+    m->pass = pass;
+    if (map) map(ctx, m, rows);
+    else warp_model_grid_rows(m, 0, rows, 0);
+}
+
 /* The grid's map from the last fit: the dense rows' coefficients apart, then every node row,
- * on this thread or by map over `slots` threads (each with its own separable scratch). */
-sh_status warp_grid_map(sh_warp_model *m, warp_grid_fn map, void *ctx, int slots)
+ * on this thread or by map over `slots` threads (each with its own separable scratch); or, for
+ * the dense rows of a grid refined below opts.coarsest_spacing, the coarse level first (a
+ * quarter of the nodes), the rest only when its bound is over max_error. */
+sh_status warp_grid_map(sh_warp_model *m, warp_grid_fn map, void *ctx, int slots, int coarse_ok)
 {
     double *cx = m->dense_coef, *cy = cx + m->dense_terms;
     m->dense_nused = 0;
@@ -403,17 +458,25 @@ sh_status warp_grid_map(sh_warp_model *m, warp_grid_fn map, void *ctx, int slots
         cx[k] = m->coef[2 * k], cy[k] = m->coef[2 * k + 1];
         if (cx[k] != 0 || cy[k] != 0) m->dense_used[m->dense_nused++] = k;
     }
-    if (!map) {
-        warp_model_grid_rows(m, 0, m->ny, 0);
-        return SH_OK;
-    }
-    if (m->sep_n && slots > m->sep_slots) {
+    if (map && m->sep_n && slots > m->sep_slots) {
         double *a = realloc(m->sep_row, sizeof(double) * 4 * (size_t)m->sep_n * (size_t)slots);
         if (!a) return sh_error_set(SH_ENOMEM, "warp: out of memory");
         m->sep_row = a;
         m->sep_slots = slots;
     }
-    map(ctx, m, m->ny);
+    m->h = m->bh, m->nx = m->bnx, m->ny = m->bny, m->map = m->bmap;
+    const int cnx = (m->bnx + 1) / 2, cny = (m->bny + 1) / 2;
+    int pass = GRID_PASS_ALL;
+    if (m->dense && coarse_ok && 2 * m->bh <= m->opts.coarsest_spacing && cnx >= 3 && cny >= 3) {
+        map_rows(m, map, ctx, GRID_PASS_COARSE, cny);
+        m->h = 2 * m->bh, m->nx = cnx, m->ny = cny, m->map = m->cmap;
+        m->error_bound = warp_grid_error_bound(m);
+        if (m->error_bound <= m->opts.max_error) return SH_OK;
+        m->h = m->bh, m->nx = m->bnx, m->ny = m->bny, m->map = m->bmap;
+        pass = GRID_PASS_REST;
+    }
+    map_rows(m, map, ctx, pass, m->bny);
+    m->error_bound = warp_grid_error_bound(m);
     return SH_OK;
 }
 

@@ -9,6 +9,7 @@ void sh_warp_options_default(sh_warp_options *opts)
 {
     opts->max_error = 0.05;
     opts->grid_spacing = 16;
+    opts->coarsest_spacing = 16;
     opts->defer_refine = 0;
 }
 
@@ -158,8 +159,9 @@ sh_status sh_warp_model_create(const sh_interp *interp, const double *ref_xy, in
     else sh_warp_options_default(&m->opts);
     sh_status st = SH_OK;
     if (!(m->opts.max_error > 0) || m->opts.grid_spacing < 1 ||
-        (m->opts.grid_spacing & (m->opts.grid_spacing - 1))) {
-        st = sh_error_set(SH_EINVAL, "warp: max_error must be > 0 and grid spacing a power of two");
+        (m->opts.grid_spacing & (m->opts.grid_spacing - 1)) || m->opts.coarsest_spacing < 0 ||
+        (m->opts.coarsest_spacing & (m->opts.coarsest_spacing - 1))) {
+        st = sh_error_set(SH_EINVAL, "warp: max_error must be > 0 and grid spacings powers of two");
         goto fail;
     }
     if ((st = sh_hull_compute(ref_xy, n, &m->hull)) != SH_OK) goto fail;
@@ -298,15 +300,14 @@ sh_status warp_model_update_with(sh_warp_model *m, const double *cur_xy, const u
          * from the markers. */
         for (int i = 0; i < 2 * m->n; i++) m->disp[i] = !use || use[i / 2] ? cur_xy[i] - m->ref_xy[i] : 0.0;
         if ((st = fit(m, m->disp, use)) != SH_OK) return st;
-        if ((st = warp_grid_map(m, map, ctx, slots)) != SH_OK) return st;
-        m->error_bound = warp_grid_error_bound(m);
+        if ((st = warp_grid_map(m, map, ctx, slots, 1)) != SH_OK) return st;
         while (!m->opts.defer_refine && m->error_bound > m->opts.max_error && m->h > 1) {
             /* Halving, not a jump predicted from h^2 scaling: a coarse grid can overstate the
-             * curvature of a map with finer structure (multilevel B-splines) and overshoot. */
+             * curvature of a map with finer structure (multilevel B-splines) and overshoot.
+             * The new grid's coarse level is the grid that just failed: not tried again. */
             if ((st = warp_grid_build(m, m->h / 2)) != SH_OK) return st;
             m->refinements++;
-            if ((st = warp_grid_map(m, map, ctx, slots)) != SH_OK) return st;
-            m->error_bound = warp_grid_error_bound(m);
+            if ((st = warp_grid_map(m, map, ctx, slots, 0)) != SH_OK) return st;
         }
         return SH_OK;
     }

@@ -44,7 +44,13 @@ struct sh_warp_model {
     double *subset_xy;       /* its scratch: the used points' reference positions, for their hull */
     sh_hull hull_all;        /* every point's hull (hull: the last update's points') */
 
-    int h, gx0, gy0, nx, ny; /* grid: node (i, j) sits at (gx0 + i h, gy0 + j h) */
+    int h, gx0, gy0, nx, ny; /* grid: node (i, j) sits at (gx0 + i h, gy0 + j h): the one the */
+                             /*   last update's map is on (fill, bound), which may be the */
+                             /*   coarse level of the grid built (below) */
+    int bh, bnx, bny;        /* the grid built: its spacing and nodes, (bnx - 1) and (bny - 1) even */
+    double *bmap;            /*   its map; map points at bmap or cmap */
+    double *cmap;            /* the coarse level's (dense rows): nodes of even i and j, spacing 2 bh */
+    int pass;                /* what warp_model_grid_rows makes (grid.c, GRID_PASS_*) */
     int *row_start, *index;  /* CSR basis rows, one per node */
     double *weight;
     float *dense;            /* or, when every row holds every coefficient in order: */
@@ -76,8 +82,10 @@ void warp_model_grid_rows(sh_warp_model *m, int j0, int j1, int slot);
 /* Makes all `rows` node rows of m's grid with warp_model_grid_rows, on up to `slots` threads. */
 typedef void (*warp_grid_fn)(void *ctx, sh_warp_model *m, int rows);
 
-/* The grid's map from the last fit: on this thread (map NULL) or by map over `slots` threads. */
-sh_status warp_grid_map(sh_warp_model *m, warp_grid_fn map, void *ctx, int slots);
+/* The grid's map from the last fit, on this thread (map NULL) or by map over `slots` threads,
+ * and its bound (m->error_bound). With coarse_ok and dense rows, the coarse level first: kept
+ * when its bound is within max_error (m->h is then 2 bh). */
+sh_status warp_grid_map(sh_warp_model *m, warp_grid_fn map, void *ctx, int slots, int coarse_ok);
 
 /* sh_warp_model_update_subset with the grid's map made by map(ctx, ...) (NULL: here, on this
  * thread). */

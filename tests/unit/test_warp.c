@@ -102,6 +102,41 @@ static void test_grid_map_within_tolerance(void **state)
     }
 }
 
+/* A TPS grid refined below opts.coarsest_spacing maps each update on its coarse level (every
+ * other node) first and keeps it when its bound is within max_error: that map is as good as the
+ * issue's bound asks, against exact evaluation at every pixel, and the estimate bounds it; with a
+ * tolerance the coarse level cannot meet, the grid made is used; with coarsest_spacing 0 too. */
+static void test_coarse_level_within_tolerance(void **state)
+{
+    (void)state;
+    const int w = 960, h = 540, n = 16;
+    synth_motion mo = {w, h, 14};
+    double ref[2 * n], cur[2 * n];
+    synth_markers(&mo, n, 3, ref);
+    moved_markers(&mo, 0.3, ref, n, cur);
+    const struct {
+        double max_error;
+        int coarsest, used;
+    } cases[] = {{0.05, 16, 8}, {0.05, 0, 4}, {0.02, 16, 4}};
+    for (size_t c = 0; c < sizeof cases / sizeof cases[0]; c++) {
+        sh_warp_options opts;
+        sh_warp_options_default(&opts);
+        opts.grid_spacing = 4;
+        opts.max_error = cases[c].max_error;
+        opts.coarsest_spacing = cases[c].coarsest;
+        built b = build("tps", ref, n, w, h, &opts);
+        assert_int_equal(sh_warp_model_update(b.model, cur), SH_OK);
+        double err = map_error(&b, ref, cur, n, w, h), bound = sh_warp_model_error_bound(b.model);
+        printf("  tps, grid made 4 px, max error %g, coarsest %d: %d px used, max error %.4f px, bound %.4f px\n",
+               cases[c].max_error, cases[c].coarsest, sh_warp_model_grid_spacing(b.model), err, bound);
+        assert_int_equal(sh_warp_model_grid_spacing(b.model), cases[c].used);
+        assert_int_equal(sh_warp_model_refinements(b.model), 0);
+        assert_true(err <= bound + 1e-6);
+        if (cases[c].max_error >= 0.05) assert_true(err <= 0.05);
+        unbuild(&b);
+    }
+}
+
 /* TPS keeps its grid rows as floats (grid.c, build_dense_rows): at the grid's nodes the map
  * is the interpolant itself, so there the warp's map and the exact interpolant may differ only by
  * the weights' rounding and the map's own float storage; with 150 points over a 1080p frame (the
@@ -637,6 +672,7 @@ static void test_update_on_threads_same_map(void **state)
     synth_motion mo = {w, h, 8};
     double ref[2 * n], cur[2 * n];
     unsigned char use[n];
+    int coarse_used = 0;
     synth_markers(&mo, n, 5, ref);
     moved_markers(&mo, 0.35, ref, n, cur);
     for (int i = 0; i < n; i++) use[i] = i < 4 || i % 5 != 3;
@@ -645,18 +681,22 @@ static void test_update_on_threads_same_map(void **state)
     sh_warp *warp[2];
     assert_int_equal(sh_warp_create(2, &warp[0]), SH_OK);
     assert_int_equal(sh_warp_create(3, &warp[1]), SH_OK);
+    /* coarse: the TPS grid's coarse level tried first (opts.coarsest_spacing 16), on the threads
+     * too, kept or followed by the rest of the nodes; without, the grid made is the one used */
     const struct {
         const char *method;
         double max_error;
-        int subset;
-    } cases[] = {{"tps", 0.05, 0}, {"tps", 0.05, 1}, {"tps", 0.004, 0}, {"gaussian", 0.05, 0},
-                 {"gaussian", 0.05, 1}, {"bspline", 0.05, 0}, {"rbf-local", 0.05, 0}};
+        int subset, coarse;
+    } cases[] = {{"tps", 0.05, 0, 0},      {"tps", 0.05, 1, 0},     {"tps", 0.004, 0, 0}, {"gaussian", 0.05, 0, 0},
+                 {"gaussian", 0.05, 1, 0}, {"bspline", 0.05, 0, 0}, {"rbf-local", 0.05, 0, 0},
+                 {"tps", 0.05, 0, 1},      {"tps", 0.05, 1, 1},     {"tps", 0.004, 0, 1}};
     for (size_t c = 0; c < sizeof cases / sizeof cases[0]; c++) {
         for (int t = 0; t < 2; t++) {
             sh_warp_options opts;
             sh_warp_options_default(&opts);
             opts.max_error = cases[c].max_error;
             opts.grid_spacing = cases[c].max_error < 0.05 ? 8 : 4;
+            opts.coarsest_spacing = cases[c].coarse ? 16 : 0;
             built one = build(cases[c].method, ref, n, w, h, &opts), many = build(cases[c].method, ref, n, w, h, &opts);
             const unsigned char *u = cases[c].subset ? use : NULL;
             for (int rep = 0; rep < 2; rep++) { /* the second update on the grid the first made */
@@ -665,7 +705,12 @@ static void test_update_on_threads_same_map(void **state)
                 const sh_hull *hull = sh_warp_model_hull(many.model);
                 int g = sh_warp_model_grid_spacing(many.model);
                 assert_true(g > 0);
-                assert_true(((hull->xmax - hull->xmin) / g) * ((hull->ymax - hull->ymin) / g) > 4096);
+                /* the grid made, more than 4096 nodes so that the threads take part, or its
+                 * coarse level */
+                const int made = (cases[c].max_error < 0.05 ? 8 : 4) >> sh_warp_model_refinements(one.model);
+                assert_true(g == made || (cases[c].coarse && g == 2 * made));
+                coarse_used += g == 2 * made;
+                assert_true(((hull->xmax - hull->xmin) / made) * ((hull->ymax - hull->ymin) / made) > 4096);
                 assert_int_equal(g, sh_warp_model_grid_spacing(one.model));
                 assert_int_equal(sh_warp_model_refinements(many.model), sh_warp_model_refinements(one.model));
                 assert_true(sh_warp_model_error_bound(many.model) == sh_warp_model_error_bound(one.model));
@@ -676,11 +721,16 @@ static void test_update_on_threads_same_map(void **state)
                              cases[c].max_error, cases[c].subset ? ", subset" : "", t ? 3 : 2);
             }
             if (cases[c].max_error < 0.05) assert_true(sh_warp_model_refinements(many.model) > 0);
+            print_message("  %s, max error %g%s%s: %d px grid made, %d px used\n", cases[c].method, cases[c].max_error,
+                          cases[c].subset ? ", subset" : "", cases[c].coarse ? ", coarse level" : "",
+                          (cases[c].max_error < 0.05 ? 8 : 4) >> sh_warp_model_refinements(one.model),
+                          sh_warp_model_grid_spacing(one.model));
             unbuild(&one);
             unbuild(&many);
         }
     }
     assert_int_equal(sh_warp_update(NULL, NULL, cur, NULL), SH_EINVAL);
+    assert_true(coarse_used > 0); /* the coarse level was kept on some update */
     sh_warp_destroy(warp[0]);
     sh_warp_destroy(warp[1]);
     free(ma), free(mb);
@@ -886,6 +936,7 @@ static void test_fill_every_spacing(void **state)
             sh_warp_options_default(&opts);
             opts.grid_spacing = sp;
             opts.max_error = 1e9; /* keep this spacing */
+            opts.coarsest_spacing = 0;
             built b = build(methods[mth], ref, n, w, h, &opts);
             assert_int_equal(sh_warp_model_update(b.model, cur), SH_OK);
             assert_int_equal(sh_warp_model_grid_spacing(b.model), sp);
@@ -942,6 +993,7 @@ int main(void)
         cmocka_unit_test(test_exact_methods),
         cmocka_unit_test(test_update_subset),
         cmocka_unit_test(test_update_subset_pwlinear),
+        cmocka_unit_test(test_coarse_level_within_tolerance),
         cmocka_unit_test(test_dense_rows_as_exact),
         cmocka_unit_test(test_dense_rows_avx2_same_bits),
         cmocka_unit_test(test_translation_every_format),

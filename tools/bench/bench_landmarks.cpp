@@ -109,6 +109,7 @@ struct MapTerms {
     sh_warp_model *model = nullptr;
     std::vector<int> ids; // the tags' ids, in the model's order
     int n = 0;            // tags + landmarks
+    std::map<int, int> spacing; // updates per grid spacing used (the coarse level's or the grid's)
     ~MapTerms()
     {
         sh_warp_model_destroy(model);
@@ -146,7 +147,15 @@ struct MapTerms {
         }
         double a = bench_now_ms();
         bench_check("bench_landmarks", sh_warp_model_update_subset(model, cur.data(), use.data()), "map update");
-        return bench_now_ms() - a;
+        const double ms = bench_now_ms() - a;
+        spacing[sh_warp_model_grid_spacing(model)]++;
+        return ms;
+    }
+    std::string grids() const
+    {
+        std::string s;
+        for (const auto &kv : spacing) s += (s.empty() ? "" : ", ") + std::to_string(kv.second) + " on " + std::to_string(kv.first) + " px";
+        return s;
     }
 };
 
@@ -434,12 +443,12 @@ int main(int argc, char **argv)
                 "part: %ld in %ld of %d frames; the whole frame built in %ld\n",
                 again, again_frames, FRAMES - 1, whole);
     const double mm = bench_median(tm.map_markers), ml = bench_median(tm.map_lm), mx = bench_median(tm.map_lm_exact);
-    std::printf("the map's update (TPS model, %d tags and %d landmarks, %.0f a frame accepted; grids %d, %d, %d px):\n",
-                (int)map_markers.ids.size(), n, (double)accepted / (FRAMES - 1), sh_warp_model_grid_spacing(map_markers.model),
-                sh_warp_model_grid_spacing(map_lm.model), sh_warp_model_grid_spacing(map_lm_exact.model));
-    std::printf("%-40s %9.3f ms\n", "  through the tags alone", mm);
-    std::printf("%-40s %9.3f ms (%+.3f ms: the extra map terms)\n", "  and the landmarks, smoothed (default)", ml, ml - mm);
-    std::printf("%-40s %9.3f ms (%+.3f ms)\n", "  and the landmarks, interpolated", mx, mx - mm);
+    std::printf("the map's update (TPS model, %d tags and %d landmarks, %.0f a frame accepted; the updates' grids):\n",
+                (int)map_markers.ids.size(), n, (double)accepted / (FRAMES - 1));
+    std::printf("%-40s %9.3f ms (%s)\n", "  through the tags alone", mm, map_markers.grids().c_str());
+    std::printf("%-40s %9.3f ms (%+.3f ms: the extra map terms; %s)\n", "  and the landmarks, smoothed (default)", ml, ml - mm,
+                map_lm.grids().c_str());
+    std::printf("%-40s %9.3f ms (%+.3f ms; %s)\n", "  and the landmarks, interpolated", mx, mx - mm, map_lm_exact.grids().c_str());
     std::printf("issue 19's goal, at most 3 ms and at most OpenCV's time: %s with the backward test, %s without it; "
                 "with the extra map terms %.3f ms: %s\n",
                 o <= 3 && o <= c ? "held" : "not held", of <= 3 && of <= cf ? "held" : "not held", o + ml - mm,
