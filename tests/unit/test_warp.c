@@ -78,16 +78,23 @@ static void moved_markers(const synth_motion *mo, double t, const double *ref, i
         synth_forward(mo, t, ref[2 * i], ref[2 * i + 1], &cur[2 * i], &cur[2 * i + 1]);
 }
 
+/* The accuracy tests' scene: 16 markers over 960x540 in a motion no affine map can follow. */
+enum { TOL_W = 960, TOL_H = 540, TOL_N = 16 };
+static void tolerance_markers(double *ref, double *cur)
+{
+    synth_motion mo = {TOL_W, TOL_H, 14};
+    synth_markers(&mo, TOL_N, 3, ref);
+    moved_markers(&mo, 0.3, ref, TOL_N, cur);
+}
+
 /* The issue's bound: the grid-interpolated map is within 0.05 px of exact evaluation at every
  * pixel, for every method that uses the grid, with a motion no affine map can follow. */
 static void test_grid_map_within_tolerance(void **state)
 {
     (void)state;
-    const int w = 960, h = 540, n = 16;
-    synth_motion mo = {w, h, 14};
+    const int w = TOL_W, h = TOL_H, n = TOL_N;
     double ref[2 * n], cur[2 * n];
-    synth_markers(&mo, n, 3, ref);
-    moved_markers(&mo, 0.3, ref, n, cur);
+    tolerance_markers(ref, cur);
     const char *methods[] = {"bspline", "rbf-local", "tps", "gaussian", "tps-pure", "gaussian-pure"};
     for (size_t k = 0; k < sizeof methods / sizeof methods[0]; k++) {
         built b = build(methods[k], ref, n, w, h, NULL);
@@ -109,11 +116,9 @@ static void test_grid_map_within_tolerance(void **state)
 static void test_coarse_level_within_tolerance(void **state)
 {
     (void)state;
-    const int w = 960, h = 540, n = 16;
-    synth_motion mo = {w, h, 14};
+    const int w = TOL_W, h = TOL_H, n = TOL_N;
     double ref[2 * n], cur[2 * n];
-    synth_markers(&mo, n, 3, ref);
-    moved_markers(&mo, 0.3, ref, n, cur);
+    tolerance_markers(ref, cur);
     const struct {
         double max_error;
         int coarsest, used;
