@@ -769,12 +769,51 @@ static void test_fit_subset_bspline_same_lattice(void **state)
     }
 }
 
-/* The per-frame factorization solves what Eigen's does (the oracle), and refuses a singular
- * system. */
+/* The textbook elimination one column at a time, partial pivoting (the first largest |pivot|),
+ * a zero multiplier skipped: what sh_linalg_lu_factor_inplace computes, bit for bit, in the clone
+ * the CPU runs (AVX-512, AVX2 or the build's own). */
+static void lu_by_columns(int n, double *a, int *src)
+{
+    for (int i = 0; i < n; i++) src[i] = i;
+    for (int k = 0; k < n; k++) {
+        int p = k;
+        for (int i = k + 1; i < n; i++)
+            if (fabs(a[i * n + k]) > fabs(a[p * n + k])) p = i;
+        for (int j = 0; j < n; j++) {
+            double t = a[k * n + j];
+            a[k * n + j] = a[p * n + j], a[p * n + j] = t;
+        }
+        int t = src[k];
+        src[k] = src[p], src[p] = t;
+        for (int i = k + 1; i < n; i++) {
+            double l = a[i * n + k] * (1.0 / a[k * n + k]);
+            a[i * n + k] = l;
+            if (l != 0.0)
+                for (int j = k + 1; j < n; j++) a[i * n + j] -= l * a[k * n + j];
+        }
+    }
+}
+
+/* The per-frame factorization solves what Eigen's does (the oracle), gives the plain
+ * elimination's bits at sizes below, at and past the vector widths (with zeros, as a TPS
+ * system's affine block has), and refuses a singular system. */
 static void test_lu_inplace(void **state)
 {
     (void)state;
     enum { M = 150 };
+    const int sizes[] = {1, 5, 15, 16, 17, 33, 64, 150};
+    for (size_t c = 0; c < sizeof sizes / sizeof sizes[0]; c++) {
+        const int m = sizes[c];
+        double *u = malloc(sizeof(double) * m * m), *v = malloc(sizeof(double) * m * m);
+        int *su = malloc(sizeof(int) * m), *sv = malloc(sizeof(int) * m);
+        assert_true(u && v && su && sv);
+        for (int i = 0; i < m * m; i++) u[i] = v[i] = (i % 7 == 3 && i % m != i / m) ? 0.0 : uniform(-1, 1);
+        assert_int_equal(sh_linalg_lu_factor_inplace(m, u, su), SH_OK);
+        lu_by_columns(m, v, sv);
+        assert_memory_equal(su, sv, sizeof(int) * m);
+        if (memcmp(u, v, sizeof(double) * m * m)) fail_msg("%d x %d: the factors differ", m, m);
+        free(u), free(v), free(su), free(sv);
+    }
     double *a = malloc(sizeof(double) * M * M), *b = malloc(sizeof(double) * M * M), rhs[2 * M], x1[2 * M], x2[2 * M];
     int s1[M], s2[M];
     assert_true(a && b);
