@@ -31,10 +31,11 @@ extern "C" {
 typedef struct {
     double max_error;  /* largest tolerated map error in pixels (default 0.05) */
     int grid_spacing;  /* initial grid spacing in pixels, a power of two (default 16) */
-    int coarsest_spacing; /* a TPS grid refined below this (a power of two; default 16) maps
-                        * each update on every other node first, and keeps that map when its
-                        * bound is within max_error: a frame's smooth map does not pay for the
-                        * finest grid an earlier frame needed. 0: never. */
+    int coarsest_spacing; /* a 2D TPS model's grid refined below this (a power of two; default
+                        * 16) maps each update on every other node first, and keeps that map
+                        * when its bound is within max_error: a frame's smooth map does not pay
+                        * for the finest grid an earlier frame needed. 0: never. (3D views'
+                        * grids do not.) */
     int defer_refine;  /* 0 (default): an update whose bound exceeds max_error refines the grid
                         * there and then (a new basis: tens of ms with many points). 1: it keeps
                         * the grid and its larger bound, and sh_warp_model_finer_spacing says
