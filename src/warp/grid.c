@@ -438,6 +438,15 @@ void warp_model_grid_rows(sh_warp_model *m, int j0, int j1, int slot)
     }
 }
 
+/* The map in use (fill, bound, spacing): the grid made, or its coarse level (dense rows). */
+static void use_level(sh_warp_model *m, int coarse)
+{
+    m->h = m->bh << coarse;
+    m->nx = coarse ? (m->bnx + 1) / 2 : m->bnx;
+    m->ny = coarse ? (m->bny + 1) / 2 : m->bny;
+    m->map = coarse ? m->cmap : m->bmap;
+}
+
 /* Rows of the grid's map made by the pass (on this thread when map is NULL) */
 static void map_rows(sh_warp_model *m, warp_grid_fn map, void *ctx, int pass, int rows)
 {
@@ -464,15 +473,15 @@ sh_status warp_grid_map(sh_warp_model *m, warp_grid_fn map, void *ctx, int slots
         m->sep_row = a;
         m->sep_slots = slots;
     }
-    m->h = m->bh, m->nx = m->bnx, m->ny = m->bny, m->map = m->bmap;
+    use_level(m, 0);
     const int cnx = (m->bnx + 1) / 2, cny = (m->bny + 1) / 2;
     int pass = GRID_PASS_ALL;
     if (m->dense && coarse_ok && 2 * m->bh <= m->opts.coarsest_spacing && cnx >= 3 && cny >= 3) {
         map_rows(m, map, ctx, GRID_PASS_COARSE, cny);
-        m->h = 2 * m->bh, m->nx = cnx, m->ny = cny, m->map = m->cmap;
+        use_level(m, 1);
         m->error_bound = warp_grid_error_bound(m);
         if (m->error_bound <= m->opts.max_error) return SH_OK;
-        m->h = m->bh, m->nx = m->bnx, m->ny = m->bny, m->map = m->bmap;
+        use_level(m, 0);
         pass = GRID_PASS_REST;
     }
     map_rows(m, map, ctx, pass, m->bny);
