@@ -103,7 +103,8 @@ struct Timed {
 // every landmark after them (as the daemon's models hold them: its model stage), updated each frame
 // through the tags the frame shows and the landmarks accepted (sh_warp_model_update_subset),
 // against the same model's tags alone; grids refined in the update as `stillheart warp` does (the
-// daemon refines on its helper), so after the first frames the medians are the refined grid's.
+// daemon refines on its helper), so after the first frames the medians are those of the refined
+// grid and of its coarse level where a frame's map allows it (how many of each: printed).
 struct MapTerms {
     sh_interp *interp = nullptr;
     sh_warp_model *model = nullptr;
