@@ -23,6 +23,13 @@
  * as tissue has (vessels, capillaries); one made only of waves a window or more long loses most
  * of its signal to it.
  *
+ * Every length here (the window, the spacing, the band-pass's boxes, the tests' bounds) was
+ * measured on 1920x1080 frames. A larger frame of the same field (4K) is first halved by 2x2
+ * means (`reduce`, sh_landmarks_reduction), and all of the above happens in the halved frame;
+ * positions in and out stay the frame's own. Unhalved at 4K, a window would cover a quarter of
+ * the tissue: on the phantom half as many landmarks passed, and the map's error fell by a quarter
+ * instead of a half (docs/landmarks.md, "At 4K").
+ *
  * Found per frame (sh_landmarks_track) against the reference itself, not the previous frame:
  * errors do not accumulate, and a landmark hidden for a while (an instrument, blood) is found
  * again when it shows, with nothing to re-seed. A new reference chooses anew. Pyramidal
@@ -138,6 +145,14 @@ typedef struct {
                                  * its neighbours), so that a translation matches a window that the
                                  * tissue sheared or scaled (sh_flow_track_windows_warped); needs a
                                  * prediction and neighbours >= 2 (0: square windows) */
+    int reduce;                 /* halvings of the frame before anything else: the landmarks
+                                 * are chosen and found in the frame averaged over blocks of
+                                 * 2^reduce x 2^reduce pixels, and every length above (and the
+                                 * tracker's window) is in that frame's pixels; positions in and
+                                 * out stay the frame's own. -1 (the default): automatic,
+                                 * sh_landmarks_reduction, so that the lengths keep the meaning
+                                 * they were measured with on 1920x1080 frames when the same field
+                                 * comes at 4K. 0 to 4 */
     sh_flow_params flow;        /* the tracker (sh_flow_params_default, but 1 level above the
                                  * frame, enough for searches that start within a few px of the
                                  * answer, as predicted ones do: a caller that tracks without
@@ -159,6 +174,21 @@ void sh_landmarks_params_make_sparse(sh_landmarks_params *p);
  * fit (docs/landmarks.md, "Weights"). Made to p in place. */
 void sh_landmarks_params_make_rig(sh_landmarks_params *p);
 
+/* The halvings a width x height frame gets: p->reduce when it is 0 or more, else (p NULL too) the
+ * number k >= 0 that brings the frame's geometric mean side, sqrt(width height), nearest to
+ * 1920x1080's (1440 px) on a log scale, k = round(log2(sqrt(width height) / 1440)): 0 up to 2036 px
+ * (2560x1440 included), 1 for 3840x2160. The parameters' lengths were measured at 1080p: at 4K the
+ * same field covers twice the pixels each way, and a 21 px window or a 14 px spacing would cover a
+ * quarter of the tissue they were chosen for. */
+int sh_landmarks_reduction(const sh_landmarks_params *p, int width, int height);
+
+/* The landmarks' smoothing in a map of the frame's pixels for landmarks found after `reduce`
+ * halvings (sh_landmarks_reduction): lambda (SH_LANDMARK_SMOOTHING's units, the kernel's, px^2 log
+ * px at 1080p) times 4^reduce. A landmark found in the halved frame is as far off in its pixels as
+ * one found at 1080p, so twice as far in the frame's, and the kernel's entries grow with the square
+ * of the lengths: the same balance between the landmarks' errors and the map's bending. */
+double sh_landmarks_smoothing(double lambda, int reduce);
+
 typedef struct sh_landmarks sh_landmarks;
 
 /* Chooses the landmarks in the reference luma plane. hull: only inside it (NULL: anywhere);
@@ -178,7 +208,7 @@ typedef struct {
      * predictions and were done again on a larger part, and whether the whole frame had to be
      * built in the end (sh_landmarks_track) */
     int searched_again, whole_frame;
-    double bound_px; /* the frame's disagreement bound (0 without a prediction) */
+    double bound_px; /* the frame's disagreement bound, px of the frame (0 without a prediction) */
 } sh_landmarks_counts;
 
 /* Finds the landmarks in a luma plane of the reference's size. predicted: count pairs, where

@@ -24,7 +24,12 @@
 
 struct sh_landmarks {
     sh_landmarks_params p;
-    int width, height, n;
+    int width, height, n;  /* the frame the landmarks are found in: reduced `reduce` times */
+    int reduce, full_width, full_height; /* the halvings, and the frames' own size */
+    uint8_t *small;        /* width x height: the reduced frame (reduce > 0) */
+    uint16_t *acc;         /* full_width: a row of blocks' column sums (reduce_part) */
+    float *ref_full;       /* n pairs: the reference positions in the frame's pixels */
+    float *pred;           /* n pairs: the predictions in the reduced frame's */
     sh_flow_pyramid *ref, *cur;
     sh_flow_windows *ref_win; /* the reference's windows around the landmarks, every level */
     float *ref_xy;   /* n pairs */
@@ -100,6 +105,7 @@ void sh_landmarks_params_default(sh_landmarks_params *p)
      * Measured on the same eight renders: 1 % more accepted, 166 over 1 px instead of 174, the
      * same geometric error, 8-12 % less time. */
     p->flow.eps = 0.03;
+    p->reduce = -1;
 }
 
 void sh_landmarks_params_sparse(sh_landmarks_params *p)
@@ -140,10 +146,68 @@ static sh_status check_params(const sh_landmarks_params *p)
         return sh_error_set(SH_EINVAL, "landmarks: bound_factor 0 to 1000, or plane with more than 16 neighbours");
     if ((p->affine != 0 && p->affine != 1) || (p->affine && p->neighbours < 2))
         return sh_error_set(SH_EINVAL, "landmarks: affine %d: 0 or 1, and 1 needs neighbours >= 2", p->affine);
+    if (p->reduce < -1 || p->reduce > 4)
+        return sh_error_set(SH_EINVAL, "landmarks: reduce %d: -1 (automatic) or 0 to 4", p->reduce);
     if (!(p->max_photometric > 0) || !(p->max_backward_px >= 0) || !(p->max_disagreement_px > 0))
         return sh_error_set(SH_EINVAL, "landmarks: max_photometric and max_disagreement_px must be > 0, "
                             "max_backward_px >= 0");
     return SH_OK;
+}
+
+int sh_landmarks_reduction(const sh_landmarks_params *p, int width, int height)
+{
+    if (p && p->reduce >= 0) return p->reduce;
+    if (width < 1 || height < 1) return 0;
+    long k = lround(log2(sqrt((double)width * height) / 1440.0));
+    return k < 0 ? 0 : k > 4 ? 4 : (int)k;
+}
+
+double sh_landmarks_smoothing(double lambda, int reduce) { return ldexp(lambda, 2 * reduce); }
+
+/* A position between the frame's pixels and the reduced frame's: pixel centres at integers, a
+ * reduced pixel the mean of a block of 2^k x 2^k, its centre at the block's. */
+static inline float to_small(float v, int k) { return k ? (v + 0.5f) / (float)(1 << k) - 0.5f : v; }
+static inline float to_full(float v, int k) { return k ? (v + 0.5f) * (float)(1 << k) - 0.5f : v; }
+
+/* The frame's blocks of 2^reduce x 2^reduce pixels averaged (rounded to nearest) into lm->small,
+ * for the reduced frame's pixels in r (x0, y0, x1, y1, half-open): a row's blocks summed down the
+ * rows into lm->acc, then across. Exact integers, so any part is the same function of the frame. */
+static void reduce_part(sh_landmarks *lm, const sh_plane *src, const int r[4])
+{
+    const int k = lm->reduce, b = 1 << k;
+    const uint32_t half = 1u << (2 * k - 1);
+    uint16_t *restrict acc = lm->acc;
+    for (int y = r[1]; y < r[3]; y++) {
+        const uint8_t *in = src->data + (size_t)b * y * src->stride;
+        for (int x = b * r[0]; x < b * r[2]; x++) acc[x] = in[x];
+        for (int dy = 1; dy < b; dy++) {
+            const uint8_t *row = in + (size_t)dy * src->stride;
+            for (int x = b * r[0]; x < b * r[2]; x++) acc[x] = (uint16_t)(acc[x] + row[x]);
+        }
+        uint8_t *out = lm->small + (size_t)y * lm->width;
+        for (int x = r[0]; x < r[2]; x++) {
+            uint32_t t = 0;
+            for (int dx = 0; dx < b; dx++) t += acc[b * x + dx];
+            out[x] = (uint8_t)((t + half) >> (2 * k));
+        }
+    }
+}
+
+/* The brightest pixel of each block of the reference, for the highlight test (a highlight a pixel
+ * wide is still one in the reduced frame), into out (width x height of the reduced frame). */
+static void reduce_max(const sh_landmarks *lm, const sh_plane *src, uint8_t *out)
+{
+    const int b = 1 << lm->reduce;
+    for (int y = 0; y < lm->height; y++)
+        for (int x = 0; x < lm->width; x++) {
+            uint8_t m = 0;
+            for (int dy = 0; dy < b; dy++)
+                for (int dx = 0; dx < b; dx++) {
+                    uint8_t v = src->data[(size_t)(b * y + dy) * src->stride + b * x + dx];
+                    m = v > m ? v : m;
+                }
+            out[(size_t)y * lm->width + x] = m;
+        }
 }
 
 /* Squared distance from (x, y) to the segment a-b. */
@@ -220,15 +284,17 @@ static sh_status clear_highlights(uint8_t *mask, const sh_plane *luma, int level
 }
 
 /* Where a landmark may be chosen (landmarks.h): the hull, off the tags and highlights, half a
- * window inside the image. */
-static sh_status make_mask(const sh_landmarks_params *p, const sh_plane *ref, const sh_hull *hull,
+ * window inside the image. ref: the reduced frame (its brightest pixels); the hull is in the
+ * frame's own pixels, the tags in the reduced frame's. */
+static sh_status make_mask(const sh_landmarks_params *p, const sh_plane *ref, int reduce, const sh_hull *hull,
                            const double *tags, int n_tags, uint8_t *mask)
 {
     int w = ref->width, h = ref->height, half = p->flow.win / 2;
     for (int y = 0; y < h; y++)
         for (int x = 0; x < w; x++)
             mask[(size_t)y * w + x] = x >= half && x < w - half && y >= half && y < h - half &&
-                                      (!hull || sh_hull_contains(hull, x, y));
+                                      (!hull || sh_hull_contains(hull, to_full((float)x, reduce),
+                                                                 to_full((float)y, reduce)));
     clear_tags(mask, w, h, tags, n_tags, p->tag_margin, half);
     return clear_highlights(mask, ref, p->highlight, half);
 }
@@ -432,10 +498,26 @@ sh_status sh_landmarks_create(const sh_landmarks_params *params, const sh_plane 
     sh_landmarks *lm = calloc(1, sizeof *lm);
     if (!lm) return sh_error_set(SH_ENOMEM, "landmarks: out of memory");
     lm->p = *params;
-    lm->width = reference->width;
-    lm->height = reference->height;
+    lm->reduce = sh_landmarks_reduction(params, reference->width, reference->height);
+    lm->full_width = reference->width;
+    lm->full_height = reference->height;
+    lm->width = reference->width >> lm->reduce;
+    lm->height = reference->height >> lm->reduce;
+    if (lm->reduce && (lm->width <= params->flow.win || lm->height <= params->flow.win)) {
+        int k = lm->reduce;
+        free(lm);
+        return sh_error_set(SH_EINVAL, "landmarks: a %dx%d frame halved %d times is no larger than a %d px window",
+                            reference->width, reference->height, k, params->flow.win);
+    }
     size_t m = (size_t)params->max_points;
     uint8_t *mask = malloc((size_t)lm->width * lm->height);
+    lm->ref_full = malloc(2 * m * sizeof *lm->ref_full);
+    lm->pred = malloc(2 * m * sizeof *lm->pred);
+    double *small_tags = lm->reduce && n_tags > 0 ? malloc(8 * (size_t)n_tags * sizeof *small_tags) : NULL;
+    if (lm->reduce) {
+        lm->small = malloc((size_t)lm->width * lm->height);
+        lm->acc = malloc((size_t)reference->width * sizeof *lm->acc);
+    }
     lm->ref_xy = malloc(2 * m * sizeof *lm->ref_xy);
     lm->fwd = malloc(2 * m * sizeof *lm->fwd);
     lm->back = malloc(2 * m * sizeof *lm->back);
@@ -459,19 +541,33 @@ sh_status sh_landmarks_create(const sh_landmarks_params *params, const sh_plane 
     lm->tri = malloc(2 * (size_t)lm->tri_cap * sizeof *lm->tri);
     if (!mask || !lm->ref_xy || !lm->fwd || !lm->back || !lm->err || !lm->st_fwd || !lm->st_back || !lm->near ||
         !lm->scratch || !lm->colsum || !lm->prefix || !lm->band || !lm->cols || !lm->redo || !lm->redo_xy ||
-        !lm->redo_st || !lm->voters || !lm->dist ||
-        !lm->tri) {
+        !lm->redo_st || !lm->voters || !lm->dist || !lm->tri || !lm->ref_full || !lm->pred ||
+        (lm->reduce && (!lm->small || !lm->acc)) || (lm->reduce && n_tags > 0 && !small_tags)) {
         free(mask);
+        free(small_tags);
         sh_landmarks_destroy(lm);
         return sh_error_set(SH_ENOMEM, "landmarks: out of memory");
     }
-    st = make_mask(params, reference, hull, tags, n_tags, mask);
+    sh_plane ref = *reference;
+    if (lm->reduce) {
+        /* the mask's highlights from each block's brightest pixel (mask holds them for the while) */
+        reduce_max(lm, reference, mask);
+        reduce_part(lm, reference, (const int[4]){0, 0, lm->width, lm->height});
+        ref = (sh_plane){lm->small, lm->width, lm->height, lm->width};
+        for (int i = 0; i < 8 * n_tags; i++) small_tags[i] = to_small((float)tags[i], lm->reduce);
+        tags = small_tags;
+    }
+    const sh_plane bright = lm->reduce ? (sh_plane){mask, lm->width, lm->height, lm->width} : ref;
+    uint8_t *allowed = lm->reduce ? lm->band : mask; /* lm->band is free until the band-pass */
+    st = make_mask(params, &bright, lm->reduce, hull, tags, n_tags, allowed);
+    if (lm->reduce) memcpy(mask, allowed, (size_t)lm->width * lm->height);
+    free(small_tags);
     /* corners and the reference's pyramid from the band-passed reference (its gain set here) */
-    sh_plane band = *reference;
+    sh_plane band = ref;
     if (params->band > 0) {
         const int all[4] = {0, 0, lm->width, lm->height};
         band_columns(lm, BAND_FINE, params->band);
-        band_pass(lm, reference, params->band, all);
+        band_pass(lm, &ref, params->band, all);
         band = (sh_plane){lm->band, lm->width, lm->height, lm->width};
     }
     if (st == SH_OK) {
@@ -484,6 +580,7 @@ sh_status sh_landmarks_create(const sh_landmarks_params *params, const sh_plane 
         st = sh_flow_corners(&band, &mp, &cp, lm->ref_xy, &lm->n);
     }
     free(mask);
+    for (int i = 0; st == SH_OK && i < 2 * lm->n; i++) lm->ref_full[i] = to_full(lm->ref_xy[i], lm->reduce);
     if (st == SH_OK && params->neighbours > 0) find_neighbours(lm);
     if (st == SH_OK) st = sh_flow_pyramid_create(lm->width, lm->height, &params->flow, &lm->ref);
     if (st == SH_OK) st = sh_flow_pyramid_create(lm->width, lm->height, &params->flow, &lm->cur);
@@ -518,13 +615,14 @@ void sh_landmarks_destroy(sh_landmarks *lm)
     free(lm->redo);
     free(lm->redo_xy);
     free(lm->redo_st);
+    free(lm->small), free(lm->acc), free(lm->ref_full), free(lm->pred);
     free(lm->voters), free(lm->tri), free(lm->dist);
     free(lm->jac), free(lm->warp);
     free(lm);
 }
 
 int sh_landmarks_count(const sh_landmarks *lm) { return lm->n; }
-const float *sh_landmarks_reference(const sh_landmarks *lm) { return lm->ref_xy; }
+const float *sh_landmarks_reference(const sh_landmarks *lm) { return lm->ref_full; }
 
 /* The last test: a landmark's correction of the map (its position minus the prediction) against
  * the median correction of its nearest landmarks that passed the others. The map's own error is
@@ -688,16 +786,25 @@ static void box_grow(float box[4], float r)
     box[0] -= r, box[1] -= r, box[2] += r, box[3] += r;
 }
 
-/* The frame band-passed (unless band is 0) in the part of it a pyramid built for box reads, and
- * that pyramid; the whole frame when box is NULL. */
+/* The frame reduced (reduce > 0) and band-passed (unless band is 0) in the part of it a pyramid
+ * built for box reads, and that pyramid; the whole frame when box is NULL. box and the part are
+ * in the reduced frame's pixels. */
 static sh_status build_part(sh_landmarks *lm, const sh_plane *luma, const float *box)
 {
     const int backward = lm->p.max_backward_px > 0;
     int part[4] = {0, 0, lm->width, lm->height};
     sh_status st = box ? sh_flow_pyramid_box_part(lm->cur, box, backward, part) : SH_OK;
     sh_plane band = *luma;
+    if (st == SH_OK && lm->reduce) {
+        /* the part and the band-pass's boxes around it */
+        const int r = lm->p.band, red[4] = {part[0] - r > 0 ? part[0] - r : 0, part[1] - r > 0 ? part[1] - r : 0,
+                                            part[2] + r < lm->width ? part[2] + r : lm->width,
+                                            part[3] + r < lm->height ? part[3] + r : lm->height};
+        reduce_part(lm, luma, red);
+        band = (sh_plane){lm->small, lm->width, lm->height, lm->width};
+    }
     if (st == SH_OK && lm->p.band > 0) {
-        band_pass(lm, luma, lm->p.band, part);
+        band_pass(lm, &band, lm->p.band, part);
         band = (sh_plane){lm->band, lm->width, lm->height, lm->width};
     }
     if (st != SH_OK) return st;
@@ -799,13 +906,17 @@ static double adaptive_bound(sh_landmarks *lm, const float *predicted, double fl
 sh_status sh_landmarks_track(sh_landmarks *lm, const sh_plane *luma, const float *predicted, float *xy,
                              uint8_t *verdict, sh_landmarks_counts *counts)
 {
-    if (!luma || luma->width != lm->width || luma->height != lm->height)
+    if (!luma || luma->width != lm->full_width || luma->height != lm->full_height)
         return sh_error_set(SH_EINVAL, "landmarks: a %dx%d frame for a %dx%d reference", luma ? luma->width : 0,
-                            luma ? luma->height : 0, lm->width, lm->height);
+                            luma ? luma->height : 0, lm->full_width, lm->full_height);
     const sh_landmarks_params *p = &lm->p;
     int n = lm->n, again = 0, whole = 0;
     if (counts) memset(counts, 0, sizeof *counts);
     if (n == 0) return SH_OK;
+    if (predicted && lm->reduce) {
+        for (int i = 0; i < 2 * n; i++) lm->pred[i] = to_small(predicted[i], lm->reduce);
+        predicted = lm->pred;
+    }
     /* only the part of the frame the searches are expected to read: band-passed, and its
      * pyramid (with the gradients only when the frame is tracked from, by the backward test) */
     float box[4] = {INFINITY, INFINITY, -INFINITY, -INFINITY};
@@ -821,15 +932,12 @@ sh_status sh_landmarks_track(sh_landmarks *lm, const sh_plane *luma, const float
     if (predicted && p->bound_factor > 0) bound = adaptive_bound(lm, predicted, bound);
     first_tests(lm, predicted, bound, verdict);
     if (predicted && p->neighbours > 0) deviations(lm, predicted, verdict);
-    for (int i = 0; i < n; i++) {
-        xy[2 * i] = lm->fwd[2 * i];
-        xy[2 * i + 1] = lm->fwd[2 * i + 1];
-    }
+    for (int i = 0; i < 2 * n; i++) xy[i] = to_full(lm->fwd[i], lm->reduce);
     if (counts) {
         for (int i = 0; i < n; i++) counts->verdicts[verdict[i]]++;
         counts->searched_again = again;
         counts->whole_frame = whole;
-        counts->bound_px = predicted ? bound : 0;
+        counts->bound_px = predicted ? ldexp(bound, lm->reduce) : 0;
     }
     return SH_OK;
 }

@@ -455,6 +455,148 @@ static void test_affine_windows(void **state)
     assert_true(mean_aff < mean_sq / 2 && worst_aff < worst_sq);
 }
 
+/* A frame larger than 1080p is halved before the landmarks are chosen and found
+ * (sh_landmarks_params.reduce), so that their lengths keep their meaning. A frame made of 2x2
+ * blocks of one value each halves to exactly the frame the blocks came from: the landmarks, their
+ * verdicts and the frame's bound found on it must be those of the small frame, every position
+ * mapped by X = 2 x + 0.5 (pixel centres at integers), with the hull, the tag and the predictions
+ * given in the large frame's pixels. With the band-pass and without it, which read the part of
+ * the frame around the predictions differently. */
+static void upscale2(const sh_image *src, sh_image *dst)
+{
+    assert_int_equal(sh_image_create(dst, SH_PIX_GRAY8, 2 * src->width, 2 * src->height), SH_OK);
+    for (int y = 0; y < dst->height; y++)
+        for (int x = 0; x < dst->width; x++)
+            dst->plane[0].data[(size_t)y * dst->plane[0].stride + x] =
+                src->plane[0].data[(size_t)(y / 2) * src->plane[0].stride + x / 2];
+}
+
+static void test_reduced_frame_same_as_small(void **state)
+{
+    (void)state;
+    /* which frames are halved, from the rule's closed form */
+    assert_int_equal(sh_landmarks_reduction(NULL, 1920, 1080), 0);
+    assert_int_equal(sh_landmarks_reduction(NULL, 2560, 1440), 0);
+    assert_int_equal(sh_landmarks_reduction(NULL, 640, 480), 0);
+    assert_int_equal(sh_landmarks_reduction(NULL, 3840, 2160), 1);
+    assert_int_equal(sh_landmarks_reduction(NULL, 4096, 2160), 1);
+    assert_int_equal(sh_landmarks_reduction(NULL, 7680, 4320), 2);
+    sh_landmarks_params p;
+    sh_landmarks_params_default(&p);
+    assert_int_equal(p.reduce, -1);
+    p.reduce = 3;
+    assert_int_equal(sh_landmarks_reduction(&p, 1920, 1080), 3);
+    assert_true(sh_landmarks_smoothing(1000, 0) == 1000 && sh_landmarks_smoothing(1000, 1) == 4000);
+
+    sh_image ref, cur, big_ref, big_cur;
+    render(&ref, 0);
+    render(&cur, 0.2);
+    for (int y = 0; y < H; y++)
+        for (int x = 0; x < W; x++) {
+            if (hypot(x - 300, y - 200) <= 8) ref.plane[0].data[(size_t)y * ref.plane[0].stride + x] = 255;
+            if (x >= 200 && x < 240) cur.plane[0].data[(size_t)y * cur.plane[0].stride + x] = (uint8_t)(90 + (y / 6 % 2) * 60);
+        }
+    upscale2(&ref, &big_ref);
+    upscale2(&cur, &big_cur);
+    double hull_xy[8] = {40, 40, 440, 50, 430, 320, 50, 310}, big_hull_xy[8], tag[8], big_tag[8];
+    square(tag, 150, 120, 40);
+    for (int k = 0; k < 8; k++) big_hull_xy[k] = 2 * hull_xy[k] + 0.5, big_tag[k] = 2 * tag[k] + 0.5;
+    sh_hull hull, big_hull;
+    assert_int_equal(sh_hull_compute(hull_xy, 4, &hull), SH_OK);
+    assert_int_equal(sh_hull_compute(big_hull_xy, 4, &big_hull), SH_OK);
+    for (int band = 0; band <= 5; band += 5) {
+        sh_landmarks_params_default(&p);
+        p.max_points = 300;
+        p.min_distance = 10;
+        p.band = band;
+        sh_landmarks_params bp = p;
+        p.reduce = 0, bp.reduce = 1;
+        sh_landmarks *lm, *big;
+        assert_int_equal(sh_landmarks_create(&p, &ref.plane[0], &hull, tag, 1, &lm), SH_OK);
+        assert_int_equal(sh_landmarks_create(&bp, &big_ref.plane[0], &big_hull, big_tag, 1, &big), SH_OK);
+        int n = sh_landmarks_count(lm);
+        assert_true(n >= 50);
+        assert_int_equal(sh_landmarks_count(big), n);
+        const float *r = sh_landmarks_reference(lm), *br = sh_landmarks_reference(big);
+        float *pred = malloc(2 * (size_t)n * sizeof *pred), *big_pred = malloc(2 * (size_t)n * sizeof *big_pred);
+        float *xy = malloc(2 * (size_t)n * sizeof *xy), *big_xy = malloc(2 * (size_t)n * sizeof *big_xy);
+        uint8_t *verdict = malloc((size_t)n), *big_verdict = malloc((size_t)n);
+        for (int i = 0; i < n; i++) {
+            assert_true(fabsf(br[2 * i] - (2 * r[2 * i] + 0.5f)) < 1e-4f);
+            assert_true(fabsf(br[2 * i + 1] - (2 * r[2 * i + 1] + 0.5f)) < 1e-4f);
+            double tx, ty;
+            synth_forward(&motion, 0.2, r[2 * i], r[2 * i + 1], &tx, &ty);
+            pred[2 * i] = (float)(tx + 1.5 * sin(r[2 * i] / 70.0));
+            pred[2 * i + 1] = (float)(ty + 1.5 * cos(r[2 * i + 1] / 55.0));
+            big_pred[2 * i] = 2 * pred[2 * i] + 0.5f, big_pred[2 * i + 1] = 2 * pred[2 * i + 1] + 0.5f;
+        }
+        sh_landmarks_counts c, bc;
+        assert_int_equal(sh_landmarks_track(lm, &cur.plane[0], pred, xy, verdict, &c), SH_OK);
+        assert_int_equal(sh_landmarks_track(big, &big_cur.plane[0], big_pred, big_xy, big_verdict, &bc), SH_OK);
+        print_message("  band %d: %d landmarks, %d accepted in both frames\n", band, n, c.verdicts[SH_LANDMARK_ACCEPTED]);
+        assert_true(c.verdicts[SH_LANDMARK_ACCEPTED] >= n / 2);
+        assert_memory_equal(verdict, big_verdict, (size_t)n);
+        assert_memory_equal(c.verdicts, bc.verdicts, sizeof c.verdicts);
+        assert_true(fabs(bc.bound_px - 2 * c.bound_px) < 1e-9);
+        for (int i = 0; i < n; i++) {
+            assert_true(fabsf(big_xy[2 * i] - (2 * xy[2 * i] + 0.5f)) < 1e-4f);
+            assert_true(fabsf(big_xy[2 * i + 1] - (2 * xy[2 * i + 1] + 0.5f)) < 1e-4f);
+        }
+        /* a frame of another size than the reference's */
+        assert_int_equal(sh_landmarks_track(big, &cur.plane[0], big_pred, big_xy, big_verdict, NULL), SH_EINVAL);
+        free(pred), free(big_pred), free(xy), free(big_xy), free(verdict), free(big_verdict);
+        sh_landmarks_destroy(lm);
+        sh_landmarks_destroy(big);
+    }
+    sh_image_destroy(&ref), sh_image_destroy(&cur), sh_image_destroy(&big_ref), sh_image_destroy(&big_cur);
+}
+
+/* sh_landmarks_smoothing's claim: a TPS map through markers (exact) and landmarks (smoothed) of a
+ * frame twice as large, every position X = 2 x + 0.5, with the landmarks' smoothing times 4, is
+ * the small frame's map scaled, f'(2 q + 0.5) = 2 f(q) + 0.5. From the kernel's form alone:
+ * (2 r)^2 log(2 r) = 4 r^2 log r + 4 log 2 r^2, and the side conditions take the last term into
+ * the affine part, so the coefficients are the small frame's over 2 and each point's miss,
+ * lambda c, doubles with the frame. */
+static void test_smoothing_scales_with_frame(void **state)
+{
+    (void)state;
+    enum { N = 40, M = 12, Q = 50 };
+    double ref[2 * N], cur[2 * N], lam[N], big_ref[2 * N], big_cur[2 * N], big_lam[N];
+    float at[2 * Q], big_at[2 * Q], f[2 * Q], big_f[2 * Q];
+    unsigned seed = 7;
+    for (int i = 0; i < N; i++) {
+        seed = seed * 1103515245u + 12345u;
+        ref[2 * i] = 40 + (seed >> 8) % 800;
+        seed = seed * 1103515245u + 12345u;
+        ref[2 * i + 1] = 30 + (seed >> 8) % 500 + 0.25 * (i % 4);
+        /* a smooth motion and a landmark's error of up to 0.4 px */
+        cur[2 * i] = ref[2 * i] + 6 * sin(ref[2 * i + 1] / 150.0) + (i >= M ? 0.4 * sin(3.0 * i) : 0);
+        cur[2 * i + 1] = ref[2 * i + 1] + 4 * cos(ref[2 * i] / 120.0) + (i >= M ? 0.4 * cos(5.0 * i) : 0);
+        lam[i] = i < M ? 0 : sh_landmarks_smoothing(SH_LANDMARK_SMOOTHING, 0);
+        big_lam[i] = i < M ? 0 : sh_landmarks_smoothing(SH_LANDMARK_SMOOTHING, 1);
+        for (int d = 0; d < 2; d++) big_ref[2 * i + d] = 2 * ref[2 * i + d] + 0.5, big_cur[2 * i + d] = 2 * cur[2 * i + d] + 0.5;
+    }
+    for (int k = 0; k < Q; k++) {
+        at[2 * k] = (float)(60 + 15 * k), at[2 * k + 1] = (float)(40 + 9.5 * k);
+        big_at[2 * k] = 2 * at[2 * k] + 0.5f, big_at[2 * k + 1] = 2 * at[2 * k + 1] + 0.5f;
+    }
+    sh_interp_params ip;
+    sh_interp_params_default(&ip, SH_METHOD_TPS);
+    assert_int_equal(sh_interp_map_points_smoothed(&ip, ref, cur, N, lam, at, Q, f), SH_OK);
+    assert_int_equal(sh_interp_map_points_smoothed(&ip, big_ref, big_cur, N, big_lam, big_at, Q, big_f), SH_OK);
+    double worst = 0, smoothed = 0;
+    for (int k = 0; k < 2 * Q; k++) worst = fmax(worst, fabs(big_f[k] - (2 * f[k] + 0.5f)));
+    /* and the smoothing does something here: the same map with the landmarks interpolated differs */
+    double none[N] = {0};
+    float exact[2 * Q];
+    assert_int_equal(sh_interp_map_points_smoothed(&ip, ref, cur, N, none, at, Q, exact), SH_OK);
+    for (int k = 0; k < 2 * Q; k++) smoothed = fmax(smoothed, fabs(exact[k] - f[k]));
+    print_message("  the large frame's map against the small one's, scaled: %.2g px; smoothing moves it by %.3f px\n",
+                  worst, smoothed);
+    assert_true(worst < 2e-3); /* float outputs of values up to 1700 px: a few ulps */
+    assert_true(smoothed > 0.05);
+}
+
 static void test_refusals(void **state)
 {
     (void)state;
@@ -477,6 +619,13 @@ static void test_refusals(void **state)
     assert_int_equal(sh_landmarks_create(&p, &ref.plane[0], NULL, NULL, 0, &lm), SH_EINVAL);
     p.affine = 2, p.neighbours = 8;
     assert_int_equal(sh_landmarks_create(&p, &ref.plane[0], NULL, NULL, 0, &lm), SH_EINVAL);
+    sh_landmarks_params_default(&p);
+    p.reduce = 5; /* -1 (automatic) or 0 to 4 halvings */
+    assert_int_equal(sh_landmarks_create(&p, &ref.plane[0], NULL, NULL, 0, &lm), SH_EINVAL);
+    p.reduce = 4; /* 100x100 halved four times: 6x6, smaller than a window */
+    assert_int_equal(sh_landmarks_create(&p, &small.plane[0], NULL, NULL, 0, &lm), SH_EINVAL);
+    /* the rule's own value is never over 4 */
+    assert_int_equal(sh_landmarks_reduction(NULL, 1 << 20, 1 << 20), 4);
     sh_landmarks_params_default(&p);
     assert_int_equal(sh_landmarks_create(&p, &ref.plane[0], NULL, NULL, 2, &lm), SH_EINVAL);
     assert_int_equal(sh_landmarks_create(&p, &ref.plane[0], NULL, NULL, 0, &lm), SH_OK);
@@ -692,6 +841,8 @@ int main(void)
         cmocka_unit_test(test_searches_outside_the_part_same_as_whole_frame),
         cmocka_unit_test(test_band_pass_against_shading),
         cmocka_unit_test(test_affine_windows),
+        cmocka_unit_test(test_reduced_frame_same_as_small),
+        cmocka_unit_test(test_smoothing_scales_with_frame),
         cmocka_unit_test(test_refusals),
         cmocka_unit_test(test_rig_against_closed_form),
     };
