@@ -38,8 +38,10 @@ static void usage(FILE *out)
         "                     with tps (the RBFs): the landmark rows' own smoothing, added to\n"
         "                     their diagonal of the system; the markers stay exact (default\n"
         "                     1000, as the daemon's [track] landmarks_smoothing; 0: the\n"
-        "                     landmarks interpolated as well); stillheart-eval needs the same\n"
-        "                     value (its --landmark-smoothing). Another method refuses it\n"
+        "                     landmarks interpolated as well); for 1080p frames: a frame whose\n"
+        "                     landmarks were found halved (4K: docs/landmarks.md) uses 4 times\n"
+        "                     it. stillheart-eval needs the same value (its\n"
+        "                     --landmark-smoothing). Another method refuses it\n"
         "  --reference N      0-based index of the reference frame (default 0)\n"
         "  --threads T        worker threads for the warp (default 1)\n"
         "  --max-error PX     largest tolerated error of the interpolated map (default 0.05)\n"
@@ -176,6 +178,10 @@ static int open_input(warp_job *j)
     const sh_y4m_header *hdr = sh_y4m_reader_header(s->reader);
     j->recipe.width = hdr->width;
     j->recipe.height = hdr->height;
+    /* --landmark-smoothing is given at 1080p: scaled to the frame as `stillheart track` scaled the
+     * landmarks' lengths (sh_landmarks_smoothing) */
+    j->recipe.point_smoothing = sh_landmarks_smoothing(o->landmark_smoothing,
+                                                       sh_landmarks_reduction(NULL, hdr->width, hdr->height));
     s->ref_rows = sh_points_frame(&s->points, o->reference, &s->ref_count);
     if (s->ref_count < 3) {
         sh_log_error("%s: the reference frame %d has %d markers, need 3", o->points_path, o->reference, s->ref_count);
@@ -199,7 +205,6 @@ static int warp_open(warp_job *j, const warp_options *o)
     j->recipe.params = o->params;
     sh_warp_options_default(&j->recipe.wopts);
     j->recipe.wopts.max_error = o->max_error;
-    j->recipe.point_smoothing = o->landmark_smoothing;
     j->recipe.smoothed_from = SH_LANDMARK_ID_BASE;
     if (open_input(j)) return 1;
     const sh_y4m_header *hdr = sh_y4m_reader_header(s->reader);

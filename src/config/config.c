@@ -72,7 +72,7 @@ static const keydef keys[] = {
     {"track", "landmarks_affine", "landmarks-affine", K_BOOL, PROC, F(landmarks_affine), 0, 0, 1,
      "landmarks searched through the markers' map's local affine: fewer over 1 px off where the tissue deforms"},
     {"track", "landmarks_smoothing", "landmarks-smoothing", K_DOUBLE, PROC, F(landmarks_smoothing), 0, 0, 1e9,
-     "the landmarks' own smoothing in a tps map (the RBFs), the markers exact (0: interpolated too)"},
+     "the landmarks' own smoothing in a tps map (the RBFs), the markers exact (0: interpolated too); at 1080p, 4 times it at 4K"},
     {"method", "name", "method", K_METHOD, PROC, F(method_name), S(method_name), 0, 0, "affine pwlinear bspline rbf-local[-pure] tps[-pure] gaussian[-pure]"},
     {"method", "sigma", "sigma", K_DOUBLE, PROC, F(sigma), 0, -1, 1e6, "RBF scale in px (-1: the method's default)"},
     {"method", "levels", "levels", K_INT, PROC, F(levels), 0, 0, 16, "B-spline levels (0: automatic)"},

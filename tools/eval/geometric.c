@@ -148,7 +148,9 @@ sh_status eval_geo_create(const eval_geo_options *opts, const sh_points *points,
     }
     if (!opts->identity && !opts->calib) {
         sh_modelcache_recipe r = {.width = width, .height = height, .params = opts->params, .wopts = opts->wopts,
-                                  .point_smoothing = opts->landmark_smoothing, .smoothed_from = SH_LANDMARK_ID_BASE};
+                                  .point_smoothing = sh_landmarks_smoothing(opts->landmark_smoothing,
+                                                                            sh_landmarks_reduction(NULL, width, height)),
+                                  .smoothed_from = SH_LANDMARK_ID_BASE};
         sh_status st = sh_modelcache_create(&r, g->ref_rows, g->ref_count, 1, &g->cache);
         if (st != SH_OK) {
             eval_geo_destroy(g);

@@ -68,9 +68,11 @@ static sh_status map_with_landmarks(const eval_lm_options *o, const double *ref,
                                     const float *at, int count, float *out)
 {
     double *lambda = NULL;
-    if (o->landmark_smoothing > 0 && sh_interp_method_smooths(o->params.method) && k > m) {
+    const phantom_model *pm = phantom_truth_model(o->truth);
+    const double own = sh_landmarks_smoothing(o->landmark_smoothing, sh_landmarks_reduction(&o->lp, pm->width, pm->height));
+    if (own > 0 && sh_interp_method_smooths(o->params.method) && k > m) {
         if (!(lambda = malloc(sizeof(double) * (size_t)k))) return sh_error_set(SH_ENOMEM, "landmarks: out of memory");
-        for (int i = 0; i < k; i++) lambda[i] = i < m ? 0.0 : o->landmark_smoothing;
+        for (int i = 0; i < k; i++) lambda[i] = i < m ? 0.0 : own;
     }
     sh_status st = sh_interp_map_points_smoothed(&o->params, ref, cur, k, lambda, at, count, out);
     free(lambda);
