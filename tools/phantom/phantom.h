@@ -222,6 +222,10 @@ typedef struct {
     const char *family;   /* NULL: tag36h11 */
     const int *ids;       /* NULL: 0..markers-1 */
     int num_ids;
+    const int *only;      /* NULL: every marker; else the markers are laid out as without it and
+                           * only those with these ids kept (the others' tissue bare): four tags
+                           * at the corners of the field without the stickers between them */
+    int num_only;
     double fps;           /* <= 0: the preset's */
     const double *dist;   /* NULL: no lens distortion; else k1 k2 p1 p2 k3 for every camera */
     double noise;         /* < 0: default */

@@ -282,7 +282,26 @@ static sh_status build_markers(const phantom_options *o, phantom_model *m, int i
     }
     if (!o->ids && m->num_markers > codes - 1)
         return sh_error_set(SH_EINVAL, "--markers %d: %s has %d codes", m->num_markers, m->family, codes);
-    return layout_markers(m, o, rng);
+    sh_status st = layout_markers(m, o, rng);
+    if (st != SH_OK || !o->only) return st;
+    /* kept after the layout, which draws the same random numbers as without it: the same
+     * positions, and the same texture, motion and shaft after them */
+    if (o->num_only < 1 || o->num_only > m->num_markers)
+        return sh_error_set(SH_EINVAL, "--only-markers: 1 to %d ids", m->num_markers);
+    int kept = 0;
+    for (int i = 0; i < m->num_markers; i++) {
+        int keep = 0;
+        for (int k = 0; k < o->num_only; k++) keep |= o->only[k] == m->marker[i].id;
+        if (keep) m->marker[kept++] = m->marker[i];
+    }
+    for (int k = 0; k < o->num_only; k++)
+        for (int j = 0; j < k; j++)
+            if (o->only[j] == o->only[k]) return sh_error_set(SH_EINVAL, "--only-markers: id %d twice", o->only[k]);
+    if (kept != o->num_only)
+        return sh_error_set(SH_EINVAL, "--only-markers: %d of the %d ids are not among the markers' ids",
+                            o->num_only - kept, o->num_only);
+    m->num_markers = kept;
+    return SH_OK;
 }
 
 /* The trinocular rig: a triangle of 90 mm sides, 50 cm above the patch, all looking at it. */

@@ -70,6 +70,11 @@ static void usage(FILE *f)
 "  --tag-size MM      edge of a tag's black border in mm (default 10 exvivo, 8 invivo)\n"
 "  --family NAME      tag36h11 (default), tag25h9, tag16h5 or tagStandard41h12\n"
 "  --ids A,B,...      marker ids (default 0..N-1); sets N when --markers is absent\n"
+"  --only-markers A,B,...\n"
+"                     the markers laid out as without it, then only those with these ids\n"
+"                     drawn and in markers.csv, the others' tissue bare (e.g. the four at\n"
+"                     the corners of the field, without the stickers between them); the\n"
+"                     same texture, motion and instrument as without it\n"
 "  --distortion K1,K2,P1,P2,K3\n"
 "                     OpenCV lens distortion of every camera (default none)\n"
 "  --noise SIGMA      read noise in DN (default 1.5; shot noise grows with the signal; 0: none)\n"
@@ -280,7 +285,7 @@ typedef struct {
     phantom_options o;
     const char *out;
     double dist[5];
-    int ids[PHANTOM_MAX_MARKERS];
+    int ids[PHANTOM_MAX_MARKERS], only[PHANTOM_MAX_MARKERS];
     rd_board board;
     int board_mode;
 } render_args;
@@ -295,13 +300,13 @@ static int parse_args(int argc, char **argv, render_args *a)
     a->out = NULL;
     a->board_mode = 0;
     enum { O_PRESET = 256, O_FRAMES, O_CAMERAS, O_WIDTH, O_HEIGHT, O_SEED, O_OCC, O_BPM, O_MARKERS,
-           O_TAG, O_FAMILY, O_IDS, O_FPS, O_DIST, O_NOISE, O_EXPOSURE, O_TEXTURE_CONTRAST, O_TEXTURE_FILTER, O_OUT,
+           O_TAG, O_FAMILY, O_IDS, O_ONLY, O_FPS, O_DIST, O_NOISE, O_EXPOSURE, O_TEXTURE_CONTRAST, O_TEXTURE_FILTER, O_OUT,
            O_TARGET, O_PERIODIC, O_CAM_MOTION, O_CAM_MOTION_AT, O_FIRST_BEAT, O_FIRST_BEAT_AT, O_RIG };
     static const struct option opts[] = {
         {"preset", 1, 0, O_PRESET}, {"frames", 1, 0, O_FRAMES}, {"cameras", 1, 0, O_CAMERAS},
         {"width", 1, 0, O_WIDTH}, {"height", 1, 0, O_HEIGHT}, {"seed", 1, 0, O_SEED},
         {"occlusions", 0, 0, O_OCC}, {"bpm", 1, 0, O_BPM}, {"markers", 1, 0, O_MARKERS},
-        {"tag-size", 1, 0, O_TAG}, {"family", 1, 0, O_FAMILY}, {"ids", 1, 0, O_IDS},
+        {"tag-size", 1, 0, O_TAG}, {"family", 1, 0, O_FAMILY}, {"ids", 1, 0, O_IDS}, {"only-markers", 1, 0, O_ONLY},
         {"fps", 1, 0, O_FPS}, {"distortion", 1, 0, O_DIST}, {"noise", 1, 0, O_NOISE},
         {"exposure", 1, 0, O_EXPOSURE}, {"texture-contrast", 1, 0, O_TEXTURE_CONTRAST},
         {"texture-filter", 1, 0, O_TEXTURE_FILTER}, {"out", 1, 0, O_OUT},
@@ -320,7 +325,7 @@ static int parse_args(int argc, char **argv, render_args *a)
     opterr = 0;
     while ((ch = getopt_long(argc, argv, ":h", opts, &idx)) != -1) {
         if (ch == O_PRESET || ch == O_OCC || ch == O_BPM || ch == O_MARKERS || ch == O_TAG || ch == O_FAMILY ||
-            ch == O_IDS || ch == O_PERIODIC || ch == O_CAM_MOTION || ch == O_CAM_MOTION_AT || ch == O_FIRST_BEAT ||
+            ch == O_IDS || ch == O_ONLY || ch == O_PERIODIC || ch == O_CAM_MOTION || ch == O_CAM_MOTION_AT || ch == O_FIRST_BEAT ||
             ch == O_FIRST_BEAT_AT || ch == O_TEXTURE_CONTRAST || ch == O_TEXTURE_FILTER)
             heart_option = opts[idx].name;
         switch (ch) {
@@ -357,6 +362,18 @@ static int parse_args(int argc, char **argv, render_args *a)
             }
             o->ids = a->ids;
             o->num_ids = n;
+            break;
+        }
+        case O_ONLY: {
+            double v[PHANTOM_MAX_MARKERS];
+            int n = parse_list(optarg, v, PHANTOM_MAX_MARKERS);
+            if (n <= 0) BAD("--only-markers '%s': comma-separated ids, at most %d", optarg, PHANTOM_MAX_MARKERS);
+            for (int i = 0; i < n; i++) {
+                if (v[i] != (int)v[i] || v[i] < 0) BAD("--only-markers: '%g' is not an id", v[i]);
+                a->only[i] = (int)v[i];
+            }
+            o->only = a->only;
+            o->num_only = n;
             break;
         }
         case O_FPS: if (!parse_double(optarg, &dv) || !(dv > 0 && dv <= 1000)) BAD("--fps '%s': 0 to 1000", optarg); o->fps = dv; break;

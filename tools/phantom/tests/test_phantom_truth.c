@@ -65,6 +65,44 @@ static void test_params_round_trip(void **state)
     assert_memory_equal(&a, &b, sizeof a);
 }
 
+/* --only-markers: the markers laid out as without it, only the listed ids kept; everything drawn
+ * after the layout (motion, instrument, texture) the same, as the same random numbers come first. */
+static void test_only_markers(void **state)
+{
+    (void)state;
+    phantom_options o;
+    phantom_options_default(&o);
+    o.preset = "exvivo";
+    o.occlusions = 1;
+    o.seed = 2;
+    phantom_model all, some;
+    assert_int_equal(phantom_model_build(&o, &all), SH_OK);
+    static const int corners[4] = {15, 0, 12, 3};
+    o.only = corners;
+    o.num_only = 4;
+    assert_int_equal(phantom_model_build(&o, &some), SH_OK);
+    assert_int_equal(all.num_markers, 16);
+    assert_int_equal(some.num_markers, 4);
+    for (int k = 0; k < 4; k++) {
+        int found = 0;
+        for (int i = 0; i < all.num_markers; i++)
+            if (all.marker[i].id == some.marker[k].id) {
+                assert_true(all.marker[i].u == some.marker[k].u && all.marker[i].v == some.marker[k].v);
+                found = 1;
+            }
+        assert_true(found);
+    }
+    assert_true(some.heart_hz == all.heart_hz && some.contraction == all.contraction);
+    assert_memory_equal(some.shaft_p0, all.shaft_p0, sizeof all.shaft_p0);
+    assert_memory_equal(some.shaft_p1, all.shaft_p1, sizeof all.shaft_p1);
+    /* an id that is not a marker's, or one twice, is refused */
+    static const int absent[2] = {0, 40}, twice[2] = {3, 3};
+    o.only = absent, o.num_only = 2;
+    assert_int_equal(phantom_model_build(&o, &some), SH_EINVAL);
+    o.only = twice;
+    assert_int_equal(phantom_model_build(&o, &some), SH_EINVAL);
+}
+
 static void test_locate_inverts_project(void **state)
 {
     (void)state;
@@ -660,6 +698,7 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_params_round_trip),
+        cmocka_unit_test(test_only_markers),
         cmocka_unit_test(test_locate_inverts_project),
         cmocka_unit_test(test_markers_match_csv),
         cmocka_unit_test(test_calibration_reads_back),
