@@ -3,8 +3,10 @@
 # presets, seeds 1-4, the paper rig's camera (1920x1080), with the instrument shaft and blood,
 # the truth's tag centres as the markers (as make table2 feeds the warp); for each, stillheart-eval
 # --landmarks with all the markers, then with the four nearest the corners of the reference's
-# markers only, with the default tests and with --lm-sparse (the tests for sparse markers); and
-# one render with the tissue texture's contrast halved. TPS, the default method.
+# markers only, with the default tests and with --lm-sparse (the tests for sparse markers), and
+# the same seed rendered with those four tags alone (--only-markers: no stickers between them)
+# with --lm-sparse; and one render with the tissue texture's contrast halved. TPS, the default
+# method.
 # Then the product's own path on the same renders: `stillheart track` without and with
 # --landmarks, `stillheart warp` with each 2D method that takes them, and stillheart-eval's e and
 # geometric error of both; and the daemon (`stillheart run`, [track] landmarks) likewise.
@@ -93,6 +95,13 @@ for p in exvivo invivo; do
         stamp "the daemon on $p seed $seed"
         through_daemon "$p-$seed" "$dir"
         rm -rf "$dir"
+        # the four corner tags alone (run sets dir)
+        d4=$OUT/work/$p-$seed-4only
+        "$RENDER" --preset "$p" --rig paper --cameras 1 --occlusions --seed "$seed" --frames "$FRAMES" \
+            --only-markers "$(echo "$ids" | tr '|' ,)" --quiet --out "$d4"
+        "$EVAL" --truth "$d4" --export-points "$d4/points.csv"
+        run "$p-$seed-4only-sparse" "$d4" "$d4/points.csv" --lm-sparse
+        rm -rf "$d4"
     done
 done
 dir=$OUT/work/exvivo-1-half-contrast
