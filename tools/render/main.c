@@ -6,6 +6,7 @@
  * more than one frame. */
 #include <errno.h>
 #include <getopt.h>
+#include <limits.h>
 #include <math.h>
 #include <pthread.h>
 #include <stdio.h>
@@ -357,7 +358,8 @@ static int parse_args(int argc, char **argv, render_args *a)
             int n = parse_list(optarg, v, PHANTOM_MAX_MARKERS);
             if (n <= 0) BAD("--ids '%s': comma-separated ids, at most %d", optarg, PHANTOM_MAX_MARKERS);
             for (int i = 0; i < n; i++) {
-                if (v[i] != (int)v[i]) BAD("--ids: '%g' is not an integer", v[i]);
+                /* compared as a double first: a value beyond int's range would not convert */
+                if (!(v[i] >= INT_MIN && v[i] <= INT_MAX) || v[i] != floor(v[i])) BAD("--ids: '%g' is not an integer", v[i]);
                 a->ids[i] = (int)v[i];
             }
             o->ids = a->ids;
@@ -369,7 +371,7 @@ static int parse_args(int argc, char **argv, render_args *a)
             int n = parse_list(optarg, v, PHANTOM_MAX_MARKERS);
             if (n <= 0) BAD("--only-markers '%s': comma-separated ids, at most %d", optarg, PHANTOM_MAX_MARKERS);
             for (int i = 0; i < n; i++) {
-                if (v[i] != (int)v[i] || v[i] < 0) BAD("--only-markers: '%g' is not an id", v[i]);
+                if (!(v[i] >= 0 && v[i] <= INT_MAX) || v[i] != floor(v[i])) BAD("--only-markers: '%g' is not an id", v[i]);
                 a->only[i] = (int)v[i];
             }
             o->only = a->only;

@@ -448,12 +448,16 @@ static void test_command_line(void **state)
                                  "--ids", "--fps", "--distortion", "--noise", "--exposure", "--quiet",
                                  "--calib-target", "--periodic", "--camera-motion", "--camera-motion-at",
                                  "--first-beat", "--first-beat-at", "--rig", "--texture-contrast",
-                                 "--texture-filter"};
+                                 "--texture-filter", "--only-markers"};
     for (size_t i = 0; i < sizeof opts / sizeof opts[0]; i++)
         if (!strstr(help, opts[i])) fail_msg("--help does not mention %s", opts[i]);
     static const char *bad[] = {"--preset nope --out /tmp/x", "--preset exvivo", "--cameras 4 --out /tmp/x",
                                 "--markers 64 --tag-size 30 --out /tmp/x", "--width 641 --out /tmp/x",
-                                "--ids 1,1 --out /tmp/x", "--distortion 1,2 --out /tmp/x",
+                                "--ids 1,1 --out /tmp/x", "--ids 1e30 --out /tmp/x", "--distortion 1,2 --out /tmp/x",
+                                /* kept markers: not an id, not among the markers', twice, with the board */
+                                "--only-markers 2.5 --out /tmp/x", "--only-markers 0,40 --out /tmp/x",
+                                "--only-markers 3,3 --out /tmp/x",
+                                "--calib-target checkerboard:9x6:8 --only-markers 0 --out /tmp/x",
                                 "--distortion -30,0,0,0,0 --out /tmp/x", "--seed -1 --out /tmp/x",
                                 /* the board: symmetric, misspelt, with a heart's option, too large */
                                 "--calib-target checkerboard:9x7:8 --out /tmp/x", "--calib-target chess:9x6:8 --out /tmp/x",
