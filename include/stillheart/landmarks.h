@@ -218,6 +218,13 @@ typedef struct {
 sh_status sh_landmarks_track(sh_landmarks *lm, const sh_plane *luma, const float *predicted, float *xy,
                              uint8_t *verdict, sh_landmarks_counts *counts);
 
+/* sh_landmarks_track with affine windows whatever params.affine says: the rig's other cameras,
+ * which see the tissue foreshortened unlike the primary, search with the primary's choice and
+ * reference windows. SH_EINVAL when params.neighbours < 2 (the local affine is fitted through the
+ * neighbours). */
+sh_status sh_landmarks_track_affine(sh_landmarks *lm, const sh_plane *luma, const float *predicted, float *xy,
+                                    uint8_t *verdict, sh_landmarks_counts *counts);
+
 /* The luma plane landmarks are chosen and found in: plane 0 of a grey or YUV frame (a view, no
  * copy), or the BT.601 luma of an RGB24 frame computed into buf (made, or made again at another
  * size, as needed; zeroed by the caller before first use, destroyed with sh_image_destroy). */

@@ -55,6 +55,8 @@ struct sh_landmarks {
     float *dist;     /* n: distances from the map (adaptive_bound) */
     float *jac;      /* 4 n: the markers' map's local affine at each landmark (affine) */
     float *warp;     /* 4 n: the forward searches' reference windows' matrices, J^-1, by search */
+    int affine;      /* this frame's searches through the local affine (p.affine, or
+                      * sh_landmarks_track_affine's 1) */
 };
 
 const char *sh_landmark_verdict_name(sh_landmark_verdict v)
@@ -701,7 +703,7 @@ static sh_status searches(const sh_landmarks *lm, int m, const int *idx, const f
     /* with `affine`, the reference's level-0 window sampled through the inverse of the map's
      * local affine: what the frame's window about the match looks like */
     float *warp = NULL;
-    if (p->affine && guess) {
+    if (lm->affine && guess) {
         warp = lm->warp;
         for (int j = 0; j < m; j++) {
             const float *J = lm->jac + 4 * (idx ? idx[j] : j);
@@ -903,8 +905,27 @@ static double adaptive_bound(sh_landmarks *lm, const float *predicted, double fl
     return b > floor_px ? b : floor_px;
 }
 
+static sh_status track(sh_landmarks *lm, const sh_plane *luma, const float *predicted, float *xy, uint8_t *verdict,
+                       sh_landmarks_counts *counts);
+
 sh_status sh_landmarks_track(sh_landmarks *lm, const sh_plane *luma, const float *predicted, float *xy,
                              uint8_t *verdict, sh_landmarks_counts *counts)
+{
+    lm->affine = lm->p.affine;
+    return track(lm, luma, predicted, xy, verdict, counts);
+}
+
+sh_status sh_landmarks_track_affine(sh_landmarks *lm, const sh_plane *luma, const float *predicted, float *xy,
+                                    uint8_t *verdict, sh_landmarks_counts *counts)
+{
+    if (lm->p.neighbours < 2)
+        return sh_error_set(SH_EINVAL, "landmarks: affine windows need neighbours >= 2, not %d", lm->p.neighbours);
+    lm->affine = 1;
+    return track(lm, luma, predicted, xy, verdict, counts);
+}
+
+static sh_status track(sh_landmarks *lm, const sh_plane *luma, const float *predicted, float *xy, uint8_t *verdict,
+                       sh_landmarks_counts *counts)
 {
     if (!luma || luma->width != lm->full_width || luma->height != lm->full_height)
         return sh_error_set(SH_EINVAL, "landmarks: a %dx%d frame for a %dx%d reference", luma ? luma->width : 0,
@@ -921,7 +942,7 @@ sh_status sh_landmarks_track(sh_landmarks *lm, const sh_plane *luma, const float
      * pyramid (with the gradients only when the frame is tracked from, by the backward test) */
     float box[4] = {INFINITY, INFINITY, -INFINITY, -INFINITY};
     const float *start = predicted ? predicted : lm->ref_xy;
-    if (p->affine && predicted) local_affine(lm, predicted);
+    if (lm->affine && predicted) local_affine(lm, predicted);
     for (int i = 0; i < n; i++) box_add(lm, box, start[2 * i], start[2 * i + 1]);
     box_grow(box, (float)p->max_disagreement_px + SEARCH_REACH);
     sh_status st = build_part(lm, luma, box);

@@ -14,8 +14,8 @@
 struct sh_landmarks_rig {
     sh_calib calib;
     int primary, ncam;
-    sh_landmarks *lm;       /* the primary's searches (and the choice) */
-    sh_landmarks *lm_other; /* the other cameras' (affine windows), unless lm's are */
+    sh_landmarks *lm;       /* the choice, and every camera's searches (the others' through
+                             * affine windows: sh_landmarks_track_affine) */
     int n, cap;             /* landmarks; markers a frame at most */
     double *mref, *mcur;    /* cap pairs: the markers a camera's prediction is made from */
     float *pred;            /* n pairs */
@@ -88,8 +88,10 @@ static sh_status match_camera(sh_landmarks_rig *rig, int c, const sh_plane *luma
         return SH_OK;
     }
     for (int i = 0; i < rig->n; i++) onto_epipolar_line(rig, c, &rig->xy[rig->primary][2 * i], &rig->pred[2 * i]);
-    return sh_landmarks_track(rig->lm_other ? rig->lm_other : rig->lm, luma, rig->pred, rig->xy[c], rig->verdict[c],
-                              NULL);
+    /* camera c sees the tissue from elsewhere, its windows foreshortened unlike the primary's: its
+     * searches always warp the reference window by the local affine of the markers' map into it
+     * (measured: docs/landmarks.md, "In 3D") */
+    return sh_landmarks_track_affine(rig->lm, luma, rig->pred, rig->xy[c], rig->verdict[c], NULL);
 }
 
 /* Landmark i in 3D from the primary's position and every other camera that accepted it, into
@@ -173,16 +175,10 @@ sh_status sh_landmarks_rig_create(const sh_landmarks_params *params, const sh_ca
     rig->cap = n;
     sh_hull hull;
     sh_status st = sh_hull_compute(ref_xy, n, &hull);
+    /* the other cameras' affine windows are fitted through the neighbours */
+    if (st == SH_OK && params->neighbours < 2)
+        st = sh_error_set(SH_EINVAL, "landmarks in 3D: the other cameras' affine windows need neighbours >= 2");
     if (st == SH_OK) st = sh_landmarks_create(params, luma[primary], &hull, tags, n_tags, &rig->lm);
-    /* The other cameras see the tissue from elsewhere, its windows foreshortened unlike the
-     * primary's: their searches always warp the reference window by the local affine of the
-     * markers' map into that camera (measured: docs/landmarks.md, "In 3D"). The same choice, as it
-     * does not depend on `affine`. */
-    if (st == SH_OK && !params->affine) {
-        sh_landmarks_params p = *params;
-        p.affine = 1;
-        st = sh_landmarks_create(&p, luma[primary], &hull, tags, n_tags, &rig->lm_other);
-    }
     if (st == SH_OK) {
         rig->n = sh_landmarks_count(rig->lm);
         st = allocate(rig);
@@ -200,7 +196,6 @@ void sh_landmarks_rig_destroy(sh_landmarks_rig *rig)
 {
     if (!rig) return;
     sh_landmarks_destroy(rig->lm);
-    sh_landmarks_destroy(rig->lm_other);
     for (int c = 0; c < MAXCAM; c++) free(rig->xy[c]), free(rig->verdict[c]), sh_interp_mapper_destroy(rig->map[c]);
     free(rig->mref), free(rig->mcur), free(rig->pred), free(rig->X), free(rig->ref_X), free(rig->in3d);
     free(rig);
