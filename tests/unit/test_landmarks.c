@@ -636,6 +636,12 @@ static void test_refusals(void **state)
     float xy[400];
     uint8_t v[200];
     assert_int_equal(sh_landmarks_track(lm, &small.plane[0], NULL, xy, v, NULL), SH_EINVAL);
+    sh_landmarks_destroy(lm);
+    /* affine windows are fitted through the neighbours: none to fit them through */
+    sh_landmarks_params_default(&p);
+    p.neighbours = 1;
+    assert_int_equal(sh_landmarks_create(&p, &ref.plane[0], NULL, NULL, 0, &lm), SH_OK);
+    assert_int_equal(sh_landmarks_track_affine(lm, &ref.plane[0], NULL, xy, v, NULL), SH_EINVAL);
     assert_string_equal(sh_landmark_verdict_name(SH_LANDMARK_BACKWARD), "backward");
     sh_landmarks_destroy(lm);
     sh_image_destroy(&ref);
@@ -788,12 +794,15 @@ static void test_rig_against_closed_form(void **state)
     assert_int_equal(rc.mapped, 0);
     assert_int_equal(sh_landmarks_rig_track(rig, cur_luma, ref_xy, cur_xy, cur_xyz, 10, xy, xyz, use, &rc), SH_EINVAL);
     sh_landmarks_rig_destroy(rig);
-    /* refused: the primary's frame missing, fewer than 3 markers, a primary not in the rig */
+    /* refused: the primary's frame missing, fewer than 3 markers, a primary not in the rig,
+     * neighbours too few for the other cameras' affine windows */
     ref_luma[0] = NULL;
     assert_int_equal(sh_landmarks_rig_create(&p, &calib, 0, ref_luma, ref_xy, ref_xyz, 9, NULL, 0, &rig), SH_EINVAL);
     ref_luma[0] = &ref[0].plane[0];
     assert_int_equal(sh_landmarks_rig_create(&p, &calib, 0, ref_luma, ref_xy, ref_xyz, 2, NULL, 0, &rig), SH_EINVAL);
     assert_int_equal(sh_landmarks_rig_create(&p, &calib, 3, ref_luma, ref_xy, ref_xyz, 9, NULL, 0, &rig), SH_EINVAL);
+    p.neighbours = 1;
+    assert_int_equal(sh_landmarks_rig_create(&p, &calib, 0, ref_luma, ref_xy, ref_xyz, 9, NULL, 0, &rig), SH_EINVAL);
     for (int c = 0; c < RIG_CAMS; c++) sh_image_destroy(&ref[c]), sh_image_destroy(&cur[c]);
 }
 
