@@ -489,36 +489,16 @@ static float median(float *v, int m)
     return m & 1 ? v[m / 2] : 0.5f * (v[m / 2 - 1] + v[m / 2]);
 }
 
-sh_status sh_landmarks_create(const sh_landmarks_params *params, const sh_plane *reference, const sh_hull *hull,
-                              const double *tags, int n_tags, sh_landmarks **out)
+/* The object's buffers, sized once per reference (nothing is allocated per frame). */
+static sh_status allocate(sh_landmarks *lm)
 {
-    sh_status st = check_params(params);
-    if (st != SH_OK) return st;
-    if (!reference || !reference->data || reference->width < 2 || reference->height < 2 || n_tags < 0 ||
-        (n_tags > 0 && !tags))
-        return sh_error_set(SH_EINVAL, "landmarks: no reference plane, or tags missing");
-    sh_landmarks *lm = calloc(1, sizeof *lm);
-    if (!lm) return sh_error_set(SH_ENOMEM, "landmarks: out of memory");
-    lm->p = *params;
-    lm->reduce = sh_landmarks_reduction(params, reference->width, reference->height);
-    lm->full_width = reference->width;
-    lm->full_height = reference->height;
-    lm->width = reference->width >> lm->reduce;
-    lm->height = reference->height >> lm->reduce;
-    if (lm->reduce && (lm->width <= params->flow.win || lm->height <= params->flow.win)) {
-        int k = lm->reduce;
-        free(lm);
-        return sh_error_set(SH_EINVAL, "landmarks: a %dx%d frame halved %d times is no larger than a %d px window",
-                            reference->width, reference->height, k, params->flow.win);
-    }
+    const sh_landmarks_params *params = &lm->p;
     size_t m = (size_t)params->max_points;
-    uint8_t *mask = malloc((size_t)lm->width * lm->height);
     lm->ref_full = malloc(2 * m * sizeof *lm->ref_full);
     lm->pred = malloc(2 * m * sizeof *lm->pred);
-    double *small_tags = lm->reduce && n_tags > 0 ? malloc(8 * (size_t)n_tags * sizeof *small_tags) : NULL;
     if (lm->reduce) {
         lm->small = malloc((size_t)lm->width * lm->height);
-        lm->acc = malloc((size_t)reference->width * sizeof *lm->acc);
+        lm->acc = malloc((size_t)lm->full_width * sizeof *lm->acc);
     }
     lm->ref_xy = malloc(2 * m * sizeof *lm->ref_xy);
     lm->fwd = malloc(2 * m * sizeof *lm->fwd);
@@ -541,13 +521,25 @@ sh_status sh_landmarks_create(const sh_landmarks_params *params, const sh_plane 
     lm->voters = malloc(((size_t)params->neighbours + 1) * sizeof *lm->voters);
     lm->tri_cap = params->neighbours * (params->neighbours - 1) * (params->neighbours - 2) / 6 + 1;
     lm->tri = malloc(2 * (size_t)lm->tri_cap * sizeof *lm->tri);
-    if (!mask || !lm->ref_xy || !lm->fwd || !lm->back || !lm->err || !lm->st_fwd || !lm->st_back || !lm->near ||
+    if (!lm->ref_xy || !lm->fwd || !lm->back || !lm->err || !lm->st_fwd || !lm->st_back || !lm->near ||
         !lm->scratch || !lm->colsum || !lm->prefix || !lm->band || !lm->cols || !lm->redo || !lm->redo_xy ||
-        !lm->redo_st || !lm->voters || !lm->dist || !lm->tri || !lm->ref_full || !lm->pred ||
-        (lm->reduce && (!lm->small || !lm->acc)) || (lm->reduce && n_tags > 0 && !small_tags)) {
-        free(mask);
-        free(small_tags);
-        sh_landmarks_destroy(lm);
+        !lm->redo_st || !lm->voters || !lm->dist || !lm->tri || !lm->ref_full || !lm->pred || !lm->jac ||
+        !lm->warp || (lm->reduce && (!lm->small || !lm->acc)))
+        return sh_error_set(SH_ENOMEM, "landmarks: out of memory");
+    return SH_OK;
+}
+
+/* The choice (landmarks.h): where a window may lie, in the reference reduced (`reduce`) and
+ * band-passed (its gain set here), then the corners there. *band: the plane the reference's
+ * pyramid is built from. */
+static sh_status choose(sh_landmarks *lm, const sh_plane *reference, const sh_hull *hull, const double *tags,
+                        int n_tags, sh_plane *band)
+{
+    const sh_landmarks_params *params = &lm->p;
+    uint8_t *mask = malloc((size_t)lm->width * lm->height);
+    double *small_tags = lm->reduce && n_tags > 0 ? malloc(8 * (size_t)n_tags * sizeof *small_tags) : NULL;
+    if (!mask || (lm->reduce && n_tags > 0 && !small_tags)) {
+        free(mask), free(small_tags);
         return sh_error_set(SH_ENOMEM, "landmarks: out of memory");
     }
     sh_plane ref = *reference;
@@ -561,16 +553,15 @@ sh_status sh_landmarks_create(const sh_landmarks_params *params, const sh_plane 
     }
     const sh_plane bright = lm->reduce ? (sh_plane){mask, lm->width, lm->height, lm->width} : ref;
     uint8_t *allowed = lm->reduce ? lm->band : mask; /* lm->band is free until the band-pass */
-    st = make_mask(params, &bright, lm->reduce, hull, tags, n_tags, allowed);
+    sh_status st = make_mask(params, &bright, lm->reduce, hull, tags, n_tags, allowed);
     if (lm->reduce) memcpy(mask, allowed, (size_t)lm->width * lm->height);
     free(small_tags);
-    /* corners and the reference's pyramid from the band-passed reference (its gain set here) */
-    sh_plane band = ref;
+    *band = ref;
     if (params->band > 0) {
         const int all[4] = {0, 0, lm->width, lm->height};
         band_columns(lm, BAND_FINE, params->band);
         band_pass(lm, &ref, params->band, all);
-        band = (sh_plane){lm->band, lm->width, lm->height, lm->width};
+        *band = (sh_plane){lm->band, lm->width, lm->height, lm->width};
     }
     if (st == SH_OK) {
         sh_flow_corner_params cp;
@@ -579,10 +570,36 @@ sh_status sh_landmarks_create(const sh_landmarks_params *params, const sh_plane 
         cp.quality = params->quality;
         cp.min_distance = params->min_distance;
         sh_plane mp = {mask, lm->width, lm->height, lm->width};
-        st = sh_flow_corners(&band, &mp, &cp, lm->ref_xy, &lm->n);
+        st = sh_flow_corners(band, &mp, &cp, lm->ref_xy, &lm->n);
     }
     free(mask);
     for (int i = 0; st == SH_OK && i < 2 * lm->n; i++) lm->ref_full[i] = to_full(lm->ref_xy[i], lm->reduce);
+    return st;
+}
+
+sh_status sh_landmarks_create(const sh_landmarks_params *params, const sh_plane *reference, const sh_hull *hull,
+                              const double *tags, int n_tags, sh_landmarks **out)
+{
+    sh_status st = check_params(params);
+    if (st != SH_OK) return st;
+    if (!reference || !reference->data || reference->width < 2 || reference->height < 2 || n_tags < 0 ||
+        (n_tags > 0 && !tags))
+        return sh_error_set(SH_EINVAL, "landmarks: no reference plane, or tags missing");
+    int k = sh_landmarks_reduction(params, reference->width, reference->height);
+    if (k && ((reference->width >> k) <= params->flow.win || (reference->height >> k) <= params->flow.win))
+        return sh_error_set(SH_EINVAL, "landmarks: a %dx%d frame halved %d times is no larger than a %d px window",
+                            reference->width, reference->height, k, params->flow.win);
+    sh_landmarks *lm = calloc(1, sizeof *lm);
+    if (!lm) return sh_error_set(SH_ENOMEM, "landmarks: out of memory");
+    lm->p = *params;
+    lm->reduce = k;
+    lm->full_width = reference->width;
+    lm->full_height = reference->height;
+    lm->width = reference->width >> k;
+    lm->height = reference->height >> k;
+    sh_plane band;
+    st = allocate(lm);
+    if (st == SH_OK) st = choose(lm, reference, hull, tags, n_tags, &band);
     if (st == SH_OK && params->neighbours > 0) find_neighbours(lm);
     if (st == SH_OK) st = sh_flow_pyramid_create(lm->width, lm->height, &params->flow, &lm->ref);
     if (st == SH_OK) st = sh_flow_pyramid_create(lm->width, lm->height, &params->flow, &lm->cur);
