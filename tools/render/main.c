@@ -177,6 +177,27 @@ static int parse_list(const char *s, double *out, int max)
     return *s ? -1 : n;
 }
 
+/* A comma-separated list of at most PHANTOM_MAX_MARKERS whole numbers from lo to INT_MAX (--ids,
+ * --only-markers) into out: their count, or 0 with the reason logged. Each is compared as a
+ * double before it is converted: a value beyond int's range would not convert. */
+static int parse_ids(const char *name, const char *s, double lo, const char *what, int *out)
+{
+    double v[PHANTOM_MAX_MARKERS];
+    int n = parse_list(s, v, PHANTOM_MAX_MARKERS);
+    if (n <= 0) {
+        sh_log_error("%s '%s': comma-separated ids, at most %d", name, s, PHANTOM_MAX_MARKERS);
+        return 0;
+    }
+    for (int i = 0; i < n; i++) {
+        if (!(v[i] >= lo && v[i] <= INT_MAX) || v[i] != floor(v[i])) {
+            sh_log_error("%s: '%g' is not %s", name, v[i], what);
+            return 0;
+        }
+        out[i] = (int)v[i];
+    }
+    return n;
+}
+
 static int parse_int(const char *s, long lo, long hi, long *out)
 {
     char *end;
@@ -353,31 +374,14 @@ static int parse_args(int argc, char **argv, render_args *a)
         case O_MARKERS: if (!parse_int(optarg, 1, PHANTOM_MAX_MARKERS, &lv)) BAD("--markers '%s': 1 to %d", optarg, PHANTOM_MAX_MARKERS); o->markers = (int)lv; break;
         case O_TAG: if (!parse_double(optarg, &dv) || !(dv > 0)) BAD("--tag-size '%s': millimetres > 0", optarg); o->tag_size = dv; break;
         case O_FAMILY: o->family = optarg; break;
-        case O_IDS: {
-            double v[PHANTOM_MAX_MARKERS];
-            int n = parse_list(optarg, v, PHANTOM_MAX_MARKERS);
-            if (n <= 0) BAD("--ids '%s': comma-separated ids, at most %d", optarg, PHANTOM_MAX_MARKERS);
-            for (int i = 0; i < n; i++) {
-                /* compared as a double first: a value beyond int's range would not convert */
-                if (!(v[i] >= INT_MIN && v[i] <= INT_MAX) || v[i] != floor(v[i])) BAD("--ids: '%g' is not an integer", v[i]);
-                a->ids[i] = (int)v[i];
-            }
+        case O_IDS:
+            if (!(o->num_ids = parse_ids("--ids", optarg, INT_MIN, "an integer", a->ids))) return 2;
             o->ids = a->ids;
-            o->num_ids = n;
             break;
-        }
-        case O_ONLY: {
-            double v[PHANTOM_MAX_MARKERS];
-            int n = parse_list(optarg, v, PHANTOM_MAX_MARKERS);
-            if (n <= 0) BAD("--only-markers '%s': comma-separated ids, at most %d", optarg, PHANTOM_MAX_MARKERS);
-            for (int i = 0; i < n; i++) {
-                if (!(v[i] >= 0 && v[i] <= INT_MAX) || v[i] != floor(v[i])) BAD("--only-markers: '%g' is not an id", v[i]);
-                a->only[i] = (int)v[i];
-            }
+        case O_ONLY:
+            if (!(o->num_only = parse_ids("--only-markers", optarg, 0, "an id", a->only))) return 2;
             o->only = a->only;
-            o->num_only = n;
             break;
-        }
         case O_FPS: if (!parse_double(optarg, &dv) || !(dv > 0 && dv <= 1000)) BAD("--fps '%s': 0 to 1000", optarg); o->fps = dv; break;
         case O_DIST: if (parse_list(optarg, a->dist, 5) != 5) BAD("--distortion '%s': five numbers k1,k2,p1,p2,k3", optarg); o->dist = a->dist; break;
         case O_NOISE: if (!parse_double(optarg, &dv) || !(dv >= 0 && dv <= 100)) BAD("--noise '%s': 0 to 100 DN", optarg); o->noise = dv; break;
