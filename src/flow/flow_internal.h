@@ -48,6 +48,15 @@ void flow_window_mismatch(const flow_level *l, int ix, int iy, const int w[4], i
                           const int16_t *I, const int16_t *gx, const int16_t *gy, int64_t b[2]);
 /* The sum of |d| over the window: OpenCV's error measure, once per point and search. */
 int64_t flow_window_abs_mismatch(const flow_level *l, int ix, int iy, const int w[4], int win, const int16_t *I);
+/* The previous frame's window sampled through a 2x2 matrix (sh_flow_track_windows_warped):
+ * (win + 2)^2 bilinear samples of level l at 16.16 fixed-point positions start + x col + y row
+ * (offset by pad: every one >= 0; each sample's weights its fractions rounded to 1/128 px), in
+ * 1/32 grey levels; the inner win x win of them into I, their own Scharr gradients (descaled to
+ * the pyramid's units) into gx, gy, and the sums of gx^2, gx*gy, gy^2 into a, as
+ * flow_window_prev. The caller has checked that every sample and its bilinear neighbour lie in
+ * the level's built pixels. */
+void flow_window_prev_warped(const flow_level *l, int pad, const int32_t start[2], const int32_t col[2],
+                             const int32_t row[2], int win, int16_t *I, int16_t *gx, int16_t *gy, int64_t a[3]);
 /* The C definitions each computes bit for bit (the SIMD ones are what the two above run on
  * x86-64 and AArch64; test_flow_simd compares them). */
 void flow_window_prev_portable(const flow_level *l, int ix, int iy, const int w[4], int win,
@@ -57,6 +66,9 @@ void flow_window_mismatch_portable(const flow_level *l, int ix, int iy, const in
                                    int64_t b[2]);
 int64_t flow_window_abs_mismatch_portable(const flow_level *l, int ix, int iy, const int w[4], int win,
                                           const int16_t *I);
+void flow_window_prev_warped_portable(const flow_level *l, int pad, const int32_t start[2], const int32_t col[2],
+                                      const int32_t row[2], int win, int16_t *I, int16_t *gx, int16_t *gy,
+                                      int64_t a[3]);
 
 #if defined(__x86_64__) && defined(__SSE2__) && defined(__GNUC__)
 #define FLOW_X86 1
@@ -73,6 +85,10 @@ int64_t flow_window_abs_mismatch_sse2(const flow_level *l, int ix, int iy, const
                                       const int16_t *I);
 int64_t flow_window_abs_mismatch_avx512(const flow_level *l, int ix, int iy, const int w[4], int win,
                                         const int16_t *I);
+/* flow_window_prev_warped on 16 lanes (gathers), where flow_window_avx512() */
+void flow_window_prev_warped_avx512(const flow_level *l, int pad, const int32_t start[2], const int32_t col[2],
+                                    const int32_t row[2], int win, int16_t *I, int16_t *gx, int16_t *gy,
+                                    int64_t a[3]);
 #endif
 
 /* The index a mirror border (x -> -x, n-1+k -> n-1-k) gives to x, for any x and n >= 1. */

@@ -80,18 +80,13 @@ static int sample_prev(const flow_level *L0, float px, float py, int lv, int win
 
 /* The previous frame's level-0 window about (px, py) sampled through the 2x2 matrix M (row
  * major): T(d) = prev(p + M d) for the window's offsets d, with T's own Scharr gradients and their
- * sums (sh_flow_track_windows_warped says why). The positions step in 16.16 fixed point from the
- * window's corner, and each sample's bilinear weights are its fractions rounded to 1/128 px (7
- * bits each way, 14 bits together, as the other samplers' weights): integers only, so every
- * architecture gets the same template, within 1/256 px of where M puts each sample. The
- * template is sampled a pixel wider on each side than the window, so that the gradients of its
- * border pixels are its own; they are those of the 8-bit image in Scharr units, as the
- * pyramid's (the template is in 1/32 grey levels: the Scharr sum descaled by 5 bits). */
+ * sums (sh_flow_track_windows_warped says why; flow_window_prev_warped samples it). Here: whether
+ * the samples' box may be read, and where they start and step, in 16.16 fixed point offset by the
+ * pad so that every position is >= 0 and shifts floor it. */
 static int sample_prev_warped(const flow_level *L, int pad, float px, float py, int win, const float M[4],
                               int16_t *I, int16_t *gx, int16_t *gy, int64_t sum[3])
 {
-    enum { T = SH_FLOW_MAX_WIN + 2 };
-    const int side = win + 2, h = win / 2 + 1, wr = FLOW_WROW(win);
+    const int h = win / 2 + 1;
     /* the samples' box: the template's corners, and the bilinear neighbour */
     const double ex = h * (fabs((double)M[0]) + fabs((double)M[1])), ey = h * (fabs((double)M[2]) + fabs((double)M[3]));
     if (!(px - ex >= (double)-pad && px + ex + 1 < (double)(L->width + pad) && py - ey >= (double)-pad &&
@@ -101,41 +96,12 @@ static int sample_prev_warped(const flow_level *L, int pad, float px, float py, 
     if (!((int)floor(px - ex) >= b[0] && (int)floor(py - ey) >= b[1] && (int)floor(px + ex) + 2 <= b[2] &&
           (int)floor(py + ey) + 2 <= b[3]))
         return PREV_UNBUILT;
-    /* fixed point, offset by the pad so that every position is >= 0 and shifts floor it */
     const double one = 65536.0;
-    const int32_t sxx = (int32_t)lrint(M[0] * one), syx = (int32_t)lrint(M[2] * one);
-    const int32_t sxy = (int32_t)lrint(M[1] * one), syy = (int32_t)lrint(M[3] * one);
-    int32_t rx = (int32_t)lrint((px + pad - h * ((double)M[0] + (double)M[1])) * one);
-    int32_t ry = (int32_t)lrint((py + pad - h * ((double)M[2] + (double)M[3])) * one);
-    int16_t t[T * T];
-    const int st = L->stride;
-    for (int y = 0; y < side; y++, rx += sxy, ry += syy) {
-        int32_t X = rx, Y = ry;
-        for (int x = 0; x < side; x++, X += sxx, Y += syx) {
-            int fx = ((X & 0xffff) + 256) >> 9, fy = ((Y & 0xffff) + 256) >> 9; /* 0..128 */
-            const uint8_t *q = L->img + (ptrdiff_t)((Y >> 16) - pad) * st + ((X >> 16) - pad);
-            int v = (q[0] * (128 - fx) + q[1] * fx) * (128 - fy) + (q[st] * (128 - fx) + q[st + 1] * fx) * fy;
-            t[y * T + x] = (int16_t)DESCALE(v, W_BITS - 5);
-        }
-    }
-    int64_t s11 = 0, s12 = 0, s22 = 0;
-    for (int y = 0; y < win; y++) {
-        const int16_t *a = t + y * T, *m = a + T, *c = m + T;
-        for (int x = 0; x < win; x++) {
-            int dx = 3 * (a[x + 2] - a[x] + c[x + 2] - c[x]) + 10 * (m[x + 2] - m[x]);
-            int dy = 3 * (c[x] - a[x] + c[x + 2] - a[x + 2]) + 10 * (c[x + 1] - a[x + 1]);
-            dx = DESCALE(dx, 5);
-            dy = DESCALE(dy, 5);
-            I[y * wr + x] = m[x + 1];
-            gx[y * wr + x] = (int16_t)dx;
-            gy[y * wr + x] = (int16_t)dy;
-            s11 += dx * dx;
-            s12 += dx * dy;
-            s22 += dy * dy;
-        }
-        for (int x = win; x < wr; x++) I[y * wr + x] = gx[y * wr + x] = gy[y * wr + x] = 0;
-    }
-    sum[0] = s11, sum[1] = s12, sum[2] = s22;
+    const int32_t col[2] = {(int32_t)lrint(M[0] * one), (int32_t)lrint(M[2] * one)};
+    const int32_t row[2] = {(int32_t)lrint(M[1] * one), (int32_t)lrint(M[3] * one)};
+    const int32_t start[2] = {(int32_t)lrint((px + pad - h * ((double)M[0] + (double)M[1])) * one),
+                              (int32_t)lrint((py + pad - h * ((double)M[2] + (double)M[3])) * one)};
+    flow_window_prev_warped(L, pad, start, col, row, win, I, gx, gy, sum);
     return PREV_SAMPLED;
 }
 

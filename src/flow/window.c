@@ -2,7 +2,9 @@
  * (once per point and level) and comparing the next frame's with it (once per step); and the
  * error measure (once per point and search). Each has a portable C definition and an 8-lane
  * version for SSE2 (part of x86-64) and, but the error measure, NEON (part of AArch64); the two
- * comparisons also a 32-lane AVX-512 one, chosen at run time. All compute the same integers:
+ * comparisons also a 32-lane AVX-512 one, chosen at run time. The affine windows' sampling
+ * through a matrix (once per point and frame) has a portable definition and a 16-lane AVX-512
+ * one, which gathers its samples. All compute the same integers:
  * every product and sum is exact, so the SIMD and the portable results are equal bit for bit
  * (test_flow_simd), and make bench (bench_flow, bench_landmarks) shows what the lanes buy.
  *
@@ -80,6 +82,52 @@ int64_t flow_window_abs_mismatch_portable(const flow_level *l, int ix, int iy, c
         }
     }
     return sa;
+}
+
+/* The warped template's side: the window and a pixel each side, for the gradients of its border */
+#define WARP_T (SH_FLOW_MAX_WIN + 2)
+
+/* The positions step in 16.16 fixed point from the template's corner, and each sample's
+ * bilinear weights are its fractions rounded to 1/128 px (7 bits each way, 14 bits together, as
+ * the other samplers' weights): integers only, so every architecture gets the same template,
+ * within 1/256 px of where the matrix puts each sample. The template is sampled a pixel wider on
+ * each side than the window, so that the gradients of its border pixels are its own; they are
+ * those of the 8-bit image in Scharr units, as the pyramid's (the template is in 1/32 grey
+ * levels: the Scharr sum descaled by 5 bits). */
+void flow_window_prev_warped_portable(const flow_level *l, int pad, const int32_t start[2], const int32_t col[2],
+                                      const int32_t row[2], int win, int16_t *I, int16_t *gx, int16_t *gy,
+                                      int64_t a[3])
+{
+    const int side = win + 2, wr = FLOW_WROW(win), st = l->stride;
+    int16_t t[WARP_T * WARP_T];
+    int32_t rx = start[0], ry = start[1];
+    for (int y = 0; y < side; y++, rx += row[0], ry += row[1]) {
+        int32_t X = rx, Y = ry;
+        for (int x = 0; x < side; x++, X += col[0], Y += col[1]) {
+            int fx = ((X & 0xffff) + 256) >> 9, fy = ((Y & 0xffff) + 256) >> 9; /* 0..128 */
+            const uint8_t *q = l->img + (ptrdiff_t)((Y >> 16) - pad) * st + ((X >> 16) - pad);
+            int v = (q[0] * (128 - fx) + q[1] * fx) * (128 - fy) + (q[st] * (128 - fx) + q[st + 1] * fx) * fy;
+            t[y * WARP_T + x] = (int16_t)DESCALE(v, W_BITS - 5);
+        }
+    }
+    int64_t s11 = 0, s12 = 0, s22 = 0;
+    for (int y = 0; y < win; y++) {
+        const int16_t *u = t + y * WARP_T, *m = u + WARP_T, *c = m + WARP_T;
+        for (int x = 0; x < win; x++) {
+            int dx = 3 * (u[x + 2] - u[x] + c[x + 2] - c[x]) + 10 * (m[x + 2] - m[x]);
+            int dy = 3 * (c[x] - u[x] + c[x + 2] - u[x + 2]) + 10 * (c[x + 1] - u[x + 1]);
+            dx = DESCALE(dx, 5);
+            dy = DESCALE(dy, 5);
+            I[y * wr + x] = m[x + 1];
+            gx[y * wr + x] = (int16_t)dx;
+            gy[y * wr + x] = (int16_t)dy;
+            s11 += dx * dx;
+            s12 += dx * dy;
+            s22 += dy * dy;
+        }
+        for (int x = win; x < wr; x++) I[y * wr + x] = gx[y * wr + x] = gy[y * wr + x] = 0;
+    }
+    a[0] = s11, a[1] = s12, a[2] = s22;
 }
 
 #if defined(__SSE2__)
@@ -276,6 +324,103 @@ flow_window_abs_mismatch_avx512(const flow_level *l, int ix, int iy, const int w
     return _mm512_reduce_add_epi32(q);
 }
 
+/* flow_window_prev_warped_portable on 16 lanes of 32 bits: a template row's positions, weights
+ * and offsets side by side, its 2x2 neighbours gathered as two 32-bit words a sample (the bytes at
+ * the sample and the row below; the two bytes past each are read and ignored: they lie in the
+ * pad, the next row or the plane's FLOW_SLACK), then the Scharr sums and the window's values.
+ * Every product is the portable one's, exact in 32 bits (a sample's weighted sum is at most
+ * 255 * 2^14; a gradient at most 4080, so a lane adds at most 4 * 4080^2 a row); the sums are
+ * added into 64 bits a row. */
+__attribute__((target("avx512f,avx512bw"))) void
+flow_window_prev_warped_avx512(const flow_level *l, int pad, const int32_t start[2], const int32_t col[2],
+                               const int32_t row[2], int win, int16_t *I, int16_t *gx, int16_t *gy, int64_t a[3])
+{
+    const int side = win + 2, wr = FLOW_WROW(win), st = l->stride;
+    int16_t t[WARP_T * WARP_T];
+    const __m512i lane = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+    const __m512i lo16 = _mm512_set1_epi32(0xffff), byte = _mm512_set1_epi32(0xff), w128 = _mm512_set1_epi32(128);
+    const __m512i half = _mm512_set1_epi32(256), padv = _mm512_set1_epi32(pad), stv = _mm512_set1_epi32(st);
+    const __m512i cx = _mm512_set1_epi32(col[0]), cy = _mm512_set1_epi32(col[1]);
+    {
+        /* the samples' box, its rows fetched at once: the gathers below would wait for them one
+         * row at a time */
+        int32_t xs[4] = {start[0], start[0] + (side - 1) * col[0], start[0] + (side - 1) * row[0],
+                         start[0] + (side - 1) * (col[0] + row[0])};
+        int32_t ys[4] = {start[1], start[1] + (side - 1) * col[1], start[1] + (side - 1) * row[1],
+                         start[1] + (side - 1) * (col[1] + row[1])};
+        int32_t x0 = xs[0], x1 = xs[0], y0 = ys[0], y1 = ys[0];
+        for (int c = 1; c < 4; c++) {
+            x0 = xs[c] < x0 ? xs[c] : x0, x1 = xs[c] > x1 ? xs[c] : x1;
+            y0 = ys[c] < y0 ? ys[c] : y0, y1 = ys[c] > y1 ? ys[c] : y1;
+        }
+        const uint8_t *b = l->img + (ptrdiff_t)((y0 >> 16) - pad) * st + ((x0 >> 16) - pad);
+        const int cols = (x1 >> 16) - (x0 >> 16) + 2, rows = (y1 >> 16) - (y0 >> 16) + 2;
+        for (int r = 0; r < rows; r++) {
+            for (int c = 0; c < cols; c += 64) _mm_prefetch((const char *)(b + (ptrdiff_t)r * st + c), _MM_HINT_T0);
+            _mm_prefetch((const char *)(b + (ptrdiff_t)r * st + cols - 1), _MM_HINT_T0);
+        }
+    }
+    int32_t rx = start[0], ry = start[1];
+    for (int y = 0; y < side; y++, rx += row[0], ry += row[1]) {
+        for (int x = 0; x < side; x += 16) {
+            const int left = side - x;
+            const __mmask16 k = left >= 16 ? 0xffff : (__mmask16)((1u << left) - 1);
+            const __m512i n = _mm512_add_epi32(lane, _mm512_set1_epi32(x));
+            const __m512i X = _mm512_add_epi32(_mm512_set1_epi32(rx), _mm512_mullo_epi32(n, cx));
+            const __m512i Y = _mm512_add_epi32(_mm512_set1_epi32(ry), _mm512_mullo_epi32(n, cy));
+            const __m512i fx = _mm512_srli_epi32(_mm512_add_epi32(_mm512_and_si512(X, lo16), half), 9);
+            const __m512i fy = _mm512_srli_epi32(_mm512_add_epi32(_mm512_and_si512(Y, lo16), half), 9);
+            const __m512i off = _mm512_add_epi32(_mm512_mullo_epi32(_mm512_sub_epi32(_mm512_srai_epi32(Y, 16), padv), stv),
+                                                 _mm512_sub_epi32(_mm512_srai_epi32(X, 16), padv));
+            const __m512i g0 = _mm512_mask_i32gather_epi32(_mm512_setzero_si512(), k, off, l->img, 1);
+            const __m512i g1 = _mm512_mask_i32gather_epi32(_mm512_setzero_si512(), k, _mm512_add_epi32(off, stv), l->img, 1);
+            const __m512i gx0 = _mm512_sub_epi32(w128, fx), gy0 = _mm512_sub_epi32(w128, fy);
+            const __m512i top = _mm512_add_epi32(_mm512_mullo_epi32(_mm512_and_si512(g0, byte), gx0),
+                                                 _mm512_mullo_epi32(_mm512_and_si512(_mm512_srli_epi32(g0, 8), byte), fx));
+            const __m512i bot = _mm512_add_epi32(_mm512_mullo_epi32(_mm512_and_si512(g1, byte), gx0),
+                                                 _mm512_mullo_epi32(_mm512_and_si512(_mm512_srli_epi32(g1, 8), byte), fx));
+            __m512i v = _mm512_add_epi32(_mm512_mullo_epi32(top, gy0), _mm512_mullo_epi32(bot, fy));
+            v = _mm512_srai_epi32(_mm512_add_epi32(v, half), W_BITS - 5);
+            _mm512_mask_storeu_epi16(t + y * WARP_T + x, (__mmask32)k, _mm512_castsi256_si512(_mm512_cvtepi32_epi16(v)));
+        }
+    }
+#define LOAD16(p) _mm512_cvtepi16_epi32(_mm512_castsi512_si256(_mm512_maskz_loadu_epi16((__mmask32)k, (p))))
+    const __m512i r5 = _mm512_set1_epi32(16), three = _mm512_set1_epi32(3), ten = _mm512_set1_epi32(10);
+    int64_t s11 = 0, s12 = 0, s22 = 0;
+    for (int y = 0; y < win; y++) {
+        const int16_t *u = t + y * WARP_T, *m = u + WARP_T, *c = m + WARP_T;
+        __m512i q11 = _mm512_setzero_si512(), q12 = q11, q22 = q11;
+        for (int x = 0; x < wr; x += 16) {
+            const int left = win - x, room = wr - x;
+            /* lanes past the side: every load zero, so every value stored there is zero */
+            const __mmask16 k = left >= 16 ? 0xffff : left <= 0 ? 0 : (__mmask16)((1u << left) - 1);
+            const __mmask16 ks = room >= 16 ? 0xffff : (__mmask16)((1u << room) - 1);
+            const __m512i u0 = LOAD16(u + x), u1 = LOAD16(u + x + 1), u2 = LOAD16(u + x + 2);
+            const __m512i m0 = LOAD16(m + x), m1 = LOAD16(m + x + 1), m2 = LOAD16(m + x + 2);
+            const __m512i c0 = LOAD16(c + x), c1 = LOAD16(c + x + 1), c2 = LOAD16(c + x + 2);
+            __m512i dx = _mm512_add_epi32(
+                _mm512_mullo_epi32(three, _mm512_add_epi32(_mm512_sub_epi32(u2, u0), _mm512_sub_epi32(c2, c0))),
+                _mm512_mullo_epi32(ten, _mm512_sub_epi32(m2, m0)));
+            __m512i dy = _mm512_add_epi32(
+                _mm512_mullo_epi32(three, _mm512_add_epi32(_mm512_sub_epi32(c0, u0), _mm512_sub_epi32(c2, u2))),
+                _mm512_mullo_epi32(ten, _mm512_sub_epi32(c1, u1)));
+            dx = _mm512_srai_epi32(_mm512_add_epi32(dx, r5), 5);
+            dy = _mm512_srai_epi32(_mm512_add_epi32(dy, r5), 5);
+            _mm512_mask_storeu_epi16(I + y * wr + x, (__mmask32)ks, _mm512_castsi256_si512(_mm512_cvtepi32_epi16(m1)));
+            _mm512_mask_storeu_epi16(gx + y * wr + x, (__mmask32)ks, _mm512_castsi256_si512(_mm512_cvtepi32_epi16(dx)));
+            _mm512_mask_storeu_epi16(gy + y * wr + x, (__mmask32)ks, _mm512_castsi256_si512(_mm512_cvtepi32_epi16(dy)));
+            q11 = _mm512_add_epi32(q11, _mm512_mullo_epi32(dx, dx));
+            q12 = _mm512_add_epi32(q12, _mm512_mullo_epi32(dx, dy));
+            q22 = _mm512_add_epi32(q22, _mm512_mullo_epi32(dy, dy));
+        }
+        s11 += _mm512_reduce_add_epi32(q11);
+        s12 += _mm512_reduce_add_epi32(q12);
+        s22 += _mm512_reduce_add_epi32(q22);
+    }
+#undef LOAD16
+    a[0] = s11, a[1] = s12, a[2] = s22;
+}
+
 /* A window row, up to 32 columns, a step: the SSE2 loop's arithmetic on 32 lanes (unpack and pack
  * stay within each 128-bit lane, so the lanes come back in order). The loads are masked to the
  * window's columns: past the side every sample, template value and gradient is zero, and nothing
@@ -465,3 +610,15 @@ void flow_window_mismatch(const flow_level *l, int ix, int iy, const int w[4], i
     flow_window_mismatch_portable(l, ix, iy, w, win, I, gx, gy, b);
 }
 #endif
+
+void flow_window_prev_warped(const flow_level *l, int pad, const int32_t start[2], const int32_t col[2],
+                             const int32_t row[2], int win, int16_t *I, int16_t *gx, int16_t *gy, int64_t a[3])
+{
+#ifdef FLOW_X86
+    if (flow_window_avx512()) {
+        flow_window_prev_warped_avx512(l, pad, start, col, row, win, I, gx, gy, a);
+        return;
+    }
+#endif
+    flow_window_prev_warped_portable(l, pad, start, col, row, win, I, gx, gy, a);
+}

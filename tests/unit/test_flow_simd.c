@@ -8,6 +8,7 @@
 #include <stdarg.h>
 #include <stddef.h>
 #include <stdint.h>
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -88,10 +89,10 @@ static void compare(int win, int extreme, int trials)
     level_make(&m, w, h, win, extreme);
     level_make(&n, w, h, win, extreme);
     size_t cells = (size_t)win * (size_t)wr;
-    int16_t *I0 = malloc(cells * 2), *X0 = malloc(cells * 2), *Y0 = malloc(cells * 2);
-    int16_t *I1 = malloc(cells * 2), *X1 = malloc(cells * 2), *Y1 = malloc(cells * 2);
-    assert_non_null(I0);
-    assert_non_null(Y1);
+    /* both results' pixels and gradients, one block */
+    int16_t *block = malloc(6 * cells * 2);
+    assert_non_null(block);
+    int16_t *I0 = block, *X0 = I0 + cells, *Y0 = X0 + cells, *I1 = Y0 + cells, *X1 = I1 + cells, *Y1 = X1 + cells;
     for (int t = 0; t < trials; t++) {
         /* a window's corner anywhere the tracker may put it: -win .. size - 1 */
         int ix = (int)(next_u32() % (uint32_t)(w + win)) - win;
@@ -128,14 +129,64 @@ static void compare(int win, int extreme, int trials)
         }
 #endif
     }
-    free(I0);
-    free(X0);
-    free(Y0);
-    free(I1);
-    free(X1);
-    free(Y1);
+    free(block);
     level_free(&m);
     level_free(&n);
+}
+
+/* The warped window (sh_flow_track_windows_warped's level-0 template): random 2x2 matrices that
+ * turn, shear and scale the window by up to 2 (the landmarks refuse more), from random starts
+ * that keep every sample and its neighbour inside the padded level, as lk.c checks before it
+ * samples. The dispatched loop (AVX-512 where the CPU has it) against the portable one. */
+static void compare_warped(int win, int extreme, int trials)
+{
+    const int w = 97, h = 71, wr = FLOW_WROW(win), pad = win;
+    level_mem m;
+    level_make(&m, w, h, pad, extreme);
+    size_t cells = (size_t)win * (size_t)wr;
+    /* both results' pixels and gradients, one block */
+    int16_t *block = malloc(6 * cells * 2);
+    assert_non_null(block);
+    int16_t *I0 = block, *X0 = I0 + cells, *Y0 = X0 + cells, *I1 = Y0 + cells, *X1 = I1 + cells, *Y1 = X1 + cells;
+    int compared = 0;
+    for (int t = 0; t < trials; t++) {
+        double M[4];
+        for (int k = 0; k < 4; k++) M[k] = ((double)(next_u32() % 2001) / 1000.0 - 1.0) * (k == 0 || k == 3 ? 1.0 : 0.7);
+        M[0] += 1.0, M[3] += 1.0;
+        const double one = 65536.0, hw = win / 2 + 1;
+        const int32_t col[2] = {(int32_t)lrint(M[0] * one), (int32_t)lrint(M[2] * one)};
+        const int32_t row[2] = {(int32_t)lrint(M[1] * one), (int32_t)lrint(M[3] * one)};
+        /* the samples' reach from the centre, as lk.c bounds it */
+        const double ex = hw * (fabs(M[0]) + fabs(M[1])), ey = hw * (fabs(M[2]) + fabs(M[3]));
+        const double lox = -pad + ex, hix = w + pad - ex - 2, loy = -pad + ey, hiy = h + pad - ey - 2;
+        if (!(hix > lox && hiy > loy)) continue;
+        const double px = lox + (hix - lox) * (double)(next_u32() % 10007) / 10007.0;
+        const double py = loy + (hiy - loy) * (double)(next_u32() % 10007) / 10007.0;
+        const int32_t start[2] = {(int32_t)lrint((px + pad - hw * (M[0] + M[1])) * one),
+                                  (int32_t)lrint((py + pad - hw * (M[2] + M[3])) * one)};
+        int64_t a0[3], a1[3];
+        memset(I1, 0x55, cells * 2);
+        memset(X1, 0x55, cells * 2);
+        memset(Y1, 0x55, cells * 2);
+        flow_window_prev_warped_portable(&m.l, pad, start, col, row, win, I0, X0, Y0, a0);
+        flow_window_prev_warped(&m.l, pad, start, col, row, win, I1, X1, Y1, a1);
+        assert_memory_equal(I0, I1, cells * 2);
+        assert_memory_equal(X0, X1, cells * 2);
+        assert_memory_equal(Y0, Y1, cells * 2);
+        assert_memory_equal(a0, a1, sizeof a0);
+        compared++;
+    }
+    assert_true(compared >= trials / 2); /* the level has room for most matrices */
+    free(block);
+    level_free(&m);
+}
+
+static void test_warped_every_window_side(void **state)
+{
+    (void)state;
+    for (int win = 5; win <= SH_FLOW_MAX_WIN; win += 2) compare_warped(win, 0, 60);
+    compare_warped(SH_FLOW_MAX_WIN, 1, 200);
+    compare_warped(21, 1, 200);
 }
 
 static void test_every_window_side(void **state)
@@ -163,6 +214,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_every_window_side),
         cmocka_unit_test(test_extremes),
+        cmocka_unit_test(test_warped_every_window_side),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
