@@ -130,6 +130,16 @@ sh_status sh_flow_track_windows_warped(const sh_flow_params *params, const sh_fl
                                        const float *guess, const float *warp, float *out,
                                        uint8_t *status, float *err);
 
+/* The mean absolute difference, in grey levels, of two side x side windows of level 0: prev's
+ * centred at (px, py) and next's at (qx, qy), each sampled with the searches' bilinear weights
+ * (14 bits) in 1/32 grey levels, as sh_flow_track's error measure is over its whole window. NaN
+ * where a window is not inside the part of its pyramid that was built (a window may reach one
+ * window's width past the level's edge, into the mirrored border), or side is not odd in
+ * 1..SH_FLOW_MAX_WIN. The landmarks' test of the window's centre: whether the point itself, not
+ * only most of the window around it, looks as it did. */
+float sh_flow_window_difference(const sh_flow_pyramid *prev, float px, float py, const sh_flow_pyramid *next,
+                                float qx, float qy, int side);
+
 typedef struct {
     int max_points;      /* at most this many, strongest first */
     double quality;      /* relative to the strongest response in the mask (0.01) */

@@ -40,11 +40,14 @@
  *  - LOST: Lucas-Kanade kept it (its window textured enough, inside the image), both ways;
  *  - PHOTOMETRIC: the two windows at the result differ by at most max_photometric grey levels
  *    (mean absolute difference): an occluder replaces the window's content, and the difference
- *    becomes the texture's own contrast;
+ *    becomes the texture's own contrast; and so do their centres (`core`), so that a point an
+ *    occluder's edge covers is refused even when the rest of its window matches;
  *  - BACKWARD: found again from the result back in the reference, it lands within
  *    max_backward_px of where it started (Kalal, Mikolajczyk and Matas, "Forward-backward error:
  *    automatic detection of tracking failures", ICPR 2010): the backward search starts from the
- *    prediction's inverse, not from the answer, so a window that fits two places fails it;
+ *    prediction's inverse, not from the answer, so a window that fits two places fails it (on
+ *    back_levels pyramid levels: the inverse of a prediction that is within the disagreement
+ *    bound of the result is within it of the answer);
  *  - DISAGREES: it lies within max_disagreement_px of the markers' prediction: a landmark that
  *    disagrees with the map by more than the map's own expected error is dropped, not averaged
  *    in (with bound_factor, that error is measured on the frame: sh_landmarks_params_sparse);
@@ -54,10 +57,10 @@
  *    own error is smooth between the markers, so neighbours that are right correct it alike;
  *    one whose window matched the wrong place, consistently both ways and within the map's
  *    reach, stands out. This test needs a prediction.
- * With `affine`, the forward search's finest reference window is sampled through the inverse of
- * the markers' map's local affine at the landmark: a translation-only search is biased where the
- * tissue deforms across its window, which is where most landmarks accepted more than 1 px off
- * were (docs/landmarks.md, "The tail").
+ * With `affine` (the default since 2026-12-06), the forward search's finest reference window is
+ * sampled through the inverse of the markers' map's local affine at the landmark: a
+ * translation-only search is biased where the tissue deforms across its window, which is where
+ * most landmarks accepted more than 1 px off were (docs/landmarks.md, "The tail").
  * Only the part of the frame the searches read is band-passed and put in the pyramid: the part
  * around the box of the predictions grown by the disagreement bound and 8 px
  * (sh_flow_pyramid_build_box). A search that leaves it is done again on a larger part around
@@ -143,8 +146,16 @@ typedef struct {
                                  * through the inverse of the markers' map's local affine at the
                                  * landmark (the least-squares affine of the predictions of it and
                                  * its neighbours), so that a translation matches a window that the
-                                 * tissue sheared or scaled (sh_flow_track_windows_warped); needs a
-                                 * prediction and neighbours >= 2 (0: square windows) */
+                                 * tissue sheared or scaled (sh_flow_track_windows_warped); needs
+                                 * neighbours >= 2, and is used where there is a prediction (0:
+                                 * square windows). The default */
+    int back_levels;            /* pyramid levels above the frame of the backward search, 0 to
+                                 * flow.levels (0); -1: flow.levels, as the forward search (the
+                                 * sparse tests': their predictions may be 10 px off, and so is the
+                                 * backward search's start) */
+    int core;                   /* side of the windows' centre whose difference (mean absolute,
+                                 * sh_flow_window_difference) is held to max_photometric too: odd,
+                                 * 1 to flow.win (7); 0: not tested */
     int reduce;                 /* halvings of the frame before anything else: the landmarks
                                  * are chosen and found in the frame averaged over blocks of
                                  * 2^reduce x 2^reduce pixels, and every length above (and the
@@ -163,7 +174,7 @@ typedef struct {
 void sh_landmarks_params_default(sh_landmarks_params *p);
 /* The defaults changed for a markers' map that may lie farther from the tissue than the
  * defaults' 3 px (four markers at the corners of the field): bound_factor 4, plane 1 and
- * 3 pyramid levels. */
+ * 3 pyramid levels, for both searches. */
 void sh_landmarks_params_sparse(sh_landmarks_params *p);
 /* Those changes alone, made to p in place (the other parameters as they are). */
 void sh_landmarks_params_make_sparse(sh_landmarks_params *p);

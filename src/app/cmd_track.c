@@ -55,9 +55,10 @@ static void usage(FILE *out)
         "                     disagreement bound follows the map's error measured on each frame,\n"
         "                     the neighbour test expects a plane, and the searches use 3\n"
         "                     pyramid levels, not 1 (docs/landmarks.md)\n"
-        "  --landmarks-affine with --landmarks, the forward search's reference window warped by\n"
-        "                     the markers' map's local affine at each landmark: fewer landmarks\n"
-        "                     over 1 px off where the tissue deforms (docs/landmarks.md)\n"
+        "  --landmarks-square with --landmarks, the forward search's reference window square, not\n"
+        "                     warped by the markers' map's local affine at each landmark (the\n"
+        "                     default since 2026-12-06, with a third as many landmarks over 1 px\n"
+        "                     off where the tissue deforms: docs/landmarks.md)\n"
         "  --stats            tracking figures on standard error at the end\n"
         "  --json             with --stats: the figures as one JSON object, the last line on\n"
         "                     standard error (standard output carries the points): frames,\n"
@@ -123,7 +124,7 @@ typedef struct {
     int measured_only, stats, json;
     int landmarks; /* --landmarks N; 0: none */
     int landmarks_sparse; /* --landmarks-sparse */
-    int landmarks_affine; /* --landmarks-affine */
+    int landmarks_square; /* --landmarks-square */
 } track_options;
 
 /* Fills o from argv: APP_GO_ON, or the exit code (usage and refusals printed). */
@@ -136,7 +137,7 @@ static int parse_options(int argc, char **argv, track_options *o)
         {"spatial", required_argument, 0, 's'}, {"measured-only", no_argument, 0, 'm'},
         {"stats", no_argument, 0, 'S'},         {"json", no_argument, 0, 'j'},
         {"landmarks", required_argument, 0, 'L'}, {"landmarks-sparse", no_argument, 0, 'P'},
-        {"landmarks-affine", no_argument, 0, 'A'},
+        {"landmarks-square", no_argument, 0, 'A'},
         SH_CLI_OPTIONS,                         {0, 0, 0, 0}};
     memset(o, 0, sizeof *o);
     sh_track_options_default(&o->topts);
@@ -165,7 +166,7 @@ static int parse_options(int argc, char **argv, track_options *o)
         case 'j': o->json = 1; break;
         case 'L': if (!sh_cli_parse_int("--landmarks", optarg, 1, 100000, &o->landmarks)) return 2; break;
         case 'P': o->landmarks_sparse = 1; break;
-        case 'A': o->landmarks_affine = 1; break;
+        case 'A': o->landmarks_square = 1; break;
         case 'h': usage(stdout); return 0;
         default: { int rc = sh_cli_option(&cli, ch, argv); if (rc >= 0) return rc; } break;
         }
@@ -176,7 +177,7 @@ static int parse_options(int argc, char **argv, track_options *o)
         return sh_cli_usage_error(&cli, "need one to %d videos", SH_TRACK_MAX_CAMERAS);
     for (int c = 0; c < o->ncam; c++) o->in[c] = argv[optind + c];
     if (o->landmarks_sparse && !o->landmarks) return sh_cli_usage_error(&cli, "--landmarks-sparse goes with --landmarks");
-    if (o->landmarks_affine && !o->landmarks) return sh_cli_usage_error(&cli, "--landmarks-affine goes with --landmarks");
+    if (o->landmarks_square && !o->landmarks) return sh_cli_usage_error(&cli, "--landmarks-square goes with --landmarks");
     return APP_GO_ON;
 }
 
@@ -348,7 +349,7 @@ static int write_rows(const track_job *job, track_pass *p, int f, FILE *out)
     if (!ok || !job->o->landmarks) return !ok;
     /* the tissue's landmarks after the frame's markers (their ids sort after) */
     if (f == 0) {
-        track_landmarks_options lo = {job->o->landmarks, job->o->landmarks_sparse, job->o->landmarks_affine, job->o->ncam,
+        track_landmarks_options lo = {job->o->landmarks, job->o->landmarks_sparse, !job->o->landmarks_square, job->o->ncam,
                                       job->have_calib ? &job->calib : NULL};
         return track_landmarks_start(&lo, p->img, dets[0], p->ndet0, rows, nr, out, &p->lm);
     }

@@ -6,7 +6,7 @@
  * With a calibrated rig (--cameras, two or three videos) they are chosen in camera 0 and matched
  * in the other cameras, frame by frame, each search started on the epipolar line of camera 0's
  * position and its reference window warped by the local affine of the markers' map into that
- * camera (as --landmarks-affine does in camera 0), by sh_landmarks_rig: a landmark's row carries
+ * camera (as camera 0 does unless --landmarks-square), by sh_landmarks_rig: a landmark's row carries
  * the X, Y, Z triangulated from every camera that accepted it, and is written only when camera 0
  * and at least one other accepted it and the triangulation reprojects within
  * SH_LANDMARKS_MAX_REPROJ_PX in each (docs/landmarks.md, "In 3D"); a landmark not matched so in
@@ -24,7 +24,7 @@
 
 typedef struct {
     int n;                 /* up to n landmarks */
-    int sparse, affine;    /* --landmarks-sparse, --landmarks-affine */
+    int sparse, affine;    /* --landmarks-sparse, not --landmarks-square */
     int ncam;              /* videos; with calib and ncam > 1, landmarks in 3D */
     const sh_calib *calib; /* NULL: 2D (camera 0 alone) */
 } track_landmarks_options;

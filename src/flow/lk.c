@@ -353,3 +353,30 @@ sh_status sh_flow_track_windows(const sh_flow_params *params, const sh_flow_wind
 {
     return sh_flow_track_windows_warped(params, prev, next, m, idx, guess, NULL, out, status, err);
 }
+
+float sh_flow_window_difference(const sh_flow_pyramid *prev, float px, float py, const sh_flow_pyramid *next,
+                                float qx, float qy, int side)
+{
+    if (!prev || !next || side < 1 || side > SH_FLOW_MAX_WIN || side % 2 == 0) return NAN;
+    const flow_level *a = &prev->level[0], *b = &next->level[0];
+    const float half = (float)(side - 1) * 0.5f;
+    const float ax = px - half, ay = py - half, bx = qx - half, by = qy - half;
+    if (!inside(a, ax, ay, side) || !inside(b, bx, by, side)) return NAN;
+    const int ix = (int)floorf(ax), iy = (int)floorf(ay), jx = (int)floorf(bx), jy = (int)floorf(by);
+    if (!built(a->img_box, ix, iy, side) || !built(b->img_box, jx, jy, side)) return NAN;
+    int w[4];
+    bilinear(ax - (float)ix, ay - (float)iy, w);
+    /* prev's window as the searches' template (1/32 grey levels, rows FLOW_WROW(side) apart, the
+     * lanes past the side zero), then the error measure's sum against next's */
+    int16_t I[SH_FLOW_MAX_WIN * FLOW_WROW(SH_FLOW_MAX_WIN)];
+    const int wr = FLOW_WROW(side), s = a->stride;
+    for (int y = 0; y < side; y++) {
+        const uint8_t *r = a->img + (ptrdiff_t)(iy + y) * s + ix;
+        for (int x = 0; x < side; x++)
+            I[y * wr + x] = (int16_t)DESCALE(r[x] * w[0] + r[x + 1] * w[1] + r[x + s] * w[2] + r[x + s + 1] * w[3],
+                                             W_BITS - 5);
+        for (int x = side; x < wr; x++) I[y * wr + x] = 0;
+    }
+    bilinear(bx - (float)jx, by - (float)jy, w);
+    return (float)flow_window_abs_mismatch(b, jx, jy, w, side, I) * (1.f / (float)(32 * side * side));
+}

@@ -533,6 +533,50 @@ static void test_corners_of_a_checkerboard(void **state)
     sh_image_destroy(&mask);
 }
 
+/* sh_flow_window_difference against closed forms: a frame and the same texture moved by a whole
+ * number of pixels differ by nothing where the windows follow the move (the same samples, the
+ * same weights), a frame and itself plus 10 grey levels by exactly 10, and windows that cannot
+ * be read, or a side that is not odd, give NaN. */
+static void test_window_difference(void **state)
+{
+    (void)state;
+    enum { FW = 160, FH = 120 };
+    sh_image fa, fb, fc;
+    assert_int_equal(sh_image_create(&fa, SH_PIX_GRAY8, FW, FH), SH_OK);
+    assert_int_equal(sh_image_create(&fb, SH_PIX_GRAY8, FW, FH), SH_OK);
+    assert_int_equal(sh_image_create(&fc, SH_PIX_GRAY8, FW, FH), SH_OK);
+    render_shifted(&fa, 0, 0);
+    for (int y = 0; y < FH; y++)
+        for (int x = 0; x < FW; x++) {
+            const size_t o = (size_t)y * fa.plane[0].stride + x;
+            fa.plane[0].data[o] = (uint8_t)(fa.plane[0].data[o] * 200 / 255); /* room for +10 */
+            fc.plane[0].data[o] = (uint8_t)(fa.plane[0].data[o] + 10);
+        }
+    render_shifted(&fb, 3, -2);
+    for (int y = 0; y < FH; y++)
+        for (int x = 0; x < FW; x++) {
+            const size_t o = (size_t)y * fb.plane[0].stride + x;
+            fb.plane[0].data[o] = (uint8_t)(fb.plane[0].data[o] * 200 / 255);
+        }
+    pair ab, ac;
+    pair_make(&ab, &fa, &fb, 1);
+    pair_make(&ac, &fa, &fc, 1);
+    const float px = 70.3f, py = 50.6f;
+    assert_true(sh_flow_window_difference(ab.a, px, py, ab.b, px + 3, py - 2, 7) == 0.0f);
+    assert_true(sh_flow_window_difference(ab.a, px, py, ab.b, px, py, 7) > 1.0f);
+    assert_true(sh_flow_window_difference(ac.a, px, py, ac.b, px, py, 7) == 10.0f);
+    assert_true(sh_flow_window_difference(ac.a, px, py, ac.b, px, py, 21) == 10.0f);
+    assert_true(isnan(sh_flow_window_difference(ac.a, px, py, ac.b, px, py, 8)));
+    assert_true(isnan(sh_flow_window_difference(ac.a, px, py, ac.b, 1e6f, py, 7)));
+    assert_true(isnan(sh_flow_window_difference(ac.a, px, py, ac.b, NAN, py, 7)));
+    assert_true(isnan(sh_flow_window_difference(NULL, px, py, ac.b, px, py, 7)));
+    pair_free(&ab);
+    pair_free(&ac);
+    sh_image_destroy(&fa);
+    sh_image_destroy(&fb);
+    sh_image_destroy(&fc);
+}
+
 static void test_refusals(void **state)
 {
     (void)state;
@@ -604,6 +648,7 @@ int main(void)
         cmocka_unit_test(test_windows_same_as_track),
         cmocka_unit_test(test_warped_window_follows_an_affine),
         cmocka_unit_test(test_corners_of_a_checkerboard),
+        cmocka_unit_test(test_window_difference),
         cmocka_unit_test(test_refusals),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

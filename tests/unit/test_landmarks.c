@@ -175,8 +175,28 @@ static void test_trust_against_truth(void **state)
     assert_true(worst <= 1.0);
     assert_true(covered > 0);
     assert_int_equal(covered_refused, covered);
-    /* the texture is good everywhere else: nearly all of it accepted */
-    assert_true(clear_accepted >= clear * 9 / 10);
+    /* the texture is good everywhere else: nearly all of it accepted, but near the four predicted
+     * 8 px off. The affine windows' local affine is fitted through the predictions of a landmark
+     * and its 8 nearest (sh_landmarks_params.affine), so such a prediction bends its neighbours'
+     * windows too, and some of them are refused (safely: 240 of the 259 clear ones accepted with
+     * square windows, 228 with affine ones). A markers' map is smooth and makes no such outlier;
+     * the landmarks more than 40 px from the four, beyond their neighbours (10 px apart), are the
+     * ones that show what the texture allows. */
+    int far = 0, far_accepted = 0;
+    for (int i = 0; i < n; i++) {
+        int is_clear = truth[2 * i] + 10.5 < bx0 || truth[2 * i] - 10.5 >= bx1;
+        int far_inside = truth[2 * i] > 12 && truth[2 * i] < W - 13 && truth[2 * i + 1] > 12 && truth[2 * i + 1] < H - 13;
+        int near_wrong = 0;
+        for (int k = 0; k < n_wrong; k++)
+            near_wrong |= hypot(r[2 * i] - r[2 * wrong[k]], r[2 * i + 1] - r[2 * wrong[k] + 1]) <= 40;
+        if (!is_clear || !far_inside || near_wrong) continue;
+        far++;
+        far_accepted += verdict[i] == SH_LANDMARK_ACCEPTED;
+    }
+    print_message("  clear of the bar and more than 40 px from the wrongly predicted: %d of %d accepted\n", far_accepted, far);
+    assert_true(far >= clear / 2);
+    assert_true(far_accepted >= far * 9 / 10);
+    assert_true(clear_accepted >= clear * 8 / 10);
     /* the wrongly predicted ones were found where they are, and refused for disagreeing */
     for (int k = 0; k < n_wrong; k++) {
         int i = wrong[k];
@@ -282,6 +302,10 @@ static void test_searches_outside_the_part_same_as_whole_frame(void **state)
     p.min_distance = 12;
     p.band = 0;
     p.flow.levels = 1;
+    /* square windows: the whole frame's answer below is sh_flow_track's (the affine windows' part
+     * is the same code's, test_affine_windows has them); the backward search on the defaults'
+     * back_levels and the centre test as the defaults have them */
+    p.affine = 0;
     const double corners[8] = {150, 110, 330, 110, 330, 250, 150, 250};
     sh_hull hull;
     assert_int_equal(sh_hull_compute(corners, 4, &hull), SH_OK);
@@ -317,13 +341,17 @@ static void test_searches_outside_the_part_same_as_whole_frame(void **state)
     assert_int_equal(sh_flow_pyramid_build(b, &cur.plane[0], 1), SH_OK);
     assert_int_equal(sh_flow_track(&p.flow, a, b, n, r, pred, fwd, st_fwd, err), SH_OK);
     for (int i = 0; i < 2 * n; i++) back[i] = fwd[i] - (pred[i] - r[i]);
-    assert_int_equal(sh_flow_track(&p.flow, b, a, n, fwd, back, back, st_back, NULL), SH_OK);
+    sh_flow_params back_flow = p.flow;
+    back_flow.levels = p.back_levels;
+    assert_int_equal(sh_flow_track(&back_flow, b, a, n, fwd, back, back, st_back, NULL), SH_OK);
     for (int i = 0; i < n; i++) {
         assert_memory_equal(&xy[2 * i], &fwd[2 * i], 2 * sizeof *xy);
         int v = SH_LANDMARK_ACCEPTED;
         if (st_fwd[i] != SH_FLOW_OK || st_back[i] != SH_FLOW_OK)
             v = SH_LANDMARK_LOST;
-        else if (!(err[i] <= p.max_photometric))
+        else if (!(err[i] <= p.max_photometric) ||
+                 !(sh_flow_window_difference(a, r[2 * i], r[2 * i + 1], b, fwd[2 * i], fwd[2 * i + 1], p.core) <=
+                   p.max_photometric))
             v = SH_LANDMARK_PHOTOMETRIC;
         else if (!(hypot(back[2 * i] - r[2 * i], back[2 * i + 1] - r[2 * i + 1]) <= p.max_backward_px))
             v = SH_LANDMARK_BACKWARD;
@@ -609,6 +637,55 @@ static void test_smoothing_scales_with_frame(void **state)
     assert_true(smoothed > 0.05);
 }
 
+/* The centre test (sh_landmarks_params.core): the reference itself as the frame, predicted where
+ * it is, but for 3x3 pixels at one landmark's point set to the far end of the grey scale from what
+ * they were (a speck of an occluder's edge over the point). Its window as a whole differs by less
+ * than the photometric bound (at most 9 * 255 / 441 = 5.2 grey levels), so without the centre
+ * test it is accepted; its 7x7 centre differs by at least 9 * 128 / 49 = 23.5, and it is refused.
+ * Every other landmark is accepted either way. The backward and neighbours' tests are off: the
+ * photometric ones alone. */
+static void test_centre_covered(void **state)
+{
+    (void)state;
+    sh_image ref, cur;
+    render(&ref, 0);
+    render(&cur, 0);
+    for (int core = 7; core >= 0; core -= 7) {
+        sh_landmarks_params p;
+        sh_landmarks_params_default(&p);
+        /* the photometric tests alone: without the backward and the neighbours' tests, which the
+         * speck's pull on the search (half a pixel) can fail too, and so with square windows */
+        p.max_points = 60, p.min_distance = 20, p.band = 0, p.core = core, p.max_backward_px = 0;
+        p.neighbours = 0, p.affine = 0;
+        sh_landmarks *lm;
+        assert_int_equal(sh_landmarks_create(&p, &ref.plane[0], NULL, NULL, 0, &lm), SH_OK);
+        const int n = sh_landmarks_count(lm), k = n / 2;
+        assert_true(n >= 30);
+        const float *r = sh_landmarks_reference(lm);
+        const int cx = (int)lrintf(r[2 * k]), cy = (int)lrintf(r[2 * k + 1]);
+        for (int y = cy - 1; y <= cy + 1; y++)
+            for (int x = cx - 1; x <= cx + 1; x++) {
+                uint8_t *v = &cur.plane[0].data[(size_t)y * cur.plane[0].stride + x];
+                const uint8_t was = ref.plane[0].data[(size_t)y * ref.plane[0].stride + x];
+                *v = was > 127 ? 0 : 255;
+            }
+        float *xy = malloc(2 * (size_t)n * sizeof *xy);
+        uint8_t *verdict = malloc((size_t)n);
+        sh_landmarks_counts c;
+        assert_int_equal(sh_landmarks_track(lm, &cur.plane[0], r, xy, verdict, &c), SH_OK);
+        print_message("  core %d: landmark %d of %d: %s; %d accepted\n", core, k, n, sh_landmark_verdict_name(verdict[k]),
+                      c.verdicts[SH_LANDMARK_ACCEPTED]);
+        assert_int_equal(verdict[k], core ? SH_LANDMARK_PHOTOMETRIC : SH_LANDMARK_ACCEPTED);
+        assert_int_equal(c.verdicts[SH_LANDMARK_ACCEPTED], n - (core ? 1 : 0));
+        free(xy);
+        free(verdict);
+        sh_landmarks_destroy(lm);
+        memcpy(cur.plane[0].data, ref.plane[0].data, (size_t)cur.plane[0].stride * H);
+    }
+    sh_image_destroy(&ref);
+    sh_image_destroy(&cur);
+}
+
 static void test_refusals(void **state)
 {
     (void)state;
@@ -632,6 +709,16 @@ static void test_refusals(void **state)
     p.affine = 2, p.neighbours = 8;
     assert_int_equal(sh_landmarks_create(&p, &ref.plane[0], NULL, NULL, 0, &lm), SH_EINVAL);
     sh_landmarks_params_default(&p);
+    p.back_levels = p.flow.levels + 1; /* the backward search on levels the pyramid does not have */
+    assert_int_equal(sh_landmarks_create(&p, &ref.plane[0], NULL, NULL, 0, &lm), SH_EINVAL);
+    p.back_levels = -2;
+    assert_int_equal(sh_landmarks_create(&p, &ref.plane[0], NULL, NULL, 0, &lm), SH_EINVAL);
+    sh_landmarks_params_default(&p);
+    p.core = 8; /* a centre has an odd side, at most the window's */
+    assert_int_equal(sh_landmarks_create(&p, &ref.plane[0], NULL, NULL, 0, &lm), SH_EINVAL);
+    p.core = p.flow.win + 2;
+    assert_int_equal(sh_landmarks_create(&p, &ref.plane[0], NULL, NULL, 0, &lm), SH_EINVAL);
+    sh_landmarks_params_default(&p);
     p.reduce = 5; /* -1 (automatic) or 0 to 4 halvings */
     assert_int_equal(sh_landmarks_create(&p, &ref.plane[0], NULL, NULL, 0, &lm), SH_EINVAL);
     p.reduce = 4; /* 100x100 halved four times: 6x6, smaller than a window */
@@ -647,7 +734,7 @@ static void test_refusals(void **state)
     sh_landmarks_destroy(lm);
     /* affine windows are fitted through the neighbours: none to fit them through */
     sh_landmarks_params_default(&p);
-    p.neighbours = 1;
+    p.neighbours = 1, p.affine = 0; /* square windows: they need none */
     assert_int_equal(sh_landmarks_create(&p, &ref.plane[0], NULL, NULL, 0, &lm), SH_OK);
     assert_int_equal(sh_landmarks_track_affine(lm, &ref.plane[0], NULL, xy, v, NULL), SH_EINVAL);
     assert_string_equal(sh_landmark_verdict_name(SH_LANDMARK_BACKWARD), "backward");
@@ -864,6 +951,7 @@ int main(void)
         cmocka_unit_test(test_affine_windows),
         cmocka_unit_test(test_reduced_frame_same_as_small),
         cmocka_unit_test(test_smoothing_scales_with_frame),
+        cmocka_unit_test(test_centre_covered),
         cmocka_unit_test(test_refusals),
         cmocka_unit_test(test_rig_against_closed_form),
     };

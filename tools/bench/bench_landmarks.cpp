@@ -7,9 +7,11 @@
 // forward from the same predictions (OPTFLOW_USE_INITIAL_FLOW), and backward from the same
 // inverse guesses; the same tests but the neighbours'. Both keep the reference's pyramid (with
 // gradients), built once. Also without the backward test (its own row: ours with
-// max_backward_px 0, OpenCV forward only, no gradients of the frame), and with the forward
-// windows pre-warped by the map's local affine (sh_landmarks_params.affine; beside the same
-// OpenCV work, which has no such search). And with four tags, the corners of the field: the
+// max_backward_px 0, OpenCV forward only, no gradients of the frame), and with the defaults of
+// before 2026-12-06 (square forward windows, the backward search on every level, no test of the
+// windows' centres), beside the same OpenCV work. The defaults' forward windows are pre-warped by
+// the map's local affine (sh_landmarks_params.affine), which OpenCV has no search for, and their
+// backward search runs on the frame's level alone where OpenCV's runs on every level. And with four tags, the corners of the field: the
 // landmarks chosen inside those four's hull, predicted by TPS on them, judged by the tests for
 // sparse markers (sh_landmarks_params_sparse), beside OpenCV's two searches from the same
 // predictions. The goal: at most 3 ms a 1080p frame with 200 landmarks on one thread,
@@ -95,7 +97,7 @@ static void cv_band(const cv::Mat &in, cv::Mat &fine, cv::Mat &coarse, cv::Mat &
 }
 
 struct Timed {
-    std::vector<double> ours, cv, ours_fwd, cv_fwd, ours_aff, predict, ours4, cv4;
+    std::vector<double> ours, cv, ours_fwd, cv_fwd, ours_old, predict, ours4, cv4;
     std::vector<double> map_markers, map_lm, map_lm_exact; // the model's update, one thread
 };
 
@@ -226,17 +228,17 @@ int main(int argc, char **argv)
     sh_landmarks_params_default(&lp);
     lp.max_points = POINTS;
     lp.min_distance = MIN_DIST;
-    sh_landmarks_params lp_fwd = lp, lp_aff = lp;
+    sh_landmarks_params lp_fwd = lp, lp_old = lp;
     lp_fwd.max_backward_px = 0;
-    lp_aff.affine = 1;
+    lp_old.affine = 0, lp_old.back_levels = -1, lp_old.core = 0;
     sh_plane ref = {frames[0].ptr(), W, H, (int)frames[0].step};
-    sh_landmarks *lm = nullptr, *lm_fwd = nullptr, *lm_aff = nullptr;
+    sh_landmarks *lm = nullptr, *lm_fwd = nullptr, *lm_old = nullptr;
     bench_check("bench_landmarks", sh_landmarks_create(&lp, &ref, &hull, quads.data(), (int)quads.size() / 8, &lm),
                 "landmarks");
     bench_check("bench_landmarks",
                 sh_landmarks_create(&lp_fwd, &ref, &hull, quads.data(), (int)quads.size() / 8, &lm_fwd), "landmarks");
     bench_check("bench_landmarks",
-                sh_landmarks_create(&lp_aff, &ref, &hull, quads.data(), (int)quads.size() / 8, &lm_aff), "landmarks");
+                sh_landmarks_create(&lp_old, &ref, &hull, quads.data(), (int)quads.size() / 8, &lm_old), "landmarks");
     // four tags (corners of the field): landmarks inside their hull, off every tag's quad (the
     // others are still drawn on the tissue), with the tests for sparse markers
     const std::vector<int> corners = corner_ids(truth[0]);
@@ -313,7 +315,7 @@ int main(int argc, char **argv)
     long accepted4 = 0, judged4 = 0, frames4 = 0;
     Timed tm;
     uint64_t hash = 1469598103934665603ull;
-    long accepted = 0, accepted_fwd = 0, accepted_aff = 0, cv_accepted = 0, cv_accepted_fwd = 0, judged = 0, again = 0, again_frames = 0, whole = 0;
+    long accepted = 0, accepted_fwd = 0, accepted_old = 0, cv_accepted = 0, cv_accepted_fwd = 0, judged = 0, again = 0, again_frames = 0, whole = 0;
     for (int pass = 0; pass < PASSES; pass++)
         for (int t = 1; t < FRAMES; t++) {
             std::vector<double> r, c;
@@ -384,12 +386,12 @@ int main(int argc, char **argv)
             tm.cv_fwd.push_back(bench_now_ms() - a);
             if (pass == 0) cv_accepted_fwd += ok;
 
-            // the forward windows pre-warped by the map's local affine
+            // the defaults before 2026-12-06: square windows, the backward search on every level
             a = bench_now_ms();
-            bench_check("bench_landmarks", sh_landmarks_track(lm_aff, &cur, pr, xy.data(), verdict.data(), &cnt),
+            bench_check("bench_landmarks", sh_landmarks_track(lm_old, &cur, pr, xy.data(), verdict.data(), &cnt),
                         "track");
-            tm.ours_aff.push_back(bench_now_ms() - a);
-            if (pass == 0) accepted_aff += cnt.verdicts[SH_LANDMARK_ACCEPTED];
+            tm.ours_old.push_back(bench_now_ms() - a);
+            if (pass == 0) accepted_old += cnt.verdicts[SH_LANDMARK_ACCEPTED];
 
             // four tags: the prediction from those of the corner tags that frame t shares with
             // frame 0 (three make an affine map), then ours with the sparse tests beside
@@ -427,16 +429,16 @@ int main(int argc, char **argv)
            cf = bench_median(tm.cv_fwd);
     std::printf("%-40s %9.3f ms %9.3f ms %8.2f\n", "landmarks, with the backward test", o, c, o / c);
     std::printf("%-40s %9.3f ms %9.3f ms %8.2f\n", "landmarks, without it", of, cf, of / cf);
-    const double oa = bench_median(tm.ours_aff);
-    std::printf("%-40s %9.3f ms %9.3f ms %8.2f\n", "landmarks, backward test, affine windows", oa, c, oa / c);
+    const double oa = bench_median(tm.ours_old);
+    std::printf("%-40s %9.3f ms %9.3f ms %8.2f\n", "landmarks, the defaults before 2026-12-06", oa, c, oa / c);
     const double o4 = bench_median(tm.ours4), c4 = bench_median(tm.cv4);
     std::printf("%-40s %9.3f ms %9.3f ms %8.2f\n", "landmarks, 4 tags, sparse tests", o4, c4, o4 / c4);
     std::printf("%-40s %9.3f ms\n", "the prediction (TPS on the tags)", bench_median(tm.predict));
     std::printf("%-40s %9.3f ms %9.3f ms\n", "the slowest frame, with the backward test",
                 *std::max_element(tm.ours.begin(), tm.ours.end()), *std::max_element(tm.cv.begin(), tm.cv.end()));
-    std::printf("accepted of %ld landmark-frames: %ld ours (%ld without the backward test, %ld with affine windows), "
-                "%ld OpenCV's tests but the neighbours' (%ld); checksum %016llx\n",
-                judged, accepted, accepted_fwd, accepted_aff, cv_accepted, cv_accepted_fwd, (unsigned long long)hash);
+    std::printf("accepted of %ld landmark-frames: %ld ours (%ld without the backward test, %ld with the defaults "
+                "before 2026-12-06), %ld OpenCV's tests but the neighbours' (%ld); checksum %016llx\n",
+                judged, accepted, accepted_fwd, accepted_old, cv_accepted, cv_accepted_fwd, (unsigned long long)hash);
     std::printf("4 tags (ids %d %d %d %d, the corners of the field): %d landmarks, %ld accepted of %ld landmark-frames "
                 "in %ld frames (the sparse tests; OpenCV's row: its two searches alone)\n",
                 corners[0], corners[1], corners[2], corners[3], n4, accepted4, judged4, frames4);
@@ -456,7 +458,7 @@ int main(int argc, char **argv)
                 o + ml - mm <= 3 ? "held" : "not held");
     sh_landmarks_destroy(lm);
     sh_landmarks_destroy(lm_fwd);
-    sh_landmarks_destroy(lm_aff);
+    sh_landmarks_destroy(lm_old);
     sh_landmarks_destroy(lm4);
     return 0;
 }

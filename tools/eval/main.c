@@ -121,8 +121,9 @@ static void usage(FILE *f)
         "  --lm-bound-factor K  the bound: K times the median distance from the map of the\n"
         "                     landmarks the tests before it keep, never below --lm-disagreement\n"
         "  --lm-plane         the neighbour test expects the planes through three neighbours\n"
-        "  --lm-affine        the forward search's window pre-warped by the markers' map's\n"
-        "                     local affine (sh_landmarks_params.affine)\n"
+        "  --lm-square        the forward search's window square, not pre-warped by the\n"
+        "                     markers' map's local affine (sh_landmarks_params.affine, the\n"
+        "                     default since 2026-12-06)\n"
         "The phantom's texture (docs/landmarks.md):\n"
         "  --spectrum         instead of the above: the luma's amplitude spectrum ~ 1/f^alpha over\n"
         "                     64 px patches of tissue alone inside the tags' hull (8 frames of\n"
@@ -559,7 +560,7 @@ int main(int argc, char **argv)
         {"landmarks", required_argument, 0, 'L'}, {"lm-photometric", required_argument, 0, 1001},
         {"lm-backward", required_argument, 0, 1002}, {"lm-disagreement", required_argument, 0, 1003},
         {"lm-sparse", no_argument, 0, 1004}, {"lm-bound-factor", required_argument, 0, 1005},
-        {"lm-plane", no_argument, 0, 1006}, {"lm-affine", no_argument, 0, 1009},
+        {"lm-plane", no_argument, 0, 1006}, {"lm-square", no_argument, 0, 1009},
         {"landmarks-points", required_argument, 0, 1007},
         {"spectrum", no_argument, 0, 1008}, {"cameras", required_argument, 0, 1010},
         {"landmark-rows", no_argument, 0, 1011}, {"lm-distance", required_argument, 0, 1012},
@@ -599,7 +600,7 @@ int main(int argc, char **argv)
         case 1004: sh_landmarks_params_make_sparse(&o.lp); break; /* over the options given before */
         case 1005: if (!sh_cli_parse_double("--lm-bound-factor", optarg, 0, 1000, &o.lp.bound_factor)) return 2; break;
         case 1006: o.lp.plane = 1; break;
-        case 1009: o.lp.affine = 1; break;
+        case 1009: o.lp.affine = 0; break;
         case 1012: if (!sh_cli_parse_double("--lm-distance", optarg, 1, 1000, &o.lp.min_distance)) return 2; break;
         case 1013: if (!sh_cli_parse_double("--lm-quality", optarg, 1e-6, 1, &o.lp.quality)) return 2; break;
         case 1014: if (!sh_cli_parse_double("--landmark-smoothing", optarg, 0, 1e12, &o.landmark_smoothing)) return 2; break;
