@@ -113,7 +113,7 @@ void sh_landmarks_params_default(sh_landmarks_params *p)
      * instrument and blood) against the square windows, the backward search on both levels and no
      * centre test of before: 87 accepted landmark-frames over 1 px of 174 409 instead of 273 of
      * 161 458, every render's map error lower (ex vivo 0.318 to 0.298 px over the seeds' means, in
-     * vivo 0.308 to 0.284), none of the 9 561 hidden ones accepted either way, and 0.1-0.2 ms less
+     * vivo 0.308 to 0.284), none of the 9 561 hidden ones accepted either way, and 0.2 ms less
      * a frame (bench_landmarks). The affine windows alone cut the tail as much but cost 0.2 ms; a
      * backward search on the frame's level alone pays for them (its start is within the 3 px bound
      * of its answer), but then accepted 2 hidden landmarks, windows an instrument's edge half
