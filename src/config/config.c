@@ -70,7 +70,7 @@ static const keydef keys[] = {
     {"track", "landmarks_sparse", "landmarks-sparse", K_BOOL, PROC, F(landmarks_sparse), 0, 0, 1,
      "landmarks for markers too sparse for their map (four at the corners): the disagreement bound follows the map's measured error"},
     {"track", "landmarks_affine", "landmarks-affine", K_BOOL, PROC, F(landmarks_affine), 0, 0, 1,
-     "landmarks searched through the markers' map's local affine (the default; 0: square windows, a third as many over 1 px off where the tissue deforms)"},
+     "landmarks searched through the markers' map's local affine: a third as many over 1 px off where the tissue deforms as with square windows (0)"},
     {"track", "landmarks_smoothing", "landmarks-smoothing", K_DOUBLE, PROC, F(landmarks_smoothing), 0, 0, 1e9,
      "the landmarks' own smoothing in a tps map (the RBFs), the markers exact (0: interpolated too); at 1080p, 4 times it at 4K"},
     {"method", "name", "method", K_METHOD, PROC, F(method_name), S(method_name), 0, 0, "affine pwlinear bspline rbf-local[-pure] tps[-pure] gaussian[-pure]"},
