@@ -545,19 +545,19 @@ static void test_window_difference(void **state)
     assert_int_equal(sh_image_create(&fa, SH_PIX_GRAY8, FW, FH), SH_OK);
     assert_int_equal(sh_image_create(&fb, SH_PIX_GRAY8, FW, FH), SH_OK);
     assert_int_equal(sh_image_create(&fc, SH_PIX_GRAY8, FW, FH), SH_OK);
-    render_shifted(&fa, 0, 0);
+    sh_image *moved[2] = {&fa, &fb};
+    for (int k = 0; k < 2; k++) {
+        render_shifted(moved[k], 3 * k, -2 * k);
+        for (int y = 0; y < FH; y++)
+            for (int x = 0; x < FW; x++) {
+                uint8_t *v = &moved[k]->plane[0].data[(size_t)y * moved[k]->plane[0].stride + x];
+                *v = (uint8_t)(*v * 200 / 255); /* room for +10 */
+            }
+    }
     for (int y = 0; y < FH; y++)
-        for (int x = 0; x < FW; x++) {
-            const size_t o = (size_t)y * fa.plane[0].stride + x;
-            fa.plane[0].data[o] = (uint8_t)(fa.plane[0].data[o] * 200 / 255); /* room for +10 */
-            fc.plane[0].data[o] = (uint8_t)(fa.plane[0].data[o] + 10);
-        }
-    render_shifted(&fb, 3, -2);
-    for (int y = 0; y < FH; y++)
-        for (int x = 0; x < FW; x++) {
-            const size_t o = (size_t)y * fb.plane[0].stride + x;
-            fb.plane[0].data[o] = (uint8_t)(fb.plane[0].data[o] * 200 / 255);
-        }
+        for (int x = 0; x < FW; x++)
+            fc.plane[0].data[(size_t)y * fc.plane[0].stride + x] =
+                (uint8_t)(fa.plane[0].data[(size_t)y * fa.plane[0].stride + x] + 10);
     pair ab, ac;
     pair_make(&ab, &fa, &fb, 1);
     pair_make(&ac, &fa, &fc, 1);

@@ -95,20 +95,26 @@ typedef struct {
     double worst;
 } bar_tally;
 
+/* Whether landmark i's window (21 px) at its truth is wholly clear of the bar and away from the
+ * frame's edge. */
+static int clear_of_bar(const double *truth, int i, int bx0, int bx1)
+{
+    const double x = truth[2 * i], y = truth[2 * i + 1];
+    return (x + 10.5 < bx0 || x - 10.5 >= bx1) && x > 12 && x < W - 13 && y > 12 && y < H - 13;
+}
+
 static bar_tally tally(int n, const float *xy, const double *truth, const uint8_t *verdict, int bx0, int bx1)
 {
     bar_tally b = {0};
     for (int i = 0; i < n; i++) {
         double e = hypot(xy[2 * i] - truth[2 * i], xy[2 * i + 1] - truth[2 * i + 1]);
-        int is_clear = truth[2 * i] + 10.5 < bx0 || truth[2 * i] - 10.5 >= bx1;
         int is_covered = truth[2 * i] - 10.5 >= bx0 && truth[2 * i] + 10.5 < bx1;
-        int far_inside = truth[2 * i] > 12 && truth[2 * i] < W - 13 && truth[2 * i + 1] > 12 && truth[2 * i + 1] < H - 13;
         if (verdict[i] == SH_LANDMARK_ACCEPTED) {
             b.accepted++;
             if (e > b.worst) b.worst = e;
         }
-        b.clear += is_clear && far_inside;
-        b.clear_accepted += is_clear && far_inside && verdict[i] == SH_LANDMARK_ACCEPTED;
+        b.clear += clear_of_bar(truth, i, bx0, bx1);
+        b.clear_accepted += clear_of_bar(truth, i, bx0, bx1) && verdict[i] == SH_LANDMARK_ACCEPTED;
         b.covered += is_covered;
         b.covered_refused += is_covered && verdict[i] != SH_LANDMARK_ACCEPTED;
     }
@@ -184,12 +190,10 @@ static void test_trust_against_truth(void **state)
      * ones that show what the texture allows. */
     int far = 0, far_accepted = 0;
     for (int i = 0; i < n; i++) {
-        int is_clear = truth[2 * i] + 10.5 < bx0 || truth[2 * i] - 10.5 >= bx1;
-        int far_inside = truth[2 * i] > 12 && truth[2 * i] < W - 13 && truth[2 * i + 1] > 12 && truth[2 * i + 1] < H - 13;
         int near_wrong = 0;
         for (int k = 0; k < n_wrong; k++)
             near_wrong |= hypot(r[2 * i] - r[2 * wrong[k]], r[2 * i + 1] - r[2 * wrong[k] + 1]) <= 40;
-        if (!is_clear || !far_inside || near_wrong) continue;
+        if (!clear_of_bar(truth, i, bx0, bx1) || near_wrong) continue;
         far++;
         far_accepted += verdict[i] == SH_LANDMARK_ACCEPTED;
     }
@@ -341,8 +345,8 @@ static void test_searches_outside_the_part_same_as_whole_frame(void **state)
     assert_int_equal(sh_flow_pyramid_build(b, &cur.plane[0], 1), SH_OK);
     assert_int_equal(sh_flow_track(&p.flow, a, b, n, r, pred, fwd, st_fwd, err), SH_OK);
     for (int i = 0; i < 2 * n; i++) back[i] = fwd[i] - (pred[i] - r[i]);
-    sh_flow_params back_flow = p.flow;
-    back_flow.levels = p.back_levels;
+    sh_flow_params back_flow = p.flow; /* sh_landmarks_params.back_levels' rule */
+    if (p.back_levels >= 0) back_flow.levels = p.back_levels;
     assert_int_equal(sh_flow_track(&back_flow, b, a, n, fwd, back, back, st_back, NULL), SH_OK);
     for (int i = 0; i < n; i++) {
         assert_memory_equal(&xy[2 * i], &fwd[2 * i], 2 * sizeof *xy);
