@@ -11,11 +11,11 @@
 // before 2026-12-06 (square forward windows, the backward search on every level, no test of the
 // windows' centres), beside the same OpenCV work. The defaults' forward windows are pre-warped by
 // the map's local affine (sh_landmarks_params.affine), which OpenCV has no search for, and their
-// backward search runs on the frame's level alone where OpenCV's runs on every level. And with four tags, the corners of the field: the
-// landmarks chosen inside those four's hull, predicted by TPS on them, judged by the tests for
-// sparse markers (sh_landmarks_params_sparse), beside OpenCV's two searches from the same
-// predictions. The goal: at most 3 ms a 1080p frame with 200 landmarks on one thread,
-// and at most OpenCV's time.
+// backward search runs on the frame's level alone where OpenCV's runs on every level. And with
+// four tags, the corners of the field: the landmarks chosen inside those four's hull, predicted
+// by TPS on them, judged by the tests for sparse markers (sh_landmarks_params_sparse), beside
+// OpenCV's two searches from the same predictions. The goal: at most 3 ms a 1080p frame
+// with 200 landmarks on one thread, and at most OpenCV's time.
 //
 // Frames: the phantom renderer of this build (exvivo preset, paper rig, 1920x1080, seed 1, with
 // the instrument and blood), FRAMES frames rendered into a temporary directory per run (about
