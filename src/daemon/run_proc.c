@@ -60,6 +60,7 @@ struct run_proc {
     long long lm_verdicts[SH_LANDMARK_VERDICTS];
     long long lm_unmatched, lm_inconsistent; /* 3D: sh_landmarks_rig_counts' */
     int lm_frames, lm_accepted; /* frames the landmarks were looked for in; this frame's accepted */
+    int lm_ref_frame;           /* the frame the reference was taken from (-1: none yet) */
     double lm_ms;               /* this frame's landmark stage, CPU ms */
     sh_log_limit lm_err;
 };
@@ -201,6 +202,7 @@ sh_status run_proc_create(const sh_config *cfg, const sh_y4m_header *hdr, double
     if (!p) return sh_error_set(SH_ENOMEM, "processing: out of memory");
     p->cfg = *cfg;
     p->out_cam = cfg->output_camera;
+    p->lm_ref_frame = -1;
     if (cfg->calibration[0]) {
         sh_status st = sh_calib_read(cfg->calibration, &p->calib);
         if (st == SH_OK && (p->calib.num_cameras < 2 || p->calib.num_cameras != cameras))
@@ -510,6 +512,7 @@ static int reference_ready(run_proc *p, const sh_image *img, const sh_image *con
     if (run_models_poll(p->models, &ref_frame, &ref_n)) {
         p->last = NULL; /* it belonged to the old reference, now freed */
         p->await_ref = 0;
+        p->lm_ref_frame = ref_frame;
         sh_landmarks *lm = run_models_landmarks(p->models);
         sh_landmarks_rig *rig = run_models_rig(p->models);
         if (lm) {
@@ -688,6 +691,32 @@ static int search_3d(run_proc *p, const run_model *md, const sh_image *img, cons
     return c.used;
 }
 
+/* The reference frame itself (built before it is warped: test mode, or a reference made at
+ * once): its landmarks are where the reference has them, every one in 2D, the triangulated
+ * ones in 3D, as `stillheart track --landmarks` writes frame 0. Searched again, the reference
+ * would be one more frame in their histories (max_jump) than the offline path gives them. The
+ * count, or -1. */
+static int at_reference(run_proc *p, int nlm)
+{
+    sh_landmarks_rig *rig = p->three_d ? run_models_rig(p->models) : NULL;
+    const sh_landmarks *lm = rig ? sh_landmarks_rig_primary(rig) : run_models_landmarks(p->models);
+    if (!lm || (!rig && sh_landmarks_count(lm) != nlm)) {
+        sh_error_set(SH_EINVAL, "the model's landmarks are not the reference's");
+        return -1;
+    }
+    const int n = sh_landmarks_count(lm);
+    memcpy(p->lm_xy, sh_landmarks_reference(lm), 2 * (size_t)n * sizeof *p->lm_xy);
+    if (rig) {
+        memcpy(p->lm_verdict, sh_landmarks_rig_in_3d(rig), (size_t)n);
+        memcpy(p->lm_xyz, sh_landmarks_rig_reference_xyz(rig), 3 * (size_t)n * sizeof *p->lm_xyz);
+    } else {
+        memset(p->lm_verdict, 1, (size_t)n);
+    }
+    int used = 0;
+    for (int i = 0; i < n; i++) used += p->lm_verdict[i];
+    return used;
+}
+
 /* A model with landmarks (ids after its markers': SH_LANDMARK_ID_BASE + the landmark's index in
  * the reference's; in 3D only those with a reference X, Y, Z): this frame's positions of all its
  * points into p->all_xy (the markers' xy, then each landmark found in img) and in 3D p->all_xyz,
@@ -696,7 +725,7 @@ static int search_3d(run_proc *p, const run_model *md, const sh_image *img, cons
  * and, in 3D, triangulates). Each landmark's search starts where the markers' TPS map puts it, as
  * in `stillheart track --landmarks`, whatever [method] is. A failure leaves every landmark out
  * (the markers' map alone), logged. */
-static void landmarks(run_proc *p, const run_model *md, const sh_image *img, const sh_image *const *cams,
+static void landmarks(run_proc *p, const run_model *md, const sh_image *img, const sh_image *const *cams, int index,
                       const double *xy, const double *xyz, const double *det)
 {
     double t0 = now_ms();
@@ -707,7 +736,9 @@ static void landmarks(run_proc *p, const run_model *md, const sh_image *img, con
     memcpy(p->all_det, det, sizeof(double) * 2 * (size_t)nmk);
     memset(p->all_use, 1, (size_t)nmk);
     memset(p->all_use + nmk, 0, (size_t)(n - nmk));
-    int got = p->three_d ? search_3d(p, md, img, cams, xy, xyz, nmk) : search_2d(p, md, img, xy, nmk, n - nmk);
+    int got = index == p->lm_ref_frame ? at_reference(p, n - nmk)
+              : p->three_d            ? search_3d(p, md, img, cams, xy, xyz, nmk)
+                                      : search_2d(p, md, img, xy, nmk, n - nmk);
     p->lm_accepted = got > 0 ? got : 0;
     if (got < 0) {
         sh_log_limited(&p->lm_err, SH_LOG_ERROR, "landmarks: %s (the markers alone)", sh_error_message());
@@ -781,7 +812,7 @@ static const sh_image *frame(run_proc *p, const sh_image *img, const sh_image *c
     int npts;
     run_model_ids(md, &npts);
     if (npts > run_model_markers(md)) { /* the reference has landmarks */
-        landmarks(p, md, img, cams, xy, xyz, det);
+        landmarks(p, md, img, cams, index, xy, xyz, det);
         xy = p->all_xy, det = p->all_det, use = p->all_use;
         if (p->three_d) xyz = p->all_xyz;
     }
