@@ -41,7 +41,10 @@
  *  - PHOTOMETRIC: the two windows at the result differ by at most max_photometric grey levels
  *    (mean absolute difference): an occluder replaces the window's content, and the difference
  *    becomes the texture's own contrast; and so do their centres (`core`), so that a point an
- *    occluder's edge covers is refused even when the rest of its window matches;
+ *    occluder's edge covers is refused even when the rest of its window matches; and the
+ *    windows' difference is at most max_jump times the landmark's own median over the last
+ *    frames it was accepted in (in this view), so that an occluder that looks like the tissue,
+ *    which the fixed bound lets through, is refused by the change it makes all the same;
  *  - BACKWARD: found again from the result back in the reference, it lands within
  *    max_backward_px of where it started (Kalal, Mikolajczyk and Matas, "Forward-backward error:
  *    automatic detection of tracking failures", ICPR 2010): the backward search starts from the
@@ -156,6 +159,11 @@ typedef struct {
     int core;                   /* side of the windows' centre whose difference (mean absolute,
                                  * sh_flow_window_difference) is held to max_photometric too: odd,
                                  * 1 to flow.win (7); 0: not tested */
+    double max_jump;            /* the windows' difference held to this many times the median of
+                                 * the landmark's own in the last 16 frames it was accepted in (a
+                                 * grey level where that is less; from its third such frame on),
+                                 * so that an occluder's edge over a window whose texture it
+                                 * resembles is refused (2.5); 0: not tested. 1 to 1000 */
     int reduce;                 /* halvings of the frame before anything else: the landmarks
                                  * are chosen and found in the frame averaged over blocks of
                                  * 2^reduce x 2^reduce pixels, and every length above (and the
@@ -229,12 +237,14 @@ typedef struct {
 sh_status sh_landmarks_track(sh_landmarks *lm, const sh_plane *luma, const float *predicted, float *xy,
                              uint8_t *verdict, sh_landmarks_counts *counts);
 
-/* sh_landmarks_track with affine windows whatever params.affine says: the rig's other cameras,
- * which see the tissue foreshortened unlike the primary, search with the primary's choice and
- * reference windows. SH_EINVAL when params.neighbours < 2 (the local affine is fitted through the
- * neighbours). */
-sh_status sh_landmarks_track_affine(sh_landmarks *lm, const sh_plane *luma, const float *predicted, float *xy,
-                                    uint8_t *verdict, sh_landmarks_counts *counts);
+/* sh_landmarks_track in another view of the same reference: the rig's other cameras, which see
+ * the tissue foreshortened unlike the primary, search with the primary's choice and reference
+ * windows, with affine windows whatever params.affine says, and each view (1 to
+ * SH_CALIB_MAX_CAMERAS - 1; sh_landmarks_track's is 0) keeps its own history for max_jump.
+ * SH_EINVAL for another view, or when params.neighbours < 2 (the local affine is fitted through
+ * the neighbours). */
+sh_status sh_landmarks_track_view(sh_landmarks *lm, int view, const sh_plane *luma, const float *predicted,
+                                  float *xy, uint8_t *verdict, sh_landmarks_counts *counts);
 
 /* The luma plane landmarks are chosen and found in: plane 0 of a grey or YUV frame (a view, no
  * copy), or the BT.601 luma of an RGB24 frame computed into buf (made, or made again at another

@@ -15,7 +15,7 @@ struct sh_landmarks_rig {
     sh_calib calib;
     int primary, ncam;
     sh_landmarks *lm;       /* the choice, and every camera's searches (the others' through
-                             * affine windows: sh_landmarks_track_affine) */
+                             * affine windows, each its own view: sh_landmarks_track_view) */
     int n, cap;             /* landmarks; markers a frame at most */
     double *mref, *mcur;    /* cap pairs: the markers a camera's prediction is made from */
     float *pred;            /* n pairs */
@@ -91,7 +91,8 @@ static sh_status match_camera(sh_landmarks_rig *rig, int c, const sh_plane *luma
     /* camera c sees the tissue from elsewhere, its windows foreshortened unlike the primary's: its
      * searches always warp the reference window by the local affine of the markers' map into it
      * (measured: docs/landmarks.md, "In 3D") */
-    return sh_landmarks_track_affine(rig->lm, luma, rig->pred, rig->xy[c], rig->verdict[c], NULL);
+    return sh_landmarks_track_view(rig->lm, c < rig->primary ? c + 1 : c, luma, rig->pred, rig->xy[c], rig->verdict[c],
+                                   NULL);
 }
 
 /* Landmark i in 3D from the primary's position and every other camera that accepted it, into

@@ -648,6 +648,16 @@ static void test_smoothing_scales_with_frame(void **state)
  * test it is accepted; its 7x7 centre differs by at least 9 * 128 / 49 = 23.5, and it is refused.
  * Every other landmark is accepted either way. The backward and neighbours' tests are off: the
  * photometric ones alone. */
+/* The photometric tests alone: without the backward and the neighbours' tests, which an
+ * occluder's pull on the search (half a pixel) can fail too, and so with square windows; 60
+ * landmarks 20 px apart in the raw frames. */
+static void photometric_only(sh_landmarks_params *p)
+{
+    sh_landmarks_params_default(p);
+    p->max_points = 60, p->min_distance = 20, p->band = 0, p->max_backward_px = 0;
+    p->neighbours = 0, p->affine = 0;
+}
+
 static void test_centre_covered(void **state)
 {
     (void)state;
@@ -656,11 +666,8 @@ static void test_centre_covered(void **state)
     render(&cur, 0);
     for (int core = 7; core >= 0; core -= 7) {
         sh_landmarks_params p;
-        sh_landmarks_params_default(&p);
-        /* the photometric tests alone: without the backward and the neighbours' tests, which the
-         * speck's pull on the search (half a pixel) can fail too, and so with square windows */
-        p.max_points = 60, p.min_distance = 20, p.band = 0, p.core = core, p.max_backward_px = 0;
-        p.neighbours = 0, p.affine = 0;
+        photometric_only(&p);
+        p.core = core;
         sh_landmarks *lm;
         assert_int_equal(sh_landmarks_create(&p, &ref.plane[0], NULL, NULL, 0, &lm), SH_OK);
         const int n = sh_landmarks_count(lm), k = n / 2;
@@ -685,6 +692,65 @@ static void test_centre_covered(void **state)
         free(verdict);
         sh_landmarks_destroy(lm);
         memcpy(cur.plane[0].data, ref.plane[0].data, (size_t)cur.plane[0].stride * H);
+    }
+    sh_image_destroy(&ref);
+    sh_image_destroy(&cur);
+}
+
+/* A faint occluder over the lower half of one landmark's window: the reference's pixels there
+ * raised by 10 grey levels, so that the windows differ by about 5 (10 over 10 of the window's 21
+ * rows, the noise over the rest) where every frame's windows differ by about 1.2 (noise uniform in
+ * -2..2, whose mean absolute value is 6/5). The absolute test's 12 grey levels let it through;
+ * 2.5 times the landmark's own median (3) refuses it, once there are 3 frames to take it of, and
+ * refuses nothing else. The reference itself, searched first (as the daemon could), differs by
+ * exactly 0 and is not one of those frames. The photometric tests alone, the centres' not. */
+static void test_jump(void **state)
+{
+    (void)state;
+    sh_image ref, cur;
+    render(&ref, 0);
+    render(&cur, 0);
+    sh_landmarks_params p;
+    photometric_only(&p);
+    p.core = 0;
+    assert_int_equal(p.flow.win, 21);
+    for (int jump = 0; jump <= 1; jump++) {
+        p.max_jump = jump ? 2.5 : 0;
+        sh_landmarks *lm;
+        assert_int_equal(sh_landmarks_create(&p, &ref.plane[0], NULL, NULL, 0, &lm), SH_OK);
+        const int n = sh_landmarks_count(lm), k = n / 2;
+        assert_true(n >= 30);
+        const float *r = sh_landmarks_reference(lm);
+        const int cx = (int)lrintf(r[2 * k]), cy = (int)lrintf(r[2 * k + 1]);
+        float *xy = malloc(2 * (size_t)n * sizeof *xy);
+        uint8_t *verdict = malloc((size_t)n);
+        uint32_t seed = 12345;
+        for (int f = 0; f < 3; f++) {
+            assert_int_equal(sh_landmarks_track(lm, &ref.plane[0], r, xy, verdict, NULL), SH_OK);
+            assert_int_equal(verdict[k], SH_LANDMARK_ACCEPTED);
+        }
+        /* the occluder in frame 3 (a history of 2 frames: not tested yet) and in frame 8 */
+        for (int f = 1; f <= 8; f++) {
+            const int occluded = f == 3 || f == 8;
+            for (int y = 0; y < H; y++)
+                for (int x = 0; x < W; x++) {
+                    seed = seed * 1664525u + 1013904223u;
+                    int v = ref.plane[0].data[(size_t)y * ref.plane[0].stride + x] + (int)((seed >> 16) % 5) - 2;
+                    if (occluded && y > cy && y <= cy + 10 && x >= cx - 10 && x <= cx + 10) v += 10;
+                    cur.plane[0].data[(size_t)y * cur.plane[0].stride + x] = (uint8_t)(v < 0 ? 0 : v > 255 ? 255 : v);
+                }
+            sh_landmarks_counts c;
+            assert_int_equal(sh_landmarks_track(lm, &cur.plane[0], r, xy, verdict, &c), SH_OK);
+            const int refused = jump && f == 8;
+            if (occluded)
+                print_message("  max_jump %.1f, frame %d: landmark %d of %d %s\n", p.max_jump, f, k, n,
+                              sh_landmark_verdict_name(verdict[k]));
+            assert_int_equal(verdict[k], refused ? SH_LANDMARK_PHOTOMETRIC : SH_LANDMARK_ACCEPTED);
+            assert_int_equal(c.verdicts[SH_LANDMARK_ACCEPTED], n - refused);
+        }
+        free(xy);
+        free(verdict);
+        sh_landmarks_destroy(lm);
     }
     sh_image_destroy(&ref);
     sh_image_destroy(&cur);
@@ -723,6 +789,11 @@ static void test_refusals(void **state)
     p.core = p.flow.win + 2;
     assert_int_equal(sh_landmarks_create(&p, &ref.plane[0], NULL, NULL, 0, &lm), SH_EINVAL);
     sh_landmarks_params_default(&p);
+    p.max_jump = 0.5; /* a limit below the landmark's own median would refuse it every frame */
+    assert_int_equal(sh_landmarks_create(&p, &ref.plane[0], NULL, NULL, 0, &lm), SH_EINVAL);
+    p.max_jump = NAN;
+    assert_int_equal(sh_landmarks_create(&p, &ref.plane[0], NULL, NULL, 0, &lm), SH_EINVAL);
+    sh_landmarks_params_default(&p);
     p.reduce = 5; /* -1 (automatic) or 0 to 4 halvings */
     assert_int_equal(sh_landmarks_create(&p, &ref.plane[0], NULL, NULL, 0, &lm), SH_EINVAL);
     p.reduce = 4; /* 100x100 halved four times: 6x6, smaller than a window */
@@ -740,7 +811,14 @@ static void test_refusals(void **state)
     sh_landmarks_params_default(&p);
     p.neighbours = 1, p.affine = 0; /* square windows: they need none */
     assert_int_equal(sh_landmarks_create(&p, &ref.plane[0], NULL, NULL, 0, &lm), SH_OK);
-    assert_int_equal(sh_landmarks_track_affine(lm, &ref.plane[0], NULL, xy, v, NULL), SH_EINVAL);
+    assert_int_equal(sh_landmarks_track_view(lm, 1, &ref.plane[0], NULL, xy, v, NULL), SH_EINVAL);
+    sh_landmarks_destroy(lm);
+    /* views 1 to SH_CALIB_MAX_CAMERAS - 1: 0 is sh_landmarks_track's */
+    sh_landmarks_params_default(&p);
+    assert_int_equal(sh_landmarks_create(&p, &ref.plane[0], NULL, NULL, 0, &lm), SH_OK);
+    assert_int_equal(sh_landmarks_track_view(lm, 0, &ref.plane[0], NULL, xy, v, NULL), SH_EINVAL);
+    assert_int_equal(sh_landmarks_track_view(lm, SH_CALIB_MAX_CAMERAS, &ref.plane[0], NULL, xy, v, NULL), SH_EINVAL);
+    assert_int_equal(sh_landmarks_track_view(lm, SH_CALIB_MAX_CAMERAS - 1, &ref.plane[0], NULL, xy, v, NULL), SH_OK);
     assert_string_equal(sh_landmark_verdict_name(SH_LANDMARK_BACKWARD), "backward");
     sh_landmarks_destroy(lm);
     sh_image_destroy(&ref);
@@ -956,6 +1034,7 @@ int main(void)
         cmocka_unit_test(test_reduced_frame_same_as_small),
         cmocka_unit_test(test_smoothing_scales_with_frame),
         cmocka_unit_test(test_centre_covered),
+        cmocka_unit_test(test_jump),
         cmocka_unit_test(test_refusals),
         cmocka_unit_test(test_rig_against_closed_form),
     };
