@@ -641,13 +641,6 @@ static void test_smoothing_scales_with_frame(void **state)
     assert_true(smoothed > 0.05);
 }
 
-/* The centre test (sh_landmarks_params.core): the reference itself as the frame, predicted where
- * it is, but for 3x3 pixels at one landmark's point set to the far end of the grey scale from what
- * they were (a speck of an occluder's edge over the point). Its window as a whole differs by less
- * than the photometric bound (at most 9 * 255 / 441 = 5.2 grey levels), so without the centre
- * test it is accepted; its 7x7 centre differs by at least 9 * 128 / 49 = 23.5, and it is refused.
- * Every other landmark is accepted either way. The backward and neighbours' tests are off: the
- * photometric ones alone. */
 /* The photometric tests alone: without the backward and the neighbours' tests, which an
  * occluder's pull on the search (half a pixel) can fail too, and so with square windows; 60
  * landmarks 20 px apart in the raw frames. */
@@ -658,6 +651,13 @@ static void photometric_only(sh_landmarks_params *p)
     p->neighbours = 0, p->affine = 0;
 }
 
+/* The centre test (sh_landmarks_params.core): the reference itself as the frame, predicted where
+ * it is, but for 3x3 pixels at one landmark's point set to the far end of the grey scale from what
+ * they were (a speck of an occluder's edge over the point). Its window as a whole differs by less
+ * than the photometric bound (at most 9 * 255 / 441 = 5.2 grey levels), so without the centre
+ * test it is accepted; its 7x7 centre differs by at least 9 * 128 / 49 = 23.5, and it is refused.
+ * Every other landmark is accepted either way. The backward and neighbours' tests are off: the
+ * photometric ones alone. */
 static void test_centre_covered(void **state)
 {
     (void)state;
@@ -702,7 +702,7 @@ static void test_centre_covered(void **state)
  * rows, the noise over the rest) where every frame's windows differ by about 1.2 (noise uniform in
  * -2..2, whose mean absolute value is 6/5). The absolute test's 12 grey levels let it through;
  * 2.5 times the landmark's own median (3) refuses it, once there are 3 frames to take it of, and
- * refuses nothing else. The reference itself, searched first (as the daemon could), differs by
+ * refuses nothing else. The reference itself, searched first (as a caller may), differs by
  * exactly 0 and is not one of those frames. The photometric tests alone, the centres' not. */
 static void test_jump(void **state)
 {
