@@ -1016,6 +1016,7 @@ static void jump_limits(sh_landmarks *lm, int view)
  * a history that a caller starting after the reference does not. */
 static void jump_remember(sh_landmarks *lm, int view, const uint8_t *verdict)
 {
+    if (!(lm->p.max_jump > 0)) return; /* no test: no history to keep */
     const size_t base = (size_t)view * (size_t)lm->p.max_points;
     for (int i = 0; i < lm->n; i++) {
         if (verdict[i] != SH_LANDMARK_ACCEPTED || !(lm->err[i] > 0)) continue;
