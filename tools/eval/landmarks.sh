@@ -5,7 +5,8 @@
 # --landmarks with all the markers, then with the four nearest the corners of the reference's
 # markers only, with the default tests and with --lm-sparse (the tests for sparse markers), and
 # the same seed rendered with those four tags alone (--only-markers: no stickers between them)
-# with --lm-sparse; and one render with the tissue texture's contrast halved. TPS, the default
+# with --lm-sparse, with LANDMARKS and with LANDMARKS_SPARSE of them (four tags' map rests on the
+# landmarks alone between them: docs/landmarks.md, "Four tags: how many landmarks"); and one render with the tissue texture's contrast halved. TPS, the default
 # method.
 # Then the product's own path on the same renders: `stillheart track` without and with
 # --landmarks, `stillheart warp` with each 2D method that takes them, and stillheart-eval's e and
@@ -13,13 +14,13 @@
 #   sh tools/eval/landmarks.sh BUILD OUTDIR
 # Writes OUTDIR/landmarks.csv, OUTDIR/warp.csv, OUTDIR/daemon.csv and OUTDIR/json/*.json;
 # renders go to OUTDIR/work and are deleted as they are measured. FRAMES (default 200) sets the
-# length; LANDMARKS (200) how many are asked; WARP_METHODS (tps pwlinear bspline affine) the
+# length; LANDMARKS (200) how many are asked, LANDMARKS_SPARSE (400) for the four tags alone; WARP_METHODS (tps pwlinear bspline affine) the
 # warp's methods, DAEMON_METHODS (tps bspline pwlinear) the daemon's.
 set -eu
 BUILD=$(cd "$1" && pwd) OUT=$2 HERE=$(cd "$(dirname "$0")" && pwd)
 RENDER=$BUILD/stillheart-render EVAL=$BUILD/stillheart-eval APP=$BUILD/stillheart
 WARP_METHODS=${WARP_METHODS:-tps pwlinear bspline affine} DAEMON_METHODS=${DAEMON_METHODS:-tps bspline pwlinear}
-FRAMES=${FRAMES:-200} LANDMARKS=${LANDMARKS:-200}
+FRAMES=${FRAMES:-200} LANDMARKS=${LANDMARKS:-200} LANDMARKS_SPARSE=${LANDMARKS_SPARSE:-400}
 for b in "$RENDER" "$EVAL" "$APP"; do [ -x "$b" ] || { echo "landmarks: $b is not built" >&2; exit 1; }; done
 mkdir -p "$OUT/work" "$OUT/json"
 start=$(date +%s)
@@ -34,7 +35,7 @@ run() { # run NAME DIR POINTS [EVAL OPTIONS]
     shift 3
     "$EVAL" --quiet --json --truth "$dir" --points "$pts" --landmarks "$LANDMARKS" "$@" "$dir/cam0.y4m" > "$OUT/json/$name.json"
     set -- "$name"
-    echo "$1,$(num "$1" seeded),$(num "$1" accepted),$(num "$1" measured),$(num "$1" mean),$(num "$1" p99),$(num "$1" max),$(num "$1" over_1px),$(num "$1" hidden),$(num "$1" accepted_hidden),$(num "$1" map_mean),$(num "$1" markers_mean),$(num "$1" markers_p95),$(num "$1" landmarks_mean),$(num "$1" landmarks_p95),$(num "$1" ms_median)" >> "$OUT/landmarks.csv"
+    echo "$1,$(num "$1" seeded),$(num "$1" accepted),$(num "$1" measured),$(num "$1" mean),$(num "$1" p99),$(num "$1" max),$(num "$1" over_1px),$(num "$1" hidden),$(num "$1" accepted_hidden),$(num "$1" map_mean),$(num "$1" markers_mean),$(num "$1" markers_p95),$(num "$1" landmarks_mean),$(num "$1" landmarks_p95),$(num "$1" ms_median),$(num "$1" unpredicted_frames)" >> "$OUT/landmarks.csv"
 }
 
 # The product's path: track (the markers' ids 0-15 / 0-13 of the presets, no first pass) without
@@ -78,7 +79,7 @@ through_daemon() { # through_daemon NAME DIR (after through_warp: its track.csv)
 
 echo "run,method,landmarks,e,geo_mean,geo_p95,landmarks_ms,model_ms,rss_kb_max" > "$OUT/daemon.csv"
 echo "run,method,e_markers,e_landmarks,geo_mean_markers,geo_mean_landmarks,geo_p95_markers,geo_p95_landmarks" > "$OUT/warp.csv"
-echo "run,seeded,accepted,measured,mean,p99,max,over_1px,hidden,accepted_hidden,map_at_landmarks,geo_markers_mean,geo_markers_p95,geo_landmarks_mean,geo_landmarks_p95,ms" > "$OUT/landmarks.csv"
+echo "run,seeded,accepted,measured,mean,p99,max,over_1px,hidden,accepted_hidden,map_at_landmarks,geo_markers_mean,geo_markers_p95,geo_landmarks_mean,geo_landmarks_p95,ms,unpredicted" > "$OUT/landmarks.csv"
 for p in exvivo invivo; do
     for seed in 1 2 3 4; do
         dir=$OUT/work/$p-$seed
@@ -101,6 +102,7 @@ for p in exvivo invivo; do
             --only-markers "$(echo "$ids" | tr '|' ,)" --quiet --out "$d4"
         "$EVAL" --truth "$d4" --export-points "$d4/points.csv"
         run "$p-$seed-4only-sparse" "$d4" "$d4/points.csv" --lm-sparse
+        run "$p-$seed-4only-sparse-$LANDMARKS_SPARSE" "$d4" "$d4/points.csv" --lm-sparse --landmarks "$LANDMARKS_SPARSE"
         rm -rf "$d4"
     done
 done

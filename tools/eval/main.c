@@ -127,6 +127,9 @@ static void usage(FILE *f)
         "  --lm-jump K        the photometric test also holds a landmark's window difference to\n"
         "                     K times its median over the last 16 frames the landmark was\n"
         "                     accepted in (default 2.5, since 2026-12-06; 0: not)\n"
+        "  --lm-reduce K      the landmarks chosen and found in the frame halved K times (0-4;\n"
+        "                     default: automatic, once at 4K, none at 1080p), every length of\n"
+        "                     the tests in the halved frame's pixels\n"
         "The phantom's texture (docs/landmarks.md):\n"
         "  --spectrum         instead of the above: the luma's amplitude spectrum ~ 1/f^alpha over\n"
         "                     64 px patches of tissue alone inside the tags' hull (8 frames of\n"
@@ -568,7 +571,7 @@ int main(int argc, char **argv)
         {"spectrum", no_argument, 0, 1008}, {"cameras", required_argument, 0, 1010},
         {"landmark-rows", no_argument, 0, 1011}, {"lm-distance", required_argument, 0, 1012},
         {"lm-quality", required_argument, 0, 1013}, {"landmark-smoothing", required_argument, 0, 1014},
-        {"lm-jump", required_argument, 0, 1015},
+        {"lm-jump", required_argument, 0, 1015}, {"lm-reduce", required_argument, 0, 1016},
         {"json", no_argument, 0, 'j'},           SH_CLI_OPTIONS, {0, 0, 0, 0}};
     options o = {.stride = 4, .heatmap_max = 0.2, .heatmap_scale = 1, .contours = 4, .max_error = 0.05,
                  .landmark_smoothing = SH_LANDMARK_SMOOTHING};
@@ -609,6 +612,7 @@ int main(int argc, char **argv)
         case 1013: if (!sh_cli_parse_double("--lm-quality", optarg, 1e-6, 1, &o.lp.quality)) return 2; break;
         case 1014: if (!sh_cli_parse_double("--landmark-smoothing", optarg, 0, 1e12, &o.landmark_smoothing)) return 2; break;
         case 1015: if (!sh_cli_parse_double("--lm-jump", optarg, 0, 1000, &o.lp.max_jump)) return 2; break;
+        case 1016: if (!sh_cli_parse_int("--lm-reduce", optarg, 0, 4, &o.lp.reduce)) return 2; break;
         case 1007: o.landmarks_points = optarg; break;
         case 1008: o.spectrum = 1; break;
         case 'h': usage(stdout); return 0;

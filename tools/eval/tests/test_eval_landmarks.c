@@ -118,6 +118,17 @@ static void test_occlusions_cost_landmarks_never_wrong_ones(void **state)
     assert_true(json_num(test_out, "hidden") > 0); /* the occluders do cross landmarks */
     assert_int_equal((int)json_num(test_out, "accepted_hidden"), 0);
     landmark_points_reproduce_the_map(dir, json);
+    /* --lm-reduce 0 is what the automatic choice gives a 960x540 frame (round(log2(sqrt(960 540) /
+     * 1440)) = -1, none below 0): the same landmarks, verdicts and errors */
+    if (test_run("'%s' --quiet --json --truth '%s' --points '%s/points.csv' --landmarks 100 --lm-reduce 0 "
+                 "'%s/cam0.y4m'", EVAL_BIN, dir, dir, dir) != 0)
+        fail_msg("%s\n%s", test_cmd, test_out);
+    const char *same[] = {"seeded", "accepted", "photometric", "backward", "deviates", "mean", "max"};
+    for (size_t k = 0; k < sizeof same / sizeof *same; k++)
+        assert_float_equal(json_num(test_out, same[k]), json_num(json, same[k]), 0);
+    assert_int_equal(test_run("'%s' --truth '%s' --points '%s/points.csv' --landmarks 10 --lm-reduce 5 '%s/cam0.y4m'",
+                              EVAL_BIN, dir, dir, dir), 2);
+    assert_non_null(strstr(test_out, "--lm-reduce"));
     /* a refusal: --landmarks without the truth */
     assert_int_equal(test_run("'%s' --points '%s/points.csv' --landmarks 10 '%s/cam0.y4m'", EVAL_BIN, dir, dir), 2);
     assert_non_null(strstr(test_out, "--landmarks needs --truth"));
