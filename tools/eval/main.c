@@ -611,7 +611,9 @@ int main(int argc, char **argv)
         case 1012: if (!sh_cli_parse_double("--lm-distance", optarg, 1, 1000, &o.lp.min_distance)) return 2; break;
         case 1013: if (!sh_cli_parse_double("--lm-quality", optarg, 1e-6, 1, &o.lp.quality)) return 2; break;
         case 1014: if (!sh_cli_parse_double("--landmark-smoothing", optarg, 0, 1e12, &o.landmark_smoothing)) return 2; break;
-        case 1015: if (!sh_cli_parse_double("--lm-jump", optarg, 0, 1000, &o.lp.max_jump)) return 2; break;
+        case 1015: if (!sh_cli_parse_double("--lm-jump", optarg, 0, 1000, &o.lp.max_jump)) return 2;
+                   if (o.lp.max_jump > 0 && o.lp.max_jump < 1) return sh_cli_usage_error(&cli, "--lm-jump: 0 (no test) or 1 to 1000");
+                   break;
         case 1016: if (!sh_cli_parse_int("--lm-reduce", optarg, 0, 4, &o.lp.reduce)) return 2; break;
         case 1007: o.landmarks_points = optarg; break;
         case 1008: o.spectrum = 1; break;
