@@ -6,16 +6,17 @@
 # markers only, with the default tests and with --lm-sparse (the tests for sparse markers), and
 # the same seed rendered with those four tags alone (--only-markers: no stickers between them)
 # with --lm-sparse, with LANDMARKS and with LANDMARKS_SPARSE of them (four tags' map rests on the
-# landmarks alone between them: docs/landmarks.md, "Four tags: how many landmarks"); and one render with the tissue texture's contrast halved. TPS, the default
-# method.
+# landmarks alone between them: docs/landmarks.md, "Four tags: how many landmarks"); and one
+# render with the tissue texture's contrast halved. TPS, the default method.
 # Then the product's own path on the same renders: `stillheart track` without and with
 # --landmarks, `stillheart warp` with each 2D method that takes them, and stillheart-eval's e and
 # geometric error of both; and the daemon (`stillheart run`, [track] landmarks) likewise.
 #   sh tools/eval/landmarks.sh BUILD OUTDIR
 # Writes OUTDIR/landmarks.csv, OUTDIR/warp.csv, OUTDIR/daemon.csv and OUTDIR/json/*.json;
 # renders go to OUTDIR/work and are deleted as they are measured. FRAMES (default 200) sets the
-# length; LANDMARKS (200) how many are asked, LANDMARKS_SPARSE (400) for the four tags alone; WARP_METHODS (tps pwlinear bspline affine) the
-# warp's methods, DAEMON_METHODS (tps bspline pwlinear) the daemon's.
+# length; LANDMARKS (200) how many are asked, LANDMARKS_SPARSE (400) for the four tags alone;
+# WARP_METHODS (tps pwlinear bspline affine) the warp's methods, DAEMON_METHODS (tps bspline
+# pwlinear) the daemon's.
 set -eu
 BUILD=$(cd "$1" && pwd) OUT=$2 HERE=$(cd "$(dirname "$0")" && pwd)
 RENDER=$BUILD/stillheart-render EVAL=$BUILD/stillheart-eval APP=$BUILD/stillheart
