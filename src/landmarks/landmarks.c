@@ -995,15 +995,17 @@ static double adaptive_bound(sh_landmarks *lm, const float *predicted, double fl
 
 /* The jump test's limit on each landmark's window difference in this frame of a view: max_jump
  * times the median of its history there (never below JUMP_FLOOR); none (infinite) without the
- * test or with too short a history. */
+ * test, with too short a history, or where the difference is within max_jump times the floor,
+ * which every limit is at least (no median needed for a verdict it cannot change). */
 static void jump_limits(sh_landmarks *lm, int view)
 {
     const size_t base = (size_t)view * (size_t)lm->p.max_points;
+    const float least = (float)lm->p.max_jump * JUMP_FLOOR;
     float v[JUMP_HISTORY];
     for (int i = 0; i < lm->n; i++) {
         const int k = lm->hist_n[base + i];
         lm->jump_limit[i] = INFINITY;
-        if (!(lm->p.max_jump > 0) || k < JUMP_MIN) continue;
+        if (!(lm->p.max_jump > 0) || k < JUMP_MIN || lm->err[i] <= least) continue;
         memcpy(v, lm->hist + (base + (size_t)i) * JUMP_HISTORY, (size_t)k * sizeof *v);
         float m = median(v, k);
         lm->jump_limit[i] = (float)lm->p.max_jump * (m > JUMP_FLOOR ? m : JUMP_FLOOR);
