@@ -77,6 +77,9 @@ typedef struct {
     long long accepted_hidden; /* of those, accepted: wrong */
     long long unjudged;        /* accepted, but the reference pixel had no truth */
     long long over_1px;        /* accepted more than 1 px from the truth */
+    /* accepted landmark-frames, and of them those more than 1 px off, whose window the truth says
+     * was partly hidden (an instrument, blood, the view's edge) though its point was not */
+    long long accepted_partly_hidden, over_1px_partly_hidden;
     double sum, mean, p99, max;        /* accepted landmarks' error (px) */
     double map_sum, map_mean, map_p99; /* the markers' map at the same landmarks (px) */
     double ms_median;          /* sh_landmarks_track per frame, thread CPU time */

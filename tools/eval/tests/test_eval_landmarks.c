@@ -1,9 +1,10 @@
 /* stillheart-eval --landmarks on a rendered phantom with an instrument shaft and blood crossing
  * the view: the bookkeeping closes (every landmark of every frame after the reference has one
  * verdict), and no landmark is accepted where the phantom's truth says its surface point is
- * hidden (the occlusions must cost landmarks, never produce wrong ones). How far the accepted
- * ones lie from the truth is measured and reported (docs/landmarks.md), not asserted here: on
- * the phantom it is not yet within the issue's 1 px. */
+ * hidden, nor more than 1 px off where it says part of its window is (the occlusions must cost
+ * landmarks, never produce wrong ones). How far the accepted ones lie from the truth is measured
+ * and reported (docs/landmarks.md), not asserted here: on the phantom a few in 10 000 are more
+ * than 1 px off, as many without occluders as with them. */
 #include <math.h>
 #include <setjmp.h>
 #include <stdarg.h>
@@ -117,6 +118,9 @@ static void test_occlusions_cost_landmarks_never_wrong_ones(void **state)
     assert_true(json_num(test_out, "photometric") + json_num(test_out, "lost") > 0); /* the shaft and blood cost some */
     assert_true(json_num(test_out, "hidden") > 0); /* the occluders do cross landmarks */
     assert_int_equal((int)json_num(test_out, "accepted_hidden"), 0);
+    /* nor any more than 1 px off with an occluder over part of its window */
+    assert_int_equal((int)json_num(test_out, "over_1px_partly_hidden"), 0);
+    assert_true(json_num(test_out, "accepted_partly_hidden") <= json_num(test_out, "accepted"));
     landmark_points_reproduce_the_map(dir, json);
     /* --lm-reduce 0 is what the automatic choice gives a 960x540 frame (round(log2(sqrt(960 540) /
      * 1440)) = -1, none below 0): the same landmarks, verdicts and errors */
