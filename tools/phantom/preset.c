@@ -282,10 +282,16 @@ static sh_status build_markers(const phantom_options *o, phantom_model *m, int i
     }
     if (!o->ids && m->num_markers > codes - 1)
         return sh_error_set(SH_EINVAL, "--markers %d: %s has %d codes", m->num_markers, m->family, codes);
-    sh_status st = layout_markers(m, o, rng);
-    if (st != SH_OK || !o->only) return st;
-    /* kept after the layout, which draws the same random numbers as without it: the same
-     * positions, and the same texture, motion and shaft after them */
+    return layout_markers(m, o, rng);
+}
+
+/* --only-markers: the markers with those ids kept, after the layout and the occlusions, which
+ * draw the same random numbers and see the same markers as without it: the same positions, and
+ * the same texture, motion, shaft, blood and decoy (the blood where it falls on the whole
+ * layout, not gathered on the markers kept). */
+static sh_status keep_only(const phantom_options *o, phantom_model *m)
+{
+    if (!o->only) return SH_OK;
     if (o->num_only < 1 || o->num_only > m->num_markers)
         return sh_error_set(SH_EINVAL, "--only-markers: 1 to %d ids", m->num_markers);
     int kept = 0;
@@ -438,5 +444,6 @@ sh_status phantom_model_build(const phantom_options *o, phantom_model *m)
     if ((st = build_markers(o, m, invivo, codes, &rng)) != SH_OK) return st;
     if ((st = build_cameras(o, m)) != SH_OK) return st;
     if ((st = build_events(o, m)) != SH_OK) return st;
-    return build_occlusions(o, m, codes, &rng);
+    if ((st = build_occlusions(o, m, codes, &rng)) != SH_OK) return st;
+    return keep_only(o, m);
 }

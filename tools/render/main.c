@@ -75,7 +75,7 @@ static void usage(FILE *f)
 "                     the markers laid out as without it, then only those with these ids\n"
 "                     drawn and in markers.csv, the others' tissue bare (e.g. the four at\n"
 "                     the corners of the field, without the stickers between them); the\n"
-"                     same texture, motion and instrument as without it\n"
+"                     same texture, motion, instrument and blood as without it\n"
 "  --distortion K1,K2,P1,P2,K3\n"
 "                     OpenCV lens distortion of every camera (default none)\n"
 "  --noise SIGMA      read noise in DN (default 1.5; shot noise grows with the signal; 0: none)\n"

@@ -66,7 +66,9 @@ static void test_params_round_trip(void **state)
 }
 
 /* --only-markers: the markers laid out as without it, only the listed ids kept; everything drawn
- * after the layout (motion, instrument, texture) the same, as the same random numbers come first. */
+ * after the layout (motion, instrument, texture) the same, as the same random numbers come first,
+ * and the blood and the decoy where they are with every marker (not all three blobs on the four
+ * kept, as when the blobs were placed on the markers kept). */
 static void test_only_markers(void **state)
 {
     (void)state;
@@ -95,6 +97,10 @@ static void test_only_markers(void **state)
     assert_true(some.heart_hz == all.heart_hz && some.contraction == all.contraction);
     assert_memory_equal(some.shaft_p0, all.shaft_p0, sizeof all.shaft_p0);
     assert_memory_equal(some.shaft_p1, all.shaft_p1, sizeof all.shaft_p1);
+    assert_int_equal(some.num_blobs, all.num_blobs);
+    assert_memory_equal(some.blob, all.blob, sizeof all.blob);
+    assert_int_equal(some.decoy_id, all.decoy_id);
+    assert_memory_equal(some.decoy_center, all.decoy_center, sizeof all.decoy_center);
     /* an id that is not a marker's, or one twice, is refused */
     static const int absent[2] = {0, 40}, twice[2] = {3, 3};
     o.only = absent, o.num_only = 2;
