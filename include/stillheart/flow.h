@@ -139,6 +139,13 @@ sh_status sh_flow_track_windows_warped(const sh_flow_params *params, const sh_fl
  * only most of the window around it, looks as it did. */
 float sh_flow_window_difference(const sh_flow_pyramid *prev, float px, float py, const sh_flow_pyramid *next,
                                 float qx, float qy, int side);
+/* The normalized cross-correlation (Pearson's r, -1 to 1) of the same two windows, sampled as
+ * sh_flow_window_difference samples them; NaN where it is NaN, or where either window is flat.
+ * The landmarks' test of the window's structure: a uniform occluder leaves the frame's window
+ * noise, which correlates with the reference's texture no better than chance, where texture too
+ * faint for the difference to tell from noise still correlates. */
+float sh_flow_window_correlation(const sh_flow_pyramid *prev, float px, float py, const sh_flow_pyramid *next,
+                                 float qx, float qy, int side);
 
 typedef struct {
     int max_points;      /* at most this many, strongest first */

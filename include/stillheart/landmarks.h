@@ -44,7 +44,8 @@
  *    occluder's edge covers is refused even when the rest of its window matches; and the
  *    windows' difference is at most max_jump times the landmark's own median over the last
  *    frames it was accepted in (in this view), so that an occluder that looks like the tissue,
- *    which the fixed bound lets through, is refused by the change it makes all the same;
+ *    which the fixed bound lets through, is refused by the change it makes all the same; and,
+ *    with min_correlation (the sparse tests), the windows correlate;
  *  - BACKWARD: found again from the result back in the reference, it lands within
  *    max_backward_px of where it started (Kalal, Mikolajczyk and Matas, "Forward-backward error:
  *    automatic detection of tracking failures", ICPR 2010): the backward search starts from the
@@ -164,6 +165,13 @@ typedef struct {
                                  * grey level where that is less; from its third such frame on),
                                  * so that an occluder's edge over a window whose texture it
                                  * resembles is refused (2.5); 0: not tested. 1 to 1000 */
+    double min_correlation;     /* the windows at the result held to at least this normalized
+                                 * cross-correlation (sh_flow_window_correlation): a uniform
+                                 * occluder (blood) over a window whose texture is too faint for
+                                 * the differences above to tell from the noise leaves the frame's
+                                 * window noise, which correlates with the reference's no better
+                                 * than chance. 0 (the defaults): not tested; the sparse tests'
+                                 * 0.4. 0 to 1 (below 1) */
     int reduce;                 /* halvings of the frame before anything else: the landmarks
                                  * are chosen and found in the frame averaged over blocks of
                                  * 2^reduce x 2^reduce pixels, and every length above (and the
@@ -181,8 +189,8 @@ typedef struct {
 
 void sh_landmarks_params_default(sh_landmarks_params *p);
 /* The defaults changed for a markers' map that may lie farther from the tissue than the
- * defaults' 3 px (four markers at the corners of the field): bound_factor 4, plane 1 and
- * 3 pyramid levels, for both searches. */
+ * defaults' 3 px (four markers at the corners of the field): bound_factor 4, plane 1,
+ * 3 pyramid levels for both searches, and min_correlation 0.4. */
 void sh_landmarks_params_sparse(sh_landmarks_params *p);
 /* Those changes alone, made to p in place (the other parameters as they are). */
 void sh_landmarks_params_make_sparse(sh_landmarks_params *p);

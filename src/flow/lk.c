@@ -354,29 +354,63 @@ sh_status sh_flow_track_windows(const sh_flow_params *params, const sh_flow_wind
     return sh_flow_track_windows_warped(params, prev, next, m, idx, guess, NULL, out, status, err);
 }
 
-float sh_flow_window_difference(const sh_flow_pyramid *prev, float px, float py, const sh_flow_pyramid *next,
-                                float qx, float qy, int side)
+/* A side x side window of level l whose top-left sample is at (x0, y0), with the searches'
+ * bilinear weights, in 1/32 grey levels, rows FLOW_WROW(side) apart; 0 where it is not inside
+ * the built part of the level (the caller has checked side). */
+static int sample_window(const flow_level *l, float x0, float y0, int side, int16_t *I)
 {
-    if (!prev || !next || side < 1 || side > SH_FLOW_MAX_WIN || side % 2 == 0) return NAN;
-    const flow_level *a = &prev->level[0], *b = &next->level[0];
-    const float half = (float)(side - 1) * 0.5f;
-    const float ax = px - half, ay = py - half, bx = qx - half, by = qy - half;
-    if (!inside(a, ax, ay, side) || !inside(b, bx, by, side)) return NAN;
-    const int ix = (int)floorf(ax), iy = (int)floorf(ay), jx = (int)floorf(bx), jy = (int)floorf(by);
-    if (!built(a->img_box, ix, iy, side) || !built(b->img_box, jx, jy, side)) return NAN;
+    if (!inside(l, x0, y0, side)) return 0;
+    const int ix = (int)floorf(x0), iy = (int)floorf(y0);
+    if (!built(l->img_box, ix, iy, side)) return 0;
     int w[4];
-    bilinear(ax - (float)ix, ay - (float)iy, w);
-    /* prev's window as the searches' template (1/32 grey levels, rows FLOW_WROW(side) apart, the
-     * lanes past the side zero), then the error measure's sum against next's */
-    int16_t I[SH_FLOW_MAX_WIN * FLOW_WROW(SH_FLOW_MAX_WIN)];
-    const int wr = FLOW_WROW(side), s = a->stride;
+    bilinear(x0 - (float)ix, y0 - (float)iy, w);
+    const int wr = FLOW_WROW(side), s = l->stride;
     for (int y = 0; y < side; y++) {
-        const uint8_t *r = a->img + (ptrdiff_t)(iy + y) * s + ix;
+        const uint8_t *r = l->img + (ptrdiff_t)(iy + y) * s + ix;
         for (int x = 0; x < side; x++)
             I[y * wr + x] = (int16_t)DESCALE(r[x] * w[0] + r[x + 1] * w[1] + r[x + s] * w[2] + r[x + s + 1] * w[3],
                                              W_BITS - 5);
         for (int x = side; x < wr; x++) I[y * wr + x] = 0;
     }
+    return 1;
+}
+
+float sh_flow_window_correlation(const sh_flow_pyramid *prev, float px, float py, const sh_flow_pyramid *next,
+                                 float qx, float qy, int side)
+{
+    if (!prev || !next || side < 1 || side > SH_FLOW_MAX_WIN || side % 2 == 0) return NAN;
+    const float half = (float)(side - 1) * 0.5f;
+    int16_t A[SH_FLOW_MAX_WIN * FLOW_WROW(SH_FLOW_MAX_WIN)], B[SH_FLOW_MAX_WIN * FLOW_WROW(SH_FLOW_MAX_WIN)];
+    if (!sample_window(&prev->level[0], px - half, py - half, side, A) ||
+        !sample_window(&next->level[0], qx - half, qy - half, side, B))
+        return NAN;
+    /* sums of 16-bit samples over at most 65 x 65: exact in 64 bits */
+    int64_t sa = 0, sb = 0, saa = 0, sbb = 0, sab = 0;
+    const int wr = FLOW_WROW(side);
+    for (int y = 0; y < side; y++)
+        for (int x = 0; x < side; x++) {
+            const int64_t a = A[y * wr + x], b = B[y * wr + x];
+            sa += a, sb += b, saa += a * a, sbb += b * b, sab += a * b;
+        }
+    const double n = (double)side * side, va = (double)saa - (double)sa * (double)sa / n,
+                 vb = (double)sbb - (double)sb * (double)sb / n;
+    if (!(va > 0 && vb > 0)) return NAN;
+    return (float)(((double)sab - (double)sa * (double)sb / n) / sqrt(va * vb));
+}
+
+float sh_flow_window_difference(const sh_flow_pyramid *prev, float px, float py, const sh_flow_pyramid *next,
+                                float qx, float qy, int side)
+{
+    if (!prev || !next || side < 1 || side > SH_FLOW_MAX_WIN || side % 2 == 0) return NAN;
+    const flow_level *b = &next->level[0];
+    const float half = (float)(side - 1) * 0.5f;
+    const float bx = qx - half, by = qy - half;
+    /* prev's window as the searches' template, then the error measure's sum against next's */
+    int16_t I[SH_FLOW_MAX_WIN * FLOW_WROW(SH_FLOW_MAX_WIN)];
+    if (!sample_window(&prev->level[0], px - half, py - half, side, I) || !inside(b, bx, by, side)) return NAN;
+    const int jx = (int)floorf(bx), jy = (int)floorf(by);
+    if (!built(b->img_box, jx, jy, side)) return NAN;
+    int w[4];
     bilinear(bx - (float)jx, by - (float)jy, w);
     return (float)flow_window_abs_mismatch(b, jx, jy, w, side, I) * (1.f / (float)(32 * side * side));
 }

@@ -577,6 +577,54 @@ static void test_window_difference(void **state)
     sh_image_destroy(&fc);
 }
 
+/* sh_flow_window_correlation against closed forms: a frame and the same texture moved by a whole
+ * number of pixels correlate by 1 where the windows follow the move, a frame and itself plus 10
+ * grey levels by 1 (the correlation ignores an offset), a frame and its negative by -1; a flat
+ * window gives NaN, as do windows that cannot be read; and windows of independent noise (uniform,
+ * 441 pixels) correlate by less than 0.2, four standard deviations (1/21) of the correlation of
+ * independent samples. */
+static void test_window_correlation(void **state)
+{
+    (void)state;
+    enum { FW = 160, FH = 120 };
+    sh_image f[5];
+    for (int k = 0; k < 5; k++) assert_int_equal(sh_image_create(&f[k], SH_PIX_GRAY8, FW, FH), SH_OK);
+    render_shifted(&f[0], 0, 0);
+    render_shifted(&f[1], 3, -2);
+    uint32_t seed = 99;
+    for (int y = 0; y < FH; y++)
+        for (int x = 0; x < FW; x++) {
+            const size_t at = (size_t)y * f[0].plane[0].stride + x;
+            for (int k = 0; k < 2; k++) f[k].plane[0].data[at] = (uint8_t)(f[k].plane[0].data[at] * 200 / 255);
+            f[2].plane[0].data[at] = (uint8_t)(f[0].plane[0].data[at] + 10);
+            f[3].plane[0].data[at] = (uint8_t)(255 - f[0].plane[0].data[at]);
+            seed = seed * 1664525u + 1013904223u;
+            f[4].plane[0].data[at] = (uint8_t)(x < FW / 2 ? 128 : (seed >> 16) % 256);
+        }
+    pair moved, offset, negative, noise;
+    pair_make(&moved, &f[0], &f[1], 1);
+    pair_make(&offset, &f[0], &f[2], 1);
+    pair_make(&negative, &f[0], &f[3], 1);
+    pair_make(&noise, &f[4], &f[0], 1);
+    const float px = 70.3f, py = 50.6f;
+    assert_true(fabsf(sh_flow_window_correlation(moved.a, px, py, moved.b, px + 3, py - 2, 21) - 1) < 1e-6f);
+    assert_true(fabsf(sh_flow_window_correlation(offset.a, px, py, offset.b, px, py, 21) - 1) < 1e-6f);
+    assert_true(fabsf(sh_flow_window_correlation(negative.a, px, py, negative.b, px, py, 21) + 1) < 1e-4f); /* 255 - v rounds apart by 1/32 */
+    /* f[4]: flat on the left half, independent noise on the right */
+    assert_true(isnan(sh_flow_window_correlation(noise.a, 30, 60, noise.b, px, py, 21)));
+    const float r = sh_flow_window_correlation(noise.a, 120, 60, noise.b, px, py, 21);
+    print_message("  noise against texture: r = %.3f\n", r);
+    assert_true(fabsf(r) < 0.2f);
+    assert_true(isnan(sh_flow_window_correlation(moved.a, px, py, moved.b, px, py, 8)));
+    assert_true(isnan(sh_flow_window_correlation(moved.a, px, py, moved.b, 1e6f, py, 21)));
+    assert_true(isnan(sh_flow_window_correlation(NULL, px, py, moved.b, px, py, 21)));
+    pair_free(&moved);
+    pair_free(&offset);
+    pair_free(&negative);
+    pair_free(&noise);
+    for (int k = 0; k < 5; k++) sh_image_destroy(&f[k]);
+}
+
 static void test_refusals(void **state)
 {
     (void)state;
@@ -649,6 +697,7 @@ int main(void)
         cmocka_unit_test(test_warped_window_follows_an_affine),
         cmocka_unit_test(test_corners_of_a_checkerboard),
         cmocka_unit_test(test_window_difference),
+        cmocka_unit_test(test_window_correlation),
         cmocka_unit_test(test_refusals),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -119,7 +119,8 @@ static void usage(FILE *f)
         "                     disagreement bound follows the frame's measured map error\n"
         "                     (--lm-bound-factor 4) and the neighbour test expects a plane\n"
         "                     (--lm-plane), and the searches use 3 pyramid levels, not 1 (the\n"
-        "                     map may be 10 px off), as `stillheart track --landmarks-sparse`\n"
+        "                     map may be 10 px off), and the windows must correlate\n"
+        "                     (--lm-correlation 0.4), as `stillheart track --landmarks-sparse`\n"
         "  --lm-bound-factor K  the bound: K times the median distance from the map of the\n"
         "                     landmarks the tests before it keep, never below --lm-disagreement\n"
         "  --lm-plane         the neighbour test expects the planes through three neighbours\n"
@@ -129,6 +130,9 @@ static void usage(FILE *f)
         "  --lm-jump K        the photometric test also holds a landmark's window difference to\n"
         "                     K times its median over the last 16 frames the landmark was\n"
         "                     accepted in (default 2.5, since 2026-12-06; 0: not)\n"
+        "  --lm-correlation R the photometric test also holds the windows at the result to a\n"
+        "                     normalized cross-correlation of at least R (0 to 1: 0, not tested,\n"
+        "                     the default; 0.4 with --lm-sparse, given after it to change)\n"
         "  --lm-reduce K      the landmarks chosen and found in the frame halved K times (0-4;\n"
         "                     default: automatic, once at 4K, none at 1080p), every length of\n"
         "                     the tests in the halved frame's pixels\n"
@@ -574,6 +578,7 @@ int main(int argc, char **argv)
         {"landmark-rows", no_argument, 0, 1011}, {"lm-distance", required_argument, 0, 1012},
         {"lm-quality", required_argument, 0, 1013}, {"landmark-smoothing", required_argument, 0, 1014},
         {"lm-jump", required_argument, 0, 1015}, {"lm-reduce", required_argument, 0, 1016},
+        {"lm-correlation", required_argument, 0, 1017},
         {"json", no_argument, 0, 'j'},           SH_CLI_OPTIONS, {0, 0, 0, 0}};
     options o = {.stride = 4, .heatmap_max = 0.2, .heatmap_scale = 1, .contours = 4, .max_error = 0.05,
                  .landmark_smoothing = SH_LANDMARK_SMOOTHING};
@@ -617,6 +622,7 @@ int main(int argc, char **argv)
                    if (o.lp.max_jump > 0 && o.lp.max_jump < 1) return sh_cli_usage_error(&cli, "--lm-jump: 0 (no test) or 1 to 1000");
                    break;
         case 1016: if (!sh_cli_parse_int("--lm-reduce", optarg, 0, 4, &o.lp.reduce)) return 2; break;
+        case 1017: if (!sh_cli_parse_double("--lm-correlation", optarg, 0, 0.999, &o.lp.min_correlation)) return 2; break;
         case 1007: o.landmarks_points = optarg; break;
         case 1008: o.spectrum = 1; break;
         case 'h': usage(stdout); return 0;

@@ -137,6 +137,10 @@ static void test_occlusions_cost_landmarks_never_wrong_ones(void **state)
     assert_int_equal(test_run("'%s' --truth '%s' --points '%s/points.csv' --landmarks 10 --lm-jump 0.5 '%s/cam0.y4m'",
                               EVAL_BIN, dir, dir, dir), 2);
     assert_non_null(strstr(test_out, "--lm-jump"));
+    /* the correlation's floor: 0 (no test) to below 1 */
+    assert_int_equal(test_run("'%s' --truth '%s' --points '%s/points.csv' --landmarks 10 --lm-correlation 1 '%s/cam0.y4m'",
+                              EVAL_BIN, dir, dir, dir), 2);
+    assert_non_null(strstr(test_out, "--lm-correlation"));
     /* a refusal: --landmarks without the truth */
     assert_int_equal(test_run("'%s' --points '%s/points.csv' --landmarks 10 '%s/cam0.y4m'", EVAL_BIN, dir, dir), 2);
     assert_non_null(strstr(test_out, "--landmarks needs --truth"));
