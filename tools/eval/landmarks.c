@@ -196,7 +196,6 @@ static double cpu_ms(void)
     return (double)ts.tv_sec * 1e3 + (double)ts.tv_nsec / 1e6;
 }
 
-/* Accepted landmarks of one frame against the truth. */
 /* Whether the truth says part of landmark i's window is hidden in frame t. */
 static int partly_hidden(const eval_lm_options *o, int t, const scratch *s, int i)
 {
@@ -206,6 +205,7 @@ static int partly_hidden(const eval_lm_options *o, int t, const scratch *s, int 
     return 0;
 }
 
+/* Accepted landmarks of one frame against the truth. */
 static sh_status judge(const eval_lm_options *o, int t, int n, scratch *s, eval_lm_result *r)
 {
     if (s->count + n > s->cap) {
