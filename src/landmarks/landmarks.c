@@ -806,17 +806,12 @@ static sh_status searches(const sh_landmarks *lm, int m, const int *idx, const f
     if (st != SH_OK) return st;
     /* the centres, and the whole windows' correlation, on the part of the frame built for these
      * searches (search_again builds another for the ones it does again) */
-    for (int j = 0; p->core && j < m; j++) {
-        const int i = idx ? idx[j] : j;
-        lm->core_err[i] = st_fwd[j] == SH_FLOW_OK ? sh_flow_window_difference(lm->ref, lm->ref_xy[2 * i], lm->ref_xy[2 * i + 1],
-                                                                            lm->cur, fwd[2 * j], fwd[2 * j + 1], p->core)
-                                                  : NAN;
-    }
-    for (int j = 0; p->min_correlation > 0 && j < m; j++) {
-        const int i = idx ? idx[j] : j;
-        lm->corr[i] = st_fwd[j] == SH_FLOW_OK ? sh_flow_window_correlation(lm->ref, lm->ref_xy[2 * i], lm->ref_xy[2 * i + 1],
-                                                                         lm->cur, fwd[2 * j], fwd[2 * j + 1], p->flow.win)
-                                              : NAN;
+    for (int j = 0; (p->core || p->min_correlation > 0) && j < m; j++) {
+        const int i = idx ? idx[j] : j, ok = st_fwd[j] == SH_FLOW_OK;
+        const float rx = lm->ref_xy[2 * i], ry = lm->ref_xy[2 * i + 1], fx = fwd[2 * j], fy = fwd[2 * j + 1];
+        if (p->core) lm->core_err[i] = ok ? sh_flow_window_difference(lm->ref, rx, ry, lm->cur, fx, fy, p->core) : NAN;
+        if (p->min_correlation > 0)
+            lm->corr[i] = ok ? sh_flow_window_correlation(lm->ref, rx, ry, lm->cur, fx, fy, p->flow.win) : NAN;
     }
     if (!(p->max_backward_px > 0)) return SH_OK;
     for (int j = 0; j < m; j++) {

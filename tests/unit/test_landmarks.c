@@ -776,9 +776,9 @@ static void test_jump(void **state)
  * (max_photometric 255, no jump or centre test: the difference of a flat window from faint texture
  * is what the texture's own frames show, docs/landmarks.md) and the search held to one step a
  * level with no bound on how far it goes (a flat window gives it no minimum to stop at), nothing
- * but the correlation can see it: without min_correlation it is accepted; with 0.4 it is refused (noise against texture: r
- * near 0, within about 1/21 per standard deviation over 441 independent pixels), and every other
- * landmark, its texture under the same noise, is accepted either way. */
+ * but the correlation can see it: without min_correlation it is accepted; with 0.4 it is refused
+ * (noise against texture: r near 0, within about 1/21 per standard deviation over 441 independent
+ * pixels), and every other landmark, its texture under the same noise, is accepted either way. */
 static void test_correlation(void **state)
 {
     (void)state;
