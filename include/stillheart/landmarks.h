@@ -260,6 +260,68 @@ sh_status sh_landmarks_track_view(sh_landmarks *lm, int view, const sh_plane *lu
 sh_status sh_landmarks_luma(const sh_image *frame, sh_image *buf, const sh_plane **out);
 
 
+/* ---- Carried frames: too few markers, the landmarks carry the map (docs/landmarks.md,
+ * "Carried frames") ----
+ * With four tags at the corners of the field, an instrument or blood over two of them leaves too
+ * few for a markers' map (fewer than 3), and such a frame was shown raw, though the landmarks
+ * between the tags are found where they were. Such a frame may rest on the markers still seen
+ * and the landmarks, on three conditions: the landmarks' searches start from the frame before
+ * (its landmarks, moved by the markers' motion), as no map predicts them; each is still found
+ * against the reference and judged by every test of sh_landmarks_track, so no error carries from
+ * frame to frame; and the landmarks found must move as the markers seen move
+ * (sh_landmarks_carry). The map then goes through the markers seen and the landmarks, over
+ * their hull: the part of the field beyond it, at a marker not seen, is not shown stabilized. A
+ * frame before that was not stabilized breaks the chain. */
+
+/* A landmark not accepted in the frame before is predicted by the median displacement of its 8
+ * nearest that were, and a marker seen is judged by the 8 nearest landmarks accepted in both
+ * frames, at least 3 of them: the deviation test's 8 and 3, for the same reason (a median of
+ * fewer says little). Their median motion between the frames is compared with the
+ * marker's: the motion from one frame to the next varies far less across the 60-120 px between a
+ * corner tag and its nearest landmarks (the tag, its quiet zone and half a window keep them off)
+ * than the displacement from the reference does. On a four-tag render the median of 8 put the
+ * tags' motion within 1.07 px at the p90 and 1.72 px at the p99 (16: 1.13, 1.94; 32: 1.23, 2.14),
+ * where a plane through the 16 nearest put the tags themselves within 1.5-3.7 px at the p90 and
+ * up to 11 px (docs/landmarks.md, "Carried frames"). */
+#define SH_LANDMARKS_CARRY_NEAR 8
+#define SH_LANDMARKS_CARRY_SUPPORT 3
+/* Markers that must be seen: two. The landmarks' map is checked at each; a shift, rotation or
+ * scale common to the landmarks (a search gone wrong the same way everywhere) moves at least one
+ * of two points, where one point is blind to rotation and scale about it. */
+#define SH_LANDMARKS_CARRY_SEEN 2
+
+typedef struct {
+    int searched;    /* 1: the landmarks were searched (xy, verdict and counts written) */
+    int carried;     /* 1: the landmarks vouch for carrying the frame's map (below) */
+    int support;     /* the fewest landmarks accepted in both frames found among the
+                      * SH_LANDMARKS_CARRY_NEAR nearest a marker seen (0 when not searched) */
+    int thin;        /* that marker (-1: none) */
+    double worst_px; /* the largest distance, over the markers seen, between a marker's motion
+                      * since the frame before and the median motion of its nearest landmarks */
+    int worst;       /* that marker (-1: none) */
+} sh_landmarks_carry_report;
+
+/* A frame without a markers' map, right after one whose landmarks were found (prev_xy, prev_ok:
+ * count each, that frame's positions and 1 where accepted; xy must be another buffer). The nseen
+ * markers seen in both frames: their reference positions (seen_ref), where they were (seen_prev)
+ * and where they are (seen_xy), nseen pairs each.
+ * Each landmark is predicted at its reference position plus its displacement in the frame before
+ * (its own where it was accepted there, else the median of those of its SH_LANDMARKS_CARRY_NEAR
+ * nearest that were), plus the seen markers' mean motion; then found and judged as
+ * sh_landmarks_track does (xy, verdict, counts). r->carried is 1 when, at each marker seen, the
+ * median motion since the frame before of its SH_LANDMARKS_CARRY_NEAR nearest landmarks accepted
+ * in both frames (at least SH_LANDMARKS_CARRY_SUPPORT of them) is within max_px of its own: the
+ * landmarks, found without the markers, move as the detector sees the markers move (the daemon
+ * passes [gating] max_residual_px). A search gone wrong the same way over a part of the field,
+ * which the tests of each landmark against its neighbours cannot see, moves those landmarks
+ * unlike the markers there. With fewer than SH_LANDMARKS_CARRY_SEEN markers seen, or none
+ * accepted before, nothing is searched and r->carried is 0. SH_EINVAL for bad arguments; r may
+ * be NULL. */
+sh_status sh_landmarks_carry(sh_landmarks *lm, const sh_plane *luma, const float *prev_xy, const uint8_t *prev_ok,
+                             const double *seen_ref, const double *seen_prev, const double *seen_xy, int nseen,
+                             double max_px, float *xy, uint8_t *verdict, sh_landmarks_counts *counts,
+                             sh_landmarks_carry_report *r);
+
 /* ---- In 3D: a calibrated rig (docs/landmarks.md, "In 3D") ----
  * The landmarks are chosen in one camera (the primary: the one whose frames are shown) and found
  * in every other camera of the rig, each search started on the epipolar line of the primary's
