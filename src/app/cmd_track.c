@@ -61,6 +61,12 @@ static void usage(FILE *out)
         "                     warped by the markers' map's local affine at each landmark (the\n"
         "                     default since 2026-12-06, with a third as many landmarks over 1 px\n"
         "                     off where the tissue deforms: docs/landmarks.md)\n"
+        "  --landmarks-carry  with --landmarks (2D): a frame with 2 of frame 0's markers, too few\n"
+        "                     for their map, right after a frame whose landmarks were written:\n"
+        "                     the landmarks searched from that frame's, and written when at least\n"
+        "                     3 of the 8 nearest each marker were accepted and, at each marker\n"
+        "                     seen, theirs put it within 3 px of its row (docs/landmarks.md,\n"
+        "                     \"Carried frames\"); for four tags, where two hidden leave too few\n"
         "  --stats            tracking figures on standard error at the end\n"
         "  --json             with --stats: the figures as one JSON object, the last line on\n"
         "                     standard error (standard output carries the points): frames,\n"
@@ -70,7 +76,8 @@ static void usage(FILE *out)
         "                     {samples, median_px, worst_camera, worst_px, behind} (null in 2D);\n"
         "                     with --landmarks, landmarks {chosen, accepted, lost, photometric,\n"
         "                     backward, disagrees, deviates: camera 0's landmark-frames; with\n"
-        "                     --cameras also in_3d, unmatched_3d, inconsistent_3d}\n"
+        "                     --cameras also in_3d, unmatched_3d, inconsistent_3d; with\n"
+        "                     --landmarks-carry also carried_frames, not_carried_frames}\n"
         SH_CLI_USAGE
         "A progress line (frames, ETA) is shown on standard error when it is a terminal.\n");
 }
@@ -127,6 +134,7 @@ typedef struct {
     int landmarks; /* --landmarks N; 0: none */
     int landmarks_sparse; /* --landmarks-sparse */
     int landmarks_square; /* --landmarks-square */
+    int landmarks_carry; /* --landmarks-carry */
 } track_options;
 
 /* Fills o from argv: APP_GO_ON, or the exit code (usage and refusals printed). */
@@ -139,7 +147,7 @@ static int parse_options(int argc, char **argv, track_options *o)
         {"spatial", required_argument, 0, 's'}, {"measured-only", no_argument, 0, 'm'},
         {"stats", no_argument, 0, 'S'},         {"json", no_argument, 0, 'j'},
         {"landmarks", required_argument, 0, 'L'}, {"landmarks-sparse", no_argument, 0, 'P'},
-        {"landmarks-square", no_argument, 0, 'A'},
+        {"landmarks-square", no_argument, 0, 'A'}, {"landmarks-carry", no_argument, 0, 'K'},
         SH_CLI_OPTIONS,                         {0, 0, 0, 0}};
     memset(o, 0, sizeof *o);
     sh_track_options_default(&o->topts);
@@ -169,6 +177,7 @@ static int parse_options(int argc, char **argv, track_options *o)
         case 'L': if (!sh_cli_parse_int("--landmarks", optarg, 1, 100000, &o->landmarks)) return 2; break;
         case 'P': o->landmarks_sparse = 1; break;
         case 'A': o->landmarks_square = 1; break;
+        case 'K': o->landmarks_carry = 1; break;
         case 'h': usage(stdout); return 0;
         default: { int rc = sh_cli_option(&cli, ch, argv); if (rc >= 0) return rc; } break;
         }
@@ -180,6 +189,10 @@ static int parse_options(int argc, char **argv, track_options *o)
     for (int c = 0; c < o->ncam; c++) o->in[c] = argv[optind + c];
     if (o->landmarks_sparse && !o->landmarks) return sh_cli_usage_error(&cli, "--landmarks-sparse goes with --landmarks");
     if (o->landmarks_square && !o->landmarks) return sh_cli_usage_error(&cli, "--landmarks-square goes with --landmarks");
+    if (o->landmarks_carry && !o->landmarks) return sh_cli_usage_error(&cli, "--landmarks-carry goes with --landmarks");
+    if (o->landmarks_carry && o->calib_path)
+        return sh_cli_usage_error(&cli, "--landmarks-carry is 2D: in 3D each landmark needs the markers' map into "
+                                        "every camera");
     return APP_GO_ON;
 }
 
@@ -351,8 +364,8 @@ static int write_rows(const track_job *job, track_pass *p, int f, FILE *out)
     if (!ok || !job->o->landmarks) return !ok;
     /* the tissue's landmarks after the frame's markers (their ids sort after) */
     if (f == 0) {
-        track_landmarks_options lo = {job->o->landmarks, job->o->landmarks_sparse, !job->o->landmarks_square, job->o->ncam,
-                                      job->have_calib ? &job->calib : NULL};
+        track_landmarks_options lo = {job->o->landmarks, job->o->landmarks_sparse, !job->o->landmarks_square,
+                                      job->o->landmarks_carry, job->o->ncam, job->have_calib ? &job->calib : NULL};
         return track_landmarks_start(&lo, p->img, dets[0], p->ndet0, rows, nr, out, &p->lm);
     }
     return p->lm && track_landmarks_frame(p->lm, p->img, f, rows, nr, out);
@@ -442,6 +455,10 @@ static void stats_json(const track_job *job, track_pass *p)
         sh_cli_json_int(&j, "chosen", ls.chosen);
         for (int v = 0; v < SH_LANDMARK_VERDICTS; v++)
             sh_cli_json_int(&j, sh_landmark_verdict_name((sh_landmark_verdict)v), ls.verdicts[v]);
+        if (job->o->landmarks_carry) {
+            sh_cli_json_int(&j, "carried_frames", ls.carried);
+            sh_cli_json_int(&j, "not_carried_frames", ls.not_carried);
+        }
         if (job->have_calib) {
             sh_cli_json_int(&j, "in_3d", ls.in_3d);
             sh_cli_json_int(&j, "unmatched_3d", ls.unmatched);
@@ -463,6 +480,9 @@ static void landmarks_report(const track_job *job, const track_pass *p)
                 "backward %lld, disagrees %lld, deviates %lld",
                 s.chosen, v[SH_LANDMARK_ACCEPTED], v[SH_LANDMARK_LOST], v[SH_LANDMARK_PHOTOMETRIC],
                 v[SH_LANDMARK_BACKWARD], v[SH_LANDMARK_DISAGREES], v[SH_LANDMARK_DEVIATES]);
+    if (job->o->landmarks_carry)
+        sh_log_info("landmarks carried %lld frames with too few markers; in %lld more they did not vouch for the map",
+                    s.carried, s.not_carried);
     if (job->have_calib)
         sh_log_info("landmarks in 3D: %d with a reference (matched in frame 0); of camera 0's accepted, %lld matched "
                     "by no other camera, %lld refused by the reprojection test (%.1f px)",

@@ -27,6 +27,16 @@ struct track_landmarks {
     uint8_t *verdict;      /* 2D: n */
     double *X;             /* 3D: n x 3, the frame's triangulated positions */
     uint8_t *keep;         /* n: written in this frame */
+    /* --landmarks-carry (2D): the frame before, when its landmarks were searched and written
+     * (xy and keep hold them), and its markers shared with frame 0 (ids, where they were) */
+    int carry, prev_f;
+    int *prev_ids;
+    double *prev_xy;
+    int nprev;
+    float *lm_prev;        /* n pairs: a carried frame's copy of the frame before's xy */
+    uint8_t *ok_prev;      /* n: and of its keep */
+    double *both;          /* 3 nref pairs: the markers seen in both frames: their frame 0
+                            * positions, where they were, where they are */
     sh_image gray[MAXCAM]; /* RGB24 frames' luma */
     track_landmarks_stats stats;
 };
@@ -66,16 +76,55 @@ static int write_landmarks(const track_landmarks *tl, int f, const float *xy, FI
 }
 
 /* The markers' map from camera 0's reference to this frame at every landmark (tl->pred): TPS on
- * the marker rows cur (sorted by id) shares with frame 0. 0 when fewer than 3. */
-static int predict(track_landmarks *tl, const sh_point *cur, int ncur)
+ * the marker rows cur (sorted by id) shares with frame 0 (*m of them: their ids, reference
+ * positions and positions now in tl->ids, ref_xy, cur_xy). 0 when fewer than 3. */
+static int predict(track_landmarks *tl, const sh_point *cur, int ncur, int *m)
 {
     /* the shared markers' reference positions go into ref_xy (its whole-set use, the hull, is over) */
-    int m = sh_points_match(tl->ref, tl->nref, cur, ncur, tl->ids, tl->ref_xy, tl->cur_xy);
-    if (m < 3) return 0;
+    *m = sh_points_match(tl->ref, tl->nref, cur, ncur, tl->ids, tl->ref_xy, tl->cur_xy);
+    if (*m < 3) return 0;
     sh_interp_params ip;
     sh_interp_params_default(&ip, SH_METHOD_TPS);
-    return sh_interp_map_points(&ip, tl->ref_xy, tl->cur_xy, m, sh_landmarks_reference(tl->lm), tl->n, tl->pred) ==
+    return sh_interp_map_points(&ip, tl->ref_xy, tl->cur_xy, *m, sh_landmarks_reference(tl->lm), tl->n, tl->pred) ==
            SH_OK;
+}
+
+/* --landmarks-carry: a frame with fewer than 3 of frame 0's markers (m of them in tl->ids,
+ * ref_xy, cur_xy), the frame before's landmarks written: the landmarks predicted from those,
+ * found, judged, and kept when they move as the markers of both frames' rows move
+ * (sh_landmarks_carry, with the daemon's default [gating] max_residual_px; the rows are the
+ * tracker's estimates, a hidden marker's prediction among them for a while, where the daemon has
+ * the detections). 1 when the frame's landmarks are kept, 0 when they were searched and are not,
+ * -1 when nothing was searched (fewer than two such markers, or no landmark accepted before). */
+#define TRACK_CARRY_MAX_PX 3.0
+static int carry(track_landmarks *tl, const sh_plane *y, int f, int m, sh_landmarks_counts *cnt)
+{
+    double *sref = tl->both, *sprev = tl->both + 2 * tl->nref, *snow = tl->both + 4 * tl->nref;
+    int nb = 0;
+    for (int k = 0; k < m; k++)
+        for (int j = 0; j < tl->nprev; j++)
+            if (tl->prev_ids[j] == tl->ids[k]) {
+                sref[2 * nb] = tl->ref_xy[2 * k], sref[2 * nb + 1] = tl->ref_xy[2 * k + 1];
+                sprev[2 * nb] = tl->prev_xy[2 * j], sprev[2 * nb + 1] = tl->prev_xy[2 * j + 1];
+                snow[2 * nb] = tl->cur_xy[2 * k], snow[2 * nb + 1] = tl->cur_xy[2 * k + 1];
+                nb++;
+            }
+    memcpy(tl->lm_prev, tl->xy, 2 * (size_t)tl->n * sizeof *tl->xy);
+    memcpy(tl->ok_prev, tl->keep, (size_t)tl->n);
+    memset(cnt, 0, sizeof *cnt);
+    sh_landmarks_carry_report r;
+    if (sh_landmarks_carry(tl->lm, y, tl->lm_prev, tl->ok_prev, sref, sprev, snow, nb, TRACK_CARRY_MAX_PX, tl->xy,
+                           tl->verdict, cnt, &r) != SH_OK) {
+        sh_log_warn("--landmarks-carry: frame %d: %s", f, sh_error_message());
+        return -1;
+    }
+    if (!r.searched) return -1;
+    for (int i = 0; i < tl->n; i++) tl->keep[i] = tl->verdict[i] == SH_LANDMARK_ACCEPTED;
+    sh_log_debug("--landmarks-carry: frame %d: %d markers seen here and before, %d landmarks accepted; %s: at least "
+                 "%d landmarks by each marker, the worst %.2f px off their motion",
+                 f, nb, cnt->verdicts[SH_LANDMARK_ACCEPTED], r.carried ? "carried" : "not carried", r.support,
+                 r.worst_px);
+    return r.carried;
 }
 
 /* In 3D: the markers cur (sorted by id) shares with frame 0 (sh_points_match: their reference
@@ -115,7 +164,9 @@ static int allocate(track_landmarks *tl)
     } else {
         tl->pred = malloc(2 * n * sizeof *tl->pred);
         tl->verdict = malloc(n);
-        ok = ok && tl->pred && tl->verdict;
+        tl->lm_prev = malloc(2 * n * sizeof *tl->lm_prev);
+        tl->ok_prev = malloc(n);
+        ok = ok && tl->pred && tl->verdict && tl->lm_prev && tl->ok_prev;
     }
     if (!ok) sh_log_error("--landmarks: out of memory");
     return !ok;
@@ -177,8 +228,14 @@ int track_landmarks_start(const track_landmarks_options *o, const sh_image *fram
         tl->ref_xy = malloc(2 * (size_t)nrows * sizeof *tl->ref_xy);
         tl->cur_xy = malloc(2 * (size_t)nrows * sizeof *tl->cur_xy);
         tl->cur_xyz = malloc(3 * (size_t)nrows * sizeof *tl->cur_xyz);
+        tl->prev_ids = malloc((size_t)nrows * sizeof *tl->prev_ids);
+        tl->prev_xy = malloc(2 * (size_t)nrows * sizeof *tl->prev_xy);
+        tl->both = malloc(6 * (size_t)nrows * sizeof *tl->both);
+        tl->carry = o->carry && !(o->calib && o->ncam > 1);
+        tl->prev_f = -2;
     }
-    if (!tl || !tags || !tl->ref || !tl->ids || !tl->ref_xy || !tl->cur_xy || !tl->cur_xyz) {
+    if (!tl || !tags || !tl->ref || !tl->ids || !tl->ref_xy || !tl->cur_xy || !tl->cur_xyz || !tl->prev_ids ||
+        !tl->prev_xy || !tl->both) {
         free(tags);
         track_landmarks_destroy(tl);
         sh_log_error("--landmarks: out of memory");
@@ -220,6 +277,12 @@ int track_landmarks_start(const track_landmarks_options *o, const sh_image *fram
     }
     free(tags);
     if (!rc) rc = write_landmarks(tl, 0, tl->xy, out);
+    if (!rc && tl->carry) { /* frame 0: every landmark where it was chosen, every marker seen */
+        tl->prev_f = 0;
+        tl->nprev = nrows;
+        for (int k = 0; k < nrows; k++) tl->prev_ids[k] = tl->ref[k].id;
+        memcpy(tl->prev_xy, tl->ref_xy, 2 * (size_t)nrows * sizeof *tl->prev_xy);
+    }
     if (rc) {
         track_landmarks_destroy(tl);
         return rc;
@@ -259,18 +322,35 @@ int track_landmarks_frame(track_landmarks *tl, const sh_image *frames, int f, co
         free(cur);
         return rc;
     }
-    /* no landmark is written without the markers' map: nothing to judge them by */
-    int mapped = predict(tl, cur, nrows);
+    /* no landmark is written without the markers' map (nothing to judge them by) or, with
+     * --landmarks-carry, the frame before's landmarks vouching for them */
+    int m, mapped = predict(tl, cur, nrows, &m);
     free(cur);
-    if (!mapped) return 0;
+    int chain = tl->carry && tl->prev_f == f - 1 && m >= SH_LANDMARKS_CARRY_SEEN;
+    tl->prev_f = -2;
+    if (!mapped && !chain) return 0;
     sh_landmarks_counts cnt;
     const sh_plane *y = luma(tl, 0, &frames[0]);
-    if (!y || sh_landmarks_track(tl->lm, y, tl->pred, tl->xy, tl->verdict, &cnt) != SH_OK) {
+    if (!y) {
         sh_log_error("--landmarks: frame %d: %s", f, sh_error_message());
         return 1;
     }
+    if (!mapped) {
+        int kept = carry(tl, y, f, m, &cnt);
+        tl->stats.carried += kept == 1;
+        tl->stats.not_carried += kept == 0;
+        if (kept != 1) return 0;
+    } else if (sh_landmarks_track(tl->lm, y, tl->pred, tl->xy, tl->verdict, &cnt) != SH_OK) {
+        sh_log_error("--landmarks: frame %d: %s", f, sh_error_message());
+        return 1;
+    } else {
+        for (int i = 0; i < tl->n; i++) tl->keep[i] = tl->verdict[i] == SH_LANDMARK_ACCEPTED;
+    }
     for (int v = 0; v < SH_LANDMARK_VERDICTS; v++) tl->stats.verdicts[v] += cnt.verdicts[v];
-    for (int i = 0; i < tl->n; i++) tl->keep[i] = tl->verdict[i] == SH_LANDMARK_ACCEPTED;
+    tl->prev_f = f;
+    tl->nprev = m;
+    memcpy(tl->prev_ids, tl->ids, (size_t)m * sizeof *tl->ids);
+    memcpy(tl->prev_xy, tl->cur_xy, 2 * (size_t)m * sizeof *tl->cur_xy);
     return write_landmarks(tl, f, tl->xy, out);
 }
 
@@ -286,6 +366,7 @@ void track_landmarks_destroy(track_landmarks *tl)
     sh_landmarks_rig_destroy(tl->rig);
     for (int c = 0; c < MAXCAM; c++) sh_image_destroy(&tl->gray[c]);
     free(tl->ref), free(tl->ids), free(tl->ref_xy), free(tl->cur_xy), free(tl->cur_xyz), free(tl->pred), free(tl->xy);
-    free(tl->verdict), free(tl->X), free(tl->keep);
+    free(tl->verdict), free(tl->X), free(tl->keep), free(tl->prev_ids), free(tl->prev_xy), free(tl->both);
+    free(tl->lm_prev), free(tl->ok_prev);
     free(tl);
 }

@@ -25,6 +25,8 @@
 typedef struct {
     int n;                 /* up to n landmarks */
     int sparse, affine;    /* --landmarks-sparse, not --landmarks-square */
+    int carry;             /* --landmarks-carry (2D): frames with fewer than 3 markers carried by
+                            * the landmarks (landmarks.h, "Carried frames") */
     int ncam;              /* videos; with calib and ncam > 1, landmarks in 3D */
     const sh_calib *calib; /* NULL: 2D (camera 0 alone) */
 } track_landmarks_options;
@@ -35,6 +37,9 @@ typedef struct {
     long long verdicts[SH_LANDMARK_VERDICTS];  /* camera 0's landmark-frames by verdict */
     long long unmatched;  /* 3D: accepted in camera 0, by no other camera */
     long long inconsistent; /* 3D: accepted in two or more, refused by the reprojection test */
+    long long carried;      /* --landmarks-carry: frames with fewer than 3 markers whose landmarks
+                             * were written */
+    long long not_carried;  /* and those searched whose landmarks did not vouch for the map */
 } track_landmarks_stats;
 
 typedef struct track_landmarks track_landmarks;
@@ -46,8 +51,10 @@ typedef struct track_landmarks track_landmarks;
 int track_landmarks_start(const track_landmarks_options *o, const sh_image *frames, const sh_detection *dets, int ndet,
                           const sh_point *rows, int nrows, FILE *out, track_landmarks **tl);
 /* Frame f: each landmark predicted by the markers' map (TPS on the marker rows f shares with
- * frame 0), found and judged (in 3D, in every camera); the accepted ones written. 0, or 1 with
- * the reason printed. */
+ * frame 0), found and judged (in 3D, in every camera); the accepted ones written. With carry, a
+ * frame with 2 such rows (fewer than the map's 3) right after a frame whose landmarks were
+ * written: predicted from that frame's, and written when they vouch for the map
+ * (sh_landmarks_carry_check). 0, or 1 with the reason printed. */
 int track_landmarks_frame(track_landmarks *tl, const sh_image *frames, int f, const sh_point *rows, int nrows,
                           FILE *out);
 void track_landmarks_stats_get(const track_landmarks *tl, track_landmarks_stats *s);
