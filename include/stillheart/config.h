@@ -95,6 +95,8 @@ typedef struct {
     /* [gating] */
     int min_markers;                 /* fewer -> raw ("too few markers") */
     double max_residual_px;          /* larger -> raw ("residual") */
+    int landmarks_carry;             /* fewer than min_markers, two seen: carried by the landmarks
+                                      * (sh_landmarks_carry), degraded ("carried") */
     double max_sigma_px;             /* position uncertainty (1 sigma) over this -> raw */
     int dropout_ms;                  /* stale up to this -> degraded; longer -> raw */
     double max_calibration_px;       /* 3D: the calibration's median reprojection error over this -> raw */

@@ -89,6 +89,8 @@ static const keydef keys[] = {
      "a moved camera, once settled: new (a new reference) | keep (the old one)", "new|keep"},
     {"gating", "min_markers", "min-markers", K_INT, SH_CONFIG_GATING, F(min_markers), 0, 1, SH_CONFIG_MAX_IDS, "fewer markers -> raw"},
     {"gating", "max_residual_px", "max-residual", K_DOUBLE, SH_CONFIG_GATING, F(max_residual_px), 0, 0, 1e4, "residual over this -> raw"},
+    {"gating", "landmarks_carry", "landmarks-carry", K_BOOL, SH_CONFIG_GATING, F(landmarks_carry), 0, 0, 1,
+     "a frame raw for its markers (too few, one uncertain, no model yet) with two detected there and in the frame before is carried by the landmarks when they move as those markers do: degraded, over their hull ([track] landmarks, 2D)"},
     {"gating", "max_sigma_px", "max-sigma", K_DOUBLE, SH_CONFIG_GATING, F(max_sigma_px), 0, 0, 1e4, "position uncertainty (1 sigma) over this -> raw"},
     {"gating", "dropout_ms", "dropout-ms", K_INT, SH_CONFIG_GATING, F(dropout_ms), 0, 0, 60000, "stale estimates up to this -> degraded, longer -> raw"},
     {"gating", "max_calibration_px", "max-calibration", K_DOUBLE, SH_CONFIG_GATING, F(max_calibration_px), 0, 0.01, 100,
@@ -433,6 +435,12 @@ static sh_status check_method(const sh_config *cfg, char *err)
         (!sh_interp_method_smooths(method.method) || cfg->calibration[0]))
         return refuse(cfg, "track", "landmarks_smoothing", err, "%g, but %s interpolates the landmarks (a tps map in 2D "
                       "approximates them)", cfg->landmarks_smoothing, cfg->calibration[0] ? "3D" : cfg->method_name);
+    /* carried frames rest on the landmarks found in 2D (landmarks.h, "Carried frames") */
+    if (cfg->landmarks_carry && !cfg->landmarks)
+        return refuse(cfg, "gating", "landmarks_carry", err, "yes, but there are no landmarks ([track] landmarks = 0)");
+    if (cfg->landmarks_carry && cfg->calibration[0])
+        return refuse(cfg, "gating", "landmarks_carry", err, "yes, but in 3D ([method] calibration) every camera's "
+                      "landmarks are predicted through the markers' map, which too few markers do not give");
     int need = method_min_markers(method.method);
     if (cfg->min_markers < need)
         return refuse(cfg, "gating", "min_markers", err, "%d is fewer than %s needs (%d)", cfg->min_markers,

@@ -1,5 +1,8 @@
 /* The daemon's processing of one frame: markers (tracker or points file), reference, selection,
- * model, gate, warp. docs/daemon.md ("Safety gating") is the specification of the gate. */
+ * model, gate, warp. docs/daemon.md ("Safety gating") is the specification of the gate. Over 600
+ * lines: the gate is one sequence over one frame's state (the markers, the reference, the models,
+ * the landmarks, the frame carried from the one before), each step reading what the steps before
+ * left in run_proc; split into files, each would take the whole struct and the others' helpers. */
 #include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
@@ -61,6 +64,16 @@ struct run_proc {
     long long lm_unmatched, lm_inconsistent; /* 3D: sh_landmarks_rig_counts' */
     int lm_frames, lm_accepted; /* frames the landmarks were looked for in; this frame's accepted */
     int lm_ref_frame;           /* the frame the reference was taken from (-1: none yet) */
+    int lm_found;               /* this frame's landmarks were searched in 2D (lm_xy, lm_verdict) */
+    /* [gating] landmarks_carry (2D): the last frame stabilized with its landmarks found (-1: none),
+     * the last frame processed before this one and this one; a carried frame's copy of the frame
+     * before's landmarks (lm_cap pairs, lm_cap); the markers lm_last's map went through that were
+     * detected there, and where */
+    int lm_last, processed, current;
+    float *carry_xy;
+    uint8_t *carry_ok;
+    int carry_n, carry_ids[SH_TRACK_MAX_MARKERS];
+    double carry_det[2 * SH_TRACK_MAX_MARKERS];
     double lm_ms;               /* this frame's landmark stage, CPU ms */
     sh_log_limit lm_err;
 };
@@ -100,6 +113,8 @@ static sh_status landmarks_create(run_proc *p, const sh_config *cfg)
     p->lm_pred = malloc(sizeof(float) * 2 * (size_t)p->lm_cap);
     p->lm_xy = malloc(sizeof(float) * 2 * (size_t)p->lm_cap);
     p->lm_verdict = malloc((size_t)p->lm_cap);
+    p->carry_xy = malloc(sizeof(float) * 2 * (size_t)p->lm_cap);
+    p->carry_ok = malloc((size_t)p->lm_cap);
     p->all_xy = malloc(sizeof(double) * 2 * most);
     p->all_det = malloc(sizeof(double) * 2 * most);
     p->all_use = malloc(most);
@@ -107,8 +122,8 @@ static sh_status landmarks_create(run_proc *p, const sh_config *cfg)
         p->lm_xyz = malloc(sizeof(double) * 3 * (size_t)p->lm_cap);
         p->all_xyz = malloc(sizeof(double) * 3 * most);
     }
-    if (!p->lm_pred || !p->lm_xy || !p->lm_verdict || !p->all_xy || !p->all_det || !p->all_use ||
-        (p->three_d && (!p->lm_xyz || !p->all_xyz)))
+    if (!p->lm_pred || !p->lm_xy || !p->lm_verdict || !p->carry_xy || !p->carry_ok || !p->all_xy || !p->all_det ||
+        !p->all_use || (p->three_d && (!p->lm_xyz || !p->all_xyz)))
         return sh_error_set(SH_ENOMEM, "processing: out of memory for %d landmarks", p->lm_cap);
     sh_interp_params tps;
     sh_interp_params_default(&tps, SH_METHOD_TPS);
@@ -203,6 +218,7 @@ sh_status run_proc_create(const sh_config *cfg, const sh_y4m_header *hdr, double
     p->cfg = *cfg;
     p->out_cam = cfg->output_camera;
     p->lm_ref_frame = -1;
+    p->lm_last = p->processed = p->current = -1;
     if (cfg->calibration[0]) {
         sh_status st = sh_calib_read(cfg->calibration, &p->calib);
         if (st == SH_OK && (p->calib.num_cameras < 2 || p->calib.num_cameras != cameras))
@@ -276,7 +292,7 @@ void run_proc_destroy(run_proc *p)
     sh_detector_destroy(p->lm_det);
     for (int c = 0; c < SH_CALIB_MAX_CAMERAS; c++) sh_image_destroy(&p->lm_gray[c]);
     free(p->lm_pred), free(p->lm_xy), free(p->lm_verdict), free(p->all_xy), free(p->all_det), free(p->all_use);
-    free(p->lm_xyz), free(p->all_xyz);
+    free(p->lm_xyz), free(p->all_xyz), free(p->carry_xy), free(p->carry_ok);
     sh_interp_mapper_destroy(p->lm_map);
     free(p->used_ids), free(p->used_xy);
     run_models_destroy(p->models);
@@ -419,10 +435,12 @@ static void take_reference(run_proc *p, const sh_image *img, const sh_image *con
 }
 
 /* Falls back on the last model while sel's is built: usable when every one of its markers still
- * has an estimate within max_sigma_px (a prediction is fine: the status says degraded). */
+ * has an estimate within max_sigma_px (a prediction is fine: the status says degraded), and when
+ * they are 3 or more (a carried frame's model of 2 has no markers' map to find its landmarks by:
+ * carried() alone uses it). */
 static int fallback(run_proc *p, int nm, double *xy, double *xyz, double *det)
 {
-    if (!p->last) return 0;
+    if (!p->last || run_model_markers(p->last) < 3) return 0;
     int n = run_model_markers(p->last); /* its landmarks are found by landmarks() */
     const int *ids = run_model_ids(p->last, &(int){0});
     for (int k = 0, c = 0; k < n; k++) {
@@ -740,6 +758,7 @@ static void landmarks(run_proc *p, const run_model *md, const sh_image *img, con
               : p->three_d            ? search_3d(p, md, img, cams, xy, xyz, nmk)
                                       : search_2d(p, md, img, xy, nmk, n - nmk);
     p->lm_accepted = got > 0 ? got : 0;
+    p->lm_found = got >= 0 && !p->three_d;
     if (got < 0) {
         sh_log_limited(&p->lm_err, SH_LOG_ERROR, "landmarks: %s (the markers alone)", sh_error_message());
     } else {
@@ -775,6 +794,177 @@ static void keep_used(run_proc *p, const run_model *md, const double *xy, const 
     }
 }
 
+/* md updated through xy (and xyz in 3D; use: the points it goes through, NULL: all), gated on its
+ * residual at the markers' detections det, and img warped with it into p->out: 1 when warped (info
+ * says why not). t1: when the markers were done; the update's time counts from there, less the
+ * landmarks'. */
+static int update_and_warp(run_proc *p, run_model *md, const sh_image *img, const double *xy, const double *xyz,
+                           const double *det, const unsigned char *use, double t1, sh_display_frame_info *info)
+{
+    double residual;
+    sh_status ust = run_model_update(md, p->warp, xy, xyz, det, use, &residual);
+    double t2 = now_ms();
+    p->ms[1] = t2 - t1 - p->lm_ms;
+    if (ust != SH_OK) {
+        reason(info, "model update failed");
+        return 0;
+    }
+    if (!isfinite(residual)) {
+        reason(info, "map not defined at a marker");
+        return 0;
+    }
+    info->residual_px = (float)residual; /* -1: every marker predicted, nothing to compare */
+    if (residual > p->cfg.max_residual_px) {
+        reason(info, "residual %.1f px > %.1f", residual, p->cfg.max_residual_px);
+        return 0;
+    }
+    sh_status wst = warp(p, md, img);
+    p->ms[2] = now_ms() - t2;
+    if (wst != SH_OK) {
+        sh_log_limited(&p->model_err, SH_LOG_ERROR, "warp: %s", sh_error_message());
+        reason(info, "warp failed");
+        return 0;
+    }
+    keep_used(p, md, xy, use);
+    return 1;
+}
+
+/* After a frame stabilized (nm markers in p->mk): with its landmarks found in 2D, it may carry the
+ * next (p->lm_last), and its map's markers detected in it are kept for that (their detections: the
+ * check compares motions the detector saw, not the tracker's estimates, which lag a fast motion);
+ * else the chain is broken. */
+static void carry_from(run_proc *p, int index, int nm)
+{
+    p->lm_last = p->lm_found ? index : -1;
+    p->carry_n = 0;
+    for (int k = 0, c = 0; k < p->used_n && p->lm_found; k++) {
+        int id = p->used_ids[k];
+        while (c < nm && p->mk[c].id < id) c++;
+        if (id >= SH_LANDMARK_ID_BASE || c == nm || p->mk[c].id != id || p->mk[c].age != 0) continue;
+        p->carry_ids[p->carry_n] = id;
+        p->carry_det[2 * p->carry_n] = p->mk[c].dx;
+        p->carry_det[2 * p->carry_n + 1] = p->mk[c].dy;
+        p->carry_n++;
+    }
+}
+
+/* The markers detected in this frame (p->mk, nm of them) that are in the reference (ref, nref; both
+ * sorted by id) and were detected in the map of the frame before (carry_from): their ids,
+ * reference positions, detections there and now (dprev, det), and positions now (xy: the
+ * tracker's, which the map goes through as every frame's does). Their count. */
+static int seen_twice(const run_proc *p, int nm, const sh_point *ref, int nref, int *ids, double *sref, double *dprev,
+                      double *det, double *xy)
+{
+    int nb = 0;
+    for (int c = 0, r = 0; c < nm; c++) {
+        const run_marker *mk = &p->mk[c];
+        while (r < nref && ref[r].id < mk->id) r++;
+        if (mk->age != 0 || r == nref || ref[r].id != mk->id) continue;
+        int u = 0;
+        while (u < p->carry_n && p->carry_ids[u] != mk->id) u++;
+        if (u == p->carry_n) continue;
+        ids[nb] = mk->id;
+        sref[2 * nb] = ref[r].x, sref[2 * nb + 1] = ref[r].y;
+        dprev[2 * nb] = p->carry_det[2 * u], dprev[2 * nb + 1] = p->carry_det[2 * u + 1];
+        det[2 * nb] = mk->dx, det[2 * nb + 1] = mk->dy;
+        xy[2 * nb] = mk->x, xy[2 * nb + 1] = mk->y;
+        nb++;
+    }
+    return nb;
+}
+
+/* [gating] landmarks_carry: a frame that would be raw for its markers (too few, one too uncertain,
+ * or no model for them yet), right after a frame stabilized with its landmarks found (2D). The
+ * markers detected in both frames and the landmarks, searched from the
+ * frame before's and judged as every frame's, make its map when the landmarks move as those
+ * markers do (sh_landmarks_carry); the frame is shown degraded, warped by the model of those
+ * markers and the landmarks (or, while it is built, the last model with its other markers left
+ * out), over the hull of the points used (a marker not seen lies outside it). NULL when not (info
+ * says why, or keeps "too few markers" when nothing was tried). */
+static const sh_image *carried(run_proc *p, const sh_image *img, int index, int nm, const sh_point *ref, int nref,
+                               double t1, sh_display_frame_info *info)
+{
+    /* the chain holds across frames never processed (dropped while the processing was busy), not
+     * across one shown raw */
+    if (!p->cfg.landmarks_carry || !p->lm_cap || p->three_d || p->lm_last < 0 || p->lm_last != p->processed)
+        return NULL;
+    int ids[SH_TRACK_MAX_MARKERS];
+    double sref[2 * SH_TRACK_MAX_MARKERS], dprev[2 * SH_TRACK_MAX_MARKERS], det[2 * SH_TRACK_MAX_MARKERS],
+        snow[2 * SH_TRACK_MAX_MARKERS];
+    int nb = seen_twice(p, nm, ref, nref, ids, sref, dprev, det, snow);
+    sh_landmarks *lm = run_models_landmarks(p->models);
+    if (nb < SH_LANDMARKS_CARRY_SEEN || !lm) return NULL;
+    double t0 = now_ms();
+    int n = sh_landmarks_count(lm);
+    memcpy(p->carry_xy, p->lm_xy, sizeof(float) * 2 * (size_t)n);
+    memcpy(p->carry_ok, p->lm_verdict, (size_t)n);
+    const sh_plane *y;
+    sh_landmarks_counts c;
+    sh_landmarks_carry_report r;
+    sh_status st = sh_landmarks_luma(img, &p->lm_gray[0], &y);
+    if (st == SH_OK)
+        st = sh_landmarks_carry(lm, y, p->carry_xy, p->carry_ok, sref, dprev, det, nb, p->cfg.max_residual_px,
+                                p->lm_xy, p->lm_verdict, &c, &r);
+    p->lm_ms = now_ms() - t0;
+    if (st != SH_OK) {
+        sh_log_limited(&p->lm_err, SH_LOG_ERROR, "landmarks: %s (the frame raw)", sh_error_message());
+        return NULL;
+    }
+    if (!r.searched) return NULL; /* none accepted before */
+    for (int v = 0; v < SH_LANDMARK_VERDICTS; v++) p->lm_verdicts[v] += c.verdicts[v];
+    p->lm_frames++;
+    p->lm_accepted = c.verdicts[SH_LANDMARK_ACCEPTED];
+    for (int k = 0; k < n; k++) p->lm_verdict[k] = p->lm_verdict[k] == SH_LANDMARK_ACCEPTED;
+    if (!r.carried) {
+        if (r.support < SH_LANDMARKS_CARRY_SUPPORT)
+            reason(info, "too few markers (%d); landmarks: %d by one", nb, r.support);
+        else
+            reason(info, "too few markers (%d); landmarks %.1f px off", nb, r.worst_px);
+        return NULL;
+    }
+    /* the model of those markers and the landmarks; while it is built (live), the last model with
+     * its other markers left out, as long as it holds these */
+    run_model *md = NULL;
+    int got = run_models_get(p->models, ids, nb, &md);
+    if (got < 0) {
+        sh_log_limited(&p->model_err, SH_LOG_ERROR, "%s", sh_error_message());
+        reason(info, "carried: model failed (%d markers)", nb);
+        return NULL;
+    }
+    if (got == 1) p->last = md;
+    else md = p->last;
+    int npts, nmk = md ? run_model_markers(md) : 0, held = 0;
+    const int *mids = md ? run_model_ids(md, &npts) : NULL;
+    for (int k = 0; k < nmk; k++) {
+        int j = 0;
+        while (j < nb && ids[j] != mids[k]) j++;
+        p->all_use[k] = j < nb;
+        held += j < nb;
+        p->all_xy[2 * k] = j < nb ? snow[2 * j] : NAN;
+        p->all_xy[2 * k + 1] = j < nb ? snow[2 * j + 1] : NAN;
+        p->all_det[2 * k] = j < nb ? det[2 * j] : NAN;
+        p->all_det[2 * k + 1] = j < nb ? det[2 * j + 1] : NAN;
+    }
+    if (held < nb) {
+        reason(info, "carried: model for %d markers building", nb);
+        return NULL;
+    }
+    for (int k = nmk; k < npts; k++) {
+        int i = mids[k] - SH_LANDMARK_ID_BASE;
+        p->all_use[k] = p->lm_verdict[i];
+        p->all_xy[2 * k] = p->all_use[k] ? p->lm_xy[2 * i] : NAN;
+        p->all_xy[2 * k + 1] = p->all_use[k] ? p->lm_xy[2 * i + 1] : NAN;
+        p->all_det[2 * k] = p->all_det[2 * k + 1] = NAN;
+    }
+    if (!update_and_warp(p, md, img, p->all_xy, NULL, p->all_det, p->all_use, t1, info)) return NULL;
+    info->status = SH_DISPLAY_DEGRADED;
+    info->markers_used = (uint32_t)nb;
+    reason(info, "carried: %d markers, %d landmarks", nb, p->lm_accepted);
+    p->lm_found = 1;
+    carry_from(p, index, nm);
+    return &p->out;
+}
+
 const sh_image *run_proc_frame(run_proc *p, const sh_image *img, const sh_image *const *cams, int index,
                                unsigned epoch, sh_display_frame_info *info)
 {
@@ -790,6 +980,9 @@ static const sh_image *frame(run_proc *p, const sh_image *img, const sh_image *c
     p->ms[0] = p->ms[1] = p->ms[2] = 0;
     p->lm_ms = 0;
     p->lm_accepted = 0;
+    p->lm_found = 0;
+    p->processed = p->current;
+    p->current = index;
     int nm = markers(p, img, cams, index, epoch);
     double t1 = now_ms();
     p->ms[0] = t1 - t0;
@@ -800,12 +993,16 @@ static const sh_image *frame(run_proc *p, const sh_image *img, const sh_image *c
     const sh_point *ref;
     int nref;
     run_selection sel;
-    if (!reference_ready(p, img, cams, index, nm, info, &ref, &nref) || !selection_ok(p, ref, nref, nm, &sel, info))
-        return img;
+    if (!reference_ready(p, img, cams, index, nm, info, &ref, &nref)) return img;
+    /* too few markers, an uncertain one, or no model for them yet: raw, unless the landmarks carry
+     * the frame on the markers detected in it */
+    const sh_image *shown;
+    if (!selection_ok(p, ref, nref, nm, &sel, info))
+        return (shown = carried(p, img, index, nm, ref, nref, t1, info)) ? shown : img;
     run_positions fb;
     int building = 0;
     run_model *md = model_for(p, nm, &sel, &fb, &building, info);
-    if (!md) return img;
+    if (!md) return (shown = carried(p, img, index, nm, ref, nref, t1, info)) ? shown : img;
     const double *xy = building ? fb.xy : sel.xy, *xyz = building ? fb.xyz : sel.xyz,
                  *det = building ? fb.det : sel.det;
     const unsigned char *use = NULL;
@@ -816,31 +1013,8 @@ static const sh_image *frame(run_proc *p, const sh_image *img, const sh_image *c
         xy = p->all_xy, det = p->all_det, use = p->all_use;
         if (p->three_d) xyz = p->all_xyz;
     }
-    double residual;
-    sh_status ust = run_model_update(md, p->warp, xy, xyz, det, use, &residual);
-    double t2 = now_ms();
-    p->ms[1] = t2 - t1 - p->lm_ms;
-    if (ust != SH_OK) {
-        reason(info, "model update failed");
-        return img;
-    }
-    if (!isfinite(residual)) {
-        reason(info, "map not defined at a marker");
-        return img;
-    }
-    info->residual_px = (float)residual; /* -1: every marker predicted, nothing to compare */
-    if (residual > p->cfg.max_residual_px) {
-        reason(info, "residual %.1f px > %.1f", residual, p->cfg.max_residual_px);
-        return img;
-    }
-    sh_status wst = warp(p, md, img);
-    p->ms[2] = now_ms() - t2;
-    if (wst != SH_OK) {
-        sh_log_limited(&p->model_err, SH_LOG_ERROR, "warp: %s", sh_error_message());
-        reason(info, "warp failed");
-        return img;
-    }
-    keep_used(p, md, xy, use);
+    if (!update_and_warp(p, md, img, xy, xyz, det, use, t1, info)) return img;
     warped_status(&sel, building, info);
+    carry_from(p, index, nm);
     return &p->out;
 }

@@ -487,6 +487,8 @@ static void test_method_refusals(void **state)
         {"tps", "method", "layout", "tb-half", "layout", "only the stereo view has a layout"},
         /* the landmarks' smoothing: only with landmarks (and, below, a tps map in 2D) */
         {"tps", "track", "landmarks_smoothing", "500", "landmarks-smoothing", "500, but there are no landmarks"},
+        /* carried frames rest on the landmarks */
+        {"tps", "gating", "landmarks_carry", "yes", "landmarks-carry", "yes, but there are no landmarks"},
     };
     static const struct {
         const char *method, *section, *key, *value;
@@ -528,6 +530,16 @@ static void test_method_refusals(void **state)
         assert_int_equal(sh_config_set(&c, "track", "landmarks_smoothing", "500", "command line", 0, err), SH_OK);
         assert_int_equal(sh_config_check(&c, err), k ? SH_EINVAL : SH_OK);
         if (k) assert_non_null(strstr(err, "500, but bspline interpolates the landmarks"));
+    }
+    /* carried frames: with landmarks in 2D, not in 3D (every camera's landmarks need the markers' map) */
+    for (int k = 0; k < 2; k++) {
+        sh_config c;
+        sh_config_default(&c);
+        assert_int_equal(sh_config_set(&c, "track", "landmarks", "100", "command line", 0, err), SH_OK);
+        assert_int_equal(sh_config_set(&c, "gating", "landmarks_carry", "yes", "command line", 0, err), SH_OK);
+        if (k) snprintf(c.calibration, sizeof c.calibration, "rig.yaml");
+        assert_int_equal(sh_config_check(&c, err), k ? SH_EINVAL : SH_OK);
+        if (k) assert_non_null(strstr(err, "yes, but in 3D ([method] calibration)"));
     }
 }
 
