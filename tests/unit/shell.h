@@ -12,4 +12,8 @@ extern char test_out[TEST_OUT_MAX]; /* its stdout and stderr, NUL-terminated (cu
  * status (-1 when it did not exit). The test fails at once when the shell cannot be started. */
 int test_run(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
 
+/* The number after the first "key": in a JSON text (our programs' --json output), NaN when the key
+ * is absent or its value is not a number (null). */
+double test_json_num(const char *json, const char *key);
+
 #endif

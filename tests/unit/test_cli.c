@@ -15,6 +15,7 @@
 
 #include <cmocka.h>
 
+#include "shell.h"
 #include "stillheart/points.h"
 #include "stillheart/y4m.h"
 #include "synth.h"
@@ -107,15 +108,6 @@ static int teardown(void **state)
     return system(cmd);
 }
 
-/* The number after "key": in a JSON text (NaN when absent). */
-static double json_number(const char *json, const char *key)
-{
-    char pat[64];
-    snprintf(pat, sizeof pat, "\"%s\": ", key);
-    const char *p = strstr(json, pat);
-    return p ? strtod(p + strlen(pat), NULL) : NAN;
-}
-
 /* Files a and b hold the same bytes. */
 static int same_file(const char *a, const char *b)
 {
@@ -156,9 +148,9 @@ static void test_warp_metric(void **state)
              path("in.y4m"));
     assert_int_equal(run_tool("stillheart-eval", args), 0);
     const char *json = slurp(path("stdout"));
-    assert_float_equal(e_out, json_number(json, "e_stabilized"), 5e-7); /* warp prints 6 decimals */
-    assert_float_equal(e_in, json_number(json, "e_original"), 5e-7);
-    assert_int_equal(pixels, (int)json_number(json, "pixels"));
+    assert_float_equal(e_out, test_json_num(json, "e_stabilized"), 5e-7); /* warp prints 6 decimals */
+    assert_float_equal(e_in, test_json_num(json, "e_original"), 5e-7);
+    assert_int_equal(pixels, (int)test_json_num(json, "pixels"));
 
     /* to standard output the video goes there, and e to standard error */
     snprintf(args, sizeof args, "warp --quiet --metric --points %s %s -", path("points.csv"), path("in.y4m"));

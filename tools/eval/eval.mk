@@ -13,11 +13,13 @@ TOOLS += $(EVAL_BIN)
 
 # The test drives the binary of the same build (the ASan build tests the ASan evaluator).
 $(BUILD)/tools/eval/tests/test_eval.o: CFLAGS_ALL += -DEVAL_BIN='"$(abspath $(BUILD))/stillheart-eval"' -Itests/ref \
-	-DAPP_BIN='"$(abspath $(BUILD))/stillheart"'
+	-DAPP_BIN='"$(abspath $(BUILD))/stillheart"' -Itests/unit
 
-$(BUILD)/tests/test_eval: $(BUILD)/tools/eval/tests/test_eval.o $(BUILD)/libphantom.a $(LIB) $(EVAL_BIN) $(APP)
+$(BUILD)/tests/test_eval: $(BUILD)/tools/eval/tests/test_eval.o $(BUILD)/tests/unit/shell.o $(BUILD)/libphantom.a $(LIB) \
+		$(EVAL_BIN) $(APP)
 	@mkdir -p $(dir $@)
-	$(CC) $(LDFLAGS) $< $(BUILD)/libphantom.a $(LIB) $(shell $(PKG_CONFIG) --libs cmocka) $(LDLIBS_ALL) -o $@
+	$(CC) $(LDFLAGS) $< $(BUILD)/tests/unit/shell.o $(BUILD)/libphantom.a $(LIB) $(shell $(PKG_CONFIG) --libs cmocka) \
+		$(LDLIBS_ALL) -o $@
 
 TOOL_TESTS += $(BUILD)/tests/test_eval
 
@@ -76,6 +78,23 @@ $(BUILD)/tests/test_eval_landmarks: $(BUILD)/tools/eval/tests/test_eval_landmark
 	$(CC) $(LDFLAGS) $< $(BUILD)/tests/unit/shell.o $(LIB) $(shell $(PKG_CONFIG) --libs cmocka) $(LDLIBS_ALL) -o $@
 
 TOOL_TESTS += $(BUILD)/tests/test_eval_landmarks
+
+# carried frames (landmarks.h): four tags, two gone, the daemon and `stillheart track` against the truth
+$(BUILD)/tools/eval/tests/test_carry.o: CFLAGS_ALL += -DEVAL_BIN='"$(abspath $(EVAL_BIN))"' \
+	-DRENDER_BIN='"$(abspath $(BUILD))/stillheart-render"' -DAPP_BIN='"$(abspath $(APP))"' \
+	-DSOURCE_DIR='"$(abspath .)"' -Itests/unit
+$(BUILD)/tests/test_carry: $(BUILD)/tools/eval/tests/test_carry.o $(BUILD)/tests/unit/shell.o \
+		$(LIB) $(EVAL_BIN) $(BUILD)/stillheart-render $(APP)
+	@mkdir -p $(dir $@)
+	$(CC) $(LDFLAGS) $< $(BUILD)/tests/unit/shell.o $(LIB) $(shell $(PKG_CONFIG) --libs cmocka) $(LDLIBS_ALL) -o $@
+
+TOOL_TESTS += $(BUILD)/tests/test_carry
+
+# ---- four tags through the product without and with carried frames (docs/landmarks.md) ----
+CARRY_DIR ?= out/carry
+.PHONY: carry-table
+carry-table: $(EVAL_BIN) $(BUILD)/stillheart-render $(APP)
+	@sh tools/eval/carry.sh $(BUILD) $(CARRY_DIR)
 
 # ---- natural landmarks on rendered phantoms against their truth (docs/landmarks.md) ----
 LANDMARKS_DIR ?= out/landmarks

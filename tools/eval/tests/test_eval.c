@@ -13,6 +13,7 @@
 #include <sys/wait.h>
 
 #include "eval_ref.h"
+#include "shell.h"
 #include "phantom.h"
 
 #ifndef EVAL_BIN
@@ -47,18 +48,6 @@ static int run(const char *args, char *out, size_t nout, char *err, size_t nerr)
         if (f) fclose(f);
     }
     return rc;
-}
-
-/* The first number after "key": in a JSON text (NAN when absent or null). */
-static double json_num(const char *json, const char *key)
-{
-    char pat[64];
-    snprintf(pat, sizeof pat, "\"%s\": ", key);
-    const char *p = strstr(json, pat);
-    if (!p) return NAN;
-    char *end;
-    double v = strtod(p + strlen(pat), &end);
-    return end == p + strlen(pat) ? NAN : v;
 }
 
 /* ---- e against NumPy ---- */
@@ -108,9 +97,9 @@ static void check_e(const char *space, int frames, int ref, int full, int seed, 
     write_ref_points(pts, frames);
     snprintf(args, sizeof args, "--json --reference %d --points '%s' '%s'", ref, pts, video);
     assert_int_equal(run(args, out, sizeof out, err, sizeof err), 0);
-    assert_float_equal(json_num(out, "e_stabilized"), e, 1e-9);
-    assert_int_equal((int)json_num(out, "pixels"), pixels);
-    assert_int_equal((int)json_num(out, "frames"), frames);
+    assert_float_equal(test_json_num(out, "e_stabilized"), e, 1e-9);
+    assert_int_equal((int)test_json_num(out, "pixels"), pixels);
+    assert_int_equal((int)test_json_num(out, "frames"), frames);
 }
 
 static void test_e_mono(void **state)
@@ -145,8 +134,8 @@ static void test_e_original_and_heatmap(void **state)
     write_ref_points(pts, 3);
     snprintf(args, sizeof args, "--json --heatmap '%s' --points '%s' '%s' '%s'", png, pts, stab, orig);
     assert_int_equal(run(args, out, sizeof out, err, sizeof err), 0);
-    assert_float_equal(json_num(out, "e_stabilized"), EVAL_REF_I420_E, 1e-9);
-    assert_float_equal(json_num(out, "e_original"), EVAL_REF_I420_ORIGINAL_E, 1e-9);
+    assert_float_equal(test_json_num(out, "e_stabilized"), EVAL_REF_I420_E, 1e-9);
+    assert_float_equal(test_json_num(out, "e_original"), EVAL_REF_I420_ORIGINAL_E, 1e-9);
     FILE *f = fopen(png, "rb");
     assert_non_null(f);
     unsigned char sig[8];
@@ -232,10 +221,10 @@ static void geo(const char *dir, const char *pts, const char *video, const char 
     int rc = run(args, out, sizeof out, err, sizeof err);
     if (rc != 0) fprintf(stderr, "%s", err);
     assert_int_equal(rc, 0);
-    *mean = json_num(out, "mean");
-    *p95 = json_num(out, "p95");
-    *max = json_num(out, "max");
-    *samples = json_num(out, "samples");
+    *mean = test_json_num(out, "mean");
+    *p95 = test_json_num(out, "p95");
+    *max = test_json_num(out, "max");
+    *samples = test_json_num(out, "samples");
 }
 
 /* The reference frame against itself: the map is the identity and so is the truth. */
@@ -335,8 +324,8 @@ static void test_method_from_header(void **state)
     snprintf(args, sizeof args, "--json --truth '%s' --points '%s' '%s'", dir, pts, warped);
     assert_int_equal(run(args, out, sizeof out, err, sizeof err), 0);
     assert_non_null(strstr(out, "\"method\": \"gaussian\""));
-    assert_float_equal(json_num(out, "mean"), mean, 0);
-    assert_float_equal(json_num(out, "max"), max, 0);
+    assert_float_equal(test_json_num(out, "mean"), mean, 0);
+    assert_float_equal(test_json_num(out, "max"), max, 0);
     assert_true(max > 2); /* the shift's hypot(1.5, 2.25): a map measured, not the identity */
     assert_non_null(strstr(err, "gaussian"));
 

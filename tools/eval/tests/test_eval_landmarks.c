@@ -27,13 +27,12 @@
  * tissue few corners) for 4.3 s: the shaft crosses landmarks within it */
 #define FRAMES 100
 
+/* A number of a program's JSON output; the test fails when it has none under that key. */
 static double json_num(const char *json, const char *key)
 {
-    char k[64];
-    snprintf(k, sizeof k, "\"%s\": ", key);
-    const char *p = strstr(json, k);
-    if (!p) fail_msg("no %s in %s", key, json);
-    return strtod(p + strlen(k), NULL);
+    double v = test_json_num(json, key);
+    if (isnan(v)) fail_msg("no number under %s in %s", key, json);
+    return v;
 }
 
 /* --landmarks-points: the markers' rows as they were (2D columns), every landmark in frame 0 and

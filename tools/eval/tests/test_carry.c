@@ -1,0 +1,250 @@
+/* Carried frames (landmarks.h, "Carried frames"; docs/landmarks.md): four tags at the corners of
+ * a rendered phantom's field, two of them gone for a stretch of frames, against the phantom's
+ * truth. The daemon in test mode (its markers from a points file without those two) shows those
+ * frames raw without [gating] landmarks_carry and carried with it, as near the truth as with all
+ * four; when the two markers left move unlike the tissue (a detection gone wrong: the file's rows
+ * 6 px off), the landmarks refuse to carry and the frames are raw. `stillheart track
+ * --landmarks-carry` on the same video with the two tags painted over (a grey disk, as blood)
+ * writes the landmarks of those frames, and `stillheart warp` maps every frame through them. */
+#include <math.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <cmocka.h>
+
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "shell.h"
+#include "stillheart/y4m.h"
+
+#if !defined(EVAL_BIN) || !defined(RENDER_BIN) || !defined(APP_BIN)
+#error "EVAL_BIN, RENDER_BIN and APP_BIN must name this build's programs"
+#endif
+
+/* 960x540 (as test_eval_landmarks: at 640x360 the tags leave the tissue few corners), 40 frames;
+ * the two tags at the field's left gone in frames GONE0..GONE1 */
+#define FRAMES 40
+#define GONE0 15
+#define GONE1 24
+
+static char dir[] = "/tmp/sh_carry_XXXXXX";
+
+/* A number of a program's JSON output; the test fails when it has none under that key. */
+static double json_num(const char *json, const char *key)
+{
+    double v = test_json_num(json, key);
+    if (isnan(v)) fail_msg("no number under %s in %s", key, json);
+    return v;
+}
+
+/* The four tags nearest the corners of a 16-tag render's frame 0 (tools/eval/corners.awk), the
+ * same seed rendered with those alone, its truth's tag centres as the points file p4.csv; the two
+ * left ones (the smallest x in frame 0) in `left`. */
+static int setup(void **state)
+{
+    (void)state;
+    assert_non_null(mkdtemp(dir));
+    if (test_run("cd '%s' && '%s' --preset exvivo --rig paper --cameras 1 --width 960 --height 540 --seed 1 "
+                 "--frames %d --quiet --out full && '%s' --truth full --export-points full.csv && "
+                 "ids=$(awk -F, -f '%s/tools/eval/corners.awk' full.csv | tr '|' ,) && "
+                 "'%s' --preset exvivo --rig paper --cameras 1 --width 960 --height 540 --seed 1 --frames %d "
+                 "--only-markers $ids --quiet --out . && '%s' --truth . --export-points points.csv && "
+                 "cut -d, -f1-4 points.csv > p4.csv && rm -rf full",
+                 dir, RENDER_BIN, FRAMES, EVAL_BIN, SOURCE_DIR, RENDER_BIN, FRAMES, EVAL_BIN) != 0)
+        fail_msg("%s\n%s", test_cmd, test_out);
+    return 0;
+}
+
+static int teardown(void **state)
+{
+    (void)state;
+    test_run("rm -rf '%s'", dir);
+    return 0;
+}
+
+/* The two ids of p4.csv's frame 0 with the smallest x, "a|b" for awk. */
+static void left_ids(char *out, size_t cap)
+{
+    if (test_run("awk -F, '$1 == 0 { print $3, $2 }' '%s/p4.csv' | sort -n | head -2 | awk '{ print $2 }' | "
+                 "paste -sd'|'", dir) != 0)
+        fail_msg("%s", test_out);
+    snprintf(out, cap, "%.*s", (int)strcspn(test_out, "\n"), test_out);
+}
+
+/* The daemon in test mode on cam0.y4m with points file PTS: landmarks with the sparse tests, three
+ * markers needed, carry on or off; its trace in t.csv, what it showed in rec.y4m, its points in
+ * used.csv; the geometric error of what it showed (the evaluator's JSON left in test_out). */
+static double daemon(const char *pts, int carry)
+{
+    if (test_run("cd '%s' && rm -f rec.y4m && '%s' run --source y4m:cam0.y4m --no-realtime --no-loop --points %s "
+                 "--landmarks 200 --landmarks-sparse 1 --min-markers 3 --landmarks-carry %d --method tps --sink none "
+                 "--group= --threads 2 --quiet --record rec.y4m --trace t.csv --trace-points used.csv && "
+                 "'%s' --quiet --json --truth . --points used.csv rec.y4m cam0.y4m",
+                 dir, APP_BIN, pts, carry, EVAL_BIN) != 0)
+        fail_msg("%s\n%s", test_cmd, test_out);
+    const char *g = strstr(test_out, "\"geometric\"");
+    assert_non_null(g);
+    return json_num(g, "mean");
+}
+
+/* Frames of t.csv in [f0, f1] whose status is `status` and whose reason starts with `reason`. */
+static int traced(int f0, int f1, const char *status, const char *reason)
+{
+    if (test_run("awk -F, -v a=%d -v b=%d -v s='%s' -v r='\"%s' 'NR > 1 && $1 >= a && $1 <= b && $2 == s && "
+                 "index($5, r) == 1 { n++ } END { print n + 0 }' '%s/t.csv'", f0, f1, status, reason, dir) != 0)
+        fail_msg("%s", test_out);
+    return atoi(test_out);
+}
+
+static void test_daemon_carries_two_markers(void **state)
+{
+    (void)state;
+    char left[64];
+    left_ids(left, sizeof left);
+    /* the two left markers' rows gone in GONE0..GONE1; and, beside it, the two right ones' rows
+     * moved 6 px there too */
+    if (test_run("cd '%s' && awk -F, -v l='^(%s)$' 'NR == 1 || !($1 >= %d && $1 <= %d && $2 ~ l)' p4.csv > gone.csv && "
+                 "awk -F, -v OFS=, -v a=%d -v b=%d 'NR > 1 && $1 >= a && $1 <= b { $3 += 6 } { print }' gone.csv > "
+                 "moved.csv", dir, left, GONE0, GONE1, GONE0, GONE1) != 0)
+        fail_msg("%s\n%s", test_cmd, test_out);
+    double all = daemon("p4.csv", 0);
+    double raw = daemon("gone.csv", 0);
+    int raw_frames = traced(GONE0, GONE1, "raw", "too few markers");
+    double carried = daemon("gone.csv", 1);
+    int carried_frames = traced(GONE0, GONE1, "degraded", "carried: 2 markers");
+    int raw_after = traced(1, FRAMES, "raw", "");
+    print_message("  geometric error: four tags %.4f px; two gone in frames %d-%d: raw %.4f px (%d raw), carried "
+                  "%.4f px (%d carried, %d raw)\n", all, GONE0, GONE1, raw, raw_frames, carried, carried_frames,
+                  raw_after);
+    assert_int_equal(raw_frames, GONE1 - GONE0 + 1);
+    assert_int_equal(carried_frames, GONE1 - GONE0 + 1);
+    assert_int_equal(raw_after, 0);
+    /* the carried frames are as near the truth as the four tags' (over the hull of the points
+     * used: a lost tag's corner is not shown stabilized, and not counted) */
+    assert_true(carried < all * 1.1);
+    assert_true(carried < raw / 4);
+    /* the markers left moved unlike the tissue: refused at the first such frame, which breaks
+     * the chain; nothing carried, every such frame raw */
+    daemon("moved.csv", 1);
+    int refused = traced(GONE0, GONE0, "raw", "too few markers (2); landmarks");
+    int moved_raw = traced(GONE0, GONE1, "raw", "too few markers");
+    int moved_carried = traced(1, FRAMES, "degraded", "carried");
+    print_message("  the two markers left 6 px off: %d refused by the landmarks, %d raw, %d carried\n", refused,
+                  moved_raw, moved_carried);
+    assert_int_equal(refused, 1);
+    assert_int_equal(moved_raw, GONE1 - GONE0 + 1);
+    assert_int_equal(moved_carried, 0);
+    /* refused: without landmarks, and in 3D */
+    const char *bad[][2] = {{"--landmarks-carry 1", "there are no landmarks"},
+                            {"--landmarks 10 --landmarks-carry 1 --calibration x.yaml", "in 3D"}};
+    for (int k = 0; k < 2; k++) {
+        assert_int_equal(test_run("'%s' run --source y4m:%s/cam0.y4m %s --sink none", APP_BIN, dir, bad[k][0]), 2);
+        if (!strstr(test_out, bad[k][1])) fail_msg("%s: no '%s' in:\n%s", bad[k][0], bad[k][1], test_out);
+    }
+}
+
+/* covered.y4m: cam0.y4m with a grey disk of radius r (luma 110, neutral chroma: blood's flat look
+ * on the band-passed frames) over each of the two left tags' centres in frames f0..f1. */
+static void cover(int f0, int f1, double r)
+{
+    char left[64], path[600];
+    left_ids(left, sizeof left);
+    if (test_run("awk -F, -v l='^(%s)$' 'NR > 1 && $2 ~ l { print $1, $3, $4 }' '%s/p4.csv'", left, dir) != 0)
+        fail_msg("%s", test_out);
+    double cx[2 * FRAMES], cy[2 * FRAMES];
+    int cf[2 * FRAMES], nc = 0;
+    for (char *s = test_out; nc < 2 * FRAMES && sscanf(s, "%d %lf %lf", &cf[nc], &cx[nc], &cy[nc]) == 3; nc++) {
+        s = strchr(s, '\n');
+        if (!s) break;
+        s++;
+    }
+    snprintf(path, sizeof path, "%s/cam0.y4m", dir);
+    sh_y4m_reader *rd;
+    assert_int_equal(sh_y4m_reader_open(path, &rd), SH_OK);
+    const sh_y4m_header *h = sh_y4m_reader_header(rd);
+    sh_image img;
+    assert_int_equal(sh_image_create(&img, h->format, h->width, h->height), SH_OK);
+    snprintf(path, sizeof path, "%s/covered.y4m", dir);
+    sh_y4m_writer *wr;
+    assert_int_equal(sh_y4m_writer_open(path, h, &wr), SH_OK);
+    for (int f = 0; sh_y4m_reader_read(rd, &img) == SH_OK; f++) {
+        for (int k = 0; k < nc && f >= f0 && f <= f1; k++) {
+            if (cf[k] != f) continue;
+            for (int p = 0; p < 3; p++) {
+                sh_plane *pl = &img.plane[p];
+                double s = (double)pl->width / h->width; /* the chroma planes' scale */
+                for (int y = 0; y < pl->height; y++)
+                    for (int x = 0; x < pl->width; x++)
+                        if (hypot(x / s - cx[k], y / s - cy[k]) <= r) pl->data[(size_t)y * pl->stride + x] = p ? 128 : 110;
+            }
+        }
+        assert_int_equal(sh_y4m_writer_write(wr, &img), SH_OK);
+    }
+    assert_int_equal(sh_y4m_writer_close(wr), SH_OK);
+    sh_y4m_reader_close(rd);
+    sh_image_destroy(&img);
+}
+
+static void test_track_carries_two_markers(void **state)
+{
+    (void)state;
+    /* frames 12-34 covered: the tracker writes its predictions of the two for a fifth of a
+     * second before it knows the heart's rate (a third of the stretch), then drops them */
+    cover(12, 34, 30);
+    double mean[2], carried = 0, not_carried = 0;
+    int raw[2];
+    for (int k = 0; k < 2; k++) {
+        /* in a subshell: its standard error, the JSON, is test_out, and its output the file */
+        if (test_run("cd '%s' && ('%s' track --ids $(awk -F, 'NR > 1 { print $2 }' p4.csv | sort -un | paste -sd,) "
+                     "--landmarks 200 --landmarks-sparse %s --stats --json covered.y4m > lm%d.csv)", dir, APP_BIN,
+                     k ? "--landmarks-carry" : "", k) != 0)
+            fail_msg("%s\n%s", test_cmd, test_out);
+        if (k) {
+            const char *l = strstr(test_out, "\"landmarks\"");
+            assert_non_null(l);
+            carried = json_num(l, "carried_frames");
+            not_carried = json_num(l, "not_carried_frames");
+        }
+        if (test_run("cd '%s' && '%s' warp --quiet --method tps --points lm%d.csv covered.y4m stab.y4m && "
+                     "'%s' --quiet --json --truth . --points lm%d.csv stab.y4m", dir, APP_BIN, k, EVAL_BIN, k) != 0)
+            fail_msg("%s\n%s", test_cmd, test_out);
+        const char *g = strstr(test_out, "\"geometric\"");
+        assert_non_null(g);
+        mean[k] = json_num(g, "mean");
+        raw[k] = (int)json_num(g, "raw_frames");
+    }
+    print_message("  two tags covered in frames 12-34: without carry %.4f px (%d frames raw); with it %.4f px (%d "
+                  "raw), %.0f frames carried, %.0f not vouched for\n", mean[0], raw[0], mean[1], raw[1], carried,
+                  not_carried);
+    assert_true(raw[0] > 0);
+    assert_int_equal(raw[1], 0);
+    assert_int_equal((int)carried, raw[0]);
+    assert_int_equal((int)not_carried, 0);
+    assert_true(mean[1] < mean[0] / 2);
+    /* refused: without --landmarks, and with --cameras (3D) */
+    assert_int_equal(test_run("'%s' track --landmarks-carry %s/cam0.y4m", APP_BIN, dir), 2);
+    assert_non_null(strstr(test_out, "--landmarks-carry goes with --landmarks"));
+    assert_int_equal(test_run("'%s' track --landmarks 10 --landmarks-carry --cameras x.yaml %s/cam0.y4m %s/cam0.y4m",
+                              APP_BIN, dir, dir), 2);
+    assert_non_null(strstr(test_out, "--landmarks-carry is 2D"));
+}
+
+/* Under qemu-aarch64 (SH_TEST_EMULATED, tools/cross/run-lanes.sh) the six daemon runs and two
+ * tracks of 960x540 frames would add about two minutes to a lane: the host suite and ASan run
+ * them, and on aarch64 test_landmarks_carry checks sh_landmarks_carry itself, whose C has no
+ * SIMD of its own (its searches are test_landmarks' and test_flow_simd's). */
+int main(void)
+{
+    if (getenv("SH_TEST_EMULATED")) {
+        printf("test_carry: skipped under emulation (the host and ASan suites run it)\n[  PASSED  ] 0 tests.\n");
+        return 0;
+    }
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_daemon_carries_two_markers),
+        cmocka_unit_test(test_track_carries_two_markers),
+    };
+    return cmocka_run_group_tests(tests, setup, teardown);
+}
