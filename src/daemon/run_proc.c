@@ -873,6 +873,34 @@ static int seen_twice(const run_proc *p, int nm, const sh_point *ref, int nref, 
     return nb;
 }
 
+/* A carried frame's points into p->all_*: md's markers among the nb detected (ids, positions xy,
+ * detections det; the others left out), then its landmarks accepted (p->lm_xy, p->lm_verdict). 0
+ * when md lacks one of the nb markers (the last model, while theirs is built). */
+static int carried_points(run_proc *p, const run_model *md, const int *ids, int nb, const double *xy,
+                          const double *det)
+{
+    int npts, nmk = run_model_markers(md), held = 0;
+    const int *mids = run_model_ids(md, &npts);
+    for (int k = 0; k < nmk; k++) {
+        int j = 0;
+        while (j < nb && ids[j] != mids[k]) j++;
+        p->all_use[k] = j < nb;
+        held += j < nb;
+        p->all_xy[2 * k] = j < nb ? xy[2 * j] : NAN;
+        p->all_xy[2 * k + 1] = j < nb ? xy[2 * j + 1] : NAN;
+        p->all_det[2 * k] = j < nb ? det[2 * j] : NAN;
+        p->all_det[2 * k + 1] = j < nb ? det[2 * j + 1] : NAN;
+    }
+    for (int k = nmk; k < npts; k++) {
+        int i = mids[k] - SH_LANDMARK_ID_BASE;
+        p->all_use[k] = p->lm_verdict[i];
+        p->all_xy[2 * k] = p->all_use[k] ? p->lm_xy[2 * i] : NAN;
+        p->all_xy[2 * k + 1] = p->all_use[k] ? p->lm_xy[2 * i + 1] : NAN;
+        p->all_det[2 * k] = p->all_det[2 * k + 1] = NAN;
+    }
+    return held == nb;
+}
+
 /* [gating] landmarks_carry: a frame that would be raw for its markers (too few, one too uncertain,
  * or no model for them yet), right after a frame stabilized with its landmarks found (2D). The
  * markers detected in both frames and the landmarks, searched from the
@@ -933,28 +961,9 @@ static const sh_image *carried(run_proc *p, const sh_image *img, int index, int 
     }
     if (got == 1) p->last = md;
     else md = p->last;
-    int npts, nmk = md ? run_model_markers(md) : 0, held = 0;
-    const int *mids = md ? run_model_ids(md, &npts) : NULL;
-    for (int k = 0; k < nmk; k++) {
-        int j = 0;
-        while (j < nb && ids[j] != mids[k]) j++;
-        p->all_use[k] = j < nb;
-        held += j < nb;
-        p->all_xy[2 * k] = j < nb ? snow[2 * j] : NAN;
-        p->all_xy[2 * k + 1] = j < nb ? snow[2 * j + 1] : NAN;
-        p->all_det[2 * k] = j < nb ? det[2 * j] : NAN;
-        p->all_det[2 * k + 1] = j < nb ? det[2 * j + 1] : NAN;
-    }
-    if (held < nb) {
+    if (!md || !carried_points(p, md, ids, nb, snow, det)) {
         reason(info, "carried: model for %d markers building", nb);
         return NULL;
-    }
-    for (int k = nmk; k < npts; k++) {
-        int i = mids[k] - SH_LANDMARK_ID_BASE;
-        p->all_use[k] = p->lm_verdict[i];
-        p->all_xy[2 * k] = p->all_use[k] ? p->lm_xy[2 * i] : NAN;
-        p->all_xy[2 * k + 1] = p->all_use[k] ? p->lm_xy[2 * i + 1] : NAN;
-        p->all_det[2 * k] = p->all_det[2 * k + 1] = NAN;
     }
     if (!update_and_warp(p, md, img, p->all_xy, NULL, p->all_det, p->all_use, t1, info)) return NULL;
     info->status = SH_DISPLAY_DEGRADED;
