@@ -281,8 +281,8 @@ sh_status sh_landmarks_luma(const sh_image *frame, sh_image *buf, const sh_plane
  * corner tag and its nearest landmarks (the tag, its quiet zone and half a window keep them off)
  * than the displacement from the reference does. On a four-tag render the median of 8 put the
  * tags' motion within 1.07 px at the p90 and 1.72 px at the p99 (16: 1.13, 1.94; 32: 1.23, 2.14),
- * where a plane through the 16 nearest put the tags themselves within 1.5-3.7 px at the p90 and
- * up to 11 px (docs/landmarks.md, "Carried frames"). */
+ * where a plane through the 16 nearest put the tags themselves within 1.5-3.1 px at the p90 (8:
+ * 2.1-3.7; 32: 1.6-4.5) and 18 px at most (docs/landmarks.md, "Carried frames"). */
 #define SH_LANDMARKS_CARRY_NEAR 8
 #define SH_LANDMARKS_CARRY_SUPPORT 3
 /* Markers that must be seen: two. The landmarks' map is checked at each; a shift, rotation or
