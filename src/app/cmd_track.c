@@ -63,10 +63,11 @@ static void usage(FILE *out)
         "                     off where the tissue deforms: docs/landmarks.md)\n"
         "  --landmarks-carry  with --landmarks (2D): a frame with 2 of frame 0's markers, too few\n"
         "                     for their map, right after a frame whose landmarks were written:\n"
-        "                     the landmarks searched from that frame's, and written when at least\n"
-        "                     3 of the 8 nearest each marker were accepted and, at each marker\n"
-        "                     seen, theirs put it within 3 px of its row (docs/landmarks.md,\n"
-        "                     \"Carried frames\"); for four tags, where two hidden leave too few\n"
+        "                     the landmarks searched from that frame's, and written when at each\n"
+        "                     marker detected in both frames (two at least) the median motion of\n"
+        "                     its 8 nearest landmarks accepted in both lies within 3 px of its own\n"
+        "                     (docs/landmarks.md, \"Carried frames\"); for four tags, where two\n"
+        "                     hidden leave too few\n"
         "  --stats            tracking figures on standard error at the end\n"
         "  --json             with --stats: the figures as one JSON object, the last line on\n"
         "                     standard error (standard output carries the points): frames,\n"
@@ -254,6 +255,8 @@ typedef struct {
     sh_track_estimate est[SH_TRACK_MAX_MARKERS];
     sh_point rows[SH_TRACK_MAX_MARKERS]; /* the frame's marker rows (write_rows) */
     int nrows;
+    int measured[SH_TRACK_MAX_MARKERS];  /* the ids of those detected in the frame */
+    int nmeasured;
     int ndet0;                           /* camera 0's detections of the frame */
     track_landmarks *lm;                 /* --landmarks, from frame 0 */
 } track_pass;
@@ -339,10 +342,12 @@ static int write_rows(const track_job *job, track_pass *p, int f, FILE *out)
 {
     sh_point *rows = p->rows;
     int n = sh_tracker_estimates(p->t, p->est, SH_TRACK_MAX_MARKERS), nr = 0;
+    p->nmeasured = 0;
     for (int k = 0; k < n; k++) {
         const sh_track_estimate *e = &p->est[k];
         if (!e->confirmed || e->status == SH_TRACK_LOST || !e->in_view[0]) continue;
         if (job->o->measured_only && e->status != SH_TRACK_MEASURED) continue;
+        if (e->status == SH_TRACK_MEASURED) p->measured[p->nmeasured++] = e->id;
         sh_point *r = &rows[nr++];
         r->frame = f;
         r->id = e->id;
@@ -368,7 +373,7 @@ static int write_rows(const track_job *job, track_pass *p, int f, FILE *out)
                                       job->o->landmarks_carry, job->o->ncam, job->have_calib ? &job->calib : NULL};
         return track_landmarks_start(&lo, p->img, dets[0], p->ndet0, rows, nr, out, &p->lm);
     }
-    return p->lm && track_landmarks_frame(p->lm, p->img, f, rows, nr, out);
+    return p->lm && track_landmarks_frame(p->lm, p->img, f, rows, nr, p->measured, p->nmeasured, out);
 }
 
 enum { FRAME_DONE, FRAME_FAILED, FRAME_END };

@@ -28,7 +28,8 @@ struct track_landmarks {
     double *X;             /* 3D: n x 3, the frame's triangulated positions */
     uint8_t *keep;         /* n: written in this frame */
     /* --landmarks-carry (2D): the frame before, when its landmarks were searched and written
-     * (xy and keep hold them), and its markers shared with frame 0 (ids, where they were) */
+     * (xy and keep hold them), and its markers shared with frame 0 and detected there (ids, where
+     * they were) */
     int carry, prev_f;
     int *prev_ids;
     double *prev_xy;
@@ -89,20 +90,29 @@ static int predict(track_landmarks *tl, const sh_point *cur, int ncur, int *m)
            SH_OK;
 }
 
+/* Whether id is among the n ids of list. */
+static int listed(const int *list, int n, int id)
+{
+    for (int k = 0; k < n; k++)
+        if (list[k] == id) return 1;
+    return 0;
+}
+
 /* --landmarks-carry: a frame with fewer than 3 of frame 0's markers (m of them in tl->ids,
  * ref_xy, cur_xy), the frame before's landmarks written: the landmarks predicted from those,
- * found, judged, and kept when they move as the markers of both frames' rows move
- * (sh_landmarks_carry, with the daemon's default [gating] max_residual_px; the rows are the
- * tracker's estimates, a hidden marker's prediction among them for a while, where the daemon has
- * the detections). 1 when the frame's landmarks are kept, 0 when they were searched and are not,
- * -1 when nothing was searched (fewer than two such markers, or no landmark accepted before). */
+ * found, judged, and kept when they move as the markers detected in both frames move
+ * (sh_landmarks_carry, with the daemon's default [gating] max_residual_px; a row the tracker
+ * predicted is no detection to check them by, as in the daemon). 1 when the frame's landmarks are
+ * kept, 0 when they were searched and are not, -1 when nothing was searched (fewer than two such
+ * markers, or no landmark accepted before). */
 #define TRACK_CARRY_MAX_PX 3.0
-static int carry(track_landmarks *tl, const sh_plane *y, int f, int m, sh_landmarks_counts *cnt)
+static int carry(track_landmarks *tl, const sh_plane *y, int f, int m, const int *measured, int nmeasured,
+                 sh_landmarks_counts *cnt)
 {
     double *sref = tl->both, *sprev = tl->both + 2 * tl->nref, *snow = tl->both + 4 * tl->nref;
     int nb = 0;
     for (int k = 0; k < m; k++)
-        for (int j = 0; j < tl->nprev; j++)
+        for (int j = 0; j < tl->nprev && listed(measured, nmeasured, tl->ids[k]); j++)
             if (tl->prev_ids[j] == tl->ids[k]) {
                 sref[2 * nb] = tl->ref_xy[2 * k], sref[2 * nb + 1] = tl->ref_xy[2 * k + 1];
                 sprev[2 * nb] = tl->prev_xy[2 * j], sprev[2 * nb + 1] = tl->prev_xy[2 * j + 1];
@@ -312,7 +322,7 @@ static int frame_3d(track_landmarks *tl, const sh_image *frames, int f, const sh
 }
 
 int track_landmarks_frame(track_landmarks *tl, const sh_image *frames, int f, const sh_point *rows, int nrows,
-                          FILE *out)
+                          const int *measured, int nmeasured, FILE *out)
 {
     if (tl->n == 0) return 0;
     sh_point *cur = sorted(rows, nrows);
@@ -336,7 +346,7 @@ int track_landmarks_frame(track_landmarks *tl, const sh_image *frames, int f, co
         return 1;
     }
     if (!mapped) {
-        int kept = carry(tl, y, f, m, &cnt);
+        int kept = carry(tl, y, f, m, measured, nmeasured, &cnt);
         tl->stats.carried += kept == 1;
         tl->stats.not_carried += kept == 0;
         if (kept != 1) return 0;
@@ -348,9 +358,13 @@ int track_landmarks_frame(track_landmarks *tl, const sh_image *frames, int f, co
     }
     for (int v = 0; v < SH_LANDMARK_VERDICTS; v++) tl->stats.verdicts[v] += cnt.verdicts[v];
     tl->prev_f = f;
-    tl->nprev = m;
-    memcpy(tl->prev_ids, tl->ids, (size_t)m * sizeof *tl->ids);
-    memcpy(tl->prev_xy, tl->cur_xy, 2 * (size_t)m * sizeof *tl->cur_xy);
+    tl->nprev = 0;
+    for (int k = 0; k < m; k++) {
+        if (!listed(measured, nmeasured, tl->ids[k])) continue;
+        tl->prev_ids[tl->nprev] = tl->ids[k];
+        tl->prev_xy[2 * tl->nprev] = tl->cur_xy[2 * k], tl->prev_xy[2 * tl->nprev + 1] = tl->cur_xy[2 * k + 1];
+        tl->nprev++;
+    }
     return write_landmarks(tl, f, tl->xy, out);
 }
 

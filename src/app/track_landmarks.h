@@ -54,9 +54,11 @@ int track_landmarks_start(const track_landmarks_options *o, const sh_image *fram
  * frame 0), found and judged (in 3D, in every camera); the accepted ones written. With carry, a
  * frame with 2 such rows (fewer than the map's 3) right after a frame whose landmarks were
  * written: predicted from that frame's, and written when they vouch for the map
- * (sh_landmarks_carry_check). 0, or 1 with the reason printed. */
+ * (sh_landmarks_carry) at the markers detected in both frames (measured: the nmeasured ids of
+ * the rows that are this frame's detections, not the tracker's predictions). 0, or 1 with the
+ * reason printed. */
 int track_landmarks_frame(track_landmarks *tl, const sh_image *frames, int f, const sh_point *rows, int nrows,
-                          FILE *out);
+                          const int *measured, int nmeasured, FILE *out);
 void track_landmarks_stats_get(const track_landmarks *tl, track_landmarks_stats *s);
 void track_landmarks_destroy(track_landmarks *tl);
 
