@@ -302,12 +302,13 @@ typedef struct {
 } sh_landmarks_carry_report;
 
 /* A frame without a markers' map, right after one whose landmarks were found (prev_xy, prev_ok:
- * count each, that frame's positions and 1 where accepted; xy must be another buffer). The nseen
+ * count each, that frame's positions and 1 where accepted; predicted and xy, count pairs each,
+ * must be other buffers: nothing is allocated, for the daemon's frames). The nseen
  * markers seen in both frames: their reference positions (seen_ref), where they were (seen_prev)
  * and where they are (seen_xy), nseen pairs each.
  * Each landmark is predicted at its reference position plus its displacement in the frame before
  * (its own where it was accepted there, else the median of those of its SH_LANDMARKS_CARRY_NEAR
- * nearest that were), plus the seen markers' mean motion; then found and judged as
+ * nearest that were), plus the seen markers' mean motion (into predicted); then found and judged as
  * sh_landmarks_track does (xy, verdict, counts). r->carried is 1 when, at each marker seen, the
  * median motion since the frame before of its SH_LANDMARKS_CARRY_NEAR nearest landmarks accepted
  * in both frames (at least SH_LANDMARKS_CARRY_SUPPORT of them) is within max_px of its own: the
@@ -319,8 +320,8 @@ typedef struct {
  * be NULL. */
 sh_status sh_landmarks_carry(sh_landmarks *lm, const sh_plane *luma, const float *prev_xy, const uint8_t *prev_ok,
                              const double *seen_ref, const double *seen_prev, const double *seen_xy, int nseen,
-                             double max_px, float *xy, uint8_t *verdict, sh_landmarks_counts *counts,
-                             sh_landmarks_carry_report *r);
+                             double max_px, float *predicted, float *xy, uint8_t *verdict,
+                             sh_landmarks_counts *counts, sh_landmarks_carry_report *r);
 
 /* ---- In 3D: a calibrated rig (docs/landmarks.md, "In 3D") ----
  * The landmarks are chosen in one camera (the primary: the one whose frames are shown) and found

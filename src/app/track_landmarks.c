@@ -123,8 +123,8 @@ static int carry(track_landmarks *tl, const sh_plane *y, int f, int m, const int
     memcpy(tl->ok_prev, tl->keep, (size_t)tl->n);
     memset(cnt, 0, sizeof *cnt);
     sh_landmarks_carry_report r;
-    if (sh_landmarks_carry(tl->lm, y, tl->lm_prev, tl->ok_prev, sref, sprev, snow, nb, TRACK_CARRY_MAX_PX, tl->xy,
-                           tl->verdict, cnt, &r) != SH_OK) {
+    if (sh_landmarks_carry(tl->lm, y, tl->lm_prev, tl->ok_prev, sref, sprev, snow, nb, TRACK_CARRY_MAX_PX, tl->pred,
+                           tl->xy, tl->verdict, cnt, &r) != SH_OK) {
         sh_log_warn("--landmarks-carry: frame %d: %s", f, sh_error_message());
         return -1;
     }

@@ -932,7 +932,7 @@ static const sh_image *carried(run_proc *p, const sh_image *img, int index, int 
     sh_status st = sh_landmarks_luma(img, &p->lm_gray[0], &y);
     if (st == SH_OK)
         st = sh_landmarks_carry(lm, y, p->carry_xy, p->carry_ok, sref, dprev, det, nb, p->cfg.max_residual_px,
-                                p->lm_xy, p->lm_verdict, &c, &r);
+                                p->lm_pred, p->lm_xy, p->lm_verdict, &c, &r);
     p->lm_ms = now_ms() - t0;
     if (st != SH_OK) {
         sh_log_limited(&p->lm_err, SH_LOG_ERROR, "landmarks: %s (the frame raw)", sh_error_message());

@@ -8,15 +8,15 @@
 
 #include "stillheart/landmarks.h"
 
-/* The k nearest landmarks (reference positions) to (x, y) among those with ok[i] (all when ok is
- * NULL), skipping `self`: their indices into near, nearest first; the count found. n is small
- * (hundreds) and carried frames are few: a scan, no index. */
-static int nearest(const float *ref, int n, const uint8_t *ok, int self, double x, double y, int k, int *near,
-                   double *d2)
+/* The k nearest landmarks (reference positions) to (x, y) among those with ok[i] and, when verdict
+ * is given, accepted there, skipping `self`: their indices into near, nearest first; the count
+ * found. n is small (hundreds) and carried frames are few: a scan, no index. */
+static int nearest(const float *ref, int n, const uint8_t *ok, const uint8_t *verdict, int self, double x, double y,
+                   int k, int *near, double *d2)
 {
     int m = 0;
     for (int i = 0; i < n; i++) {
-        if (i == self || (ok && !ok[i])) continue;
+        if (i == self || !ok[i] || (verdict && verdict[i] != SH_LANDMARK_ACCEPTED)) continue;
         double dx = ref[2 * i] - x, dy = ref[2 * i + 1] - y, d = dx * dx + dy * dy;
         int j;
         if (m < k) j = m++;
@@ -78,7 +78,7 @@ static int predict(const sh_landmarks *lm, const float *prev_xy, const uint8_t *
             dy = prev_xy[2 * i + 1] - ref[2 * i + 1];
         } else {
             /* an accepted landmark with a NaN position among them: the isfinite below refuses */
-            int m = nearest(ref, n, prev_ok, i, ref[2 * i], ref[2 * i + 1], SH_LANDMARKS_CARRY_NEAR, near, d2);
+            int m = nearest(ref, n, prev_ok, NULL, i, ref[2 * i], ref[2 * i + 1], SH_LANDMARKS_CARRY_NEAR, near, d2);
             median_displacement(ref, prev_xy, near, m, &dx, &dy);
         }
         predicted[2 * i] = (float)(ref[2 * i] + dx + shift[0]);
@@ -88,11 +88,11 @@ static int predict(const sh_landmarks *lm, const float *prev_xy, const uint8_t *
     return 1;
 }
 
-/* The check (landmarks.h): 1 when each marker seen moves as its nearest landmarks do (both: 1
- * where a landmark was accepted in the frame before and in this one); r filled. */
-static int check(const sh_landmarks *lm, const float *prev_xy, const float *xy, const uint8_t *both,
-                 const double *seen_ref, const double *seen_prev, const double *seen_xy, int nseen, double max_px,
-                 sh_landmarks_carry_report *r)
+/* The check (landmarks.h): 1 when each marker seen moves as its nearest landmarks accepted in the
+ * frame before (prev_ok) and in this one (verdict) do; r filled. */
+static int check(const sh_landmarks *lm, const float *prev_xy, const uint8_t *prev_ok, const float *xy,
+                 const uint8_t *verdict, const double *seen_ref, const double *seen_prev, const double *seen_xy,
+                 int nseen, double max_px, sh_landmarks_carry_report *r)
 {
     const int n = sh_landmarks_count(lm);
     const float *ref = sh_landmarks_reference(lm);
@@ -101,7 +101,7 @@ static int check(const sh_landmarks *lm, const float *prev_xy, const float *xy, 
     r->support = SH_LANDMARKS_CARRY_NEAR;
     for (int k = 0; ok && k < nseen; k++) {
         const double *q = &seen_ref[2 * k];
-        int m = nearest(ref, n, both, -1, q[0], q[1], SH_LANDMARKS_CARRY_NEAR, near, d2);
+        int m = nearest(ref, n, prev_ok, verdict, -1, q[0], q[1], SH_LANDMARKS_CARRY_NEAR, near, d2);
         if (m < r->support) r->support = m, r->thin = k;
         if (m < SH_LANDMARKS_CARRY_SUPPORT) return 0;
         for (int j = 0; j < m; j++) {
@@ -119,13 +119,14 @@ static int check(const sh_landmarks *lm, const float *prev_xy, const float *xy, 
 
 sh_status sh_landmarks_carry(sh_landmarks *lm, const sh_plane *luma, const float *prev_xy, const uint8_t *prev_ok,
                              const double *seen_ref, const double *seen_prev, const double *seen_xy, int nseen,
-                             double max_px, float *xy, uint8_t *verdict, sh_landmarks_counts *counts,
-                             sh_landmarks_carry_report *r)
+                             double max_px, float *predicted, float *xy, uint8_t *verdict,
+                             sh_landmarks_counts *counts, sh_landmarks_carry_report *r)
 {
     sh_landmarks_carry_report rep = {.searched = 0, .carried = 0, .support = 0, .thin = -1, .worst_px = 0, .worst = -1};
     if (r) *r = rep;
-    if (!lm || !luma || !prev_xy || !prev_ok || !xy || !verdict || nseen < 0 ||
-        (nseen > 0 && (!seen_ref || !seen_prev || !seen_xy)) || !(max_px > 0) || xy == prev_xy)
+    if (!lm || !luma || !prev_xy || !prev_ok || !predicted || !xy || !verdict || nseen < 0 ||
+        (nseen > 0 && (!seen_ref || !seen_prev || !seen_xy)) || !(max_px > 0) || xy == prev_xy ||
+        predicted == prev_xy || predicted == xy)
         return sh_error_set(SH_EINVAL, "landmarks carry: bad arguments");
     if (nseen < SH_LANDMARKS_CARRY_SEEN) return SH_OK; /* nothing to vouch for the landmarks */
     double shift[2] = {0, 0};
@@ -133,19 +134,12 @@ sh_status sh_landmarks_carry(sh_landmarks *lm, const sh_plane *luma, const float
         shift[0] += (seen_xy[2 * k] - seen_prev[2 * k]) / nseen;
         shift[1] += (seen_xy[2 * k + 1] - seen_prev[2 * k + 1]) / nseen;
     }
-    /* one block: the predictions (2n floats), then which landmarks were accepted in both frames */
-    const size_t n = (size_t)sh_landmarks_count(lm);
-    float *pred = malloc(2 * (n + 1) * sizeof *pred + n + 1);
-    if (!pred) return sh_error_set(SH_ENOMEM, "landmarks carry: out of memory");
-    uint8_t *both = (uint8_t *)(pred + 2 * (n + 1));
-    sh_status st = SH_OK;
-    if (predict(lm, prev_xy, prev_ok, shift, pred)) {
-        st = sh_landmarks_track(lm, luma, pred, xy, verdict, counts);
-        rep.searched = st == SH_OK;
-        for (size_t i = 0; st == SH_OK && i < n; i++) both[i] = prev_ok[i] && verdict[i] == SH_LANDMARK_ACCEPTED;
-        if (st == SH_OK) rep.carried = check(lm, prev_xy, xy, both, seen_ref, seen_prev, seen_xy, nseen, max_px, &rep);
+    if (predict(lm, prev_xy, prev_ok, shift, predicted)) {
+        sh_status st = sh_landmarks_track(lm, luma, predicted, xy, verdict, counts);
+        if (st != SH_OK) return st;
+        rep.searched = 1;
+        rep.carried = check(lm, prev_xy, prev_ok, xy, verdict, seen_ref, seen_prev, seen_xy, nseen, max_px, &rep);
     }
-    free(pred);
     if (r) *r = rep;
-    return st;
+    return SH_OK;
 }

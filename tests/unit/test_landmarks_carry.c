@@ -29,7 +29,7 @@ typedef struct {
     sh_image ref, cur;
     sh_landmarks *lm;
     int n;
-    float *prev, *xy;
+    float *prev, *pred, *xy;
     uint8_t *ok, *verdict;
     double *truth; /* n pairs: where each landmark is at T_NOW */
     /* two markers, near opposite corners of the field: reference, before, now */
@@ -61,10 +61,11 @@ static void scene_make(scene *s)
     const float *r = sh_landmarks_reference(s->lm);
     s->prev = malloc(2 * (size_t)s->n * sizeof *s->prev);
     s->xy = malloc(2 * (size_t)s->n * sizeof *s->xy);
+    s->pred = malloc(2 * (size_t)s->n * sizeof *s->pred);
     s->ok = malloc((size_t)s->n);
     s->verdict = malloc((size_t)s->n);
     s->truth = malloc(2 * (size_t)s->n * sizeof *s->truth);
-    assert_non_null(s->prev && s->xy && s->ok && s->verdict && s->truth);
+    assert_non_null(s->prev && s->pred && s->xy && s->ok && s->verdict && s->truth);
     for (int i = 0; i < s->n; i++) {
         double x, y;
         synth_forward(&motion, T_PREV, r[2 * i], r[2 * i + 1], &x, &y);
@@ -82,7 +83,7 @@ static void scene_make(scene *s)
 
 static void scene_free(scene *s)
 {
-    free(s->prev), free(s->xy), free(s->ok), free(s->verdict), free(s->truth);
+    free(s->prev), free(s->pred), free(s->xy), free(s->ok), free(s->verdict), free(s->truth);
     sh_landmarks_destroy(s->lm);
     sh_image_destroy(&s->ref);
     sh_image_destroy(&s->cur);
@@ -95,8 +96,8 @@ static void test_carried_against_truth(void **state)
     scene_make(&s);
     sh_landmarks_counts c;
     sh_landmarks_carry_report r;
-    assert_int_equal(sh_landmarks_carry(s.lm, &s.cur.plane[0], s.prev, s.ok, s.mref, s.mprev, s.mnow, 2, 3.0, s.xy,
-                                        s.verdict, &c, &r),
+    assert_int_equal(sh_landmarks_carry(s.lm, &s.cur.plane[0], s.prev, s.ok, s.mref, s.mprev, s.mnow, 2, 3.0,
+                                        s.pred, s.xy, s.verdict, &c, &r),
                      SH_OK);
     int acc = 0, acc_new = 0, fresh = 0;
     double worst = 0;
@@ -132,16 +133,16 @@ static void test_marker_unlike_landmarks(void **state)
     scene_make(&s);
     s.mnow[2] += 3, s.mnow[3] -= 4;
     sh_landmarks_carry_report r;
-    assert_int_equal(sh_landmarks_carry(s.lm, &s.cur.plane[0], s.prev, s.ok, s.mref, s.mprev, s.mnow, 2, 3.0, s.xy,
-                                        s.verdict, NULL, &r),
+    assert_int_equal(sh_landmarks_carry(s.lm, &s.cur.plane[0], s.prev, s.ok, s.mref, s.mprev, s.mnow, 2, 3.0,
+                                        s.pred, s.xy, s.verdict, NULL, &r),
                      SH_OK);
     print_message("  marker %d %.3f px unlike its landmarks\n", r.worst, r.worst_px);
     assert_true(r.searched);
     assert_false(r.carried);
     assert_int_equal(r.worst, 1);
     assert_true(fabs(r.worst_px - 5) < 0.5);
-    assert_int_equal(sh_landmarks_carry(s.lm, &s.cur.plane[0], s.prev, s.ok, s.mref, s.mprev, s.mnow, 2, 6.0, s.xy,
-                                        s.verdict, NULL, &r),
+    assert_int_equal(sh_landmarks_carry(s.lm, &s.cur.plane[0], s.prev, s.ok, s.mref, s.mprev, s.mnow, 2, 6.0,
+                                        s.pred, s.xy, s.verdict, NULL, &r),
                      SH_OK);
     assert_true(r.carried);
     scene_free(&s);
@@ -157,8 +158,8 @@ static void test_wrong_frame_before(void **state)
     scene_make(&s);
     for (int i = 0; i < s.n; i++) s.prev[2 * i] += 6;
     sh_landmarks_carry_report r;
-    assert_int_equal(sh_landmarks_carry(s.lm, &s.cur.plane[0], s.prev, s.ok, s.mref, s.mprev, s.mnow, 2, 3.0, s.xy,
-                                        s.verdict, NULL, &r),
+    assert_int_equal(sh_landmarks_carry(s.lm, &s.cur.plane[0], s.prev, s.ok, s.mref, s.mprev, s.mnow, 2, 3.0,
+                                        s.pred, s.xy, s.verdict, NULL, &r),
                      SH_OK);
     double worst = 0;
     int acc = 0;
@@ -184,30 +185,33 @@ static void test_nothing_to_carry(void **state)
     scene_make(&s);
     sh_landmarks_carry_report r;
     memset(s.verdict, 0xee, (size_t)s.n);
-    assert_int_equal(sh_landmarks_carry(s.lm, &s.cur.plane[0], s.prev, s.ok, s.mref, s.mprev, s.mnow, 1, 3.0, s.xy,
-                                        s.verdict, NULL, &r),
+    assert_int_equal(sh_landmarks_carry(s.lm, &s.cur.plane[0], s.prev, s.ok, s.mref, s.mprev, s.mnow, 1, 3.0,
+                                        s.pred, s.xy, s.verdict, NULL, &r),
                      SH_OK);
     assert_false(r.searched || r.carried);
     assert_int_equal(r.support, 0);
     assert_int_equal(s.verdict[0], 0xee); /* not searched */
     memset(s.ok, 0, (size_t)s.n);
-    assert_int_equal(sh_landmarks_carry(s.lm, &s.cur.plane[0], s.prev, s.ok, s.mref, s.mprev, s.mnow, 2, 3.0, s.xy,
-                                        s.verdict, NULL, &r),
+    assert_int_equal(sh_landmarks_carry(s.lm, &s.cur.plane[0], s.prev, s.ok, s.mref, s.mprev, s.mnow, 2, 3.0,
+                                        s.pred, s.xy, s.verdict, NULL, &r),
                      SH_OK);
     assert_false(r.searched || r.carried);
     assert_int_equal(r.support, 0);
     assert_int_equal(s.verdict[0], 0xee);
-    assert_int_equal(sh_landmarks_carry(s.lm, &s.cur.plane[0], s.prev, s.ok, s.mref, s.mprev, s.mnow, 2, 3.0, s.prev,
-                                        s.verdict, NULL, &r),
+    assert_int_equal(sh_landmarks_carry(s.lm, &s.cur.plane[0], s.prev, s.ok, s.mref, s.mprev, s.mnow, 2, 3.0,
+                                        s.pred, s.prev, s.verdict, NULL, &r),
                      SH_EINVAL);
-    assert_int_equal(sh_landmarks_carry(s.lm, &s.cur.plane[0], s.prev, s.ok, s.mref, s.mprev, s.mnow, 2, 0, s.xy,
-                                        s.verdict, NULL, &r),
+    assert_int_equal(sh_landmarks_carry(s.lm, &s.cur.plane[0], s.prev, s.ok, s.mref, s.mprev, s.mnow, 2, 3.0,
+                                        s.xy, s.xy, s.verdict, NULL, &r),
                      SH_EINVAL);
-    assert_int_equal(sh_landmarks_carry(s.lm, &s.cur.plane[0], s.prev, s.ok, NULL, s.mprev, s.mnow, 2, 3.0, s.xy,
-                                        s.verdict, NULL, &r),
+    assert_int_equal(sh_landmarks_carry(s.lm, &s.cur.plane[0], s.prev, s.ok, s.mref, s.mprev, s.mnow, 2, 0,
+                                        s.pred, s.xy, s.verdict, NULL, &r),
                      SH_EINVAL);
-    assert_int_equal(sh_landmarks_carry(NULL, &s.cur.plane[0], s.prev, s.ok, s.mref, s.mprev, s.mnow, 2, 3.0, s.xy,
-                                        s.verdict, NULL, &r),
+    assert_int_equal(sh_landmarks_carry(s.lm, &s.cur.plane[0], s.prev, s.ok, NULL, s.mprev, s.mnow, 2, 3.0,
+                                        s.pred, s.xy, s.verdict, NULL, &r),
+                     SH_EINVAL);
+    assert_int_equal(sh_landmarks_carry(NULL, &s.cur.plane[0], s.prev, s.ok, s.mref, s.mprev, s.mnow, 2, 3.0,
+                                        s.pred, s.xy, s.verdict, NULL, &r),
                      SH_EINVAL);
     scene_free(&s);
 }
