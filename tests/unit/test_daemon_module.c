@@ -382,9 +382,10 @@ static run_source *start_replay(const char *path, int n, int queue_ms)
  * 100 ms before it was taken (the age is taken before the call: no later than the rule's); every
  * set before the first is counted dropped. With queue_ms = 0 it takes the newest set alone. The
  * bounds come from the replay's schedule (frame k at start + 20 k ms), not from the code. *taken
- * counts the sets captured before the burst began: one captured during it (a slow machine, or
- * qemu-aarch64, where a take can outlast a frame period: a CI run took 2 with queue_ms = 0) was
- * not waiting. */
+ * counts the sets already queued when the burst began (avail_ns): one queued during it was not
+ * waiting. The capture time cannot say so: a replay's is its schedule, and under qemu-aarch64 a
+ * loaded capture thread queues a set due before the burst after it began (two CI runs took 2
+ * with queue_ms = 0, the second while the count still went by capture time). */
 static void stall_and_take(int queue_ms, int *taken, int *first)
 {
     char path[160];
@@ -402,7 +403,7 @@ static void stall_and_take(int queue_ms, int *taken, int *first)
         if (!f) break;
         index[n] = f->index;
         age_ms[n] = (double)(before - f->capture_ns) / 1e6;
-        waiting += f->capture_ns < burst;
+        waiting += f->avail_ns < burst;
     }
     assert_true(n >= 1);
     for (int i = 1; i < n; i++) {
