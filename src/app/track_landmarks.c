@@ -349,14 +349,16 @@ int track_landmarks_frame(track_landmarks *tl, const sh_image *frames, int f, co
         int kept = carry(tl, y, f, m, measured, nmeasured, &cnt);
         tl->stats.carried += kept == 1;
         tl->stats.not_carried += kept == 0;
+        /* a frame searched and not carried counts its verdicts too, as the daemon's do */
+        for (int v = 0; v < SH_LANDMARK_VERDICTS && kept >= 0; v++) tl->stats.verdicts[v] += cnt.verdicts[v];
         if (kept != 1) return 0;
     } else if (sh_landmarks_track(tl->lm, y, tl->pred, tl->xy, tl->verdict, &cnt) != SH_OK) {
         sh_log_error("--landmarks: frame %d: %s", f, sh_error_message());
         return 1;
     } else {
         for (int i = 0; i < tl->n; i++) tl->keep[i] = tl->verdict[i] == SH_LANDMARK_ACCEPTED;
+        for (int v = 0; v < SH_LANDMARK_VERDICTS; v++) tl->stats.verdicts[v] += cnt.verdicts[v];
     }
-    for (int v = 0; v < SH_LANDMARK_VERDICTS; v++) tl->stats.verdicts[v] += cnt.verdicts[v];
     tl->prev_f = f;
     tl->nprev = 0;
     for (int k = 0; k < m; k++) {

@@ -194,7 +194,7 @@ static void test_track_carries_two_markers(void **state)
     /* frames 12-34 covered: the tracker writes its predictions of the two for a fifth of a
      * second before it knows the heart's rate (a third of the stretch), then drops them */
     cover(12, 34, 30);
-    double mean[2], carried = 0, not_carried = 0;
+    double mean[2], carried = 0, not_carried = 0, judged = 0, chosen = 0;
     int raw[2];
     for (int k = 0; k < 2; k++) {
         /* in a subshell: its standard error, the JSON, is test_out, and its output the file */
@@ -207,6 +207,10 @@ static void test_track_carries_two_markers(void **state)
             assert_non_null(l);
             carried = json_num(l, "carried_frames");
             not_carried = json_num(l, "not_carried_frames");
+            chosen = json_num(l, "chosen");
+            static const char *const verdicts[] = {"accepted", "lost", "photometric", "backward", "disagrees",
+                                                   "deviates"};
+            for (int v = 0; v < 6; v++) judged += json_num(l, verdicts[v]);
         }
         if (test_run("cd '%s' && '%s' warp --quiet --method tps --points lm%d.csv covered.y4m stab.y4m && "
                      "'%s' --quiet --json --truth . --points lm%d.csv stab.y4m", dir, APP_BIN, k, EVAL_BIN, k) != 0)
@@ -223,6 +227,11 @@ static void test_track_carries_two_markers(void **state)
     assert_int_equal(raw[1], 0);
     assert_int_equal((int)carried, raw[0]);
     assert_int_equal((int)not_carried, 0);
+    /* every frame searched counts each landmark's verdict once: the frames the file has landmark
+     * rows for but frame 0 (their reference positions), and those searched and not carried */
+    assert_int_equal(test_run("cd '%s' && awk -F, 'NR > 1 && $2 >= 1000000 { print $1 }' lm1.csv | sort -u | wc -l",
+                              dir), 0);
+    assert_int_equal((long long)judged, (long long)chosen * (atoi(test_out) - 1 + (long long)not_carried));
     assert_true(mean[1] < mean[0] / 2);
     /* refused: without --landmarks, and with --cameras (3D) */
     assert_int_equal(test_run("'%s' track --landmarks-carry %s/cam0.y4m", APP_BIN, dir), 2);
