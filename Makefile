@@ -187,15 +187,18 @@ endif
 # first shows on planted violations that it catches them), unit tests plain, then under ASan+UBSan, then the capture code against the kernel's
 # own drivers in a QEMU guest (make vmtest, about 20 s once its kernel is cached), then the
 # aarch64 build's suite under qemu-aarch64 (make check-arm64, tools/cross/cross.mk); one summary
-# line at the end counts all four. CHECK_ARM64=0 leaves the aarch64 part out.
+# line at the end counts all four. CHECK_ARM64=0 leaves the aarch64 part out. The fuzzers and the
+# guests run side by side: each runs one process at a time (a harness after another, qemu -smp 1),
+# so one after the other they left a core idle for about three minutes (2026-12-06).
 CHECK_JOBS  ?= $(shell nproc)
 CHECK_ARM64 ?= 1
 check: deps
 	$(MAKE) --no-print-directory -j$(CHECK_JOBS) tests
 	$(MAKE) --no-print-directory check-includes
 	$(MAKE) --no-print-directory -j$(CHECK_JOBS) BUILD=build-asan SAN=1 OPT=-O1 tests
-	@$(MAKE) --no-print-directory -j$(CHECK_JOBS) fuzz-check > $(BUILD)/fuzz.out 2>&1; grep '^fuzz' $(BUILD)/fuzz.out
-	@$(MAKE) --no-print-directory vmtest > $(BUILD)/vmtest.out 2>&1; tail -n 25 $(BUILD)/vmtest.out
+	@$(MAKE) --no-print-directory -j$(CHECK_JOBS) fuzz-check > $(BUILD)/fuzz.out 2>&1 & \
+	  $(MAKE) --no-print-directory vmtest > $(BUILD)/vmtest.out 2>&1; wait; \
+	  grep '^fuzz' $(BUILD)/fuzz.out; tail -n 25 $(BUILD)/vmtest.out
 	@rm -f $(BUILD)/arm64.out; if [ "$(CHECK_ARM64)" = 1 ]; then \
 	  $(MAKE) --no-print-directory check-arm64 > $(BUILD)/arm64.out 2>&1; \
 	  grep -E '^(\[  (FAILED|ERROR) |crashed|[0-9]+ passed, )' $(BUILD)/arm64.out | sed 's/^/arm64: /'; fi
