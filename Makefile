@@ -192,18 +192,24 @@ endif
 # so one after the other they left a core idle for about three minutes (2026-12-06).
 CHECK_JOBS  ?= $(shell nproc)
 CHECK_ARM64 ?= 1
+# $(BUILD)/check.times: when each phase ended (tests/run-tests.sh prints them before the summary).
+CHECK_T = $(BUILD)/check.times
+CHECK_SINCE = $$(($$(date +%s) - $$(sed -n 's/^start //p' $(CHECK_T))))
 check: deps
+	@mkdir -p $(BUILD) && echo "start $$(date +%s)" > $(CHECK_T)
 	$(MAKE) --no-print-directory -j$(CHECK_JOBS) tests
 	$(MAKE) --no-print-directory check-includes
 	$(MAKE) --no-print-directory -j$(CHECK_JOBS) BUILD=build-asan SAN=1 OPT=-O1 tests
+	@echo "builds $(CHECK_SINCE)" >> $(CHECK_T)
 	@$(MAKE) --no-print-directory -j$(CHECK_JOBS) fuzz-check > $(BUILD)/fuzz.out 2>&1 & \
 	  $(MAKE) --no-print-directory vmtest > $(BUILD)/vmtest.out 2>&1; wait; \
-	  grep '^fuzz' $(BUILD)/fuzz.out; tail -n 25 $(BUILD)/vmtest.out
+	  grep '^fuzz' $(BUILD)/fuzz.out; tail -n 25 $(BUILD)/vmtest.out; echo "fuzz-and-guests $(CHECK_SINCE)" >> $(CHECK_T)
 	@rm -f $(BUILD)/arm64.out; if [ "$(CHECK_ARM64)" = 1 ]; then \
 	  $(MAKE) --no-print-directory check-arm64 > $(BUILD)/arm64.out 2>&1; \
-	  grep -E '^(\[  (FAILED|ERROR) |crashed|[0-9]+ passed, )' $(BUILD)/arm64.out | sed 's/^/arm64: /'; fi
+	  grep -E '^(\[  (FAILED|ERROR) |crashed|[0-9]+ passed, )' $(BUILD)/arm64.out | sed 's/^/arm64: /'; \
+	  echo "aarch64 $(CHECK_SINCE)" >> $(CHECK_T); fi
 	@VMTEST_OUT=$(BUILD)/vmtest.out FUZZ_OUT=$(BUILD)/fuzz.out ARM64_OUT=$(if $(filter 1,$(CHECK_ARM64)),$(BUILD)/arm64.out) \
-	  sh tests/run-tests.sh build build-asan
+	  CHECK_TIMES=$(CHECK_T) sh tests/run-tests.sh build build-asan
 
 .PHONY: check-includes
 check-includes: $(APP)

@@ -115,6 +115,19 @@ if [ -n "${ARM64_OUT:-}" ]; then
     a=$(sed -n 's/^failed tests://p' "$ARM64_OUT" 2>/dev/null | tr -d '\n')
     [ -n "$a" ] && names="${names:-}$(echo "$a" | sed 's| | arm64:|g')"
 fi
+# why they failed: cmocka's messages of the failed cases (CI shows only the end of the output, and
+# the aarch64 lanes' lines are printed long before it)
+if [ -n "${names:-}" ]; then
+    cat "$work"/*.log ${ARM64_OUT:+"$ARM64_OUT"} 2>/dev/null | grep -E '^\[ +(ERROR|LINE) +\] --- ' | head -n 20 |
+        sed 's/^/failure: /'
+fi
+# make check's phases (CHECK_TIMES: "NAME SECONDS" lines, the seconds since check began; this
+# script's own end added), for a run whose time is near the CI's limit
+if [ -n "${CHECK_TIMES:-}" ] && [ -r "$CHECK_TIMES" ]; then
+    start=$(sed -n 's/^start //p' "$CHECK_TIMES")
+    [ -n "$start" ] && echo "suites $(($(date +%s) - start))" >> "$CHECK_TIMES"
+    echo "check phases, seconds after the start: $(grep -v '^start ' "$CHECK_TIMES" | tr '\n' ',' | sed 's/,$//; s/,/, /g')"
+fi
 [ -n "${names:-}" ] && echo "failed tests:$names"
 [ -n "$crashed" ] && echo "crashed or exited non-zero:$crashed"
 echo "$passed passed, $failed failed"
