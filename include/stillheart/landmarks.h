@@ -270,8 +270,11 @@ sh_status sh_landmarks_luma(const sh_image *frame, sh_image *buf, const sh_plane
  * against the reference and judged by every test of sh_landmarks_track, so no error carries from
  * frame to frame; and the landmarks found must move as the markers seen move
  * (sh_landmarks_carry). The map then goes through the markers seen and the landmarks, over
- * their hull: the part of the field beyond it, at a marker not seen, is not shown stabilized. A
- * frame before that was not stabilized breaks the chain. */
+ * their hull: the part of the field beyond it, at a marker not seen, is not shown stabilized. The
+ * callers carry from the last frame stabilized with its landmarks found: frames since in which no
+ * landmark was searched (fewer than two markers seen, nothing to check them by; or never
+ * processed) leave its landmarks as they were and do not break the chain; one whose landmarks were
+ * searched and not used does. */
 
 /* A landmark not accepted in the frame before is predicted by the median displacement of its 8
  * nearest that were, and a marker seen is judged by the 8 nearest landmarks accepted in both

@@ -27,10 +27,11 @@ struct track_landmarks {
     uint8_t *verdict;      /* 2D: n */
     double *X;             /* 3D: n x 3, the frame's triangulated positions */
     uint8_t *keep;         /* n: written in this frame */
-    /* --landmarks-carry (2D): the frame before, when its landmarks were searched and written
-     * (xy and keep hold them), and its markers shared with frame 0 and detected there (ids, where
-     * they were) */
-    int carry, prev_f;
+    /* --landmarks-carry (2D): the last frame whose landmarks were searched and written (xy and
+     * keep hold them), and its markers shared with frame 0 and detected there (ids, where they
+     * were); the last frame the chain from it reaches (prev_f, then each frame after it in which
+     * no landmark was searched: -2 once one was searched and not written) */
+    int carry, prev_f, chain_f;
     int *prev_ids;
     double *prev_xy;
     int nprev;
@@ -104,7 +105,7 @@ static int listed(const int *list, int n, int id)
  * (sh_landmarks_carry, with the daemon's default [gating] max_residual_px; a row the tracker
  * predicted is no detection to check them by, as in the daemon). 1 when the frame's landmarks are
  * kept, 0 when they were searched and are not, -1 when nothing was searched (fewer than two such
- * markers, or no landmark accepted before). */
+ * markers, or no landmark accepted before), -2 when the search failed (said). */
 #define TRACK_CARRY_MAX_PX 3.0
 static int carry(track_landmarks *tl, const sh_plane *y, int f, int m, const int *measured, int nmeasured,
                  sh_landmarks_counts *cnt)
@@ -126,7 +127,7 @@ static int carry(track_landmarks *tl, const sh_plane *y, int f, int m, const int
     if (sh_landmarks_carry(tl->lm, y, tl->lm_prev, tl->ok_prev, sref, sprev, snow, nb, TRACK_CARRY_MAX_PX, tl->pred,
                            tl->xy, tl->verdict, cnt, &r) != SH_OK) {
         sh_log_warn("--landmarks-carry: frame %d: %s", f, sh_error_message());
-        return -1;
+        return -2; /* xy may be half written: the chain ends */
     }
     if (!r.searched) return -1;
     for (int i = 0; i < tl->n; i++) tl->keep[i] = tl->verdict[i] == SH_LANDMARK_ACCEPTED;
@@ -242,7 +243,7 @@ int track_landmarks_start(const track_landmarks_options *o, const sh_image *fram
         tl->prev_xy = malloc(2 * (size_t)nrows * sizeof *tl->prev_xy);
         tl->both = malloc(6 * (size_t)nrows * sizeof *tl->both);
         tl->carry = o->carry && !(o->calib && o->ncam > 1);
-        tl->prev_f = -2;
+        tl->prev_f = tl->chain_f = -2;
     }
     if (!tl || !tags || !tl->ref || !tl->ids || !tl->ref_xy || !tl->cur_xy || !tl->cur_xyz || !tl->prev_ids ||
         !tl->prev_xy || !tl->both) {
@@ -288,7 +289,7 @@ int track_landmarks_start(const track_landmarks_options *o, const sh_image *fram
     free(tags);
     if (!rc) rc = write_landmarks(tl, 0, tl->xy, out);
     if (!rc && tl->carry) { /* frame 0: every landmark where it was chosen, every marker seen */
-        tl->prev_f = 0;
+        tl->prev_f = tl->chain_f = 0;
         tl->nprev = nrows;
         for (int k = 0; k < nrows; k++) tl->prev_ids[k] = tl->ref[k].id;
         memcpy(tl->prev_xy, tl->ref_xy, 2 * (size_t)nrows * sizeof *tl->prev_xy);
@@ -336,9 +337,16 @@ int track_landmarks_frame(track_landmarks *tl, const sh_image *frames, int f, co
      * --landmarks-carry, the frame before's landmarks vouching for them */
     int m, mapped = predict(tl, cur, nrows, &m);
     free(cur);
-    int chain = tl->carry && tl->prev_f == f - 1 && m >= SH_LANDMARKS_CARRY_SEEN;
-    tl->prev_f = -2;
-    if (!mapped && !chain) return 0;
+    /* the chain reaches over frames without a landmark search (fewer than two of its markers
+     * detected), as the daemon's does: the next is predicted from prev_f's landmarks and the
+     * markers' motion since, and checked on the markers detected in both */
+    int linked = tl->carry && tl->prev_f >= 0 && tl->chain_f == f - 1;
+    int chain = linked && m >= SH_LANDMARKS_CARRY_SEEN;
+    tl->chain_f = -2;
+    if (!mapped && !chain) {
+        if (linked) tl->chain_f = f;
+        return 0;
+    }
     sh_landmarks_counts cnt;
     const sh_plane *y = luma(tl, 0, &frames[0]);
     if (!y) {
@@ -351,6 +359,7 @@ int track_landmarks_frame(track_landmarks *tl, const sh_image *frames, int f, co
         tl->stats.not_carried += kept == 0;
         /* a frame searched and not carried counts its verdicts too, as the daemon's do */
         for (int v = 0; v < SH_LANDMARK_VERDICTS && kept >= 0; v++) tl->stats.verdicts[v] += cnt.verdicts[v];
+        if (kept == -1) tl->chain_f = f; /* nothing searched */
         if (kept != 1) return 0;
     } else if (sh_landmarks_track(tl->lm, y, tl->pred, tl->xy, tl->verdict, &cnt) != SH_OK) {
         sh_log_error("--landmarks: frame %d: %s", f, sh_error_message());
@@ -359,7 +368,7 @@ int track_landmarks_frame(track_landmarks *tl, const sh_image *frames, int f, co
         for (int i = 0; i < tl->n; i++) tl->keep[i] = tl->verdict[i] == SH_LANDMARK_ACCEPTED;
         for (int v = 0; v < SH_LANDMARK_VERDICTS; v++) tl->stats.verdicts[v] += cnt.verdicts[v];
     }
-    tl->prev_f = f;
+    tl->prev_f = tl->chain_f = f;
     tl->nprev = 0;
     for (int k = 0; k < m; k++) {
         if (!listed(measured, nmeasured, tl->ids[k])) continue;

@@ -90,7 +90,7 @@ static const keydef keys[] = {
     {"gating", "min_markers", "min-markers", K_INT, SH_CONFIG_GATING, F(min_markers), 0, 1, SH_CONFIG_MAX_IDS, "fewer markers -> raw"},
     {"gating", "max_residual_px", "max-residual", K_DOUBLE, SH_CONFIG_GATING, F(max_residual_px), 0, 0, 1e4, "residual over this -> raw"},
     {"gating", "landmarks_carry", "landmarks-carry", K_BOOL, SH_CONFIG_GATING, F(landmarks_carry), 0, 0, 1,
-     "a frame raw for its markers (too few, one uncertain, no model yet) with two detected there and in the frame before is carried by the landmarks when they move as those markers do: degraded, over their hull ([track] landmarks, 2D)"},
+     "a frame raw for its markers (too few, one uncertain, no model yet) with two detected there and in the last frame stabilized with its landmarks (no landmark search between them) is carried by the landmarks when they move as those markers do: degraded, over their hull ([track] landmarks, 2D)"},
     {"gating", "max_sigma_px", "max-sigma", K_DOUBLE, SH_CONFIG_GATING, F(max_sigma_px), 0, 0, 1e4, "position uncertainty (1 sigma) over this -> raw"},
     {"gating", "dropout_ms", "dropout-ms", K_INT, SH_CONFIG_GATING, F(dropout_ms), 0, 0, 60000, "stale estimates up to this -> degraded, longer -> raw"},
     {"gating", "max_calibration_px", "max-calibration", K_DOUBLE, SH_CONFIG_GATING, F(max_calibration_px), 0, 0.01, 100,

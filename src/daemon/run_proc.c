@@ -65,11 +65,15 @@ struct run_proc {
     int lm_frames, lm_accepted; /* frames the landmarks were looked for in; this frame's accepted */
     int lm_ref_frame;           /* the frame the reference was taken from (-1: none yet) */
     int lm_found;               /* this frame's landmarks were searched in 2D (lm_xy, lm_verdict) */
+    int lm_touched;             /* this frame wrote lm_xy or lm_verdict (searched, or tried to) */
+    int lm_unsearched;          /* carried() found nothing to search in this frame: one marker seen
+                                 * in both frames, or no landmark accepted in the one before */
     /* [gating] landmarks_carry (2D): the last frame stabilized with its landmarks found (-1: none),
-     * the last frame processed before this one and this one; a carried frame's copy of the frame
-     * before's landmarks (lm_cap pairs, lm_cap); the markers lm_last's map went through that were
-     * detected there, and where */
-    int lm_last, processed, current;
+     * the last frame processed that the chain from it reaches (lm_last, then each frame shown raw
+     * without a landmark search: run_proc_frame), the last frame processed before this one and
+     * this one; a carried frame's copy of the frame before's landmarks (lm_cap pairs, lm_cap); the
+     * markers lm_last's map went through that were detected there, and where */
+    int lm_last, chain, processed, current;
     float *carry_xy;
     uint8_t *carry_ok;
     int carry_n, carry_ids[SH_TRACK_MAX_MARKERS];
@@ -218,7 +222,7 @@ sh_status run_proc_create(const sh_config *cfg, const sh_y4m_header *hdr, double
     p->cfg = *cfg;
     p->out_cam = cfg->output_camera;
     p->lm_ref_frame = -1;
-    p->lm_last = p->processed = p->current = -1;
+    p->lm_last = p->chain = p->processed = p->current = -1;
     if (cfg->calibration[0]) {
         sh_status st = sh_calib_read(cfg->calibration, &p->calib);
         if (st == SH_OK && (p->calib.num_cameras < 2 || p->calib.num_cameras != cameras))
@@ -529,6 +533,7 @@ static int reference_ready(run_proc *p, const sh_image *img, const sh_image *con
     int ref_frame, ref_n;
     if (run_models_poll(p->models, &ref_frame, &ref_n)) {
         p->last = NULL; /* it belonged to the old reference, now freed */
+        p->lm_last = -1; /* and the landmarks found last were the old reference's */
         p->await_ref = 0;
         p->lm_ref_frame = ref_frame;
         sh_landmarks *lm = run_models_landmarks(p->models);
@@ -754,6 +759,7 @@ static void landmarks(run_proc *p, const run_model *md, const sh_image *img, con
     memcpy(p->all_det, det, sizeof(double) * 2 * (size_t)nmk);
     memset(p->all_use, 1, (size_t)nmk);
     memset(p->all_use + nmk, 0, (size_t)(n - nmk));
+    p->lm_touched = 1;
     int got = index == p->lm_ref_frame ? at_reference(p, n - nmk)
               : p->three_d            ? search_3d(p, md, img, cams, xy, xyz, nmk)
                                       : search_2d(p, md, img, xy, nmk, n - nmk);
@@ -835,7 +841,7 @@ static int update_and_warp(run_proc *p, run_model *md, const sh_image *img, cons
  * else the chain is broken. */
 static void carry_from(run_proc *p, int index, int nm)
 {
-    p->lm_last = p->lm_found ? index : -1;
+    p->lm_last = p->chain = p->lm_found ? index : -1;
     p->carry_n = 0;
     for (int k = 0, c = 0; k < p->used_n && p->lm_found; k++) {
         int id = p->used_ids[k];
@@ -912,16 +918,21 @@ static int carried_points(run_proc *p, const run_model *md, const int *ids, int 
 static const sh_image *carried(run_proc *p, const sh_image *img, int index, int nm, const sh_point *ref, int nref,
                                double t1, sh_display_frame_info *info)
 {
-    /* the chain holds across frames never processed (dropped while the processing was busy), not
-     * across one shown raw */
-    if (!p->cfg.landmarks_carry || !p->lm_cap || p->three_d || p->lm_last < 0 || p->lm_last != p->processed)
+    /* the chain holds across frames never processed (dropped while the processing was busy) and
+     * frames shown raw without a landmark search (run_proc_frame), not across one whose landmarks
+     * were searched and not used */
+    if (!p->cfg.landmarks_carry || !p->lm_cap || p->three_d || p->lm_last < 0 || p->chain != p->processed)
         return NULL;
     int ids[SH_TRACK_MAX_MARKERS];
     double sref[2 * SH_TRACK_MAX_MARKERS], dprev[2 * SH_TRACK_MAX_MARKERS], det[2 * SH_TRACK_MAX_MARKERS],
         snow[2 * SH_TRACK_MAX_MARKERS];
     int nb = seen_twice(p, nm, ref, nref, ids, sref, dprev, det, snow);
     sh_landmarks *lm = run_models_landmarks(p->models);
-    if (nb < SH_LANDMARKS_CARRY_SEEN || !lm) return NULL;
+    if (!lm) return NULL;
+    if (nb < SH_LANDMARKS_CARRY_SEEN) {
+        p->lm_unsearched = 1;
+        return NULL;
+    }
     double t0 = now_ms();
     int n = sh_landmarks_count(lm);
     memcpy(p->carry_xy, p->lm_xy, sizeof(float) * 2 * (size_t)n);
@@ -934,11 +945,15 @@ static const sh_image *carried(run_proc *p, const sh_image *img, int index, int 
         st = sh_landmarks_carry(lm, y, p->carry_xy, p->carry_ok, sref, dprev, det, nb, p->cfg.max_residual_px,
                                 p->lm_pred, p->lm_xy, p->lm_verdict, &c, &r);
     p->lm_ms = now_ms() - t0;
+    p->lm_touched = st != SH_OK || r.searched;
     if (st != SH_OK) {
         sh_log_limited(&p->lm_err, SH_LOG_ERROR, "landmarks: %s (the frame raw)", sh_error_message());
         return NULL;
     }
-    if (!r.searched) return NULL; /* none accepted before */
+    if (!r.searched) { /* none accepted before */
+        p->lm_unsearched = 1;
+        return NULL;
+    }
     for (int v = 0; v < SH_LANDMARK_VERDICTS; v++) p->lm_verdicts[v] += c.verdicts[v];
     p->lm_frames++;
     p->lm_accepted = c.verdicts[SH_LANDMARK_ACCEPTED];
@@ -978,6 +993,13 @@ const sh_image *run_proc_frame(run_proc *p, const sh_image *img, const sh_image 
                                unsigned epoch, sh_display_frame_info *info)
 {
     const sh_image *shown = frame(p, img, cams, index, epoch, info);
+    /* a frame raw for its markers in which carried() found nothing to search (one marker seen in
+     * both frames) leaves the landmarks found last as they were: the next may still be carried
+     * from them, as across frames dropped; their predictions there rest on the markers' motion
+     * since, and the check on the markers detected in both frames (sh_landmarks_carry). A frame
+     * raw for anything else (the camera moved, the calibration is off) ends the chain. */
+    if (info->status == SH_DISPLAY_RAW && p->lm_unsearched && !p->lm_touched && p->chain == p->processed)
+        p->chain = p->current;
     return info->status == SH_DISPLAY_RAW ? raw(p, img) : shown;
 }
 
@@ -990,6 +1012,7 @@ static const sh_image *frame(run_proc *p, const sh_image *img, const sh_image *c
     p->lm_ms = 0;
     p->lm_accepted = 0;
     p->lm_found = 0;
+    p->lm_touched = p->lm_unsearched = 0;
     p->processed = p->current;
     p->current = index;
     int nm = markers(p, img, cams, index, epoch);

@@ -29,6 +29,7 @@
 #define FRAMES 40
 #define GONE0 15
 #define GONE1 24
+#define ONE 19 /* a frame amid them with one marker */
 
 static char dir[] = "/tmp/sh_carry_XXXXXX";
 
@@ -65,11 +66,12 @@ static int teardown(void **state)
     return 0;
 }
 
-/* The two ids of p4.csv's frame 0 with the smallest x, "a|b" for awk. */
-static void left_ids(char *out, size_t cap)
+/* The two ids of p4.csv's frame 0 with the smallest x, "a|b" for awk; with third, the id with the
+ * third smallest (a right one) alone. */
+static void left_ids(char *out, size_t cap, int third)
 {
-    if (test_run("awk -F, '$1 == 0 { print $3, $2 }' '%s/p4.csv' | sort -n | head -2 | awk '{ print $2 }' | "
-                 "paste -sd'|'", dir) != 0)
+    if (test_run("awk -F, '$1 == 0 { print $3, $2 }' '%s/p4.csv' | sort -n | %s | awk '{ print $2 }' | "
+                 "paste -sd'|'", dir, third ? "sed -n 3p" : "head -2") != 0)
         fail_msg("%s", test_out);
     snprintf(out, cap, "%.*s", (int)strcspn(test_out, "\n"), test_out);
 }
@@ -102,13 +104,15 @@ static int traced(int f0, int f1, const char *status, const char *reason)
 static void test_daemon_carries_two_markers(void **state)
 {
     (void)state;
-    char left[64];
-    left_ids(left, sizeof left);
+    char left[64], right[64];
+    left_ids(left, sizeof left, 0);
+    left_ids(right, sizeof right, 1);
     /* the two left markers' rows gone in GONE0..GONE1; and, beside it, the two right ones' rows
-     * moved 6 px there too */
+     * moved 6 px there too; and one of those gone as well in ONE, a frame amid them */
     if (test_run("cd '%s' && awk -F, -v l='^(%s)$' 'NR == 1 || !($1 >= %d && $1 <= %d && $2 ~ l)' p4.csv > gone.csv && "
                  "awk -F, -v OFS=, -v a=%d -v b=%d 'NR > 1 && $1 >= a && $1 <= b { $3 += 6 } { print }' gone.csv > "
-                 "moved.csv", dir, left, GONE0, GONE1, GONE0, GONE1) != 0)
+                 "moved.csv && awk -F, -v r=%s '!($1 == %d && $2 == r)' gone.csv > one.csv",
+                 dir, left, GONE0, GONE1, GONE0, GONE1, right, ONE) != 0)
         fail_msg("%s\n%s", test_cmd, test_out);
     double all = daemon("p4.csv", 0);
     double raw = daemon("gone.csv", 0);
@@ -137,6 +141,18 @@ static void test_daemon_carries_two_markers(void **state)
     assert_int_equal(refused, 1);
     assert_int_equal(moved_raw, GONE1 - GONE0 + 1);
     assert_int_equal(moved_carried, 0);
+    /* one marker in frame ONE: nothing to vouch for the landmarks there, so it is raw; the frames
+     * after it are carried from the frame before it, on the two markers seen in both */
+    double one = daemon("one.csv", 1);
+    int one_raw = traced(1, FRAMES, "raw", "too few markers (1");
+    int one_carried = traced(GONE0, GONE1, "degraded", "carried: 2 markers");
+    int one_all_raw = traced(1, FRAMES, "raw", "");
+    print_message("  one marker left in frame %d: %d raw, %d of the other frames carried, %.4f px\n", ONE, one_raw,
+                  one_carried, one);
+    assert_int_equal(one_raw, 1);
+    assert_int_equal(one_all_raw, 1);
+    assert_int_equal(one_carried, GONE1 - GONE0);
+    assert_true(one < raw / 4);
     /* refused: without landmarks, and in 3D */
     const char *bad[][2] = {{"--landmarks-carry 1", "there are no landmarks"},
                             {"--landmarks 10 --landmarks-carry 1 --calibration x.yaml", "in 3D"}};
@@ -147,16 +163,19 @@ static void test_daemon_carries_two_markers(void **state)
 }
 
 /* covered.y4m: cam0.y4m with a grey disk of radius r (luma 110, neutral chroma: blood's flat look
- * on the band-passed frames) over each of the two left tags' centres in frames f0..f1. */
-static void cover(int f0, int f1, double r)
+ * on the band-passed frames) over each of the two left tags' centres in frames f0..f1, and over a
+ * third tag's in frame one (within them; -1: none). */
+static void cover(int f0, int f1, double r, int one)
 {
-    char left[64], path[600];
-    left_ids(left, sizeof left);
-    if (test_run("awk -F, -v l='^(%s)$' 'NR > 1 && $2 ~ l { print $1, $3, $4 }' '%s/p4.csv'", left, dir) != 0)
+    char left[64], right[64], path[600];
+    left_ids(left, sizeof left, 0);
+    left_ids(right, sizeof right, 1);
+    if (test_run("awk -F, -v l='^(%s)$' -v r=%s -v o=%d 'NR > 1 && ($2 ~ l || ($1 == o && $2 == r)) "
+                 "{ print $1, $3, $4 }' '%s/p4.csv'", left, right, one, dir) != 0)
         fail_msg("%s", test_out);
-    double cx[2 * FRAMES], cy[2 * FRAMES];
-    int cf[2 * FRAMES], nc = 0;
-    for (char *s = test_out; nc < 2 * FRAMES && sscanf(s, "%d %lf %lf", &cf[nc], &cx[nc], &cy[nc]) == 3; nc++) {
+    double cx[2 * FRAMES + 1], cy[2 * FRAMES + 1];
+    int cf[2 * FRAMES + 1], nc = 0;
+    for (char *s = test_out; nc < 2 * FRAMES + 1 && sscanf(s, "%d %lf %lf", &cf[nc], &cx[nc], &cy[nc]) == 3; nc++) {
         s = strchr(s, '\n');
         if (!s) break;
         s++;
@@ -188,38 +207,47 @@ static void cover(int f0, int f1, double r)
     sh_image_destroy(&img);
 }
 
+/* `stillheart track --landmarks 200 --landmarks-sparse` on covered.y4m (with --landmarks-carry
+ * when carry) into lmK.csv, then `stillheart warp` through it: the geometric error and raw frames
+ * of what it shows into mean and raw; with carry, --stats' carried and not carried frames, and its
+ * landmarks chosen and judged (the verdicts' sum) into c[0..3]. */
+static void track_warp(int k, int carry, double *mean, int *raw, double c[4])
+{
+    /* in a subshell: its standard error, the JSON, is test_out, and its output the file */
+    if (test_run("cd '%s' && ('%s' track --ids $(awk -F, 'NR > 1 { print $2 }' p4.csv | sort -un | paste -sd,) "
+                 "--landmarks 200 --landmarks-sparse %s --stats --json covered.y4m > lm%d.csv)", dir, APP_BIN,
+                 carry ? "--landmarks-carry" : "", k) != 0)
+        fail_msg("%s\n%s", test_cmd, test_out);
+    if (carry) {
+        const char *l = strstr(test_out, "\"landmarks\"");
+        assert_non_null(l);
+        c[0] = json_num(l, "carried_frames");
+        c[1] = json_num(l, "not_carried_frames");
+        c[2] = json_num(l, "chosen");
+        static const char *const verdicts[] = {"accepted", "lost", "photometric", "backward", "disagrees", "deviates"};
+        c[3] = 0;
+        for (int v = 0; v < 6; v++) c[3] += json_num(l, verdicts[v]);
+    }
+    if (test_run("cd '%s' && '%s' warp --quiet --method tps --points lm%d.csv covered.y4m stab.y4m && "
+                 "'%s' --quiet --json --truth . --points lm%d.csv stab.y4m", dir, APP_BIN, k, EVAL_BIN, k) != 0)
+        fail_msg("%s\n%s", test_cmd, test_out);
+    const char *g = strstr(test_out, "\"geometric\"");
+    assert_non_null(g);
+    *mean = json_num(g, "mean");
+    *raw = (int)json_num(g, "raw_frames");
+}
+
 static void test_track_carries_two_markers(void **state)
 {
     (void)state;
     /* frames 12-34 covered: the tracker writes its predictions of the two for a fifth of a
      * second before it knows the heart's rate (a third of the stretch), then drops them */
-    cover(12, 34, 30);
-    double mean[2], carried = 0, not_carried = 0, judged = 0, chosen = 0;
+    cover(12, 34, 30, -1);
+    double mean[2], c[4] = {0};
     int raw[2];
-    for (int k = 0; k < 2; k++) {
-        /* in a subshell: its standard error, the JSON, is test_out, and its output the file */
-        if (test_run("cd '%s' && ('%s' track --ids $(awk -F, 'NR > 1 { print $2 }' p4.csv | sort -un | paste -sd,) "
-                     "--landmarks 200 --landmarks-sparse %s --stats --json covered.y4m > lm%d.csv)", dir, APP_BIN,
-                     k ? "--landmarks-carry" : "", k) != 0)
-            fail_msg("%s\n%s", test_cmd, test_out);
-        if (k) {
-            const char *l = strstr(test_out, "\"landmarks\"");
-            assert_non_null(l);
-            carried = json_num(l, "carried_frames");
-            not_carried = json_num(l, "not_carried_frames");
-            chosen = json_num(l, "chosen");
-            static const char *const verdicts[] = {"accepted", "lost", "photometric", "backward", "disagrees",
-                                                   "deviates"};
-            for (int v = 0; v < 6; v++) judged += json_num(l, verdicts[v]);
-        }
-        if (test_run("cd '%s' && '%s' warp --quiet --method tps --points lm%d.csv covered.y4m stab.y4m && "
-                     "'%s' --quiet --json --truth . --points lm%d.csv stab.y4m", dir, APP_BIN, k, EVAL_BIN, k) != 0)
-            fail_msg("%s\n%s", test_cmd, test_out);
-        const char *g = strstr(test_out, "\"geometric\"");
-        assert_non_null(g);
-        mean[k] = json_num(g, "mean");
-        raw[k] = (int)json_num(g, "raw_frames");
-    }
+    track_warp(0, 0, &mean[0], &raw[0], c);
+    track_warp(1, 1, &mean[1], &raw[1], c);
+    double carried = c[0], not_carried = c[1];
     print_message("  two tags covered in frames 12-34: without carry %.4f px (%d frames raw); with it %.4f px (%d "
                   "raw), %.0f frames carried, %.0f not vouched for\n", mean[0], raw[0], mean[1], raw[1], carried,
                   not_carried);
@@ -231,8 +259,19 @@ static void test_track_carries_two_markers(void **state)
      * rows for but frame 0 (their reference positions), and those searched and not carried */
     assert_int_equal(test_run("cd '%s' && awk -F, 'NR > 1 && $2 >= 1000000 { print $1 }' lm1.csv | sort -u | wc -l",
                               dir), 0);
-    assert_int_equal((long long)judged, (long long)chosen * (atoi(test_out) - 1 + (long long)not_carried));
+    assert_int_equal((long long)c[3], (long long)c[2] * (atoi(test_out) - 1 + (long long)not_carried));
     assert_true(mean[1] < mean[0] / 2);
+    /* a third tag covered too in frame 28, after the tracker dropped the two: one tag detected
+     * there, nothing to vouch for the landmarks, so that frame is raw; the frames after it are
+     * carried from the frame before it, on the two tags detected in both */
+    cover(12, 34, 30, 28);
+    double one;
+    int one_raw;
+    track_warp(2, 1, &one, &one_raw, c);
+    print_message("  a third tag covered in frame 28: %d raw, %.0f carried, %.4f px\n", one_raw, c[0], one);
+    assert_int_equal(one_raw, 1);
+    assert_int_equal((int)c[0], raw[0] - 1);
+    assert_true(one < mean[0] / 2);
     /* refused: without --landmarks, and with --cameras (3D) */
     assert_int_equal(test_run("'%s' track --landmarks-carry %s/cam0.y4m", APP_BIN, dir), 2);
     assert_non_null(strstr(test_out, "--landmarks-carry goes with --landmarks"));
