@@ -69,8 +69,8 @@ struct run_proc {
     int lm_unsearched;          /* carried() found nothing to search in this frame: one marker seen
                                  * in both frames, or no landmark accepted in the one before */
     /* [gating] landmarks_carry (2D): the last frame stabilized with its landmarks found (-1: none),
-     * the last frame processed that the chain from it reaches (lm_last, then each frame shown raw
-     * without a landmark search: run_proc_frame), the last frame processed before this one and
+     * the last frame processed that the chain from it reaches (lm_last, then each frame raw for its
+     * markers with nothing to search: run_proc_frame), the last frame processed before this one and
      * this one; a carried frame's copy of the frame before's landmarks (lm_cap pairs, lm_cap); the
      * markers lm_last's map went through that were detected there, and where */
     int lm_last, chain, processed, current;
@@ -945,7 +945,7 @@ static const sh_image *carried(run_proc *p, const sh_image *img, int index, int 
         st = sh_landmarks_carry(lm, y, p->carry_xy, p->carry_ok, sref, dprev, det, nb, p->cfg.max_residual_px,
                                 p->lm_pred, p->lm_xy, p->lm_verdict, &c, &r);
     p->lm_ms = now_ms() - t0;
-    p->lm_touched = st != SH_OK || r.searched;
+    p->lm_touched |= st != SH_OK || r.searched;
     if (st != SH_OK) {
         sh_log_limited(&p->lm_err, SH_LOG_ERROR, "landmarks: %s (the frame raw)", sh_error_message());
         return NULL;
