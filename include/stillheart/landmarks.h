@@ -7,7 +7,8 @@
  * sees tissue alone: inside the markers' hull (when one is given), off the tags (each tag's quad
  * grown by its quiet zone, a margin and half a window, so no window sees a tag's sticker, which
  * moves rigidly and not as the tissue), off specular highlights (no window holds a pixel at or above
- * the highlight level: a highlight moves with the light and the view, not with the tissue), and
+ * the highlight level, which follows the frames' range: sh_landmarks_highlight_level; a highlight
+ * moves with the light and the view, not with the tissue), and
  * half a window inside the image.
  *
  * Both the choice and the search see the frames band-passed (unless band is 0): the mean over 3x3
@@ -105,6 +106,14 @@ extern "C" {
  * apart, lose (their systems nearly singular at those scales), so their warps leave the rows out. */
 int sh_landmarks_method_uses(sh_method method);
 
+/* The highlight level (sh_landmarks_params.highlight) for frames whose samples are full range
+ * (0..255: a Y4M tagged XCOLORRANGE=FULL, and RGB frames, whose luma sh_landmarks_luma makes
+ * full range) or not: 250, the default, where an 8-bit camera clips; in limited range (16..235,
+ * BT.601/709's studio swing: Y4M's default, most cameras' YUV, the phantom's renders) the white
+ * is 235, so 250 is never reached, and the same 98 % of the white is 231. Callers pass the range
+ * of the frames they give the landmarks. */
+int sh_landmarks_highlight_level(int full_range);
+
 typedef enum {
     SH_LANDMARK_ACCEPTED = 0,
     SH_LANDMARK_LOST,
@@ -126,8 +135,9 @@ typedef struct {
                                  * taken as one module, an eighth of the quad's side (the
                                  * families' tags have one white module round their black
                                  * border) (2) */
-    int highlight;              /* luma at or above which a pixel is a specular highlight (250:
-                                 * an 8-bit camera clips there) */
+    int highlight;              /* luma at or above which a pixel is a specular highlight (250,
+                                 * where an 8-bit camera clips, for full-range frames; callers
+                                 * pass sh_landmarks_highlight_level of their frames' range) */
     int band;                   /* the band-pass's coarse box, px each way (5; 0: raw frames) */
     double max_photometric;     /* grey levels of the frames tracked (band-passed or raw) (12) */
     double max_backward_px;     /* px (0.5: half of the 1 px a landmark must be good to);

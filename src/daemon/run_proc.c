@@ -106,7 +106,7 @@ void run_proc_landmarks(const run_proc *p, int *accepted, double *ms)
 }
 
 /* The buffers of [track] landmarks (and of the points a map is made from, which they join). */
-static sh_status landmarks_create(run_proc *p, const sh_config *cfg)
+static sh_status landmarks_create(run_proc *p, const sh_config *cfg, const sh_y4m_header *hdr)
 {
     p->lm_cap = cfg->landmarks;
     size_t most = SH_TRACK_MAX_MARKERS + (size_t)p->lm_cap;
@@ -141,6 +141,7 @@ static sh_status landmarks_create(run_proc *p, const sh_config *cfg)
     if (!cfg->landmarks_sparse && p->three_d) sh_landmarks_params_make_rig(&lp);
     lp.affine = cfg->landmarks_affine;
     lp.max_points = p->lm_cap;
+    lp.highlight = sh_landmarks_highlight_level(sh_y4m_header_full_range(hdr) || hdr->format == SH_PIX_RGB24);
     run_models_set_landmarks(p->models, &lp, cfg->landmarks_smoothing);
     if (!cfg->points[0]) return SH_OK;
     sh_detector_options dopt;
@@ -263,7 +264,7 @@ sh_status run_proc_create(const sh_config *cfg, const sh_y4m_header *hdr, double
         st = run_tracker_create(cfg, p->three_d ? &p->calib : NULL, p->out_cam, hdr->width, hdr->height, p->fps,
                                 &p->tracker);
     }
-    if (st == SH_OK) st = landmarks_create(p, cfg);
+    if (st == SH_OK) st = landmarks_create(p, cfg, hdr);
     if (st != SH_OK) {
         run_proc_destroy(p);
         return st;

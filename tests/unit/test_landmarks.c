@@ -84,6 +84,51 @@ static void test_where_landmarks_are_chosen(void **state)
     sh_image_destroy(&ref);
 }
 
+/* Limited-range frames (16..235) clip at 235, and the highlight level follows the range: the same
+ * 98 % of the white as 250 of 255, 16 + 250 / 255 * 219 = 230.7. A clipped disk at 235 (radius 8
+ * at (300, 200)) is out of every window with the limited range's level; with 250, which such
+ * frames never reach, windows hold it. */
+static void test_highlight_level_follows_range(void **state)
+{
+    (void)state;
+    assert_int_equal(sh_landmarks_highlight_level(1), 250);
+    assert_int_equal(sh_landmarks_highlight_level(0), (int)lround(16 + 250.0 / 255 * 219));
+    sh_image ref;
+    render(&ref, 0);
+    for (int y = 0; y < H; y++)
+        for (int x = 0; x < W; x++)
+            if (hypot(x - 300, y - 200) <= 8) ref.plane[0].data[(size_t)y * ref.plane[0].stride + x] = 235;
+    double hull_xy[8] = {40, 40, 440, 50, 430, 320, 50, 310};
+    sh_hull hull;
+    assert_int_equal(sh_hull_compute(hull_xy, 4, &hull), SH_OK);
+    int seeing[2];
+    for (int full = 0; full < 2; full++) {
+        sh_landmarks_params p;
+        sh_landmarks_params_default(&p);
+        p.max_points = 400;
+        p.min_distance = 8;
+        p.highlight = sh_landmarks_highlight_level(full);
+        sh_landmarks *lm;
+        assert_int_equal(sh_landmarks_create(&p, &ref.plane[0], &hull, NULL, 0, &lm), SH_OK);
+        const float *xy = sh_landmarks_reference(lm);
+        seeing[full] = 0;
+        for (int i = 0; i < sh_landmarks_count(lm); i++) {
+            int sees = 0;
+            for (int hy = 192; hy <= 208 && !sees; hy++)
+                for (int hx = 292; hx <= 308 && !sees; hx++)
+                    sees = hypot(hx - 300, hy - 200) <= 8 && fabs(hx - xy[2 * i]) <= p.flow.win / 2 &&
+                           fabs(hy - xy[2 * i + 1]) <= p.flow.win / 2;
+            seeing[full] += sees;
+        }
+        sh_landmarks_destroy(lm);
+    }
+    print_message("  landmarks whose window holds the disk at 235: %d at the limited range's level, %d at 250\n",
+                  seeing[0], seeing[1]);
+    assert_int_equal(seeing[0], 0);
+    assert_true(seeing[1] > 0);
+    sh_image_destroy(&ref);
+}
+
 /* The synthetic deformation at t = 0.2, the map's prediction off by up to 1.5 px (as a map
  * between markers is), an occluder (a flat grey bar, as an instrument shaft) across part of
  * the frame, and four landmarks predicted 8 px wrong. */
@@ -1102,6 +1147,7 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_where_landmarks_are_chosen),
+        cmocka_unit_test(test_highlight_level_follows_range),
         cmocka_unit_test(test_trust_against_truth),
         cmocka_unit_test(test_sparse_markers),
         cmocka_unit_test(test_choice_threshold),

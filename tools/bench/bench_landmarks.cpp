@@ -200,7 +200,7 @@ int main(int argc, char **argv)
     sh_y4m_reader *rd = nullptr;
     bench_check("bench_landmarks", sh_y4m_reader_open((std::string(dir) + "/cam0.y4m").c_str(), &rd), "recording");
     const sh_y4m_header *hd = sh_y4m_reader_header(rd);
-    const int W = hd->width, H = hd->height;
+    const int W = hd->width, H = hd->height, full_range = sh_y4m_header_full_range(hd);
     sh_image img;
     bench_check("bench_landmarks", sh_image_create(&img, hd->format, W, H), "frame");
     std::vector<cv::Mat> frames;
@@ -226,6 +226,7 @@ int main(int argc, char **argv)
     bench_check("bench_landmarks", sh_hull_compute(cxy.data(), (int)cxy.size() / 2, &hull), "hull");
     sh_landmarks_params lp;
     sh_landmarks_params_default(&lp);
+    lp.highlight = sh_landmarks_highlight_level(full_range); // the renders' range, as the product takes it
     lp.max_points = POINTS;
     lp.min_distance = MIN_DIST;
     sh_landmarks_params lp_fwd = lp, lp_old = lp;
@@ -248,6 +249,7 @@ int main(int argc, char **argv)
     bench_check("bench_landmarks", sh_hull_compute(cxy4.data(), 4, &hull4), "hull of 4 tags");
     sh_landmarks_params lp4 = lp;
     sh_landmarks_params_sparse(&lp4);
+    lp4.highlight = lp.highlight;
     sh_landmarks *lm4 = nullptr;
     bench_check("bench_landmarks", sh_landmarks_create(&lp4, &ref, &hull4, quads.data(), (int)quads.size() / 8, &lm4),
                 "landmarks, 4 tags");

@@ -80,6 +80,11 @@ typedef struct {
     /* accepted landmark-frames, and of them those more than 1 px off, whose window the truth says
      * was partly hidden (an instrument, blood, the view's edge) though its point was not */
     long long accepted_partly_hidden, over_1px_partly_hidden;
+    /* landmark-frames whose window, where the truth puts the landmark, held a specular highlight
+     * in that frame (a pixel at or above the landmarks' highlight level: where the camera clips,
+     * the texture under it is gone; the landmarks were chosen where the reference had none), and
+     * of them those accepted and those accepted more than 1 px off */
+    long long lit, accepted_lit, over_1px_lit;
     double sum, mean, p99, max;        /* accepted landmarks' error (px) */
     double map_sum, map_mean, map_p99; /* the markers' map at the same landmarks (px) */
     double ms_median;          /* sh_landmarks_track per frame, thread CPU time */

@@ -205,8 +205,23 @@ static int partly_hidden(const eval_lm_options *o, int t, const scratch *s, int 
     return 0;
 }
 
-/* Accepted landmarks of one frame against the truth. */
-static sh_status judge(const eval_lm_options *o, int t, int n, scratch *s, eval_lm_result *r)
+/* Whether the frame's luma holds a pixel at or above level in the square of side 2 half + 1
+ * about (x, y) (clipped to the frame). */
+static int lit(const sh_plane *luma, double x, double y, int half, int level)
+{
+    int x0 = (int)lround(x) - half, y0 = (int)lround(y) - half;
+    for (int v = y0 < 0 ? 0 : y0; v <= y0 + 2 * half && v < luma->height; v++) {
+        const uint8_t *row = luma->data + (size_t)v * luma->stride;
+        for (int u = x0 < 0 ? 0 : x0; u <= x0 + 2 * half && u < luma->width; u++)
+            if (row[u] >= level) return 1;
+    }
+    return 0;
+}
+
+/* Accepted landmarks of one frame (its luma) against the truth; half: half a search window in the
+ * frame's pixels. */
+static sh_status judge(const eval_lm_options *o, int t, int n, const sh_plane *luma, int half, scratch *s,
+                       eval_lm_result *r)
 {
     if (s->count + n > s->cap) {
         long long cap = s->cap ? s->cap * 2 : 1 << 14;
@@ -230,12 +245,16 @@ static sh_status judge(const eval_lm_options *o, int t, int n, scratch *s, eval_
             r->accepted_hidden += accepted;
             continue;
         }
+        const int hl = lit(luma, gx, gy, half, o->lp.highlight);
+        r->lit += hl;
         if (!accepted) continue;
         double e = hypot(s->xy[2 * i] - gx, s->xy[2 * i + 1] - gy);
         const int part = partly_hidden(o, t, s, i);
         r->over_1px += e > 1;
         r->accepted_partly_hidden += part;
         r->over_1px_partly_hidden += part && e > 1;
+        r->accepted_lit += hl;
+        r->over_1px_lit += hl && e > 1;
         if (e > r->max) r->max = e;
         r->sum += e;
         s->err[s->count] = (float)e;
@@ -320,6 +339,10 @@ sh_status eval_landmarks_run(const eval_lm_options *o, const sh_points *points, 
         return sh_error_set(SH_EINVAL, "the phantom's images are %dx%d, %s's %dx%d", pm->width, pm->height,
                             video_path, h->width, h->height);
     }
+    /* the highlight level follows the frames' range, as in the product (RGB frames' luma is full) */
+    eval_lm_options ranged = *o;
+    ranged.lp.highlight = sh_landmarks_highlight_level(sh_y4m_header_full_range(h) || h->format == SH_PIX_RGB24);
+    o = &ranged;
     sh_image frame = {0};
     sh_landmarks *lm = NULL;
     scratch s = {0};
@@ -361,7 +384,9 @@ sh_status eval_landmarks_run(const eval_lm_options *o, const sh_points *points, 
         if (st != SH_OK) break;
         r->frames++;
         for (int v = 0; v < SH_LANDMARK_VERDICTS; v++) r->verdicts[v] += c.verdicts[v];
-        st = judge(o, t, n, &s, r);
+        /* the search's window, in the frame's pixels (the landmarks may see it halved) */
+        int half = (o->lp.flow.win / 2) << sh_landmarks_reduction(&o->lp, h->width, h->height);
+        st = judge(o, t, n, &frame.plane[0], half, &s, r);
         if (st == SH_OK) st = keep_rows(o, t, n, s.xy, s.verdict, r);
         if (st == SH_OK) st = compare_maps(o, t, m_used, sh_landmarks_reference(lm), n, &s, &g);
     }
@@ -413,6 +438,9 @@ void eval_landmarks_print(const eval_lm_result *r, const char *video_path, int r
         sh_cli_json_int(&j, "over_1px", r->over_1px);
         sh_cli_json_int(&j, "accepted_partly_hidden", r->accepted_partly_hidden);
         sh_cli_json_int(&j, "over_1px_partly_hidden", r->over_1px_partly_hidden);
+        sh_cli_json_int(&j, "highlight", r->lit);
+        sh_cli_json_int(&j, "accepted_highlight", r->accepted_lit);
+        sh_cli_json_int(&j, "over_1px_highlight", r->over_1px_lit);
         sh_cli_json_number(&j, "mean", r->mean);
         sh_cli_json_number(&j, "p99", r->p99);
         sh_cli_json_number(&j, "max", r->max);
@@ -441,6 +469,8 @@ void eval_landmarks_print(const eval_lm_result *r, const char *video_path, int r
                r->accepted_hidden, r->hidden);
         printf("accepted with part of the window hidden: %lld, of them more than 1 px off: %lld\n",
                r->accepted_partly_hidden, r->over_1px_partly_hidden);
+        printf("with a highlight in the window: %lld, of them accepted %lld, accepted more than 1 px off %lld\n",
+               r->lit, r->accepted_lit, r->over_1px_lit);
         printf("the markers' map (%s) at the same landmarks (px): mean %.4f, p99 %.4f\n",
                method, r->map_mean, r->map_p99);
         printf("landmark tracking per frame: %.2f ms (median, one thread)\n", r->ms_median);

@@ -115,7 +115,6 @@ sh_status eval_spectrum_alpha(const eval_spectrum *s, int k0, int k1, double *al
 #define GRID 8        /* px between the patches tried */
 #define LATTICE 4     /* px between the points a patch's content is checked at */
 #define MARGIN 2      /* px around the patch checked too: the sensor's blur spreads a sticker's edge */
-#define HIGHLIGHT 250 /* grey level: as landmarks.h's highlight test, where an 8-bit camera clips */
 #define SAMPLED 8     /* frames, spread over the sequence */
 
 /* 1 when every lattice point of the patch at (x0, y0) grown by MARGIN sees the tissue itself,
@@ -134,9 +133,10 @@ static int tissue_only(const phantom_truth *truth, int camera, int t, int x0, in
 }
 
 /* Frame t's patches: a grid every GRID px, each wholly inside the hull of the tags'
- * centres, on the tissue alone and without a highlight. */
-static sh_status frame_patches(const phantom_truth *truth, int camera, int t, const sh_plane *y, float *buf,
-                               eval_spectrum *s, eval_spectrum_result *r)
+ * centres, on the tissue alone and without a highlight (a pixel at or above highlight, the
+ * landmarks' level for the frames' range). */
+static sh_status frame_patches(const phantom_truth *truth, int camera, int t, const sh_plane *y, int highlight,
+                               float *buf, eval_spectrum *s, eval_spectrum_result *r)
 {
     const int mt = phantom_truth_model(truth)->num_markers;
     double *xy = malloc(2 * (size_t)(mt > 0 ? mt : 1) * sizeof(double));
@@ -167,7 +167,7 @@ static sh_status frame_patches(const phantom_truth *truth, int camera, int t, co
             for (int j = 0; j < PATCH; j++) {
                 const uint8_t *row = y->data + (size_t)(y0 + j) * (size_t)y->stride + (size_t)x0;
                 for (int i = 0; i < PATCH; i++) {
-                    clipped |= row[i] >= HIGHLIGHT;
+                    clipped |= row[i] >= highlight;
                     buf[j * PATCH + i] = row[i];
                     sum += row[i], sq += (double)row[i] * row[i];
                 }
@@ -190,6 +190,7 @@ sh_status eval_spectrum_run(const phantom_truth *truth, int camera, const char *
     sh_status st = sh_y4m_reader_open(video_path, &rd);
     if (st != SH_OK) return st;
     const sh_y4m_header *h = sh_y4m_reader_header(rd);
+    const int highlight = sh_landmarks_highlight_level(sh_y4m_header_full_range(h) || h->format == SH_PIX_RGB24);
     const phantom_model *pm = phantom_truth_model(truth);
     sh_image frame = {0}, gray = {0};
     eval_spectrum *s = NULL;
@@ -206,7 +207,7 @@ sh_status eval_spectrum_run(const phantom_truth *truth, int camera, const char *
         if ((st = sh_y4m_reader_read(rd, &frame)) != SH_OK) break;
         if (t % step) continue;
         const sh_plane *y;
-        if ((st = sh_landmarks_luma(&frame, &gray, &y)) == SH_OK) st = frame_patches(truth, camera, t, y, buf, s, r);
+        if ((st = sh_landmarks_luma(&frame, &gray, &y)) == SH_OK) st = frame_patches(truth, camera, t, y, highlight, buf, s, r);
         r->frames++;
     }
     if (st == SH_EEOF) st = SH_OK;

@@ -129,6 +129,13 @@ static void test_occlusions_cost_landmarks_never_wrong_ones(void **state)
     /* nor any more than 1 px off with an occluder over part of its window */
     assert_int_equal((int)json_num(test_out, "over_1px_partly_hidden"), 0);
     assert_true(json_num(test_out, "accepted_partly_hidden") <= json_num(test_out, "accepted"));
+    /* the heart's highlights (limited-range frames clip at 235, the landmarks' level 231) cross
+     * landmarks' windows as it moves under the light: they cost landmarks, and none accepted with
+     * one in its window is more than 1 px off */
+    double lit = json_num(test_out, "highlight"), lit_accepted = json_num(test_out, "accepted_highlight");
+    assert_true(lit > 0);
+    assert_true(lit_accepted < lit);
+    assert_int_equal((int)json_num(test_out, "over_1px_highlight"), 0);
     landmark_points_reproduce_the_map(dir, json);
     /* --lm-reduce 0 is what the automatic choice gives a 960x540 frame (round(log2(sqrt(960 540) /
      * 1440)) = -1, none below 0): the same landmarks, verdicts and errors */
