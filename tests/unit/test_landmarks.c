@@ -35,18 +35,24 @@ static void square(double *q, double x, double y, double s)
     memcpy(q, c, sizeof c);
 }
 
+/* The reference at t = 0 with a highlight, a disk of radius 8 at (300, 200) clipped at white (255
+ * full range, 235 limited), and the hull the choice tests use. */
+static void highlit_reference(sh_image *ref, int white, sh_hull *hull)
+{
+    render(ref, 0);
+    for (int y = 0; y < H; y++)
+        for (int x = 0; x < W; x++)
+            if (hypot(x - 300, y - 200) <= 8) ref->plane[0].data[(size_t)y * ref->plane[0].stride + x] = (uint8_t)white;
+    double hull_xy[8] = {40, 40, 440, 50, 430, 320, 50, 310};
+    assert_int_equal(sh_hull_compute(hull_xy, 4, hull), SH_OK);
+}
+
 static void test_where_landmarks_are_chosen(void **state)
 {
     (void)state;
     sh_image ref;
-    render(&ref, 0);
-    /* a highlight: a clipped disk of radius 8 at (300, 200) */
-    for (int y = 0; y < H; y++)
-        for (int x = 0; x < W; x++)
-            if (hypot(x - 300, y - 200) <= 8) ref.plane[0].data[(size_t)y * ref.plane[0].stride + x] = 255;
-    double hull_xy[8] = {40, 40, 440, 50, 430, 320, 50, 310};
     sh_hull hull;
-    assert_int_equal(sh_hull_compute(hull_xy, 4, &hull), SH_OK);
+    highlit_reference(&ref, 255, &hull);
     double tag[8];
     square(tag, 150, 120, 40);
     sh_landmarks_params p;
@@ -94,13 +100,8 @@ static void test_highlight_level_follows_range(void **state)
     assert_int_equal(sh_landmarks_highlight_level(1), 250);
     assert_int_equal(sh_landmarks_highlight_level(0), (int)lround(16 + 250.0 / 255 * 219));
     sh_image ref;
-    render(&ref, 0);
-    for (int y = 0; y < H; y++)
-        for (int x = 0; x < W; x++)
-            if (hypot(x - 300, y - 200) <= 8) ref.plane[0].data[(size_t)y * ref.plane[0].stride + x] = 235;
-    double hull_xy[8] = {40, 40, 440, 50, 430, 320, 50, 310};
     sh_hull hull;
-    assert_int_equal(sh_hull_compute(hull_xy, 4, &hull), SH_OK);
+    highlit_reference(&ref, 235, &hull);
     int seeing[2];
     for (int full = 0; full < 2; full++) {
         sh_landmarks_params p;
