@@ -65,12 +65,9 @@ struct run_proc {
     int lm_frames, lm_accepted; /* frames the landmarks were looked for in; this frame's accepted */
     int lm_ref_frame;           /* the frame the reference was taken from (-1: none yet) */
     int lm_found;               /* this frame's landmarks were searched in 2D (lm_xy, lm_verdict) */
-    int lm_touched;             /* this frame wrote lm_xy or lm_verdict (searched, or tried to) */
-    int lm_unsearched;          /* carried() found nothing to search in this frame: one marker seen
-                                 * in both frames, or no landmark accepted in the one before */
     /* [gating] landmarks_carry (2D): the last frame stabilized with its landmarks found (-1: none),
      * the last frame processed that the chain from it reaches (lm_last, then each frame raw for its
-     * markers with nothing to search: run_proc_frame), the last frame processed before this one and
+     * markers with nothing to search: carried()), the last frame processed before this one and
      * this one; a carried frame's copy of the frame before's landmarks (lm_cap pairs, lm_cap); the
      * markers lm_last's map went through that were detected there, and where */
     int lm_last, chain, processed, current;
@@ -141,7 +138,7 @@ static sh_status landmarks_create(run_proc *p, const sh_config *cfg, const sh_y4
     if (!cfg->landmarks_sparse && p->three_d) sh_landmarks_params_make_rig(&lp);
     lp.affine = cfg->landmarks_affine;
     lp.max_points = p->lm_cap;
-    lp.highlight = sh_landmarks_highlight_level(sh_y4m_header_full_range(hdr) || hdr->format == SH_PIX_RGB24);
+    lp.highlight = sh_landmarks_highlight_level(hdr->format, sh_y4m_header_full_range(hdr));
     run_models_set_landmarks(p->models, &lp, cfg->landmarks_smoothing);
     if (!cfg->points[0]) return SH_OK;
     sh_detector_options dopt;
@@ -760,7 +757,6 @@ static void landmarks(run_proc *p, const run_model *md, const sh_image *img, con
     memcpy(p->all_det, det, sizeof(double) * 2 * (size_t)nmk);
     memset(p->all_use, 1, (size_t)nmk);
     memset(p->all_use + nmk, 0, (size_t)(n - nmk));
-    p->lm_touched = 1;
     int got = index == p->lm_ref_frame ? at_reference(p, n - nmk)
               : p->three_d            ? search_3d(p, md, img, cams, xy, xyz, nmk)
                                       : search_2d(p, md, img, xy, nmk, n - nmk);
@@ -916,11 +912,23 @@ static int carried_points(run_proc *p, const run_model *md, const int *ids, int 
  * markers and the landmarks (or, while it is built, the last model with its other markers left
  * out), over the hull of the points used (a marker not seen lies outside it). NULL when not (info
  * says why, or keeps "too few markers" when nothing was tried). */
+/* carried() with nothing to search in this frame (one marker seen in both frames, or no landmark
+ * accepted in the one before), which is shown raw: it leaves the landmarks found last as they
+ * were, so the next may still be carried from them, as across frames dropped; their predictions
+ * there rest on the markers' motion since, and the check on the markers detected in both frames
+ * (sh_landmarks_carry). A frame raw for anything else (the camera moved, the calibration is off,
+ * the landmarks searched and refused) ends the chain. NULL. */
+static const sh_image *unsearched(run_proc *p)
+{
+    p->chain = p->current;
+    return NULL;
+}
+
 static const sh_image *carried(run_proc *p, const sh_image *img, int index, int nm, const sh_point *ref, int nref,
                                double t1, sh_display_frame_info *info)
 {
     /* the chain holds across frames never processed (dropped while the processing was busy) and
-     * frames shown raw without a landmark search (run_proc_frame), not across one whose landmarks
+     * frames shown raw without a landmark search (unsearched), not across one whose landmarks
      * were searched and not used */
     if (!p->cfg.landmarks_carry || !p->lm_cap || p->three_d || p->lm_last < 0 || p->chain != p->processed)
         return NULL;
@@ -930,10 +938,7 @@ static const sh_image *carried(run_proc *p, const sh_image *img, int index, int 
     int nb = seen_twice(p, nm, ref, nref, ids, sref, dprev, det, snow);
     sh_landmarks *lm = run_models_landmarks(p->models);
     if (!lm) return NULL;
-    if (nb < SH_LANDMARKS_CARRY_SEEN) {
-        p->lm_unsearched = 1;
-        return NULL;
-    }
+    if (nb < SH_LANDMARKS_CARRY_SEEN) return unsearched(p);
     double t0 = now_ms();
     int n = sh_landmarks_count(lm);
     memcpy(p->carry_xy, p->lm_xy, sizeof(float) * 2 * (size_t)n);
@@ -946,15 +951,11 @@ static const sh_image *carried(run_proc *p, const sh_image *img, int index, int 
         st = sh_landmarks_carry(lm, y, p->carry_xy, p->carry_ok, sref, dprev, det, nb, p->cfg.max_residual_px,
                                 p->lm_pred, p->lm_xy, p->lm_verdict, &c, &r);
     p->lm_ms = now_ms() - t0;
-    p->lm_touched |= st != SH_OK || r.searched;
     if (st != SH_OK) {
         sh_log_limited(&p->lm_err, SH_LOG_ERROR, "landmarks: %s (the frame raw)", sh_error_message());
         return NULL;
     }
-    if (!r.searched) { /* none accepted before */
-        p->lm_unsearched = 1;
-        return NULL;
-    }
+    if (!r.searched) return unsearched(p); /* none accepted before */
     for (int v = 0; v < SH_LANDMARK_VERDICTS; v++) p->lm_verdicts[v] += c.verdicts[v];
     p->lm_frames++;
     p->lm_accepted = c.verdicts[SH_LANDMARK_ACCEPTED];
@@ -994,13 +995,6 @@ const sh_image *run_proc_frame(run_proc *p, const sh_image *img, const sh_image 
                                unsigned epoch, sh_display_frame_info *info)
 {
     const sh_image *shown = frame(p, img, cams, index, epoch, info);
-    /* a frame raw for its markers in which carried() found nothing to search (one marker seen in
-     * both frames) leaves the landmarks found last as they were: the next may still be carried
-     * from them, as across frames dropped; their predictions there rest on the markers' motion
-     * since, and the check on the markers detected in both frames (sh_landmarks_carry). A frame
-     * raw for anything else (the camera moved, the calibration is off) ends the chain. */
-    if (info->status == SH_DISPLAY_RAW && p->lm_unsearched && !p->lm_touched && p->chain == p->processed)
-        p->chain = p->current;
     return info->status == SH_DISPLAY_RAW ? raw(p, img) : shown;
 }
 
@@ -1013,7 +1007,6 @@ static const sh_image *frame(run_proc *p, const sh_image *img, const sh_image *c
     p->lm_ms = 0;
     p->lm_accepted = 0;
     p->lm_found = 0;
-    p->lm_touched = p->lm_unsearched = 0;
     p->processed = p->current;
     p->current = index;
     int nm = markers(p, img, cams, index, epoch);
