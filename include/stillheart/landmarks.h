@@ -106,13 +106,13 @@ extern "C" {
  * apart, lose (their systems nearly singular at those scales), so their warps leave the rows out. */
 int sh_landmarks_method_uses(sh_method method);
 
-/* The highlight level (sh_landmarks_params.highlight) for frames whose samples are full range
- * (0..255: a Y4M tagged XCOLORRANGE=FULL, and RGB frames, whose luma sh_landmarks_luma makes
- * full range) or not: 250, the default, where an 8-bit camera clips; in limited range (16..235,
- * BT.601/709's studio swing: Y4M's default, most cameras' YUV, the phantom's renders) the white
- * is 235, so 250 is never reached, and the same 98 % of the white is 231. Callers pass the range
- * of the frames they give the landmarks. */
-int sh_landmarks_highlight_level(int full_range);
+/* The highlight level (sh_landmarks_params.highlight) for frames of this format whose samples are
+ * full range (0..255: a Y4M tagged XCOLORRANGE=FULL) or not: 250, the default, where an 8-bit
+ * camera clips; in limited range (16..235, BT.601/709's studio swing: Y4M's default, most
+ * cameras' YUV, the phantom's renders) the white is 235, so 250 is never reached, and the same
+ * 98 % of the white is 231. RGB frames' luma is full range whatever full_range says
+ * (sh_landmarks_luma makes it). Callers pass the frames they give the landmarks. */
+int sh_landmarks_highlight_level(sh_pixfmt format, int full_range);
 
 typedef enum {
     SH_LANDMARK_ACCEPTED = 0,

@@ -370,8 +370,7 @@ static int write_rows(const track_job *job, track_pass *p, int f, FILE *out)
     if (!ok || !job->o->landmarks) return !ok;
     /* the tissue's landmarks after the frame's markers (their ids sort after) */
     if (f == 0) {
-        /* RGB frames' luma is full range (sh_landmarks_luma) */
-        int full = sh_y4m_header_full_range(sh_y4m_reader_header(p->rd[0])) || p->img[0].format == SH_PIX_RGB24;
+        int full = sh_y4m_header_full_range(sh_y4m_reader_header(p->rd[0]));
         track_landmarks_options lo = {job->o->landmarks, job->o->landmarks_sparse, !job->o->landmarks_square,
                                       job->o->landmarks_carry, job->o->ncam, full,
                                       job->have_calib ? &job->calib : NULL};

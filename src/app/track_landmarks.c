@@ -267,7 +267,7 @@ int track_landmarks_start(const track_landmarks_options *o, const sh_image *fram
     if (!o->sparse && tl->ncam > 1) sh_landmarks_params_make_rig(&p);
     p.affine = o->affine;
     p.max_points = o->n;
-    p.highlight = sh_landmarks_highlight_level(o->full_range);
+    p.highlight = sh_landmarks_highlight_level(frames[0].format, o->full_range);
     int rc = 0;
     if (tl->ncam > 1) {
         rc = start_3d(tl, &p, frames, tags, ndet);

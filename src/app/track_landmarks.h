@@ -28,7 +28,7 @@ typedef struct {
     int carry;             /* --landmarks-carry (2D): frames with fewer than 3 markers carried by
                             * the landmarks (landmarks.h, "Carried frames") */
     int ncam;              /* videos; with calib and ncam > 1, landmarks in 3D */
-    int full_range;        /* the frames' samples are full range (sh_landmarks_highlight_level) */
+    int full_range;        /* the videos' samples are full range (sh_landmarks_highlight_level) */
     const sh_calib *calib; /* NULL: 2D (camera 0 alone) */
 } track_landmarks_options;
 

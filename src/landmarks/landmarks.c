@@ -91,10 +91,10 @@ int sh_landmarks_method_uses(sh_method method)
     return method != SH_METHOD_GAUSSIAN && method != SH_METHOD_RBF_LOCAL;
 }
 
-int sh_landmarks_highlight_level(int full_range)
+int sh_landmarks_highlight_level(sh_pixfmt format, int full_range)
 {
     /* 16 + 250 / 255 * (235 - 16) = 230.7 */
-    return full_range ? 250 : 231;
+    return full_range || format == SH_PIX_RGB24 ? 250 : 231;
 }
 
 void sh_landmarks_params_default(sh_landmarks_params *p)

@@ -97,8 +97,10 @@ static void test_where_landmarks_are_chosen(void **state)
 static void test_highlight_level_follows_range(void **state)
 {
     (void)state;
-    assert_int_equal(sh_landmarks_highlight_level(1), 250);
-    assert_int_equal(sh_landmarks_highlight_level(0), (int)lround(16 + 250.0 / 255 * 219));
+    assert_int_equal(sh_landmarks_highlight_level(SH_PIX_GRAY8, 1), 250);
+    assert_int_equal(sh_landmarks_highlight_level(SH_PIX_I420, 0), (int)lround(16 + 250.0 / 255 * 219));
+    /* RGB's luma, 77 R + 150 G + 29 B over 256, puts white at 255 */
+    assert_int_equal(sh_landmarks_highlight_level(SH_PIX_RGB24, 0), 250);
     sh_image ref;
     sh_hull hull;
     highlit_reference(&ref, 235, &hull);
@@ -108,7 +110,7 @@ static void test_highlight_level_follows_range(void **state)
         sh_landmarks_params_default(&p);
         p.max_points = 400;
         p.min_distance = 8;
-        p.highlight = sh_landmarks_highlight_level(full);
+        p.highlight = sh_landmarks_highlight_level(SH_PIX_GRAY8, full);
         sh_landmarks *lm;
         assert_int_equal(sh_landmarks_create(&p, &ref.plane[0], &hull, NULL, 0, &lm), SH_OK);
         const float *xy = sh_landmarks_reference(lm);

@@ -201,6 +201,7 @@ int main(int argc, char **argv)
     bench_check("bench_landmarks", sh_y4m_reader_open((std::string(dir) + "/cam0.y4m").c_str(), &rd), "recording");
     const sh_y4m_header *hd = sh_y4m_reader_header(rd);
     const int W = hd->width, H = hd->height, full_range = sh_y4m_header_full_range(hd);
+    const sh_pixfmt format = hd->format; // the header goes with the reader, closed below
     sh_image img;
     bench_check("bench_landmarks", sh_image_create(&img, hd->format, W, H), "frame");
     std::vector<cv::Mat> frames;
@@ -226,7 +227,7 @@ int main(int argc, char **argv)
     bench_check("bench_landmarks", sh_hull_compute(cxy.data(), (int)cxy.size() / 2, &hull), "hull");
     sh_landmarks_params lp;
     sh_landmarks_params_default(&lp);
-    lp.highlight = sh_landmarks_highlight_level(full_range); // the renders' range, as the product takes it
+    lp.highlight = sh_landmarks_highlight_level(format, full_range); // the renders' range, as the product takes it
     lp.max_points = POINTS;
     lp.min_distance = MIN_DIST;
     sh_landmarks_params lp_fwd = lp, lp_old = lp;

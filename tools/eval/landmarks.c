@@ -339,10 +339,12 @@ sh_status eval_landmarks_run(const eval_lm_options *o, const sh_points *points, 
         return sh_error_set(SH_EINVAL, "the phantom's images are %dx%d, %s's %dx%d", pm->width, pm->height,
                             video_path, h->width, h->height);
     }
-    /* the highlight level follows the frames' range, as in the product (RGB frames' luma is full) */
+    /* the highlight level follows the frames' range, as in the product */
     eval_lm_options ranged = *o;
-    ranged.lp.highlight = sh_landmarks_highlight_level(sh_y4m_header_full_range(h) || h->format == SH_PIX_RGB24);
+    ranged.lp.highlight = sh_landmarks_highlight_level(h->format, sh_y4m_header_full_range(h));
     o = &ranged;
+    /* the search's window, in the frame's pixels (the landmarks may see it halved) */
+    const int half = (o->lp.flow.win / 2) << sh_landmarks_reduction(&o->lp, h->width, h->height);
     sh_image frame = {0};
     sh_landmarks *lm = NULL;
     scratch s = {0};
@@ -384,8 +386,6 @@ sh_status eval_landmarks_run(const eval_lm_options *o, const sh_points *points, 
         if (st != SH_OK) break;
         r->frames++;
         for (int v = 0; v < SH_LANDMARK_VERDICTS; v++) r->verdicts[v] += c.verdicts[v];
-        /* the search's window, in the frame's pixels (the landmarks may see it halved) */
-        int half = (o->lp.flow.win / 2) << sh_landmarks_reduction(&o->lp, h->width, h->height);
         st = judge(o, t, n, &frame.plane[0], half, &s, r);
         if (st == SH_OK) st = keep_rows(o, t, n, s.xy, s.verdict, r);
         if (st == SH_OK) st = compare_maps(o, t, m_used, sh_landmarks_reference(lm), n, &s, &g);

@@ -190,7 +190,7 @@ sh_status eval_spectrum_run(const phantom_truth *truth, int camera, const char *
     sh_status st = sh_y4m_reader_open(video_path, &rd);
     if (st != SH_OK) return st;
     const sh_y4m_header *h = sh_y4m_reader_header(rd);
-    const int highlight = sh_landmarks_highlight_level(sh_y4m_header_full_range(h) || h->format == SH_PIX_RGB24);
+    const int highlight = sh_landmarks_highlight_level(h->format, sh_y4m_header_full_range(h));
     const phantom_model *pm = phantom_truth_model(truth);
     sh_image frame = {0}, gray = {0};
     eval_spectrum *s = NULL;
