@@ -75,6 +75,15 @@ sh_status sh_flow_pyramid_build(sh_flow_pyramid *pyr, const sh_plane *luma, int 
  * around their prediction) this is a fraction of the work. */
 sh_status sh_flow_pyramid_build_box(sh_flow_pyramid *pyr, const sh_plane *luma, int gradients,
                                     const float box[4]);
+/* A pyramid already built (whole, or for a box containing this one) made anew where searches
+ * near box read it, from luma, keeping the rest and what counts as built: when luma differs from
+ * the frame the pyramid was built from only inside box (level 0 px), the pyramid is then the one
+ * sh_flow_pyramid_build gives for luma, bit for bit, at a fraction of the work (the plan of
+ * sh_flow_pyramid_build_box keeps every pixel and gradient outside its parts clear of the box's
+ * pixels). With the gradients the pyramid was built with. luma need only hold valid pixels in
+ * sh_flow_pyramid_box_part's rectangle. SH_EINVAL when a part of a level reaches past what was
+ * built there. The landmarks' reference, refined where its windows lie (landmarks.h, refine). */
+sh_status sh_flow_pyramid_update_box(sh_flow_pyramid *pyr, const sh_plane *luma, const float box[4]);
 /* The frame's pixels sh_flow_pyramid_build_box reads for box: [part[0], part[2]) x
  * [part[1], part[3]), within the frame. */
 sh_status sh_flow_pyramid_box_part(const sh_flow_pyramid *pyr, const float box[4], int gradients,
@@ -108,6 +117,10 @@ typedef struct sh_flow_windows sh_flow_windows;
 sh_status sh_flow_windows_create(const sh_flow_params *params, const sh_flow_pyramid *prev, int n,
                                  const float *xy, sh_flow_windows **out);
 void sh_flow_windows_destroy(sh_flow_windows *windows);
+/* The windows sampled again, at the same points, from the pyramid they were made from, after it
+ * changed (sh_flow_pyramid_update_box): as sh_flow_windows_create would make them now, without
+ * allocating. */
+void sh_flow_windows_refresh(sh_flow_windows *windows);
 /* sh_flow_track from windows: the same results, bit for bit, as sh_flow_track(params, prev, next,
  * ...) with the prev and points they were made from, for m of their points: idx[j] (NULL: j) is
  * the point whose guess, out, status and err are at j. params as at _create. */

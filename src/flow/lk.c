@@ -297,23 +297,27 @@ sh_status sh_flow_windows_create(const sh_flow_params *params, const sh_flow_pyr
         sh_flow_windows_destroy(c);
         return sh_error_set(SH_ENOMEM, "flow: out of memory for %d points' windows", n);
     }
-    for (int i = 0; i < n; i++) {
-        c->xy[2 * i] = xy[2 * i];
-        c->xy[2 * i + 1] = xy[2 * i + 1];
+    for (int i = 0; i < 2 * n; i++) c->xy[i] = xy[i];
+    sh_flow_windows_refresh(c);
+    *out = c;
+    return SH_OK;
+}
+
+void sh_flow_windows_refresh(sh_flow_windows *c)
+{
+    const float *xy = c->xy;
+    for (int i = 0; i < c->n; i++)
         for (int lv = 0; lv <= c->levels; lv++) {
             size_t e = (size_t)i * (size_t)(c->levels + 1) + (size_t)lv;
             int16_t *I = c->data + 3 * e * c->len;
             /* a point refused before any level (sh_flow_track's far test) is never looked up */
             const float far = 4.f * SH_IMAGE_MAX_SIZE;
             c->state[e] = fabsf(xy[2 * i]) < far && fabsf(xy[2 * i + 1]) < far
-                              ? (uint8_t)sample_prev(&prev->level[lv], xy[2 * i], xy[2 * i + 1], lv,
+                              ? (uint8_t)sample_prev(&c->pyr->level[lv], xy[2 * i], xy[2 * i + 1], lv,
                                                      c->win, I, I + c->len, I + 2 * c->len,
                                                      c->sum + 3 * e)
                               : PREV_OUTSIDE;
         }
-    }
-    *out = c;
-    return SH_OK;
 }
 
 void sh_flow_windows_destroy(sh_flow_windows *c)

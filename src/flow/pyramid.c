@@ -330,3 +330,32 @@ sh_status sh_flow_pyramid_build_box(sh_flow_pyramid *pyr, const sh_plane *luma, 
     build(pyr, luma, with_gradients, img, grad);
     return SH_OK;
 }
+
+/* Whether part a (x0, y0, x1, y1) lies within part b. */
+static int within(const int a[4], const int b[4])
+{
+    return a[0] >= b[0] && a[1] >= b[1] && a[2] <= b[2] && a[3] <= b[3];
+}
+
+sh_status sh_flow_pyramid_update_box(sh_flow_pyramid *pyr, const sh_plane *luma, const float box[4])
+{
+    sh_status st = check_frame(pyr, luma);
+    if (st == SH_OK) st = check_box(box);
+    if (st != SH_OK) return st;
+    const int g = pyr->has_gradients;
+    int img[SH_FLOW_MAX_LEVELS + 1][4], grad[SH_FLOW_MAX_LEVELS + 1][4], kept[SH_FLOW_MAX_LEVELS + 1][2][4];
+    plan(pyr, box, g, img, grad);
+    for (int k = 0; k <= pyr->levels; k++) {
+        const flow_level *l = &pyr->level[k];
+        if (!within(img[k], l->img_box) || (g && !within(grad[k], l->grad_box)))
+            return sh_error_set(SH_EINVAL, "flow: update: the box reaches past what level %d was built for", k);
+        memcpy(kept[k][0], l->img_box, sizeof l->img_box);
+        memcpy(kept[k][1], l->grad_box, sizeof l->grad_box);
+    }
+    build(pyr, luma, g, img, grad);
+    for (int k = 0; k <= pyr->levels; k++) {
+        memcpy(pyr->level[k].img_box, kept[k][0], sizeof kept[k][0]);
+        memcpy(pyr->level[k].grad_box, kept[k][1], sizeof kept[k][1]);
+    }
+    return SH_OK;
+}

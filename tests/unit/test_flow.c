@@ -350,6 +350,92 @@ static void test_box_build_same_as_whole(void **state)
     sh_image_destroy(&other);
 }
 
+/* sh_flow_pyramid_update_box: a pyramid built whole from one frame, then updated for a box from
+ * a frame that differs from it only inside the box (a patch of other texture), tracks every point,
+ * near the box and far from it, forward (as the next frame) and backward (as the previous one,
+ * with its gradients), bit for bit as the pyramid built whole from the second frame; the windows
+ * made from it and then refreshed (sh_flow_windows_refresh) track as windows made anew. A box
+ * reaching past what a pyramid built for a smaller box holds is refused. */
+static void test_update_box_same_as_whole(void **state)
+{
+    (void)state;
+    enum { FW = 320, FH = 240, GRID = 9, N = GRID * GRID };
+    sh_image f0, f1, g;
+    assert_int_equal(sh_image_create(&f0, SH_PIX_GRAY8, FW, FH), SH_OK);
+    assert_int_equal(sh_image_create(&f1, SH_PIX_GRAY8, FW, FH), SH_OK);
+    assert_int_equal(sh_image_create(&g, SH_PIX_GRAY8, FW, FH), SH_OK);
+    render_shifted(&f0, 0, 0);
+    render_shifted(&f1, 1.6, -0.9);
+    render_shifted(&g, 0, 0);
+    const float boxes[3][4] = {{120, 90, 200, 150}, {-10, -10, 40, 30}, {280, 200, 330, 250}};
+    for (int b = 0; b < 3; b++) {
+        const float *box = boxes[b];
+        /* g: f0 with other texture inside the box (f0 shifted by 5 px there) */
+        for (int y = 0; y < FH; y++)
+            for (int x = 0; x < FW; x++) {
+                int in = x >= box[0] && x <= box[2] && y >= box[1] && y <= box[3];
+                g.plane[0].data[(size_t)y * g.plane[0].stride + x] =
+                    in ? f0.plane[0].data[(size_t)y * f0.plane[0].stride + (x + 5 < FW ? x + 5 : x)]
+                       : f0.plane[0].data[(size_t)y * f0.plane[0].stride + x];
+            }
+        sh_flow_params prm;
+        sh_flow_params_default(&prm);
+        prm.levels = 2;
+        sh_flow_pyramid *upd, *whole, *next;
+        assert_int_equal(sh_flow_pyramid_create(FW, FH, &prm, &upd), SH_OK);
+        assert_int_equal(sh_flow_pyramid_create(FW, FH, &prm, &whole), SH_OK);
+        assert_int_equal(sh_flow_pyramid_create(FW, FH, &prm, &next), SH_OK);
+        assert_int_equal(sh_flow_pyramid_build(upd, &f0.plane[0], 1), SH_OK);
+        assert_int_equal(sh_flow_pyramid_build(whole, &g.plane[0], 1), SH_OK);
+        assert_int_equal(sh_flow_pyramid_build(next, &f1.plane[0], 1), SH_OK);
+        float xy[2 * N], guess[2 * N], a[2 * N], c[2 * N], ea[N], ec[N];
+        uint8_t sa[N], sc[N];
+        for (int i = 0; i < N; i++) {
+            xy[2 * i] = 2.0f + (float)(FW - 4) * (float)(i % GRID) / (GRID - 1) + 0.25f;
+            xy[2 * i + 1] = 2.0f + (float)(FH - 4) * (float)(i / GRID) / (GRID - 1) + 0.5f;
+            guess[2 * i] = xy[2 * i] + 1.6f, guess[2 * i + 1] = xy[2 * i + 1] - 0.9f;
+        }
+        sh_flow_windows *w_upd = NULL, *w_whole = NULL;
+        assert_int_equal(sh_flow_windows_create(&prm, upd, N, xy, &w_upd), SH_OK);
+        assert_int_equal(sh_flow_pyramid_update_box(upd, &g.plane[0], box), SH_OK);
+        sh_flow_windows_refresh(w_upd);
+        assert_int_equal(sh_flow_windows_create(&prm, whole, N, xy, &w_whole), SH_OK);
+        for (int dir = 0; dir < 3; dir++) {
+            if (dir == 0) { /* forward from it */
+                assert_int_equal(sh_flow_track(&prm, upd, next, N, xy, guess, a, sa, ea), SH_OK);
+                assert_int_equal(sh_flow_track(&prm, whole, next, N, xy, guess, c, sc, ec), SH_OK);
+            } else if (dir == 1) { /* backward into it */
+                assert_int_equal(sh_flow_track(&prm, next, upd, N, guess, xy, a, sa, ea), SH_OK);
+                assert_int_equal(sh_flow_track(&prm, next, whole, N, guess, xy, c, sc, ec), SH_OK);
+            } else { /* from the refreshed windows */
+                assert_int_equal(sh_flow_track_windows(&prm, w_upd, next, N, NULL, guess, a, sa, ea), SH_OK);
+                assert_int_equal(sh_flow_track_windows(&prm, w_whole, next, N, NULL, guess, c, sc, ec), SH_OK);
+            }
+            int ok = 0;
+            for (int i = 0; i < N; i++) {
+                assert_int_equal(sa[i], sc[i]);
+                assert_true(same_bits(a[2 * i], c[2 * i]) && same_bits(a[2 * i + 1], c[2 * i + 1]));
+                assert_true(same_bits(ea[i], ec[i]));
+                ok += sa[i] == SH_FLOW_OK;
+            }
+            assert_true(ok >= N / 2);
+        }
+        sh_flow_windows_destroy(w_upd);
+        sh_flow_windows_destroy(w_whole);
+        /* a pyramid built for a small box holds nothing beyond it to keep */
+        const float small[4] = {150, 110, 160, 120}, past[4] = {150, 110, 260, 120};
+        assert_int_equal(sh_flow_pyramid_build_box(upd, &g.plane[0], 1, small), SH_OK);
+        assert_int_equal(sh_flow_pyramid_update_box(upd, &g.plane[0], small), SH_OK);
+        assert_int_equal(sh_flow_pyramid_update_box(upd, &g.plane[0], past), SH_EINVAL);
+        sh_flow_pyramid_destroy(upd);
+        sh_flow_pyramid_destroy(whole);
+        sh_flow_pyramid_destroy(next);
+    }
+    sh_image_destroy(&f0);
+    sh_image_destroy(&f1);
+    sh_image_destroy(&g);
+}
+
 /* The previous frame's windows sampled once (sh_flow_windows_create) give every point the result
  * sh_flow_track gives from the pyramid, bit for bit: all points, a subset in another order,
  * points near and past the edges, a flat one and a NaN; and what must be refused. */
@@ -693,6 +779,7 @@ int main(void)
         cmocka_unit_test(test_deformation_against_truth),
         cmocka_unit_test(test_flat_outside_and_bad_points),
         cmocka_unit_test(test_box_build_same_as_whole),
+        cmocka_unit_test(test_update_box_same_as_whole),
         cmocka_unit_test(test_windows_same_as_track),
         cmocka_unit_test(test_warped_window_follows_an_affine),
         cmocka_unit_test(test_corners_of_a_checkerboard),
