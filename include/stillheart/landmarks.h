@@ -182,6 +182,13 @@ typedef struct {
                                  * window noise, which correlates with the reference's no better
                                  * than chance. 0 (the defaults): not tested; the sparse tests'
                                  * 0.4. 0 to 1 (below 1) */
+    int refine;                 /* the reference's windows averaged with the matches of the
+                                 * first `refine` frames (of the primary view, with a prediction)
+                                 * that accept landmarks: each pixel a landmark's search reads
+                                 * there, sampled where the accepted landmarks near it put it
+                                 * (through the map's local affine), so that the reference
+                                 * frame's noise no longer sits in every frame's match (16; 0: the
+                                 * reference frame's own windows). 0 to 1000 */
     int reduce;                 /* halvings of the frame before anything else: the landmarks
                                  * are chosen and found in the frame averaged over blocks of
                                  * 2^reduce x 2^reduce pixels, and every length above (and the

@@ -535,6 +535,140 @@ static void test_affine_windows(void **state)
     assert_true(mean_aff < mean_sq / 2 && worst_aff < worst_sq);
 }
 
+/* sh_landmarks_params.refine against the noise. The fine texture under a similarity that changes
+ * from frame to frame (a turn of up to 0.02 rad, 1.5 % scale, shifts of up to 3 px), each frame
+ * with its own Gaussian noise of 4 grey levels, the reference frame's too; the predictions off by
+ * a smooth field of up to 0.5 px. Against the truth: with the reference's windows averaged over
+ * 16 frames, the windows differ from the frames' by the frames' noise alone, not both frames', so
+ * the photometric tests refuse fewer and more landmark-frames are accepted after those frames;
+ * the ones accepted either way lie closer to the truth (the first-order error the reference's
+ * noise gave a landmark stays, as its own matches were aligned with it; its neighbours', which
+ * share its pixels, were not, and the windows' gradients are no longer noisy); and nothing
+ * accepted lies 1 px off. The first frame, searched before anything was averaged, is the same
+ * either way; without noise the refinement moves the error by no more than the bilinear
+ * sampling of the averaged frames can (0.02 px). */
+static void similarity_at(int t, double *c, double *s, double *bx, double *by)
+{
+    double angle = 0.02 * sin(0.9 * t), scale = 1 + 0.015 * sin(0.7 * t); /* the identity at t = 0: the reference */
+    *c = cos(angle) * scale, *s = sin(angle) * scale;
+    *bx = 3 * sin(0.5 * t), *by = 2 * cos(0.6 * t) - 2;
+}
+
+/* A quarter of the texture's contrast: the phantom's landmarks lie 0.2-0.3 px from their truth,
+ * mostly the noise's; at full contrast the noise would move these by 0.03 px, less than the
+ * deformation across a window does */
+#define REFINE_CONTRAST 0.25
+
+/* Frames 0 (the reference) to REFINE_FRAMES of the sequence, RW x RH, made once for both runs */
+enum { RW = 320, RH = 240, REFINE_FRAMES = 48 };
+
+static void render_noisy(sh_image *img, int t, double sigma, uint64_t *rng)
+{
+    double c, s, bx, by;
+    similarity_at(t, &c, &s, &bx, &by);
+    const double det = c * c + s * s;
+    assert_int_equal(sh_image_create(img, SH_PIX_GRAY8, RW, RH), SH_OK);
+    for (int y = 0; y < RH; y++)
+        for (int x = 0; x < RW; x++) {
+            double dx = x - bx, dy = y - by, rx = (c * dx + s * dy) / det, ry = (-s * dx + c * dy) / det;
+            /* Box-Muller from a 64-bit LCG (Knuth's MMIX constants): the same noise on every run */
+            double u[2];
+            for (int k = 0; k < 2; k++) {
+                *rng = *rng * 6364136223846793005ULL + 1442695040888963407ULL;
+                u[k] = ((double)(*rng >> 11) + 0.5) / 9007199254740992.0;
+            }
+            double v = 128 + REFINE_CONTRAST * fine_texture(rx, ry) + sigma * sqrt(-2 * log(u[0])) * cos(2 * M_PI * u[1]);
+            img->plane[0].data[(size_t)y * img->plane[0].stride + x] = (uint8_t)lrint(v < 0 ? 0 : v > 255 ? 255 : v);
+        }
+}
+
+/* Each landmark's error against the truth in frames 17.. (err: n per frame, NAN where not
+ * accepted), and frame 1's positions (first1: 2 n floats). */
+static void run_refine(int refine, const sh_image *frames, double **err, float **first1, int *n_out)
+{
+    sh_landmarks_params p;
+    sh_landmarks_params_default(&p);
+    p.max_points = 80;
+    p.refine = refine;
+    sh_landmarks *lm;
+    assert_int_equal(sh_landmarks_create(&p, &frames[0].plane[0], NULL, NULL, 0, &lm), SH_OK);
+    const int n = sh_landmarks_count(lm);
+    const float *r = sh_landmarks_reference(lm);
+    float *pred = malloc(2 * (size_t)n * sizeof *pred), *xy = malloc(2 * (size_t)n * sizeof *xy);
+    uint8_t *verdict = malloc((size_t)n);
+    *first1 = malloc(2 * (size_t)n * sizeof **first1);
+    *err = malloc((size_t)n * (REFINE_FRAMES - 16) * sizeof **err);
+    for (int t = 1; t <= REFINE_FRAMES; t++) {
+        double c, s, bx, by;
+        similarity_at(t, &c, &s, &bx, &by);
+        for (int i = 0; i < n; i++) {
+            double tx = c * r[2 * i] - s * r[2 * i + 1] + bx, ty = s * r[2 * i] + c * r[2 * i + 1] + by;
+            pred[2 * i] = (float)(tx + 0.5 * sin(r[2 * i] / 90.0 + t));
+            pred[2 * i + 1] = (float)(ty - 0.5 * cos(r[2 * i + 1] / 80.0 + t));
+        }
+        assert_int_equal(sh_landmarks_track(lm, &frames[t].plane[0], pred, xy, verdict, NULL), SH_OK);
+        if (t == 1) memcpy(*first1, xy, 2 * (size_t)n * sizeof *xy);
+        for (int i = 0; t > 16 && i < n; i++) {
+            double tx = c * r[2 * i] - s * r[2 * i + 1] + bx, ty = s * r[2 * i] + c * r[2 * i + 1] + by;
+            (*err)[(size_t)(t - 17) * n + i] =
+                verdict[i] == SH_LANDMARK_ACCEPTED ? hypot(xy[2 * i] - tx, xy[2 * i + 1] - ty) : NAN;
+        }
+    }
+    *n_out = n;
+    free(pred), free(xy), free(verdict);
+    sh_landmarks_destroy(lm);
+}
+
+/* The rms of a and b over the landmark-frames both accepted, and how many each accepted. */
+static void refine_compare(const double *a, const double *b, size_t m, double *rms_a, double *rms_b, long *acc_a,
+                           long *acc_b)
+{
+    double sa = 0, sb = 0;
+    long both = 0;
+    *acc_a = *acc_b = 0;
+    for (size_t k = 0; k < m; k++) {
+        *acc_a += !isnan(a[k]), *acc_b += !isnan(b[k]);
+        if (isnan(a[k]) || isnan(b[k])) continue;
+        sa += a[k] * a[k], sb += b[k] * b[k], both++;
+    }
+    *rms_a = sqrt(sa / (double)both), *rms_b = sqrt(sb / (double)both);
+}
+
+static void test_refine_against_noise(void **state)
+{
+    (void)state;
+    double *e0, *e16, *c0, *c16, rms0, rms16, clean0, clean16;
+    long acc0, acc16, cacc0, cacc16;
+    float *f0, *f16, *g0, *g16;
+    int n0, n16, cn0, cn16;
+    sh_image noisy[REFINE_FRAMES + 1], clean[REFINE_FRAMES + 1];
+    uint64_t rng = 12345, rng0 = 1;
+    for (int t = 0; t <= REFINE_FRAMES; t++) render_noisy(&noisy[t], t, 4, &rng), render_noisy(&clean[t], t, 0, &rng0);
+    run_refine(0, noisy, &e0, &f0, &n0);
+    run_refine(16, noisy, &e16, &f16, &n16);
+    run_refine(0, clean, &c0, &g0, &cn0);
+    run_refine(16, clean, &c16, &g16, &cn16);
+    for (int t = 0; t <= REFINE_FRAMES; t++) sh_image_destroy(&noisy[t]), sh_image_destroy(&clean[t]);
+    assert_int_equal(n0, n16);
+    assert_int_equal(cn0, cn16);
+    const size_t m = (size_t)n0 * (REFINE_FRAMES - 16), cm = (size_t)cn0 * (REFINE_FRAMES - 16);
+    refine_compare(e0, e16, m, &rms0, &rms16, &acc0, &acc16);
+    refine_compare(c0, c16, cm, &clean0, &clean16, &cacc0, &cacc16);
+    print_message("  noise 4: %d landmarks; frames 17-%d, the landmark-frames both accept: rms %.4f px with the "
+                  "reference's own windows, %.4f px refined over 16 frames, ratio %.3f; accepted %ld and %ld; no "
+                  "noise: %.4f and %.4f px, accepted %ld and %ld\n", n0, REFINE_FRAMES, rms0, rms16, rms16 / rms0, acc0,
+                  acc16, clean0, clean16, cacc0, cacc16);
+    assert_true(n0 >= 60);
+    assert_memory_equal(f0, f16, 2 * (size_t)n0 * sizeof *f0);
+    assert_true(acc0 >= (long)m / 2);
+    assert_true(acc16 > acc0 + acc0 / 10);
+    assert_true(rms16 < rms0);
+    for (size_t k = 0; k < m; k++) assert_true(!(e0[k] > 1) && !(e16[k] > 1));
+    assert_true(cacc16 >= cacc0 - cacc0 / 100);
+    assert_true(fabs(clean16 - clean0) <= 0.02);
+    free(e0), free(e16), free(c0), free(c16), free(f0), free(f16), free(g0), free(g16);
+}
+
 /* A frame larger than 1080p is halved before the landmarks are chosen and found
  * (sh_landmarks_params.reduce), so that their lengths keep their meaning. A frame made of 2x2
  * blocks of one value each halves to exactly the frame the blocks came from: the landmarks, their
@@ -1157,6 +1291,7 @@ int main(void)
         cmocka_unit_test(test_searches_outside_the_part_same_as_whole_frame),
         cmocka_unit_test(test_band_pass_against_shading),
         cmocka_unit_test(test_affine_windows),
+        cmocka_unit_test(test_refine_against_noise),
         cmocka_unit_test(test_reduced_frame_same_as_small),
         cmocka_unit_test(test_smoothing_scales_with_frame),
         cmocka_unit_test(test_centre_covered),

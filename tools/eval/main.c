@@ -133,6 +133,9 @@ static void usage(FILE *f)
         "  --lm-correlation R the photometric test also holds the windows at the result to a\n"
         "                     normalized cross-correlation of at least R (0 to 1: 0, not tested,\n"
         "                     the default; 0.4 with --lm-sparse, given after it to change)\n"
+        "  --lm-refine K      the reference's windows averaged with the matches of the first K\n"
+        "                     frames that accept landmarks (default 16, since 2026-12-07; 0:\n"
+        "                     the reference frame's own)\n"
         "  --lm-reduce K      the landmarks chosen and found in the frame halved K times (0-4;\n"
         "                     default: automatic, once at 4K, none at 1080p), every length of\n"
         "                     the tests in the halved frame's pixels\n"
@@ -578,7 +581,7 @@ int main(int argc, char **argv)
         {"landmark-rows", no_argument, 0, 1011}, {"lm-distance", required_argument, 0, 1012},
         {"lm-quality", required_argument, 0, 1013}, {"landmark-smoothing", required_argument, 0, 1014},
         {"lm-jump", required_argument, 0, 1015}, {"lm-reduce", required_argument, 0, 1016},
-        {"lm-correlation", required_argument, 0, 1017},
+        {"lm-correlation", required_argument, 0, 1017}, {"lm-refine", required_argument, 0, 1018},
         {"json", no_argument, 0, 'j'},           SH_CLI_OPTIONS, {0, 0, 0, 0}};
     options o = {.stride = 4, .heatmap_max = 0.2, .heatmap_scale = 1, .contours = 4, .max_error = 0.05,
                  .landmark_smoothing = SH_LANDMARK_SMOOTHING};
@@ -623,6 +626,7 @@ int main(int argc, char **argv)
                    break;
         case 1016: if (!sh_cli_parse_int("--lm-reduce", optarg, 0, 4, &o.lp.reduce)) return 2; break;
         case 1017: if (!sh_cli_parse_double("--lm-correlation", optarg, 0, 0.999, &o.lp.min_correlation)) return 2; break;
+        case 1018: if (!sh_cli_parse_int("--lm-refine", optarg, 0, 1000, &o.lp.refine)) return 2; break;
         case 1007: o.landmarks_points = optarg; break;
         case 1008: o.spectrum = 1; break;
         case 'h': usage(stdout); return 0;
