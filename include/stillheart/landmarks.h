@@ -186,9 +186,9 @@ typedef struct {
                                  * first `refine` frames (of the primary view, with a prediction)
                                  * that accept landmarks: each pixel a landmark's search reads
                                  * there, sampled where the accepted landmarks near it put it
-                                 * (through the map's local affine), so that the reference
-                                 * frame's noise no longer sits in every frame's match (16; 0: the
-                                 * reference frame's own windows). 0 to 1000 */
+                                 * (through the map's local affine), so that the windows hold a
+                                 * fraction of the reference frame's noise (16; 0: the reference
+                                 * frame's own windows). 0 to 1000 */
     int reduce;                 /* halvings of the frame before anything else: the landmarks
                                  * are chosen and found in the frame averaged over blocks of
                                  * 2^reduce x 2^reduce pixels, and every length above (and the

@@ -83,7 +83,7 @@ struct sh_landmarks {
      * the pixels refined (sh_flow_pyramid_update_box's). And this frame's: the plane its pyramid
      * was built from, valid in part `built` */
     float *rsum;
-    uint16_t *rcnt;
+    uint32_t *rcnt;         /* at most 1 + refine (1000) times the landmarks (100000): no overflow */
     int rpart[4], refined;
     float rbox[4];
     sh_plane src;
@@ -168,12 +168,15 @@ void sh_landmarks_params_default(sh_landmarks_params *p)
      * (up to 0.011 px); and it does not depend on the searches: with no backward test at all, 1
      * hidden landmark-frame of 14 renders accepted, not 10. */
     p->max_jump = 2.5;
-    /* The reference frame's noise is in every frame's match: a fixed error of each landmark, and
-     * its windows' gradients, which every search solves with, noisy too. On the phantom the
-     * same scenes with a noiseless reference frame (the rest noisy) had a third as long a tail.
-     * Averaging the first 16 frames' matches leaves a seventeenth of the reference's noise
-     * variance, 6 % of the total with the frame's own; more frames buy little and blur the
-     * windows with their matches' scatter. Measured on the eight standard renders: 40 accepted
+    /* The reference frame's noise is in every frame's search: in the windows' difference, which
+     * the photometric tests hold, and in the gradients every step solves with. On the phantom two
+     * scenes with a noiseless reference frame (the rest as noisy) had 6 accepted landmark-frames
+     * over 1 px instead of 36. Averaging the windows with the first 16 frames' matches leaves a
+     * seventeenth of the reference's noise variance in them, 6 % of a difference's with the
+     * frame's own; a landmark's error from the reference's noise stays in its own matches (they
+     * were aligned with it), but each pixel's average rests on those of every landmark near it,
+     * whose errors are independent. 8 frames left 50 over 1 px, 32 left 42; more blur the windows
+     * with their matches' scatter. Measured on the eight standard renders: 40 accepted
      * landmark-frames over 1 px instead of 80, 13 % more accepted, the map's error lower on every
      * render (docs/landmarks.md, "The reference refined"). */
     p->refine = 16;
@@ -716,19 +719,39 @@ static sh_status refine_start(sh_landmarks *lm, const sh_plane *band)
     return SH_OK;
 }
 
+/* One row of a landmark's pixels into the sums: pixels x0..x1-1 of row y (reference), each
+ * sampled at f + J (x - r, y - r) in src (bilinear), every sample inside the part built. The
+ * same float operations per pixel wherever it is called and in every clone (-ffp-contract=off),
+ * so that the vectorized clones add the same sums. */
+LM_CLONES static void refine_row(const sh_plane *src, const float *J, float rx, float ry, float fx, float fy, int x0,
+                                 int x1, int y, float *restrict sum, uint32_t *restrict cnt)
+{
+    const float dy = (float)y - ry, ox = fx + J[1] * dy, oy = fy + J[3] * dy;
+    const ptrdiff_t st = src->stride;
+    for (int x = x0; x < x1; x++) {
+        const float dx = (float)x - rx, sx = ox + J[0] * dx, sy = oy + J[2] * dx;
+        const int ix = (int)sx, iy = (int)sy;
+        const float ax = sx - (float)ix, ay = sy - (float)iy;
+        const uint8_t *p = src->data + (ptrdiff_t)iy * st + ix;
+        sum[x - x0] += (1 - ay) * ((1 - ax) * (float)p[0] + ax * (float)p[1]) +
+                       ay * ((1 - ax) * (float)p[st] + ax * (float)p[st + 1]);
+        cnt[x - x0]++;
+    }
+}
+
 /* One frame into the refinement: each accepted landmark's pixels (within the reach of its
  * reference position) sampled where its match puts them, through the markers' map's local affine
  * when the searches used it (bilinear, from the plane the frame's pyramid was built from, where
- * it was built). Every landmark near a pixel adds its sample, so a window's refined pixels rest
- * on its neighbours' matches too: on the eight renders 40 accepted landmark-frames over 1 px,
- * against 60 when each pixel took only its nearest landmark's. The pyramid and the windows are
- * made anew after the 1st, 2nd, 4th, ... frame and the last (each halves the reference's share
- * of the noise, so the early frames gain at once, for log2(refine) + 2 updates of a part of the
+ * it was built: a window whose samples would reach past that is left out of this frame's sums).
+ * Every landmark near a pixel adds its sample, so a window's refined pixels rest on its
+ * neighbours' matches too: on the eight renders 40 accepted landmark-frames over 1 px, against 60
+ * when each pixel took only its nearest landmark's. The pyramid and the windows are made anew
+ * after the 1st, 2nd, 4th, ... frame and the last (each halves the reference's share of the
+ * noise, so the early frames gain at once, for log2(refine) + 2 updates of a part of the
  * pyramid); after the last, the sums are freed. */
 static sh_status refine(sh_landmarks *lm, const uint8_t *verdict)
 {
     const int R = lm->p.flow.win / 2 + REFINE_REACH, *r = lm->rpart, w = r[2] - r[0], *b = lm->built;
-    const sh_plane *src = &lm->src;
     int used = 0;
     for (int i = 0; i < lm->n; i++) {
         if (verdict[i] != SH_LANDMARK_ACCEPTED) continue;
@@ -738,34 +761,36 @@ static sh_status refine(sh_landmarks *lm, const uint8_t *verdict)
         const int cx = (int)lrintf(rx), cy = (int)lrintf(ry);
         const int x0 = cx - R > r[0] ? cx - R : r[0], x1 = cx + R + 1 < r[2] ? cx + R + 1 : r[2];
         const int y0 = cy - R > r[1] ? cy - R : r[1], y1 = cy + R + 1 < r[3] ? cy + R + 1 : r[3];
-        for (int y = y0; y < y1; y++)
-            for (int x = x0; x < x1; x++) {
-                const float dx = (float)x - rx, dy = (float)y - ry;
-                const float sx = fx + J[0] * dx + J[1] * dy, sy = fy + J[2] * dx + J[3] * dy;
-                if (!(sx >= (float)b[0] && sy >= (float)b[1] && sx < (float)(b[2] - 1) && sy < (float)(b[3] - 1)))
-                    continue;
-                const int ix = (int)sx, iy = (int)sy;
-                const float ax = sx - (float)ix, ay = sy - (float)iy;
-                const uint8_t *p = src->data + (size_t)iy * src->stride + ix;
-                const float v = (1 - ay) * ((1 - ax) * p[0] + ax * p[1]) +
-                                ay * ((1 - ax) * p[src->stride] + ax * p[src->stride + 1]);
-                const size_t o = (size_t)(y - r[1]) * (size_t)w + (size_t)(x - r[0]);
-                if (lm->rcnt[o] == UINT16_MAX) continue;
-                lm->rsum[o] += v;
-                lm->rcnt[o]++;
-                used = 1;
-            }
+        if (x0 >= x1 || y0 >= y1) continue;
+        /* the samples' box: the affine's extremes are at the corners; a pixel's margin for the
+         * rounding of the per-pixel sums and the bilinear neighbour */
+        float lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY};
+        for (int c = 0; c < 4; c++) {
+            const float dx = (float)(c & 1 ? x1 - 1 : x0) - rx, dy = (float)(c & 2 ? y1 - 1 : y0) - ry;
+            const float s[2] = {fx + J[0] * dx + J[1] * dy, fy + J[2] * dx + J[3] * dy};
+            for (int a = 0; a < 2; a++) lo[a] = s[a] < lo[a] ? s[a] : lo[a], hi[a] = s[a] > hi[a] ? s[a] : hi[a];
+        }
+        if (!(lo[0] >= (float)b[0] + 1 && lo[1] >= (float)b[1] + 1 && hi[0] < (float)b[2] - 2 && hi[1] < (float)b[3] - 2))
+            continue;
+        for (int y = y0; y < y1; y++) {
+            const size_t o = (size_t)(y - r[1]) * (size_t)w + (size_t)(x0 - r[0]);
+            refine_row(&lm->src, J, rx, ry, fx, fy, x0, x1, y, lm->rsum + o, lm->rcnt + o);
+        }
+        used = 1;
     }
     if (!used) return SH_OK;
     const int k = ++lm->refined;
     if ((k & (k - 1)) != 0 && k != lm->p.refine) return SH_OK;
-    /* the refined part into the band's buffer (this frame is done with it), then the pyramid
-     * and the windows made anew from it */
-    for (int y = r[1]; y < r[3]; y++)
-        for (int x = r[0]; x < r[2]; x++) {
-            const size_t o = (size_t)(y - r[1]) * (size_t)w + (size_t)(x - r[0]);
-            lm->band[(size_t)y * lm->width + x] = (uint8_t)lrintf(lm->rsum[o] / (float)lm->rcnt[o]);
-        }
+    /* the refined part into the band's buffer (this frame is done with it), rounded as lrintf
+     * does (to nearest, even on a tie: 1.5 2^23 added and taken away, exact in [0, 255]), then the
+     * pyramid and the windows made anew from it */
+    const float round = 0x1.8p23f;
+    for (int y = r[1]; y < r[3]; y++) {
+        const float *sum = lm->rsum + (size_t)(y - r[1]) * (size_t)w;
+        const uint32_t *cnt = lm->rcnt + (size_t)(y - r[1]) * (size_t)w;
+        uint8_t *out = lm->band + (size_t)y * lm->width + r[0];
+        for (int x = 0; x < w; x++) out[x] = (uint8_t)(int32_t)((sum[x] / (float)cnt[x] + round) - round);
+    }
     const sh_plane plane = {lm->band, lm->width, lm->height, lm->width};
     sh_status st = sh_flow_pyramid_update_box(lm->ref, &plane, lm->rbox);
     if (st != SH_OK) return st;

@@ -9,11 +9,11 @@
 // gradients), built once. Also without the backward test (its own row: ours with
 // max_backward_px 0, OpenCV forward only, no gradients of the frame), and with the defaults of
 // before 2026-12-06 (square forward windows, the backward search on every level, no test of the
-// windows' centres), beside the same OpenCV work. The defaults' forward windows are pre-warped by
-// the map's local affine (sh_landmarks_params.affine), which OpenCV has no search for, and their
-// backward search runs on the frame's level alone where OpenCV's runs on every level. And with
-// four tags, the corners of the field: the landmarks chosen inside those four's hull, predicted
-// by TPS on them, judged by the tests for sparse markers (sh_landmarks_params_sparse), beside
+// windows' centres, and no refined reference), beside the same OpenCV work. The defaults' forward
+// windows are pre-warped by the map's local affine (sh_landmarks_params.affine), which OpenCV has
+// no search for, and their backward search runs on the frame's level alone where OpenCV's runs on
+// every level. And with four tags, the corners of the field: the landmarks chosen inside those
+// four's hull, predicted by TPS on them, judged by the tests for sparse markers (sh_landmarks_params_sparse), beside
 // OpenCV's two searches from the same predictions. The goal: at most 3 ms a 1080p frame
 // with 200 landmarks on one thread, and at most OpenCV's time.
 //
@@ -26,7 +26,8 @@
 // (cv::setNumThreads(1)), thread CPU time, medians over every frame of PASSES replays, ours and
 // OpenCV's interleaved frame by frame so that both see the same load. The checksum (FNV-1a of
 // every frame's positions' bits and verdicts, first pass) says whether a change of the code
-// changed a result.
+// changed a result. The reference is refined (sh_landmarks_params.refine) in the first pass's
+// first 16 frames: their time is also printed apart, the medians are of every frame.
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 #include <opencv2/video/tracking.hpp>
@@ -232,7 +233,7 @@ int main(int argc, char **argv)
     lp.min_distance = MIN_DIST;
     sh_landmarks_params lp_fwd = lp, lp_old = lp;
     lp_fwd.max_backward_px = 0;
-    lp_old.affine = 0, lp_old.back_levels = -1, lp_old.core = 0;
+    lp_old.affine = 0, lp_old.back_levels = -1, lp_old.core = 0, lp_old.refine = 0;
     sh_plane ref = {frames[0].ptr(), W, H, (int)frames[0].step};
     sh_landmarks *lm = nullptr, *lm_fwd = nullptr, *lm_old = nullptr;
     bench_check("bench_landmarks", sh_landmarks_create(&lp, &ref, &hull, quads.data(), (int)quads.size() / 8, &lm),
@@ -436,6 +437,15 @@ int main(int argc, char **argv)
     std::printf("%-40s %9.3f ms %9.3f ms %8.2f\n", "landmarks, the defaults before 2026-12-06", oa, c, oa / c);
     const double o4 = bench_median(tm.ours4), c4 = bench_median(tm.cv4);
     std::printf("%-40s %9.3f ms %9.3f ms %8.2f\n", "landmarks, 4 tags, sparse tests", o4, c4, o4 / c4);
+    {
+        // the reference refined (sh_landmarks_params.refine) in the first frames of the first pass:
+        // their cost apart, as a reference's first frames pay it once
+        const size_t k = std::min(tm.ours.size(), (size_t)lp.refine);
+        std::vector<double> during(tm.ours.begin(), tm.ours.begin() + (long)k), after(tm.ours.begin() + (long)k, tm.ours.end());
+        if (k > 0 && !after.empty())
+            std::printf("%-40s %9.3f ms (slowest %.3f ms; the frames after: %.3f ms)\n", "  while the reference is refined",
+                        bench_median(during), *std::max_element(during.begin(), during.end()), bench_median(after));
+    }
     std::printf("%-40s %9.3f ms\n", "the prediction (TPS on the tags)", bench_median(tm.predict));
     std::printf("%-40s %9.3f ms %9.3f ms\n", "the slowest frame, with the backward test",
                 *std::max_element(tm.ours.begin(), tm.ours.end()), *std::max_element(tm.cv.begin(), tm.cv.end()));
