@@ -545,8 +545,8 @@ static void test_affine_windows(void **state)
  * noise gave a landmark stays, as its own matches were aligned with it; its neighbours', which
  * share its pixels, were not, and the windows' gradients are no longer noisy); and nothing
  * accepted lies 1 px off. The first frame, searched before anything was averaged, is the same
- * either way; without noise the refinement moves the error by no more than the bilinear
- * sampling of the averaged frames can (0.02 px). */
+ * either way; without noise the refinement accepts as many (within 1 %) and moves the error by no
+ * more than the bilinear sampling of the averaged frames can (0.02 px). */
 static void similarity_at(int t, double *c, double *s, double *bx, double *by)
 {
     double angle = 0.02 * sin(0.9 * t), scale = 1 + 0.015 * sin(0.7 * t); /* the identity at t = 0: the reference */
@@ -555,8 +555,7 @@ static void similarity_at(int t, double *c, double *s, double *bx, double *by)
 }
 
 /* A quarter of the texture's contrast: the phantom's landmarks lie 0.2-0.3 px from their truth,
- * mostly the noise's; at full contrast the noise would move these by 0.03 px, less than the
- * deformation across a window does */
+ * mostly the noise's; at full contrast the noise moves these by 0.03 px rms, a tenth of that */
 #define REFINE_CONTRAST 0.25
 
 /* Frames 0 (the reference) to REFINE_FRAMES of the sequence, RW x RH, made once for both runs */
