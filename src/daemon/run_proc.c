@@ -904,14 +904,6 @@ static int carried_points(run_proc *p, const run_model *md, const int *ids, int 
     return held == nb;
 }
 
-/* [gating] landmarks_carry: a frame that would be raw for its markers (too few, one too uncertain,
- * or no model for them yet), right after a frame stabilized with its landmarks found (2D). The
- * markers detected in both frames and the landmarks, searched from the
- * frame before's and judged as every frame's, make its map when the landmarks move as those
- * markers do (sh_landmarks_carry); the frame is shown degraded, warped by the model of those
- * markers and the landmarks (or, while it is built, the last model with its other markers left
- * out), over the hull of the points used (a marker not seen lies outside it). NULL when not (info
- * says why, or keeps "too few markers" when nothing was tried). */
 /* carried() with nothing to search in this frame (one marker seen in both frames, or no landmark
  * accepted in the one before), which is shown raw: it leaves the landmarks found last as they
  * were, so the next may still be carried from them, as across frames dropped; their predictions
@@ -924,6 +916,14 @@ static const sh_image *unsearched(run_proc *p)
     return NULL;
 }
 
+/* [gating] landmarks_carry: a frame that would be raw for its markers (too few, one too uncertain,
+ * or no model for them yet), right after a frame stabilized with its landmarks found (2D). The
+ * markers detected in both frames and the landmarks, searched from the
+ * frame before's and judged as every frame's, make its map when the landmarks move as those
+ * markers do (sh_landmarks_carry); the frame is shown degraded, warped by the model of those
+ * markers and the landmarks (or, while it is built, the last model with its other markers left
+ * out), over the hull of the points used (a marker not seen lies outside it). NULL when not (info
+ * says why, or keeps "too few markers" when nothing was tried). */
 static const sh_image *carried(run_proc *p, const sh_image *img, int index, int nm, const sh_point *ref, int nref,
                                double t1, sh_display_frame_info *info)
 {
