@@ -687,6 +687,7 @@ static sh_status choose(sh_landmarks *lm, const sh_plane *reference, const sh_hu
  * level's window reads) put twice as many landmark-frames over 1 px on the eight renders. */
 #define REFINE_REACH 2
 
+static void box_add(const sh_landmarks *lm, float box[4], float x, float y);
 static void box_grow(float box[4], float r);
 
 /* The sums start from the reference (band: the plane its pyramid was built from), counted once,
@@ -697,11 +698,7 @@ static sh_status refine_start(sh_landmarks *lm, const sh_plane *band)
     const float reach = (float)(lm->p.flow.win / 2 + REFINE_REACH);
     float *b = lm->rbox;
     b[0] = b[1] = INFINITY, b[2] = b[3] = -INFINITY;
-    for (int i = 0; i < lm->n; i++) {
-        const float x = lm->ref_xy[2 * i], y = lm->ref_xy[2 * i + 1];
-        b[0] = x < b[0] ? x : b[0], b[2] = x > b[2] ? x : b[2];
-        b[1] = y < b[1] ? y : b[1], b[3] = y > b[3] ? y : b[3];
-    }
+    for (int i = 0; i < lm->n; i++) box_add(lm, b, lm->ref_xy[2 * i], lm->ref_xy[2 * i + 1]);
     box_grow(b, reach);
     sh_status st = sh_flow_pyramid_box_part(lm->ref, b, 1, lm->rpart);
     if (st != SH_OK) return st;
@@ -752,11 +749,11 @@ LM_CLONES static void refine_row(const sh_plane *src, const float *J, float rx, 
 static sh_status refine(sh_landmarks *lm, const uint8_t *verdict)
 {
     const int R = lm->p.flow.win / 2 + REFINE_REACH, *r = lm->rpart, w = r[2] - r[0], *b = lm->built;
+    static const float identity[4] = {1, 0, 0, 1};
     int used = 0;
     for (int i = 0; i < lm->n; i++) {
         if (verdict[i] != SH_LANDMARK_ACCEPTED) continue;
-        const float J[4] = {lm->affine ? lm->jac[4 * i] : 1, lm->affine ? lm->jac[4 * i + 1] : 0,
-                            lm->affine ? lm->jac[4 * i + 2] : 0, lm->affine ? lm->jac[4 * i + 3] : 1};
+        const float *J = lm->affine ? lm->jac + 4 * i : identity;
         const float rx = lm->ref_xy[2 * i], ry = lm->ref_xy[2 * i + 1], fx = lm->fwd[2 * i], fy = lm->fwd[2 * i + 1];
         const int cx = (int)lrintf(rx), cy = (int)lrintf(ry);
         const int x0 = cx - R > r[0] ? cx - R : r[0], x1 = cx + R + 1 < r[2] ? cx + R + 1 : r[2];
