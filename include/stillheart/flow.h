@@ -46,8 +46,9 @@ typedef struct {
 /* OpenCV's defaults for calcOpticalFlowPyrLK: win 21, 3 levels, 30 steps, 0.01 px, 1e-4. */
 void sh_flow_params_default(sh_flow_params *p);
 
-/* A frame's image pyramid with each level's Scharr gradients, padded by the window so that
- * windows reaching past the image edge read its mirror (the edge pixel not repeated). */
+/* A frame's image pyramid, padded by the window so that windows reaching past the image edge
+ * read its mirror (the edge pixel not repeated). A window's Scharr gradients are made with it,
+ * from the pixels around it. */
 typedef struct sh_flow_pyramid sh_flow_pyramid;
 
 /* For frames of width x height (each at least 2 px; at most SH_IMAGE_MAX_SIZE) and params'
@@ -60,12 +61,13 @@ void sh_flow_pyramid_destroy(sh_flow_pyramid *pyr);
 int sh_flow_pyramid_levels(const sh_flow_pyramid *pyr);
 
 /* Fills the pyramid from a luma plane of the size it was created for; SH_EINVAL otherwise.
- * gradients: also each level's gradients, which only a pyramid tracked *from* needs (a fixed
- * reference frame's, built once; or every frame's when points go frame to frame). */
+ * gradients: also what each level's gradients are made of (the pixels next to those a window
+ * reads), which only a pyramid tracked *from* needs (a fixed reference frame's, built once; or
+ * every frame's when points go frame to frame). */
 sh_status sh_flow_pyramid_build(sh_flow_pyramid *pyr, const sh_plane *luma, int gradients);
 
 /* Builds only what searches near a box of points can read: box is x0, y0, x1, y1 (level 0 px,
- * x0 <= x1, y0 <= y1), and each level gets the pixels (and gradients) that a window centred
+ * x0 <= x1, y0 <= y1), and each level gets the pixels (and with gradients their neighbours) that a window centred
  * anywhere in the box scaled to the level reads, with what the levels above are reduced from;
  * the rest of the pyramid is left as it was. A search that would read anything else stops
  * with SH_FLOW_UNBUILT, so a point either gets the same result, bit for bit, as from
@@ -79,8 +81,8 @@ sh_status sh_flow_pyramid_build_box(sh_flow_pyramid *pyr, const sh_plane *luma, 
  * near box read it, from luma, keeping the rest and what counts as built: when luma differs from
  * the frame the pyramid was built from only inside box (level 0 px), the pyramid is then the one
  * sh_flow_pyramid_build gives for luma, bit for bit, at a fraction of the work (the plan of
- * sh_flow_pyramid_build_box keeps every pixel and gradient outside its parts clear of the box's
- * pixels). With the gradients the pyramid was built with. luma need only hold valid pixels in
+ * sh_flow_pyramid_build_box keeps every pixel outside its parts clear of the box's pixels). With
+ * the gradients the pyramid was built with. luma need only hold valid pixels in
  * sh_flow_pyramid_box_part's rectangle. SH_EINVAL when a part of a level reaches past what was
  * built there. The landmarks' reference, refined where its windows lie (landmarks.h, refine). */
 sh_status sh_flow_pyramid_update_box(sh_flow_pyramid *pyr, const sh_plane *luma, const float box[4]);

@@ -4,20 +4,23 @@
 
 #include "stillheart/flow.h"
 
-/* One level: its pixels and their Scharr gradients (dx and dy in two planes), each with `pad`
- * samples of border on every side so that a window whose corner lies up to one window outside
- * the level reads memory of the level: the pixels' border mirrors the level (OpenCV's
- * BORDER_REFLECT_101), the gradients' border is zero (OpenCV's BORDER_CONSTANT). Each plane
- * also has FLOW_SLACK bytes after its last row, which the 8-lane kernels may read (and ignore). */
+/* One level: its pixels, with `pad` samples of border on every side so that a window whose
+ * corner lies up to one window outside the level reads memory of the level: the border mirrors
+ * the level (OpenCV's BORDER_REFLECT_101). The plane also has FLOW_SLACK bytes after its last
+ * row, which the 8-lane kernels may read (and ignore). The Scharr gradients a window of it needs
+ * are made with the window (flow_window_gradients), zero outside the level (OpenCV's
+ * BORDER_CONSTANT): a frame's windows read a third of the pixels of the part built for them, and
+ * a gradient made there from pixels in the cache costs less than a whole part's written to memory
+ * and read back. */
 typedef struct {
     int width, height;
-    int stride;         /* samples per row of every plane */
+    int stride;         /* samples per row */
     uint8_t *img;       /* pixel (0, 0): img_base + pad * stride + pad */
-    int16_t *gx, *gy;   /* gradient (0, 0) */
     /* what the last build made (sh_flow_pyramid_build_box builds part of a level): pixels in
-     * [img_box[0], img_box[2]) x [img_box[1], img_box[3]), gradients in grad_box, level
-     * coordinates, reaching into the border where the part touches the level's edge; the
-     * tracker reads nothing outside them (SH_FLOW_UNBUILT) */
+     * [img_box[0], img_box[2]) x [img_box[1], img_box[3]), and where gradients can be made
+     * (their neighbours built, or outside the level) in grad_box, level coordinates, reaching
+     * into the border where the part touches the level's edge; the tracker reads nothing outside
+     * them (SH_FLOW_UNBUILT) */
     int img_box[4], grad_box[4];
 } flow_level;
 
@@ -37,6 +40,13 @@ struct sh_flow_pyramid {
  * past the side zero. */
 #define FLOW_WROW(win) (((win) + 7) & ~7)
 
+/* The gradients of a window at integer corner (ix, iy) of level l: Scharr's 3x3 ([3 10 3]
+ * across, [-1 0 1] along), unscaled (32 times the pixel difference per pixel) as OpenCV's tracker
+ * keeps them, at the pixels [ix, ix + win] x [iy, iy + win] (the window's and their bilinear
+ * neighbours) into rows of FLOW_GROW(win) in gx and gy; zero outside the level and in the rows'
+ * columns past win. */
+#define FLOW_GROW(win) (FLOW_WROW(win) + 8)
+void flow_window_gradients(const flow_level *l, int ix, int iy, int win, int16_t *gx, int16_t *gy);
 /* The previous frame's window at integer corner (ix, iy) of level l with bilinear weights w
  * (14 bits, summing to 2^14): its pixels in 1/32 grey levels (I), its gradients (gx, gy), and
  * the sums of gx^2, gx*gy, gy^2 (a). The lanes past the side are set to zero. */

@@ -1,5 +1,6 @@
-/* The image pyramid and its gradients, in OpenCV's integer arithmetic (cv::pyrDown, the Scharr
- * gradients of calcOpticalFlowPyrLK), so that the tracker sees the same numbers as its oracle. */
+/* The image pyramid, in OpenCV's integer arithmetic (cv::pyrDown), so that the tracker sees the
+ * same numbers as its oracle; with gradients, the pixels their Scharr gradients are made of too
+ * (the windows make them: flow_window_gradients). */
 #include "flow_internal.h"
 
 #include <math.h>
@@ -58,7 +59,7 @@ sh_status sh_flow_pyramid_create(int width, int height, const sh_flow_params *pa
         l->height = h;
         l->stride = w + 2 * pyr->pad;
         size_t n = (size_t)l->stride * (size_t)(h + 2 * pyr->pad);
-        bytes += round64(n + FLOW_SLACK) + 2 * round64(2 * n + FLOW_SLACK);
+        bytes += round64(n + FLOW_SLACK);
         pyr->levels = k;
         /* as cv::buildOpticalFlowPyramid: a level no larger than the window is not built */
         int nw = (w + 1) / 2, nh = (h + 1) / 2;
@@ -79,10 +80,6 @@ sh_status sh_flow_pyramid_create(int width, int height, const sh_flow_params *pa
         size_t origin = (size_t)pyr->pad * (size_t)l->stride + (size_t)pyr->pad;
         l->img = (uint8_t *)p + origin;
         p += round64(n + FLOW_SLACK);
-        l->gx = (int16_t *)p + origin;
-        p += round64(2 * n + FLOW_SLACK);
-        l->gy = (int16_t *)p + origin;
-        p += round64(2 * n + FLOW_SLACK);
     }
     *out = pyr;
     return SH_OK;
@@ -155,27 +152,6 @@ static void reduce(const flow_level *src, flow_level *dst, uint16_t *rows, const
         for (int x = dx0; x < dx1; x++) {
             const uint16_t *c = t + 2 * x;
             d[x] = (uint8_t)((uint16_t)(c[-2] + 4 * (c[-1] + c[1]) + 6 * c[0] + c[2] + 128) >> 8);
-        }
-    }
-}
-
-/* Scharr's 3x3 gradients ([3 10 3] across, [-1 0 1] along), unscaled (32 times the pixel
- * difference per pixel) as OpenCV's tracker keeps them, for the pixels of the level in box b;
- * the padded image supplies the mirrored neighbours of edge pixels. The gradients' border stays
- * zero from the allocation (calloc). */
-static void gradients(flow_level *l, const int b[4])
-{
-    const int x0 = b[0] > 0 ? b[0] : 0, x1 = b[2] < l->width ? b[2] : l->width;
-    const int y0 = b[1] > 0 ? b[1] : 0, y1 = b[3] < l->height ? b[3] : l->height;
-    for (int y = y0; y < y1; y++) {
-        const uint8_t *restrict a = l->img + (ptrdiff_t)(y - 1) * l->stride;
-        const uint8_t *restrict bb = a + l->stride, *restrict c = bb + l->stride;
-        int16_t *restrict gx = l->gx + (size_t)y * (size_t)l->stride;
-        int16_t *restrict gy = l->gy + (size_t)y * (size_t)l->stride;
-        for (int x = x0; x < x1; x++) {
-            gx[x] = (int16_t)(3 * (a[x + 1] - a[x - 1] + c[x + 1] - c[x - 1]) +
-                              10 * (bb[x + 1] - bb[x - 1]));
-            gy[x] = (int16_t)(3 * (c[x - 1] - a[x - 1] + c[x + 1] - a[x + 1]) + 10 * (c[x] - a[x]));
         }
     }
 }
@@ -274,7 +250,6 @@ static void build(sh_flow_pyramid *pyr, const sh_plane *luma, int with_gradients
     }
     pyr->has_gradients = with_gradients != 0;
     for (int k = 0; k <= pyr->levels; k++) {
-        if (with_gradients) gradients(&pyr->level[k], grad[k]);
         memcpy(pyr->level[k].img_box, img[k], sizeof img[k]);
         memcpy(pyr->level[k].grad_box, grad[k], sizeof grad[k]);
     }

@@ -15,23 +15,47 @@
  * Rows are added into 64-bit totals. */
 #include "flow_internal.h"
 
+#include <string.h>
+
 #define W_BITS 14
 #define DESCALE(x, n) (((x) + (1 << ((n)-1))) >> (n))
+
+void flow_window_gradients(const flow_level *l, int ix, int iy, int win, int16_t *gx, int16_t *gy)
+{
+    const int gs = FLOW_GROW(win), s = l->stride;
+    /* the window's columns [ix, ix + win] that lie in the level: [x0, x1) of the rows' */
+    const int x0 = ix < 0 ? (-ix < win + 1 ? -ix : win + 1) : 0;
+    int x1 = l->width - ix < win + 1 ? l->width - ix : win + 1;
+    x1 = x1 > x0 ? x1 : x0;
+    for (int y = 0; y <= win; y++) {
+        int16_t *restrict rx = gx + y * gs, *restrict ry = gy + y * gs;
+        memset(rx, 0, sizeof *rx * (size_t)gs);
+        memset(ry, 0, sizeof *ry * (size_t)gs);
+        if (iy + y < 0 || iy + y >= l->height) continue;
+        const uint8_t *restrict a = l->img + (ptrdiff_t)(iy + y - 1) * s + ix;
+        const uint8_t *restrict b = a + s, *restrict c = b + s;
+        for (int x = x0; x < x1; x++) {
+            rx[x] = (int16_t)(3 * (a[x + 1] - a[x - 1] + c[x + 1] - c[x - 1]) + 10 * (b[x + 1] - b[x - 1]));
+            ry[x] = (int16_t)(3 * (c[x - 1] - a[x - 1] + c[x + 1] - a[x + 1]) + 10 * (c[x] - a[x]));
+        }
+    }
+}
 
 void flow_window_prev_portable(const flow_level *l, int ix, int iy, const int w[4], int win,
                                int16_t *I, int16_t *gx, int16_t *gy, int64_t a[3])
 {
-    const int wr = FLOW_WROW(win), s = l->stride;
+    const int wr = FLOW_WROW(win), s = l->stride, gs = FLOW_GROW(win);
+    int16_t lgx[(SH_FLOW_MAX_WIN + 1) * FLOW_GROW(SH_FLOW_MAX_WIN)], lgy[sizeof lgx / sizeof *lgx];
+    flow_window_gradients(l, ix, iy, win, lgx, lgy);
     int64_t s11 = 0, s12 = 0, s22 = 0;
     for (int y = 0; y < win; y++) {
-        const ptrdiff_t o = (ptrdiff_t)(iy + y) * s + ix;
-        const uint8_t *p = l->img + o;
-        const int16_t *dx = l->gx + o, *dy = l->gy + o;
+        const uint8_t *p = l->img + (ptrdiff_t)(iy + y) * s + ix;
+        const int16_t *dx = lgx + y * gs, *dy = lgy + y * gs;
         int16_t *ri = I + y * wr, *rx = gx + y * wr, *ry = gy + y * wr;
         for (int x = 0; x < win; x++) {
             int v = p[x] * w[0] + p[x + 1] * w[1] + p[x + s] * w[2] + p[x + s + 1] * w[3];
-            int vx = dx[x] * w[0] + dx[x + 1] * w[1] + dx[x + s] * w[2] + dx[x + s + 1] * w[3];
-            int vy = dy[x] * w[0] + dy[x + 1] * w[1] + dy[x + s] * w[2] + dy[x + s + 1] * w[3];
+            int vx = dx[x] * w[0] + dx[x + 1] * w[1] + dx[x + gs] * w[2] + dx[x + gs + 1] * w[3];
+            int vy = dy[x] * w[0] + dy[x + 1] * w[1] + dy[x + gs] * w[2] + dy[x + gs + 1] * w[3];
             vx = DESCALE(vx, W_BITS);
             vy = DESCALE(vy, W_BITS);
             ri[x] = (int16_t)DESCALE(v, W_BITS - 5);
@@ -180,14 +204,15 @@ static inline __m128i descale_pack(__m128i lo, __m128i hi, int n)
 void flow_window_prev(const flow_level *l, int ix, int iy, const int w[4], int win, int16_t *I,
                       int16_t *gx, int16_t *gy, int64_t a[3])
 {
-    const int wr = FLOW_WROW(win), s = l->stride;
+    const int wr = FLOW_WROW(win), s = l->stride, gs = FLOW_GROW(win);
     const __m128i w01 = _mm_set1_epi32((int)((uint32_t)w[1] << 16 | (uint32_t)w[0]));
     const __m128i w23 = _mm_set1_epi32((int)((uint32_t)w[3] << 16 | (uint32_t)w[2]));
+    int16_t lgx[(SH_FLOW_MAX_WIN + 1) * FLOW_GROW(SH_FLOW_MAX_WIN)], lgy[sizeof lgx / sizeof *lgx];
+    flow_window_gradients(l, ix, iy, win, lgx, lgy);
     int64_t s11 = 0, s12 = 0, s22 = 0;
     for (int y = 0; y < win; y++) {
-        const ptrdiff_t o = (ptrdiff_t)(iy + y) * s + ix;
-        const uint8_t *p = l->img + o;
-        const int16_t *dx = l->gx + o, *dy = l->gy + o;
+        const uint8_t *p = l->img + (ptrdiff_t)(iy + y) * s + ix;
+        const int16_t *dx = lgx + y * gs, *dy = lgy + y * gs;
         int16_t *ri = I + y * wr, *rx = gx + y * wr, *ry = gy + y * wr;
         __m128i q11 = _mm_setzero_si128(), q12 = q11, q22 = q11;
         for (int x = 0; x < wr; x += 8) {
@@ -197,11 +222,11 @@ void flow_window_prev(const flow_level *l, int ix, int iy, const int w[4], int w
             bilinear8(load8u(p + x), load8u(p + x + 1), load8u(p + x + s), load8u(p + x + s + 1),
                       w01, w23, &lo, &hi);
             __m128i vi = _mm_and_si128(descale_pack(lo, hi, W_BITS - 5), keep);
-            bilinear8(load8s(dx + x), load8s(dx + x + 1), load8s(dx + x + s),
-                      load8s(dx + x + s + 1), w01, w23, &lo, &hi);
+            bilinear8(load8s(dx + x), load8s(dx + x + 1), load8s(dx + x + gs),
+                      load8s(dx + x + gs + 1), w01, w23, &lo, &hi);
             __m128i vx = _mm_and_si128(descale_pack(lo, hi, W_BITS), keep);
-            bilinear8(load8s(dy + x), load8s(dy + x + 1), load8s(dy + x + s),
-                      load8s(dy + x + s + 1), w01, w23, &lo, &hi);
+            bilinear8(load8s(dy + x), load8s(dy + x + 1), load8s(dy + x + gs),
+                      load8s(dy + x + gs + 1), w01, w23, &lo, &hi);
             __m128i vy = _mm_and_si128(descale_pack(lo, hi, W_BITS), keep);
             _mm_storeu_si128((__m128i *)(ri + x), vi);
             _mm_storeu_si128((__m128i *)(rx + x), vx);
@@ -518,15 +543,16 @@ void flow_window_prev(const flow_level *l, int ix, int iy, const int w[4], int w
                       int16_t *gx, int16_t *gy, int64_t a[3])
 {
     static const int16_t lane[8] = {0, 1, 2, 3, 4, 5, 6, 7};
-    const int wr = FLOW_WROW(win), s = l->stride;
+    const int wr = FLOW_WROW(win), s = l->stride, gs = FLOW_GROW(win);
     const int16x4_t wv[4] = {vdup_n_s16((int16_t)w[0]), vdup_n_s16((int16_t)w[1]),
                              vdup_n_s16((int16_t)w[2]), vdup_n_s16((int16_t)w[3])};
     const int16x8_t lanes = vld1q_s16(lane);
+    int16_t lgx[(SH_FLOW_MAX_WIN + 1) * FLOW_GROW(SH_FLOW_MAX_WIN)], lgy[sizeof lgx / sizeof *lgx];
+    flow_window_gradients(l, ix, iy, win, lgx, lgy);
     int64_t s11 = 0, s12 = 0, s22 = 0;
     for (int y = 0; y < win; y++) {
-        const ptrdiff_t o = (ptrdiff_t)(iy + y) * s + ix;
-        const uint8_t *p = l->img + o;
-        const int16_t *dx = l->gx + o, *dy = l->gy + o;
+        const uint8_t *p = l->img + (ptrdiff_t)(iy + y) * s + ix;
+        const int16_t *dx = lgx + y * gs, *dy = lgy + y * gs;
         int16_t *ri = I + y * wr, *rx = gx + y * wr, *ry = gy + y * wr;
         int32x4_t q11 = vdupq_n_s32(0), q12 = q11, q22 = q11;
         for (int x = 0; x < wr; x += 8) {
@@ -537,11 +563,11 @@ void flow_window_prev(const flow_level *l, int ix, int iy, const int w[4], int w
             bilinear8(load8u(p + x), load8u(p + x + 1), load8u(p + x + s), load8u(p + x + s + 1),
                       wv, &lo, &hi);
             int16x8_t vi = vandq_s16(DESCALE_PACK(lo, hi, W_BITS - 5), keep);
-            bilinear8(vld1q_s16(dx + x), vld1q_s16(dx + x + 1), vld1q_s16(dx + x + s),
-                      vld1q_s16(dx + x + s + 1), wv, &lo, &hi);
+            bilinear8(vld1q_s16(dx + x), vld1q_s16(dx + x + 1), vld1q_s16(dx + x + gs),
+                      vld1q_s16(dx + x + gs + 1), wv, &lo, &hi);
             int16x8_t vx = vandq_s16(DESCALE_PACK(lo, hi, W_BITS), keep);
-            bilinear8(vld1q_s16(dy + x), vld1q_s16(dy + x + 1), vld1q_s16(dy + x + s),
-                      vld1q_s16(dy + x + s + 1), wv, &lo, &hi);
+            bilinear8(vld1q_s16(dy + x), vld1q_s16(dy + x + 1), vld1q_s16(dy + x + gs),
+                      vld1q_s16(dy + x + gs + 1), wv, &lo, &hi);
             int16x8_t vy = vandq_s16(DESCALE_PACK(lo, hi, W_BITS), keep);
             vst1q_s16(ri + x, vi);
             vst1q_s16(rx + x, vx);

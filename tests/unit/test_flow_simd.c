@@ -1,9 +1,9 @@
 /* The tracker's window loops (sampling, a step's comparison, the error measure): the SIMD paths
  * of this build (SSE2 and, where the CPU has it, AVX-512 on x86-64; NEON on AArch64) against the
- * portable C definitions, bit for bit, on random pixels and gradients including the extremes (0
- * and 255, +-4080, the largest Scharr gradients), at random sub-pixel positions up to one window
- * outside the level, for every window side. Run under qemu-aarch64 by `make check-arm64`, this is
- * the NEON path's test. */
+ * portable C definitions, bit for bit, on random pixels including the extremes (0 and 255, whose
+ * gradients reach +-4080, the largest Scharr's), at random sub-pixel positions up to one window
+ * outside the level, for every window side; and the windows' gradients against Scharr's kernel.
+ * Run under qemu-aarch64 by `make check-arm64`, this is the NEON path's test. */
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -25,12 +25,11 @@ static uint32_t next_u32(void)
     return (uint32_t)(rng >> 16);
 }
 
-/* A level of w x h with `pad` of border and FLOW_SLACK after each plane, filled at random;
- * `extreme` draws only the largest values. */
+/* A level of w x h with `pad` of border and FLOW_SLACK after its plane, filled at random;
+ * `extreme` draws only 0 and 255, whose Scharr gradients reach the largest, +-4080. */
 typedef struct {
     flow_level l;
     uint8_t *img;
-    int16_t *gx, *gy;
 } level_mem;
 
 static void level_make(level_mem *m, int w, int h, int pad, int extreme)
@@ -40,31 +39,38 @@ static void level_make(level_mem *m, int w, int h, int pad, int extreme)
     m->l.stride = w + 2 * pad;
     size_t n = (size_t)m->l.stride * (size_t)(h + 2 * pad), origin = (size_t)pad * m->l.stride + pad;
     m->img = malloc(n + FLOW_SLACK);
-    m->gx = malloc(2 * n + FLOW_SLACK);
-    m->gy = malloc(2 * n + FLOW_SLACK);
     assert_non_null(m->img);
-    assert_non_null(m->gx);
-    assert_non_null(m->gy);
     for (size_t i = 0; i < n + FLOW_SLACK; i++) m->img[i] = extreme ? (next_u32() & 1) * 255 : (uint8_t)next_u32();
-    for (size_t i = 0; i < n + FLOW_SLACK / 2; i++) {
-        int a = (int)(next_u32() % 8161) - 4080, b = (int)(next_u32() % 8161) - 4080;
-        if (extreme) {
-            a = (next_u32() & 1) ? 4080 : -4080;
-            b = (next_u32() & 1) ? 4080 : -4080;
-        }
-        m->gx[i] = (int16_t)a;
-        m->gy[i] = (int16_t)b;
-    }
     m->l.img = m->img + origin;
-    m->l.gx = m->gx + origin;
-    m->l.gy = m->gy + origin;
 }
 
 static void level_free(level_mem *m)
 {
     free(m->img);
-    free(m->gx);
-    free(m->gy);
+}
+
+/* A window's gradients against Scharr's kernel written out pixel by pixel (3 and 10 across, -1
+ * and 1 along), zero outside the level and past the window's win + 1 columns. */
+static void check_gradients(const level_mem *m, int ix, int iy, int win)
+{
+    const int gs = FLOW_GROW(win);
+    static int16_t gx[(SH_FLOW_MAX_WIN + 1) * FLOW_GROW(SH_FLOW_MAX_WIN)], gy[sizeof gx / sizeof *gx];
+    flow_window_gradients(&m->l, ix, iy, win, gx, gy);
+    for (int y = 0; y <= win; y++)
+        for (int x = 0; x < gs; x++) {
+            const int X = ix + x, Y = iy + y;
+            int ex = 0, ey = 0;
+            if (x <= win && X >= 0 && X < m->l.width && Y >= 0 && Y < m->l.height) {
+                const int s = m->l.stride;
+#define P(dx, dy) ((int)m->l.img[(ptrdiff_t)(Y + (dy)) * s + X + (dx)])
+                ex = -3 * P(-1, -1) + 3 * P(1, -1) - 10 * P(-1, 0) + 10 * P(1, 0) - 3 * P(-1, 1) + 3 * P(1, 1);
+                ey = -3 * P(-1, -1) - 10 * P(0, -1) - 3 * P(1, -1) + 3 * P(-1, 1) + 10 * P(0, 1) + 3 * P(1, 1);
+#undef P
+            }
+            if (gx[y * gs + x] != ex || gy[y * gs + x] != ey)
+                fail_msg("win %d corner (%d, %d): gradient at (%d, %d) is (%d, %d), Scharr's (%d, %d)", win, ix, iy,
+                         x, y, gx[y * gs + x], gy[y * gs + x], ex, ey);
+        }
 }
 
 static void random_weights(int w[4], int corner)
@@ -103,6 +109,7 @@ static void compare(int win, int extreme, int trials)
         memset(I1, 0x55, cells * 2); /* whatever was there before: the lanes past the side too */
         memset(X1, 0x55, cells * 2);
         memset(Y1, 0x55, cells * 2);
+        check_gradients(&m, ix, iy, win);
         flow_window_prev_portable(&m.l, ix, iy, wt, win, I0, X0, Y0, a0);
         flow_window_prev(&m.l, ix, iy, wt, win, I1, X1, Y1, a1);
         assert_memory_equal(I0, I1, cells * 2);
