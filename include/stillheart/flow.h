@@ -67,10 +67,10 @@ int sh_flow_pyramid_levels(const sh_flow_pyramid *pyr);
 sh_status sh_flow_pyramid_build(sh_flow_pyramid *pyr, const sh_plane *luma, int gradients);
 
 /* Builds only what searches near a box of points can read: box is x0, y0, x1, y1 (level 0 px,
- * x0 <= x1, y0 <= y1), and each level gets the pixels (and with gradients their neighbours) that a window centred
- * anywhere in the box scaled to the level reads, with what the levels above are reduced from;
- * the rest of the pyramid is left as it was. A search that would read anything else stops
- * with SH_FLOW_UNBUILT, so a point either gets the same result, bit for bit, as from
+ * x0 <= x1, y0 <= y1), and each level gets the pixels (and with gradients their neighbours)
+ * that a window centred anywhere in the box scaled to the level reads, with what the levels above
+ * are reduced from; the rest of the pyramid is left as it was. A search that would read anything
+ * else stops with SH_FLOW_UNBUILT, so a point either gets the same result, bit for bit, as from
  * sh_flow_pyramid_build or that status (a caller then builds the whole frame and tracks it
  * again). luma need only hold valid pixels in sh_flow_pyramid_box_part's rectangle: the rest is
  * not read. For a fixed set of points moving in a known area of a larger frame (the landmarks

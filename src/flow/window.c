@@ -12,7 +12,11 @@
  * 16 * 255 = 4080 in magnitude, a bilinear weight at most 2^14, so one sample's weighted sum is
  * below 2^27 and fits; a difference d is at most 32 * 255 = 8160, and one row's sum of d * g
  * over at most FLOW_WROW(63) = 64 lanes is at most 64 * 8160 * 4080 < 2^31 (and of g * g less).
- * Rows are added into 64-bit totals. */
+ * Rows are added into 64-bit totals. The windows' gradients (flow_window_gradients) are made
+ * here too, once per window, in the portable C every sampler shares.
+ *
+ * Over 600 lines: each loop's portable definition and its SSE2, NEON and AVX-512 versions side
+ * by side, so that a change to one is made beside those it must match bit for bit. */
 #include "flow_internal.h"
 
 #include <string.h>
