@@ -218,8 +218,8 @@ void phantom_shaft_axis(const phantom_model *m, double t, double tip[3], double 
 
 double phantom_blob_radius(const phantom_model *m, int b, double t)
 {
-    /* grows and shrinks over 0.4 s so the blob has a history, not a switch */
-    const double ramp = 0.4;
+    /* grows and shrinks over 0.4 s (or --blood-spread) so the blob has a history, not a switch */
+    const double ramp = m->blood_spread > 0 ? m->blood_spread : PHANTOM_BLOOD_SPREAD;
     const phantom_blob *bl = &m->blob[b];
     double e = fmin((t - bl->t0) / ramp, (bl->t1 - t) / ramp);
     if (e <= 0) return 0.0;

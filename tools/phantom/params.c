@@ -18,8 +18,8 @@ typedef struct {
     int count;
     char type;  /* 'd' double, 'i' int, 'u' uint64 */
     char group; /* 0: always there; 'c' camera motion, 'f' first beat, 't' texture contrast, 'm' trilinear
-                 * texture: written only when the feature is on, so files from before it (and
-                 * without it) read as without */
+                 * texture, 'b' blood spread: written only when the feature is on, so files from
+                 * before it (and without it) read as without */
 } field;
 
 #define D(name, n) {#name, offsetof(phantom_model, name), n, 'd', 0}
@@ -39,14 +39,15 @@ static const field fields[] = {
     I(decoy), I(decoy_id), D(decoy_center, 3), D(decoy_yaw, 1), D(noise, 1), D(exposure, 1),
     OI(cam_motion, 'c'), OD(cam_motion_t0, 1, 'c'), OD(cam_motion_dur, 1, 'c'),
     OD(cam_motion_shift, 3, 'c'), OI(first_beat, 'f'), OD(first_beat_at, 1, 'f'),
-    OD(texture_contrast, 1, 't'), OI(texture_trilinear, 'm'),
+    OD(texture_contrast, 1, 't'), OI(texture_trilinear, 'm'), OD(blood_spread, 1, 'b'),
 };
 #define NFIELDS (sizeof fields / sizeof fields[0])
 
 static int group_on(const phantom_model *m, char group)
 {
     return group == 0 || (group == 'c' && m->cam_motion != 0) || (group == 'f' && m->first_beat != 0) ||
-           (group == 't' && m->texture_contrast != 0) || (group == 'm' && m->texture_trilinear != 0);
+           (group == 't' && m->texture_contrast != 0) || (group == 'm' && m->texture_trilinear != 0) ||
+           (group == 'b' && m->blood_spread != 0);
 }
 
 static void put_doubles(FILE *f, const double *d, int n)
@@ -141,6 +142,8 @@ static sh_status validate(const phantom_model *m, const char *name, unsigned see
         return BAD("%s: a pan (cam_motion 1) needs cam_motion_dur > 0", name);
     if (!(m->texture_contrast >= 0 && m->texture_contrast <= 16))
         return BAD("%s: texture_contrast out of range (0 to 16)", name);
+    if (!(m->blood_spread >= 0 && m->blood_spread <= 60))
+        return BAD("%s: blood_spread out of range (0 to 60 s)", name);
     if (m->first_beat < 0 || m->first_beat > 1) return BAD("%s: first_beat %d: 0 or 1", name, m->first_beat);
     if (m->texture_trilinear < 0 || m->texture_trilinear > 1)
         return BAD("%s: texture_trilinear %d: 0 or 1", name, m->texture_trilinear);

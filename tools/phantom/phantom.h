@@ -136,6 +136,10 @@ typedef struct {
      * (the two nearest blended: no seam where the level changes); phantom.txt carries it only
      * when 1 */
     int texture_trilinear;
+    /* how long a blood blob takes to grow to its radius, and to shrink back, in seconds: 0 the
+     * designed 0.4 s (PHANTOM_BLOOD_SPREAD); its time at full size is the same whatever it is.
+     * phantom.txt carries it only when set */
+    double blood_spread;
 } phantom_model;
 
 enum { PHANTOM_CAM_NONE = 0, PHANTOM_CAM_PAN = 1, PHANTOM_CAM_BUMP = 2 };
@@ -145,6 +149,8 @@ enum { PHANTOM_CAM_NONE = 0, PHANTOM_CAM_PAN = 1, PHANTOM_CAM_BUMP = 2 };
 #define PHANTOM_BUMP_FRACTION 0.03
 /* How much faster than heart_hz the first contraction runs. */
 #define PHANTOM_FIRST_BEAT_SPEEDUP 4.0
+/* How long a blood blob grows, and shrinks, unless --blood-spread says otherwise (seconds). */
+#define PHANTOM_BLOOD_SPREAD 0.4
 
 /* ---- the model (model.c, camera.c) ---- */
 
@@ -240,6 +246,8 @@ typedef struct {
     double first_beat_at; /* seconds of rest from frame 0; <= 0: 0.5 s */
     double texture_contrast; /* <= 0 or 1: the texture as designed; else its contrast scaled */
     int texture_trilinear;   /* 1: the tissue texture filtered trilinearly (phantom_model's) */
+    double blood_spread;     /* <= 0: PHANTOM_BLOOD_SPREAD; else the blobs' growth and shrinking
+                              * time, seconds (phantom_model's); with occlusions only */
 } phantom_options;
 
 void phantom_options_default(phantom_options *o);

@@ -382,6 +382,8 @@ static sh_status build_occlusions(const phantom_options *o, phantom_model *m, in
         m->shaft_radius = 4.0;
         m->shaft_period = dur;
         m->num_blobs = m->num_markers < 3 ? m->num_markers : 3;
+        m->blood_spread = o->blood_spread > 0 && o->blood_spread != PHANTOM_BLOOD_SPREAD ? o->blood_spread : 0;
+        double spread = m->blood_spread > 0 ? m->blood_spread : PHANTOM_BLOOD_SPREAD;
         for (int b = 0; b < m->num_blobs; b++) {
             int i = (int)((pick >> (8 * b)) % (uint64_t)m->num_markers);
             for (int j = 0; j < b; j++)
@@ -390,7 +392,9 @@ static sh_status build_occlusions(const phantom_options *o, phantom_model *m, in
             m->blob[b].v = m->marker[i].v - 0.1 * m->tag_size;
             m->blob[b].radius = 0.85 * m->tag_size;
             m->blob[b].t0 = when[b] * dur;
-            m->blob[b].t1 = m->blob[b].t0 + fmax(0.25 * dur, 1.0);
+            /* a slower spread lengthens the life by the extra growth and shrinking, so that the
+             * blob is as long at full size as with the designed spread */
+            m->blob[b].t1 = m->blob[b].t0 + fmax(0.25 * dur, 1.0) + 2 * (spread - PHANTOM_BLOOD_SPREAD);
         }
         m->decoy = 1;
         int id = 0;
@@ -444,6 +448,8 @@ sh_status phantom_model_build(const phantom_options *o, phantom_model *m)
     if ((st = build_markers(o, m, invivo, codes, &rng)) != SH_OK) return st;
     if ((st = build_cameras(o, m)) != SH_OK) return st;
     if ((st = build_events(o, m)) != SH_OK) return st;
+    if (o->blood_spread > 0 && (!o->occlusions || o->blood_spread > 60))
+        return sh_error_set(SH_EINVAL, "--blood-spread %g s: up to 60 s, with the occlusions only", o->blood_spread);
     if ((st = build_occlusions(o, m, codes, &rng)) != SH_OK) return st;
     return keep_only(o, m);
 }

@@ -47,6 +47,10 @@ static void usage(FILE *f)
 "                     (default 1); the same seed gives the same bytes\n"
 "  --occlusions       an instrument shaft crossing the view, blood blobs covering markers for\n"
 "                     a while, and a decoy tag on a card beside the heart (not in markers.csv)\n"
+"  --blood-spread SECONDS\n"
+"                     how long each blood blob takes to spread to its size, and to shrink\n"
+"                     back (default 0.4; up to 60); it stays at full size as long whatever\n"
+"                     this is: a slow ooze creeps over the tissue. In phantom.txt\n"
 "  --bpm B            heart rate in beats per minute (default 42 exvivo, 80 invivo)\n"
 "  --periodic         a sequence that loops without a jump: the heart and respiration rates\n"
 "                     are rounded to whole cycles over it (refused beyond 10 %% of the asked\n"
@@ -313,8 +317,8 @@ typedef struct {
 } render_args;
 
 /* Fills *a from the command line; returns -1 to go on, or the exit status (0 after --help, 2 for
- * a usage error). Over 80 lines because it is one case a line for 24 options, read as a table
- * beside the option list: split, each option's check would sit away from its name. */
+ * a usage error). Over 80 lines because it is one case a line for each of its options, read as a
+ * table beside the option list: split, each option's check would sit away from its name. */
 static int parse_args(int argc, char **argv, render_args *a)
 {
     phantom_options *o = &a->o;
@@ -323,7 +327,7 @@ static int parse_args(int argc, char **argv, render_args *a)
     a->board_mode = 0;
     enum { O_PRESET = 256, O_FRAMES, O_CAMERAS, O_WIDTH, O_HEIGHT, O_SEED, O_OCC, O_BPM, O_MARKERS,
            O_TAG, O_FAMILY, O_IDS, O_ONLY, O_FPS, O_DIST, O_NOISE, O_EXPOSURE, O_TEXTURE_CONTRAST, O_TEXTURE_FILTER, O_OUT,
-           O_TARGET, O_PERIODIC, O_CAM_MOTION, O_CAM_MOTION_AT, O_FIRST_BEAT, O_FIRST_BEAT_AT, O_RIG };
+           O_TARGET, O_PERIODIC, O_CAM_MOTION, O_CAM_MOTION_AT, O_FIRST_BEAT, O_FIRST_BEAT_AT, O_RIG, O_BLOOD_SPREAD };
     static const struct option opts[] = {
         {"preset", 1, 0, O_PRESET}, {"frames", 1, 0, O_FRAMES}, {"cameras", 1, 0, O_CAMERAS},
         {"width", 1, 0, O_WIDTH}, {"height", 1, 0, O_HEIGHT}, {"seed", 1, 0, O_SEED},
@@ -336,7 +340,7 @@ static int parse_args(int argc, char **argv, render_args *a)
         {"calib-target", 1, 0, O_TARGET},
         {"periodic", 0, 0, O_PERIODIC}, {"camera-motion", 1, 0, O_CAM_MOTION},
         {"camera-motion-at", 1, 0, O_CAM_MOTION_AT}, {"first-beat", 0, 0, O_FIRST_BEAT},
-        {"first-beat-at", 1, 0, O_FIRST_BEAT_AT}, {"rig", 1, 0, O_RIG}, {0, 0, 0, 0}};
+        {"first-beat-at", 1, 0, O_FIRST_BEAT_AT}, {"rig", 1, 0, O_RIG}, {"blood-spread", 1, 0, O_BLOOD_SPREAD}, {0, 0, 0, 0}};
     int rig = -1, set_cameras = 0, set_width = 0, set_height = 0; /* rig: 0 small, 1 paper */
     const char *heart_option = NULL; /* the last option that only the heart uses */
     int ch;
@@ -348,7 +352,7 @@ static int parse_args(int argc, char **argv, render_args *a)
     while ((ch = getopt_long(argc, argv, ":h", opts, &idx)) != -1) {
         if (ch == O_PRESET || ch == O_OCC || ch == O_BPM || ch == O_MARKERS || ch == O_TAG || ch == O_FAMILY ||
             ch == O_IDS || ch == O_ONLY || ch == O_PERIODIC || ch == O_CAM_MOTION || ch == O_CAM_MOTION_AT || ch == O_FIRST_BEAT ||
-            ch == O_FIRST_BEAT_AT || ch == O_TEXTURE_CONTRAST || ch == O_TEXTURE_FILTER)
+            ch == O_FIRST_BEAT_AT || ch == O_TEXTURE_CONTRAST || ch == O_TEXTURE_FILTER || ch == O_BLOOD_SPREAD)
             heart_option = opts[idx].name;
         switch (ch) {
         case O_PRESET: o->preset = optarg; break;
@@ -402,6 +406,7 @@ static int parse_args(int argc, char **argv, render_args *a)
         case O_CAM_MOTION_AT: if (!parse_double(optarg, &dv) || !(dv > 0 && dv < 1e6)) BAD("--camera-motion-at '%s': seconds > 0", optarg); o->camera_motion_at = dv; break;
         case O_FIRST_BEAT: o->first_beat = 1; break;
         case O_FIRST_BEAT_AT: if (!parse_double(optarg, &dv) || !(dv > 0 && dv < 1e6)) BAD("--first-beat-at '%s': seconds > 0", optarg); o->first_beat_at = dv; break;
+        case O_BLOOD_SPREAD: if (!parse_double(optarg, &dv) || !(dv > 0 && dv <= 60)) BAD("--blood-spread '%s': seconds in (0, 60]", optarg); o->blood_spread = dv; break;
         case O_TARGET:
             if (rd_board_parse(optarg, &a->board) != SH_OK) BAD("%s", sh_error_message());
             a->board_mode = 1;
@@ -415,6 +420,7 @@ static int parse_args(int argc, char **argv, render_args *a)
     if (a->board_mode && heart_option) BAD("--%s: the heart's option, not the board's (--calib-target)", heart_option);
     if (o->camera_motion_at > 0 && !o->camera_motion) BAD("--camera-motion-at: with --camera-motion pan|bump only");
     if (o->first_beat_at > 0 && !o->first_beat) BAD("--first-beat-at: with --first-beat only");
+    if (o->blood_spread > 0 && !o->occlusions) BAD("--blood-spread: with --occlusions only");
 #undef BAD
     if (a->board_mode && o->frames <= 0) o->frames = 20;
     if (rig < 0) rig = a->board_mode;

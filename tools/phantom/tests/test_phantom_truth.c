@@ -590,6 +590,22 @@ static void test_first_beat(void **state)
 
 /* The new keys round-trip, appear only when used (files rendered before them read unchanged), are
  * checked, and --periodic refuses motions that happen once. */
+/* phantom.txt as phantom_model_write writes it for m, into text (at most cap - 1 bytes). */
+static void written_text(const phantom_model *m, char *text, size_t cap)
+{
+    char path[] = "/tmp/phantom-params-XXXXXX";
+    int fd = mkstemp(path);
+    assert_true(fd >= 0);
+    close(fd);
+    assert_int_equal(phantom_model_write(m, path), SH_OK);
+    FILE *f = fopen(path, "r");
+    assert_non_null(f);
+    size_t n = fread(text, 1, cap - 1, f);
+    text[n] = '\0';
+    fclose(f);
+    remove(path);
+}
+
 static void test_motion_params(void **state)
 {
     (void)state;
@@ -607,20 +623,16 @@ static void test_motion_params(void **state)
     char path[] = "/tmp/phantom-params-XXXXXX";
     int fd = mkstemp(path);
     assert_true(fd >= 0);
+    close(fd);
     assert_int_equal(phantom_model_write(&a, path), SH_OK);
     assert_int_equal(phantom_model_read(path, &b), SH_OK);
+    remove(path);
     assert_memory_equal(&a, &b, sizeof a);
     o.camera_motion = 0;
     o.first_beat = 0;
     assert_int_equal(phantom_model_build(&o, &a), SH_OK);
-    assert_int_equal(phantom_model_write(&a, path), SH_OK);
-    FILE *f = fopen(path, "r");
-    assert_non_null(f);
     static char text[65536];
-    size_t n = fread(text, 1, sizeof text - 1, f);
-    text[n] = '\0';
-    fclose(f);
-    remove(path);
+    written_text(&a, text, sizeof text);
     assert_null(strstr(text, "cam_motion"));
     assert_null(strstr(text, "first_beat"));
     /* a pan without its length, an unknown motion, a first beat without a rate */
@@ -645,6 +657,60 @@ static void test_motion_params(void **state)
         assert_int_equal(phantom_model_build(&o, &a), SH_EINVAL);
         assert_non_null(strstr(sh_error_message(), "--periodic"));
     }
+}
+
+/* --blood-spread: each blob grows linearly from nothing to its radius over the spread (half of it
+ * at half the spread), at the same place and start as with the designed 0.4 s, and stays at full
+ * size as long; phantom.txt carries it only when set, and refuses it out of range. */
+#define assert_near(a, b, tol) assert_true(fabs((a) - (b)) < (tol))
+static void test_blood_spread(void **state)
+{
+    (void)state;
+    phantom_options o;
+    phantom_options_default(&o);
+    o.occlusions = 1;
+    phantom_model a, b;
+    assert_int_equal(phantom_model_build(&o, &a), SH_OK);
+    assert_true(a.blood_spread == 0 && a.num_blobs > 0);
+    o.blood_spread = 2.0;
+    assert_int_equal(phantom_model_build(&o, &b), SH_OK);
+    assert_true(b.blood_spread == 2.0 && b.num_blobs == a.num_blobs);
+    for (int i = 0; i < a.num_blobs; i++) {
+        const phantom_blob *x = &a.blob[i], *y = &b.blob[i];
+        assert_true(x->u == y->u && x->v == y->v && x->radius == y->radius && x->t0 == y->t0);
+        assert_near(phantom_blob_radius(&a, i, x->t0 + 0.2), 0.5 * x->radius, 1e-9);
+        assert_near(phantom_blob_radius(&b, i, y->t0 + 1.0), 0.5 * y->radius, 1e-9);
+        assert_near(phantom_blob_radius(&b, i, y->t0 + 0.2), 0.1 * y->radius, 1e-9);
+        assert_true(phantom_blob_radius(&b, i, y->t0 + 2.1) == y->radius);
+        /* at full size from t0 + spread to t1 - spread: as long with either spread */
+        assert_near((y->t1 - 2.0) - (y->t0 + 2.0), (x->t1 - 0.4) - (x->t0 + 0.4), 1e-9);
+        assert_near(phantom_blob_radius(&b, i, y->t1 - 0.5), 0.25 * y->radius, 1e-9);
+        assert_true(phantom_blob_radius(&b, i, y->t1) == 0 && phantom_blob_radius(&b, i, y->t0) == 0);
+    }
+    char path[] = "/tmp/phantom-params-XXXXXX";
+    int fd = mkstemp(path);
+    assert_true(fd >= 0);
+    close(fd);
+    phantom_model c;
+    assert_int_equal(phantom_model_write(&b, path), SH_OK);
+    assert_int_equal(phantom_model_read(path, &c), SH_OK);
+    assert_memory_equal(&b, &c, sizeof b);
+    remove(path);
+    static char text[65536];
+    written_text(&a, text, sizeof text);
+    assert_null(strstr(text, "blood_spread"));
+    static const char *bad[] = {"blood_spread -1\n", "blood_spread 61\n", "blood_spread nan\n"};
+    for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+        char buf[sizeof text + 64];
+        snprintf(buf, sizeof buf, "%s%s", text, bad[i]);
+        if (phantom_model_parse(buf, strlen(buf), "p.txt", &c) != SH_EFORMAT) fail_msg("accepted: %s", bad[i]);
+    }
+    /* without the blood it would do nothing, and beyond a minute it is refused */
+    o.occlusions = 0;
+    assert_int_equal(phantom_model_build(&o, &c), SH_EINVAL);
+    o.occlusions = 1;
+    o.blood_spread = 61;
+    assert_int_equal(phantom_model_build(&o, &c), SH_EINVAL);
 }
 
 static void test_readers_refuse_garbage(void **state)
@@ -714,6 +780,7 @@ int main(void)
         cmocka_unit_test(test_camera_pan_closed_form),
         cmocka_unit_test(test_first_beat),
         cmocka_unit_test(test_motion_params),
+        cmocka_unit_test(test_blood_spread),
         cmocka_unit_test(test_readers_refuse_garbage),
     };
     return cmocka_run_group_tests(tests, NULL, teardown);

@@ -448,7 +448,7 @@ static void test_command_line(void **state)
                                  "--ids", "--fps", "--distortion", "--noise", "--exposure", "--quiet",
                                  "--calib-target", "--periodic", "--camera-motion", "--camera-motion-at",
                                  "--first-beat", "--first-beat-at", "--rig", "--texture-contrast",
-                                 "--texture-filter", "--only-markers"};
+                                 "--texture-filter", "--only-markers", "--blood-spread"};
     for (size_t i = 0; i < sizeof opts / sizeof opts[0]; i++)
         if (!strstr(help, opts[i])) fail_msg("--help does not mention %s", opts[i]);
     static const char *bad[] = {"--preset nope --out /tmp/x", "--preset exvivo", "--cameras 4 --out /tmp/x",
@@ -472,7 +472,10 @@ static void test_command_line(void **state)
                                 "--calib-target checkerboard:9x6:8 --camera-motion pan --out /tmp/x", "--rig huge --out /tmp/x",
                                 /* the tissue's filter: unknown, or with the board (no tissue) */
                                 "--texture-filter bilinear --out /tmp/x",
-                                "--calib-target checkerboard:9x6:8 --texture-filter trilinear --out /tmp/x"};
+                                "--calib-target checkerboard:9x6:8 --texture-filter trilinear --out /tmp/x",
+                                /* the blood's spread: without the blood, none, too slow */
+                                "--blood-spread 2 --out /tmp/x", "--occlusions --blood-spread 0 --out /tmp/x",
+                                "--occlusions --blood-spread 61 --out /tmp/x"};
     for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
         snprintf(cmd, sizeof cmd, "'%s' %s 2>/dev/null", RENDER_BIN, bad[i]);
         int rc = system(cmd);
