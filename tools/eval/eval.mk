@@ -96,6 +96,12 @@ CARRY_DIR ?= out/carry
 carry-table: $(EVAL_BIN) $(BUILD)/stillheart-render $(APP)
 	@sh tools/eval/carry.sh $(BUILD) $(CARRY_DIR)
 
+# ---- landmarks under blood that spreads slowly, against the truth (docs/landmarks.md) ----
+BLOOD_DIR ?= out/blood
+.PHONY: blood-table
+blood-table: $(EVAL_BIN) $(BUILD)/stillheart-render
+	@sh tools/eval/blood.sh $(BUILD) $(BLOOD_DIR)
+
 # ---- natural landmarks on rendered phantoms against their truth (docs/landmarks.md) ----
 LANDMARKS_DIR ?= out/landmarks
 .PHONY: landmarks-table
