@@ -588,8 +588,6 @@ static void test_first_beat(void **state)
     assert_true(first > 1.5 * later);
 }
 
-/* The new keys round-trip, appear only when used (files rendered before them read unchanged), are
- * checked, and --periodic refuses motions that happen once. */
 /* phantom.txt as phantom_model_write writes it for m, into text (at most cap - 1 bytes). */
 static void written_text(const phantom_model *m, char *text, size_t cap)
 {
@@ -606,6 +604,8 @@ static void written_text(const phantom_model *m, char *text, size_t cap)
     remove(path);
 }
 
+/* The new keys round-trip, appear only when used (files rendered before them read unchanged), are
+ * checked, and --periodic refuses motions that happen once. */
 static void test_motion_params(void **state)
 {
     (void)state;
