@@ -20,8 +20,8 @@ FRAMES=${FRAMES:-200} SPREAD=${BLOOD_SPREAD:-3}
 for b in "$RENDER" "$EVAL"; do [ -x "$b" ] || { echo "blood: $b is not built" >&2; exit 1; }; done
 mkdir -p "$OUT/work" "$OUT/json"
 start=$(date +%s)
+. "$HERE/common.sh"
 stamp() { echo "blood: [$(( $(date +%s) - start )) s] $*" >&2; }
-num() { sed -n "s/.*\"$2\": \([-0-9.eEnaif+]*\).*/\1/p" "$OUT/json/$1.json" | head -1; }
 
 run() { # run NAME DIR POINTS [EVAL OPTIONS]
     name=$1 dir=$2 pts=$3
@@ -40,8 +40,7 @@ for p in exvivo invivo; do
             --frames "$FRAMES" --quiet --out "$dir"
         "$EVAL" --truth "$dir" --export-points "$dir/points.csv"
         run "$p-$seed" "$dir" "$dir/points.csv"
-        ids=$(awk -F, -f "$HERE/corners.awk" "$dir/points.csv")
-        awk -F, -v ids="$ids" 'NR == 1 || $2 ~ "^(" ids ")$"' "$dir/points.csv" > "$dir/points4.csv"
+        ids=$(four_tags "$dir/points.csv" "$dir/points4.csv")
         run "$p-$seed-4tags-sparse" "$dir" "$dir/points4.csv" --lm-sparse
         rm -rf "$dir"
         d4=$OUT/work/$p-$seed-4only

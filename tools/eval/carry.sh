@@ -19,7 +19,7 @@ for b in "$RENDER" "$EVAL" "$APP"; do [ -x "$b" ] || { echo "carry: $b is not bu
 mkdir -p "$OUT/work" "$OUT/json"
 start=$(date +%s)
 stamp() { echo "carry: [$(( $(date +%s) - start )) s] $*" >&2; }
-num() { sed -n "s/.*\"$2\": \([-0-9.eEnaif+]*\).*/\1/p" "$OUT/json/$1.json" | head -1; }
+. "$HERE/common.sh"
 # geo NAME: e, the geometric error's mean and the raw frames of the evaluator's JSON NAME (one
 # line: the geometric object's mean is its only "mean")
 geo() { echo "$(num "$1" e_stabilized),$(num "$1" mean),$(num "$1" raw_frames)"; }

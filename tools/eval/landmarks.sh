@@ -28,10 +28,7 @@ for b in "$RENDER" "$EVAL" "$APP"; do [ -x "$b" ] || { echo "landmarks: $b is no
 mkdir -p "$OUT/work" "$OUT/json"
 start=$(date +%s)
 stamp() { echo "landmarks: [$(( $(date +%s) - start )) s] $*" >&2; }
-num() { sed -n "s/.*\"$2\": \([-0-9.eEnaif+]*\).*/\1/p" "$OUT/json/$1.json" | head -1; }
-
-# The four markers nearest the corners of frame 0's markers.
-corners() { awk -F, -f "$HERE/corners.awk" "$1"; }
+. "$HERE/common.sh"
 
 run() { # run NAME DIR POINTS [EVAL OPTIONS]
     name=$1 dir=$2 pts=$3
@@ -90,8 +87,7 @@ for p in exvivo invivo; do
         "$RENDER" --preset "$p" --rig paper --cameras 1 --occlusions --seed "$seed" --frames "$FRAMES" --quiet --out "$dir"
         "$EVAL" --truth "$dir" --export-points "$dir/points.csv"
         run "$p-$seed" "$dir" "$dir/points.csv"
-        ids=$(corners "$dir/points.csv")
-        awk -F, -v ids="$ids" 'NR == 1 || $2 ~ "^(" ids ")$"' "$dir/points.csv" > "$dir/points4.csv"
+        ids=$(four_tags "$dir/points.csv" "$dir/points4.csv")
         run "$p-$seed-4tags" "$dir" "$dir/points4.csv"
         run "$p-$seed-4tags-sparse" "$dir" "$dir/points4.csv" --lm-sparse
         stamp "track, warp and evaluate $p seed $seed"

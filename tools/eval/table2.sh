@@ -18,6 +18,7 @@ set -eu
 BUILD=${1:?usage: table2.sh BUILD OUTDIR}
 OUT=${2:?usage: table2.sh BUILD OUTDIR}
 HERE=$(cd "$(dirname "$0")" && pwd)
+. "$HERE/common.sh"
 METHODS="affine pwlinear bspline rbf-local tps gaussian"
 # the methods `stillheart warp` gives landmarks to (sh_landmarks_method_uses): not rbf-local and
 # gaussian, which are worse with them (docs/landmarks.md)
@@ -48,8 +49,7 @@ warp_eval() {
 # landmark_rows PRESET: the landmarks with all the tags and with the four corner ones, then the rows
 landmark_rows() {
     t0=$(date +%s)
-    ids=$(awk -F, -f "$HERE/corners.awk" "$dir/points.csv")
-    awk -F, -v ids="$ids" 'NR == 1 || $2 ~ "^(" ids ")$"' "$dir/points.csv" > "$dir/points4.csv"
+    four_tags "$dir/points.csv" "$dir/points4.csv" > /dev/null
     for v in "" 4; do
         stamp "landmarks $1${v:+, 4 tags}"
         "$EVAL" --quiet --json --truth "$dir" --points "$dir/points$v.csv" --landmarks "$LANDMARKS" \
@@ -79,7 +79,8 @@ for p in $PRESETS; do
     [ "${KEEP_RENDERS:-1}" = 1 ] || rm -f "$dir/cam0.y4m"
 done
 
-# A number from the evaluator's one-line JSON: the first "key": value.
+# A number from the evaluator's one-line JSON: the first "key": value. Not common.sh's num: a nan
+# is left empty here, which fmt and fmt2 print as n/a in the table.
 num() { sed -n "s/.*\"$2\": \([-0-9.eE+]*\).*/\1/p" "$OUT/json/$1.json" | head -1; }
 fmt() { [ -n "$1" ] && printf '%.3f' "$1" || printf 'n/a'; }
 fmt2() { [ -n "$1" ] && printf '%.2f' "$1" || printf 'n/a'; }
