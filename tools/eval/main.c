@@ -97,6 +97,7 @@ static void usage(FILE *f)
         "                     markers' map at the same points; the time per frame (one thread);\n"
         "                     the geometric error over the hull of the markers' map and of the\n"
         "                     same method fitted to the markers and the accepted landmarks\n"
+        "                     (each map as the warp makes it: the displacement interpolated)\n"
         "  --landmarks-points OUT.csv\n"
         "                     also writes P.csv's rows (2D columns) with the landmarks' (ids from\n"
         "                     1000000: all of them in frame N at their reference positions, in\n"

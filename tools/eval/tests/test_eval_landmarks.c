@@ -35,29 +35,37 @@ static double json_num(const char *json, const char *key)
     return v;
 }
 
-/* --landmarks-points: the markers' rows as they were (2D columns), every landmark in frame 0 and
- * the accepted ones after it; a TPS warp through that file has, on the same 8 px lattice, the
+/* --landmarks-points (written to dir/lm, by the evaluator whose JSON is json, with --method
+ * method): the markers' rows as they were (2D columns), every landmark in frame 0 and the accepted
+ * ones after it; a warp of that method through that file has, on the same 8 px lattice, the
  * geometric error the evaluator measured for the map through the markers and the accepted
- * landmarks (the warp's also counts frame 0, whose map is the identity, error 0: scaled by
- * frames / (frames - 1); the warp's grid adds at most its 0.05 px bound at a point). */
-static void landmark_points_reproduce_the_map(const char *dir, const char *json)
+ * landmarks, and a warp through the markers alone the error of its markers' map (the warp's also
+ * counts frame 0, whose map is the identity, error 0: scaled by frames / (frames - 1); the warp's
+ * grid adds at most its 0.05 px bound at a point). The warp interpolates the displacement; so
+ * must the evaluator, or B-splines' map through the positions sags between the markers. */
+static void landmark_points_reproduce_the_map(const char *dir, const char *json, const char *method, const char *lm)
 {
-    if (test_run("cd '%s' && awk -F, 'NR == 1 || $2 < 1000000' lm.csv > m.csv && cut -d, -f1-4 points.csv | cmp - m.csv", dir) != 0)
+    if (test_run("cd '%s' && awk -F, 'NR == 1 || $2 < 1000000' %s > m.csv && cut -d, -f1-4 points.csv | cmp - m.csv",
+                 dir, lm) != 0)
         fail_msg("marker rows changed: %s", test_out);
     if (test_run("awk -F, 'NR > 1 && $2 >= 1000000 { n++ } NR > 1 && $2 >= 1000000 && $1 == 0 { z++ } "
-                 "END { print z, n - z }' '%s/lm.csv'", dir) != 0)
+                 "END { print z, n - z }' '%s/%s'", dir, lm) != 0)
         fail_msg("%s", test_out);
     int frame0 = -1, later = -1;
     assert_int_equal(sscanf(test_out, "%d %d", &frame0, &later), 2);
     assert_int_equal(frame0, (int)json_num(json, "seeded"));
     assert_int_equal(later, (int)json_num(json, "accepted"));
-    if (test_run("cd '%s' && '%s' warp --quiet --method tps --points lm.csv cam0.y4m stab.y4m && '%s' --quiet --json "
-                 "--truth . --geo-stride 8 --points lm.csv stab.y4m", dir, APP_BIN, EVAL_BIN) != 0)
-        fail_msg("%s\n%s", test_cmd, test_out);
-    double warp = json_num(test_out, "mean") * FRAMES / (FRAMES - 1), eval = json_num(json, "landmarks_mean");
-    print_message("  TPS through the written rows: %.4f px; the evaluator's map with the landmarks: %.4f px\n", warp,
-                  eval);
-    assert_true(fabs(warp - eval) < 0.01);
+    const char *files[2] = {lm, "points.csv"}, *keys[2] = {"landmarks_mean", "markers_mean"};
+    for (int k = 0; k < 2; k++) {
+        if (test_run("cd '%s' && '%s' warp --quiet --method %s --points %s cam0.y4m stab.y4m && '%s' --quiet --json "
+                     "--truth . --geo-stride 8 --points %s stab.y4m", dir, APP_BIN, method, files[k], EVAL_BIN,
+                     files[k]) != 0)
+            fail_msg("%s\n%s", test_cmd, test_out);
+        double warp = json_num(test_out, "mean") * FRAMES / (FRAMES - 1), eval = json_num(json, keys[k]);
+        print_message("  %s through %s: %.4f px; the evaluator's map (%s): %.4f px\n", method, files[k], warp, keys[k],
+                      eval);
+        assert_true(fabs(warp - eval) < 0.01);
+    }
     test_run("rm -f '%s/stab.y4m'", dir);
 }
 
@@ -143,7 +151,16 @@ static void test_occlusions_cost_landmarks_never_wrong_ones(void **state)
     assert_true(lit > 0);
     assert_true(lit_accepted < lit);
     assert_int_equal((int)json_num(test_out, "over_1px_highlight"), 0);
-    landmark_points_reproduce_the_map(dir, json);
+    landmark_points_reproduce_the_map(dir, json, "tps", "lm.csv");
+    /* the same with B-splines, which do not reproduce affine maps (the landmarks predicted through
+     * the B-splines' map too) */
+    if (test_run("'%s' --quiet --json --truth '%s' --points '%s/points.csv' --landmarks 100 --method bspline "
+                 "--landmarks-points '%s/lm_bs.csv' '%s/cam0.y4m'", EVAL_BIN, dir, dir, dir, dir) != 0)
+        fail_msg("%s\n%s", test_cmd, test_out);
+    static char json_bs[TEST_OUT_MAX];
+    memcpy(json_bs, test_out, sizeof json_bs);
+    assert_true(json_num(json_bs, "accepted") > 0.5 * json_num(json, "accepted"));
+    landmark_points_reproduce_the_map(dir, json_bs, "bspline", "lm_bs.csv");
     /* --lm-reduce 0 is what the automatic choice gives a 960x540 frame (round(log2(sqrt(960 540) /
      * 1440)) = -1, none below 0): the same landmarks, verdicts and errors */
     if (test_run("'%s' --quiet --json --truth '%s' --points '%s/points.csv' --landmarks 100 --lm-reduce 0 "
