@@ -78,6 +78,7 @@ typedef struct {
     int landmarks;                   /* natural landmarks of the tissue besides the markers (0: none) */
     int landmarks_sparse;            /* their tests for sparse markers (sh_landmarks_params_sparse) */
     int landmarks_affine;            /* their forward search through the map's local affine (.affine) */
+    int landmarks_refine;            /* frames whose matches refine the reference's windows (.refine) */
     double landmarks_smoothing;      /* their own smoothing in the map (SH_LANDMARK_SMOOTHING) */
     /* [method] */
     char method_name[32];            /* sh_config_method: the interpolation parameters of these four */

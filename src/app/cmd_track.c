@@ -61,6 +61,12 @@ static void usage(FILE *out)
         "                     warped by the markers' map's local affine at each landmark (the\n"
         "                     default since 2026-12-06, with a third as many landmarks over 1 px\n"
         "                     off where the tissue deforms: docs/landmarks.md)\n"
+        "  --landmarks-refine K\n"
+        "                     with --landmarks, the reference's windows averaged with the\n"
+        "                     landmarks' matches in the first K frames after it (default 16; 0:\n"
+        "                     the reference frame's own): half as many landmarks over 1 px off\n"
+        "                     on the phantom; those K frames cost 0.7-1 ms more each at 1080p\n"
+        "                     (docs/landmarks.md, \"The reference refined\")\n"
         "  --landmarks-carry  with --landmarks (2D): a frame with 2 of frame 0's markers, too few\n"
         "                     for their map, after a frame whose landmarks were written (frames\n"
         "                     with fewer than 2 detected between them, where nothing is searched):\n"
@@ -137,6 +143,7 @@ typedef struct {
     int landmarks_sparse; /* --landmarks-sparse */
     int landmarks_square; /* --landmarks-square */
     int landmarks_carry; /* --landmarks-carry */
+    int landmarks_refine, refine_given; /* --landmarks-refine K (sh_landmarks_params_default's without) */
 } track_options;
 
 /* Fills o from argv: APP_GO_ON, or the exit code (usage and refusals printed). */
@@ -150,9 +157,13 @@ static int parse_options(int argc, char **argv, track_options *o)
         {"stats", no_argument, 0, 'S'},         {"json", no_argument, 0, 'j'},
         {"landmarks", required_argument, 0, 'L'}, {"landmarks-sparse", no_argument, 0, 'P'},
         {"landmarks-square", no_argument, 0, 'A'}, {"landmarks-carry", no_argument, 0, 'K'},
+        {"landmarks-refine", required_argument, 0, 'F'},
         SH_CLI_OPTIONS,                         {0, 0, 0, 0}};
     memset(o, 0, sizeof *o);
     sh_track_options_default(&o->topts);
+    sh_landmarks_params lp;
+    sh_landmarks_params_default(&lp);
+    o->landmarks_refine = lp.refine;
     optind = 1;
     opterr = 0;
     int ch;
@@ -180,6 +191,10 @@ static int parse_options(int argc, char **argv, track_options *o)
         case 'P': o->landmarks_sparse = 1; break;
         case 'A': o->landmarks_square = 1; break;
         case 'K': o->landmarks_carry = 1; break;
+        case 'F':
+            if (!sh_cli_parse_int("--landmarks-refine", optarg, 0, 1000, &o->landmarks_refine)) return 2;
+            o->refine_given = 1;
+            break;
         case 'h': usage(stdout); return 0;
         default: { int rc = sh_cli_option(&cli, ch, argv); if (rc >= 0) return rc; } break;
         }
@@ -191,6 +206,7 @@ static int parse_options(int argc, char **argv, track_options *o)
     for (int c = 0; c < o->ncam; c++) o->in[c] = argv[optind + c];
     if (o->landmarks_sparse && !o->landmarks) return sh_cli_usage_error(&cli, "--landmarks-sparse goes with --landmarks");
     if (o->landmarks_square && !o->landmarks) return sh_cli_usage_error(&cli, "--landmarks-square goes with --landmarks");
+    if (o->refine_given && !o->landmarks) return sh_cli_usage_error(&cli, "--landmarks-refine goes with --landmarks");
     if (o->landmarks_carry && !o->landmarks) return sh_cli_usage_error(&cli, "--landmarks-carry goes with --landmarks");
     if (o->landmarks_carry && o->calib_path)
         return sh_cli_usage_error(&cli, "--landmarks-carry is 2D: in 3D each landmark needs the markers' map into "
@@ -373,7 +389,7 @@ static int write_rows(const track_job *job, track_pass *p, int f, FILE *out)
         int full = sh_y4m_header_full_range(sh_y4m_reader_header(p->rd[0]));
         track_landmarks_options lo = {job->o->landmarks, job->o->landmarks_sparse, !job->o->landmarks_square,
                                       job->o->landmarks_carry, job->o->ncam, full,
-                                      job->have_calib ? &job->calib : NULL};
+                                      job->have_calib ? &job->calib : NULL, job->o->landmarks_refine};
         return track_landmarks_start(&lo, p->img, dets[0], p->ndet0, rows, nr, out, &p->lm);
     }
     return p->lm && track_landmarks_frame(p->lm, p->img, f, rows, nr, p->measured, p->nmeasured, out);

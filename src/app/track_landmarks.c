@@ -266,6 +266,7 @@ int track_landmarks_start(const track_landmarks_options *o, const sh_image *fram
         sh_landmarks_params_default(&p);
     if (!o->sparse && tl->ncam > 1) sh_landmarks_params_make_rig(&p);
     p.affine = o->affine;
+    p.refine = o->refine;
     p.max_points = o->n;
     p.highlight = sh_landmarks_highlight_level(frames[0].format, o->full_range);
     int rc = 0;

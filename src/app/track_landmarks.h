@@ -30,6 +30,7 @@ typedef struct {
     int ncam;              /* videos; with calib and ncam > 1, landmarks in 3D */
     int full_range;        /* the videos' samples are full range (sh_landmarks_highlight_level) */
     const sh_calib *calib; /* NULL: 2D (camera 0 alone) */
+    int refine;            /* --landmarks-refine (sh_landmarks_params.refine) */
 } track_landmarks_options;
 
 typedef struct {

@@ -71,6 +71,8 @@ static const keydef keys[] = {
      "landmarks for markers too sparse for their map (four at the corners): the disagreement bound follows the map's measured error"},
     {"track", "landmarks_affine", "landmarks-affine", K_BOOL, PROC, F(landmarks_affine), 0, 0, 1,
      "landmarks searched through the markers' map's local affine: a third as many over 1 px off where the tissue deforms as with square windows (0)"},
+    {"track", "landmarks_refine", "landmarks-refine", K_INT, PROC, F(landmarks_refine), 0, 0, 1000,
+     "the reference's windows averaged with the landmarks' matches in the first N frames after it (0: the reference frame's own): half as many over 1 px off"},
     {"track", "landmarks_smoothing", "landmarks-smoothing", K_DOUBLE, PROC, F(landmarks_smoothing), 0, 0, 1e9,
      "the landmarks' own smoothing in a tps map (the RBFs), the markers exact (0: interpolated too); at 1080p, 4 times it at 4K"},
     {"method", "name", "method", K_METHOD, PROC, F(method_name), S(method_name), 0, 0, "affine pwlinear bspline rbf-local[-pure] tps[-pure] gaussian[-pure]"},
@@ -142,7 +144,10 @@ void sh_config_default(sh_config *cfg)
     cfg->levels = 0;
     cfg->smoothing = 0;
     cfg->landmarks_smoothing = SH_LANDMARK_SMOOTHING;
-    cfg->landmarks_affine = 1; /* sh_landmarks_params_default's, since 2026-12-06 */
+    sh_landmarks_params lp; /* the landmarks' own defaults */
+    sh_landmarks_params_default(&lp);
+    cfg->landmarks_affine = lp.affine;
+    cfg->landmarks_refine = lp.refine;
     cfg->grid = 0;
     cfg->view = SH_VIEW_REFERENCE;
     cfg->baseline = SH_CONFIG_BASELINE_DEFAULT;
@@ -436,6 +441,11 @@ static sh_status check_method(const sh_config *cfg, char *err)
         return refuse(cfg, "track", "landmarks_smoothing", err, "%g, but %s interpolates the landmarks (a tps map in 2D "
                       "approximates them)", cfg->landmarks_smoothing, cfg->calibration[0] ? "3D" : cfg->method_name);
     /* carried frames rest on the landmarks found in 2D (landmarks.h, "Carried frames") */
+    sh_landmarks_params lp;
+    sh_landmarks_params_default(&lp);
+    if (cfg->landmarks_refine != lp.refine && !cfg->landmarks)
+        return refuse(cfg, "track", "landmarks_refine", err, "%d, but there are no landmarks ([track] landmarks = 0)",
+                      cfg->landmarks_refine);
     if (cfg->landmarks_carry && !cfg->landmarks)
         return refuse(cfg, "gating", "landmarks_carry", err, "yes, but there are no landmarks ([track] landmarks = 0)");
     if (cfg->landmarks_carry && cfg->calibration[0])

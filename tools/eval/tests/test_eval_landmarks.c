@@ -287,6 +287,11 @@ static void test_track_landmarks_through_the_warp(void **state)
                      k ? "landmarks.csv" : "markers.csv", k) != 0)
             fail_msg("%s\n%s", test_cmd, test_out);
     assert_int_equal(test_run("cd '%s' && cmp gauss_0.y4m gauss_1.y4m", dir), 0);
+    /* --landmarks-refine: with --landmarks only, 0 to 1000 frames */
+    assert_int_equal(test_run("cd '%s' && '%s' track --landmarks-refine 0 cam0.y4m", dir, APP_BIN), 2);
+    assert_non_null(strstr(test_out, "--landmarks-refine goes with --landmarks"));
+    assert_int_equal(test_run("cd '%s' && '%s' track --landmarks 10 --landmarks-refine 1001 cam0.y4m", dir, APP_BIN), 2);
+    assert_non_null(strstr(test_out, "--landmarks-refine"));
     /* two markers make no hull: the markers are written, no landmark, and it is said */
     assert_int_equal(test_run("cd '%s' && { '%s' track --ids 0,1 --landmarks 10 cam0.y4m 2>&1 >two.csv; }", dir, APP_BIN), 0);
     assert_non_null(strstr(test_out, "frame 0 has 2 markers"));
@@ -573,6 +578,10 @@ static void test_daemon_landmarks(void **state)
         assert_int_equal(test_run("cd '%s' && cp landmarks.csv affine.csv", dir), 0);
         daemon_against_track(dir, "--landmarks-square", "--landmarks-affine 0");
         /* the option changes the landmarks found (the markers' rows are the same) */
+        assert_int_not_equal(test_run("cd '%s' && cmp -s landmarks.csv affine.csv", dir), 0);
+        /* the reference's own windows, not refined over the first frames ([track] landmarks_refine,
+         * track --landmarks-refine): the same landmarks in both, not the defaults' */
+        daemon_against_track(dir, "--landmarks-refine 0", "--landmarks-refine 0");
         assert_int_not_equal(test_run("cd '%s' && cmp -s landmarks.csv affine.csv", dir), 0);
     }
     /* B-splines follow a changing set too (their fit through the used points on the model's
