@@ -440,12 +440,13 @@ static sh_status check_method(const sh_config *cfg, char *err)
         (!sh_interp_method_smooths(method.method) || cfg->calibration[0]))
         return refuse(cfg, "track", "landmarks_smoothing", err, "%g, but %s interpolates the landmarks (a tps map in 2D "
                       "approximates them)", cfg->landmarks_smoothing, cfg->calibration[0] ? "3D" : cfg->method_name);
-    /* carried frames rest on the landmarks found in 2D (landmarks.h, "Carried frames") */
+    /* the refinement of the landmarks' reference, changed where there are none, is refused too */
     sh_landmarks_params lp;
     sh_landmarks_params_default(&lp);
     if (cfg->landmarks_refine != lp.refine && !cfg->landmarks)
         return refuse(cfg, "track", "landmarks_refine", err, "%d, but there are no landmarks ([track] landmarks = 0)",
                       cfg->landmarks_refine);
+    /* carried frames rest on the landmarks found in 2D (landmarks.h, "Carried frames") */
     if (cfg->landmarks_carry && !cfg->landmarks)
         return refuse(cfg, "gating", "landmarks_carry", err, "yes, but there are no landmarks ([track] landmarks = 0)");
     if (cfg->landmarks_carry && cfg->calibration[0])

@@ -35,13 +35,13 @@ static double json_num(const char *json, const char *key)
     return v;
 }
 
-/* --landmarks-points (written to dir/lm, by the evaluator whose JSON is json, with --method
- * method): the markers' rows as they were (2D columns), every landmark in frame 0 and the accepted
- * ones after it; a warp of that method through that file has, on the same 8 px lattice, the
- * geometric error the evaluator measured for the map through the markers and the accepted
- * landmarks, and a warp through the markers alone the error of its markers' map (the warp's also
- * counts frame 0, whose map is the identity, error 0: scaled by frames / (frames - 1); the warp's
- * grid adds at most its 0.05 px bound at a point). The warp interpolates the displacement; so
+/* --landmarks-points (the file lm in dir, written by the evaluator whose JSON is json, with
+ * --method method): the markers' rows as they were (2D columns), every landmark in frame 0 and
+ * the accepted ones after it; a warp of that method through that file has, on the same 8 px
+ * lattice, the geometric error the evaluator measured for the map through the markers and the
+ * accepted landmarks, and a warp through the markers alone the error of its markers' map (the
+ * warp's also counts frame 0, whose map is the identity, error 0: scaled by frames / (frames -
+ * 1); the warp's grid adds at most its 0.05 px bound at a point). The warp interpolates the displacement; so
  * must the evaluator, or B-splines' map through the positions sags between the markers. */
 static void landmark_points_reproduce_the_map(const char *dir, const char *json, const char *method, const char *lm)
 {
