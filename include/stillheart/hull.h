@@ -30,6 +30,11 @@ int sh_hull_row(const sh_hull *hull, double y, double *x0, double *x1);
 /* Whether (x, y) lies inside or on the hull (within 1e-9 px). */
 int sh_hull_contains(const sh_hull *hull, double x, double y);
 
+/* The x that sh_hull_contains accepts on the line at y: [*lo, *hi] (its tolerance included), so
+ * that sh_hull_contains(hull, x, y) is exactly *lo <= x && x <= *hi; 0 when it accepts none. One
+ * call a row instead of one a point, where a whole plane is tested. */
+int sh_hull_row_accepts(const sh_hull *hull, double y, double *lo, double *hi);
+
 /* Integer pixel range [*first, *last] of the row of a plane whose pixel (px, py) sits at
  * (scale * px + offset_x, scale * py + offset_y) in hull coordinates, clipped to [0, width).
  * Returns 0 when the row holds no hull pixel. */

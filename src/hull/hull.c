@@ -129,6 +129,15 @@ int sh_hull_contains(const sh_hull *hull, double x, double y)
     return sh_hull_row(hull, y, &x0, &x1) && x >= x0 - HULL_EPS && x <= x1 + HULL_EPS;
 }
 
+int sh_hull_row_accepts(const sh_hull *hull, double y, double *lo, double *hi)
+{
+    double x0, x1;
+    if (!sh_hull_row(hull, y, &x0, &x1)) return 0;
+    *lo = x0 - HULL_EPS;
+    *hi = x1 + HULL_EPS;
+    return 1;
+}
+
 int sh_hull_plane_row(const sh_hull *hull, int py, int width, double scale, double offset_x,
                       double offset_y, int *first, int *last)
 {

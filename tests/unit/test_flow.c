@@ -619,6 +619,49 @@ static void test_corners_of_a_checkerboard(void **state)
     sh_image_destroy(&mask);
 }
 
+/* The landmarks look for corners in the box of their mask grown by 2 + block / 2 px alone
+ * (src/landmarks, mask_box): on a textured frame with a disc-shaped mask, the corners of that box
+ * (a view with the frame's stride), moved by its origin, are those of the whole frame, in the
+ * same order; with blocks of 3 and 5. */
+static void test_corners_in_the_masks_box(void **state)
+{
+    (void)state;
+    const int w = 320, h = 240;
+    sh_image img, mask;
+    assert_int_equal(sh_image_create(&img, SH_PIX_GRAY8, w, h), SH_OK);
+    assert_int_equal(sh_image_create(&mask, SH_PIX_GRAY8, w, h), SH_OK);
+    for (int y = 0; y < h; y++)
+        for (int x = 0; x < w; x++) {
+            double v = synth_texture(x, y, 0);
+            img.plane[0].data[(size_t)y * img.plane[0].stride + x] = (uint8_t)(v < 0 ? 0 : v > 255 ? 255 : v);
+            mask.plane[0].data[(size_t)y * mask.plane[0].stride + x] = hypot(x - 170.0, y - 110.0) < 70;
+        }
+    for (int block = 3; block <= 5; block += 2) {
+        sh_flow_corner_params cp;
+        sh_flow_corner_params_default(&cp);
+        cp.max_points = 300;
+        cp.min_distance = 6;
+        cp.block = block;
+        float whole[600], part[600];
+        int n, m;
+        assert_int_equal(sh_flow_corners(&img.plane[0], &mask.plane[0], &cp, whole, &n), SH_OK);
+        const int g = 2 + block / 2, x0 = 101 - g, y0 = 41 - g, x1 = 240 + g, y1 = 180 + g;
+        const sh_plane ip = {img.plane[0].data + (size_t)y0 * img.plane[0].stride + x0, x1 - x0, y1 - y0,
+                             img.plane[0].stride};
+        const sh_plane mp = {mask.plane[0].data + (size_t)y0 * mask.plane[0].stride + x0, x1 - x0, y1 - y0,
+                             mask.plane[0].stride};
+        assert_int_equal(sh_flow_corners(&ip, &mp, &cp, part, &m), SH_OK);
+        assert_true(n > 50);
+        assert_int_equal(m, n);
+        for (int i = 0; i < n; i++) {
+            assert_float_equal(part[2 * i] + x0, whole[2 * i], 0);
+            assert_float_equal(part[2 * i + 1] + y0, whole[2 * i + 1], 0);
+        }
+    }
+    sh_image_destroy(&img);
+    sh_image_destroy(&mask);
+}
+
 /* sh_flow_window_difference against closed forms: a frame and the same texture moved by a whole
  * number of pixels differ by nothing where the windows follow the move (the same samples, the
  * same weights), a frame and itself plus 10 grey levels by exactly 10, and windows that cannot
@@ -783,6 +826,7 @@ int main(void)
         cmocka_unit_test(test_windows_same_as_track),
         cmocka_unit_test(test_warped_window_follows_an_affine),
         cmocka_unit_test(test_corners_of_a_checkerboard),
+        cmocka_unit_test(test_corners_in_the_masks_box),
         cmocka_unit_test(test_window_difference),
         cmocka_unit_test(test_window_correlation),
         cmocka_unit_test(test_refusals),

@@ -75,10 +75,39 @@ static void test_hull_definition(void **state)
     assert_int_equal(sh_hull_compute(bad, 3, &h), SH_EINVAL);
 }
 
+/* A row's accepted span against the triangle (0, 0), (30, 0), (0, 60), whose right edge is
+ * x = 30 - y / 2: [0, 30 - y / 2] within the tolerance, none above or below it; and sh_hull_contains
+ * decides as the span does, points on the edges included, over a grid and at random. */
+static void test_row_accepts(void **state)
+{
+    (void)state;
+    double tri[] = {0, 0, 30, 0, 0, 60};
+    sh_hull h;
+    assert_int_equal(sh_hull_compute(tri, 3, &h), SH_OK);
+    double lo, hi;
+    for (double y = 0; y <= 60; y += 0.25) {
+        assert_true(sh_hull_row_accepts(&h, y, &lo, &hi));
+        assert_float_equal(lo, 0, 1e-8);
+        assert_float_equal(hi, 30 - y / 2, 1e-8);
+        assert_true(lo < 0 && hi > 30 - y / 2 - 1e-12); /* the tolerance widens, never narrows */
+    }
+    assert_false(sh_hull_row_accepts(&h, -0.001, &lo, &hi));
+    assert_false(sh_hull_row_accepts(&h, 60.001, &lo, &hi));
+    for (int i = 0; i < 20000; i++) {
+        double x = i < 10000 ? (i % 100) * 0.5 - 10 : uniform(-10, 40);
+        double y = i < 10000 ? (i / 100) * 0.75 - 5 : uniform(-5, 65);
+        int in = sh_hull_row_accepts(&h, y, &lo, &hi) && lo <= x && x <= hi;
+        assert_int_equal(in, sh_hull_contains(&h, x, y));
+        if (fabs(x - (30 - y / 2)) > 1e-6 && fabs(x) > 1e-6 && fabs(y) > 1e-6)
+            assert_int_equal(in, x >= 0 && y >= 0 && x <= 30 - y / 2);
+    }
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_hull_definition),
+        cmocka_unit_test(test_row_accepts),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

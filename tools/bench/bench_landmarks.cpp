@@ -28,6 +28,11 @@
 // every frame's positions' bits and verdicts, first pass) says whether a change of the code
 // changed a result. The reference is refined (sh_landmarks_params.refine) in the first pass's
 // first 16 frames: their time is also printed apart, the medians are of every frame.
+// Once per reference, choosing them (sh_landmarks_create: the mask of the hull, the tags and the
+// highlights, the band-pass, Shi-Tomasi corners, the reference's pyramid and windows and the
+// refinement's sums) beside OpenCV's band-pass, cv::goodFeaturesToTrack in the hull and
+// cv::buildOpticalFlowPyramid with gradients: medians of CHOICES runs; the frames the daemon shows
+// raw while a new reference is built (docs/landmarks.md).
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 #include <opencv2/video/tracking.hpp>
@@ -53,7 +58,7 @@ extern "C" {
 #include "stillheart/y4m.h"
 }
 
-static const int FRAMES = 40, PASSES = 3, POINTS = 200;
+static const int FRAMES = 40, PASSES = 3, POINTS = 200, CHOICES = 7;
 static const double MIN_DIST = 14;
 
 struct Marker {
@@ -285,6 +290,30 @@ int main(int argc, char **argv)
         gain = std::min(16.0, std::max(1.0, 100.0 / (std::floor(v[v.size() * 99 / 100]) + 1)));
         cv_band(frames[0], fine, coarse, cv_band_ref, lp.band, gain);
     }
+    // choosing the landmarks, once per reference (the header's last paragraph)
+    std::vector<double> choose_ours, choose_cv;
+    cv::Mat hull_mask = cv::Mat::zeros(H, W, CV_8UC1);
+    {
+        std::vector<cv::Point> poly;
+        for (int i = 0; i < hull.count; i++) poly.emplace_back((int)std::lrint(hull.x[i]), (int)std::lrint(hull.y[i]));
+        cv::fillConvexPoly(hull_mask, poly, cv::Scalar(255));
+    }
+    for (int k = 0; k < CHOICES; k++) {
+        sh_landmarks *again = nullptr;
+        double a = bench_now_ms();
+        bench_check("bench_landmarks",
+                    sh_landmarks_create(&lp, &ref, &hull, quads.data(), (int)quads.size() / 8, &again), "landmarks");
+        choose_ours.push_back(bench_now_ms() - a);
+        sh_landmarks_destroy(again);
+        cv::Mat f, c, b;
+        std::vector<cv::Point2f> pts;
+        std::vector<cv::Mat> pyr;
+        a = bench_now_ms();
+        cv_band(frames[0], f, c, b, lp.band, gain);
+        cv::goodFeaturesToTrack(b, pts, POINTS, lp.quality, MIN_DIST, hull_mask, 3, false);
+        cv::buildOpticalFlowPyramid(b, pyr, win, fp.levels, true);
+        choose_cv.push_back(bench_now_ms() - a);
+    }
     // the sparse tests search more levels (sh_landmarks_params_sparse): their own reference pyramid
     std::vector<cv::Mat> cv_ref_pyr, cv_ref_pyr4, cv_cur_pyr;
     cv::buildOpticalFlowPyramid(cv_band_ref, cv_ref_pyr, win, fp.levels, true);
@@ -447,6 +476,8 @@ int main(int argc, char **argv)
                         bench_median(during), *std::max_element(during.begin(), during.end()), bench_median(after));
     }
     std::printf("%-40s %9.3f ms\n", "the prediction (TPS on the tags)", bench_median(tm.predict));
+    const double co = bench_median(choose_ours), cc = bench_median(choose_cv);
+    std::printf("%-40s %9.3f ms %9.3f ms %8.2f\n", "choosing them, once per reference", co, cc, co / cc);
     std::printf("%-40s %9.3f ms %9.3f ms\n", "the slowest frame, with the backward test",
                 *std::max_element(tm.ours.begin(), tm.ours.end()), *std::max_element(tm.cv.begin(), tm.cv.end()));
     std::printf("accepted of %ld landmark-frames: %ld ours (%ld without the backward test, %ld with the defaults "
