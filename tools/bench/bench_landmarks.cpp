@@ -31,8 +31,8 @@
 // Once per reference, choosing them (sh_landmarks_create: the mask of the hull, the tags and the
 // highlights, the band-pass, Shi-Tomasi corners, the reference's pyramid and windows and the
 // refinement's sums) beside OpenCV's band-pass, cv::goodFeaturesToTrack in the hull and
-// cv::buildOpticalFlowPyramid with gradients: medians of CHOICES runs; the frames the daemon shows
-// raw while a new reference is built (docs/landmarks.md).
+// cv::buildOpticalFlowPyramid with gradients: medians of CHOICES runs. It is what keeps the
+// daemon's frames raw while a new reference is built (docs/landmarks.md, "Choosing them").
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 #include <opencv2/video/tracking.hpp>
