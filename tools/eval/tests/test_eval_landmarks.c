@@ -41,8 +41,9 @@ static double json_num(const char *json, const char *key)
  * lattice, the geometric error the evaluator measured for the map through the markers and the
  * accepted landmarks, and a warp through the markers alone the error of its markers' map (the
  * warp's also counts frame 0, whose map is the identity, error 0: scaled by frames / (frames -
- * 1); the warp's grid adds at most its 0.05 px bound at a point). The warp interpolates the displacement; so
- * must the evaluator, or B-splines' map through the positions sags between the markers. */
+ * 1); the warp's grid adds at most its 0.05 px bound at a point). The warp interpolates the
+ * displacement; so must the evaluator, or B-splines' map through the positions sags between the
+ * markers. */
 static void landmark_points_reproduce_the_map(const char *dir, const char *json, const char *method, const char *lm)
 {
     if (test_run("cd '%s' && awk -F, 'NR == 1 || $2 < 1000000' %s > m.csv && cut -d, -f1-4 points.csv | cmp - m.csv",
