@@ -45,7 +45,8 @@ struct run_model {
     sh_warp3d_grid *finer_grid; /* REFINE_READY, 3D: the view's finer grid */
 };
 
-typedef struct {
+typedef struct generation generation;
+struct generation {
     sh_point ref[SH_TRACK_MAX_MARKERS];
     int nref, frame;
     run_model *full; /* the full set's slot: the swap waits for it */
@@ -65,8 +66,15 @@ typedef struct {
     int nlm;
     sh_point *rows;
     int nrows;
-    char note[160];
-} generation;
+    char note[160]; /* why it has no landmarks, though asked (written under the lock) */
+    /* Live, with landmarks: a reference is first swapped in with its markers alone (its full set
+     * built before the choice), so its frames are stabilized while the landmarks are chosen; up
+     * is then the same reference with them, swapped in by run_models_poll once its full set's
+     * model is built. NULL in test mode (wait), whose references wait for their landmarks. */
+    generation *up;
+    int told; /* its note handed to the processing thread (run_models_poll) */
+    generation *trash_next;
+};
 
 struct run_models {
     sh_modelcache_recipe recipe; /* 2D, or 3D after run_models_set_3d (the camera's own view, or two eyes) */
@@ -76,7 +84,12 @@ struct run_models {
     pthread_t helper;
     int started, stop;
     generation *cur, *next; /* in use / being built */
-    generation *trash[4];   /* to free on the helper */
+    generation *prev;       /* cur before its landmarks came (its up): kept until the next
+                             * swap, as the processing thread's fallback model may be one of its */
+    char note[160];         /* the last note run_models_poll handed over */
+    /* to free on the helper, a list through their trash_next: never inline, as the helper may
+     * be choosing a discarded generation's landmarks from its frame outside the lock */
+    generation *trash;
     run_model *evicted[SLOTS * 2];
     int nevicted;
     int builds;
@@ -101,6 +114,7 @@ static void model_free(run_model *md)
 static void generation_free(generation *g)
 {
     if (!g) return;
+    generation_free(g->up);
     for (int i = 0; i < SLOTS; i++) model_free(&g->slot[i]);
     sh_landmarks_destroy(g->lm);
     sh_landmarks_rig_destroy(g->rig);
@@ -340,52 +354,74 @@ static sh_status choose_landmarks(const run_models *m, const generation *g, sh_l
     return st;
 }
 
-/* Under the lock, after choose_landmarks: g's rows (markers, then the landmarks: in 3D the ones
- * with a reference X, Y, Z) and its full-set slot, whose key holds them all. Without landmarks
- * (none found, or the choice failed: the note says why) the markers go on alone. */
+/* Under the lock, after choose_landmarks: the landmarks' rows (markers, then the landmarks: in 3D
+ * the ones with a reference X, Y, Z) and the full-set slot, whose key holds them all, of t: g
+ * itself, or, live where g is in use or about to be (its markers' full set built first), a new
+ * generation g->up (run_models_poll swaps it in), as the processing thread reads a generation in
+ * use without the lock. Without landmarks (none found, or the choice failed: g's note says why)
+ * the markers go on alone. */
 static void landmarks_chosen(run_models *m, generation *g, sh_landmarks *lm, sh_landmarks_rig *rig, sh_status st)
 {
     g->choosing = 0;
-    g->lm = lm;
-    g->rig = rig;
+    generation *t = g;
+    if (!m->wait && g->full && (g == m->cur || g == m->next)) {
+        if (!(t = calloc(1, sizeof *t))) {
+            snprintf(g->note, sizeof g->note, "landmarks: out of memory");
+            sh_landmarks_destroy(lm);
+            sh_landmarks_rig_destroy(rig);
+            pthread_cond_broadcast(&m->cv);
+            return;
+        }
+        memcpy(t->ref, g->ref, sizeof(sh_point) * (size_t)g->nref);
+        t->nref = g->nref;
+        t->frame = g->frame;
+    }
+    t->lm = lm;
+    t->rig = rig;
     const sh_landmarks *primary = rig ? sh_landmarks_rig_primary(rig) : lm;
     const uint8_t *in3d = rig ? sh_landmarks_rig_in_3d(rig) : NULL;
     const double *X = rig ? sh_landmarks_rig_reference_xyz(rig) : NULL;
     int chosen = st == SH_OK && primary ? sh_landmarks_count(primary) : 0;
-    g->nlm = 0;
-    for (int k = 0; k < chosen; k++) g->nlm += !in3d || in3d[k];
+    t->nlm = 0;
+    for (int k = 0; k < chosen; k++) t->nlm += !in3d || in3d[k];
     if (st != SH_OK)
         snprintf(g->note, sizeof g->note, "landmarks not chosen: %s", sh_error_message());
     else if (!chosen)
         snprintf(g->note, sizeof g->note, "no landmarks found inside the markers' hull (no corner textured enough)");
-    else if (!g->nlm)
+    else if (!t->nlm)
         snprintf(g->note, sizeof g->note, "none of the %d landmarks chosen was matched in another camera", chosen);
-    if (g->nlm && !(g->rows = malloc(sizeof(sh_point) * (size_t)(g->nref + g->nlm)))) {
+    if (t->nlm && !(t->rows = malloc(sizeof(sh_point) * (size_t)(t->nref + t->nlm)))) {
         snprintf(g->note, sizeof g->note, "landmarks: out of memory");
-        g->nlm = 0;
+        t->nlm = 0;
     }
-    if (!g->nlm) {
-        sh_landmarks_destroy(g->lm);
-        sh_landmarks_rig_destroy(g->rig);
-        g->lm = NULL;
-        g->rig = NULL;
+    if (!t->nlm) {
+        sh_landmarks_destroy(t->lm);
+        sh_landmarks_rig_destroy(t->rig);
+        t->lm = NULL;
+        t->rig = NULL;
+        if (t != g) { /* g goes on with its markers' slot */
+            free(t);
+            pthread_cond_broadcast(&m->cv);
+            return;
+        }
     }
     int ids[SH_TRACK_MAX_MARKERS + RUN_MAX_LANDMARKS];
-    for (int i = 0; i < g->nref; i++) ids[i] = g->ref[i].id;
-    if (g->nlm) {
-        memcpy(g->rows, g->ref, sizeof(sh_point) * (size_t)g->nref);
+    for (int i = 0; i < t->nref; i++) ids[i] = t->ref[i].id;
+    if (t->nlm) {
+        memcpy(t->rows, t->ref, sizeof(sh_point) * (size_t)t->nref);
         const float *at = sh_landmarks_reference(primary);
         for (int k = 0, j = 0; k < chosen; k++) {
             if (in3d && !in3d[k]) continue;
-            ids[g->nref + j] = SH_LANDMARK_ID_BASE + k;
-            g->rows[g->nref + j] = (sh_point){.frame = g->frame, .id = SH_LANDMARK_ID_BASE + k, .x = at[2 * k],
+            ids[t->nref + j] = SH_LANDMARK_ID_BASE + k;
+            t->rows[t->nref + j] = (sh_point){.frame = t->frame, .id = SH_LANDMARK_ID_BASE + k, .x = at[2 * k],
                                               .y = at[2 * k + 1], .X = X ? X[3 * k] : NAN, .Y = X ? X[3 * k + 1] : NAN,
                                               .Z = X ? X[3 * k + 2] : NAN};
             j++;
         }
-        g->nrows = g->nref + g->nlm;
+        t->nrows = t->nref + t->nlm;
     }
-    g->full = slot_for(m, g, ids, g->nref + g->nlm);
+    t->full = slot_for(m, t, ids, t->nref + t->nlm);
+    if (t != g) g->up = t;
     pthread_cond_broadcast(&m->cv);
 }
 
@@ -395,6 +431,15 @@ static run_model *find_building(generation *g)
     for (int i = 0; i < SLOTS; i++)
         if (g->slot[i].state == BUILDING && !g->slot[i].taken) return &g->slot[i];
     return NULL;
+}
+
+/* g's landmarks, to be chosen and not taken yet */
+static int to_choose(const generation *g) { return g && g->choosing && !g->choice_taken; }
+
+/* g is one the processing thread uses or may swap in (not one in the trash) */
+static int live_generation(const run_models *m, const generation *g)
+{
+    return g && (g == m->cur || g == m->next || (m->cur && g == m->cur->up) || (m->next && g == m->next->up));
 }
 
 static run_model *find_refine(generation *g)
@@ -446,9 +491,8 @@ static void *helper_main(void *arg)
         /* stopping: builds still queued are not started (run_models_destroy frees them and the
          * trash), so a stop waits for one build at most, not for the queue */
         if (m->stop) break;
-        generation *trash = NULL;
-        for (int i = 0; i < 4 && !trash; i++)
-            if (m->trash[i]) { trash = m->trash[i]; m->trash[i] = NULL; }
+        generation *trash = m->trash;
+        if (trash) m->trash = trash->trash_next;
         sh_warp_model *replaced = NULL;
         sh_warp3d_grid *replaced_grid = NULL;
         for (int i = 0; i < 4 && !trash && !replaced && !replaced_grid; i++) {
@@ -469,7 +513,12 @@ static void *helper_main(void *arg)
             free(m->evicted[m->nevicted]);
             have_evicted = 1;
         }
-        generation *choose = m->next && m->next->choosing && !m->next->choice_taken ? m->next : NULL;
+        /* the next reference's model first (live: its markers' alone, which ends the raw frames),
+         * then the landmarks of the next or the one in use, before the full set's model whose key
+         * holds them */
+        run_model *job = find_building(m->next);
+        generation *job_gen = job ? m->next : NULL;
+        generation *choose = job ? NULL : to_choose(m->next) ? m->next : to_choose(m->cur) ? m->cur : NULL;
         if (choose && !trash && !have_evicted) {
             /* the landmarks before the full set's model, whose key holds them */
             choose->choice_taken = 1;
@@ -483,9 +532,11 @@ static void *helper_main(void *arg)
             landmarks_chosen(m, choose, lm, rig, st);
             continue;
         }
-        /* the next reference first: the running one still works meanwhile */
-        run_model *job = find_building(m->next);
-        generation *job_gen = job ? m->next : NULL;
+        /* the next reference first, then the one in use with its landmarks: the running one
+         * still works meanwhile */
+        generation *ups[2] = {m->next ? m->next->up : NULL, m->cur ? m->cur->up : NULL};
+        for (int i = 0; i < 2 && !job; i++)
+            if ((job = find_building(ups[i]))) job_gen = ups[i];
         if (!job) { job = find_building(m->cur); job_gen = job ? m->cur : NULL; }
         /* then the finer grids of models in use (new models first: without one a set is not shown) */
         run_model *refine = !trash && !have_evicted && !job ? find_refine(m->cur) : NULL;
@@ -522,7 +573,7 @@ static void *helper_main(void *arg)
         pthread_mutex_unlock(&m->mu);
         st = model_build(m, &tmp);
         pthread_mutex_lock(&m->mu);
-        int still = (job_gen == m->cur || job_gen == m->next) && job->state == BUILDING && job->taken &&
+        int still = live_generation(m, job_gen) && job->state == BUILDING && job->taken &&
                     sh_modelcache_entry_is(&job->e, tmp.e.ids, tmp.e.n);
         if (still) {
             unsigned long lu = job->e.last_used;
@@ -581,9 +632,14 @@ void run_models_destroy(run_models *m)
     pthread_cond_broadcast(&m->cv);
     pthread_mutex_unlock(&m->mu);
     if (m->started) pthread_join(m->helper, NULL);
+    generation_free(m->prev);
     generation_free(m->cur);
     generation_free(m->next);
-    for (int i = 0; i < 4; i++) generation_free(m->trash[i]);
+    while (m->trash) {
+        generation *g = m->trash;
+        m->trash = g->trash_next;
+        generation_free(g);
+    }
     for (int i = 0; i < m->nevicted; i++) { model_free(m->evicted[i]); free(m->evicted[i]); }
     for (int i = 0; i < 4; i++) sh_warp_model_destroy(m->replaced[i]), sh_warp3d_grid_destroy(m->replaced_grid[i]);
     pthread_mutex_destroy(&m->mu);
@@ -591,13 +647,13 @@ void run_models_destroy(run_models *m)
     free(m);
 }
 
-/* Under the mutex: hands g to the helper to free (inline when the trash is full). */
+/* Under the mutex: hands g to the helper to free. */
 static void discard(run_models *m, generation *g)
 {
     if (!g) return;
-    for (int i = 0; i < 4; i++)
-        if (!m->trash[i]) { m->trash[i] = g; pthread_cond_broadcast(&m->cv); return; }
-    generation_free(g);
+    g->trash_next = m->trash;
+    m->trash = g;
+    pthread_cond_broadcast(&m->cv);
 }
 
 typedef struct {
@@ -702,7 +758,9 @@ sh_status run_models_set_reference(run_models *m, const sh_point *ref, int n, in
     pthread_mutex_lock(&m->mu);
     discard(m, m->next);
     m->next = g;
-    if (g->choosing) /* the helper chooses them, then asks for the full set */
+    /* test mode: the helper chooses the landmarks, then asks for the full set with them; live, the
+     * markers' full set is built first and the landmarks come after (generation.up) */
+    if (g->choosing && m->wait)
         pthread_cond_broadcast(&m->cv);
     else
         g->full = slot_for(m, g, ids, n);
@@ -724,25 +782,56 @@ sh_landmarks_rig *run_models_rig(run_models *m)
 
 const char *run_models_landmarks_note(const run_models *m)
 {
-    return m->cur ? m->cur->note : "";
+    return m->note;
 }
+
+/* g's full-set model built (or failed): nothing left to wait for */
+static int full_done(const generation *g) { return !g->full || g->full->state != BUILDING; }
 
 int run_models_poll(run_models *m, int *frame, int *n)
 {
     pthread_mutex_lock(&m->mu);
-    int swapped = 0;
-    /* the swap waits for the full-set model (slot 0 of a fresh generation) */
-    if (m->next && !m->next->choosing && (!m->next->full || m->next->full->state != BUILDING)) {
+    int ev = 0;
+    /* the swap waits for the full-set model (slot 0 of a fresh generation); in test mode for the
+     * landmarks too, whose full set it is */
+    generation *g = m->next;
+    if (g && (!g->choosing || g->full) && full_done(g)) {
+        discard(m, m->prev);
         discard(m, m->cur);
+        m->prev = NULL;
         m->pinned = NULL;
-        m->cur = m->next;
+        m->cur = g;
         m->next = NULL;
-        swapped = 1;
-        if (frame) *frame = m->cur->frame;
-        if (n) *n = m->cur->nref;
+        m->note[0] = 0;
+        ev |= RUN_MODELS_REFERENCE;
+        if (frame) *frame = g->frame;
+        if (n) *n = g->nref;
     }
+    g = m->cur;
+    if (g && g->up && full_done(g->up)) {
+        generation *u = g->up;
+        g->up = NULL;
+        if (u->full && u->full->state == FAILED) { /* the markers go on alone */
+            snprintf(g->note, sizeof g->note, "the model with its landmarks failed: %.120s", u->full->err);
+            discard(m, u);
+        } else { /* g is kept while the processing thread may hold one of its models */
+            discard(m, m->prev);
+            m->prev = g;
+            m->pinned = NULL;
+            m->cur = u;
+            ev |= RUN_MODELS_LANDMARKS;
+        }
+    }
+    g = m->cur;
+    if (g && !g->choosing && !g->up && g->note[0] && !g->told) {
+        g->told = 1;
+        snprintf(m->note, sizeof m->note, "%s", g->note);
+        ev |= RUN_MODELS_NO_LANDMARKS;
+    }
+    if (ev && !(ev & RUN_MODELS_REFERENCE) && frame) *frame = m->cur->frame;
+    if (ev && !(ev & RUN_MODELS_REFERENCE) && n) *n = m->cur->nref;
     pthread_mutex_unlock(&m->mu);
-    return swapped;
+    return ev;
 }
 
 int run_models_pending(run_models *m)

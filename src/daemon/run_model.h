@@ -33,7 +33,8 @@ sh_status run_models_set_3d(run_models *m, const sh_calib *calib, int camera, do
 void run_models_destroy(run_models *m);
 /* Natural landmarks (issue 19, landmarks.h; before the first reference, after run_models_set_3d):
  * with lp->max_points > 0 every new reference chooses up to that many landmarks in its frame (on
- * the helper thread, before its full-set model is built: a corner search takes tens of ms; in 3D
+ * the helper thread, after its markers' full-set model live, before it in test mode: a corner
+ * search takes tens of ms; run_models_poll says when they come; in 3D
  * chosen in the output camera's frame, matched in the others' and triangulated:
  * sh_landmarks_rig), and every model of that reference holds them after its markers, ids
  * SH_LANDMARK_ID_BASE + k (in 3D only the k triangulated in the reference), so that a frame uses
@@ -53,10 +54,19 @@ sh_status run_models_set_reference(run_models *m, const sh_point *ref, int n, in
 sh_landmarks *run_models_landmarks(run_models *m);
 /* The same in 3D: the rig's (its landmark k is id SH_LANDMARK_ID_BASE + k of the models). */
 sh_landmarks_rig *run_models_rig(run_models *m);
-/* Why the reference in use has no landmarks though they were asked for ("" otherwise). */
+/* Why the reference in use has no landmarks though they were asked for: the note that came with
+ * run_models_poll's RUN_MODELS_NO_LANDMARKS ("" otherwise). */
 const char *run_models_landmarks_note(const run_models *m);
-/* Swaps in a new reference once its full-set model is built: returns 1 (and its frame and
- * marker count) when it did, 0 otherwise. */
+/* What run_models_poll swapped in (bits). Live, with landmarks, a new reference comes first with
+ * its markers alone (REFERENCE: run_models_landmarks NULL), so that its frames are stabilized while
+ * its landmarks are chosen on the helper (tens of ms at 1080p), and then again with them
+ * (LANDMARKS: the same reference, frame and markers), or NO_LANDMARKS when none could be had. In
+ * test mode a reference comes with its landmarks (REFERENCE alone, or with NO_LANDMARKS). A model
+ * run_models_get gave before a LANDMARKS swap stays valid until the next REFERENCE. */
+enum { RUN_MODELS_REFERENCE = 1, RUN_MODELS_LANDMARKS = 2, RUN_MODELS_NO_LANDMARKS = 4 };
+/* Swaps in a new reference once its full-set model is built, or the landmarks of the one in use
+ * once theirs is: the RUN_MODELS_* bits of what it did (and the reference's frame and marker
+ * count), 0 when nothing. */
 int run_models_poll(run_models *m, int *frame, int *n);
 /* 1 while a new reference is being built (the old one is still in use). */
 int run_models_pending(run_models *m);

@@ -529,12 +529,17 @@ static int reference_ready(run_proc *p, const sh_image *img, const sh_image *con
 {
     if (camera_motion(p, index, info) || calibration_off(p, index, info)) return 0;
     take_reference(p, img, cams, index, nm);
-    int ref_frame, ref_n;
-    if (run_models_poll(p->models, &ref_frame, &ref_n)) {
+    int ref_frame, ref_n, ev = run_models_poll(p->models, &ref_frame, &ref_n);
+    if (ev & RUN_MODELS_REFERENCE) {
         p->last = NULL; /* it belonged to the old reference, now freed */
-        p->lm_last = -1; /* and the landmarks found last were the old reference's */
         p->await_ref = 0;
         p->lm_ref_frame = ref_frame;
+    }
+    if (ev) {
+        /* the landmarks found last were the old reference's (or none: its markers alone); the
+         * last model stays across a LANDMARKS swap (run_model.h), a fallback while the frame's
+         * set with the landmarks is built */
+        p->lm_last = -1;
         sh_landmarks *lm = run_models_landmarks(p->models);
         sh_landmarks_rig *rig = run_models_rig(p->models);
         if (lm) {
@@ -545,8 +550,11 @@ static int reference_ready(run_proc *p, const sh_image *img, const sh_image *con
             sh_log_info("reference: frame %d, %d markers, %d landmarks (of %d chosen in camera %d, the ones matched "
                         "in another camera and triangulated)", ref_frame, ref_n, in3d, chosen, p->out_cam);
         }
-        else if (p->lm_cap)
+        else if (ev & RUN_MODELS_NO_LANDMARKS)
             sh_log_warn("reference: frame %d, %d markers; %s", ref_frame, ref_n, run_models_landmarks_note(p->models));
+        else if (p->lm_cap)
+            sh_log_info("reference: frame %d, %d markers; its landmarks are being chosen (its markers alone "
+                        "until then)", ref_frame, ref_n);
         else
             sh_log_info("reference: frame %d, %d markers", ref_frame, ref_n);
     }

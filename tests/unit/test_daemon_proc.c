@@ -1,6 +1,7 @@
 /* The daemon's processing pieces (src/daemon/run_model.c, run_track.c): the residual against its
  * closed form, the dropout / staleness rule of the selection, and the helper-thread models (a new
- * reference is swapped in only once built; the old one stays in use meanwhile). */
+ * reference is swapped in only once built; the old one stays in use meanwhile; live, its landmarks
+ * come after its markers). */
 #include <math.h>
 #include <stdlib.h>
 #include <setjmp.h>
@@ -13,6 +14,7 @@
 
 #include "../../src/daemon/run_model.h"
 #include "../../src/daemon/run_track.h"
+#include "synth.h"
 
 #define N 9
 
@@ -178,6 +180,166 @@ static void test_models_swap(void **state)
     run_models_destroy(m);
 }
 
+/* Polls m every 0.2 ms until it swaps something in: its RUN_MODELS_* bits. */
+static int poll_until(run_models *m, int *frame, int *n)
+{
+    int ev = 0;
+    for (int t = 0; t < 50000 && !ev; t++) {
+        ev = run_models_poll(m, frame, n);
+        if (!ev) nanosleep(&(struct timespec){0, 200000L}, NULL);
+    }
+    return ev;
+}
+
+/* Live (wait 0) or test-mode models of TPS maps on 640x480 frames, with up to 40 landmarks a
+ * reference (the module's other defaults). */
+static run_models *landmark_models(int wait)
+{
+    sh_interp_params p;
+    sh_interp_params_parse("tps", &p);
+    sh_warp_options wo;
+    sh_warp_options_default(&wo);
+    sh_landmarks_params lp;
+    sh_landmarks_params_default(&lp);
+    lp.max_points = 40;
+    run_models *m;
+    assert_int_equal(run_models_create(&p, &wo, 640, 480, wait, &m), SH_OK);
+    run_models_set_landmarks(m, &lp, SH_LANDMARK_SMOOTHING);
+    return m;
+}
+
+/* A 640x480 frame of the synthetic texture, for the landmarks. */
+static void texture_frame(sh_image *img)
+{
+    assert_int_equal(sh_image_create(img, SH_PIX_GRAY8, 640, 480), SH_OK);
+    const synth_motion mo = {640, 480, 6.0};
+    synth_render(&mo, 0, img);
+}
+
+/* The landmarks of one reference with luma (a 640x480 frame of the synthetic texture, or a flat
+ * one) on models m, live or in test mode: what run_models_poll swaps in, in order, and the models
+ * the N markers get on the way. Live, the reference comes first with its markers alone, a model
+ * of theirs in use (md0, its N points), then again with its landmarks (the same frame, markers and
+ * positions; its full set's model, N markers then the landmarks, ready with the swap), and md0
+ * stays usable (the processing thread's fallback: ASan would see it freed); in test mode it
+ * comes once, with them. Returns the first poll's bits (REFERENCE | LANDMARKS live: both were
+ * ready at once, nothing to check of the split). */
+static int landmarks_arrive(int wait, const sh_plane *luma, int *nlm_out)
+{
+    run_models *m = landmark_models(wait);
+    double xy[2 * N];
+    grid(xy);
+    sh_point ref[N];
+    int ids[N], frame = -1, n = -1, nref, npts;
+    for (int i = 0; i < N; i++) {
+        ref[i] = (sh_point){.frame = 5, .id = i, .x = xy[2 * i], .y = xy[2 * i + 1], .X = NAN, .Y = NAN, .Z = NAN};
+        ids[i] = i;
+    }
+    assert_int_equal(run_models_set_reference(m, ref, N, 5, &luma, NULL, 0), SH_OK);
+    int first = poll_until(m, &frame, &n), ev = first;
+    assert_true(first & RUN_MODELS_REFERENCE);
+    assert_int_equal(frame, 5);
+    assert_int_equal(n, N);
+    run_model *md0 = NULL;
+    assert_int_equal(run_models_get(m, ids, N, &md0), 1); /* the full set came with the swap */
+    if (!wait && first == RUN_MODELS_REFERENCE) {
+        assert_null(run_models_landmarks(m));
+        assert_string_equal(run_models_landmarks_note(m), "");
+        run_model_ids(md0, &npts);
+        assert_int_equal(npts, N);
+        frame = n = -1;
+        ev = poll_until(m, &frame, &n);
+        assert_int_equal(frame, 5);
+        assert_int_equal(n, N);
+        const sh_point *r = run_models_reference(m, &nref);
+        assert_int_equal(nref, N);
+        for (int i = 0; i < N; i++) assert_true(r[i].id == i && r[i].x == xy[2 * i] && r[i].y == xy[2 * i + 1]);
+        double cur[2 * N], residual;
+        for (int i = 0; i < 2 * N; i++) cur[i] = xy[i] + 0.5;
+        assert_int_equal(run_model_update(md0, NULL, cur, NULL, cur, NULL, &residual), SH_OK);
+        assert_true(residual < 1e-6); /* TPS through the markers: the map at each is where it is */
+    }
+    *nlm_out = run_models_landmarks(m) ? sh_landmarks_count(run_models_landmarks(m)) : 0;
+    run_model *md = NULL;
+    if (ev & RUN_MODELS_LANDMARKS || (wait && *nlm_out)) {
+        assert_false(ev & RUN_MODELS_NO_LANDMARKS);
+        assert_true(*nlm_out > 0);
+        assert_int_equal(run_models_get(m, ids, N, &md), 1);
+        const int *mids = run_model_ids(md, &npts);
+        assert_int_equal(npts, N + *nlm_out);
+        assert_int_equal(run_model_markers(md), N);
+        assert_int_equal(mids[N], SH_LANDMARK_ID_BASE);
+    } else {
+        assert_true(ev & RUN_MODELS_NO_LANDMARKS);
+        assert_null(run_models_landmarks(m));
+        assert_non_null(strstr(run_models_landmarks_note(m), "no landmarks found"));
+    }
+    assert_int_equal(run_models_poll(m, &frame, &n), 0); /* nothing more to swap */
+    run_models_destroy(m);
+    return first;
+}
+
+/* Live, a new reference's frames are stabilized by its markers while its landmarks are chosen
+ * (docs/daemon.md); in test mode it waits for them. The split is the helper's order (the markers'
+ * model, then the choice, then the model with the landmarks), but a poll may come after both: up
+ * to 8 references until one is seen split. A frame without texture: the reference goes on with
+ * its markers alone and says why. */
+static void test_models_landmarks_after_markers(void **state)
+{
+    (void)state;
+    sh_image img;
+    texture_frame(&img);
+    int nlm, split = 0, with = 0;
+    for (int k = 0; k < 8 && !split; k++) {
+        split = landmarks_arrive(0, &img.plane[0], &nlm) == RUN_MODELS_REFERENCE;
+        assert_true(nlm > 0);
+    }
+    assert_true(split);
+    assert_int_equal(landmarks_arrive(1, &img.plane[0], &with), RUN_MODELS_REFERENCE);
+    assert_int_equal(with, nlm); /* the same choice either way */
+    memset(img.plane[0].data, 128, (size_t)img.plane[0].stride * 480);
+    assert_true(landmarks_arrive(0, &img.plane[0], &nlm) & RUN_MODELS_REFERENCE);
+    assert_int_equal(nlm, 0);
+    assert_int_equal(landmarks_arrive(1, &img.plane[0], &nlm), RUN_MODELS_REFERENCE | RUN_MODELS_NO_LANDMARKS);
+    assert_int_equal(nlm, 0);
+    sh_image_destroy(&img);
+}
+
+/* A new reference while the one in use waits for its landmarks (the camera moved and settled):
+ * the old one's may still come before the new one is built, never after it. */
+static void test_models_landmarks_replaced(void **state)
+{
+    (void)state;
+    sh_image img;
+    texture_frame(&img);
+    const sh_plane *luma = &img.plane[0];
+    run_models *m = landmark_models(0);
+    double xy[2 * N];
+    grid(xy);
+    sh_point ref[N];
+    for (int i = 0; i < N; i++)
+        ref[i] = (sh_point){.frame = 5, .id = i, .x = xy[2 * i], .y = xy[2 * i + 1], .X = NAN, .Y = NAN, .Z = NAN};
+    int frame, n, nref;
+    assert_int_equal(run_models_set_reference(m, ref, N, 5, &luma, NULL, 0), SH_OK);
+    assert_true(poll_until(m, &frame, &n) & RUN_MODELS_REFERENCE);
+    for (int i = 0; i < N; i++) ref[i].x += 1;
+    assert_int_equal(run_models_set_reference(m, ref, N, 9, &luma, NULL, 0), SH_OK);
+    int seen = 0, done = 0;
+    for (int k = 0; k < 10 && !done; k++) {
+        int ev = poll_until(m, &frame, &n);
+        assert_true(ev != 0);
+        seen |= ev & RUN_MODELS_REFERENCE;
+        assert_int_equal(frame, seen ? 9 : 5);
+        done = seen && run_models_landmarks(m);
+    }
+    assert_true(done);
+    const sh_point *r = run_models_reference(m, &nref);
+    assert_true(nref == N && r[0].x == xy[0] + 1);
+    assert_int_equal(run_models_poll(m, &frame, &n), 0);
+    run_models_destroy(m);
+    sh_image_destroy(&img);
+}
+
 /* Models m of one reference (N markers, ids 0..N-1: the reference is set by the caller), updated
  * with xy, xyz (3D) and det until the map's grid is want's: live, no update rebuilds a grid (a 2D
  * model is replaced whole, a 3D view's grid swapped: its count is the swaps), and the map is then
@@ -322,6 +484,8 @@ int main(void)
         cmocka_unit_test(test_residual_affine_leverage),
         cmocka_unit_test(test_select_dropout),
         cmocka_unit_test(test_models_swap),
+        cmocka_unit_test(test_models_landmarks_after_markers),
+        cmocka_unit_test(test_models_landmarks_replaced),
         cmocka_unit_test(test_models_refine_on_helper),
         cmocka_unit_test(test_models_refine_3d_on_helper),
     };
