@@ -52,10 +52,11 @@ struct generation {
     run_model *full; /* the full set's slot: the swap waits for it */
     run_model slot[SLOTS];
     unsigned long clock;
-    /* landmarks: chosen by the helper (choosing 1 until then, no full slot yet) from a copy of the
-     * reference frame's luma (3D: every camera's) and tags; rows = ref then the landmarks, sorted
-     * by id (the models' keys are made from it); in 3D only the landmarks triangulated in the
-     * reference are rows (ids SH_LANDMARK_ID_BASE + the rig's index) */
+    /* landmarks: chosen by the helper (choosing 1 until then; in test mode no full slot yet) from
+     * a copy of the reference frame's luma (3D: every camera's; freed once chosen) and tags; rows
+     * = ref then the landmarks, sorted by id (the models' keys are made from it); in 3D only the
+     * landmarks triangulated in the reference are rows (ids SH_LANDMARK_ID_BASE + the rig's
+     * index) */
     int choosing, choice_taken;
     uint8_t *luma[SH_CALIB_MAX_CAMERAS];
     int nluma, width, height;
@@ -526,6 +527,8 @@ static void *helper_main(void *arg)
             sh_landmarks *lm = NULL;
             sh_landmarks_rig *rig = NULL;
             sh_status st = choose_landmarks(m, choose, &lm, &rig);
+            /* the frame's copy is needed no more (only this thread reads or frees it) */
+            for (int c = 0; c < choose->nluma; c++) free(choose->luma[c]), choose->luma[c] = NULL;
             pthread_mutex_lock(&m->mu);
             /* stored even when choose was replaced meanwhile (it then waits in the trash, and
              * generation_free frees what it holds) */
