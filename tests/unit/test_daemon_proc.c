@@ -125,6 +125,16 @@ static void wait_ms(int ms)
     nanosleep(&ts, NULL);
 }
 
+/* Polls m every 0.2 ms (often enough to see a reference's markers before its landmarks) until it
+ * swaps something in, 10 s at most: its RUN_MODELS_* bits, 0 when nothing came. */
+static int poll_until(run_models *m, int *frame, int *n)
+{
+    int ev = 0;
+    for (int t = 0; t < 50000 && !(ev = run_models_poll(m, frame, n)); t++)
+        nanosleep(&(struct timespec){0, 200000L}, NULL);
+    return ev;
+}
+
 /* a new reference is built beside the old one, which stays in use until the swap */
 static void test_models_swap(void **state)
 {
@@ -145,12 +155,7 @@ static void test_models_swap(void **state)
     }
     assert_null(run_models_reference(m, &nref));
     assert_int_equal(run_models_set_reference(m, ref, N, 3, NULL, NULL, 0), SH_OK);
-    int swapped = 0;
-    for (int t = 0; t < 2000 && !swapped; t++) {
-        swapped = run_models_poll(m, &frame, &n);
-        if (!swapped) wait_ms(5);
-    }
-    assert_true(swapped);
+    assert_true(poll_until(m, &frame, &n));
     assert_int_equal(frame, 3);
     assert_int_equal(n, N);
     run_model *md = NULL;
@@ -168,27 +173,11 @@ static void test_models_swap(void **state)
         if (got != 1) wait_ms(5);
     }
     assert_int_equal(got, 1);
-    swapped = 0;
-    for (int t = 0; t < 2000 && !swapped; t++) {
-        swapped = run_models_poll(m, &frame, &n);
-        if (!swapped) wait_ms(5);
-    }
-    assert_true(swapped);
+    assert_true(poll_until(m, &frame, &n));
     assert_int_equal(frame, 9);
     assert_true(run_models_reference(m, &nref)[0].x == xy[0] + 1);
     assert_true(run_models_builds(m) >= 3);
     run_models_destroy(m);
-}
-
-/* Polls m every 0.2 ms until it swaps something in: its RUN_MODELS_* bits. */
-static int poll_until(run_models *m, int *frame, int *n)
-{
-    int ev = 0;
-    for (int t = 0; t < 50000 && !ev; t++) {
-        ev = run_models_poll(m, frame, n);
-        if (!ev) nanosleep(&(struct timespec){0, 200000L}, NULL);
-    }
-    return ev;
 }
 
 /* Live (wait 0) or test-mode models of TPS maps on 640x480 frames, with up to 40 landmarks a
@@ -349,12 +338,8 @@ static void refine_until_want(run_models *m, int wait, int three_d, const double
 {
     int ids[N];
     for (int i = 0; i < N; i++) ids[i] = i;
-    int swapped = 0, frame, n;
-    for (int t = 0; t < 2000 && !swapped; t++) {
-        swapped = run_models_poll(m, &frame, &n);
-        if (!swapped) wait_ms(5);
-    }
-    assert_true(swapped);
+    int frame, n;
+    assert_true(poll_until(m, &frame, &n));
     run_model *md = NULL;
     for (int t = 0; t < 2000 && run_models_get(m, ids, N, &md) != 1; t++) wait_ms(5);
     assert_non_null(md);

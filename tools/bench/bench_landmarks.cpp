@@ -31,8 +31,9 @@
 // Once per reference, choosing them (sh_landmarks_create: the mask of the hull, the tags and the
 // highlights, the band-pass, Shi-Tomasi corners, the reference's pyramid and windows and the
 // refinement's sums) beside OpenCV's band-pass, cv::goodFeaturesToTrack in the hull and
-// cv::buildOpticalFlowPyramid with gradients: medians of CHOICES runs. It is what keeps the
-// daemon's frames raw while a new reference is built (docs/landmarks.md, "Choosing them").
+// cv::buildOpticalFlowPyramid with gradients: medians of CHOICES runs. It is what delays a new
+// reference's landmarks in the daemon, whose markers alone stabilize its frames meanwhile
+// (docs/landmarks.md, "Choosing them" and "The markers alone while they are chosen").
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 #include <opencv2/video/tracking.hpp>
