@@ -211,12 +211,6 @@ void sh_landmarks_params_default(sh_landmarks_params *p);
 void sh_landmarks_params_sparse(sh_landmarks_params *p);
 /* Those changes alone, made to p in place (the other parameters as they are). */
 void sh_landmarks_params_make_sparse(sh_landmarks_params *p);
-/* The choice a rig (3D, sh_landmarks_rig) keeps with the default tests: 20 px apart, down to 1 % of
- * the strongest corner, the defaults' before 2026-12-05. The denser choice of the defaults was
- * measured in 2D, where the map approximates the landmarks (SH_LANDMARK_SMOOTHING); in 3D the
- * surfaces interpolate them, and each costs a search in every camera and a term in every view's
- * fit (docs/landmarks.md, "Weights"). Made to p in place. */
-void sh_landmarks_params_make_rig(sh_landmarks_params *p);
 
 /* The halvings a width x height frame gets: p->reduce when it is 0 or more, else (p NULL too) the
  * number k >= 0 that brings the frame's geometric mean side, sqrt(width height), nearest to

@@ -30,10 +30,13 @@ typedef struct {
     int width, height;               /* the map (2D) or each view (3D), in pixels */
     sh_interp_params params;         /* 2D */
     sh_warp_options wopts;           /* 2D */
-    double point_smoothing;          /* 2D, RBFs: > 0: the rows whose id is smoothed_from or more get
+    double point_smoothing;          /* RBFs: > 0: the rows whose id is smoothed_from or more get
                                       * this smoothing of their own (sh_interp_create_smoothed): the
                                       * tissue's landmarks, less certain than the markers (callers set
-                                      * smoothed_from to SH_LANDMARK_ID_BASE); 0: none */
+                                      * smoothed_from to SH_LANDMARK_ID_BASE); 0: none. In the map's
+                                      * pixels; in 3D in source_cam's, converted to the surface's
+                                      * millimetres (sh_warp3d_pixels_per_mm) for the RBF
+                                      * interpolants of p3 */
     int smoothed_from;
     sh_warp3d_params p3;             /* 3D */
     sh_warp3d_view_options vopts;    /* 3D */

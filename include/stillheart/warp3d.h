@@ -60,6 +60,22 @@ sh_status sh_warp3d_model_create(const sh_warp3d_params *params, const double *r
 void sh_warp3d_model_destroy(sh_warp3d_model *model);
 int sh_warp3d_model_num_points(const sh_warp3d_model *model);
 
+/* The same with a smoothing of each point's own (point_smoothing: n values >= 0, in the kernel's
+ * units over (X', Y') in mm; NULL: none), given to the surface's and the displacement's
+ * interpolants where they take one (sh_interp_create_smoothed: the RBFs; the other methods
+ * interpolate every point): a natural landmark, less certain than a marker, is approximated by
+ * both, the markers (0) still met. A TPS smoothing given in pixels, lambda_px, is the same fit over
+ * mm as lambda_px / s^2 where the camera sees s px a mm (sh_warp3d_pixels_per_mm): the kernel's
+ * log term of the scale falls into the affine part's constant under TPS's side conditions. */
+sh_status sh_warp3d_model_create_smoothed(const sh_warp3d_params *params, const double *ref_xyz, int n,
+                                          const double *point_smoothing, sh_warp3d_model **out);
+/* How many pixels of cam a millimetre of the points' surface spans (n >= 3 world points, those in
+ * front of cam): the fourth root of the ratio of the areas they span in the image and in their
+ * own plane (covariance determinants), f / Z for a plane facing the camera at depth Z, and the
+ * geometric mean of the two scales of one it foreshortens. SH_EDEGENERATE for points on a line
+ * or fewer than 3 in front. */
+sh_status sh_warp3d_pixels_per_mm(const sh_calib_camera *cam, const double *xyz, int n, double *out);
+
 /* The current positions of the same n markers, in the same order. Allocation-free. */
 sh_status sh_warp3d_model_update(sh_warp3d_model *model, const double *cur_xyz);
 /* The displacement through the points with use[k] != 0 alone (natural landmarks that come and

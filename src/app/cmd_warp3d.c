@@ -41,6 +41,14 @@ static void usage(FILE *out)
         "  --surface-method NAME, --displacement-method NAME\n"
         "                     set one of the two only\n"
         "  --sigma MM         RBF scale in mm (surface and displacement)\n"
+        "  --landmark-smoothing LAMBDA\n"
+        "                     with tps (the RBFs): the landmark rows' own smoothing in the\n"
+        "                     surface and the displacement, given in the pixels of 1080p\n"
+        "                     frames as `stillheart warp`'s (default 1000, as the daemon's\n"
+        "                     [track] landmarks_smoothing) and converted to the surface's mm\n"
+        "                     by the camera's pixels per mm there; the markers stay exact; 0:\n"
+        "                     the landmarks interpolated as well. Refused when neither\n"
+        "                     interpolant is an RBF\n"
         "  --reference N      0-based reference frame (default 0)\n"
         "  --view V           reference: the camera's own view (default; OUT has IN's size)\n"
         "                     stereo: a left/right pair of virtual cameras (see --baseline,\n"
@@ -110,6 +118,7 @@ typedef struct {
     const char *calib_path, *points_path, *method, *view, *layout, *ply_dir, *in_path, *out_path;
     sh_warp3d_params p3; /* --method, --surface-method, --displacement-method and --sigma */
     double baseline, depth_scale, max_error, ply_spacing;
+    double landmark_smoothing;  /* --landmark-smoothing, at 1080p */
     int camera, reference, threads, quiet, ply_mesh, ply_every, ply_texture;
     int stereo, pose;           /* --view ... */
     sh_warp3d_layout layout_id; /* ... and --layout */
@@ -175,14 +184,15 @@ static int parse_options(int argc, char **argv, warp3d_options *o)
         {"threads", required_argument, 0, 't'}, {"max-error", required_argument, 0, 'e'},
         {"export-ply", required_argument, 0, 'P'}, {"ply-spacing", required_argument, 0, 'S'},
         {"ply-mesh", no_argument, 0, 'M'}, {"ply-texture", no_argument, 0, 'T'}, {"ply-every", required_argument, 0, 'E'},
-        {"metric", no_argument, 0, 'R'}, SH_CLI_OPTIONS, {0, 0, 0, 0}};
+        {"metric", no_argument, 0, 'R'}, {"landmark-smoothing", required_argument, 0, 'l'}, SH_CLI_OPTIONS,
+        {0, 0, 0, 0}};
     memset(o, 0, sizeof *o);
     o->method = "tps", o->view = "reference", o->layout = "sbs";
     o->baseline = 10, o->depth_scale = 1, o->max_error = 0.05, o->ply_spacing = 1;
-    o->threads = 1, o->ply_every = 1;
+    o->threads = 1, o->ply_every = 1, o->landmark_smoothing = SH_LANDMARK_SMOOTHING;
     const char *smethod = NULL, *dmethod = NULL;
     double sigma = 0;
-    int have_sigma = 0, opt;
+    int have_sigma = 0, have_lm_smoothing = 0, opt;
     optind = 1;
     opterr = 0;
     while ((opt = getopt_long(argc, argv, ":h", options, NULL)) != -1) {
@@ -208,6 +218,8 @@ static int parse_options(int argc, char **argv, warp3d_options *o)
         case 'T': o->ply_texture = o->ply_mesh = 1; break;
         case 'E': if (!sh_cli_parse_int("--ply-every", optarg, 1, 1 << 30, &o->ply_every)) return 2; break;
         case 'R': o->metric = 1; break;
+        case 'l': if (!sh_cli_parse_double("--landmark-smoothing", optarg, 0, 1e12, &o->landmark_smoothing)) return 2;
+                  have_lm_smoothing = 1; break;
         case 'h': usage(stdout); return 0;
         default: { int rc = sh_cli_option(&cli, opt, argv); if (rc >= 0) return rc; } break;
         }
@@ -222,7 +234,13 @@ static int parse_options(int argc, char **argv, warp3d_options *o)
         return 2;
     }
     int rc = parse_view(o);
-    return rc != APP_GO_ON ? rc : parse_methods(o, smethod, dmethod, have_sigma, sigma);
+    if (rc == APP_GO_ON) rc = parse_methods(o, smethod, dmethod, have_sigma, sigma);
+    /* a smoothing no interpolant has a use for does nothing: refused, as in `stillheart warp` */
+    if (rc == APP_GO_ON && have_lm_smoothing &&
+        !(sh_interp_method_smooths(o->p3.surface.method) || sh_interp_method_smooths(o->p3.displacement.method)))
+        return sh_cli_usage_error(&cli, "--landmark-smoothing: neither interpolant is an RBF (tps approximates the "
+                                  "landmarks)");
+    return rc;
 }
 
 /* What one run opens and counts, from warp3d_open to warp3d_close. */
@@ -273,6 +291,11 @@ static int open_input(warp3d_job *j)
     j->recipe.width = hdr->width;
     j->recipe.height = hdr->height;
     j->recipe.source_cam = j->calib.cam[o->camera];
+    /* given at 1080p, scaled to the frame as `stillheart track` scaled the landmarks' lengths
+     * (sh_landmarks_smoothing); the models convert it to the surface's mm */
+    j->recipe.point_smoothing = sh_landmarks_smoothing(o->landmark_smoothing,
+                                                       sh_landmarks_reduction(NULL, hdr->width, hdr->height));
+    j->recipe.smoothed_from = SH_LANDMARK_ID_BASE;
     s->ref_rows = sh_points_frame(&s->points, o->reference, &s->ref_count);
     s->ids = malloc(sizeof(int) * ((size_t)s->ref_count + 1));
     s->cur = malloc(sizeof(double) * 3 * ((size_t)s->ref_count + 1));

@@ -264,7 +264,6 @@ int track_landmarks_start(const track_landmarks_options *o, const sh_image *fram
         sh_landmarks_params_sparse(&p);
     else
         sh_landmarks_params_default(&p);
-    if (!o->sparse && tl->ncam > 1) sh_landmarks_params_make_rig(&p);
     p.affine = o->affine;
     p.refine = o->refine;
     p.max_points = o->n;

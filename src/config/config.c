@@ -431,15 +431,15 @@ static sh_status check_method(const sh_config *cfg, char *err)
         return refuse(cfg, "track", "landmarks", err, "%d, but in 3D ([method] calibration) pwlinear would need a new "
                       "model for every frame's landmarks (tps, bspline and affine follow them; docs/landmarks.md)",
                       cfg->landmarks);
-    /* the landmarks' smoothing is a term of their rows in a 2D RBF map (sh_interp_create_smoothed):
-     * changed where it does nothing, it is refused, as the stereo view's keys are without it */
+    /* the landmarks' smoothing is a term of their rows in an RBF map, 2D or 3D's surface and
+     * displacement (sh_interp_create_smoothed): changed where it does nothing, it is refused, as
+     * the stereo view's keys are without it */
     if (cfg->landmarks_smoothing != SH_LANDMARK_SMOOTHING && !cfg->landmarks)
         return refuse(cfg, "track", "landmarks_smoothing", err, "%g, but there are no landmarks ([track] landmarks = 0)",
                       cfg->landmarks_smoothing);
-    if (cfg->landmarks_smoothing != SH_LANDMARK_SMOOTHING &&
-        (!sh_interp_method_smooths(method.method) || cfg->calibration[0]))
-        return refuse(cfg, "track", "landmarks_smoothing", err, "%g, but %s interpolates the landmarks (a tps map in 2D "
-                      "approximates them)", cfg->landmarks_smoothing, cfg->calibration[0] ? "3D" : cfg->method_name);
+    if (cfg->landmarks_smoothing != SH_LANDMARK_SMOOTHING && !sh_interp_method_smooths(method.method))
+        return refuse(cfg, "track", "landmarks_smoothing", err, "%g, but %s interpolates the landmarks (a tps map "
+                      "approximates them)", cfg->landmarks_smoothing, cfg->method_name);
     /* the refinement of the landmarks' reference, changed where there are none, is refused too */
     sh_landmarks_params lp;
     sh_landmarks_params_default(&lp);

@@ -704,8 +704,9 @@ static run_model *slot_for(run_models *m, generation *g, const int *ids, int n)
 void run_models_set_landmarks(run_models *m, const sh_landmarks_params *lp, double smoothing)
 {
     m->lp = *lp;
-    /* the RBFs' (TPS), in 2D: 3D's surfaces interpolate them; given at 1080p, scaled to the
-     * frame's pixels as the landmarks' lengths are (sh_landmarks_smoothing) */
+    /* the RBFs' (TPS; in 3D its surface's and displacement's, converted to their mm by the
+     * models: modelcache.h); given at 1080p, scaled to the frame's pixels as the landmarks'
+     * lengths are (sh_landmarks_smoothing) */
     m->recipe.point_smoothing =
         sh_landmarks_smoothing(smoothing, sh_landmarks_reduction(lp, m->recipe.width, m->recipe.height));
     m->recipe.smoothed_from = SH_LANDMARK_ID_BASE;

@@ -135,7 +135,6 @@ static sh_status landmarks_create(run_proc *p, const sh_config *cfg, const sh_y4
         sh_landmarks_params_sparse(&lp);
     else
         sh_landmarks_params_default(&lp);
-    if (!cfg->landmarks_sparse && p->three_d) sh_landmarks_params_make_rig(&lp);
     lp.affine = cfg->landmarks_affine;
     lp.refine = cfg->landmarks_refine;
     lp.max_points = p->lm_cap;

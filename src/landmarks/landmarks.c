@@ -210,12 +210,6 @@ void sh_landmarks_params_make_sparse(sh_landmarks_params *p)
     p->min_correlation = 0.4;
 }
 
-void sh_landmarks_params_make_rig(sh_landmarks_params *p)
-{
-    p->min_distance = 20;
-    p->quality = 0.01;
-}
-
 static sh_status check_params(const sh_landmarks_params *p)
 {
     if (p->max_points < 1 || p->max_points > 100000)

@@ -55,18 +55,51 @@ sh_status sh_modelcache_entry_set(sh_modelcache_entry *e, const sh_point *ref, i
     return SH_OK;
 }
 
+/* 1 when the recipe smooths some of e's rows (the ones from smoothed_from on). */
+static int smooths_rows(const sh_modelcache_entry *e, const sh_modelcache_recipe *r)
+{
+    for (int i = 0; r->point_smoothing > 0 && i < e->n; i++)
+        if (e->ids[i] >= r->smoothed_from) return 1;
+    return 0;
+}
+
+/* Each row's own smoothing, the recipe's divided by scale^2 for the smoothed rows and 0 for the
+ * others, in *out (to free). */
+static sh_status row_smoothings(const sh_modelcache_entry *e, const sh_modelcache_recipe *r, double scale,
+                                double **out)
+{
+    double *lambda = malloc(sizeof(double) * (size_t)e->n);
+    if (!lambda) return sh_error_set(SH_ENOMEM, "models: out of memory");
+    for (int i = 0; i < e->n; i++) lambda[i] = e->ids[i] >= r->smoothed_from ? r->point_smoothing / (scale * scale) : 0.0;
+    *out = lambda;
+    return SH_OK;
+}
+
 /* Another method than the RBFs has no smoothing: its rows are interpolated exactly, as without
  * it (sh_interp_create_smoothed would refuse). */
 static sh_status build_interp(sh_modelcache_entry *e, const sh_modelcache_recipe *r)
 {
-    int rbf = sh_interp_method_smooths(r->params.method);
-    int k = 0;
-    while (k < e->n && e->ids[k] < r->smoothed_from) k++;
-    if (!(r->point_smoothing > 0) || !rbf || k == e->n) return sh_interp_create(&r->params, e->ref_xy, e->n, &e->interp);
-    double *lambda = malloc(sizeof(double) * (size_t)e->n);
-    if (!lambda) return sh_error_set(SH_ENOMEM, "models: out of memory");
-    for (int i = 0; i < e->n; i++) lambda[i] = e->ids[i] >= r->smoothed_from ? r->point_smoothing : 0.0;
-    sh_status st = sh_interp_create_smoothed(&r->params, e->ref_xy, e->n, lambda, &e->interp);
+    if (!sh_interp_method_smooths(r->params.method) || !smooths_rows(e, r))
+        return sh_interp_create(&r->params, e->ref_xy, e->n, &e->interp);
+    double *lambda;
+    sh_status st = row_smoothings(e, r, 1, &lambda);
+    if (st == SH_OK) st = sh_interp_create_smoothed(&r->params, e->ref_xy, e->n, lambda, &e->interp);
+    free(lambda);
+    return st;
+}
+
+/* The smoothing is given in the source camera's pixels, as in 2D; over the surface's millimetres
+ * it is divided by the square of the pixels a millimetre spans there (sh_warp3d_model_create_smoothed
+ * says why that is the same fit for TPS). The interpolants that take no smoothing interpolate. */
+static sh_status build_model3(sh_modelcache_entry *e, const sh_modelcache_recipe *r)
+{
+    if ((!sh_interp_method_smooths(r->p3.surface.method) && !sh_interp_method_smooths(r->p3.displacement.method)) ||
+        !smooths_rows(e, r))
+        return sh_warp3d_model_create(&r->p3, e->ref_xyz, e->n, &e->m3);
+    double scale, *lambda = NULL;
+    sh_status st = sh_warp3d_pixels_per_mm(&r->source_cam, e->ref_xyz, e->n, &scale);
+    if (st == SH_OK) st = row_smoothings(e, r, scale, &lambda);
+    if (st == SH_OK) st = sh_warp3d_model_create_smoothed(&r->p3, e->ref_xyz, e->n, lambda, &e->m3);
     free(lambda);
     return st;
 }
@@ -75,7 +108,7 @@ sh_status sh_modelcache_entry_build(sh_modelcache_entry *e, const sh_modelcache_
 {
     sh_status st;
     if (r->three_d) {
-        st = sh_warp3d_model_create(&r->p3, e->ref_xyz, e->n, &e->m3);
+        st = build_model3(e, r);
         for (int v = 0; v < r->nviews && v < 2 && st == SH_OK; v++)
             st = sh_warp3d_view_create(e->m3, &r->view_cam[v], &r->source_cam, r->width, r->height, &r->vopts,
                                        &e->view[v]);

@@ -138,19 +138,27 @@ const sh_hull *sh_warp3d_model_uv_hull(const sh_warp3d_model *m)
     return &m->uv_hull;
 }
 
+/* The centroid and covariance of n world points (xyz: 3n). */
+static void centre_cov(const double *xyz, int n, double c[3], double cov[9])
+{
+    memset(c, 0, 3 * sizeof *c);
+    memset(cov, 0, 9 * sizeof *cov);
+    for (int i = 0; i < n; i++)
+        for (int k = 0; k < 3; k++) c[k] += xyz[3 * i + k] / n;
+    for (int i = 0; i < n; i++) {
+        double d[3] = {xyz[3 * i] - c[0], xyz[3 * i + 1] - c[1], xyz[3 * i + 2] - c[2]};
+        for (int r = 0; r < 3; r++)
+            for (int k = 0; k < 3; k++) cov[3 * r + k] += d[r] * d[k] / n;
+    }
+}
+
 /* The PCA frame: origin at the centroid, e1 along the largest spread, normal along the
  * smallest (pointing to world +Z, the phantom's up), e2 = normal x e1. */
 static sh_status fit_frame(sh_warp3d_model *m)
 {
     const int n = m->n;
-    double c[3] = {0, 0, 0}, cov[9] = {0};
-    for (int i = 0; i < n; i++)
-        for (int k = 0; k < 3; k++) c[k] += m->ref[3 * i + k] / n;
-    for (int i = 0; i < n; i++) {
-        double d[3] = {m->ref[3 * i] - c[0], m->ref[3 * i + 1] - c[1], m->ref[3 * i + 2] - c[2]};
-        for (int r = 0; r < 3; r++)
-            for (int k = 0; k < 3; k++) cov[3 * r + k] += d[r] * d[k] / n;
-    }
+    double c[3], cov[9];
+    centre_cov(m->ref, n, c, cov);
     double vec[9];
     jacobi3(cov, vec);
     int order[3] = {0, 1, 2};
@@ -181,16 +189,60 @@ static sh_status fit_frame(sh_warp3d_model *m)
     return SH_OK;
 }
 
+/* The areas the points span, in cam's image and in their own plane (the two largest principal
+ * spreads), as covariance determinants: their ratio is s^4 for a plane the camera sees scaled by s
+ * px/mm, and the product of the two scales for one it foreshortens. */
+sh_status sh_warp3d_pixels_per_mm(const sh_calib_camera *cam, const double *xyz, int n, double *out)
+{
+    if (!cam || !xyz || !out || n < 3) return sh_error_set(SH_EINVAL, "warp3d: the pixel scale needs 3 points or more");
+    double *in = malloc(sizeof(double) * 3 * (size_t)n);
+    if (!in) return sh_error_set(SH_ENOMEM, "warp3d: out of memory");
+    double px[2] = {0, 0}, pp[3] = {0, 0, 0};
+    int k = 0;
+    for (int i = 0; i < n; i++) {
+        double x, y;
+        if (!sh_warp3d_project(cam, xyz + 3 * i, &x, &y) || !isfinite(x) || !isfinite(y)) continue;
+        memcpy(in + 3 * k, xyz + 3 * i, 3 * sizeof(double));
+        px[0] += x, px[1] += y;
+        pp[0] += x * x, pp[1] += x * y, pp[2] += y * y;
+        k++;
+    }
+    double c[3], cov[9], vec[9];
+    if (k >= 3) centre_cov(in, k, c, cov);
+    free(in);
+    if (k < 3) return sh_error_set(SH_EDEGENERATE, "warp3d: %d of %d points in front of the camera", k, n);
+    jacobi3(cov, vec);
+    double a = cov[0], b = cov[4], d = cov[8]; /* the eigenvalues; the plane's two are the largest */
+    double plane = a <= b && a <= d ? b * d : b <= d ? a * d : a * b;
+    double mx = px[0] / k, my = px[1] / k;
+    double det = (pp[0] / k - mx * mx) * (pp[2] / k - my * my) - (pp[1] / k - mx * my) * (pp[1] / k - mx * my);
+    if (!(plane > 0) || !(det > 0))
+        return sh_error_set(SH_EDEGENERATE, "warp3d: the points lie on a line (no pixel scale)");
+    *out = pow(det / plane, 0.25);
+    return SH_OK;
+}
+
 /* Least-squares trend: coef (terms) of values over the basis rows a (n x terms). */
 static sh_status trend_pinv(const double *a, int n, int terms, double *pinv, double *rcond)
 {
     return sh_linalg_pinv(n, terms, a, pinv, rcond);
 }
 
+/* An interpolant over the points' (u, v); lambda (may be NULL): each point's own smoothing, taken by
+ * the RBFs; the other methods interpolate every point. */
+static sh_status create_interp(const sh_interp_params *params, const double *uv, int n, const double *lambda,
+                               sh_interp **out)
+{
+    if (lambda && sh_interp_method_smooths(params->method))
+        return sh_interp_create_smoothed(params, uv, n, lambda, out);
+    return sh_interp_create(params, uv, n, out);
+}
+
 /* The surface: a trend of the markers' heights over (u, v) by least squares (the degree asked,
  * lowered while the markers make it ill-conditioned), the residual interpolated. a, pinv: room
  * for W3_MAX_TREND x n. */
-static sh_status fit_surface(sh_warp3d_model *m, const sh_warp3d_params *params, double *a, double *pinv)
+static sh_status fit_surface(sh_warp3d_model *m, const sh_warp3d_params *params, const double *lambda, double *a,
+                             double *pinv)
 {
     sh_status st;
     int n = m->n;
@@ -216,7 +268,7 @@ static sh_status fit_surface(sh_warp3d_model *m, const sh_warp3d_params *params,
         for (int i = 0; i < n; i++) s += pinv[(size_t)k * n + i] * m->height[i];
         m->s_trend[k] = s;
     }
-    if ((st = sh_interp_create(&params->surface, m->uv, n, &m->s_interp)) != SH_OK) return st;
+    if ((st = create_interp(&params->surface, m->uv, n, lambda, &m->s_interp)) != SH_OK) return st;
     m->s_coef = calloc((size_t)sh_interp_num_coefs(m->s_interp), sizeof(double));
     if (!m->s_coef) return sh_error_set(SH_ENOMEM, "warp3d: out of memory");
     for (int i = 0; i < n; i++) {
@@ -230,7 +282,7 @@ static sh_status fit_surface(sh_warp3d_model *m, const sh_warp3d_params *params,
 
 /* The displacement's trend: 1, u, v, s (an affine map of 3D space restricted to the surface);
  * markers on a plane make s constant: then 1, u, v. Then its interpolant. */
-static sh_status fit_displacement(sh_warp3d_model *m, const sh_warp3d_params *params)
+static sh_status fit_displacement(sh_warp3d_model *m, const sh_warp3d_params *params, const double *lambda)
 {
     sh_status st;
     double rcond = 0;
@@ -242,7 +294,7 @@ static sh_status fit_displacement(sh_warp3d_model *m, const sh_warp3d_params *pa
         if (rcond > 1e-6 || m->h_terms == 3) break;
         m->h_terms = 3;
     }
-    if ((st = sh_interp_create(&params->displacement, m->uv, n, &m->h_interp)) != SH_OK) return st;
+    if ((st = create_interp(&params->displacement, m->uv, n, lambda, &m->h_interp)) != SH_OK) return st;
     m->h_coef = calloc(3 * (size_t)sh_interp_num_coefs(m->h_interp), sizeof(double));
     if (!m->h_coef) return sh_error_set(SH_ENOMEM, "warp3d: out of memory");
     return SH_OK;
@@ -251,11 +303,21 @@ static sh_status fit_displacement(sh_warp3d_model *m, const sh_warp3d_params *pa
 sh_status sh_warp3d_model_create(const sh_warp3d_params *params, const double *ref_xyz, int n,
                                  sh_warp3d_model **out)
 {
+    return sh_warp3d_model_create_smoothed(params, ref_xyz, n, NULL, out);
+}
+
+sh_status sh_warp3d_model_create_smoothed(const sh_warp3d_params *params, const double *ref_xyz, int n,
+                                          const double *point_smoothing, sh_warp3d_model **out)
+{
     if (!ref_xyz || !out || n < 4)
         return sh_error_set(SH_EINVAL, "warp3d: need at least 4 reference markers, got %d", n);
     for (int i = 0; i < 3 * n; i++)
         if (!isfinite(ref_xyz[i]))
             return sh_error_set(SH_EINVAL, "warp3d: reference marker %d is not finite", i / 3);
+    for (int i = 0; point_smoothing && i < n; i++)
+        if (!(point_smoothing[i] >= 0) || !isfinite(point_smoothing[i]))
+            return sh_error_set(SH_EINVAL, "warp3d: point %d's smoothing %g is not a finite value >= 0", i,
+                                point_smoothing[i]);
     sh_warp3d_params def;
     if (!params) {
         sh_warp3d_params_default(&def);
@@ -292,8 +354,8 @@ sh_status sh_warp3d_model_create(const sh_warp3d_params *params, const double *r
     }
     if ((st = sh_hull_compute(m->uv, n, &m->uv_hull)) != SH_OK) goto done;
 
-    if ((st = fit_surface(m, params, a, pinv)) != SH_OK) goto done;
-    if ((st = fit_displacement(m, params)) != SH_OK) goto done;
+    if ((st = fit_surface(m, params, point_smoothing, a, pinv)) != SH_OK) goto done;
+    if ((st = fit_displacement(m, params, point_smoothing)) != SH_OK) goto done;
     st = sh_warp3d_model_update(m, ref_xyz); /* h = 0 until the first frame */
 done:
     free(a);

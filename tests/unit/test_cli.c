@@ -247,6 +247,15 @@ static void test_errors_name_the_problem(void **state)
              path("in.y4m"), path("x.y4m"));
     assert_int_equal(run(args), 2);
     assert_non_null(strstr(slurp(path("stderr")), "bspline interpolates the landmarks"));
+    /* warp3d: refused when neither the surface's nor the displacement's interpolant smooths, taken with tps */
+    snprintf(args, sizeof args, "warp3d --method bspline --landmark-smoothing 500 --cameras %s --points %s %s %s",
+             path("rig.yaml"), path("points.csv"), path("in.y4m"), path("x.y4m"));
+    assert_int_equal(run(args), 2);
+    assert_non_null(strstr(slurp(path("stderr")), "--landmark-smoothing: neither interpolant is an RBF"));
+    snprintf(args, sizeof args, "warp3d --surface-method bspline --landmark-smoothing 500 --cameras %s --points %s %s %s",
+             path("nothing.yaml"), path("points.csv"), path("in.y4m"), path("x.y4m"));
+    assert_int_not_equal(run(args), 2); /* the displacement is tps: the option passes, the missing file fails */
+    assert_non_null(strstr(slurp(path("stderr")), "nothing.yaml"));
 
     FILE *bad = fopen(path("bad.csv"), "w");
     fprintf(bad, "frame,id,x,y\n0,1,10,10\n0,2,abc,5\n");

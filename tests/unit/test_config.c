@@ -485,7 +485,7 @@ static void test_method_refusals(void **state)
         {"tps", "method", "view", "stereo", "view", "stereo needs a calibrated rig ([method] calibration)"},
         {"tps", "method", "baseline", "20", "baseline", "20 mm, but only the stereo view has eyes"},
         {"tps", "method", "layout", "tb-half", "layout", "only the stereo view has a layout"},
-        /* the landmarks' smoothing: only with landmarks (and, below, a tps map in 2D) */
+        /* the landmarks' smoothing: only with landmarks (and, below, a tps map) */
         {"tps", "track", "landmarks_smoothing", "500", "landmarks-smoothing", "500, but there are no landmarks"},
         {"tps", "track", "landmarks_refine", "0", "landmarks-refine", "0, but there are no landmarks"},
         /* carried frames rest on the landmarks */
@@ -521,16 +521,18 @@ static void test_method_refusals(void **state)
     for (size_t i = 0; i < sizeof good / sizeof good[0]; i++)
         if (check_file(good[i].method, good[i].section, good[i].key, good[i].value, err) != SH_OK)
             fail_msg("valid case %zu (%s %s = %s) refused: %s", i, good[i].method, good[i].key, good[i].value, err);
-    /* with landmarks: a tps map takes the landmarks' smoothing, bspline (which interpolates them) refuses it */
-    const char *methods[] = {"tps", "bspline"};
-    for (int k = 0; k < 2; k++) {
+    /* with landmarks: a tps map takes the landmarks' smoothing, in 2D and in 3D (its surface and
+     * displacement), bspline (which interpolates them) refuses it */
+    const char *methods[] = {"tps", "bspline", "tps"};
+    for (int k = 0; k < 3; k++) {
         sh_config c;
         sh_config_default(&c);
+        if (k == 2) snprintf(c.calibration, sizeof c.calibration, "rig.yaml");
         assert_int_equal(sh_config_set(&c, "method", "name", methods[k], "command line", 0, err), SH_OK);
         assert_int_equal(sh_config_set(&c, "track", "landmarks", "100", "command line", 0, err), SH_OK);
         assert_int_equal(sh_config_set(&c, "track", "landmarks_smoothing", "500", "command line", 0, err), SH_OK);
-        assert_int_equal(sh_config_check(&c, err), k ? SH_EINVAL : SH_OK);
-        if (k) assert_non_null(strstr(err, "500, but bspline interpolates the landmarks"));
+        assert_int_equal(sh_config_check(&c, err), k == 1 ? SH_EINVAL : SH_OK);
+        if (k == 1) assert_non_null(strstr(err, "500, but bspline interpolates the landmarks"));
     }
     /* carried frames: with landmarks in 2D, not in 3D (every camera's landmarks need the markers' map) */
     for (int k = 0; k < 2; k++) {

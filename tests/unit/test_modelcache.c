@@ -121,6 +121,66 @@ static void test_point_smoothing_by_id(void **state)
     check_direct_build(&r, NULL);
 }
 
+/* In 3D the smoothing is given in the source camera's pixels: the markers' plane Z = 100 faces a
+ * pinhole camera of focal length 200 at the origin, 2 px a mm (f / Z), so the rows from
+ * smoothed_from on get 500 / 2^2 in the surface's mm; a model built directly with those values
+ * moves every point as the entry's does. bspline interpolates them. */
+static void test_point_smoothing_3d(void **state)
+{
+    (void)state;
+    sh_modelcache_recipe r;
+    memset(&r, 0, sizeof r);
+    r.three_d = 1;
+    r.width = W;
+    r.height = H;
+    sh_warp3d_params_default(&r.p3);
+    assert_int_equal(sh_interp_params_parse("tps", &r.p3.surface), SH_OK);
+    assert_int_equal(sh_interp_params_parse("tps", &r.p3.displacement), SH_OK);
+    const double K[9] = {200, 0, 32, 0, 200, 24, 0, 0, 1}, R[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+    memcpy(r.source_cam.K, K, sizeof K);
+    memcpy(r.source_cam.R, R, sizeof R);
+    r.source_cam.num_dist = 5;
+    r.point_smoothing = 500;
+    r.smoothed_from = 8;
+    const int ids[] = {2, 4, 6, 8, 10};
+    double xyz[15], cur[15];
+    for (int i = 0; i < 5; i++) {
+        xyz[3 * i] = ref[i].X, xyz[3 * i + 1] = ref[i].Y, xyz[3 * i + 2] = ref[i].Z;
+        for (int c = 0; c < 3; c++) cur[3 * i + c] = xyz[3 * i + c] + 0.3 * sin(1.7 * i + c) + (c == 2) * 0.2 * i;
+    }
+    for (int k = 0; k < 2; k++) {
+        if (k) assert_int_equal(sh_interp_params_parse("bspline", &r.p3.displacement), SH_OK);
+        if (k) assert_int_equal(sh_interp_params_parse("bspline", &r.p3.surface), SH_OK);
+        const double lambda[5] = {0, 0, 0, 125, 125};
+        sh_modelcache *c;
+        assert_int_equal(sh_modelcache_create(&r, ref, 5, 1, &c), SH_OK);
+        sh_modelcache_entry *e;
+        assert_int_equal(sh_modelcache_get(c, ids, 5, &e), SH_OK);
+        sh_warp3d_model *m;
+        assert_int_equal(sh_warp3d_model_create_smoothed(&r.p3, xyz, 5, k ? NULL : lambda, &m), SH_OK);
+        assert_int_equal(sh_warp3d_model_update(m, cur), SH_OK);
+        assert_int_equal(sh_warp3d_model_update(e->m3, cur), SH_OK);
+        double worst = 0, off = 0;
+        for (int q = 0; q < 9; q++) {
+            double u = -20 + 5 * q, v = 12 - 3 * q, a[3], b[3];
+            sh_warp3d_model_point(m, u, v, 1, 1, a);
+            sh_warp3d_model_point(e->m3, u, v, 1, 1, b);
+            for (int j = 0; j < 3; j++) worst = fmax(worst, fabs(a[j] - b[j]));
+        }
+        /* smoothed, the entry misses row 8's current position; interpolated, it meets it */
+        double origin[3], axes[9], d[3], p[3];
+        sh_warp3d_model_frame(e->m3, origin, axes);
+        for (int j = 0; j < 3; j++) d[j] = xyz[9 + j] - origin[j];
+        sh_warp3d_model_point(e->m3, d[0] * axes[0] + d[1] * axes[1] + d[2] * axes[2],
+                              d[0] * axes[3] + d[1] * axes[4] + d[2] * axes[5], 1, 1, p);
+        for (int j = 0; j < 3; j++) off = fmax(off, fabs(p[j] - cur[9 + j]));
+        assert_true(worst < 1e-9);
+        assert_true(k ? off < 1e-6 : off > 1e-3);
+        sh_warp3d_model_destroy(m);
+        sh_modelcache_destroy(c);
+    }
+}
+
 /* Two slots: A, B, A, C keeps A and C (B least recently used); B again is a fourth build. A set
  * whose model cannot be built is refused and not kept. */
 static void test_lru_and_failures(void **state)
@@ -197,6 +257,7 @@ int main(void)
         cmocka_unit_test(test_entry_key_and_positions),
         cmocka_unit_test(test_model_equals_direct_build),
         cmocka_unit_test(test_point_smoothing_by_id),
+        cmocka_unit_test(test_point_smoothing_3d),
         cmocka_unit_test(test_lru_and_failures),
         cmocka_unit_test(test_lookup_keeps_and_prefers_empty),
     };

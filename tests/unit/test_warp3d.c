@@ -675,6 +675,114 @@ static void test_obj_textured(void **state)
     sh_warp3d_model_destroy(model);
 }
 
+/* sh_warp3d_model_create_smoothed and sh_warp3d_pixels_per_mm against a 2D TPS in the image's
+ * pixels. A flat patch facing a pinhole camera at depth D is seen at f / D px a mm (the closed
+ * form); the model's displacement through markers (met exactly) and landmarks (smoothed by
+ * lambda / s^2 over mm) must be the 2D TPS through the same points' pixels with the landmarks
+ * smoothed by lambda, which sh_interp computes on its own. Tilted by 30 degrees before a distant
+ * camera (nearly affine), the scale is the geometric mean of f / D and f cos 30 / D. */
+#define SM_MARKERS 8
+#define SM_POINTS 24
+static void test_smoothed_model_in_pixels(void **state)
+{
+    (void)state;
+    const double f = 800, depth = 250, lambda_px = 1000;
+    sh_calib_camera cam;
+    memset(&cam, 0, sizeof cam);
+    double K[9] = {f, 0, 640.5, 0, f, 359.5, 0, 0, 1}, R[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+    memcpy(cam.K, K, sizeof K);
+    memcpy(cam.R, R, sizeof R);
+    cam.t[2] = depth;
+    cam.num_dist = 5;
+    double ref[3 * SM_POINTS], cur[3 * SM_POINTS], px[2 * SM_POINTS], disp[2 * SM_POINTS];
+    double lam_mm[SM_POINTS], lam_px[SM_POINTS];
+    unsigned lcg = 12345;
+    for (int i = 0; i < SM_POINTS; i++) {
+        double XY[2];
+        for (int c = 0; c < 2; c++) {
+            lcg = lcg * 1103515245u + 12345u;
+            XY[c] = ((lcg >> 8) % 8001) / 100.0 - 40;
+        }
+        const double X = XY[0], Y = XY[1];
+        lcg = lcg * 1103515245u + 12345u;
+        double noise = i < SM_MARKERS ? 0 : ((lcg >> 8) % 201) / 1000.0 - 0.1; /* a landmark's error, mm */
+        disp[2 * i] = 0.8 + 0.01 * X - 0.005 * Y + 0.3 * sin(X / 15) + noise;
+        disp[2 * i + 1] = -0.4 + 0.004 * X + 0.2 * cos(Y / 12) - noise;
+        double P[3] = {X, Y, 0}, C[3] = {X + disp[2 * i], Y + disp[2 * i + 1], 0};
+        memcpy(ref + 3 * i, P, sizeof P);
+        memcpy(cur + 3 * i, C, sizeof C);
+        px[2 * i] = f * X / depth + 640.5, px[2 * i + 1] = f * Y / depth + 359.5;
+        lam_px[i] = i < SM_MARKERS ? 0 : lambda_px;
+    }
+    double s;
+    assert_int_equal(sh_warp3d_pixels_per_mm(&cam, ref, SM_POINTS, &s), SH_OK);
+    assert_true(fabs(s - f / depth) < 1e-9 * f / depth);
+    for (int i = 0; i < SM_POINTS; i++) lam_mm[i] = lam_px[i] / (s * s);
+
+    sh_warp3d_params params;
+    sh_warp3d_params_default(&params);
+    assert_int_equal(sh_interp_params_parse("tps", &params.surface), SH_OK);
+    assert_int_equal(sh_interp_params_parse("tps", &params.displacement), SH_OK);
+    sh_warp3d_model *m;
+    if (sh_warp3d_model_create_smoothed(&params, ref, SM_POINTS, lam_mm, &m) != SH_OK) fail_msg("%s", sh_error_message());
+    assert_int_equal(sh_warp3d_model_update(m, cur), SH_OK);
+    sh_interp_params tps;
+    assert_int_equal(sh_interp_params_parse("tps", &tps), SH_OK);
+    sh_interp *it;
+    assert_int_equal(sh_interp_create_smoothed(&tps, px, SM_POINTS, lam_px, &it), SH_OK);
+    double *coef = calloc(2 * (size_t)sh_interp_num_coefs(it), sizeof *coef);
+    assert_non_null(coef);
+    assert_int_equal(sh_interp_fit(it, disp, 2, coef), SH_OK);
+    double origin[3], axes[9], worst = 0, marker_worst = 0, landmark_off = 0;
+    sh_warp3d_model_frame(m, origin, axes);
+    for (int q = 0; q < 25 + SM_POINTS; q++) {
+        /* a 5 x 5 grid over the patch, then the points themselves */
+        double Q[3] = {q < 25 ? -35 + 17.5 * (q % 5) : ref[3 * (q - 25)], q < 25 ? -35 + 17.5 * (q / 5) : ref[3 * (q - 25) + 1], 0};
+        double d[3] = {Q[0] - origin[0], Q[1] - origin[1], Q[2] - origin[2]};
+        double u = d[0] * axes[0] + d[1] * axes[1] + d[2] * axes[2], v = d[0] * axes[3] + d[1] * axes[4] + d[2] * axes[5];
+        double a[3], b[3], h2[2];
+        sh_warp3d_model_point(m, u, v, 1, 0, a);
+        sh_warp3d_model_point(m, u, v, 1, 1, b);
+        assert_int_equal(sh_interp_eval(it, coef, 2, f * Q[0] / depth + 640.5, f * Q[1] / depth + 359.5, h2), SH_OK);
+        for (int c = 0; c < 2; c++) worst = fmax(worst, fabs(b[c] - a[c] - h2[c]));
+        assert_true(fabs(b[2] - a[2]) < 1e-9);
+        if (q >= 25) {
+            int i = q - 25;
+            double off = hypot(b[0] - a[0] - disp[2 * i], b[1] - a[1] - disp[2 * i + 1]);
+            if (i < SM_MARKERS) marker_worst = fmax(marker_worst, off);
+            else landmark_off = fmax(landmark_off, off);
+        }
+    }
+    printf("smoothed 3D model against the pixels' TPS: %.2e mm; markers met to %.1e mm, landmarks up to %.3f mm off\n",
+           worst, marker_worst, landmark_off);
+    assert_true(worst < 1e-8);
+    assert_true(marker_worst < 1e-9);
+    assert_true(landmark_off > 0.01); /* approximated, not met */
+    free(coef);
+    sh_interp_destroy(it);
+    sh_warp3d_model_destroy(m);
+
+    /* the same patch turned 30 degrees about X, 20 times farther and seen 20 times closer up */
+    double tilted[3 * SM_POINTS], c30 = cos(M_PI / 6), s30 = sin(M_PI / 6);
+    for (int i = 0; i < SM_POINTS; i++)
+        tilted[3 * i] = ref[3 * i], tilted[3 * i + 1] = c30 * ref[3 * i + 1], tilted[3 * i + 2] = s30 * ref[3 * i + 1];
+    cam.K[0] = cam.K[4] = 20 * f;
+    cam.t[2] = 20 * depth;
+    assert_int_equal(sh_warp3d_pixels_per_mm(&cam, tilted, SM_POINTS, &s), SH_OK);
+    printf("tilted 30 degrees: %.5f px/mm, the closed form's %.5f\n", s, f / depth * sqrt(c30));
+    assert_true(fabs(s / (f / depth * sqrt(c30)) - 1) < 0.01);
+    /* on a line, or behind the camera: no scale */
+    double line[9] = {0, 0, 0, 1, 1, 0, 2, 2, 0};
+    assert_int_equal(sh_warp3d_pixels_per_mm(&cam, line, 3, &s), SH_EDEGENERATE);
+    cam.t[2] = -20 * depth;
+    assert_int_equal(sh_warp3d_pixels_per_mm(&cam, tilted, SM_POINTS, &s), SH_EDEGENERATE);
+    /* a smoothing below 0 or not finite is refused */
+    lam_mm[SM_MARKERS] = -1;
+    assert_int_equal(sh_warp3d_model_create_smoothed(&params, ref, SM_POINTS, lam_mm, &m), SH_EINVAL);
+    lam_mm[SM_MARKERS] = NAN;
+    assert_int_equal(sh_warp3d_model_create_smoothed(&params, ref, SM_POINTS, lam_mm, &m), SH_EINVAL);
+}
+
 static void test_bad_input(void **state)
 {
     (void)state;
@@ -720,6 +828,7 @@ int main(void)
         cmocka_unit_test(test_reference_view_image),
         cmocka_unit_test(test_ply_on_surface),
         cmocka_unit_test(test_obj_textured),
+        cmocka_unit_test(test_smoothed_model_in_pixels),
         cmocka_unit_test(test_bad_input),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

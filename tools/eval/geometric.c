@@ -11,9 +11,10 @@
  * interpolation and fixed-point rounding included). A frame with fewer than 3 shared markers, or
  * whose model the library refuses, was passed through raw by the warp: its map is the identity.
  * With a calibration (--cameras), f_t is `stillheart warp3d`'s reference view instead
- * (src/app/cmd_warp3d.c): a 3D model on the reference X, Y, Z of the markers frame t shares with
- * frame N (4 at least; with landmark rows, every landmark of frame N in the model and the frame's
- * displacement fitted through the ones it has, as warp3d does), its view from the phantom's
+ * (src/app/cmd_warp3d.c), through the same model cache and recipe: a 3D model on the reference
+ * X, Y, Z of the markers frame t shares with frame N (4 at least; with landmark rows, every
+ * landmark of frame N in the model, smoothed as warp3d smooths it, and the frame's displacement
+ * fitted through the ones it has, as warp3d does), its view from the phantom's
  * camera, the reference frame's map made first as warp3d makes it; the view's grid refines with
  * what it has seen, so the map may differ from warp3d's within the view's max_error where the two
  * saw different frames before. */
@@ -33,15 +34,12 @@ struct eval_geo {
     int n;
     int *sx, *sy;
     phantom_content *seen; /* what each sample shows in the reference frame: tissue or sticker */
-    /* 2D: the model for the current marker set, built as the warp's (one slot of its cache: the
-     * same recipe, landmark rows' smoothing included) */
+    /* the model for the current marker set, built as the warp's or warp3d's (one slot of its
+     * cache: the same recipe, landmark rows' smoothing included; in 3D the view from the
+     * phantom's camera) */
     sh_modelcache *cache;
-    /* 3D: the current marker set, rebuilt when the set changes */
-    int model_n;
-    int *model_ids;
-    sh_warp3d_model *m3; /* 3D (calib): the model and view for the current marker set */
-    sh_warp3d_view *v3;
-    double *xyz, *cur_xyz; /* 3D: the set's reference X, Y, Z; the frame's */
+    int builds;            /* 3D: the cache's builds when the last model's reference map was made */
+    double *cur_xyz;       /* 3D: the frame's X, Y, Z */
     int landmarks;         /* 3D: as warp3d, every model holds all the reference's landmarks */
     unsigned char *use;    /*   and each frame uses the ones it has */
     int *ids;
@@ -59,15 +57,11 @@ void eval_geo_destroy(eval_geo *g)
 {
     if (!g) return;
     sh_modelcache_destroy(g->cache);
-    sh_warp3d_view_destroy(g->v3);
-    sh_warp3d_model_destroy(g->m3);
-    free(g->xyz);
     free(g->cur_xyz);
     free(g->use);
     free(g->sx);
     free(g->sy);
     free(g->seen);
-    free(g->model_ids);
     free(g->ids);
     free(g->cur_xy);
     free(g->map);
@@ -110,13 +104,11 @@ sh_status eval_geo_create(const eval_geo_options *opts, const sh_points *points,
     g->sy = malloc(sizeof(int) * (size_t)cap);
     g->seen = malloc(sizeof(phantom_content) * (size_t)cap);
     g->ids = malloc(sizeof(int) * (size_t)(g->ref_count + 1));
-    g->model_ids = malloc(sizeof(int) * (size_t)(g->ref_count + 1));
     g->cur_xy = malloc(sizeof(double) * 2 * (size_t)(g->ref_count + 1));
     g->map = opts->identity ? NULL : malloc(sizeof(float) * 2 * npix);
-    g->xyz = malloc(sizeof(double) * 3 * (size_t)(g->ref_count + 1));
     g->cur_xyz = malloc(sizeof(double) * 3 * (size_t)(g->ref_count + 1));
     g->use = malloc((size_t)g->ref_count + 1);
-    if (!g->sx || !g->sy || !g->seen || !g->ids || !g->model_ids || !g->cur_xy || !g->xyz || !g->cur_xyz || !g->use ||
+    if (!g->sx || !g->sy || !g->seen || !g->ids || !g->cur_xy || !g->cur_xyz || !g->use ||
         (!opts->identity && !g->map)) {
         eval_geo_destroy(g);
         return sh_error_set(SH_ENOMEM, "geometric error: out of memory");
@@ -146,11 +138,18 @@ sh_status eval_geo_create(const eval_geo_options *opts, const sh_points *points,
             g->n++;
         }
     }
-    if (!opts->identity && !opts->calib) {
+    if (!opts->identity) {
         sh_modelcache_recipe r = {.width = width, .height = height, .params = opts->params, .wopts = opts->wopts,
                                   .point_smoothing = sh_landmarks_smoothing(opts->landmark_smoothing,
                                                                             sh_landmarks_reduction(NULL, width, height)),
                                   .smoothed_from = SH_LANDMARK_ID_BASE};
+        if (opts->calib) {
+            r.three_d = 1;
+            r.p3 = opts->p3;
+            r.vopts = opts->vopts;
+            r.view_cam[0] = r.source_cam = opts->calib->cam[opts->camera];
+            r.nviews = 1;
+        }
         sh_status st = sh_modelcache_create(&r, g->ref_rows, g->ref_count, 1, &g->cache);
         if (st != SH_OK) {
             eval_geo_destroy(g);
@@ -158,29 +157,6 @@ sh_status eval_geo_create(const eval_geo_options *opts, const sh_points *points,
         }
     }
     *out = g;
-    return SH_OK;
-}
-
-/* 3D: the model and view of the n ids in g->ids, the reference frame's map made first. */
-static sh_status build_model3(eval_geo *g, int n)
-{
-    sh_warp3d_view_destroy(g->v3);
-    sh_warp3d_model_destroy(g->m3);
-    g->v3 = NULL;
-    g->m3 = NULL;
-    g->model_n = 0;
-    for (int k = 0, r = 0; k < n; k++) {
-        while (g->ref_rows[r].id != g->ids[k]) r++;
-        g->xyz[3 * k] = g->ref_rows[r].X, g->xyz[3 * k + 1] = g->ref_rows[r].Y, g->xyz[3 * k + 2] = g->ref_rows[r].Z;
-    }
-    const sh_calib_camera *cam = &g->o.calib->cam[g->o.camera];
-    sh_status st = sh_warp3d_model_create(&g->o.p3, g->xyz, n, &g->m3);
-    if (st == SH_OK) st = sh_warp3d_view_create(g->m3, cam, cam, g->width, g->height, &g->o.vopts, &g->v3);
-    if (st == SH_OK) st = sh_warp3d_model_update(g->m3, g->xyz);
-    if (st == SH_OK) st = sh_warp3d_view_update(g->v3);
-    if (st != SH_OK) return st;
-    memcpy(g->model_ids, g->ids, sizeof(int) * (size_t)n);
-    g->model_n = n;
     return SH_OK;
 }
 
@@ -193,10 +169,14 @@ static int frame_map3(eval_geo *g, int t)
                                                           g->ids, g->cur_xyz, g->use, &used)
                                : (used = sh_points_match_xyz(g->ref_rows, g->ref_count, cur, ncur, g->ids, g->cur_xyz));
     if (used < 4) return 0;
-    int ok = (g->m3 && g->model_n == n && !memcmp(g->model_ids, g->ids, sizeof(int) * (size_t)n)) ||
-             build_model3(g, n) == SH_OK;
-    return ok && sh_warp3d_model_update_subset(g->m3, g->cur_xyz, g->landmarks ? g->use : NULL) == SH_OK &&
-           sh_warp3d_view_update(g->v3) == SH_OK && sh_warp_model_map(sh_warp3d_view_map_model(g->v3), g->map) == SH_OK;
+    sh_modelcache_entry *e;
+    if (sh_modelcache_get(g->cache, g->ids, n, &e) != SH_OK) return 0;
+    /* a new model's reference map first, as warp3d's: its view's grid refines with what it saw */
+    if (sh_modelcache_builds(g->cache) != g->builds && sh_warp3d_view_update(e->view[0]) != SH_OK) return 0;
+    g->builds = sh_modelcache_builds(g->cache);
+    return sh_warp3d_model_update_subset(e->m3, g->cur_xyz, g->landmarks ? g->use : NULL) == SH_OK &&
+           sh_warp3d_view_update(e->view[0]) == SH_OK &&
+           sh_warp_model_map(sh_warp3d_view_map_model(e->view[0]), g->map) == SH_OK;
 }
 
 /* The map of frame t into g->map; returns 0 when the warp passed the frame through raw. */

@@ -115,7 +115,8 @@ static void usage(FILE *f)
         "                     (default 1000; 0: the landmarks interpolated too), for 1080p\n"
         "                     frames: 4 times it at 4K, where the landmarks are found in the\n"
         "                     frame halved. With --points of landmark rows (ids from 1000000),\n"
-        "                     give the warp's value\n"
+        "                     give the warp's value (with --cameras, warp3d's: its surface\n"
+        "                     and displacement)\n"
         "  --lm-sparse        for markers too sparse for their map (four at the corners): the\n"
         "                     disagreement bound follows the frame's measured map error\n"
         "                     (--lm-bound-factor 4) and the neighbour test expects a plane\n"
@@ -375,6 +376,7 @@ static int geo_method(options *o)
         o->geo.vopts.warp.max_error = o->max_error;
         /* the 2D parameters name the surface's method (the landmark rows' test) */
         o->geo.params = o->geo.p3.surface;
+        o->geo.landmark_smoothing = o->landmark_smoothing;
     } else if (!o->geo.identity) {
         if (sh_interp_params_parse(o->method, &o->geo.params) != SH_OK) return 1 + fail("--method");
         if (o->have_sigma) o->geo.params.sigma = o->sigma;
