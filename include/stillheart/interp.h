@@ -87,6 +87,9 @@ int sh_interp_num_points(const sh_interp *interp);
 int sh_interp_num_coefs(const sh_interp *interp);
 /* Upper bound on the terms sh_interp_basis writes at any point. */
 int sh_interp_max_terms(const sh_interp *interp);
+/* A B-spline's number of levels (the ones asked, or with levels 0 the ones its points needed);
+ * 0 for another method. */
+int sh_interp_bspline_levels(const sh_interp *interp);
 
 /* values: n x dim (row-major, dim 1..3), in the order of the reference points.
  * coef: num_coefs x dim, caller-allocated. No allocation; safe to call from several threads

@@ -62,11 +62,14 @@ int sh_warp3d_model_num_points(const sh_warp3d_model *model);
 
 /* The same with a smoothing of each point's own (point_smoothing: n values >= 0, in the kernel's
  * units over (X', Y') in mm; NULL: none), given to the surface's and the displacement's
- * interpolants where they take one (sh_interp_create_smoothed: the RBFs; the other methods
- * interpolate every point): a natural landmark, less certain than a marker, is approximated by
- * both, the markers (0) still met. A TPS smoothing given in pixels, lambda_px, is the same fit over
- * mm as lambda_px / s^2 where the camera sees s px a mm (sh_warp3d_pixels_per_mm): the kernel's
- * log term of the scale falls into the affine part's constant under TPS's side conditions. */
+ * interpolants where they take one (sh_interp_create_smoothed: the RBFs): a natural landmark, less
+ * certain than a marker, is approximated by both, the markers (0) still met. A TPS smoothing given
+ * in pixels, lambda_px, is the same fit over mm as lambda_px / s^2 where the camera sees s px a mm
+ * (sh_warp3d_pixels_per_mm): the kernel's log term of the scale falls into the affine part's
+ * constant under TPS's side conditions. A B-spline with automatic levels takes as many as the
+ * points without a smoothing (the markers) need, so that landmarks closer together than that
+ * lattice resolves are approximated (with the markers near them) instead of refining it past its
+ * size limit; affine and pwlinear interpolate every point. */
 sh_status sh_warp3d_model_create_smoothed(const sh_warp3d_params *params, const double *ref_xyz, int n,
                                           const double *point_smoothing, sh_warp3d_model **out);
 /* How many pixels of cam a millimetre of the points' surface spans (n >= 3 world points, those in

@@ -428,6 +428,11 @@ fail:
     return st;
 }
 
+int sh_interp_bspline_levels(const sh_interp *it)
+{
+    return it && it->params.method == SH_METHOD_BSPLINE ? ((const mba_impl *)it->impl)->levels : 0;
+}
+
 sh_status sh_interp_bspline_residuals(const sh_interp *it, const double *values, int dim,
                                       double *max_residual_per_level, int *levels)
 {

@@ -90,12 +90,10 @@ static sh_status build_interp(sh_modelcache_entry *e, const sh_modelcache_recipe
 
 /* The smoothing is given in the source camera's pixels, as in 2D; over the surface's millimetres
  * it is divided by the square of the pixels a millimetre spans there (sh_warp3d_model_create_smoothed
- * says why that is the same fit for TPS). The interpolants that take no smoothing interpolate. */
+ * says why that is the same fit for TPS, and what a B-spline makes of it). */
 static sh_status build_model3(sh_modelcache_entry *e, const sh_modelcache_recipe *r)
 {
-    if ((!sh_interp_method_smooths(r->p3.surface.method) && !sh_interp_method_smooths(r->p3.displacement.method)) ||
-        !smooths_rows(e, r))
-        return sh_warp3d_model_create(&r->p3, e->ref_xyz, e->n, &e->m3);
+    if (!smooths_rows(e, r)) return sh_warp3d_model_create(&r->p3, e->ref_xyz, e->n, &e->m3);
     double scale, *lambda = NULL;
     sh_status st = sh_warp3d_pixels_per_mm(&r->source_cam, e->ref_xyz, e->n, &scale);
     if (st == SH_OK) st = row_smoothings(e, r, scale, &lambda);

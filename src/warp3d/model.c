@@ -228,13 +228,41 @@ static sh_status trend_pinv(const double *a, int n, int terms, double *pinv, dou
     return sh_linalg_pinv(n, terms, a, pinv, rcond);
 }
 
+/* A B-spline's automatic levels are the ones the points with no smoothing of their own (the
+ * markers) need: the less certain ones closer together than that lattice resolves are
+ * approximated, not allowed to set it. Landmarks chosen 14 px apart lie about 1 mm apart on the
+ * phantom's surface, and exact interpolation through such a pair needs a lattice of over a
+ * million control points there (over the markers' box and its margin); in 2D the same levels
+ * brought the map 1 % closer to the truth (docs/landmarks.md, "Weights"). The levels into
+ * *levels (untouched when the markers are too few for a B-spline of their own). */
+static sh_status markers_levels(const sh_interp_params *params, const double *uv, int n, const double *lambda,
+                                int *levels)
+{
+    double *xy = malloc(sizeof(double) * 2 * (size_t)n);
+    if (!xy) return sh_error_set(SH_ENOMEM, "warp3d: out of memory");
+    int k = 0;
+    for (int i = 0; i < n; i++)
+        if (!(lambda[i] > 0)) xy[2 * k] = uv[2 * i], xy[2 * k + 1] = uv[2 * i + 1], k++;
+    sh_interp *it = NULL;
+    if (k < n && k >= 3 && sh_interp_create(params, xy, k, &it) == SH_OK) *levels = sh_interp_bspline_levels(it);
+    sh_interp_destroy(it);
+    free(xy);
+    return SH_OK;
+}
+
 /* An interpolant over the points' (u, v); lambda (may be NULL): each point's own smoothing, taken by
- * the RBFs; the other methods interpolate every point. */
+ * the RBFs; a B-spline's levels set by the points without one; the other methods interpolate
+ * every point. */
 static sh_status create_interp(const sh_interp_params *params, const double *uv, int n, const double *lambda,
                                sh_interp **out)
 {
     if (lambda && sh_interp_method_smooths(params->method))
         return sh_interp_create_smoothed(params, uv, n, lambda, out);
+    if (lambda && params->method == SH_METHOD_BSPLINE && params->levels == 0) {
+        sh_interp_params p = *params;
+        sh_status st = markers_levels(params, uv, n, lambda, &p.levels);
+        return st == SH_OK ? sh_interp_create(&p, uv, n, out) : st;
+    }
     return sh_interp_create(params, uv, n, out);
 }
 
