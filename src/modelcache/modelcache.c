@@ -94,8 +94,11 @@ static sh_status build_interp(sh_modelcache_entry *e, const sh_modelcache_recipe
 static sh_status build_model3(sh_modelcache_entry *e, const sh_modelcache_recipe *r)
 {
     if (!smooths_rows(e, r)) return sh_warp3d_model_create(&r->p3, e->ref_xyz, e->n, &e->m3);
-    double scale, *lambda = NULL;
-    sh_status st = sh_warp3d_pixels_per_mm(&r->source_cam, e->ref_xyz, e->n, &scale);
+    /* only an RBF reads the value; a B-spline only which rows have one */
+    double scale = 1, *lambda = NULL;
+    sh_status st = sh_interp_method_smooths(r->p3.surface.method) || sh_interp_method_smooths(r->p3.displacement.method)
+                       ? sh_warp3d_pixels_per_mm(&r->source_cam, e->ref_xyz, e->n, &scale)
+                       : SH_OK;
     if (st == SH_OK) st = row_smoothings(e, r, scale, &lambda);
     if (st == SH_OK) st = sh_warp3d_model_create_smoothed(&r->p3, e->ref_xyz, e->n, lambda, &e->m3);
     free(lambda);
