@@ -509,25 +509,27 @@ static void stats_measure(sh_daemon *d, stats_figures *f)
 }
 
 /* Numbers that were never measured are not printed as 0: no latency before a frame is published,
- * no one-minute RSS in a run shorter than a minute. */
+ * no start RSS in a run of fewer than 30 frames, no one-minute RSS in a run shorter than a minute. */
 void sh_daemon_stats(sh_daemon *d, char *line, size_t cap)
 {
     stats_figures f;
     stats_measure(d, &f);
-    char lat[96] = "latency: no frame published", at1[40] = "", lock[96] = "the tracker's rates not locked";
+    char lat[96] = "latency: no frame published", start[40] = "", at1[40] = "";
+    char lock[96] = "the tracker's rates not locked";
     if (f.have_latency)
         snprintf(lat, sizeof lat, "latency ms median %.2f p99 %.2f max %.2f", f.lat_median, f.lat_p99, f.lat_max);
+    if (d->rss_start) snprintf(start, sizeof start, " start %ld", d->rss_start);
     if (d->rss_1min) snprintf(at1, sizeof at1, " at 1 min %ld", d->rss_1min);
     uint64_t dropped = run_pipeline_dropped(&d->pl);
     if (d->locked)
         snprintf(lock, sizeof lock, "%llu dropped after the tracker's first lock (at frame %llu published)",
                  (unsigned long long)(dropped - d->dropped_at_lock), (unsigned long long)d->published_at_lock);
     snprintf(line, cap,
-             "stats: %llu published (%llu raw, %llu degraded), %llu dropped, %s, RSS kB start %ld%s max %ld "
+             "stats: %llu published (%llu raw, %llu degraded), %llu dropped, %s, RSS kB%s%s max %ld "
              "end %ld, %d models built, %llu black frames (output camera lost), %d grids refined off the "
              "processing thread, %s",
              (unsigned long long)d->published, (unsigned long long)d->raw_count,
-             (unsigned long long)d->degraded_count, (unsigned long long)dropped, lat, d->rss_start, at1, d->rss_max,
+             (unsigned long long)d->degraded_count, (unsigned long long)dropped, lat, start, at1, d->rss_max,
              f.rss_end, run_pipeline_builds(&d->pl), (unsigned long long)d->black_count, run_pipeline_refined(&d->pl),
              lock);
 }

@@ -458,6 +458,14 @@ static void test_json_outputs(void **state)
              "d[\"published\"] == %d and d[\"raw\"] == %d and d[\"latency_ms\"][\"median\"] >= 0 and "
              "d[\"rss_kb\"][\"at_1_min\"] is None", FRAMES, FRAMES);
     assert_json(path("run.json"), expr);
+
+    /* The text line of a run too short for the start's sample (30 frames) leaves it out, as
+     * the JSON's null, rather than print 0 kB. */
+    snprintf(args, sizeof args, "run --source y4m:%s --realtime no --no-loop --max-frames 100 --sink none --stats --quiet", path("in.y4m"));
+    rc = run(args);
+    if (rc != 0) fail_msg("run --stats: exit %d: %s", rc, slurp(path("stderr")));
+    const char *line = slurp(path("stdout"));
+    if (!strstr(line, "RSS kB max ") || strstr(line, "start 0")) fail_msg("stats line: %s", line);
 }
 
 /* The config's booleans on run's command line: --KEY, --no-KEY, --KEY=WORD and --KEY WORD. */

@@ -70,7 +70,7 @@ through_daemon() { # through_daemon NAME DIR (after through_warp: its track.csv)
                 --trace "$2/trace.csv" --trace-points "$2/used.csv" > "$2/stats.txt"
             "$EVAL" --quiet --json --truth "$2" --points "$2/used.csv" "$2/run.y4m" "$2/cam0.y4m" > "$OUT/json/$j.json"
             ms=$(python3 -c 'import csv,sys,statistics as s; r=list(csv.DictReader(open(sys.argv[1]))); print("%.2f,%.2f" % (s.median(float(x["landmarks_ms"]) for x in r), s.median(float(x["model_ms"]) for x in r)))' "$2/trace.csv")
-            rss=$(sed -n 's/.*RSS kB start [0-9]* max \([0-9]*\).*/\1/p' "$2/stats.txt")
+            rss=$(sed -n 's/.*RSS kB.* max \([0-9]*\) end .*/\1/p' "$2/stats.txt")
             echo "$1,$m,$v,$(num "$j" e_stabilized),$(num "$j" mean),$(num "$j" p95),$ms,$rss" >> "$OUT/daemon.csv"
         done
     done
