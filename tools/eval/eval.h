@@ -76,6 +76,11 @@ typedef struct {
     long long hidden;          /* landmark-frames the truth says are hidden (instrument, blood) */
     long long accepted_hidden; /* of those, accepted: wrong */
     long long unjudged;        /* accepted, but the reference pixel had no truth */
+    /* landmarks chosen where the reference frame showed something over the tissue (an instrument,
+     * blood): judged against the tissue behind their pixel, in the accepted landmarks' errors
+     * and over_1px too; their accepted landmark-frames, and those more than 1 px off */
+    int chosen_covered;
+    long long accepted_covered, over_1px_covered;
     long long over_1px;        /* accepted more than 1 px from the truth */
     /* accepted landmark-frames, and of them those more than 1 px off, whose window the truth says
      * was partly hidden (an instrument, blood, the view's edge) though its point was not */

@@ -42,6 +42,7 @@ typedef struct {
     float *pred, *xy;
     uint8_t *verdict;
     phantom_content *seen;
+    uint8_t *covered;     /* the reference pixel's tissue was behind something there */
     phantom_content *win; /* WIN_SAMPLES a landmark; marker -2: no truth in the reference */
     float *err, *map_err;
     long long count, cap;
@@ -51,7 +52,7 @@ typedef struct {
 static void scratch_free(scratch *s)
 {
     free(s->ref_xy), free(s->cur_xy), free(s->values), free(s->ids);
-    free(s->pred), free(s->xy), free(s->verdict), free(s->seen), free(s->win), free(s->err), free(s->map_err), free(s->ms);
+    free(s->pred), free(s->xy), free(s->verdict), free(s->seen), free(s->covered), free(s->win), free(s->err), free(s->map_err), free(s->ms);
 }
 
 static int cmp_float(const void *a, const void *b)
@@ -266,8 +267,17 @@ static sh_status judge(const eval_lm_options *o, int t, int n, const sh_plane *l
             r->unjudged += accepted;
             continue;
         }
-        if (!phantom_truth_content_visible(o->truth, o->camera, t, &s->seen[i]) ||
-            phantom_truth_project_content(o->truth, o->camera, t, &s->seen[i], &gx, &gy) != SH_OK) {
+        if (s->covered[i]) {
+            /* Chosen on what covered the tissue in the reference (an instrument, blood): the
+             * landmark still says where the tissue behind its pixel went, and is judged by that,
+             * whether the cover is still there or not; never counted as hidden, as it was never
+             * seen. A window on an instrument that moves over the tissue is off by the difference. */
+            if (phantom_truth_project_content(o->truth, o->camera, t, &s->seen[i], &gx, &gy) != SH_OK) {
+                r->unjudged += accepted;
+                continue;
+            }
+        } else if (!phantom_truth_content_visible(o->truth, o->camera, t, &s->seen[i]) ||
+                   phantom_truth_project_content(o->truth, o->camera, t, &s->seen[i], &gx, &gy) != SH_OK) {
             r->hidden++;
             r->accepted_hidden += accepted;
             continue;
@@ -278,6 +288,8 @@ static sh_status judge(const eval_lm_options *o, int t, int n, const sh_plane *l
         double e = hypot(s->xy[2 * i] - gx, s->xy[2 * i + 1] - gy);
         const int part = partly_hidden(o, t, s, i);
         r->over_1px += e > 1;
+        r->accepted_covered += s->covered[i];
+        r->over_1px_covered += s->covered[i] && e > 1;
         r->accepted_partly_hidden += part;
         r->over_1px_partly_hidden += part && e > 1;
         r->accepted_lit += hl;
@@ -317,9 +329,10 @@ static sh_status start(const eval_lm_options *o, const sh_point *ref, int nref, 
     int n = sh_landmarks_count(*lm);
     const float *lr = sh_landmarks_reference(*lm);
     for (int i = 0; i < n; i++)
-        if (phantom_truth_locate_content(o->truth, o->camera, t, lr[2 * i], lr[2 * i + 1], &s->seen[i]) != SH_OK ||
-            !phantom_truth_content_visible(o->truth, o->camera, t, &s->seen[i]))
+        if (phantom_truth_locate_content(o->truth, o->camera, t, lr[2 * i], lr[2 * i + 1], &s->seen[i]) != SH_OK)
             s->seen[i].marker = -2;
+        else if (!phantom_truth_content_visible(o->truth, o->camera, t, &s->seen[i]))
+            s->covered[i] = 1;
     /* each window's samples, over the frame's pixels the search's window covers (2^k times its
      * side where the landmarks are found in the frame halved k times) */
     const double half = (o->lp.flow.win - 1) / 2.0 * (double)(1 << sh_landmarks_reduction(&o->lp, luma->width, luma->height));
@@ -386,9 +399,10 @@ sh_status eval_landmarks_run(const eval_lm_options *o, const sh_points *points, 
     s.xy = malloc(2 * lmax * sizeof(float));
     s.verdict = malloc(lmax);
     s.seen = malloc(lmax * sizeof(phantom_content));
+    s.covered = calloc(lmax, 1);
     s.win = malloc(lmax * WIN_SAMPLES * sizeof(phantom_content));
     s.ms = malloc(sizeof(double) * (size_t)(points->max_frame + 2));
-    if (!s.ref_xy || !s.cur_xy || !s.ids || !s.values || !s.pred || !s.xy || !s.verdict || !s.seen || !s.win || !s.ms)
+    if (!s.ref_xy || !s.cur_xy || !s.ids || !s.values || !s.pred || !s.xy || !s.verdict || !s.seen || !s.covered || !s.win || !s.ms)
         st = sh_error_set(SH_ENOMEM, "landmarks: out of memory");
     if (st == SH_OK) st = sh_image_create(&frame, h->format, h->width, h->height);
     int frames_timed = 0;
@@ -396,6 +410,7 @@ sh_status eval_landmarks_run(const eval_lm_options *o, const sh_points *points, 
         if ((st = sh_y4m_reader_read(rd, &frame)) != SH_OK) break;
         if (t == o->reference) {
             if ((st = start(o, ref, nref, &frame.plane[0], &s, &g, &lm)) != SH_OK) break;
+            for (int i = 0; i < sh_landmarks_count(lm); i++) r->chosen_covered += s.covered[i];
             n = r->seeded = sh_landmarks_count(lm);
             st = keep_rows(o, t, n, sh_landmarks_reference(lm), NULL, r);
             continue;
@@ -462,6 +477,9 @@ void eval_landmarks_print(const eval_lm_result *r, const char *video_path, int r
         sh_cli_json_int(&j, "hidden", r->hidden);
         sh_cli_json_int(&j, "accepted_hidden", r->accepted_hidden);
         sh_cli_json_int(&j, "unjudged", r->unjudged);
+        sh_cli_json_int(&j, "chosen_covered", r->chosen_covered);
+        sh_cli_json_int(&j, "accepted_covered", r->accepted_covered);
+        sh_cli_json_int(&j, "over_1px_covered", r->over_1px_covered);
         sh_cli_json_int(&j, "over_1px", r->over_1px);
         sh_cli_json_int(&j, "accepted_partly_hidden", r->accepted_partly_hidden);
         sh_cli_json_int(&j, "over_1px_partly_hidden", r->over_1px_partly_hidden);
@@ -494,6 +512,8 @@ void eval_landmarks_print(const eval_lm_result *r, const char *video_path, int r
         printf("accepted against the truth (px): mean %.4f, p99 %.4f, max %.4f over %lld; more than 1 px off: %lld; "
                "accepted while hidden: %lld of %lld hidden\n", r->mean, r->p99, r->max, r->measured, r->over_1px,
                r->accepted_hidden, r->hidden);
+        printf("chosen where something covered the tissue in frame %d: %d; accepted %lld, of them more than 1 px from "
+               "the tissue behind: %lld\n", reference, r->chosen_covered, r->accepted_covered, r->over_1px_covered);
         printf("accepted with part of the window hidden: %lld, of them more than 1 px off: %lld\n",
                r->accepted_partly_hidden, r->over_1px_partly_hidden);
         printf("with a highlight in the window: %lld, of them accepted %lld, accepted more than 1 px off %lld\n",

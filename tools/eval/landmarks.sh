@@ -19,11 +19,17 @@
 # length; LANDMARKS (200) how many are asked, LANDMARKS_SPARSE (400) for the four tags alone;
 # WARP_METHODS (tps pwlinear bspline affine) the warp's methods, DAEMON_METHODS (tps bspline
 # pwlinear) the daemon's.
+# REFERENCES (default 15 30 ... 165) are the other frames each standard render is evaluated from
+# as the reference (the instrument or blood in view in some: a reference is taken at start, after
+# the camera moved, or when asked, whatever is over the tissue then), into OUTDIR/references.csv,
+# with the landmarks chosen on what covered the tissue there and how many of those were accepted
+# and more than 1 px from the tissue behind them; "" skips them.
 set -eu
 BUILD=$(cd "$1" && pwd) OUT=$2 HERE=$(cd "$(dirname "$0")" && pwd)
 RENDER=$BUILD/stillheart-render EVAL=$BUILD/stillheart-eval APP=$BUILD/stillheart
 WARP_METHODS=${WARP_METHODS:-tps pwlinear bspline affine} DAEMON_METHODS=${DAEMON_METHODS:-tps bspline pwlinear}
 FRAMES=${FRAMES:-200} LANDMARKS=${LANDMARKS:-200} LANDMARKS_SPARSE=${LANDMARKS_SPARSE:-400}
+REFERENCES=${REFERENCES-15 30 45 60 75 90 105 120 135 150 165}
 for b in "$RENDER" "$EVAL" "$APP"; do [ -x "$b" ] || { echo "landmarks: $b is not built" >&2; exit 1; }; done
 mkdir -p "$OUT/work" "$OUT/json"
 start=$(date +%s)
@@ -36,6 +42,17 @@ run() { # run NAME DIR POINTS [EVAL OPTIONS]
     "$EVAL" --quiet --json --truth "$dir" --points "$pts" --landmarks "$LANDMARKS" "$@" "$dir/cam0.y4m" > "$OUT/json/$name.json"
     set -- "$name"
     echo "$1,$(num "$1" seeded),$(num "$1" accepted),$(num "$1" measured),$(num "$1" mean),$(num "$1" p99),$(num "$1" max),$(num "$1" over_1px),$(num "$1" hidden),$(num "$1" accepted_hidden),$(num "$1" map_mean),$(num "$1" markers_mean),$(num "$1" markers_p95),$(num "$1" landmarks_mean),$(num "$1" landmarks_p95),$(num "$1" ms_median),$(num "$1" unpredicted_frames),$(num "$1" accepted_partly_hidden),$(num "$1" over_1px_partly_hidden)" >> "$OUT/landmarks.csv"
+}
+
+# The same render from other references: every reference in REFERENCES before the render's end.
+from_references() { # from_references NAME DIR
+    for n in $REFERENCES; do
+        [ "$n" -lt "$FRAMES" ] || continue
+        j=$1-ref$n
+        "$EVAL" --quiet --json --truth "$2" --points "$2/points.csv" --landmarks "$LANDMARKS" --reference "$n" \
+            "$2/cam0.y4m" > "$OUT/json/$j.json"
+        echo "$1,$n,$(num "$j" seeded),$(num "$j" accepted),$(num "$j" over_1px),$(num "$j" hidden),$(num "$j" accepted_hidden),$(num "$j" chosen_covered),$(num "$j" accepted_covered),$(num "$j" over_1px_covered),$(num "$j" unjudged),$(num "$j" markers_mean),$(num "$j" landmarks_mean)" >> "$OUT/references.csv"
+    done
 }
 
 # The product's path: track (the markers' ids 0-15 / 0-13 of the presets, no first pass) without
@@ -79,6 +96,7 @@ through_daemon() { # through_daemon NAME DIR (after through_warp: its track.csv)
 
 echo "run,method,landmarks,e,geo_mean,geo_p95,landmarks_ms,model_ms,rss_kb_max" > "$OUT/daemon.csv"
 echo "run,method,e_markers,e_landmarks,geo_mean_markers,geo_mean_landmarks,geo_p95_markers,geo_p95_landmarks" > "$OUT/warp.csv"
+echo "run,reference,seeded,accepted,over_1px,hidden,accepted_hidden,chosen_covered,accepted_covered,over_1px_covered,unjudged,geo_markers_mean,geo_landmarks_mean" > "$OUT/references.csv"
 echo "run,seeded,accepted,measured,mean,p99,max,over_1px,hidden,accepted_hidden,map_at_landmarks,geo_markers_mean,geo_markers_p95,geo_landmarks_mean,geo_landmarks_p95,ms,unpredicted,partly_hidden,over_1px_partly_hidden" > "$OUT/landmarks.csv"
 for p in exvivo invivo; do
     for seed in 1 2 3 4; do
@@ -90,6 +108,8 @@ for p in exvivo invivo; do
         ids=$(four_tags "$dir/points.csv" "$dir/points4.csv")
         run "$p-$seed-4tags" "$dir" "$dir/points4.csv"
         run "$p-$seed-4tags-sparse" "$dir" "$dir/points4.csv" --lm-sparse
+        stamp "$p seed $seed from the other references"
+        from_references "$p-$seed" "$dir"
         stamp "track, warp and evaluate $p seed $seed"
         through_warp "$p-$seed" "$dir" "$( [ "$p" = exvivo ] && echo 0-15 || echo 0-13 )"
         stamp "the daemon on $p seed $seed"
@@ -117,7 +137,8 @@ stamp "render exvivo seed 1, texture contrast halved"
 "$EVAL" --truth "$dir" --export-points "$dir/points.csv"
 run exvivo-1-half-contrast "$dir" "$dir/points.csv"
 rm -rf "$dir"
-stamp "done: $OUT/landmarks.csv, $OUT/warp.csv, $OUT/daemon.csv"
+stamp "done: $OUT/landmarks.csv, $OUT/references.csv, $OUT/warp.csv, $OUT/daemon.csv"
 column -s, -t < "$OUT/landmarks.csv"
+column -s, -t < "$OUT/references.csv"
 column -s, -t < "$OUT/warp.csv"
 column -s, -t < "$OUT/daemon.csv"
