@@ -45,8 +45,11 @@
  *    occluder's edge covers is refused even when the rest of its window matches; and the
  *    windows' difference is at most max_jump times the landmark's own median over the last
  *    frames it was accepted in (in this view), so that an occluder that looks like the tissue,
- *    which the fixed bound lets through, is refused by the change it makes all the same; and,
- *    with min_correlation (the sparse tests), the windows correlate;
+ *    which the fixed bound lets through, is refused by the change it makes all the same; and
+ *    both differences are at most max_relative times their median over the frame's landmarks,
+ *    so that a window which matches worse than the frame's own noise explains is refused from
+ *    the reference's first frame on, before it has a past (an instrument's edge the tissue
+ *    slides under); and, with min_correlation (the sparse tests), the windows correlate;
  *  - BACKWARD: found again from the result back in the reference, it lands within
  *    max_backward_px of where it started (Kalal, Mikolajczyk and Matas, "Forward-backward error:
  *    automatic detection of tracking failures", ICPR 2010): the backward search starts from the
@@ -175,6 +178,13 @@ typedef struct {
                                  * grey level where that is less; from its third such frame on),
                                  * so that an occluder's edge over a window whose texture it
                                  * resembles is refused (2.5); 0: not tested. 1 to 1000 */
+    double max_relative;        /* the windows' difference, and their centres' (`core`), held
+                                 * to this many times its median over the landmarks the frame's
+                                 * search kept (LOST aside), and never below this many grey levels:
+                                 * a matched window differs from the reference by the frame's
+                                 * noise, alike for every landmark, and one that differs by
+                                 * several times that holds something the reference did not
+                                 * (2.5, the jump test's factor); 0: not tested. 1 to 1000 */
     double min_correlation;     /* the windows at the result held to at least this normalized
                                  * cross-correlation (sh_flow_window_correlation): a uniform
                                  * occluder (blood) over a window whose texture is too faint for

@@ -77,6 +77,7 @@ struct sh_landmarks {
     float *hist;
     uint8_t *hist_n, *hist_at;
     float *jump_limit;
+    float relative[2]; /* this frame's limits on the windows' difference and their centres' (max_relative) */
     /* the reference refined (p.refine): the sums and counts of the samples of every pixel of the
      * part rpart of the reduced frame (the reference's own pixel counted once), while frames are
      * still to come (refined < p.refine; freed after); rbox: the box of points whose windows read
@@ -168,6 +169,11 @@ void sh_landmarks_params_default(sh_landmarks_params *p)
      * (up to 0.011 px); and it does not depend on the searches: with no backward test at all, 1
      * hidden landmark-frame of 14 renders accepted, not 10. */
     p->max_jump = 2.5;
+    /* The jump test's factor against the frame's median, which every landmark has from the first
+     * frame: with an instrument in the reference, windows on its edge matched the frames after it
+     * by 2-5 grey levels (the frame's median 1.4) while the tissue slid under it by up to 3 px,
+     * within every other test (docs/landmarks.md, "An instrument in the reference"). */
+    p->max_relative = 2.5;
     /* The reference frame's noise is in every frame's search: in the windows' difference, which
      * the photometric tests hold, and in the gradients every step solves with. On the phantom two
      * scenes with a noiseless reference frame (the rest as noisy) had 6 accepted landmark-frames
@@ -235,6 +241,8 @@ static sh_status check_params(const sh_landmarks_params *p)
         return sh_error_set(SH_EINVAL, "landmarks: refine %d: 0 (the reference's own windows) to 1000", p->refine);
     if (!(p->max_jump == 0 || (p->max_jump >= 1 && p->max_jump <= 1000)))
         return sh_error_set(SH_EINVAL, "landmarks: max_jump %g: 0 (no test) or 1 to 1000", p->max_jump);
+    if (!(p->max_relative == 0 || (p->max_relative >= 1 && p->max_relative <= 1000)))
+        return sh_error_set(SH_EINVAL, "landmarks: max_relative %g: 0 (no test) or 1 to 1000", p->max_relative);
     if (!(p->min_correlation >= 0 && p->min_correlation < 1))
         return sh_error_set(SH_EINVAL, "landmarks: min_correlation %g: 0 (no test) up to 1", p->min_correlation);
     if (p->reduce < -1 || p->reduce > 4)
@@ -1167,7 +1175,9 @@ static sh_landmark_verdict first_three(const sh_landmarks *lm, int i)
         !isfinite(f[1]))
         return SH_LANDMARK_LOST;
     if (!(lm->err[i] <= p->max_photometric) || (p->core && !(lm->core_err[i] <= p->max_photometric)) ||
-        !(lm->err[i] <= lm->jump_limit[i]) || (p->min_correlation > 0 && !(lm->corr[i] >= p->min_correlation)))
+        !(lm->err[i] <= lm->jump_limit[i]) || !(lm->err[i] <= lm->relative[0]) ||
+        (p->core && !(lm->core_err[i] <= lm->relative[1])) ||
+        (p->min_correlation > 0 && !(lm->corr[i] >= p->min_correlation)))
         return SH_LANDMARK_PHOTOMETRIC;
     if (backward && !(hypot(lm->back[2 * i] - r[0], lm->back[2 * i + 1] - r[1]) <= p->max_backward_px))
         return SH_LANDMARK_BACKWARD;
@@ -1200,6 +1210,27 @@ static double adaptive_bound(sh_landmarks *lm, const float *predicted, double fl
     if (m == 0) return floor_px;
     double b = lm->p.bound_factor * median(d, m);
     return b > floor_px ? b : floor_px;
+}
+
+/* The relative test's limits on this frame's window differences and their centres': max_relative
+ * times their medians over the landmarks Lucas-Kanade kept (the frame's noise, whatever the
+ * landmarks' verdicts: an occluder over most of them would raise it, and the fixed bound holds
+ * then), never below max_relative grey levels (a noiseless frame's windows match to a fraction of
+ * one); infinite without the test. */
+static void relative_limits(sh_landmarks *lm)
+{
+    const double k = lm->p.max_relative;
+    lm->relative[0] = lm->relative[1] = INFINITY;
+    if (!(k > 0)) return;
+    for (int c = 0; c < (lm->p.core ? 2 : 1); c++) {
+        const float *v = c ? lm->core_err : lm->err;
+        int m = 0;
+        for (int i = 0; i < lm->n; i++)
+            if (lm->st_fwd[i] == SH_FLOW_OK && isfinite(v[i])) lm->dist[m++] = v[i];
+        if (m == 0) continue;
+        const float med = median(lm->dist, m);
+        lm->relative[c] = (float)k * (med > 1.f ? med : 1.f);
+    }
 }
 
 /* The jump test's limit on each landmark's window difference in this frame of a view: max_jump
@@ -1286,6 +1317,7 @@ static sh_status track(sh_landmarks *lm, int view, const sh_plane *luma, const f
     if (st == SH_OK) st = search_again(lm, luma, predicted, &again, &whole);
     if (st != SH_OK) return st;
     jump_limits(lm, view);
+    relative_limits(lm);
     double bound = p->max_disagreement_px;
     if (predicted && p->bound_factor > 0) bound = adaptive_bound(lm, predicted, bound);
     first_tests(lm, predicted, bound, verdict);

@@ -132,6 +132,9 @@ static void usage(FILE *f)
         "  --lm-jump K        the photometric test also holds a landmark's window difference to\n"
         "                     K times its median over the last 16 frames the landmark was\n"
         "                     accepted in (default 2.5, since 2026-12-06; 0: not)\n"
+        "  --lm-relative K    the photometric test also holds the windows' difference, and\n"
+        "                     their centres', to K times its median over the frame's landmarks\n"
+        "                     (default 2.5, since 2026-12-07; 0: not)\n"
         "  --lm-correlation R the photometric test also holds the windows at the result to a\n"
         "                     normalized cross-correlation of at least R (0 to 1: 0, not tested,\n"
         "                     the default; 0.4 with --lm-sparse, given after it to change)\n"
@@ -585,6 +588,7 @@ int main(int argc, char **argv)
         {"lm-quality", required_argument, 0, 1013}, {"landmark-smoothing", required_argument, 0, 1014},
         {"lm-jump", required_argument, 0, 1015}, {"lm-reduce", required_argument, 0, 1016},
         {"lm-correlation", required_argument, 0, 1017}, {"lm-refine", required_argument, 0, 1018},
+        {"lm-relative", required_argument, 0, 1019},
         {"json", no_argument, 0, 'j'},           SH_CLI_OPTIONS, {0, 0, 0, 0}};
     options o = {.stride = 4, .heatmap_max = 0.2, .heatmap_scale = 1, .contours = 4, .max_error = 0.05,
                  .landmark_smoothing = SH_LANDMARK_SMOOTHING};
@@ -630,6 +634,9 @@ int main(int argc, char **argv)
         case 1016: if (!sh_cli_parse_int("--lm-reduce", optarg, 0, 4, &o.lp.reduce)) return 2; break;
         case 1017: if (!sh_cli_parse_double("--lm-correlation", optarg, 0, 0.999, &o.lp.min_correlation)) return 2; break;
         case 1018: if (!sh_cli_parse_int("--lm-refine", optarg, 0, 1000, &o.lp.refine)) return 2; break;
+        case 1019: if (!sh_cli_parse_double("--lm-relative", optarg, 0, 1000, &o.lp.max_relative)) return 2;
+                   if (o.lp.max_relative > 0 && o.lp.max_relative < 1) return sh_cli_usage_error(&cli, "--lm-relative: 0 (no test) or 1 to 1000");
+                   break;
         case 1007: o.landmarks_points = optarg; break;
         case 1008: o.spectrum = 1; break;
         case 'h': usage(stdout); return 0;

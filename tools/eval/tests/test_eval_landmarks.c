@@ -153,6 +153,25 @@ static void test_occlusions_cost_landmarks_never_wrong_ones(void **state)
     assert_true(lit_accepted < lit);
     assert_int_equal((int)json_num(test_out, "over_1px_highlight"), 0);
     landmark_points_reproduce_the_map(dir, json, "tps", "lm.csv");
+    /* From frame 50 as the reference, where blood covers part of the tissue (the truth says so for
+     * some of the chosen landmarks' pixels): those are judged against the tissue behind them (none
+     * unjudged), and neither they nor the others are accepted wrong: none hidden, none of them
+     * more than 1 px from that tissue (one was, before the relative photometric test). */
+    if (test_run("'%s' --quiet --json --truth '%s' --points '%s/points.csv' --landmarks 100 --reference 50 "
+                 "'%s/cam0.y4m'", EVAL_BIN, dir, dir, dir) != 0)
+        fail_msg("%s\n%s", test_cmd, test_out);
+    print_message("  from frame 50: %s", test_out);
+    assert_true(json_num(test_out, "chosen_covered") > 0);
+    assert_true(json_num(test_out, "accepted_covered") > 0);
+    assert_int_equal((int)json_num(test_out, "unjudged"), 0);
+    assert_int_equal((int)json_num(test_out, "accepted_hidden"), 0);
+    assert_int_equal((int)json_num(test_out, "over_1px_covered"), 0);
+    /* the same search without the relative test, as the product searched before it */
+    if (test_run("'%s' --quiet --json --truth '%s' --points '%s/points.csv' --landmarks 100 --reference 50 "
+                 "--lm-relative 0 '%s/cam0.y4m'", EVAL_BIN, dir, dir, dir) != 0)
+        fail_msg("%s\n%s", test_cmd, test_out);
+    print_message("  without the relative test: %s", test_out);
+    assert_true(json_num(test_out, "accepted_covered") > 0);
     /* the same with B-splines, which do not reproduce affine maps (the landmarks predicted through
      * the B-splines' map too) */
     if (test_run("'%s' --quiet --json --truth '%s' --points '%s/points.csv' --landmarks 100 --method bspline "
@@ -177,6 +196,10 @@ static void test_occlusions_cost_landmarks_never_wrong_ones(void **state)
     assert_int_equal(test_run("'%s' --truth '%s' --points '%s/points.csv' --landmarks 10 --lm-jump 0.5 '%s/cam0.y4m'",
                               EVAL_BIN, dir, dir, dir), 2);
     assert_non_null(strstr(test_out, "--lm-jump"));
+    /* the relative test's factor: 0 or 1 to 1000, as the jump test's */
+    assert_int_equal(test_run("'%s' --truth '%s' --points '%s/points.csv' --landmarks 10 --lm-relative 0.5 '%s/cam0.y4m'",
+                              EVAL_BIN, dir, dir, dir), 2);
+    assert_non_null(strstr(test_out, "--lm-relative"));
     /* the correlation's floor: 0 (no test) to below 1 */
     assert_int_equal(test_run("'%s' --truth '%s' --points '%s/points.csv' --landmarks 10 --lm-correlation 1 '%s/cam0.y4m'",
                               EVAL_BIN, dir, dir, dir), 2);
