@@ -855,6 +855,24 @@ static middle middle_landmark(const sh_landmarks_params *p, const sh_image *ref)
     return m;
 }
 
+/* cur searched from the reference positions (nothing in it moved): the middle landmark's verdict
+ * is PHOTOMETRIC when `refused`, else ACCEPTED, and every other landmark is accepted; what: the
+ * case, printed with the verdict. Destroys m's landmarks. */
+static void only_middle_refused(middle m, const sh_image *cur, int refused, const char *what)
+{
+    float *xy = malloc(2 * (size_t)m.n * sizeof *xy);
+    uint8_t *verdict = malloc((size_t)m.n);
+    sh_landmarks_counts c;
+    assert_int_equal(sh_landmarks_track(m.lm, &cur->plane[0], m.r, xy, verdict, &c), SH_OK);
+    print_message("  %s: landmark %d of %d %s; %d accepted\n", what, m.k, m.n, sh_landmark_verdict_name(verdict[m.k]),
+                  c.verdicts[SH_LANDMARK_ACCEPTED]);
+    assert_int_equal(verdict[m.k], refused ? SH_LANDMARK_PHOTOMETRIC : SH_LANDMARK_ACCEPTED);
+    assert_int_equal(c.verdicts[SH_LANDMARK_ACCEPTED], m.n - (refused ? 1 : 0));
+    free(xy);
+    free(verdict);
+    sh_landmarks_destroy(m.lm);
+}
+
 /* The centre test (sh_landmarks_params.core): the reference itself as the frame, predicted where
  * it is, but for 3x3 pixels at one landmark's point set to the far end of the grey scale from what
  * they were (a speck of an occluder's edge over the point). Its window as a whole differs by less
@@ -873,26 +891,14 @@ static void test_centre_covered(void **state)
         photometric_only(&p);
         p.core = core;
         const middle m = middle_landmark(&p, &ref);
-        sh_landmarks *lm = m.lm;
-        const int n = m.n, k = m.k, cx = m.cx, cy = m.cy;
-        const float *r = m.r;
+        const int cx = m.cx, cy = m.cy;
         for (int y = cy - 1; y <= cy + 1; y++)
             for (int x = cx - 1; x <= cx + 1; x++) {
                 uint8_t *v = &cur.plane[0].data[(size_t)y * cur.plane[0].stride + x];
                 const uint8_t was = ref.plane[0].data[(size_t)y * ref.plane[0].stride + x];
                 *v = was > 127 ? 0 : 255;
             }
-        float *xy = malloc(2 * (size_t)n * sizeof *xy);
-        uint8_t *verdict = malloc((size_t)n);
-        sh_landmarks_counts c;
-        assert_int_equal(sh_landmarks_track(lm, &cur.plane[0], r, xy, verdict, &c), SH_OK);
-        print_message("  core %d: landmark %d of %d: %s; %d accepted\n", core, k, n, sh_landmark_verdict_name(verdict[k]),
-                      c.verdicts[SH_LANDMARK_ACCEPTED]);
-        assert_int_equal(verdict[k], core ? SH_LANDMARK_PHOTOMETRIC : SH_LANDMARK_ACCEPTED);
-        assert_int_equal(c.verdicts[SH_LANDMARK_ACCEPTED], n - (core ? 1 : 0));
-        free(xy);
-        free(verdict);
-        sh_landmarks_destroy(lm);
+        only_middle_refused(m, &cur, core != 0, core ? "core 7" : "core 0");
         memcpy(cur.plane[0].data, ref.plane[0].data, (size_t)cur.plane[0].stride * H);
     }
     sh_image_destroy(&ref);
@@ -928,22 +934,9 @@ static void test_relative(void **state)
     for (int test = 0; test <= 1; test++) {
         p.max_relative = test ? 2.5 : 0;
         const middle m = middle_landmark(&p, &ref);
-        sh_landmarks *lm = m.lm;
-        const int n = m.n, k = m.k, cx = m.cx, cy = m.cy;
-        const float *r = m.r;
         uint32_t seed = 4242;
-        faintly_occluded(&ref, &cur, &seed, 1, cx, cy);
-        float *xy = malloc(2 * (size_t)n * sizeof *xy);
-        uint8_t *verdict = malloc((size_t)n);
-        sh_landmarks_counts c;
-        assert_int_equal(sh_landmarks_track(lm, &cur.plane[0], r, xy, verdict, &c), SH_OK);
-        print_message("  max_relative %.1f, the first frame: landmark %d of %d %s; %d accepted\n", p.max_relative, k, n,
-                      sh_landmark_verdict_name(verdict[k]), c.verdicts[SH_LANDMARK_ACCEPTED]);
-        assert_int_equal(verdict[k], test ? SH_LANDMARK_PHOTOMETRIC : SH_LANDMARK_ACCEPTED);
-        assert_int_equal(c.verdicts[SH_LANDMARK_ACCEPTED], n - test);
-        free(xy);
-        free(verdict);
-        sh_landmarks_destroy(lm);
+        faintly_occluded(&ref, &cur, &seed, 1, m.cx, m.cy);
+        only_middle_refused(m, &cur, test, test ? "max_relative 2.5, the first frame" : "max_relative 0, the first frame");
     }
     /* the parameter's range, as max_jump's */
     sh_landmarks_params_default(&p);
@@ -1028,9 +1021,7 @@ static void test_correlation(void **state)
         p.flow.max_iter = 1, p.max_disagreement_px = 1000;
         p.min_correlation = test ? 0.4 : 0;
         const middle m = middle_landmark(&p, &ref);
-        sh_landmarks *lm = m.lm;
-        const int n = m.n, k = m.k, cx = m.cx, cy = m.cy;
-        const float *r = m.r;
+        const int cx = m.cx, cy = m.cy;
         long sum = 0;
         for (int y = cy - 10; y <= cy + 10; y++)
             for (int x = cx - 10; x <= cx + 10; x++) sum += ref.plane[0].data[(size_t)y * ref.plane[0].stride + x];
@@ -1043,17 +1034,8 @@ static void test_correlation(void **state)
                 int v = (covered ? grey : ref.plane[0].data[(size_t)y * ref.plane[0].stride + x]) + (int)((seed >> 16) % 5) - 2;
                 cur.plane[0].data[(size_t)y * cur.plane[0].stride + x] = (uint8_t)(v < 0 ? 0 : v > 255 ? 255 : v);
             }
-        float *xy = malloc(2 * (size_t)n * sizeof *xy);
-        uint8_t *verdict = malloc((size_t)n);
-        sh_landmarks_counts c;
-        assert_int_equal(sh_landmarks_track(lm, &cur.plane[0], r, xy, verdict, &c), SH_OK);
-        print_message("  min_correlation %.1f: landmark %d of %d under a uniform occluder %s; %d accepted\n",
-                      p.min_correlation, k, n, sh_landmark_verdict_name(verdict[k]), c.verdicts[SH_LANDMARK_ACCEPTED]);
-        assert_int_equal(verdict[k], test ? SH_LANDMARK_PHOTOMETRIC : SH_LANDMARK_ACCEPTED);
-        assert_int_equal(c.verdicts[SH_LANDMARK_ACCEPTED], n - test);
-        free(xy);
-        free(verdict);
-        sh_landmarks_destroy(lm);
+        only_middle_refused(m, &cur, test, test ? "min_correlation 0.4, under a uniform occluder"
+                                                : "min_correlation 0, under a uniform occluder");
     }
     /* the sparse tests hold the windows to 0.4; the defaults do not test them; out of range refused */
     sh_landmarks_params p;
