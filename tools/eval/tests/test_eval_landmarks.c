@@ -18,6 +18,7 @@
 #include <unistd.h>
 
 #include "shell.h"
+#include "stillheart/landmarks.h"
 
 #if !defined(EVAL_BIN) || !defined(RENDER_BIN) || !defined(APP_BIN)
 #error "EVAL_BIN, RENDER_BIN and APP_BIN must name this build's programs"
@@ -531,19 +532,21 @@ static void daemon_against_track(const char *dir, const char *track_flags, const
     assert_non_null(strstr(test_out, "landmark-frames: accepted"));
     int track_rows, shared, only_daemon;
     double far = rows_against_track(dir, &track_rows, &shared, &only_daemon);
-    /* The reference's windows are refined from the landmarks accepted in its first 16 frames
-     * (landmarks_refine): where one path accepted a landmark there that the other did not, each
+    /* The reference's windows are refined from the landmarks accepted in its first frames
+     * (landmarks_refine, 16 by default): where one path accepted a landmark there that the other did not, each
      * refined its windows from other samples, and the same landmarks are found a little apart in
      * every later frame (0.17 px once, under qemu-aarch64). The positions are held together only
      * when both refined from the same rows. */
     char differ[4096];
     frames_rows_differ(dir, differ, sizeof differ);
+    sh_landmarks_params defaults;
+    sh_landmarks_params_default(&defaults);
     int refined_alike = 1;
     for (const char *c = differ; *c;) {
         char *end;
         long f = strtol(c, &end, 10);
         if (end == c) break;
-        if (f <= 16) refined_alike = 0;
+        if (f <= defaults.refine) refined_alike = 0;
         c = end;
     }
     print_message("  %s: landmark rows: %d of track's, %d shared, %d the daemon's alone; largest distance %.4f px; "
