@@ -157,7 +157,9 @@ static void usage(FILE *f)
         "                     point in camera C (rows the truth says are hidden counted: wrong\n"
         "                     ones); with --cameras, every row's X,Y,Z (frame N's too) projected\n"
         "                     into each camera that sees the point, the worst of them: mean, p99,\n"
-        "                     max and rows over 1 px\n"
+        "                     max and rows over 1 px. A landmark chosen where frame N showed the\n"
+        "                     instrument or blood is judged against the tissue behind, never\n"
+        "                     hidden, and counted apart (covered)\n"
         "STABILIZED may be '-' (standard input) with --reference 0.\n");
 }
 

@@ -4,7 +4,10 @@
  * puts that point in that frame: the row's x, y in the camera the points are of, and with a
  * calibration its X, Y, Z projected into every camera that sees the point then (the reference
  * frame's rows included: their X, Y, Z is the landmark's reference in 3D). An error across the
- * rig's epipolar lines shows in one camera, one along them (depth) in the others. */
+ * rig's epipolar lines shows in one camera, one along them (depth) in the others. A landmark
+ * chosen where the reference frame showed the instrument or blood over the tissue is judged, as
+ * stillheart-eval --landmarks judges it, against the tissue behind its pixel, whether the cover
+ * is still there or not (never hidden: it was never seen), and counted apart. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -53,33 +56,42 @@ static double p99(errors *e)
 typedef struct {
     long long rows, unjudged, hidden;
     errors e2, e3; /* the rows' x, y; their X, Y, Z's worst camera */
+    /* landmarks chosen on a cover; their rows after the reference, and of those over 1 px in x, y;
+     * their rows with X, Y, Z (the reference's too) over 1 px in the worst camera */
+    int chosen_covered;
+    long long rows_covered, over_covered, over3_covered;
 } judged;
 
-/* One row against the truth: 0 when out of memory. */
+/* One row against the truth (covered: the landmark was chosen on a cover, and is judged against
+ * the tissue behind it in every camera, seen or not): 0 when out of memory. */
 static int judge(const phantom_truth *truth, const sh_calib *calib, int camera, int reference, double u, double v,
-                 const sh_point *r, judged *j)
+                 int covered, const sh_point *r, judged *j)
 {
     if (r->frame != reference) {
         j->rows++;
+        j->rows_covered += covered;
         double gx, gy;
-        if (!phantom_truth_visible(truth, camera, r->frame, u, v)) {
+        if (!covered && !phantom_truth_visible(truth, camera, r->frame, u, v)) {
             j->hidden++;
             return 1;
         }
-        if (phantom_truth_project(truth, camera, r->frame, u, v, &gx, &gy) == SH_OK &&
-            !add(&j->e2, hypot(r->x - gx, r->y - gy)))
-            return 0;
+        if (phantom_truth_project(truth, camera, r->frame, u, v, &gx, &gy) == SH_OK) {
+            double e = hypot(r->x - gx, r->y - gy);
+            if (!add(&j->e2, e)) return 0;
+            j->over_covered += covered && e > 1;
+        }
     }
     if (!calib || !isfinite(r->X)) return 1;
     double worst = -1, X[3] = {r->X, r->Y, r->Z};
     for (int c = 0; c < calib->num_cameras; c++) {
         double uv[2], gx, gy;
-        if (!phantom_truth_visible(truth, c, r->frame, u, v) ||
+        if ((!covered && !phantom_truth_visible(truth, c, r->frame, u, v)) ||
             phantom_truth_project(truth, c, r->frame, u, v, &gx, &gy) != SH_OK)
             continue;
         double d = sh_camera_project(&calib->cam[c], X, uv, NULL) == SH_OK ? hypot(uv[0] - gx, uv[1] - gy) : INFINITY;
         if (d > worst) worst = d;
     }
+    j->over3_covered += covered && worst > 1;
     return worst < 0 || add(&j->e3, worst);
 }
 
@@ -122,12 +134,15 @@ int eval_rows_main(const char *truth_dir, const char *points_path, const sh_cali
     for (int k = 0; k < nref; k++) nlm += ref[k].id >= SH_LANDMARK_ID_BASE;
     double *uv = malloc(sizeof(double) * 2 * (size_t)(nlm + 1));
     int *ids = malloc(sizeof(int) * (size_t)(nlm + 1));
-    if (!uv || !ids) rc = 1;
+    uint8_t *covered = calloc((size_t)(nlm + 1), 1);
+    if (!uv || !ids || !covered) rc = 1;
     for (int k = 0; k < nref && !rc; k++) {
         if (ref[k].id < SH_LANDMARK_ID_BASE) continue;
         ids[landmarks] = ref[k].id;
-        double *p = &uv[2 * landmarks++];
+        double *p = &uv[2 * landmarks];
         if (phantom_truth_locate(truth, camera, reference, ref[k].x, ref[k].y, &p[0], &p[1]) != SH_OK) p[0] = NAN;
+        else j.chosen_covered += covered[landmarks] = !phantom_truth_visible(truth, camera, reference, p[0], p[1]);
+        landmarks++;
     }
     for (int f = reference; f <= points.max_frame && !rc; f++) {
         int n;
@@ -139,7 +154,7 @@ int eval_rows_main(const char *truth_dir, const char *points_path, const sh_cali
                 j.unjudged++;
                 continue;
             }
-            rc = !judge(truth, calib, camera, reference, uv[2 * l], uv[2 * l + 1], &rows[k], &j);
+            rc = !judge(truth, calib, camera, reference, uv[2 * l], uv[2 * l + 1], covered[l], &rows[k], &j);
         }
     }
     if (rc) {
@@ -152,6 +167,13 @@ int eval_rows_main(const char *truth_dir, const char *points_path, const sh_cali
         sh_cli_json_int(&o, "rows", j.rows);
         sh_cli_json_int(&o, "hidden", j.hidden);
         sh_cli_json_int(&o, "unjudged", j.unjudged);
+        sh_cli_json_object(&o, "covered");
+        sh_cli_json_int(&o, "landmarks", j.chosen_covered);
+        sh_cli_json_int(&o, "rows", j.rows_covered);
+        sh_cli_json_int(&o, "image_over_1px", j.over_covered);
+        if (calib) sh_cli_json_int(&o, "reprojected_over_1px", j.over3_covered);
+        else sh_cli_json_null(&o, "reprojected_over_1px");
+        sh_cli_json_end(&o);
         print_errors(&o, "image", &j.e2, 1);
         if (calib) print_errors(&o, "reprojected", &j.e3, 1);
         else sh_cli_json_null(&o, "reprojected");
@@ -159,13 +181,17 @@ int eval_rows_main(const char *truth_dir, const char *points_path, const sh_cali
     } else {
         printf("%s: %d landmarks in frame %d, %lld rows after it: %lld the truth says are hidden, %lld without a "
                "truth\n", points_path, landmarks, reference, j.rows, j.hidden, j.unjudged);
+        printf("  chosen where something covered the tissue in frame %d: %d, their rows after it %lld, more than 1 px "
+               "from the tissue behind: %lld in x, y", reference, j.chosen_covered, j.rows_covered, j.over_covered);
+        if (calib) printf(", %lld in X, Y, Z (frame %d's rows too)", j.over3_covered, reference);
+        printf("\n");
         char what[96];
         snprintf(what, sizeof what, "x, y in camera %d", camera);
         print_errors(NULL, what, &j.e2, 0);
         snprintf(what, sizeof what, "X, Y, Z in the worst camera (frame %d's rows too)", reference);
         if (calib) print_errors(NULL, what, &j.e3, 0);
     }
-    free(uv), free(ids);
+    free(uv), free(ids), free(covered);
     free(j.e2.err), free(j.e3.err);
     phantom_truth_close(truth);
     sh_points_destroy(&points);
