@@ -43,10 +43,11 @@ static void usage(FILE *out)
         "  --spatial off|fuse occluded markers from time only, or also from neighbours (default fuse)\n"
         "  --measured-only    write only markers detected in that frame\n"
         "  --landmarks N      also up to N landmarks of the tissue (docs/landmarks.md): chosen in\n"
-        "                     frame 0 inside its markers' hull and off its tags, written as rows\n"
-        "                     with ids from 1000000 (their positions in frame 0 there), then in\n"
-        "                     each frame the ones found and accepted, which `stillheart warp` and\n"
-        "                     `warp3d` take as correspondences like the markers; off by default.\n"
+        "                     frame 0 (--reference) inside its markers' hull and off its tags,\n"
+        "                     written as rows with ids from 1000000 (their positions there), then\n"
+        "                     in each frame after it the ones found and accepted, which\n"
+        "                     `stillheart warp` and `warp3d` take as correspondences like the\n"
+        "                     markers; off by default.\n"
         "                     With --cameras, chosen in the first camera and matched in the others\n"
         "                     along epipolar lines: a row only for a landmark triangulated within\n"
         "                     0.5 px of every camera that accepted it, two at least\n"
@@ -67,14 +68,19 @@ static void usage(FILE *out)
         "                     the reference frame's own): half as many landmarks over 1 px off\n"
         "                     on the phantom; those K frames cost 0.7-1 ms more each at 1080p\n"
         "                     (docs/landmarks.md, \"The reference refined\")\n"
-        "  --landmarks-carry  with --landmarks (2D): a frame with 2 of frame 0's markers, too few\n"
-        "                     for their map, after a frame whose landmarks were written (frames\n"
-        "                     with fewer than 2 detected between them, where nothing is searched):\n"
-        "                     the landmarks searched from that frame's, and written when at each\n"
-        "                     marker detected in both frames (two at least) the median motion of\n"
-        "                     its 8 nearest landmarks accepted in both lies within 3 px of its own\n"
-        "                     (docs/landmarks.md, \"Carried frames\"); for four tags, where two\n"
-        "                     hidden leave too few\n"
+        "  --reference N      with --landmarks, the frame they are chosen in (default 0): give\n"
+        "                     `stillheart warp` the same --reference; frames before it have none.\n"
+        "                     Choose a frame where no instrument or blood covers the tissue: a\n"
+        "                     landmark chosen on one follows it (docs/landmarks.md, \"An instrument\n"
+        "                     in the reference\")\n"
+        "  --landmarks-carry  with --landmarks (2D): a frame with 2 of the reference's markers,\n"
+        "                     too few for their map, after a frame whose landmarks were written\n"
+        "                     (frames with fewer than 2 detected between them, where nothing is\n"
+        "                     searched): the landmarks searched from that frame's, and written\n"
+        "                     when at each marker detected in both frames (two at least) the\n"
+        "                     median motion of its 8 nearest landmarks accepted in both lies\n"
+        "                     within 3 px of its own (docs/landmarks.md, \"Carried frames\"); for\n"
+        "                     four tags, where two hidden leave too few\n"
         "  --stats            tracking figures on standard error at the end\n"
         "  --json             with --stats: the figures as one JSON object, the last line on\n"
         "                     standard error (standard output carries the points): frames,\n"
@@ -144,6 +150,7 @@ typedef struct {
     int landmarks_square; /* --landmarks-square */
     int landmarks_carry; /* --landmarks-carry */
     int landmarks_refine, refine_given; /* --landmarks-refine K (sh_landmarks_params_default's without) */
+    int reference, reference_given; /* --reference N: the landmarks' frame */
 } track_options;
 
 /* Fills o from argv: APP_GO_ON, or the exit code (usage and refusals printed). */
@@ -157,7 +164,7 @@ static int parse_options(int argc, char **argv, track_options *o)
         {"stats", no_argument, 0, 'S'},         {"json", no_argument, 0, 'j'},
         {"landmarks", required_argument, 0, 'L'}, {"landmarks-sparse", no_argument, 0, 'P'},
         {"landmarks-square", no_argument, 0, 'A'}, {"landmarks-carry", no_argument, 0, 'K'},
-        {"landmarks-refine", required_argument, 0, 'F'},
+        {"landmarks-refine", required_argument, 0, 'F'}, {"reference", required_argument, 0, 'R'},
         SH_CLI_OPTIONS,                         {0, 0, 0, 0}};
     memset(o, 0, sizeof *o);
     sh_track_options_default(&o->topts);
@@ -195,6 +202,10 @@ static int parse_options(int argc, char **argv, track_options *o)
             if (!sh_cli_parse_int("--landmarks-refine", optarg, 0, 1000, &o->landmarks_refine)) return 2;
             o->refine_given = 1;
             break;
+        case 'R':
+            if (!sh_cli_parse_int("--reference", optarg, 0, 1 << 30, &o->reference)) return 2;
+            o->reference_given = 1;
+            break;
         case 'h': usage(stdout); return 0;
         default: { int rc = sh_cli_option(&cli, ch, argv); if (rc >= 0) return rc; } break;
         }
@@ -208,6 +219,8 @@ static int parse_options(int argc, char **argv, track_options *o)
     if (o->landmarks_square && !o->landmarks) return sh_cli_usage_error(&cli, "--landmarks-square goes with --landmarks");
     if (o->refine_given && !o->landmarks) return sh_cli_usage_error(&cli, "--landmarks-refine goes with --landmarks");
     if (o->landmarks_carry && !o->landmarks) return sh_cli_usage_error(&cli, "--landmarks-carry goes with --landmarks");
+    /* the markers' rows do not depend on a reference: only the landmarks are chosen in one */
+    if (o->reference_given && !o->landmarks) return sh_cli_usage_error(&cli, "--reference goes with --landmarks");
     if (o->landmarks_carry && o->calib_path)
         return sh_cli_usage_error(&cli, "--landmarks-carry is 2D: in 3D each landmark needs the markers' map into "
                                         "every camera");
@@ -275,7 +288,7 @@ typedef struct {
     int measured[SH_TRACK_MAX_MARKERS];  /* the ids of those detected in the frame */
     int nmeasured;
     int ndet0;                           /* camera 0's detections of the frame */
-    track_landmarks *lm;                 /* --landmarks, from frame 0 */
+    track_landmarks *lm;                 /* --landmarks, from the reference frame on */
 } track_pass;
 
 /* Each camera's detections of the current frame (static: too large for the stack). */
@@ -385,12 +398,14 @@ static int write_rows(const track_job *job, track_pass *p, int f, FILE *out)
     p->nrows = nr;
     if (!ok || !job->o->landmarks) return !ok;
     /* the tissue's landmarks after the frame's markers (their ids sort after) */
-    if (f == 0) {
+    if (f == job->o->reference) {
         int full = sh_y4m_header_full_range(sh_y4m_reader_header(p->rd[0]));
         track_landmarks_options lo = {job->o->landmarks, job->o->landmarks_sparse, !job->o->landmarks_square,
                                       job->o->landmarks_carry, job->o->ncam, full,
-                                      job->have_calib ? &job->calib : NULL, job->o->landmarks_refine};
-        return track_landmarks_start(&lo, p->img, dets[0], p->ndet0, rows, nr, out, &p->lm);
+                                      job->have_calib ? &job->calib : NULL, job->o->landmarks_refine,
+                                      job->o->reference};
+        return track_landmarks_start(&lo, p->img, dets[0], p->ndet0, rows, nr, p->measured, p->nmeasured, out,
+                                     &p->lm);
     }
     return p->lm && track_landmarks_frame(p->lm, p->img, f, rows, nr, p->measured, p->nmeasured, out);
 }
@@ -553,13 +568,19 @@ static int run_pass(const track_job *job, int max_frames, FILE *out, sh_track_id
     if (max_frames >= 0 && (total < 0 || total > max_frames)) total = max_frames;
     sh_cli_progress_start(&progress, out ? "track" : "track: finding the markers",
                           total < 0 || total > 1 << 30 ? 0 : (int)total, "frames");
-    for (int f = 0; !rc && (max_frames < 0 || f < max_frames); f++) {
+    int f;
+    for (f = 0; !rc && (max_frames < 0 || f < max_frames); f++) {
         int step = pass_frame(job, &p, f, out);
         if (step == FRAME_END) break;
         rc = step == FRAME_FAILED;
         sh_cli_progress_update(&progress, f + 1);
     }
     sh_cli_progress_end(&progress);
+    if (!rc && out && job->o->landmarks && f <= job->o->reference) {
+        /* the markers are written, but what was asked for is not there: not a success */
+        sh_log_error("--reference %d: %s has %d frames, no landmarks chosen", job->o->reference, job->o->in[0], f);
+        rc = 1;
+    }
     if (!rc) pass_report(job, &p, out, judged, njudged);
     pass_close(job, &p);
     return rc;

@@ -14,9 +14,10 @@ struct track_landmarks {
     sh_landmarks *lm;      /* 2D: camera 0's landmarks */
     sh_landmarks_rig *rig; /* 3D: the rig's (landmarks.h, "In 3D") */
     int n;
+    int reference;         /* the frame they were chosen in (--reference; "frame 0" below) */
     int ncam;              /* > 1: landmarks in 3D */
     const sh_calib *calib;
-    sh_point *ref;         /* frame 0's marker rows, sorted by id */
+    sh_point *ref;         /* the reference's marker rows, sorted by id */
     int nref;
     int *ids;              /* nref: the ids a frame shares with frame 0 */
     double *ref_xy, *cur_xy; /* nref pairs: frame 0's positions (for its hull), then per frame the
@@ -198,14 +199,14 @@ static int lumas(track_landmarks *tl, const sh_image *frames, int f, const sh_pl
  * the ones triangulated there have a reference in 3D and are written. 0, or 1 with the reason
  * printed. */
 static int start_3d(track_landmarks *tl, const sh_landmarks_params *p, const sh_image *frames, const double *tags,
-                    int ntags)
+                    int ntags, const char *where)
 {
     const sh_plane *y[MAXCAM];
-    if (lumas(tl, frames, 0, y)) return 1;
+    if (lumas(tl, frames, tl->reference, y)) return 1;
     for (int k = 0; k < tl->nref; k++)
         tl->cur_xyz[3 * k] = tl->ref[k].X, tl->cur_xyz[3 * k + 1] = tl->ref[k].Y, tl->cur_xyz[3 * k + 2] = tl->ref[k].Z;
     if (sh_landmarks_rig_create(p, tl->calib, 0, y, tl->ref_xy, tl->cur_xyz, tl->nref, tags, ntags, &tl->rig) != SH_OK)
-        return fail("frame 0");
+        return fail(where);
     const sh_landmarks *lm = sh_landmarks_rig_primary(tl->rig);
     tl->n = tl->stats.chosen = sh_landmarks_count(lm);
     if (allocate(tl)) return 1;
@@ -213,20 +214,23 @@ static int start_3d(track_landmarks *tl, const sh_landmarks_params *p, const sh_
     memcpy(tl->xy, sh_landmarks_reference(lm), 2 * (size_t)tl->n * sizeof *tl->xy);
     memcpy(tl->X, sh_landmarks_rig_reference_xyz(tl->rig), 3 * (size_t)tl->n * sizeof *tl->X);
     for (int i = 0; i < tl->n; i++) tl->stats.in_3d += tl->keep[i] = in3d[i];
-    sh_log_info("%d landmarks chosen in camera 0's frame 0 (ids %d on), %d of them matched in camera%s 1%s "
+    sh_log_info("%d landmarks chosen in camera 0's %s (ids %d on), %d of them matched in camera%s 1%s "
                 "and triangulated (the others are not written)",
-                tl->n, SH_LANDMARK_ID_BASE, tl->stats.in_3d, tl->ncam > 2 ? "s" : "", tl->ncam > 2 ? " or 2" : "");
+                tl->n, where, SH_LANDMARK_ID_BASE, tl->stats.in_3d, tl->ncam > 2 ? "s" : "", tl->ncam > 2 ? " or 2" : "");
     return 0;
 }
 
 int track_landmarks_start(const track_landmarks_options *o, const sh_image *frames, const sh_detection *dets, int ndet,
-                          const sh_point *rows, int nrows, FILE *out, track_landmarks **out_tl)
+                          const sh_point *rows, int nrows, const int *measured, int nmeasured, FILE *out,
+                          track_landmarks **out_tl)
 {
     *out_tl = NULL;
+    char where[32];
+    snprintf(where, sizeof where, "frame %d", o->reference);
     if (nrows < 3) {
         /* the markers are still tracked and written: only the landmarks are given up */
-        sh_log_warn("--landmarks: frame 0 has %d markers, the hull that bounds the landmarks needs 3: "
-                    "no landmarks", nrows);
+        sh_log_warn("--landmarks: %s has %d markers, the hull that bounds the landmarks needs 3: "
+                    "no landmarks", where, nrows);
         return 0;
     }
     track_landmarks *tl = calloc(1, sizeof *tl);
@@ -234,6 +238,7 @@ int track_landmarks_start(const track_landmarks_options *o, const sh_image *fram
     if (tl) {
         tl->ncam = o->calib && o->ncam > 1 ? o->ncam : 1;
         tl->calib = o->calib;
+        tl->reference = o->reference;
         tl->ref = malloc((size_t)nrows * sizeof *tl->ref);
         tl->ids = malloc((size_t)nrows * sizeof *tl->ids);
         tl->ref_xy = malloc(2 * (size_t)nrows * sizeof *tl->ref_xy);
@@ -270,13 +275,13 @@ int track_landmarks_start(const track_landmarks_options *o, const sh_image *fram
     p.highlight = sh_landmarks_highlight_level(frames[0].format, o->full_range);
     int rc = 0;
     if (tl->ncam > 1) {
-        rc = start_3d(tl, &p, frames, tags, ndet);
+        rc = start_3d(tl, &p, frames, tags, ndet, where);
     } else {
         sh_hull hull;
         const sh_plane *y = luma(tl, 0, &frames[0]);
         if (!y || sh_hull_compute(tl->ref_xy, nrows, &hull) != SH_OK ||
             sh_landmarks_create(&p, y, &hull, tags, ndet, &tl->lm) != SH_OK)
-            rc = fail("frame 0");
+            rc = fail(where);
         if (!rc) {
             tl->n = tl->stats.chosen = sh_landmarks_count(tl->lm);
             rc = allocate(tl);
@@ -284,16 +289,20 @@ int track_landmarks_start(const track_landmarks_options *o, const sh_image *fram
         if (!rc) {
             memcpy(tl->xy, sh_landmarks_reference(tl->lm), 2 * (size_t)tl->n * sizeof *tl->xy);
             memset(tl->keep, 1, (size_t)tl->n);
-            sh_log_info("%d landmarks chosen in frame 0 (ids %d on)", tl->n, SH_LANDMARK_ID_BASE);
+            sh_log_info("%d landmarks chosen in %s (ids %d on)", tl->n, where, SH_LANDMARK_ID_BASE);
         }
     }
     free(tags);
-    if (!rc) rc = write_landmarks(tl, 0, tl->xy, out);
-    if (!rc && tl->carry) { /* frame 0: every landmark where it was chosen, every marker seen */
-        tl->prev_f = tl->chain_f = 0;
-        tl->nprev = nrows;
-        for (int k = 0; k < nrows; k++) tl->prev_ids[k] = tl->ref[k].id;
-        memcpy(tl->prev_xy, tl->ref_xy, 2 * (size_t)nrows * sizeof *tl->prev_xy);
+    if (!rc) rc = write_landmarks(tl, tl->reference, tl->xy, out);
+    if (!rc && tl->carry) { /* the reference: every landmark where it was chosen, every marker detected */
+        tl->prev_f = tl->chain_f = tl->reference;
+        tl->nprev = 0;
+        for (int k = 0; k < nrows; k++) {
+            if (!listed(measured, nmeasured, tl->ref[k].id)) continue;
+            tl->prev_ids[tl->nprev] = tl->ref[k].id;
+            tl->prev_xy[2 * tl->nprev] = tl->ref_xy[2 * k], tl->prev_xy[2 * tl->nprev + 1] = tl->ref_xy[2 * k + 1];
+            tl->nprev++;
+        }
     }
     if (rc) {
         track_landmarks_destroy(tl);

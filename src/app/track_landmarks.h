@@ -1,8 +1,9 @@
 /* stillheart track --landmarks N (issue 19): the tissue's landmarks as extra rows of the points
- * file, with ids from SH_LANDMARK_ID_BASE (landmark k: base + k). The reference is frame 0:
- * there they are chosen, and their rows give their reference positions; in each later frame the
- * accepted ones (landmarks.h's tests) are written, so that `stillheart warp` and stillheart-eval
- * take them as correspondences like the markers they share with frame 0.
+ * file, with ids from SH_LANDMARK_ID_BASE (landmark k: base + k). The reference is frame 0, or
+ * the frame --reference names ("frame 0" below): there they are chosen, and their rows give their
+ * reference positions; in each later frame the accepted ones (landmarks.h's tests) are written, so
+ * that `stillheart warp` (with the same --reference) and stillheart-eval take them as
+ * correspondences like the markers they share with that frame. Frames before it have none.
  * With a calibrated rig (--cameras, two or three videos) they are chosen in camera 0 and matched
  * in the other cameras, frame by frame, each search started on the epipolar line of camera 0's
  * position and its reference window warped by the local affine of the markers' map into that
@@ -31,6 +32,7 @@ typedef struct {
     int full_range;        /* the videos' samples are full range (sh_landmarks_highlight_level) */
     const sh_calib *calib; /* NULL: 2D (camera 0 alone) */
     int refine;            /* --landmarks-refine (sh_landmarks_params.refine) */
+    int reference;         /* --reference: the frame they are chosen in */
 } track_landmarks_options;
 
 typedef struct {
@@ -46,12 +48,14 @@ typedef struct {
 
 typedef struct track_landmarks track_landmarks;
 
-/* Frame 0 (frames: one image per camera): up to o->n landmarks inside the hull of camera 0's
- * marker rows and off the tags detected there; their rows written. 0, or 1 with the reason
- * printed. With fewer than 3 marker rows there is no hull: a warning, 0 and *tl NULL (the
- * markers go on without landmarks). */
+/* The reference frame o->reference (frames: one image per camera): up to o->n landmarks inside
+ * the hull of camera 0's marker rows and off the tags detected there; their rows written
+ * (measured: the nmeasured ids of the rows detected there, which --landmarks-carry's first frame
+ * checks against). 0, or 1 with the reason printed. With fewer than 3 marker rows there is no
+ * hull: a warning, 0 and *tl NULL (the markers go on without landmarks). */
 int track_landmarks_start(const track_landmarks_options *o, const sh_image *frames, const sh_detection *dets, int ndet,
-                          const sh_point *rows, int nrows, FILE *out, track_landmarks **tl);
+                          const sh_point *rows, int nrows, const int *measured, int nmeasured, FILE *out,
+                          track_landmarks **tl);
 /* Frame f: each landmark predicted by the markers' map (TPS on the marker rows f shares with
  * frame 0), found and judged (in 3D, in every camera); the accepted ones written. With carry, a
  * frame with 2 such rows (fewer than the map's 3) right after a frame whose landmarks were

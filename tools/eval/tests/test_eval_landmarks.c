@@ -272,6 +272,60 @@ static double geometric_mean(const char *dir, const char *points, const char *st
     return out_geometric_mean();
 }
 
+/* `stillheart track --reference 50` on the render of test_track_landmarks_through_the_warp, where
+ * blood covers part of the tissue in frame 50 (the truth says so for some of the pixels chosen
+ * there): no landmark row before frame 50 and the markers' rows unchanged; judged by the truth
+ * from frame 50 (stillheart-eval --landmark-rows --reference 50), none accepted where hidden and
+ * none without a truth, those chosen on the blood counted apart (their rows against the tissue
+ * behind, printed: 3 of 20 more than 1 px off there when this was written, the shortfall
+ * docs/landmarks.md's "An instrument in the reference" measures); `stillheart warp --reference 50`
+ * through them is closer to the truth with a lower e than through the markers alone. --reference
+ * without --landmarks is refused, and one past the recording's end is an error after the markers
+ * are written. */
+static void track_from_another_reference(const char *dir)
+{
+    /* Under qemu-aarch64 (SH_TEST_EMULATED) this binary's lane is the arm64 run's longest
+     * (tools/cross/cross.mk); the reference frame only moves where the same C code starts, and the
+     * searches' NEON paths are run there by the cases around it. */
+    if (getenv("SH_TEST_EMULATED")) return;
+    if (test_run("cd '%s' && '%s' track --quiet --ids 0-15 --landmarks 100 --reference 50 cam0.y4m > ref50.csv", dir,
+                 APP_BIN) != 0)
+        fail_msg("%s\n%s", test_cmd, test_out);
+    assert_int_equal(test_run("cd '%s' && awk -F, 'NR > 1 && $2 >= 1000000 { print $1; exit }' ref50.csv", dir), 0);
+    assert_int_equal(atoi(test_out), 50);
+    assert_int_equal(test_run("cd '%s' && grep -v ',10[0-9][0-9][0-9][0-9][0-9],' ref50.csv | cmp - markers.csv", dir), 0);
+    if (test_run("cd '%s' && '%s' --json --truth . --points ref50.csv --landmark-rows --reference 50", dir, EVAL_BIN) != 0)
+        fail_msg("%s\n%s", test_cmd, test_out);
+    print_message("  chosen in frame 50: %s", test_out);
+    assert_true(json_num(test_out, "landmarks") >= 10);
+    assert_true(json_num(test_out, "rows") > 0);
+    assert_int_equal((int)json_num(test_out, "hidden"), 0);
+    assert_int_equal((int)json_num(test_out, "unjudged"), 0);
+    const char *cov = strstr(test_out, "\"covered\"");
+    assert_non_null(cov);
+    assert_true(json_num(cov, "landmarks") > 0);
+    double geo[2], e[2];
+    for (int k = 0; k < 2; k++) {
+        const char *pts = k ? "ref50.csv" : "markers.csv";
+        if (test_run("cd '%s' && '%s' warp --quiet --method tps --reference 50 --points %s cam0.y4m s50_%d.y4m && "
+                     "'%s' --quiet --json --reference 50 --truth . --points %s s50_%d.y4m cam0.y4m", dir, APP_BIN, pts,
+                     k, EVAL_BIN, pts, k) != 0)
+            fail_msg("%s\n%s", test_cmd, test_out);
+        e[k] = json_num(test_out, "e_stabilized");
+        geo[k] = out_geometric_mean();
+    }
+    print_message("  warped onto frame 50, TPS: geometric error %.4f -> %.4f px, e %.5f -> %.5f\n", geo[0], geo[1], e[0],
+                  e[1]);
+    assert_true(geo[1] < geo[0]);
+    assert_true(e[1] < e[0]);
+    assert_int_equal(test_run("cd '%s' && '%s' track --ids 0-15 --reference 50 cam0.y4m", dir, APP_BIN), 2);
+    assert_non_null(strstr(test_out, "--reference goes with --landmarks"));
+    assert_int_equal(test_run("cd '%s' && { '%s' track --ids 0-15 --landmarks 10 --reference %d cam0.y4m 2>&1 > past.csv; }",
+                              dir, APP_BIN, FRAMES), 1);
+    assert_non_null(strstr(test_out, "no landmarks chosen"));
+    assert_int_equal(test_run("cd '%s' && grep -v ',10[0-9][0-9][0-9][0-9][0-9],' past.csv | cmp - markers.csv", dir), 0);
+}
+
 static void test_track_landmarks_through_the_warp(void **state)
 {
     (void)state;
@@ -324,6 +378,7 @@ static void test_track_landmarks_through_the_warp(void **state)
     assert_int_equal(landmark_rows(path, &frame0, &later, &strangers), 0);
     assert_int_equal(frame0 + later, 0);
     assert_int_equal(test_run("cd '%s' && test $(wc -l < two.csv) -gt %d", dir, FRAMES), 0);
+    track_from_another_reference(dir);
     test_run("rm -rf '%s'", dir);
 }
 
