@@ -23,7 +23,9 @@
 # as the reference (the instrument or blood in view in some: a reference is taken at start, after
 # the camera moved, or when asked, whatever is over the tissue then), into OUTDIR/references.csv,
 # with the landmarks chosen on what covered the tissue there and how many of those were accepted
-# and more than 1 px from the tissue behind them; "" skips them.
+# and more than 1 px from the tissue behind them; and the product's path from each (`stillheart
+# track --landmarks --reference N`, the tracker's markers, the rows judged by stillheart-eval
+# --landmark-rows --reference N: track_*); "" skips them.
 set -eu
 BUILD=$(cd "$1" && pwd) OUT=$2 HERE=$(cd "$(dirname "$0")" && pwd)
 RENDER=$BUILD/stillheart-render EVAL=$BUILD/stillheart-eval APP=$BUILD/stillheart
@@ -44,15 +46,19 @@ run() { # run NAME DIR POINTS [EVAL OPTIONS]
     echo "$1,$(num "$1" seeded),$(num "$1" accepted),$(num "$1" measured),$(num "$1" mean),$(num "$1" p99),$(num "$1" max),$(num "$1" over_1px),$(num "$1" hidden),$(num "$1" accepted_hidden),$(num "$1" map_mean),$(num "$1" markers_mean),$(num "$1" markers_p95),$(num "$1" landmarks_mean),$(num "$1" landmarks_p95),$(num "$1" ms_median),$(num "$1" unpredicted_frames),$(num "$1" accepted_partly_hidden),$(num "$1" over_1px_partly_hidden)" >> "$OUT/landmarks.csv"
 }
 
-# The same render from other references: every reference in REFERENCES before the render's end.
-from_references() { # from_references NAME DIR
+# The same render from other references: every reference in REFERENCES before the render's end,
+# through the evaluator (the truth's markers) and through `stillheart track --reference`.
+from_references() { # from_references NAME DIR IDS
     for n in $REFERENCES; do
         [ "$n" -lt "$FRAMES" ] || continue
-        j=$1-ref$n
+        j=$1-ref$n k=$1-ref$n-track
         "$EVAL" --quiet --json --truth "$2" --points "$2/points.csv" --landmarks "$LANDMARKS" --reference "$n" \
             "$2/cam0.y4m" > "$OUT/json/$j.json"
-        echo "$1,$n,$(num "$j" seeded),$(num "$j" accepted),$(num "$j" over_1px),$(num "$j" hidden),$(num "$j" accepted_hidden),$(num "$j" chosen_covered),$(num "$j" accepted_covered),$(num "$j" over_1px_covered),$(num "$j" unjudged),$(num "$j" markers_mean),$(num "$j" landmarks_mean)" >> "$OUT/references.csv"
+        "$APP" track --quiet --ids "$3" --landmarks "$LANDMARKS" --reference "$n" "$2/cam0.y4m" > "$2/ref.csv"
+        "$EVAL" --json --truth "$2" --points "$2/ref.csv" --landmark-rows --reference "$n" > "$OUT/json/$k.json"
+        echo "$1,$n,$(num "$j" seeded),$(num "$j" accepted),$(num "$j" over_1px),$(num "$j" hidden),$(num "$j" accepted_hidden),$(num "$j" chosen_covered),$(num "$j" accepted_covered),$(num "$j" over_1px_covered),$(num "$j" unjudged),$(num "$j" markers_mean),$(num "$j" landmarks_mean),$(num_first "$k" landmarks),$(num_first "$k" rows),$(num_first "$k" hidden),$(num_first "$k" over_1px image),$(num_first "$k" rows covered),$(num_first "$k" image_over_1px covered)" >> "$OUT/references.csv"
     done
+    rm -f "$2/ref.csv"
 }
 
 # The product's path: track (the markers' ids 0-15 / 0-13 of the presets, no first pass) without
@@ -96,7 +102,7 @@ through_daemon() { # through_daemon NAME DIR (after through_warp: its track.csv)
 
 echo "run,method,landmarks,e,geo_mean,geo_p95,landmarks_ms,model_ms,rss_kb_max" > "$OUT/daemon.csv"
 echo "run,method,e_markers,e_landmarks,geo_mean_markers,geo_mean_landmarks,geo_p95_markers,geo_p95_landmarks" > "$OUT/warp.csv"
-echo "run,reference,seeded,accepted,over_1px,hidden,accepted_hidden,chosen_covered,accepted_covered,over_1px_covered,unjudged,geo_markers_mean,geo_landmarks_mean" > "$OUT/references.csv"
+echo "run,reference,seeded,accepted,over_1px,hidden,accepted_hidden,chosen_covered,accepted_covered,over_1px_covered,unjudged,geo_markers_mean,geo_landmarks_mean,track_landmarks,track_rows,track_hidden,track_over_1px,track_covered_rows,track_covered_over_1px" > "$OUT/references.csv"
 echo "run,seeded,accepted,measured,mean,p99,max,over_1px,hidden,accepted_hidden,map_at_landmarks,geo_markers_mean,geo_markers_p95,geo_landmarks_mean,geo_landmarks_p95,ms,unpredicted,partly_hidden,over_1px_partly_hidden" > "$OUT/landmarks.csv"
 for p in exvivo invivo; do
     for seed in 1 2 3 4; do
@@ -109,7 +115,7 @@ for p in exvivo invivo; do
         run "$p-$seed-4tags" "$dir" "$dir/points4.csv"
         run "$p-$seed-4tags-sparse" "$dir" "$dir/points4.csv" --lm-sparse
         stamp "$p seed $seed from the other references"
-        from_references "$p-$seed" "$dir"
+        from_references "$p-$seed" "$dir" "$( [ "$p" = exvivo ] && echo 0-15 || echo 0-13 )"
         stamp "track, warp and evaluate $p seed $seed"
         through_warp "$p-$seed" "$dir" "$( [ "$p" = exvivo ] && echo 0-15 || echo 0-13 )"
         stamp "the daemon on $p seed $seed"

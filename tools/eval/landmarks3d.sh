@@ -16,7 +16,7 @@
 # hidden, the landmarks chosen on what covered the tissue and their rows more than 1 px from the
 # tissue behind), into OUTDIR/references.csv; "" skips them.
 set -eu
-BUILD=$(cd "$1" && pwd) OUT=$2
+BUILD=$(cd "$1" && pwd) OUT=$2 HERE=$(cd "$(dirname "$0")" && pwd)
 RENDER=$BUILD/stillheart-render EVAL=$BUILD/stillheart-eval APP=$BUILD/stillheart
 METHODS=${METHODS:-tps bspline} FRAMES=${FRAMES:-200} LANDMARKS=${LANDMARKS:-200} JOBS=${JOBS:-2}
 REFERENCES=${REFERENCES-15 30 45 60 75 90 105 120 135 150 165}
@@ -24,11 +24,7 @@ for b in "$RENDER" "$EVAL" "$APP"; do [ -x "$b" ] || { echo "landmarks3d: $b is 
 mkdir -p "$OUT/work" "$OUT/json" "$OUT/rows"
 start=$(date +%s)
 stamp() { echo "landmarks3d: [$(( $(date +%s) - start )) s] $*" >&2; }
-# num FILE KEY [OBJECT]: the number under KEY (inside the object OBJECT when given)
-num() {
-    if [ $# -gt 2 ]; then sed -n "s/.*\"$3\": {\([^}]*\)}.*/\1/p" "$OUT/json/$1.json"; else cat "$OUT/json/$1.json"; fi |
-        grep -o "\"$2\": [-0-9.eEnaif+]*" | head -1 | sed 's/.*: //'
-}
+. "$HERE/common.sh"
 
 one() { # one PRESET SEED: its rows into $OUT/rows/NAME.*
     p=$1 seed=$2 name=$1-$2 dir=$OUT/work/$1-$2
@@ -42,7 +38,7 @@ one() { # one PRESET SEED: its rows into $OUT/rows/NAME.*
     "$EVAL" --json --truth "$dir" --cameras "$dir/calibration.yaml" --points "$dir/landmarks.csv" --landmark-rows \
         > "$OUT/json/$name-rows.json"
     t=$name-track r=$name-rows
-    echo "$name,$(num "$t" chosen),$(num "$t" in_3d),$(num "$t" accepted),$(num "$t" unmatched_3d),$(num "$t" inconsistent_3d),$(num "$r" hidden),$(num "$r" mean image),$(num "$r" max image),$(num "$r" over_1px image),$(num "$r" rows reprojected),$(num "$r" mean reprojected),$(num "$r" p99 reprojected),$(num "$r" max reprojected),$(num "$r" over_1px reprojected)" \
+    echo "$name,$(num_first "$t" chosen),$(num_first "$t" in_3d),$(num_first "$t" accepted),$(num_first "$t" unmatched_3d),$(num_first "$t" inconsistent_3d),$(num_first "$r" hidden),$(num_first "$r" mean image),$(num_first "$r" max image),$(num_first "$r" over_1px image),$(num_first "$r" rows reprojected),$(num_first "$r" mean reprojected),$(num_first "$r" p99 reprojected),$(num_first "$r" max reprojected),$(num_first "$r" over_1px reprojected)" \
         > "$OUT/rows/$name.lm"
     : > "$OUT/rows/$name.warp"
     : > "$OUT/rows/$name.ref"
@@ -54,7 +50,7 @@ one() { # one PRESET SEED: its rows into $OUT/rows/NAME.*
         tail -n 1 "$dir/stats" | sed 's/.*"landmarks": //' > "$OUT/json/$t.json"
         "$EVAL" --json --truth "$dir" --cameras "$dir/calibration.yaml" --points "$dir/ref.csv" --landmark-rows \
             --reference "$n" > "$OUT/json/$r.json"
-        echo "$name,$n,$(num "$t" chosen),$(num "$r" landmarks),$(num "$r" rows),$(num "$r" hidden),$(num "$r" over_1px image),$(num "$r" landmarks covered),$(num "$r" rows covered),$(num "$r" image_over_1px covered),$(num "$r" reprojected_over_1px covered),$(num "$r" rows reprojected),$(num "$r" mean reprojected),$(num "$r" over_1px reprojected)" \
+        echo "$name,$n,$(num_first "$t" chosen),$(num_first "$r" landmarks),$(num_first "$r" rows),$(num_first "$r" hidden),$(num_first "$r" over_1px image),$(num_first "$r" landmarks covered),$(num_first "$r" rows covered),$(num_first "$r" image_over_1px covered),$(num_first "$r" reprojected_over_1px covered),$(num_first "$r" rows reprojected),$(num_first "$r" mean reprojected),$(num_first "$r" over_1px reprojected)" \
             >> "$OUT/rows/$name.ref"
     done
     for m in $METHODS; do
@@ -65,7 +61,7 @@ one() { # one PRESET SEED: its rows into $OUT/rows/NAME.*
                 "$dir/cam0.y4m" > "$OUT/json/$name-$m-$v.json"
         done
         a=$name-$m-markers b=$name-$m-landmarks
-        echo "$name,$m,$(num "$a" e_stabilized),$(num "$b" e_stabilized),$(num "$a" mean geometric),$(num "$b" mean geometric),$(num "$a" p95),$(num "$b" p95)" \
+        echo "$name,$m,$(num_first "$a" e_stabilized),$(num_first "$b" e_stabilized),$(num_first "$a" mean geometric),$(num_first "$b" mean geometric),$(num_first "$a" p95),$(num_first "$b" p95)" \
             >> "$OUT/rows/$name.warp"
     done
     rm -rf "$dir"
