@@ -105,6 +105,7 @@ echo "run,method,e_markers,e_landmarks,geo_mean_markers,geo_mean_landmarks,geo_p
 echo "run,reference,seeded,accepted,over_1px,hidden,accepted_hidden,chosen_covered,accepted_covered,over_1px_covered,unjudged,geo_markers_mean,geo_landmarks_mean,track_landmarks,track_rows,track_hidden,track_over_1px,track_covered_rows,track_covered_over_1px" > "$OUT/references.csv"
 echo "run,seeded,accepted,measured,mean,p99,max,over_1px,hidden,accepted_hidden,map_at_landmarks,geo_markers_mean,geo_markers_p95,geo_landmarks_mean,geo_landmarks_p95,ms,unpredicted,partly_hidden,over_1px_partly_hidden" > "$OUT/landmarks.csv"
 for p in exvivo invivo; do
+    preset_ids=$( [ "$p" = exvivo ] && echo 0-15 || echo 0-13 ) # the presets' markers, for track
     for seed in 1 2 3 4; do
         dir=$OUT/work/$p-$seed
         stamp "render $p seed $seed ($FRAMES frames, 1920x1080, occlusions)"
@@ -115,9 +116,9 @@ for p in exvivo invivo; do
         run "$p-$seed-4tags" "$dir" "$dir/points4.csv"
         run "$p-$seed-4tags-sparse" "$dir" "$dir/points4.csv" --lm-sparse
         stamp "$p seed $seed from the other references"
-        from_references "$p-$seed" "$dir" "$( [ "$p" = exvivo ] && echo 0-15 || echo 0-13 )"
+        from_references "$p-$seed" "$dir" "$preset_ids"
         stamp "track, warp and evaluate $p seed $seed"
-        through_warp "$p-$seed" "$dir" "$( [ "$p" = exvivo ] && echo 0-15 || echo 0-13 )"
+        through_warp "$p-$seed" "$dir" "$preset_ids"
         stamp "the daemon on $p seed $seed"
         through_daemon "$p-$seed" "$dir"
         rm -rf "$dir"
