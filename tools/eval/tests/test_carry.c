@@ -30,6 +30,7 @@
 #define GONE0 15
 #define GONE1 24
 #define ONE 19 /* a frame amid them with one marker */
+#define REF 6 /* another reference than frame 0, before them */
 
 static char dir[] = "/tmp/sh_carry_XXXXXX";
 
@@ -207,16 +208,17 @@ static void cover(int f0, int f1, double r, int one)
     sh_image_destroy(&img);
 }
 
-/* `stillheart track --landmarks 200 --landmarks-sparse` on covered.y4m (with --landmarks-carry
- * when carry) into lmK.csv, then `stillheart warp` through it: the geometric error and raw frames
- * of what it shows into mean and raw; with carry, --stats' carried and not carried frames, and its
- * landmarks chosen and judged (the verdicts' sum) into c[0..3]. */
-static void track_warp(int k, int carry, double *mean, int *raw, double c[4])
+/* `stillheart track --landmarks 200 --landmarks-sparse --reference REF` on covered.y4m (with
+ * --landmarks-carry when carry) into lmK.csv, then `stillheart warp --reference REF` through it:
+ * the geometric error and raw frames of what it shows into mean and raw; with carry, --stats'
+ * carried and not carried frames, and its landmarks chosen and judged (the verdicts' sum) into
+ * c[0..3]. */
+static void track_warp(int k, int carry, int ref, double *mean, int *raw, double c[4])
 {
     /* in a subshell: its standard error, the JSON, is test_out, and its output the file */
     if (test_run("cd '%s' && ('%s' track --ids $(awk -F, 'NR > 1 { print $2 }' p4.csv | sort -un | paste -sd,) "
-                 "--landmarks 200 --landmarks-sparse %s --stats --json covered.y4m > lm%d.csv)", dir, APP_BIN,
-                 carry ? "--landmarks-carry" : "", k) != 0)
+                 "--landmarks 200 --landmarks-sparse --reference %d %s --stats --json covered.y4m > lm%d.csv)", dir,
+                 APP_BIN, ref, carry ? "--landmarks-carry" : "", k) != 0)
         fail_msg("%s\n%s", test_cmd, test_out);
     if (carry) {
         const char *l = strstr(test_out, "\"landmarks\"");
@@ -228,8 +230,9 @@ static void track_warp(int k, int carry, double *mean, int *raw, double c[4])
         c[3] = 0;
         for (int v = 0; v < 6; v++) c[3] += json_num(l, verdicts[v]);
     }
-    if (test_run("cd '%s' && '%s' warp --quiet --method tps --points lm%d.csv covered.y4m stab.y4m && "
-                 "'%s' --quiet --json --truth . --points lm%d.csv stab.y4m", dir, APP_BIN, k, EVAL_BIN, k) != 0)
+    if (test_run("cd '%s' && '%s' warp --quiet --method tps --reference %d --points lm%d.csv covered.y4m stab.y4m && "
+                 "'%s' --quiet --json --reference %d --truth . --points lm%d.csv stab.y4m",
+                 dir, APP_BIN, ref, k, EVAL_BIN, ref, k) != 0)
         fail_msg("%s\n%s", test_cmd, test_out);
     const char *g = strstr(test_out, "\"geometric\"");
     assert_non_null(g);
@@ -245,8 +248,8 @@ static void test_track_carries_two_markers(void **state)
     cover(12, 34, 30, -1);
     double mean[2], c[4] = {0};
     int raw[2];
-    track_warp(0, 0, &mean[0], &raw[0], c);
-    track_warp(1, 1, &mean[1], &raw[1], c);
+    track_warp(0, 0, 0, &mean[0], &raw[0], c);
+    track_warp(1, 1, 0, &mean[1], &raw[1], c);
     double carried = c[0], not_carried = c[1];
     print_message("  two tags covered in frames 12-34: without carry %.4f px (%d frames raw); with it %.4f px (%d "
                   "raw), %.0f frames carried, %.0f not vouched for\n", mean[0], raw[0], mean[1], raw[1], carried,
@@ -267,11 +270,31 @@ static void test_track_carries_two_markers(void **state)
     cover(12, 34, 30, 28);
     double one;
     int one_raw;
-    track_warp(2, 1, &one, &one_raw, c);
+    track_warp(2, 1, 0, &one, &one_raw, c);
     print_message("  a third tag covered in frame 28: %d raw, %.0f carried, %.4f px\n", one_raw, c[0], one);
     assert_int_equal(one_raw, 1);
     assert_int_equal((int)c[0], raw[0] - 1);
     assert_true(one < mean[0] / 2);
+    /* the landmarks chosen in frame REF (--reference), before the stretch: the chain's first link
+     * is REF, the same frames carried as from frame 0, none before REF written */
+    cover(12, 34, 30, -1);
+    double from[2];
+    int from_raw[2];
+    track_warp(3, 0, REF, &from[0], &from_raw[0], c);
+    track_warp(4, 1, REF, &from[1], &from_raw[1], c);
+    print_message("  from frame %d: without carry %.4f px (%d frames raw); with it %.4f px (%d raw), %.0f carried\n",
+                  REF, from[0], from_raw[0], from[1], from_raw[1], c[0]);
+    assert_int_equal(from_raw[0], raw[0]);
+    assert_int_equal(from_raw[1], 0);
+    assert_int_equal((int)c[0], raw[0]);
+    assert_int_equal((int)c[1], 0);
+    assert_int_equal(test_run("cd '%s' && awk -F, 'NR > 1 && $2 >= 1000000 { print $1 }' lm4.csv | sort -n | uniq | "
+                              "awk 'NR == 1 { f = $1 } END { print f, NR }'", dir), 0);
+    int first, frames;
+    assert_int_equal(sscanf(test_out, "%d %d", &first, &frames), 2);
+    assert_int_equal(first, REF);
+    assert_int_equal((long long)c[3], (long long)c[2] * (frames - 1));
+    assert_true(from[1] < from[0] / 2);
     /* refused: without --landmarks, and with --cameras (3D) */
     assert_int_equal(test_run("'%s' track --landmarks-carry %s/cam0.y4m", APP_BIN, dir), 2);
     assert_non_null(strstr(test_out, "--landmarks-carry goes with --landmarks"));
