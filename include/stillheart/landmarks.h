@@ -124,10 +124,11 @@ typedef enum {
     SH_LANDMARK_BACKWARD,
     SH_LANDMARK_DISAGREES,
     SH_LANDMARK_DEVIATES,
+    SH_LANDMARK_UNCONFIRMED,
     SH_LANDMARK_VERDICTS
 } sh_landmark_verdict;
 
-/* "accepted", "lost", "photometric", "backward", "disagrees", "deviates". */
+/* "accepted", "lost", "photometric", "backward", "disagrees", "deviates", "unconfirmed". */
 const char *sh_landmark_verdict_name(sh_landmark_verdict v);
 
 typedef struct {
@@ -199,6 +200,11 @@ typedef struct {
                                  * (through the map's local affine), so that the windows hold a
                                  * fraction of the reference frame's noise (16; 0: the reference
                                  * frame's own windows). 0 to 1000 */
+    int confirm;                /* a landmark passes every test this many times after the
+                                 * reference before it is accepted: its first confirm - 1 passes
+                                 * in sh_landmarks_track (the primary view; a rig's other views
+                                 * are used only where it accepts) are UNCONFIRMED, not used. 4;
+                                 * the sparse tests' 1: at once. 1 to 1000 */
     int reduce;                 /* halvings of the frame before anything else: the landmarks
                                  * are chosen and found in the frame averaged over blocks of
                                  * 2^reduce x 2^reduce pixels, and every length above (and the

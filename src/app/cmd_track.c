@@ -45,7 +45,9 @@ static void usage(FILE *out)
         "  --landmarks N      also up to N landmarks of the tissue (docs/landmarks.md): chosen in\n"
         "                     frame 0 (--reference) inside its markers' hull and off its tags,\n"
         "                     written as rows with ids from 1000000 (their positions there), then\n"
-        "                     in each frame after it the ones found and accepted, which\n"
+        "                     in each frame after it the ones found and accepted (from a\n"
+        "                     landmark's fourth pass of every test on; --landmarks-sparse: its\n"
+        "                     first), which\n"
         "                     `stillheart warp` and `warp3d` take as correspondences like the\n"
         "                     markers; off by default.\n"
         "                     With --cameras, chosen in the first camera and matched in the others\n"
@@ -516,9 +518,10 @@ static void landmarks_report(const track_job *job, const track_pass *p)
     track_landmarks_stats_get(p->lm, &s);
     const long long *v = s.verdicts;
     sh_log_info("landmarks: %d chosen; landmark-frames of camera 0: accepted %lld, lost %lld, photometric %lld, "
-                "backward %lld, disagrees %lld, deviates %lld",
+                "backward %lld, disagrees %lld, deviates %lld, unconfirmed %lld",
                 s.chosen, v[SH_LANDMARK_ACCEPTED], v[SH_LANDMARK_LOST], v[SH_LANDMARK_PHOTOMETRIC],
-                v[SH_LANDMARK_BACKWARD], v[SH_LANDMARK_DISAGREES], v[SH_LANDMARK_DEVIATES]);
+                v[SH_LANDMARK_BACKWARD], v[SH_LANDMARK_DISAGREES], v[SH_LANDMARK_DEVIATES],
+                v[SH_LANDMARK_UNCONFIRMED]);
     if (job->o->landmarks_carry)
         sh_log_info("landmarks carried %lld frames with too few markers; in %lld more they did not vouch for the map",
                     s.carried, s.not_carried);

@@ -283,9 +283,10 @@ void run_proc_destroy(run_proc *p)
         long long all = 0;
         for (int i = 0; i < SH_LANDMARK_VERDICTS; i++) all += v[i];
         sh_log_info("landmarks: %d frames, %lld landmark-frames: accepted %lld, lost %lld, photometric %lld, "
-                    "backward %lld, disagrees %lld, deviates %lld", p->lm_frames, all, v[SH_LANDMARK_ACCEPTED],
-                    v[SH_LANDMARK_LOST], v[SH_LANDMARK_PHOTOMETRIC], v[SH_LANDMARK_BACKWARD],
-                    v[SH_LANDMARK_DISAGREES], v[SH_LANDMARK_DEVIATES]);
+                    "backward %lld, disagrees %lld, deviates %lld, unconfirmed %lld", p->lm_frames, all,
+                    v[SH_LANDMARK_ACCEPTED], v[SH_LANDMARK_LOST], v[SH_LANDMARK_PHOTOMETRIC],
+                    v[SH_LANDMARK_BACKWARD], v[SH_LANDMARK_DISAGREES], v[SH_LANDMARK_DEVIATES],
+                    v[SH_LANDMARK_UNCONFIRMED]);
         if (p->three_d)
             sh_log_info("landmarks in 3D: of the accepted, %lld matched by no other camera, %lld refused by the "
                         "reprojection test (%.1f px); the others triangulated and used", p->lm_unmatched,

@@ -29,6 +29,14 @@ static void render(sh_image *img, double t)
 }
 
 /* A tag's quad: an axis-aligned square of side s at (x, y), corners clockwise. */
+/* The defaults, each pass used at once: these cases judge one frame's tests, which the
+ * confirmation (test_confirm) then holds back for a landmark's first passes after the reference. */
+static void defaults(sh_landmarks_params *p)
+{
+    sh_landmarks_params_default(p);
+    p->confirm = 1;
+}
+
 static void square(double *q, double x, double y, double s)
 {
     double c[8] = {x, y, x + s, y, x + s, y + s, x, y + s};
@@ -56,7 +64,7 @@ static void test_where_landmarks_are_chosen(void **state)
     double tag[8];
     square(tag, 150, 120, 40);
     sh_landmarks_params p;
-    sh_landmarks_params_default(&p);
+    defaults(&p);
     p.max_points = 400;
     p.min_distance = 8;
     sh_landmarks *lm;
@@ -107,7 +115,7 @@ static void test_highlight_level_follows_range(void **state)
     int seeing[2];
     for (int full = 0; full < 2; full++) {
         sh_landmarks_params p;
-        sh_landmarks_params_default(&p);
+        defaults(&p);
         p.max_points = 400;
         p.min_distance = 8;
         p.highlight = sh_landmarks_highlight_level(SH_PIX_GRAY8, full);
@@ -185,7 +193,7 @@ static void test_trust_against_truth(void **state)
     for (int y = 0; y < H; y++)
         for (int x = bx0; x < bx1; x++) cur.plane[0].data[(size_t)y * cur.plane[0].stride + x] = (uint8_t)(90 + (y / 6 % 2) * 60);
     sh_landmarks_params p;
-    sh_landmarks_params_default(&p);
+    defaults(&p);
     p.max_points = 300;
     p.min_distance = 10;
     /* raw frames: the synthetic texture is made of waves 50-150 px long, coarser than a window,
@@ -285,7 +293,7 @@ static void test_sparse_markers(void **state)
         if (sparse)
             sh_landmarks_params_sparse(&p);
         else
-            sh_landmarks_params_default(&p);
+            defaults(&p);
         p.max_points = 300;
         p.min_distance = 10;
         p.band = 0; /* as test_trust_against_truth */
@@ -349,7 +357,7 @@ static void test_searches_outside_the_part_same_as_whole_frame(void **state)
     render(&ref, 0);
     render(&cur, 0.2);
     sh_landmarks_params p;
-    sh_landmarks_params_default(&p);
+    defaults(&p);
     p.max_points = 100;
     p.min_distance = 12;
     p.band = 0;
@@ -460,7 +468,7 @@ static void run_shaded(int band, int affine, double *mean, double *worst, int *a
     render_shaded(&ref, 0, 1, 0, 0, 0, 150);
     render_shaded(&cur, angle, scale, bx, by, 1.6, 300);
     sh_landmarks_params p;
-    sh_landmarks_params_default(&p);
+    defaults(&p);
     p.band = band;
     p.affine = affine;
     sh_landmarks *lm;
@@ -586,7 +594,7 @@ static void render_noisy(sh_image *img, int t, double sigma, uint64_t *rng)
 static void run_refine(int refine, const sh_image *frames, double **err, float **first1, int *n_out)
 {
     sh_landmarks_params p;
-    sh_landmarks_params_default(&p);
+    defaults(&p);
     p.max_points = 80;
     p.refine = refine;
     sh_landmarks *lm;
@@ -702,7 +710,7 @@ static void test_reduced_frame_same_as_small(void **state)
     assert_int_equal(sh_landmarks_reduction(NULL, 4096, 2160), 1);
     assert_int_equal(sh_landmarks_reduction(NULL, 7680, 4320), 2);
     sh_landmarks_params p;
-    sh_landmarks_params_default(&p);
+    defaults(&p);
     assert_int_equal(p.reduce, -1);
     p.reduce = 3;
     assert_int_equal(sh_landmarks_reduction(&p, 1920, 1080), 3);
@@ -725,7 +733,7 @@ static void test_reduced_frame_same_as_small(void **state)
     assert_int_equal(sh_hull_compute(hull_xy, 4, &hull), SH_OK);
     assert_int_equal(sh_hull_compute(big_hull_xy, 4, &big_hull), SH_OK);
     for (int band = 0; band <= 5; band += 5) {
-        sh_landmarks_params_default(&p);
+        defaults(&p);
         p.max_points = 300;
         p.min_distance = 10;
         p.band = band;
@@ -830,7 +838,7 @@ static void test_smoothing_scales_with_frame(void **state)
  * landmarks 20 px apart in the raw frames. */
 static void photometric_only(sh_landmarks_params *p)
 {
-    sh_landmarks_params_default(p);
+    defaults(p);
     p->max_points = 60, p->min_distance = 20, p->band = 0, p->max_backward_px = 0;
     p->neighbours = 0, p->affine = 0;
     p->max_relative = 0; /* each photometric test on its own: test_relative has this one */
@@ -939,7 +947,7 @@ static void test_relative(void **state)
         only_middle_refused(m, &cur, test, test ? "max_relative 2.5, the first frame" : "max_relative 0, the first frame");
     }
     /* the parameter's range, as max_jump's */
-    sh_landmarks_params_default(&p);
+    defaults(&p);
     p.max_relative = 0.5;
     sh_landmarks *bad = NULL;
     assert_int_equal(sh_landmarks_create(&p, &ref.plane[0], NULL, NULL, 0, &bad), SH_EINVAL);
@@ -1041,7 +1049,7 @@ static void test_correlation(void **state)
     sh_landmarks_params p;
     sh_landmarks_params_sparse(&p);
     assert_true(p.min_correlation == 0.4);
-    sh_landmarks_params_default(&p);
+    defaults(&p);
     assert_true(p.min_correlation == 0);
     p.min_correlation = 1;
     sh_landmarks *lm = NULL;
@@ -1057,44 +1065,49 @@ static void test_refusals(void **state)
     render(&ref, 0);
     assert_int_equal(sh_image_create(&small, SH_PIX_GRAY8, 100, 100), SH_OK);
     sh_landmarks_params p;
-    sh_landmarks_params_default(&p);
+    defaults(&p);
     sh_landmarks *lm;
     p.max_points = 0;
     assert_int_equal(sh_landmarks_create(&p, &ref.plane[0], NULL, NULL, 0, &lm), SH_EINVAL);
-    sh_landmarks_params_default(&p);
+    defaults(&p);
     p.max_photometric = NAN;
     assert_int_equal(sh_landmarks_create(&p, &ref.plane[0], NULL, NULL, 0, &lm), SH_EINVAL);
-    sh_landmarks_params_default(&p);
+    defaults(&p);
     p.band = 1; /* no coarser than the fine box */
     assert_int_equal(sh_landmarks_create(&p, &ref.plane[0], NULL, NULL, 0, &lm), SH_EINVAL);
-    sh_landmarks_params_default(&p);
+    defaults(&p);
     p.affine = 1, p.neighbours = 0; /* the local affine is fitted through the neighbours */
     assert_int_equal(sh_landmarks_create(&p, &ref.plane[0], NULL, NULL, 0, &lm), SH_EINVAL);
     p.affine = 2, p.neighbours = 8;
     assert_int_equal(sh_landmarks_create(&p, &ref.plane[0], NULL, NULL, 0, &lm), SH_EINVAL);
-    sh_landmarks_params_default(&p);
+    defaults(&p);
     p.back_levels = p.flow.levels + 1; /* the backward search on levels the pyramid does not have */
     assert_int_equal(sh_landmarks_create(&p, &ref.plane[0], NULL, NULL, 0, &lm), SH_EINVAL);
     p.back_levels = -2;
     assert_int_equal(sh_landmarks_create(&p, &ref.plane[0], NULL, NULL, 0, &lm), SH_EINVAL);
-    sh_landmarks_params_default(&p);
+    defaults(&p);
     p.core = 8; /* a centre has an odd side, at most the window's */
     assert_int_equal(sh_landmarks_create(&p, &ref.plane[0], NULL, NULL, 0, &lm), SH_EINVAL);
     p.core = p.flow.win + 2;
     assert_int_equal(sh_landmarks_create(&p, &ref.plane[0], NULL, NULL, 0, &lm), SH_EINVAL);
-    sh_landmarks_params_default(&p);
+    defaults(&p);
     p.max_jump = 0.5; /* a limit below the landmark's own median would refuse it every frame */
     assert_int_equal(sh_landmarks_create(&p, &ref.plane[0], NULL, NULL, 0, &lm), SH_EINVAL);
     p.max_jump = NAN;
     assert_int_equal(sh_landmarks_create(&p, &ref.plane[0], NULL, NULL, 0, &lm), SH_EINVAL);
-    sh_landmarks_params_default(&p);
+    defaults(&p);
+    p.confirm = 0; /* 1 (at once) to 1000 passes */
+    assert_int_equal(sh_landmarks_create(&p, &ref.plane[0], NULL, NULL, 0, &lm), SH_EINVAL);
+    p.confirm = 1001;
+    assert_int_equal(sh_landmarks_create(&p, &ref.plane[0], NULL, NULL, 0, &lm), SH_EINVAL);
+    defaults(&p);
     p.reduce = 5; /* -1 (automatic) or 0 to 4 halvings */
     assert_int_equal(sh_landmarks_create(&p, &ref.plane[0], NULL, NULL, 0, &lm), SH_EINVAL);
     p.reduce = 4; /* 100x100 halved four times: 6x6, smaller than a window */
     assert_int_equal(sh_landmarks_create(&p, &small.plane[0], NULL, NULL, 0, &lm), SH_EINVAL);
     /* the rule's own value is never over 4 */
     assert_int_equal(sh_landmarks_reduction(NULL, 1 << 20, 1 << 20), 4);
-    sh_landmarks_params_default(&p);
+    defaults(&p);
     assert_int_equal(sh_landmarks_create(&p, &ref.plane[0], NULL, NULL, 2, &lm), SH_EINVAL);
     assert_int_equal(sh_landmarks_create(&p, &ref.plane[0], NULL, NULL, 0, &lm), SH_OK);
     float xy[400];
@@ -1102,13 +1115,13 @@ static void test_refusals(void **state)
     assert_int_equal(sh_landmarks_track(lm, &small.plane[0], NULL, xy, v, NULL), SH_EINVAL);
     sh_landmarks_destroy(lm);
     /* affine windows are fitted through the neighbours: none to fit them through */
-    sh_landmarks_params_default(&p);
+    defaults(&p);
     p.neighbours = 1, p.affine = 0; /* square windows: they need none */
     assert_int_equal(sh_landmarks_create(&p, &ref.plane[0], NULL, NULL, 0, &lm), SH_OK);
     assert_int_equal(sh_landmarks_track_view(lm, 1, &ref.plane[0], NULL, xy, v, NULL), SH_EINVAL);
     sh_landmarks_destroy(lm);
     /* views 1 to SH_CALIB_MAX_CAMERAS - 1: 0 is sh_landmarks_track's */
-    sh_landmarks_params_default(&p);
+    defaults(&p);
     assert_int_equal(sh_landmarks_create(&p, &ref.plane[0], NULL, NULL, 0, &lm), SH_OK);
     assert_int_equal(sh_landmarks_track_view(lm, 0, &ref.plane[0], NULL, xy, v, NULL), SH_EINVAL);
     assert_int_equal(sh_landmarks_track_view(lm, SH_CALIB_MAX_CAMERAS, &ref.plane[0], NULL, xy, v, NULL), SH_EINVAL);
@@ -1183,6 +1196,81 @@ static double rig_error(const double *X, const double truth[3])
     return worst;
 }
 
+/* The confirmation (confirm 4, the defaults): a landmark's first three passes after the reference
+ * are UNCONFIRMED, from its fourth on it is accepted. Against the same choice with confirm 1 on
+ * the same frames (the synthetic motion, the truth's positions as the prediction), whose verdicts
+ * the count is made from here: every verdict but a held-back pass the same, the positions the
+ * same; a bar over part of frame 2 refuses some landmarks there, so their fourth pass comes a
+ * frame later. A search of the reference frame itself neither counts nor is held back. */
+static void test_confirm(void **state)
+{
+    (void)state;
+    sh_image ref, cur;
+    render(&ref, 0);
+    sh_landmarks_params p;
+    sh_landmarks_params_default(&p);
+    assert_int_equal(p.confirm, 4);
+    p.max_points = 150;
+    p.band = 0; /* raw frames, as test_trust_against_truth */
+    sh_landmarks *lm[2];
+    assert_int_equal(sh_landmarks_create(&p, &ref.plane[0], NULL, NULL, 0, &lm[0]), SH_OK);
+    p.confirm = 1;
+    assert_int_equal(sh_landmarks_create(&p, &ref.plane[0], NULL, NULL, 0, &lm[1]), SH_OK);
+    const int n = sh_landmarks_count(lm[0]);
+    assert_int_equal(sh_landmarks_count(lm[1]), n);
+    assert_true(n >= 100);
+    const float *r = sh_landmarks_reference(lm[0]);
+    float *pred = malloc(2 * (size_t)n * sizeof *pred), *xy[2];
+    uint8_t *v[2];
+    int *passes = calloc((size_t)n, sizeof *passes);
+    for (int k = 0; k < 2; k++) xy[k] = malloc(2 * (size_t)n * sizeof *xy[k]), v[k] = malloc((size_t)n);
+    sh_landmarks_counts c[2];
+    /* the reference frame itself: every landmark where it was chosen, accepted, not counted */
+    for (int k = 0; k < 2; k++) assert_int_equal(sh_landmarks_track(lm[k], &ref.plane[0], r, xy[k], v[k], &c[k]), SH_OK);
+    assert_int_equal(c[0].verdicts[SH_LANDMARK_ACCEPTED], n);
+    const int bx0 = 150, bx1 = 230; /* the bar in frame 2: columns [bx0, bx1) */
+    int late = 0;
+    for (int f = 1; f <= 6; f++) {
+        const double t = 0.03 * f;
+        if (f > 1) sh_image_destroy(&cur);
+        render(&cur, t);
+        if (f == 2)
+            for (int y = 0; y < H; y++)
+                for (int x = bx0; x < bx1; x++) cur.plane[0].data[(size_t)y * cur.plane[0].stride + x] = 120;
+        for (int i = 0; i < n; i++) {
+            double tx, ty;
+            synth_forward(&motion, t, r[2 * i], r[2 * i + 1], &tx, &ty);
+            pred[2 * i] = (float)tx, pred[2 * i + 1] = (float)ty;
+        }
+        for (int k = 0; k < 2; k++) assert_int_equal(sh_landmarks_track(lm[k], &cur.plane[0], pred, xy[k], v[k], &c[k]), SH_OK);
+        int held = 0, sum = 0;
+        for (int i = 0; i < n; i++) {
+            passes[i] += v[1][i] == SH_LANDMARK_ACCEPTED;
+            const int want = v[1][i] != SH_LANDMARK_ACCEPTED ? v[1][i]
+                             : passes[i] >= 4              ? SH_LANDMARK_ACCEPTED
+                                                           : SH_LANDMARK_UNCONFIRMED;
+            assert_int_equal(v[0][i], want);
+            assert_true(xy[0][2 * i] == xy[1][2 * i] && xy[0][2 * i + 1] == xy[1][2 * i + 1]);
+            held += want == SH_LANDMARK_UNCONFIRMED;
+            late += f == 4 && want == SH_LANDMARK_UNCONFIRMED;
+        }
+        for (int e = 0; e < SH_LANDMARK_VERDICTS; e++) sum += c[0].verdicts[e];
+        assert_int_equal(sum, n);
+        assert_int_equal(c[0].verdicts[SH_LANDMARK_UNCONFIRMED], held);
+        print_message("  frame %d: %d accepted, %d held back (confirm 1: %d accepted)\n", f,
+                      c[0].verdicts[SH_LANDMARK_ACCEPTED], held, c[1].verdicts[SH_LANDMARK_ACCEPTED]);
+        if (f < 4) assert_int_equal(c[0].verdicts[SH_LANDMARK_ACCEPTED], 0);
+        if (f == 4) assert_true(c[0].verdicts[SH_LANDMARK_ACCEPTED] > n / 2);
+    }
+    /* some refused under the bar in frame 2 had their third pass in frame 4 */
+    assert_true(late > 0);
+    assert_string_equal(sh_landmark_verdict_name(SH_LANDMARK_UNCONFIRMED), "unconfirmed");
+    for (int k = 0; k < 2; k++) sh_landmarks_destroy(lm[k]), free(xy[k]), free(v[k]);
+    free(pred), free(passes);
+    sh_image_destroy(&ref);
+    sh_image_destroy(&cur);
+}
+
 static void test_rig_against_closed_form(void **state)
 {
     (void)state;
@@ -1205,7 +1293,7 @@ static void test_rig_against_closed_form(void **state)
         rig_project(0, Q, &cur_xy[2 * k], &cur_xy[2 * k + 1]);
     }
     sh_landmarks_params p;
-    sh_landmarks_params_default(&p);
+    defaults(&p);
     p.max_points = 60;
     sh_landmarks_rig *rig;
     assert_int_equal(sh_landmarks_rig_create(&p, &calib, 0, ref_luma, ref_xy, ref_xyz, 9, NULL, 0, &rig), SH_OK);
@@ -1300,7 +1388,7 @@ static void test_choice_threshold(void **state)
     for (int variant = 0; variant < 3; variant++) { /* defaults, sparse, defaults at 1 % */
         sh_landmarks_params p;
         if (variant == 1) sh_landmarks_params_sparse(&p);
-        else sh_landmarks_params_default(&p);
+        else defaults(&p);
         if (variant == 2) p.quality = 0.01;
         p.band = 0; /* the raw frame: the band-pass's gain maps the texture's 99th percentile
                      * (here the weak squares) to 100 grey levels and clips the strong one */
@@ -1334,6 +1422,7 @@ int main(void)
         cmocka_unit_test(test_relative),
         cmocka_unit_test(test_correlation),
         cmocka_unit_test(test_refusals),
+        cmocka_unit_test(test_confirm),
         cmocka_unit_test(test_rig_against_closed_form),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

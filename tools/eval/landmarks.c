@@ -506,9 +506,10 @@ void eval_landmarks_print(const eval_lm_result *r, const char *video_path, int r
         printf("%s: %d landmarks chosen in frame %d, %d frames after it (%d without a markers' map)\n", video_path,
                r->seeded, reference, r->frames, r->unpredicted_frames);
         printf("landmark-frames: %lld; accepted %lld, lost %lld, photometric %lld, backward %lld, disagrees %lld, "
-               "deviates %lld\n", all, r->verdicts[SH_LANDMARK_ACCEPTED], r->verdicts[SH_LANDMARK_LOST],
-               r->verdicts[SH_LANDMARK_PHOTOMETRIC], r->verdicts[SH_LANDMARK_BACKWARD],
-               r->verdicts[SH_LANDMARK_DISAGREES], r->verdicts[SH_LANDMARK_DEVIATES]);
+               "deviates %lld, unconfirmed %lld\n", all, r->verdicts[SH_LANDMARK_ACCEPTED],
+               r->verdicts[SH_LANDMARK_LOST], r->verdicts[SH_LANDMARK_PHOTOMETRIC], r->verdicts[SH_LANDMARK_BACKWARD],
+               r->verdicts[SH_LANDMARK_DISAGREES], r->verdicts[SH_LANDMARK_DEVIATES],
+               r->verdicts[SH_LANDMARK_UNCONFIRMED]);
         printf("accepted against the truth (px): mean %.4f, p99 %.4f, max %.4f over %lld; more than 1 px off: %lld; "
                "accepted while hidden: %lld of %lld hidden\n", r->mean, r->p99, r->max, r->measured, r->over_1px,
                r->accepted_hidden, r->hidden);

@@ -141,6 +141,10 @@ static void usage(FILE *f)
         "  --lm-refine K      the reference's windows averaged with the matches of the first K\n"
         "                     frames that accept landmarks (default 16, since 2026-12-07; 0:\n"
         "                     the reference frame's own)\n"
+        "  --lm-confirm K     a landmark used from its K-th pass of every test after the\n"
+        "                     reference on, its first K-1 counted unconfirmed (1-1000; default\n"
+        "                     4, since 2026-12-07; 1 with --lm-sparse, given after it to change;\n"
+        "                     1: at once)\n"
         "  --lm-reduce K      the landmarks chosen and found in the frame halved K times (0-4;\n"
         "                     default: automatic, once at 4K, none at 1080p), every length of\n"
         "                     the tests in the halved frame's pixels\n"
@@ -590,7 +594,7 @@ int main(int argc, char **argv)
         {"lm-quality", required_argument, 0, 1013}, {"landmark-smoothing", required_argument, 0, 1014},
         {"lm-jump", required_argument, 0, 1015}, {"lm-reduce", required_argument, 0, 1016},
         {"lm-correlation", required_argument, 0, 1017}, {"lm-refine", required_argument, 0, 1018},
-        {"lm-relative", required_argument, 0, 1019},
+        {"lm-relative", required_argument, 0, 1019}, {"lm-confirm", required_argument, 0, 1020},
         {"json", no_argument, 0, 'j'},           SH_CLI_OPTIONS, {0, 0, 0, 0}};
     options o = {.stride = 4, .heatmap_max = 0.2, .heatmap_scale = 1, .contours = 4, .max_error = 0.05,
                  .landmark_smoothing = SH_LANDMARK_SMOOTHING};
@@ -636,6 +640,7 @@ int main(int argc, char **argv)
         case 1016: if (!sh_cli_parse_int("--lm-reduce", optarg, 0, 4, &o.lp.reduce)) return 2; break;
         case 1017: if (!sh_cli_parse_double("--lm-correlation", optarg, 0, 0.999, &o.lp.min_correlation)) return 2; break;
         case 1018: if (!sh_cli_parse_int("--lm-refine", optarg, 0, 1000, &o.lp.refine)) return 2; break;
+        case 1020: if (!sh_cli_parse_int("--lm-confirm", optarg, 1, 1000, &o.lp.confirm)) return 2; break;
         case 1019: if (!sh_cli_parse_double("--lm-relative", optarg, 0, 1000, &o.lp.max_relative)) return 2;
                    if (o.lp.max_relative > 0 && o.lp.max_relative < 1) return sh_cli_usage_error(&cli, "--lm-relative: 0 (no test) or 1 to 1000");
                    break;

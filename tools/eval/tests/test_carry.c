@@ -226,9 +226,10 @@ static void track_warp(int k, int carry, int ref, double *mean, int *raw, double
         c[0] = json_num(l, "carried_frames");
         c[1] = json_num(l, "not_carried_frames");
         c[2] = json_num(l, "chosen");
-        static const char *const verdicts[] = {"accepted", "lost", "photometric", "backward", "disagrees", "deviates"};
+        static const char *const verdicts[] = {"accepted", "lost", "photometric", "backward", "disagrees", "deviates",
+                                               "unconfirmed"};
         c[3] = 0;
-        for (int v = 0; v < 6; v++) c[3] += json_num(l, verdicts[v]);
+        for (int v = 0; v < 7; v++) c[3] += json_num(l, verdicts[v]);
     }
     if (test_run("cd '%s' && '%s' warp --quiet --method tps --reference %d --points lm%d.csv covered.y4m stab.y4m && "
                  "'%s' --quiet --json --reference %d --truth . --points lm%d.csv stab.y4m",
