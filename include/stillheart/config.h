@@ -79,6 +79,8 @@ typedef struct {
     int landmarks_sparse;            /* their tests for sparse markers (sh_landmarks_params_sparse) */
     int landmarks_affine;            /* their forward search through the map's local affine (.affine) */
     int landmarks_refine;            /* frames whose matches refine the reference's windows (.refine) */
+    int landmarks_confirm;           /* a landmark's pass from which it is used (.confirm); 0: the
+                                      * tests' own (4, or 1 with landmarks_sparse) */
     double landmarks_smoothing;      /* their own smoothing in the map (SH_LANDMARK_SMOOTHING) */
     /* [method] */
     char method_name[32];            /* sh_config_method: the interpolation parameters of these four */

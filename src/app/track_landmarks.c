@@ -271,6 +271,7 @@ int track_landmarks_start(const track_landmarks_options *o, const sh_image *fram
         sh_landmarks_params_default(&p);
     p.affine = o->affine;
     p.refine = o->refine;
+    if (o->confirm) p.confirm = o->confirm;
     p.max_points = o->n;
     p.highlight = sh_landmarks_highlight_level(frames[0].format, o->full_range);
     int rc = 0;

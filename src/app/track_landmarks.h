@@ -32,6 +32,7 @@ typedef struct {
     int full_range;        /* the videos' samples are full range (sh_landmarks_highlight_level) */
     const sh_calib *calib; /* NULL: 2D (camera 0 alone) */
     int refine;            /* --landmarks-refine (sh_landmarks_params.refine) */
+    int confirm;           /* --landmarks-confirm (sh_landmarks_params.confirm); 0: the tests' own */
     int reference;         /* --reference: the frame they are chosen in */
 } track_landmarks_options;
 

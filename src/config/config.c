@@ -73,6 +73,8 @@ static const keydef keys[] = {
      "landmarks searched through the markers' map's local affine: a third as many over 1 px off where the tissue deforms as with square windows (0)"},
     {"track", "landmarks_refine", "landmarks-refine", K_INT, PROC, F(landmarks_refine), 0, 0, 1000,
      "the reference's windows averaged with the landmarks' matches in the first N frames after it (0: the reference frame's own): half as many over 1 px off"},
+    {"track", "landmarks_confirm", "landmarks-confirm", K_INT, PROC, F(landmarks_confirm), 0, 0, 1000,
+     "a landmark used from its N-th pass of every test after the reference on (0: 4, and 1 with landmarks_sparse): a window on a cover's edge passes a few times"},
     {"track", "landmarks_smoothing", "landmarks-smoothing", K_DOUBLE, PROC, F(landmarks_smoothing), 0, 0, 1e9,
      "the landmarks' own smoothing in a tps map (the RBFs), the markers exact (0: interpolated too); at 1080p, 4 times it at 4K"},
     {"method", "name", "method", K_METHOD, PROC, F(method_name), S(method_name), 0, 0, "affine pwlinear bspline rbf-local[-pure] tps[-pure] gaussian[-pure]"},
@@ -446,6 +448,9 @@ static sh_status check_method(const sh_config *cfg, char *err)
     if (cfg->landmarks_refine != lp.refine && !cfg->landmarks)
         return refuse(cfg, "track", "landmarks_refine", err, "%d, but there are no landmarks ([track] landmarks = 0)",
                       cfg->landmarks_refine);
+    if (cfg->landmarks_confirm && !cfg->landmarks)
+        return refuse(cfg, "track", "landmarks_confirm", err, "%d, but there are no landmarks ([track] landmarks = 0)",
+                      cfg->landmarks_confirm);
     /* carried frames rest on the landmarks found in 2D (landmarks.h, "Carried frames") */
     if (cfg->landmarks_carry && !cfg->landmarks)
         return refuse(cfg, "gating", "landmarks_carry", err, "yes, but there are no landmarks ([track] landmarks = 0)");

@@ -137,6 +137,7 @@ static sh_status landmarks_create(run_proc *p, const sh_config *cfg, const sh_y4
         sh_landmarks_params_default(&lp);
     lp.affine = cfg->landmarks_affine;
     lp.refine = cfg->landmarks_refine;
+    if (cfg->landmarks_confirm) lp.confirm = cfg->landmarks_confirm;
     lp.max_points = p->lm_cap;
     lp.highlight = sh_landmarks_highlight_level(hdr->format, sh_y4m_header_full_range(hdr));
     run_models_set_landmarks(p->models, &lp, cfg->landmarks_smoothing);

@@ -488,6 +488,7 @@ static void test_method_refusals(void **state)
         /* the landmarks' smoothing: only with landmarks (and, below, a tps map) */
         {"tps", "track", "landmarks_smoothing", "500", "landmarks-smoothing", "500, but there are no landmarks"},
         {"tps", "track", "landmarks_refine", "0", "landmarks-refine", "0, but there are no landmarks"},
+        {"tps", "track", "landmarks_confirm", "1", "landmarks-confirm", "1, but there are no landmarks"},
         /* carried frames rest on the landmarks */
         {"tps", "gating", "landmarks_carry", "yes", "landmarks-carry", "yes, but there are no landmarks"},
     };

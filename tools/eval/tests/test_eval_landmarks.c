@@ -386,6 +386,29 @@ static void test_track_landmarks_through_the_warp(void **state)
     assert_non_null(strstr(test_out, "--landmarks-refine goes with --landmarks"));
     assert_int_equal(test_run("cd '%s' && '%s' track --landmarks 10 --landmarks-refine 1001 cam0.y4m", dir, APP_BIN), 2);
     assert_non_null(strstr(test_out, "--landmarks-refine"));
+    /* --landmarks-confirm K: a landmark's first K-1 passes after the reference are not used, and
+     * every other verdict and position is as at K = 1 (the refinement and the jump test take every
+     * pass). So, counted from the rows written at 1, the defaults' (4) are those less each
+     * landmark's first three after frame 0; and the sparse tests' own 1 (--landmarks-sparse)
+     * given 4 loses the same way. */
+    if (test_run("cd '%s' && '%s' track --quiet --ids 0-15 --landmarks 100 --landmarks-confirm 1 cam0.y4m > c1.csv && "
+                 "'%s' track --quiet --ids 0-15 --landmarks 100 --landmarks-sparse cam0.y4m > s1.csv && "
+                 "'%s' track --quiet --ids 0-15 --landmarks 100 --landmarks-sparse --landmarks-confirm 4 cam0.y4m "
+                 "> s4.csv", dir, APP_BIN, APP_BIN, APP_BIN) != 0)
+        fail_msg("%s\n%s", test_cmd, test_out);
+    const char *less3 = "awk -F, 'NR == 1 || $2 < 1000000 || $1 == 0 || ++n[$2] > 3'";
+    assert_int_equal(test_run("cd '%s' && %s c1.csv | cmp - landmarks.csv", dir, less3), 0);
+    assert_int_equal(test_run("cd '%s' && %s s1.csv | cmp - s4.csv", dir, less3), 0);
+    /* and something was held back in each */
+    assert_int_not_equal(test_run("cd '%s' && cmp -s c1.csv landmarks.csv", dir), 0);
+    assert_int_not_equal(test_run("cd '%s' && cmp -s s1.csv s4.csv", dir), 0);
+    assert_int_equal(test_run("cd '%s' && '%s' track --landmarks-confirm 2 cam0.y4m", dir, APP_BIN), 2);
+    assert_non_null(strstr(test_out, "--landmarks-confirm goes with --landmarks"));
+    for (int k = 0; k < 2; k++) {
+        assert_int_equal(test_run("cd '%s' && '%s' track --landmarks 10 --landmarks-confirm %d cam0.y4m", dir, APP_BIN,
+                                  k ? 1001 : 0), 2);
+        assert_non_null(strstr(test_out, "--landmarks-confirm: "));
+    }
     /* two markers make no hull: the markers are written, no landmark, and it is said */
     assert_int_equal(test_run("cd '%s' && { '%s' track --ids 0,1 --landmarks 10 cam0.y4m 2>&1 >two.csv; }", dir, APP_BIN), 0);
     assert_non_null(strstr(test_out, "frame 0 has 2 markers"));
@@ -600,6 +623,8 @@ static void daemon_against_track(const char *dir, const char *track_flags, const
         fail_msg("%s\n%s", test_cmd, test_out);
     assert_non_null(strstr(test_out, " landmarks"));
     assert_non_null(strstr(test_out, "landmark-frames: accepted"));
+    /* every pass used: none held back */
+    if (strstr(run_flags, "--landmarks-confirm 1")) assert_non_null(strstr(test_out, "unconfirmed 0"));
     int track_rows, shared, only_daemon;
     double far = rows_against_track(dir, &track_rows, &shared, &only_daemon);
     /* The reference's windows are refined from the landmarks accepted in its first frames
@@ -734,6 +759,10 @@ static void test_daemon_landmarks(void **state)
         /* the reference's own windows, not refined over the first frames ([track] landmarks_refine,
          * track --landmarks-refine): the same landmarks in both, not the defaults' */
         daemon_against_track(dir, "--landmarks-refine 0", "--landmarks-refine 0");
+        assert_int_not_equal(test_run("cd '%s' && cmp -s landmarks.csv affine.csv", dir), 0);
+        /* every pass used ([track] landmarks_confirm, track --landmarks-confirm; 4 by default):
+         * the daemon holds back what track holds back */
+        daemon_against_track(dir, "--landmarks-confirm 1", "--landmarks-confirm 1");
         assert_int_not_equal(test_run("cd '%s' && cmp -s landmarks.csv affine.csv", dir), 0);
     }
     /* B-splines follow a changing set too (their fit through the used points on the model's
