@@ -25,7 +25,9 @@
 # with the landmarks chosen on what covered the tissue there and how many of those were accepted
 # and more than 1 px from the tissue behind them; and the product's path from each (`stillheart
 # track --landmarks --reference N`, the tracker's markers, the rows judged by stillheart-eval
-# --landmark-rows --reference N: track_*); "" skips them.
+# --landmark-rows --reference N: track_*); and the four corner tags with the sparse tests from
+# each, each pass used at once and from the fourth on (NAME-4tags-sparse-confirm1 and -confirm4,
+# the evaluator's alone). "" skips them.
 set -eu
 BUILD=$(cd "$1" && pwd) OUT=$2 HERE=$(cd "$(dirname "$0")" && pwd)
 RENDER=$BUILD/stillheart-render EVAL=$BUILD/stillheart-eval APP=$BUILD/stillheart
@@ -57,6 +59,14 @@ from_references() { # from_references NAME DIR IDS
         "$APP" track --quiet --ids "$3" --landmarks "$LANDMARKS" --reference "$n" "$2/cam0.y4m" > "$2/ref.csv"
         "$EVAL" --json --truth "$2" --points "$2/ref.csv" --landmark-rows --reference "$n" > "$OUT/json/$k.json"
         echo "$1,$n,$(num "$j" seeded),$(num "$j" accepted),$(num "$j" over_1px),$(num "$j" hidden),$(num "$j" accepted_hidden),$(num "$j" chosen_covered),$(num "$j" accepted_covered),$(num "$j" over_1px_covered),$(num "$j" unjudged),$(num "$j" markers_mean),$(num "$j" landmarks_mean),$(num_first "$k" landmarks),$(num_first "$k" rows),$(num_first "$k" hidden),$(num_first "$k" over_1px image),$(num_first "$k" rows covered),$(num_first "$k" image_over_1px covered)" >> "$OUT/references.csv"
+        # the four corner tags with the sparse tests, each pass used at once (their default) and
+        # from the fourth on (--landmarks-confirm 4, the integrator's choice): the evaluator's alone
+        for c in 1 4; do
+            j=$1-4tags-sparse-confirm$c-ref$n
+            "$EVAL" --quiet --json --truth "$2" --points "$2/points4.csv" --landmarks "$LANDMARKS" --lm-sparse \
+                --lm-confirm "$c" --reference "$n" "$2/cam0.y4m" > "$OUT/json/$j.json"
+            echo "$1-4tags-sparse-confirm$c,$n,$(num "$j" seeded),$(num "$j" accepted),$(num "$j" over_1px),$(num "$j" hidden),$(num "$j" accepted_hidden),$(num "$j" chosen_covered),$(num "$j" accepted_covered),$(num "$j" over_1px_covered),$(num "$j" unjudged),$(num "$j" markers_mean),$(num "$j" landmarks_mean),,,,,," >> "$OUT/references.csv"
+        done
     done
     rm -f "$2/ref.csv"
 }
