@@ -167,6 +167,13 @@ typedef struct {
     double quality;      /* relative to the strongest response in the mask (0.01) */
     double min_distance; /* px between any two chosen points (10) */
     int block;           /* side of the gradients' summing window, odd, 3..31 (3 as OpenCV) */
+    /* 0 (OpenCV's order, the default): strongest first over the whole mask. N > 0: each corner
+     * ranked by its response over the strongest in its N x N cell of the plane (cells from its
+     * top left), that strongest taken as at least balance_floor times the mask's strongest: a
+     * cell of strong texture keeps its order, a cell of weak but trackable texture has its best
+     * corners taken with the strong cells' middling ones rather than after all of them. 0..4096 */
+    int balance_cell;
+    double balance_floor; /* 0..1; with balance_cell (0: each cell's strongest ranks first) */
 } sh_flow_corner_params;
 
 void sh_flow_corner_params_default(sh_flow_corner_params *p);
@@ -175,10 +182,10 @@ void sh_flow_corner_params_default(sh_flow_corner_params *p);
  * max_points pairs) and the count into *n. mask (may be NULL) is a plane of the same size: a
  * pixel may become a corner only where it is non-zero. Responses are local maxima of the
  * minimum eigenvalue over 3x3 pixels, at least quality times the strongest in the mask, taken
- * strongest first (ties by position, so the choice is the same on every run) with no two
- * closer than min_distance. About 8 bytes of scratch a pixel (the gradients, then the
- * responses) are allocated per call: this runs once per reference or re-seeding, not per
- * frame. */
+ * strongest first (ties by position, so the choice is the same on every run; with
+ * balance_cell, strongest for their cell) with no two closer than min_distance. About 8 bytes
+ * of scratch a pixel (the gradients, then the responses) are allocated per call: this runs
+ * once per reference or re-seeding, not per frame. */
 sh_status sh_flow_corners(const sh_plane *luma, const sh_plane *mask,
                           const sh_flow_corner_params *params, float *xy, int *n);
 

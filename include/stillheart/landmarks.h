@@ -135,6 +135,13 @@ typedef struct {
     int max_points;             /* at most this many landmarks (200) */
     double min_distance;        /* px between two landmarks (14) */
     double quality;             /* corner response relative to the strongest allowed (0.003) */
+    int balance_cell;           /* the choice ranked within cells of this side (px of the frame
+                                 * the landmarks are chosen in), each cell's strongest taken as at
+                                 * least balance_floor of the strongest allowed: a field whose
+                                 * texture is weak in part still gets landmarks there
+                                 * (sh_flow_corner_params). 0 (the defaults): strongest first;
+                                 * the sparse tests' 40, floor 0.1. 0 to 4096 */
+    double balance_floor;       /* 0 to 1 */
     double tag_margin;          /* px kept clear beyond each tag's white quiet zone, which is
                                  * taken as one module, an eighth of the quad's side (the
                                  * families' tags have one white module round their black

@@ -68,7 +68,7 @@ static const keydef keys[] = {
     {"track", "landmarks", "landmarks", K_INT, PROC, F(landmarks), 0, 0, 2000,
      "natural landmarks of the tissue besides the markers (0: none; tps, bspline, pwlinear (2D), affine; in 3D found in every camera)"},
     {"track", "landmarks_sparse", "landmarks-sparse", K_BOOL, PROC, F(landmarks_sparse), 0, 0, 1,
-     "landmarks for markers too sparse for their map (four at the corners): the disagreement bound follows the map's measured error"},
+     "landmarks for markers too sparse for their map (four at the corners): the disagreement bound follows the map's measured error, the choice balanced over the field"},
     {"track", "landmarks_affine", "landmarks-affine", K_BOOL, PROC, F(landmarks_affine), 0, 0, 1,
      "landmarks searched through the markers' map's local affine: a third as many over 1 px off where the tissue deforms as with square windows (0)"},
     {"track", "landmarks_refine", "landmarks-refine", K_INT, PROC, F(landmarks_refine), 0, 0, 1000,

@@ -16,6 +16,8 @@ void sh_flow_corner_params_default(sh_flow_corner_params *p)
     p->quality = 0.01;
     p->min_distance = 10.0;
     p->block = 3;
+    p->balance_cell = 0;
+    p->balance_floor = 0;
 }
 
 typedef struct {
@@ -111,6 +113,26 @@ static int collect(const float *eig, int w, int h, const sh_plane *mask, candida
     return n;
 }
 
+/* balance_cell (sh_flow_corner_params): each candidate's response over its cell's strongest,
+ * floored at balance_floor times top (the mask's strongest). 0 where out of memory. */
+static int balance(candidate *c, int nc, int w, int h, const sh_flow_corner_params *prm, float top)
+{
+    const int cell = prm->balance_cell, gw = (w + cell - 1) / cell, gh = (h + cell - 1) / cell;
+    float *best = calloc((size_t)gw * (size_t)gh, sizeof *best);
+    if (!best) return 0;
+    for (int i = 0; i < nc; i++) {
+        float *b = &best[(c[i].at / w) / cell * gw + (c[i].at % w) / cell];
+        if (c[i].v > *b) *b = c[i].v;
+    }
+    const float floor_v = (float)(prm->balance_floor * top);
+    for (int i = 0; i < nc; i++) {
+        const float b = best[(c[i].at / w) / cell * gw + (c[i].at % w) / cell];
+        c[i].v /= b > floor_v ? b : floor_v;
+    }
+    free(best);
+    return 1;
+}
+
 /* The side of the distance grid's cells: the distance, or 0 (no grid, no check) below 1 px. */
 static int grid_cell(const sh_flow_corner_params *prm)
 {
@@ -166,12 +188,14 @@ sh_status sh_flow_corners(const sh_plane *luma, const sh_plane *mask,
                             mask->width, mask->height, w, h);
     if (prm->max_points < 1 || prm->max_points > MAX_CORNERS || !(prm->quality > 0) ||
         prm->quality > 1 || !(prm->min_distance >= 0) || prm->min_distance > w + h ||
-        prm->block < 3 || prm->block > 31 || prm->block % 2 == 0)
+        prm->block < 3 || prm->block > 31 || prm->block % 2 == 0 || prm->balance_cell < 0 ||
+        prm->balance_cell > 4096 || !(prm->balance_floor >= 0 && prm->balance_floor <= 1))
         return sh_error_set(SH_EINVAL,
-                            "flow: corners: %d points, quality %g, distance %g, block %d: need "
-                            "1..%d points, quality in (0, 1], distance 0..%d, an odd block 3..31",
+                            "flow: corners: %d points, quality %g, distance %g, block %d, balance %d "
+                            "(floor %g): need 1..%d points, quality in (0, 1], distance 0..%d, an "
+                            "odd block 3..31, a balance cell 0..4096 with a floor in [0, 1]",
                             prm->max_points, prm->quality, prm->min_distance, prm->block,
-                            MAX_CORNERS, w + h);
+                            prm->balance_cell, prm->balance_floor, MAX_CORNERS, w + h);
     const size_t px = (size_t)w * (size_t)h;
     const int cell = grid_cell(prm);
     const size_t cells = cell ? (size_t)((w + cell - 1) / cell) * (size_t)((h + cell - 1) / cell) : 1;
@@ -199,6 +223,7 @@ sh_status sh_flow_corners(const sh_plane *luma, const sh_plane *mask,
     cand = malloc((size_t)(nc > 0 ? nc : 1) * sizeof *cand);
     if (!cand) goto nomem;
     collect(eig, w, h, mask, cand);
+    if (prm->balance_cell > 0 && !balance(cand, nc, w, h, prm, top)) goto nomem;
     qsort(cand, (size_t)nc, sizeof *cand, stronger);
     *n = spread(cand, nc, w, h, prm, head, next, xy);
     goto out;

@@ -619,6 +619,61 @@ static void test_corners_of_a_checkerboard(void **state)
     sh_image_destroy(&mask);
 }
 
+/* balance_cell ranks each corner by its response over its cell's strongest: on a checkerboard
+ * whose left half has a tenth of the right's contrast (a hundredth of the response), strongest
+ * first takes only the right half's corners while there are enough; ranked within 16 px cells,
+ * which hold one corner each, every corner scores 1, as on a board of even contrast ranked so,
+ * and the choice is that board's to the order (by position, as ties are); a floor of 1 (every cell's strongest taken as the
+ * frame's) is strongest first again. */
+static void test_corners_balanced(void **state)
+{
+    (void)state;
+    const int w = 160, h = 128, sq = 16;
+    sh_image even, weak, mask;
+    assert_int_equal(sh_image_create(&even, SH_PIX_GRAY8, w, h), SH_OK);
+    assert_int_equal(sh_image_create(&weak, SH_PIX_GRAY8, w, h), SH_OK);
+    assert_int_equal(sh_image_create(&mask, SH_PIX_GRAY8, w, h), SH_OK);
+    for (int y = 0; y < h; y++)
+        for (int x = 0; x < w; x++) {
+            int dark = (x / sq + y / sq) % 2;
+            even.plane[0].data[(size_t)y * even.plane[0].stride + x] = dark ? 215 : 40;
+            weak.plane[0].data[(size_t)y * weak.plane[0].stride + x] = x < w / 2 ? (dark ? 136 : 119) : (dark ? 215 : 40);
+            /* off the column of corners between the halves, whose squares differ in contrast */
+            mask.plane[0].data[(size_t)y * mask.plane[0].stride + x] = abs(x - w / 2) > sq / 2;
+        }
+    enum { CAP = 28 };
+    sh_flow_corner_params cp;
+    sh_flow_corner_params_default(&cp);
+    cp.quality = 0.005;
+    cp.min_distance = 8;
+    float a[2 * CAP], b[2 * CAP], c[2 * CAP];
+    int na, nb, nc;
+    cp.max_points = 500;
+    float all[2 * 500];
+    const sh_plane *m = &mask.plane[0];
+    assert_int_equal(sh_flow_corners(&even.plane[0], m, &cp, all, &na), SH_OK);
+    assert_int_equal(na, (w / sq - 2) * (h / sq - 1)); /* the inner corners alone, less the middle's */
+    cp.max_points = CAP;
+    assert_int_equal(sh_flow_corners(&weak.plane[0], m, &cp, a, &na), SH_OK);
+    assert_int_equal(na, CAP);
+    for (int i = 0; i < na; i++) assert_true(a[2 * i] > w / 2); /* 4 x 7 corners right of the middle */
+    cp.balance_cell = sq;
+    assert_int_equal(sh_flow_corners(&even.plane[0], m, &cp, c, &nc), SH_OK);
+    assert_int_equal(sh_flow_corners(&weak.plane[0], m, &cp, b, &nb), SH_OK);
+    assert_int_equal(nb, nc);
+    assert_memory_equal(b, c, sizeof(float) * 2 * (size_t)nc);
+    int left = 0;
+    for (int i = 0; i < nb; i++) left += b[2 * i] < w / 2;
+    assert_true(left > 0);
+    cp.balance_floor = 1;
+    assert_int_equal(sh_flow_corners(&weak.plane[0], m, &cp, b, &nb), SH_OK);
+    assert_int_equal(nb, na);
+    assert_memory_equal(b, a, sizeof(float) * 2 * (size_t)na);
+    sh_image_destroy(&even);
+    sh_image_destroy(&weak);
+    sh_image_destroy(&mask);
+}
+
 /* The landmarks look for corners in the box of their mask grown by 2 + block / 2 px alone
  * (src/landmarks, mask_box): on a textured frame with a disc-shaped mask, the corners of that box
  * (a view with the frame's stride), moved by its origin, are those of the whole frame, in the
@@ -800,6 +855,12 @@ static void test_refusals(void **state)
     cp.quality = 0;
     assert_int_equal(sh_flow_corners(&img.plane[0], NULL, &cp, xy, &n), SH_EINVAL);
     cp.quality = 0.01;
+    const struct { int cell; double floor; } bad_balance[] = {{-1, 0}, {4097, 0}, {16, -0.1}, {16, 1.5}, {16, NAN}};
+    for (size_t k = 0; k < sizeof bad_balance / sizeof bad_balance[0]; k++) {
+        cp.balance_cell = bad_balance[k].cell, cp.balance_floor = bad_balance[k].floor;
+        assert_int_equal(sh_flow_corners(&img.plane[0], NULL, &cp, xy, &n), SH_EINVAL);
+    }
+    cp.balance_cell = 0, cp.balance_floor = 0;
     sh_image small;
     assert_int_equal(sh_image_create(&small, SH_PIX_GRAY8, 32, 64), SH_OK);
     assert_int_equal(sh_flow_corners(&img.plane[0], &small.plane[0], &cp, xy, &n), SH_EINVAL);
@@ -826,6 +887,7 @@ int main(void)
         cmocka_unit_test(test_windows_same_as_track),
         cmocka_unit_test(test_warped_window_follows_an_affine),
         cmocka_unit_test(test_corners_of_a_checkerboard),
+        cmocka_unit_test(test_corners_balanced),
         cmocka_unit_test(test_corners_in_the_masks_box),
         cmocka_unit_test(test_window_difference),
         cmocka_unit_test(test_window_correlation),

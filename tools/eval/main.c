@@ -121,8 +121,10 @@ static void usage(FILE *f)
         "                     disagreement bound follows the frame's measured map error\n"
         "                     (--lm-bound-factor 4) and the neighbour test expects a plane\n"
         "                     (--lm-plane), and the searches use 3 pyramid levels, not 1 (the\n"
-        "                     map may be 10 px off), and the windows must correlate\n"
-        "                     (--lm-correlation 0.4), as `stillheart track --landmarks-sparse`\n"
+        "                     map may be 10 px off), the windows must correlate\n"
+        "                     (--lm-correlation 0.4), each pass is used at once (--lm-confirm 1)\n"
+        "                     and the choice is balanced over the field (--lm-balance 40), as\n"
+        "                     `stillheart track --landmarks-sparse`\n"
         "  --lm-bound-factor K  the bound: K times the median distance from the map of the\n"
         "                     landmarks the tests before it keep, never below --lm-disagreement\n"
         "  --lm-plane         the neighbour test expects the planes through three neighbours\n"
@@ -145,6 +147,9 @@ static void usage(FILE *f)
         "                     reference on, its first K-1 counted unconfirmed (1-1000; default\n"
         "                     4, since 2026-12-07; 1 with --lm-sparse, given after it to change;\n"
         "                     1: at once)\n"
+        "  --lm-balance N     the choice ranked within N px cells, each cell's strongest corner\n"
+        "                     taken as at least a tenth of the frame's (0-4096; 0: strongest\n"
+        "                     first, the default; 40 with --lm-sparse, given after it to change)\n"
         "  --lm-reduce K      the landmarks chosen and found in the frame halved K times (0-4;\n"
         "                     default: automatic, once at 4K, none at 1080p), every length of\n"
         "                     the tests in the halved frame's pixels\n"
@@ -595,6 +600,7 @@ int main(int argc, char **argv)
         {"lm-jump", required_argument, 0, 1015}, {"lm-reduce", required_argument, 0, 1016},
         {"lm-correlation", required_argument, 0, 1017}, {"lm-refine", required_argument, 0, 1018},
         {"lm-relative", required_argument, 0, 1019}, {"lm-confirm", required_argument, 0, 1020},
+        {"lm-balance", required_argument, 0, 1021},
         {"json", no_argument, 0, 'j'},           SH_CLI_OPTIONS, {0, 0, 0, 0}};
     options o = {.stride = 4, .heatmap_max = 0.2, .heatmap_scale = 1, .contours = 4, .max_error = 0.05,
                  .landmark_smoothing = SH_LANDMARK_SMOOTHING};
@@ -641,6 +647,9 @@ int main(int argc, char **argv)
         case 1017: if (!sh_cli_parse_double("--lm-correlation", optarg, 0, 0.999, &o.lp.min_correlation)) return 2; break;
         case 1018: if (!sh_cli_parse_int("--lm-refine", optarg, 0, 1000, &o.lp.refine)) return 2; break;
         case 1020: if (!sh_cli_parse_int("--lm-confirm", optarg, 1, 1000, &o.lp.confirm)) return 2; break;
+        case 1021: if (!sh_cli_parse_int("--lm-balance", optarg, 0, 4096, &o.lp.balance_cell)) return 2;
+                   if (o.lp.balance_cell && !(o.lp.balance_floor > 0)) o.lp.balance_floor = 0.1;
+                   break;
         case 1019: if (!sh_cli_parse_double("--lm-relative", optarg, 0, 1000, &o.lp.max_relative)) return 2;
                    if (o.lp.max_relative > 0 && o.lp.max_relative < 1) return sh_cli_usage_error(&cli, "--lm-relative: 0 (no test) or 1 to 1000");
                    break;
