@@ -623,8 +623,8 @@ static void test_corners_of_a_checkerboard(void **state)
  * whose left half has a tenth of the right's contrast (a hundredth of the response), strongest
  * first takes only the right half's corners while there are enough; ranked within 16 px cells,
  * which hold one corner each, every corner scores 1, as on a board of even contrast ranked so,
- * and the choice is that board's to the order (by position, as ties are); a floor of 1 (every cell's strongest taken as the
- * frame's) is strongest first again. */
+ * and the choice is that board's to the order (by position, as ties are); a floor of 1 (every
+ * cell's strongest taken as the frame's) is strongest first again. */
 static void test_corners_balanced(void **state)
 {
     (void)state;

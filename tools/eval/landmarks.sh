@@ -48,6 +48,11 @@ run() { # run NAME DIR POINTS [EVAL OPTIONS]
     echo "$1,$(num "$1" seeded),$(num "$1" accepted),$(num "$1" measured),$(num "$1" mean),$(num "$1" p99),$(num "$1" max),$(num "$1" over_1px),$(num "$1" hidden),$(num "$1" accepted_hidden),$(num "$1" map_mean),$(num "$1" markers_mean),$(num "$1" markers_p95),$(num "$1" landmarks_mean),$(num "$1" landmarks_p95),$(num "$1" ms_median),$(num "$1" unpredicted_frames),$(num "$1" accepted_partly_hidden),$(num "$1" over_1px_partly_hidden)" >> "$OUT/landmarks.csv"
 }
 
+# The evaluator's columns of references.csv from OUT/json/J.json (J: a run from a reference).
+eval_columns() {
+    echo "$(num "$1" seeded),$(num "$1" accepted),$(num "$1" over_1px),$(num "$1" hidden),$(num "$1" accepted_hidden),$(num "$1" chosen_covered),$(num "$1" accepted_covered),$(num "$1" over_1px_covered),$(num "$1" unjudged),$(num "$1" markers_mean),$(num "$1" landmarks_mean)"
+}
+
 # The same render from other references: every reference in REFERENCES before the render's end,
 # through the evaluator (the truth's markers) and through `stillheart track --reference`.
 from_references() { # from_references NAME DIR IDS
@@ -58,14 +63,14 @@ from_references() { # from_references NAME DIR IDS
             "$2/cam0.y4m" > "$OUT/json/$j.json"
         "$APP" track --quiet --ids "$3" --landmarks "$LANDMARKS" --reference "$n" "$2/cam0.y4m" > "$2/ref.csv"
         "$EVAL" --json --truth "$2" --points "$2/ref.csv" --landmark-rows --reference "$n" > "$OUT/json/$k.json"
-        echo "$1,$n,$(num "$j" seeded),$(num "$j" accepted),$(num "$j" over_1px),$(num "$j" hidden),$(num "$j" accepted_hidden),$(num "$j" chosen_covered),$(num "$j" accepted_covered),$(num "$j" over_1px_covered),$(num "$j" unjudged),$(num "$j" markers_mean),$(num "$j" landmarks_mean),$(num_first "$k" landmarks),$(num_first "$k" rows),$(num_first "$k" hidden),$(num_first "$k" over_1px image),$(num_first "$k" rows covered),$(num_first "$k" image_over_1px covered)" >> "$OUT/references.csv"
+        echo "$1,$n,$(eval_columns "$j"),$(num_first "$k" landmarks),$(num_first "$k" rows),$(num_first "$k" hidden),$(num_first "$k" over_1px image),$(num_first "$k" rows covered),$(num_first "$k" image_over_1px covered)" >> "$OUT/references.csv"
         # the four corner tags with the sparse tests, each pass used at once (their default) and
         # from the fourth on (--landmarks-confirm 4, the integrator's choice): the evaluator's alone
         for c in 1 4; do
             j=$1-4tags-sparse-confirm$c-ref$n
             "$EVAL" --quiet --json --truth "$2" --points "$2/points4.csv" --landmarks "$LANDMARKS" --lm-sparse \
                 --lm-confirm "$c" --reference "$n" "$2/cam0.y4m" > "$OUT/json/$j.json"
-            echo "$1-4tags-sparse-confirm$c,$n,$(num "$j" seeded),$(num "$j" accepted),$(num "$j" over_1px),$(num "$j" hidden),$(num "$j" accepted_hidden),$(num "$j" chosen_covered),$(num "$j" accepted_covered),$(num "$j" over_1px_covered),$(num "$j" unjudged),$(num "$j" markers_mean),$(num "$j" landmarks_mean),,,,,," >> "$OUT/references.csv"
+            echo "$1-4tags-sparse-confirm$c,$n,$(eval_columns "$j"),,,,,," >> "$OUT/references.csv"
         done
     done
     rm -f "$2/ref.csv"

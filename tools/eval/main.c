@@ -648,7 +648,11 @@ int main(int argc, char **argv)
         case 1018: if (!sh_cli_parse_int("--lm-refine", optarg, 0, 1000, &o.lp.refine)) return 2; break;
         case 1020: if (!sh_cli_parse_int("--lm-confirm", optarg, 1, 1000, &o.lp.confirm)) return 2; break;
         case 1021: if (!sh_cli_parse_int("--lm-balance", optarg, 0, 4096, &o.lp.balance_cell)) return 2;
-                   if (o.lp.balance_cell && !(o.lp.balance_floor > 0)) o.lp.balance_floor = 0.1;
+                   if (o.lp.balance_cell && !(o.lp.balance_floor > 0)) { /* the sparse tests' floor */
+                       sh_landmarks_params sparse;
+                       sh_landmarks_params_sparse(&sparse);
+                       o.lp.balance_floor = sparse.balance_floor;
+                   }
                    break;
         case 1019: if (!sh_cli_parse_double("--lm-relative", optarg, 0, 1000, &o.lp.max_relative)) return 2;
                    if (o.lp.max_relative > 0 && o.lp.max_relative < 1) return sh_cli_usage_error(&cli, "--lm-relative: 0 (no test) or 1 to 1000");
